@@ -1,0 +1,412 @@
+//! CSV files as the interface contract defines them.
+//!
+//! Comma separated, UTF-8, one header row; lines starting with `#` before the header are
+//! comments (kept in [`Table::comments`]); blank lines and later `#` lines are skipped. Columns may
+//! come in any order and unknown columns are kept so commands can pass them through. Fields may
+//! be double-quoted (no embedded newlines).
+//!
+//! [`Table::read`] loads the file and indexes its rows (one `memchr` pass); typed access
+//! ([`Table::f64_columns`]) parses the requested columns of all rows in parallel and reports
+//! the first bad value with file, line, column number and column name. Ragged rows are errors.
+//! [`CsvWriter`] writes rows with shortest round-trip float formatting.
+
+use crate::InputError;
+use rayon::prelude::*;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// A parsed CSV file: the text, the header and the byte offset of each data row.
+pub struct Table {
+    pub path: PathBuf,
+    text: String,
+    pub header: Vec<String>,
+    /// Comment lines before the header, without the leading `#` and surrounding spaces.
+    pub comments: Vec<String>,
+    /// Byte offset of the start of each data row.
+    rows: Vec<usize>,
+}
+
+/// Split one CSV line into field byte ranges (relative to the line), honouring double quotes.
+#[inline]
+fn split_fields(line: &str, out: &mut Vec<(usize, usize)>) {
+    out.clear();
+    let b = line.as_bytes();
+    let mut i = 0;
+    loop {
+        // Leading spaces.
+        let mut s = i;
+        while s < b.len() && (b[s] == b' ' || b[s] == b'\t') {
+            s += 1;
+        }
+        if s < b.len() && b[s] == b'"' {
+            let start = s + 1;
+            let mut j = start;
+            while j < b.len() {
+                if b[j] == b'"' {
+                    if j + 1 < b.len() && b[j + 1] == b'"' {
+                        j += 2;
+                        continue;
+                    }
+                    break;
+                }
+                j += 1;
+            }
+            out.push((start, j.min(b.len())));
+            let next = memchr::memchr(b',', &b[j.min(b.len())..]).map(|p| j + p);
+            match next {
+                Some(c) => i = c + 1,
+                None => return,
+            }
+        } else {
+            let end = memchr::memchr(b',', &b[i..]).map_or(b.len(), |p| i + p);
+            let mut e = end;
+            while e > s && (b[e - 1] == b' ' || b[e - 1] == b'\t') {
+                e -= 1;
+            }
+            out.push((s, e));
+            if end == b.len() {
+                return;
+            }
+            i = end + 1;
+        }
+    }
+}
+
+fn line_of(text: &str, offset: usize) -> usize {
+    memchr::memchr_iter(b'\n', &text.as_bytes()[..offset]).count() + 1
+}
+
+fn trim_line(line: &str) -> &str {
+    line.strip_suffix('\r').unwrap_or(line)
+}
+
+impl std::fmt::Debug for Table {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Table").field("path", &self.path).field("header", &self.header).field("rows", &self.rows.len()).finish()
+    }
+}
+
+impl Table {
+    /// Read and index a CSV file.
+    pub fn read(path: impl AsRef<Path>) -> Result<Self, InputError> {
+        let path = path.as_ref();
+        let bytes = std::fs::read(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+        Self::from_bytes(path, bytes)
+    }
+
+    /// Index CSV data that came from `path` (used in messages).
+    pub fn from_bytes(path: impl AsRef<Path>, bytes: Vec<u8>) -> Result<Self, InputError> {
+        let path = path.as_ref().to_path_buf();
+        if let Some(p) = memchr::memchr(0, &bytes) {
+            let line = memchr::memchr_iter(b'\n', &bytes[..p]).count() + 1;
+            return Err(InputError::at(&path, line, None, "binary data (NUL byte): not a CSV text file"));
+        }
+        let text = match String::from_utf8(bytes) {
+            Ok(t) => t,
+            Err(e) => {
+                let p = e.utf8_error().valid_up_to();
+                let b = e.as_bytes();
+                let line = memchr::memchr_iter(b'\n', &b[..p]).count() + 1;
+                return Err(InputError::at(&path, line, None, "not valid UTF-8 text: not a CSV file"));
+            }
+        };
+        let start = if text.starts_with('\u{feff}') { 3 } else { 0 };
+        let mut comments = Vec::new();
+        let mut header = None;
+        let mut rows = Vec::new();
+        let mut pos = start;
+        let bytes = text.as_bytes();
+        let mut fields = Vec::new();
+        while pos < bytes.len() {
+            let end = memchr::memchr(b'\n', &bytes[pos..]).map_or(bytes.len(), |p| pos + p);
+            let line = trim_line(&text[pos..end]);
+            let trimmed = line.trim_start();
+            if trimmed.is_empty() {
+            } else if trimmed.starts_with('#') {
+                if header.is_none() {
+                    comments.push(trimmed[1..].trim().to_string());
+                }
+            } else if header.is_none() {
+                split_fields(line, &mut fields);
+                let names: Vec<String> = fields.iter().map(|&(a, b)| line[a..b].to_string()).collect();
+                let lineno = line_of(&text, pos);
+                for (i, n) in names.iter().enumerate() {
+                    if n.is_empty() {
+                        return Err(InputError::at(&path, lineno, Some(i + 1), "empty column name in the header"));
+                    }
+                    if names[..i].contains(n) {
+                        return Err(InputError::at(&path, lineno, Some(i + 1), format!("duplicate column '{n}' in the header")));
+                    }
+                }
+                header = Some(names);
+            } else {
+                rows.push(pos);
+            }
+            pos = end + 1;
+        }
+        let Some(header) = header else {
+            return Err(InputError::in_file(&path, "empty file: no header row"));
+        };
+        Ok(Self { path, text, header, comments, rows })
+    }
+
+    pub fn n_rows(&self) -> usize {
+        self.rows.len()
+    }
+
+    /// Index of a column by name.
+    pub fn column(&self, name: &str) -> Option<usize> {
+        self.header.iter().position(|h| h == name)
+    }
+
+    /// Index of a required column, or an error naming it.
+    pub fn require(&self, name: &str) -> Result<usize, InputError> {
+        self.column(name).ok_or_else(|| {
+            InputError::at(&self.path, self.header_line(), None, format!("missing required column '{name}' (columns: {})", self.header.join(",")))
+        })
+    }
+
+    fn header_line(&self) -> usize {
+        // The header is the line before the first data row, or found by scanning.
+        let mut line = 1;
+        for l in self.text.lines() {
+            let t = l.trim_start().trim_start_matches('\u{feff}');
+            if !t.is_empty() && !t.starts_with('#') {
+                return line;
+            }
+            line += 1;
+        }
+        1
+    }
+
+    /// 1-based line number of data row `row`.
+    pub fn line_number(&self, row: usize) -> usize {
+        line_of(&self.text, self.rows[row])
+    }
+
+    /// The raw text of data row `row` (without line ending).
+    pub fn row_text(&self, row: usize) -> &str {
+        let s = self.rows[row];
+        let b = self.text.as_bytes();
+        let e = memchr::memchr(b'\n', &b[s..]).map_or(b.len(), |p| s + p);
+        trim_line(&self.text[s..e])
+    }
+
+    /// The fields of data row `row`, checked against the header width.
+    pub fn fields<'a>(&'a self, row: usize, buf: &mut Vec<(usize, usize)>) -> Result<Vec<&'a str>, InputError> {
+        let line = self.row_text(row);
+        split_fields(line, buf);
+        if buf.len() != self.header.len() {
+            return Err(self.ragged(row, buf.len()));
+        }
+        Ok(buf.iter().map(|&(a, b)| &line[a..b]).collect())
+    }
+
+    fn ragged(&self, row: usize, got: usize) -> InputError {
+        InputError::at(
+            &self.path,
+            self.line_number(row),
+            Some(got.min(self.header.len()) + 1),
+            format!("ragged row: {got} fields, the header has {}", self.header.len()),
+        )
+    }
+
+    /// Parse the named columns of every row as finite `f64`, row-major (`k` values per row).
+    /// Rows are parsed in parallel; the first bad row (in file order) is reported.
+    pub fn f64_columns(&self, names: &[&str]) -> Result<Vec<f64>, InputError> {
+        let idx: Vec<usize> = names.iter().map(|n| self.require(n)).collect::<Result<_, _>>()?;
+        self.f64_columns_at(&idx)
+    }
+
+    /// As [`f64_columns`](Self::f64_columns) with column indices.
+    pub fn f64_columns_at(&self, idx: &[usize]) -> Result<Vec<f64>, InputError> {
+        let k = idx.len();
+        let n = self.rows.len();
+        let mut out = vec![0.0; n * k];
+        const CHUNK: usize = 16 * 1024;
+        let width = self.header.len();
+        let errors: Vec<(usize, usize, String)> = out
+            .par_chunks_mut(CHUNK * k.max(1))
+            .enumerate()
+            .filter_map(|(c, dst)| {
+                let mut buf = Vec::with_capacity(width);
+                let first = c * CHUNK;
+                for (r, d) in dst.chunks_mut(k.max(1)).enumerate() {
+                    let row = first + r;
+                    let line = self.row_text(row);
+                    split_fields(line, &mut buf);
+                    if buf.len() != width {
+                        return Some((row, usize::MAX, buf.len().to_string()));
+                    }
+                    for (j, &col) in idx.iter().enumerate() {
+                        let (a, b) = buf[col];
+                        let s = &line[a..b];
+                        match parse_f64(s) {
+                            Some(v) => d[j] = v,
+                            None => return Some((row, col, s.to_string())),
+                        }
+                    }
+                }
+                None
+            })
+            .collect();
+        if let Some((row, col, s)) = errors.into_iter().min_by_key(|e| e.0) {
+            if col == usize::MAX {
+                return Err(self.ragged(row, s.parse().unwrap_or(0)));
+            }
+            let what = if s.is_empty() {
+                "empty value where a number is required".to_string()
+            } else if s.parse::<f64>().is_ok() {
+                format!("not a finite number: '{s}'")
+            } else {
+                format!("not a number: '{}'", s.chars().take(40).collect::<String>())
+            };
+            return Err(InputError::at(&self.path, self.line_number(row), Some(col + 1), what)
+                .with_column_name(self.header[col].clone()));
+        }
+        Ok(out)
+    }
+
+    /// One numeric column.
+    pub fn f64_column(&self, name: &str) -> Result<Vec<f64>, InputError> {
+        self.f64_columns(&[name])
+    }
+
+    /// One text column (fields as written, quotes removed).
+    pub fn str_column(&self, name: &str) -> Result<Vec<String>, InputError> {
+        let col = self.require(name)?;
+        let mut buf = Vec::new();
+        (0..self.rows.len())
+            .map(|r| self.fields(r, &mut buf).map(|f| f[col].to_string()))
+            .collect()
+    }
+
+    /// Check that every row has as many fields as the header.
+    pub fn check_rectangular(&self) -> Result<(), InputError> {
+        self.f64_columns_at(&[]).map(|_| ())
+    }
+}
+
+/// Parse a finite float (surrounding spaces already trimmed).
+#[inline]
+pub fn parse_f64(s: &str) -> Option<f64> {
+    let v: f64 = s.parse().ok()?;
+    v.is_finite().then_some(v)
+}
+
+/// Write CSV rows with a header; floats in shortest round-trip form.
+pub struct CsvWriter<W: Write> {
+    w: W,
+    first: bool,
+}
+
+impl<W: Write> CsvWriter<W> {
+    pub fn new(w: W) -> Self {
+        Self { w, first: true }
+    }
+    /// Write `# text` comment lines (before the header).
+    pub fn comment(&mut self, text: &str) -> std::io::Result<()> {
+        writeln!(self.w, "# {text}")
+    }
+    pub fn header(&mut self, names: &[&str]) -> std::io::Result<()> {
+        writeln!(self.w, "{}", names.join(","))
+    }
+    /// Append one field to the current row.
+    pub fn field_str(&mut self, s: &str) -> std::io::Result<()> {
+        if !self.first {
+            self.w.write_all(b",")?;
+        }
+        self.first = false;
+        if s.contains(',') || s.contains('"') {
+            write!(self.w, "\"{}\"", s.replace('"', "\"\""))
+        } else {
+            self.w.write_all(s.as_bytes())
+        }
+    }
+    pub fn field_f64(&mut self, v: f64) -> std::io::Result<()> {
+        if !self.first {
+            self.w.write_all(b",")?;
+        }
+        self.first = false;
+        write!(self.w, "{v}")
+    }
+    /// Append a raw, already formatted CSV fragment (e.g. a passed-through row).
+    pub fn raw(&mut self, s: &str) -> std::io::Result<()> {
+        if !self.first {
+            self.w.write_all(b",")?;
+        }
+        self.first = false;
+        self.w.write_all(s.as_bytes())
+    }
+    pub fn end_row(&mut self) -> std::io::Result<()> {
+        self.first = true;
+        self.w.write_all(b"\n")
+    }
+    pub fn row_f64(&mut self, v: &[f64]) -> std::io::Result<()> {
+        for x in v {
+            self.field_f64(*x)?;
+        }
+        self.end_row()
+    }
+    pub fn into_inner(self) -> W {
+        self.w
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn table(s: &str) -> Result<Table, InputError> {
+        Table::from_bytes("t.csv", s.as_bytes().to_vec())
+    }
+
+    #[test]
+    fn comments_any_order_unknown_columns() {
+        let t = table("# unit_load_n = 1000\n# second\nz_mm, id ,x_mm,y_mm,extra\n3,\"a,b\",1,2,keep\r\n\n6,b,4,5,keep2\n").unwrap();
+        assert_eq!(t.comments, vec!["unit_load_n = 1000", "second"]);
+        assert_eq!(t.header, vec!["z_mm", "id", "x_mm", "y_mm", "extra"]);
+        assert_eq!(t.f64_columns(&["x_mm", "y_mm", "z_mm"]).unwrap(), vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0]);
+        assert_eq!(t.str_column("id").unwrap(), vec!["a,b", "b"]);
+        assert_eq!(t.row_text(1), "6,b,4,5,keep2");
+        assert_eq!(t.line_number(1), 6);
+    }
+
+    #[test]
+    fn errors_name_line_and_column() {
+        let t = table("x_mm,y_mm,z_mm\n1,2,3\n1,abc,3\n").unwrap();
+        let e = t.f64_columns(&["x_mm", "y_mm", "z_mm"]).unwrap_err();
+        assert_eq!((e.line, e.column), (Some(3), Some(2)));
+        assert!(e.to_string().contains("y_mm") && e.to_string().contains("abc"), "{e}");
+
+        let t = table("x_mm,y_mm,z_mm\n1,2,NaN\n").unwrap();
+        let e = t.f64_columns(&["x_mm", "y_mm", "z_mm"]).unwrap_err();
+        assert_eq!((e.line, e.column), (Some(2), Some(3)));
+        assert!(e.to_string().contains("finite"));
+
+        let t = table("x_mm,y_mm,z_mm\n1,2,3\n1,2\n").unwrap();
+        let e = t.f64_columns(&["x_mm"]).unwrap_err();
+        assert_eq!(e.line, Some(3));
+        assert!(e.to_string().contains("ragged"));
+
+        let t = table("# c\nx_mm,y_mm\n1,2\n").unwrap();
+        let e = t.f64_columns(&["x_mm", "y_mm", "z_mm"]).unwrap_err();
+        assert_eq!(e.line, Some(2));
+        assert!(e.to_string().contains("z_mm"));
+
+        assert!(table("").is_err());
+        assert!(table("# only comments\n\n").is_err());
+        assert!(Table::from_bytes("b.bin", vec![0x7f, 0x45, 0x4c, 0x46, 0, 1, 2]).unwrap_err().to_string().contains("binary"));
+        assert!(Table::from_bytes("b.bin", vec![b'a', 0xff, 0xfe, b'\n']).unwrap_err().to_string().contains("UTF-8"));
+    }
+
+    #[test]
+    fn writer_round_trips_floats() {
+        let mut w = CsvWriter::new(Vec::new());
+        w.header(&["a", "b"]).unwrap();
+        w.row_f64(&[0.1 + 0.2, -1e-300]).unwrap();
+        let s = String::from_utf8(w.into_inner()).unwrap();
+        let t = table(&s).unwrap();
+        assert_eq!(t.f64_columns(&["a", "b"]).unwrap(), vec![0.1 + 0.2, -1e-300]);
+    }
+}

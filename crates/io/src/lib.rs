@@ -1,0 +1,23 @@
+//! # truepos-io
+//!
+//! The edge layer of the interface contract (`shared/spec/interface.md`): reading the files
+//! users hand to truepos and writing its outputs safely. No math lives here beyond parsing.
+//!
+//! Entry points:
+//! - [`InputError`]: every problem with user input, naming file, line and column. The binary maps
+//!   it to exit code 2.
+//! - [`csv::Table`]: a CSV file (leading `#` comments, one header row, any column order, unknown
+//!   columns kept for pass-through), parsed in parallel, with typed column access.
+//! - [`points`]: point files (`x_mm,y_mm,z_mm[,id]` CSV or NIST `.ds`).
+//! - [`config::read_toml`]: TOML configuration into serde types, errors with line and column.
+//! - [`atomic::AtomicFile`] / [`atomic::write_atomic`]: outputs written to a temporary file and
+//!   renamed into place, so a failed run never leaves a partial file.
+//! - [`csv::CsvWriter`]: fast CSV output with shortest round-trip float formatting.
+
+pub mod atomic;
+pub mod config;
+pub mod csv;
+pub mod error;
+pub mod points;
+
+pub use error::InputError;

@@ -1,0 +1,92 @@
+//! Point files: CSV with `x_mm,y_mm,z_mm` (optional `id`) or NIST `.ds` (a count, then
+//! `x y z` per line, whitespace separated).
+
+use crate::csv::Table;
+use crate::InputError;
+use truepos_math::Point3;
+use std::path::Path;
+
+/// Points with optional ids (one per point, `None` when the file has no `id` column).
+pub struct PointSet {
+    pub points: Vec<Point3>,
+    pub ids: Option<Vec<String>>,
+}
+
+/// Read a point file by extension: `.ds` as NIST data set, anything else as CSV.
+pub fn read_points(path: impl AsRef<Path>) -> Result<PointSet, InputError> {
+    let path = path.as_ref();
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("ds")) {
+        return Ok(PointSet { points: read_ds(path)?, ids: None });
+    }
+    let t = Table::read(path)?;
+    let xyz = t.f64_columns(&["x_mm", "y_mm", "z_mm"])?;
+    let points = xyz.chunks_exact(3).map(|c| Point3::new(c[0], c[1], c[2])).collect();
+    let ids = match t.column("id") {
+        Some(_) => Some(t.str_column("id")?),
+        None => None,
+    };
+    Ok(PointSet { points, ids })
+}
+
+/// Read a NIST `.ds` file.
+pub fn read_ds(path: impl AsRef<Path>) -> Result<Vec<Point3>, InputError> {
+    let path = path.as_ref();
+    let bytes = std::fs::read(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+    parse_ds(path, &bytes)
+}
+
+/// Parse `.ds` content that came from `path`.
+pub fn parse_ds(path: &Path, bytes: &[u8]) -> Result<Vec<Point3>, InputError> {
+    let text = std::str::from_utf8(bytes).map_err(|e| {
+        let line = bytes[..e.valid_up_to()].iter().filter(|&&b| b == b'\n').count() + 1;
+        InputError::at(path, line, None, "not valid UTF-8 text: not a .ds file")
+    })?;
+    if text.contains('\0') {
+        return Err(InputError::in_file(path, "binary data (NUL byte): not a .ds file"));
+    }
+    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
+    let Some((l0, first)) = lines.next() else {
+        return Err(InputError::in_file(path, "empty file: expected a point count on the first line"));
+    };
+    let count: usize = first.trim().parse().map_err(|_| {
+        InputError::at(path, l0 + 1, Some(1), format!("expected the point count, found '{}'", first.trim()))
+    })?;
+    let mut pts = Vec::with_capacity(count.min(1 << 24));
+    for (ln, line) in lines {
+        let mut v = [0.0; 3];
+        let mut k = 0;
+        for (j, tok) in line.split_whitespace().enumerate() {
+            if j >= 3 {
+                return Err(InputError::at(path, ln + 1, Some(j + 1), "more than three values on a line"));
+            }
+            v[j] = crate::csv::parse_f64(tok).ok_or_else(|| {
+                InputError::at(path, ln + 1, Some(j + 1), format!("not a finite number: '{tok}'"))
+            })?;
+            k += 1;
+        }
+        if k != 3 {
+            return Err(InputError::at(path, ln + 1, Some(k + 1), format!("expected x y z, found {k} values")));
+        }
+        pts.push(Point3::new(v[0], v[1], v[2]));
+    }
+    if pts.len() != count {
+        return Err(InputError::in_file(path, format!("the header says {count} points, the file has {}", pts.len())));
+    }
+    Ok(pts)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ds_parses_and_checks_count() {
+        let p = Path::new("x.ds");
+        let pts = parse_ds(p, b"2\n1\t2\t3\n4 5 6\n").unwrap();
+        assert_eq!(pts[1], Point3::new(4.0, 5.0, 6.0));
+        assert!(parse_ds(p, b"3\n1 2 3\n").unwrap_err().to_string().contains("3 points"));
+        let e = parse_ds(p, b"1\n1 x 3\n").unwrap_err();
+        assert_eq!((e.line, e.column), (Some(2), Some(2)));
+        assert!(parse_ds(p, b"").is_err());
+    }
+}

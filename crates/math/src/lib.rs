@@ -1,0 +1,28 @@
+//! # truepos-math
+//!
+//! The pure-math floor of truepos: no I/O, no file formats, no machine models. Everything here is
+//! in the one internal unit system (mm, rad, s) as `f64`.
+//!
+//! Entry points:
+//! - [`types`]: the nalgebra aliases the whole workspace uses (`Point3` for positions,
+//!   `Vector3` for displacements and directions; never mix them).
+//! - [`transform::Transform3`]: a similarity transform `p_a = s·R·p_b + t`, named `a_from_b`
+//!   at every use site, with composition and inversion.
+//! - [`bestfit`]: weighted rigid / similarity best fit (SVD with the reflection guard) and the
+//!   three-point method.
+//! - [`lsq`]: a dense Gauss-Newton / Levenberg-Marquardt solver for problems with few parameters
+//!   and many residuals, streaming the normal equations (no Jacobian storage), with covariance
+//!   and rank/observability diagnostics.
+//! - [`stats`]: mean/standard deviation, weighted straight-line regression with standard
+//!   uncertainties.
+//! - [`interp`]: piecewise-linear interpolation on sorted abscissae.
+
+pub mod bestfit;
+pub mod interp;
+pub mod lsq;
+pub mod stats;
+pub mod transform;
+pub mod types;
+
+pub use transform::Transform3;
+pub use types::*;

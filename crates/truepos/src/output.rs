@@ -1,0 +1,63 @@
+//! Output helpers shared by the commands: JSON on stdout, progress bars on stderr, vector
+//! formatting, and parsing of `X,Y,Z` option values.
+
+use std::io::{IsTerminal, Write};
+
+/// Print exactly one JSON object on stdout (pretty, one trailing newline).
+pub fn print_json(value: &serde_json::Value) -> anyhow::Result<()> {
+    let mut out = std::io::stdout().lock();
+    serde_json::to_writer_pretty(&mut out, value)?;
+    out.write_all(b"\n")?;
+    out.flush()?;
+    Ok(())
+}
+
+/// A point or vector as a JSON array of three numbers.
+pub fn v3(v: impl Into<[f64; 3]>) -> serde_json::Value {
+    serde_json::json!(v.into())
+}
+
+/// A progress bar on stderr, hidden when stderr is not a terminal.
+pub fn progress(len: u64, message: &str) -> indicatif::ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let pb = indicatif::ProgressBar::with_draw_target(Some(len), indicatif::ProgressDrawTarget::stderr());
+    pb.set_style(
+        indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} ({eta})")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    pb.set_message(message.to_string());
+    pb
+}
+
+/// Parse `"x,y,z"` (for `--something-mm X,Y,Z` options).
+pub fn parse_triple(s: &str) -> Result<[f64; 3], String> {
+    let v = parse_list(s)?;
+    if v.len() != 3 {
+        return Err(format!("expected three comma-separated numbers X,Y,Z, got '{s}'"));
+    }
+    Ok([v[0], v[1], v[2]])
+}
+
+/// Parse `"a,b"`.
+pub fn parse_pair(s: &str) -> Result<[f64; 2], String> {
+    let v = parse_list(s)?;
+    if v.len() != 2 {
+        return Err(format!("expected two comma-separated numbers, got '{s}'"));
+    }
+    Ok([v[0], v[1]])
+}
+
+/// Parse a comma-separated list of finite numbers.
+pub fn parse_list(s: &str) -> Result<Vec<f64>, String> {
+    s.split(',')
+        .map(|t| {
+            t.trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| format!("'{}' is not a finite number", t.trim()))
+        })
+        .collect()
+}
