@@ -1,0 +1,270 @@
+//! The modal interpreter: what each block commands, as a controller would execute it.
+//!
+//! Tracks G90/G91 (distance mode), G90.1/G91.1 (arc centre mode), G20/G21 (units), G17/G18/G19
+//! (plane), the motion mode (G0–G3, canned cycles G81–G89, G80) and the current position. Entry
+//! point: [`crate::Program::blocks`].
+
+use crate::lex::TokenKind;
+use crate::Program;
+use truepos_math::Point3;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Units {
+    Mm,
+    Inch,
+}
+
+impl Units {
+    /// Millimetres per program unit.
+    pub fn mm(self) -> f64 {
+        match self {
+            Units::Mm => 1.0,
+            Units::Inch => 25.4,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Plane {
+    /// G17
+    XY,
+    /// G18
+    ZX,
+    /// G19
+    YZ,
+}
+
+impl Plane {
+    /// Index of the axis normal to the plane (0 = X, 1 = Y, 2 = Z).
+    pub fn normal_axis(self) -> usize {
+        match self {
+            Plane::XY => 2,
+            Plane::ZX => 1,
+            Plane::YZ => 0,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MotionMode {
+    None,
+    Rapid,
+    Linear,
+    ArcCw,
+    ArcCcw,
+    /// Canned cycle G81–G89.
+    Cycle(u8),
+}
+
+/// The modal state between blocks. Positions are in program units; `None` until known.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Modal {
+    pub absolute: bool,
+    pub arc_absolute: bool,
+    pub units: Units,
+    pub plane: Plane,
+    pub motion: MotionMode,
+    pub pos: [Option<f64>; 3],
+}
+
+impl Default for Modal {
+    fn default() -> Self {
+        Self {
+            absolute: true,
+            arc_absolute: false,
+            units: Units::Mm,
+            plane: Plane::XY,
+            motion: MotionMode::None,
+            pos: [None; 3],
+        }
+    }
+}
+
+/// Non-modal codes that change how coordinates on their line are meant.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Special {
+    /// G53: machine coordinates.
+    Machine,
+    /// G28 / G30: reference return through an intermediate point.
+    Home,
+    /// G92: sets the current position (a coordinate-system shift).
+    SetPosition,
+    /// G10: data setting (offsets), not a motion.
+    DataSetting,
+}
+
+/// One interpreted block (source line).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Block<'a> {
+    /// 0-based line index.
+    pub line: usize,
+    pub before: Modal,
+    pub after: Modal,
+    /// Axis words on this line: value per axis (program units, as written).
+    pub axes: [Option<f64>; 3],
+    /// Arc centre words I, J, K and radius R.
+    pub ijk: [Option<f64>; 3],
+    pub r: Option<f64>,
+    pub special: Option<Special>,
+    /// The commanded end position in mm, when the block moves and all three axes are known.
+    pub target_mm: Option<Point3>,
+    /// Comment texts on the line (with their delimiters).
+    pub comments: Vec<&'a str>,
+}
+
+impl<'a> Block<'a> {
+    /// Whether the block commands a motion (axis words with an active motion mode).
+    pub fn is_motion(&self) -> bool {
+        self.axes.iter().any(|a| a.is_some())
+            && (self.after.motion != MotionMode::None || self.special == Some(Special::Home))
+    }
+
+    /// Whether any comment on the line contains `keyword` (case-insensitive).
+    pub fn has_keyword(&self, keyword: &str) -> bool {
+        let k = keyword.to_ascii_lowercase();
+        self.comments.iter().any(|c| c.to_ascii_lowercase().contains(&k))
+    }
+}
+
+fn is_code(v: f64, code: f64) -> bool {
+    (v - code).abs() < 1e-6
+}
+
+impl Program {
+    /// Interpret every line in order.
+    pub fn blocks(&self) -> Vec<Block<'_>> {
+        let mut modal = Modal::default();
+        let mut out = Vec::with_capacity(self.lines.len());
+        for i in 0..self.lines.len() {
+            let b = self.interpret_line(i, &modal);
+            modal = b.after;
+            out.push(b);
+        }
+        out
+    }
+
+    /// Interpret line `i` given the modal state before it.
+    pub fn interpret_line(&self, i: usize, before: &Modal) -> Block<'_> {
+        let mut m = *before;
+        let mut axes = [None; 3];
+        let mut ijk = [None; 3];
+        let mut r = None;
+        let mut special = None;
+        let mut comments = Vec::new();
+        for t in self.line_tokens(i) {
+            match t.kind {
+                TokenKind::ParenComment { .. } | TokenKind::SemicolonComment => comments.push(self.text(t)),
+                TokenKind::Word { letter, value, .. } => match letter {
+                    b'G' => {
+                        let g = value;
+                        if is_code(g, 0.0) {
+                            m.motion = MotionMode::Rapid
+                        } else if is_code(g, 1.0) {
+                            m.motion = MotionMode::Linear
+                        } else if is_code(g, 2.0) {
+                            m.motion = MotionMode::ArcCw
+                        } else if is_code(g, 3.0) {
+                            m.motion = MotionMode::ArcCcw
+                        } else if is_code(g, 17.0) {
+                            m.plane = Plane::XY
+                        } else if is_code(g, 18.0) {
+                            m.plane = Plane::ZX
+                        } else if is_code(g, 19.0) {
+                            m.plane = Plane::YZ
+                        } else if is_code(g, 20.0) {
+                            m.units = Units::Inch
+                        } else if is_code(g, 21.0) {
+                            m.units = Units::Mm
+                        } else if is_code(g, 90.0) {
+                            m.absolute = true
+                        } else if is_code(g, 91.0) {
+                            m.absolute = false
+                        } else if is_code(g, 90.1) {
+                            m.arc_absolute = true
+                        } else if is_code(g, 91.1) {
+                            m.arc_absolute = false
+                        } else if is_code(g, 80.0) {
+                            m.motion = MotionMode::None
+                        } else if (81.0..=89.0).contains(&g) && g.fract() == 0.0 {
+                            m.motion = MotionMode::Cycle(g as u8)
+                        } else if is_code(g, 53.0) {
+                            special = Some(Special::Machine)
+                        } else if is_code(g, 28.0) || is_code(g, 30.0) {
+                            special = Some(Special::Home)
+                        } else if is_code(g, 92.0) {
+                            special = Some(Special::SetPosition)
+                        } else if is_code(g, 10.0) {
+                            special = Some(Special::DataSetting)
+                        }
+                    }
+                    b'X' => axes[0] = Some(value),
+                    b'Y' => axes[1] = Some(value),
+                    b'Z' => axes[2] = Some(value),
+                    b'I' => ijk[0] = Some(value),
+                    b'J' => ijk[1] = Some(value),
+                    b'K' => ijk[2] = Some(value),
+                    b'R' => r = Some(value),
+                    _ => {}
+                },
+                _ => {}
+            }
+        }
+        if m.units != before.units {
+            // The position is kept in program units: convert it when the units change.
+            let f = before.units.mm() / m.units.mm();
+            for p in m.pos.iter_mut() {
+                *p = p.map(|v| v * f);
+            }
+        }
+        let moves = axes.iter().any(|a| a.is_some());
+        match special {
+            Some(Special::Machine) if moves => m.pos = [None; 3],
+            Some(Special::SetPosition) => {
+                for k in 0..3 {
+                    if let Some(v) = axes[k] {
+                        m.pos[k] = Some(v);
+                    }
+                }
+            }
+            Some(Special::DataSetting) => {}
+            _ => {
+                if moves && (m.motion != MotionMode::None || special == Some(Special::Home)) {
+                    for k in 0..3 {
+                        if let Some(v) = axes[k] {
+                            m.pos[k] = if m.absolute { Some(v) } else { m.pos[k].map(|p| p + v) };
+                        }
+                    }
+                }
+            }
+        }
+        let target_mm = if moves && m.motion != MotionMode::None && special.is_none() {
+            match m.pos {
+                [Some(x), Some(y), Some(z)] => {
+                    let u = m.units.mm();
+                    Some(Point3::new(x * u, y * u, z * u))
+                }
+                _ => None,
+            }
+        } else {
+            None
+        };
+        Block { line: i, before: *before, after: m, axes, ijk, r, special, target_mm, comments }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn modal_positions_units_and_keyword() {
+        let p = Program::parse("G21 G90\nG0 X10 Y20 Z5\nG1 X15 (MSG,Measure SOMaC)\nG91 Y-5\nG20 G90 X1\n");
+        let b = p.blocks();
+        assert_eq!(b[1].target_mm, Some(Point3::new(10.0, 20.0, 5.0)));
+        assert_eq!(b[2].target_mm, Some(Point3::new(15.0, 20.0, 5.0)));
+        assert!(b[2].has_keyword("measure somac"));
+        assert_eq!(b[3].target_mm, Some(Point3::new(15.0, 15.0, 5.0)));
+        let t = b[4].target_mm.unwrap();
+        assert!((t - Point3::new(25.4, 15.0, 5.0)).norm() < 1e-12, "{t}");
+    }
+}

@@ -1,0 +1,417 @@
+//! Coordinate rewriting through a similarity transform.
+//!
+//! [`Program::transform`] maps every programmed position `p_old` to `new_from_old · p_old`
+//! (mm; program units are converted), following the modal state. Only words whose value changes
+//! at the output resolution are rewritten; a move whose new position differs on an axis the line
+//! did not program gets that axis word inserted (so a transform that mixes axes makes a move carry
+//! all three). Everything else — comments, line numbers, other words, spacing, blank lines, line
+//! endings — is copied byte for byte.
+//!
+//! - Absolute moves transform as points, incremental moves as vectors (`s·R·d`), with the new
+//!   increments taken as differences of rounded absolute values so no rounding drift accumulates.
+//! - Arcs: I/J/K (incremental) rotate as vectors and R scales when the transform keeps the arc
+//!   plane (a plane turned over swaps G2/G3, which must then be on the line); a transform that
+//!   tilts the arc plane is refused with the line and column.
+//! - Canned cycles (G81–G89) are transformed when the rotation keeps the Z axis; G92 is refused;
+//!   G53 (machine coordinates) and G10 lines are copied unchanged.
+
+use crate::interp::{Modal, MotionMode, Special};
+use crate::lex::TokenKind;
+use crate::{GcodeError, Program};
+use truepos_math::Transform3;
+
+/// What to do with an arc whose plane the transform tilts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ArcPolicy {
+    #[default]
+    Refuse,
+}
+
+#[derive(Debug, Clone)]
+pub struct TransformOptions {
+    /// Decimals written for rewritten values (default: 4 in mm programs, 5 in inch programs).
+    pub decimals: Option<u8>,
+    pub arc_policy: ArcPolicy,
+    /// Position (mm, old frame) before the first block, if known.
+    pub start_mm: Option<[f64; 3]>,
+}
+
+impl Default for TransformOptions {
+    fn default() -> Self {
+        Self { decimals: None, arc_policy: ArcPolicy::Refuse, start_mm: None }
+    }
+}
+
+const MIX_EPS: f64 = 1e-12;
+const AXES: [u8; 3] = [b'X', b'Y', b'Z'];
+const CENTRE: [u8; 3] = [b'I', b'J', b'K'];
+
+fn fmt_num(v: f64, dec: u8) -> String {
+    let s = format!("{:.*}", dec as usize, v);
+    if s.starts_with('-') && s[1..].bytes().all(|c| c == b'0' || c == b'.') {
+        s[1..].to_string()
+    } else {
+        s
+    }
+}
+
+fn round_to(v: f64, dec: u8) -> f64 {
+    let f = 10f64.powi(dec as i32);
+    (v * f).round() / f
+}
+
+/// Edits of one line.
+#[derive(Default)]
+struct Edits {
+    replace: Vec<(usize, String)>,
+    insert_after: Vec<(usize, String)>,
+    insert_before: Vec<(usize, String)>,
+}
+
+impl Program {
+    /// Rewrite the program through `new_from_old` (mm). See the module docs.
+    pub fn transform(
+        &self,
+        new_from_old: &Transform3,
+        opts: &TransformOptions,
+    ) -> Result<String, GcodeError> {
+        let s = new_from_old.scale;
+        let r = new_from_old.rotation;
+        let t = new_from_old.translation;
+        let mut old = Modal::default();
+        if let Some(p) = opts.start_mm {
+            old.pos = [Some(p[0]), Some(p[1]), Some(p[2])];
+        }
+        // Last written new-frame absolute values (program units), and exact incremental accumulators.
+        let mut written: [Option<f64>; 3] = [None; 3];
+        if let Some(p) = opts.start_mm {
+            for (k, w) in written.iter_mut().enumerate() {
+                *w = Some(s * (r.row(k) * truepos_math::Vector3::new(p[0], p[1], p[2]))[0] + t[k]);
+            }
+        }
+        let mut exact_inc = [0.0f64; 3];
+        // An axis whose new value depends on other old axes (the transform mixes them) is written
+        // on every transformed move.
+        let mixes: Vec<bool> =
+            (0..3).map(|k| (0..3).any(|j| j != k && (s * r[(k, j)]).abs() > MIX_EPS)).collect();
+        let mut out = String::with_capacity(self.source.len() + self.source.len() / 8);
+        for i in 0..self.lines.len() {
+            let blk = self.interpret_line(i, &old);
+            let line = &self.lines[i];
+            let toks = &self.tokens[line.tokens.clone()];
+            let units_mm = blk.after.units.mm();
+            if blk.after.units != old.units {
+                let f = old.units.mm() / units_mm;
+                for w in written.iter_mut() {
+                    *w = w.map(|v| v * f);
+                }
+            }
+            let dec = opts.decimals.unwrap_or(if blk.after.units == crate::Units::Inch { 5 } else { 4 });
+            let half = 0.5 * 10f64.powi(-(dec as i32));
+            let has_axes = blk.axes.iter().any(|a| a.is_some());
+            let has_centre = blk.ijk.iter().any(|a| a.is_some()) || blk.r.is_some();
+            let copy = |out: &mut String| out.push_str(&self.source[line.start..line.next]);
+            let err = |tok: Option<&crate::Token>, message: String| GcodeError::Unsupported {
+                line: i + 1,
+                column: tok.map_or(1, |tk| self.column_of(i, tk)),
+                message,
+            };
+            let axis_token = |letter: u8| {
+                toks.iter().position(|tk| matches!(tk.kind, TokenKind::Word { letter: l, .. } if l == letter))
+            };
+            match blk.special {
+                Some(Special::SetPosition) => {
+                    return Err(err(
+                        toks.iter()
+                            .find(|tk| tk.word().is_some_and(|w| w.0 == b'G' && (w.1 - 92.0).abs() < 1e-6)),
+                        "G92 shifts the coordinate system; a program that uses it cannot be re-oriented"
+                            .into(),
+                    ));
+                }
+                Some(Special::Machine) => {
+                    if has_axes {
+                        written = [None; 3];
+                    }
+                    copy(&mut out);
+                    old = blk.after;
+                    continue;
+                }
+                Some(Special::DataSetting) => {
+                    copy(&mut out);
+                    old = blk.after;
+                    continue;
+                }
+                _ => {}
+            }
+            let moving =
+                has_axes && (blk.after.motion != MotionMode::None || blk.special == Some(Special::Home));
+            if !moving && !has_centre {
+                copy(&mut out);
+                old = blk.after;
+                continue;
+            }
+            let mut edits = Edits::default();
+            if let MotionMode::Cycle(_) = blk.after.motion {
+                if (r[(2, 2)] - 1.0).abs() > MIX_EPS || r[(0, 2)].abs() > MIX_EPS || r[(1, 2)].abs() > MIX_EPS
+                {
+                    return Err(err(
+                        axis_token(b'Z').map(|k| &toks[k]),
+                        "a canned drilling cycle cannot be re-oriented by a rotation that tilts the Z axis"
+                            .into(),
+                    ));
+                }
+            }
+            // New values per axis (program units) for the axis words.
+            let mut new_vals: [Option<f64>; 3] = [None; 3];
+            if moving {
+                if blk.after.absolute {
+                    let pos = blk.after.pos;
+                    for k in 0..3 {
+                        let mut acc = t[k] / units_mm;
+                        let mut known = true;
+                        for j in 0..3 {
+                            let c = s * r[(k, j)];
+                            if c.abs() > MIX_EPS {
+                                match pos[j] {
+                                    Some(v) => acc += c * v,
+                                    None => known = false,
+                                }
+                            }
+                        }
+                        if known {
+                            new_vals[k] = Some(round_to(acc, dec));
+                        } else if blk.axes[k].is_some() {
+                            let missing = (0..3)
+                                .find(|&j| pos[j].is_none() && (s * r[(k, j)]).abs() > MIX_EPS)
+                                .unwrap_or(k);
+                            return Err(err(axis_token(AXES[k]).map(|x| &toks[x]), format!("the {} position is not known before this move (give it earlier in the program, or a start position)", AXES[missing] as char)));
+                        }
+                    }
+                    for k in 0..3 {
+                        let Some(v) = new_vals[k] else { continue };
+                        match (blk.axes[k], axis_token(AXES[k])) {
+                            (Some(orig), Some(ti)) => {
+                                if (v - orig).abs() >= half {
+                                    edits.replace.push((ti, fmt_num(v, dec)));
+                                }
+                                written[k] = Some(v);
+                            }
+                            _ => {
+                                if mixes[k] || written[k].is_none_or(|w| (w - v).abs() >= half) {
+                                    self.plan_insert(toks, &mut edits, k, &AXES, &fmt_num(v, dec));
+                                }
+                                written[k] = Some(v);
+                            }
+                        }
+                    }
+                } else {
+                    let d: Vec<f64> = (0..3).map(|k| blk.axes[k].unwrap_or(0.0)).collect();
+                    for k in 0..3 {
+                        let dn = s * (r[(k, 0)] * d[0] + r[(k, 1)] * d[1] + r[(k, 2)] * d[2]);
+                        let before = exact_inc[k];
+                        exact_inc[k] += dn;
+                        let inc = round_to(exact_inc[k], dec) - round_to(before, dec);
+                        let inc = round_to(inc, dec);
+                        match (blk.axes[k], axis_token(AXES[k])) {
+                            (Some(orig), Some(ti)) => {
+                                if (inc - orig).abs() >= half {
+                                    edits.replace.push((ti, fmt_num(inc, dec)));
+                                }
+                            }
+                            _ => {
+                                if mixes[k] || inc.abs() >= half {
+                                    self.plan_insert(toks, &mut edits, k, &AXES, &fmt_num(inc, dec));
+                                }
+                            }
+                        }
+                        written[k] = written[k].map(|w| w + inc);
+                    }
+                }
+                // Canned-cycle R plane: a Z level.
+                if let (MotionMode::Cycle(_), Some(rv)) = (blk.after.motion, blk.r) {
+                    if let Some(ti) = axis_token(b'R') {
+                        let nv = if blk.after.absolute {
+                            round_to(s * rv + t[2] / units_mm, dec)
+                        } else {
+                            round_to(s * rv, dec)
+                        };
+                        if (nv - rv).abs() >= half {
+                            edits.replace.push((ti, fmt_num(nv, dec)));
+                        }
+                    }
+                }
+            }
+            if has_centre && matches!(blk.after.motion, MotionMode::ArcCw | MotionMode::ArcCcw) {
+                let n = blk.after.plane.normal_axis();
+                let rn = r[(n, n)];
+                if (rn.abs() - 1.0).abs() > MIX_EPS {
+                    let tok = axis_token(CENTRE[(n + 1) % 3]).or_else(|| axis_token(b'R')).map(|x| &toks[x]);
+                    return Err(err(tok, format!("this arc lies in the {:?} plane and the transform tilts that plane; arcs can only be re-oriented by rotations that keep their plane", blk.after.plane)));
+                }
+                if rn < 0.0 {
+                    // The plane is turned over: clockwise becomes counter-clockwise.
+                    let g = toks.iter().position(|tk| {
+                        tk.word().is_some_and(|w| {
+                            w.0 == b'G' && ((w.1 - 2.0).abs() < 1e-6 || (w.1 - 3.0).abs() < 1e-6)
+                        })
+                    });
+                    match g {
+                        Some(gi) => {
+                            let txt = self.text(&toks[gi]);
+                            let swapped: String = txt.chars().map(|c| match c { '2' => '3', '3' => '2', c => c }).collect();
+                            edits.replace.push((gi, swapped[1..].to_string()));
+                        }
+                        None => return Err(err(None, "the transform turns the arc plane over, which swaps G2 and G3, but the arc's G2/G3 word is modal (not on this line)".into())),
+                    }
+                }
+                let v: Vec<f64> = (0..3).map(|k| blk.ijk[k].unwrap_or(0.0)).collect();
+                if blk.ijk.iter().any(|x| x.is_some()) {
+                    for k in 0..3 {
+                        if k == n {
+                            continue;
+                        }
+                        let mut nv = s * (r[(k, 0)] * v[0] + r[(k, 1)] * v[1] + r[(k, 2)] * v[2]);
+                        if blk.after.arc_absolute {
+                            nv += t[k] / units_mm;
+                        }
+                        let nv = round_to(nv, dec);
+                        match (blk.ijk[k], axis_token(CENTRE[k])) {
+                            (Some(orig), Some(ti)) => {
+                                if (nv - orig).abs() >= half {
+                                    edits.replace.push((ti, fmt_num(nv, dec)));
+                                }
+                            }
+                            _ => {
+                                if nv.abs() >= half {
+                                    self.plan_insert(toks, &mut edits, k, &CENTRE, &fmt_num(nv, dec));
+                                }
+                            }
+                        }
+                    }
+                }
+                if let (Some(rv), Some(ti)) = (blk.r, axis_token(b'R')) {
+                    let nv = round_to(s * rv, dec);
+                    if (nv - rv).abs() >= half {
+                        edits.replace.push((ti, fmt_num(nv, dec)));
+                    }
+                }
+            }
+            if edits.replace.is_empty() && edits.insert_after.is_empty() && edits.insert_before.is_empty() {
+                copy(&mut out);
+            } else {
+                self.emit_line(i, &edits, &mut out);
+            }
+            old = blk.after;
+        }
+        Ok(out)
+    }
+
+    /// Plan the insertion of word `letters[k]` with value text `v` next to the other words of its group.
+    fn plan_insert(&self, toks: &[crate::Token], edits: &mut Edits, k: usize, letters: &[u8; 3], v: &str) {
+        let spaced = toks.iter().any(|tk| tk.kind == TokenKind::Whitespace);
+        let find = |letter: u8| {
+            toks.iter().position(|tk| matches!(tk.kind, TokenKind::Word { letter: l, .. } if l == letter))
+        };
+        let word = format!("{}{}", letters[k] as char, v);
+        if let Some(ti) = (0..k).rev().find_map(|j| find(letters[j])) {
+            edits.insert_after.push((ti, if spaced { format!(" {word}") } else { word }));
+        } else if let Some(ti) = (k + 1..3).find_map(|j| find(letters[j])) {
+            edits.insert_before.push((ti, if spaced { format!("{word} ") } else { word }));
+        } else if let Some(ti) = (0..3).find_map(|j| find(AXES[j])) {
+            // Centre words with no other centre word: after the last axis word.
+            let last = (0..3).rev().find_map(|j| find(AXES[j])).unwrap_or(ti);
+            edits.insert_after.push((last, if spaced { format!(" {word}") } else { word }));
+        } else {
+            let last = toks.iter().rposition(|tk| tk.word().is_some()).unwrap_or(0);
+            edits.insert_after.push((last, if spaced { format!(" {word}") } else { word }));
+        }
+    }
+
+    fn emit_line(&self, i: usize, edits: &Edits, out: &mut String) {
+        let line = &self.lines[i];
+        let toks = &self.tokens[line.tokens.clone()];
+        for (ti, tk) in toks.iter().enumerate() {
+            for (_, s) in edits.insert_before.iter().filter(|(j, _)| *j == ti) {
+                out.push_str(s);
+            }
+            match edits.replace.iter().find(|(j, _)| *j == ti) {
+                Some((_, v)) => {
+                    // Keep the letter as written (its case), replace the number.
+                    out.push_str(&self.source[tk.start..tk.start + 1]);
+                    out.push_str(v);
+                }
+                None => out.push_str(&self.source[tk.start..tk.end]),
+            }
+            for (_, s) in edits.insert_after.iter().filter(|(j, _)| *j == ti) {
+                out.push_str(s);
+            }
+        }
+        out.push_str(&self.source[line.end..line.next]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use truepos_math::types::{rx, rz};
+    use truepos_math::Vector3;
+
+    fn tr(prog: &str, t: Transform3) -> Result<String, GcodeError> {
+        Program::parse(prog).transform(&t, &TransformOptions::default())
+    }
+
+    #[test]
+    fn identity_keeps_every_byte() {
+        let p = "%\nO1000 (WING SPAR)\r\nN10 G21 G90 G17\n\nN20 G0 X100. Y50 Z10 ; rapid\nN30 G1 X150.25 F500\nN40 G2 X160 Y60 I10 J0\nG91 X1 Y1\n#1=2\nM30\n%";
+        assert_eq!(tr(p, Transform3::identity()).unwrap(), p);
+    }
+
+    #[test]
+    fn translation_touches_only_changed_words() {
+        let p = "G90 G0 X10 Y20 Z5 (keep)\nG1 X15 F100\nG1 Y25\n";
+        let out =
+            tr(p, Transform3::rigid(truepos_math::Matrix3::identity(), Vector3::new(1.0, 0.0, 0.0))).unwrap();
+        assert_eq!(out, "G90 G0 X11.0000 Y20 Z5 (keep)\nG1 X16.0000 F100\nG1 Y25\n");
+    }
+
+    #[test]
+    fn mixing_rotation_writes_all_three_axes() {
+        let p = "G0 X10 Y10 Z0\nG1 X20 F100\n";
+        let out = tr(p, Transform3::rigid(rx(0.1), Vector3::zeros())).unwrap();
+        let lines: Vec<&str> = out.lines().collect();
+        assert_eq!(lines[0], "G0 X10 Y9.9500 Z0.9983");
+        // Rotation about X leaves X20 as it is, but the move carries all three axes.
+        assert_eq!(lines[1], "G1 X20 Y9.9500 Z0.9983 F100");
+    }
+
+    #[test]
+    fn arcs_rotate_in_plane_and_refuse_tilt() {
+        let p = "G17 G0 X10 Y0 Z0\nG2 X0 Y-10 I-10 J0\n";
+        let out = tr(p, Transform3::rigid(rz(std::f64::consts::FRAC_PI_2), Vector3::zeros())).unwrap();
+        assert_eq!(out.lines().nth(1).unwrap(), "G2 X10.0000 Y0.0000 I0.0000 J-10.0000");
+        let e = tr(p, Transform3::rigid(rx(0.2), Vector3::zeros())).unwrap_err();
+        assert_eq!(e.line(), 2);
+        assert!(e.to_string().contains("tilts"));
+    }
+
+    #[test]
+    fn incremental_moves_do_not_drift() {
+        let p: String = std::iter::once("G0 X0 Y0 Z0\nG91\n".to_string())
+            .chain((0..1000).map(|_| "G1 X0.1\n".to_string()))
+            .collect();
+        let t = Transform3::rigid(rz(0.3), Vector3::zeros());
+        let out = tr(&p, t).unwrap();
+        let parsed = Program::parse(&out);
+        let b = parsed.blocks();
+        let end = b.last().unwrap().after.pos;
+        let expect = t.apply(&truepos_math::Point3::new(100.0, 0.0, 0.0));
+        assert!((end[0].unwrap() - expect.x).abs() < 1e-4 && (end[1].unwrap() - expect.y).abs() < 1e-4);
+    }
+
+    #[test]
+    fn g92_and_unknown_positions_are_refused_with_location() {
+        assert_eq!(tr("G0 X1 Y1 Z1\nG92 X0\n", Transform3::identity()).unwrap_err().line(), 2);
+        let e = tr("G1 X10\n", Transform3::rigid(rz(0.1), Vector3::zeros())).unwrap_err();
+        assert_eq!((e.line(), e.column()), (1, 4));
+    }
+}
