@@ -82,7 +82,11 @@ fn trim_line(line: &str) -> &str {
 
 impl std::fmt::Debug for Table {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Table").field("path", &self.path).field("header", &self.header).field("rows", &self.rows.len()).finish()
+        f.debug_struct("Table")
+            .field("path", &self.path)
+            .field("header", &self.header)
+            .field("rows", &self.rows.len())
+            .finish()
     }
 }
 
@@ -90,7 +94,8 @@ impl Table {
     /// Read and index a CSV file.
     pub fn read(path: impl AsRef<Path>) -> Result<Self, InputError> {
         let path = path.as_ref();
-        let bytes = std::fs::read(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+        let bytes =
+            std::fs::read(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
         Self::from_bytes(path, bytes)
     }
 
@@ -132,10 +137,20 @@ impl Table {
                 let lineno = line_of(&text, pos);
                 for (i, n) in names.iter().enumerate() {
                     if n.is_empty() {
-                        return Err(InputError::at(&path, lineno, Some(i + 1), "empty column name in the header"));
+                        return Err(InputError::at(
+                            &path,
+                            lineno,
+                            Some(i + 1),
+                            "empty column name in the header",
+                        ));
                     }
                     if names[..i].contains(n) {
-                        return Err(InputError::at(&path, lineno, Some(i + 1), format!("duplicate column '{n}' in the header")));
+                        return Err(InputError::at(
+                            &path,
+                            lineno,
+                            Some(i + 1),
+                            format!("duplicate column '{n}' in the header"),
+                        ));
                     }
                 }
                 header = Some(names);
@@ -162,7 +177,12 @@ impl Table {
     /// Index of a required column, or an error naming it.
     pub fn require(&self, name: &str) -> Result<usize, InputError> {
         self.column(name).ok_or_else(|| {
-            InputError::at(&self.path, self.header_line(), None, format!("missing required column '{name}' (columns: {})", self.header.join(",")))
+            InputError::at(
+                &self.path,
+                self.header_line(),
+                None,
+                format!("missing required column '{name}' (columns: {})", self.header.join(",")),
+            )
         })
     }
 
@@ -193,7 +213,11 @@ impl Table {
     }
 
     /// The fields of data row `row`, checked against the header width.
-    pub fn fields<'a>(&'a self, row: usize, buf: &mut Vec<(usize, usize)>) -> Result<Vec<&'a str>, InputError> {
+    pub fn fields<'a>(
+        &'a self,
+        row: usize,
+        buf: &mut Vec<(usize, usize)>,
+    ) -> Result<Vec<&'a str>, InputError> {
         let line = self.row_text(row);
         split_fields(line, buf);
         if buf.len() != self.header.len() {
@@ -276,9 +300,7 @@ impl Table {
     pub fn str_column(&self, name: &str) -> Result<Vec<String>, InputError> {
         let col = self.require(name)?;
         let mut buf = Vec::new();
-        (0..self.rows.len())
-            .map(|r| self.fields(r, &mut buf).map(|f| f[col].to_string()))
-            .collect()
+        (0..self.rows.len()).map(|r| self.fields(r, &mut buf).map(|f| f[col].to_string())).collect()
     }
 
     /// Check that every row has as many fields as the header.
@@ -396,8 +418,14 @@ mod tests {
 
         assert!(table("").is_err());
         assert!(table("# only comments\n\n").is_err());
-        assert!(Table::from_bytes("b.bin", vec![0x7f, 0x45, 0x4c, 0x46, 0, 1, 2]).unwrap_err().to_string().contains("binary"));
-        assert!(Table::from_bytes("b.bin", vec![b'a', 0xff, 0xfe, b'\n']).unwrap_err().to_string().contains("UTF-8"));
+        assert!(Table::from_bytes("b.bin", vec![0x7f, 0x45, 0x4c, 0x46, 0, 1, 2])
+            .unwrap_err()
+            .to_string()
+            .contains("binary"));
+        assert!(Table::from_bytes("b.bin", vec![b'a', 0xff, 0xfe, b'\n'])
+            .unwrap_err()
+            .to_string()
+            .contains("UTF-8"));
     }
 
     #[test]

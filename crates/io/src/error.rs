@@ -25,7 +25,12 @@ impl InputError {
     pub fn in_file(file: impl AsRef<Path>, message: impl Into<String>) -> Self {
         Self { file: Some(file.as_ref().to_path_buf()), ..Self::new(message) }
     }
-    pub fn at(file: impl AsRef<Path>, line: usize, column: Option<usize>, message: impl Into<String>) -> Self {
+    pub fn at(
+        file: impl AsRef<Path>,
+        line: usize,
+        column: Option<usize>,
+        message: impl Into<String>,
+    ) -> Self {
         Self {
             file: Some(file.as_ref().to_path_buf()),
             line: Some(line),

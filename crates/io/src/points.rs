@@ -3,8 +3,8 @@
 
 use crate::csv::Table;
 use crate::InputError;
-use truepos_math::Point3;
 use std::path::Path;
+use truepos_math::Point3;
 
 /// Points with optional ids (one per point, `None` when the file has no `id` column).
 pub struct PointSet {
@@ -65,12 +65,20 @@ pub fn parse_ds(path: &Path, bytes: &[u8]) -> Result<Vec<Point3>, InputError> {
             k += 1;
         }
         if k != 3 {
-            return Err(InputError::at(path, ln + 1, Some(k + 1), format!("expected x y z, found {k} values")));
+            return Err(InputError::at(
+                path,
+                ln + 1,
+                Some(k + 1),
+                format!("expected x y z, found {k} values"),
+            ));
         }
         pts.push(Point3::new(v[0], v[1], v[2]));
     }
     if pts.len() != count {
-        return Err(InputError::in_file(path, format!("the header says {count} points, the file has {}", pts.len())));
+        return Err(InputError::in_file(
+            path,
+            format!("the header says {count} points, the file has {}", pts.len()),
+        ));
     }
     Ok(pts)
 }

@@ -79,8 +79,8 @@ pub fn best_fit(
     // Collinearity: the spread of `from` must have rank >= 2.
     let spread = {
         let mut c = Matrix3::zeros();
-        for i in 0..from.len() {
-            let a = from[i].coords - cf;
+        for (i, p) in from.iter().enumerate() {
+            let a = p.coords - cf;
             c += w(i) * a * a.transpose();
         }
         c
@@ -112,11 +112,7 @@ pub fn best_fit(
 /// The three-point (3-2-1) transform: `to[0]` is matched exactly, the direction `from[0]→from[1]`
 /// is mapped onto `to[0]→to[1]`, and the plane of the three points onto the other plane.
 /// With `with_scale`, the scale is the ratio of the perimeters of the two triangles.
-pub fn three_point(
-    from: &[Point3],
-    to: &[Point3],
-    with_scale: bool,
-) -> Result<Transform3, BestFitError> {
+pub fn three_point(from: &[Point3], to: &[Point3], with_scale: bool) -> Result<Transform3, BestFitError> {
     if from.len() != to.len() {
         return Err(BestFitError::LengthMismatch(from.len(), to.len()));
     }
@@ -221,6 +217,9 @@ mod tests {
         let line = cloud(&[[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [2.0, 2.0, 2.0]]);
         assert_eq!(best_fit(&line, &line, None, Default::default()), Err(BestFitError::Collinear));
         assert_eq!(three_point(&line, &line, false), Err(BestFitError::Collinear));
-        assert!(matches!(best_fit(&line[..2], &line[..2], None, Default::default()), Err(BestFitError::TooFewPoints { .. })));
+        assert!(matches!(
+            best_fit(&line[..2], &line[..2], None, Default::default()),
+            Err(BestFitError::TooFewPoints { .. })
+        ));
     }
 }

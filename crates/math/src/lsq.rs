@@ -38,13 +38,7 @@ pub struct LsqOptions {
 
 impl Default for LsqOptions {
     fn default() -> Self {
-        Self {
-            max_iterations: 200,
-            x_tol: 1e-13,
-            x_scale: None,
-            rank_tol: 1e-12,
-            parallel_threshold: 20_000,
-        }
+        Self { max_iterations: 200, x_tol: 1e-13, x_scale: None, rank_tol: 1e-12, parallel_threshold: 20_000 }
     }
 }
 
@@ -147,7 +141,16 @@ pub fn normal_equations<P: Residuals>(problem: &P, params: &[f64], parallel_thre
 /// Rank and condition of the normal matrix after scaling its columns to unit diagonal.
 pub fn scaled_rank(jtj: &DMatrix, rank_tol: f64) -> (usize, f64, DMatrix) {
     let n = jtj.nrows();
-    let d: Vec<f64> = (0..n).map(|i| { let v = jtj[(i, i)]; if v > 0.0 { 1.0 / v.sqrt() } else { 0.0 } }).collect();
+    let d: Vec<f64> = (0..n)
+        .map(|i| {
+            let v = jtj[(i, i)];
+            if v > 0.0 {
+                1.0 / v.sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
     let mut s = jtj.clone();
     for a in 0..n {
         for b in 0..n {
@@ -166,7 +169,16 @@ pub fn scaled_rank(jtj: &DMatrix, rank_tol: f64) -> (usize, f64, DMatrix) {
 /// its eigen-decomposition, dropping eigenvalues below `rank_tol · max`.
 pub fn spd_pinv(jtj: &DMatrix, rank_tol: f64) -> DMatrix {
     let n = jtj.nrows();
-    let d: Vec<f64> = (0..n).map(|i| { let v = jtj[(i, i)]; if v > 0.0 { 1.0 / v.sqrt() } else { 0.0 } }).collect();
+    let d: Vec<f64> = (0..n)
+        .map(|i| {
+            let v = jtj[(i, i)];
+            if v > 0.0 {
+                1.0 / v.sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
     let mut s = jtj.clone();
     for a in 0..n {
         for b in 0..n {
@@ -277,8 +289,12 @@ mod tests {
         y: Vec<f64>,
     }
     impl Residuals for Decay {
-        fn n_params(&self) -> usize { 2 }
-        fn n_residuals(&self) -> usize { self.t.len() }
+        fn n_params(&self) -> usize {
+            2
+        }
+        fn n_residuals(&self) -> usize {
+            self.t.len()
+        }
         fn eval(&self, p: &[f64], i: usize, jac: &mut [f64]) -> f64 {
             let e = (-p[1] * self.t[i]).exp();
             jac[0] = e;
@@ -304,8 +320,12 @@ mod tests {
         y: Vec<f64>,
     }
     impl Residuals for Line {
-        fn n_params(&self) -> usize { 2 }
-        fn n_residuals(&self) -> usize { self.x.len() }
+        fn n_params(&self) -> usize {
+            2
+        }
+        fn n_residuals(&self) -> usize {
+            self.x.len()
+        }
         fn eval(&self, p: &[f64], i: usize, jac: &mut [f64]) -> f64 {
             jac[0] = 1.0;
             jac[1] = self.x[i];
@@ -332,8 +352,12 @@ mod tests {
         // Two identical columns: p0 + p1 is determined, the split is not.
         struct Dup;
         impl Residuals for Dup {
-            fn n_params(&self) -> usize { 2 }
-            fn n_residuals(&self) -> usize { 5 }
+            fn n_params(&self) -> usize {
+                2
+            }
+            fn n_residuals(&self) -> usize {
+                5
+            }
             fn eval(&self, p: &[f64], i: usize, jac: &mut [f64]) -> f64 {
                 jac[0] = 1.0;
                 jac[1] = 1.0;

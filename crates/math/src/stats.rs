@@ -57,7 +57,7 @@ pub fn fit_line(x: &[f64], y: &[f64], weights: Option<&[f64]>) -> Option<LineFit
     let mx = (0..n).map(|i| w(i) * x[i]).sum::<f64>() / sw;
     let my = (0..n).map(|i| w(i) * y[i]).sum::<f64>() / sw;
     let sxx: f64 = (0..n).map(|i| w(i) * (x[i] - mx).powi(2)).sum();
-    if !(sxx > 0.0) {
+    if sxx.is_nan() || sxx <= 0.0 {
         return None;
     }
     let sxy: f64 = (0..n).map(|i| w(i) * (x[i] - mx) * (y[i] - my)).sum();

@@ -93,13 +93,7 @@ mod tests {
     use proptest::prelude::*;
 
     fn arb_transform() -> impl Strategy<Value = Transform3> {
-        (
-            -3.2f64..3.2,
-            -1.5f64..1.5,
-            -3.2f64..3.2,
-            0.5f64..2.0,
-            prop::array::uniform3(-1000.0f64..1000.0),
-        )
+        (-3.2f64..3.2, -1.5f64..1.5, -3.2f64..3.2, 0.5f64..2.0, prop::array::uniform3(-1000.0f64..1000.0))
             .prop_map(|(a, b, c, s, t)| {
                 Transform3::new(s, rz(c) * ry(b) * rx(a), Vector3::new(t[0], t[1], t[2]))
             })
