@@ -1,1 +1,578 @@
-//! Placeholder: this crate is being built (see ARCHITECTURE.md).
+//! # truepos-head
+//!
+//! Measuring-head 3D offset calibration (`truepos head-offset`, capability 2 of the product
+//! spec). Pure: plain data in, numbers with uncertainties and observability out.
+//!
+//! Model (contract, `shared/spec/interface.md`, "Head offset"): `R` is the offset in the head
+//! frame at `b = 0`; the measuring reference point is `Q = P + Ry(b)·R` (P: the NC's head
+//! reference point). A laser head reports the surface at `Q + dist·Ry(b)·u`,
+//! `u = unit(tan α, tan β, −1)`. The table turns about the line through `O` parallel to Z: a
+//! point fixed to the table at `c = 0` position `A` is at `O + Rz(c)·(A − O)`. A touch probe
+//! measures stylus-centre positions (the sphere of radius sphere + tip).
+//!
+//! Entry points:
+//! - [`solve`]: one combined least-squares adjustment over any mix of head (B) and table (C)
+//!   orientations. Unknowns: the offset `R`, the reference point at `c = 0` (sphere centre or
+//!   vertex), the radius if not fixed, and for vertex references the face normals. Observations:
+//!   orthogonal distances of every point to the sphere / its face plane, expressed in table
+//!   coordinates. Started from the closed-form apparent-centre solution ([`init`]), so it does not
+//!   depend on where the reference is or how large the offset is. Components of `R` that the data
+//!   cannot determine (null space of the column-scaled normal matrix) are held at the prior and
+//!   reported as not observable.
+//! - [`surface_point`] / [`beam_direction`]: the contract's forward model, used by
+//!   `truepos head-offset apply`.
+//!
+//! The classical methods are special cases of the one adjustment: head swivel only determines
+//! the offset components in the XZ plane (Y is not observable); table rotation only determines X
+//! and Y (the triangle of apparent centres about the known table centre; Z is not observable);
+//! any mix of both determines all three.
+
+pub mod init;
+
+use init::{algebraic_sphere, intersect_planes, linear_solve, plane_fit, Apparent};
+use std::collections::BTreeMap;
+use thiserror::Error;
+use truepos_math::lsq::{self, LsqError, LsqOptions, Residuals};
+use truepos_math::{any_perpendicular, ry, rz, DMatrix, Matrix3, Point3, Vector3};
+
+/// One reading: head angle `b`, table angle `c` (rad), the NC's head reference point `p`, and
+/// optionally a laser distance, a face id (vertex references) and an orientation group id.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Reading {
+    pub b: f64,
+    pub c: f64,
+    pub p: Point3,
+    pub dist: Option<f64>,
+    pub face: Option<i64>,
+    pub group: Option<i64>,
+}
+
+/// The reference object.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Reference {
+    /// A sphere; `radius` fixes the radius of the measured surface (for a touch probe: sphere
+    /// radius + tip radius, the sphere of stylus-centre positions).
+    Sphere { radius: Option<f64> },
+    /// A vertex: pyramid apex or cuboid corner, the common point of the measured faces.
+    Vertex,
+}
+
+/// Everything the adjustment needs besides the readings.
+#[derive(Clone, Debug)]
+pub struct Setup {
+    pub reference: Reference,
+    /// A point on the table's rotation axis (parallel to Z).
+    pub table_center: Point3,
+    /// Laser beam tilt `(α, β)` in rad (ignored without `dist`).
+    pub tilt: [f64; 2],
+    /// Value used for offset components the data cannot determine.
+    pub prior: Vector3,
+}
+
+impl Default for Setup {
+    fn default() -> Self {
+        Self {
+            reference: Reference::Sphere { radius: None },
+            table_center: Point3::origin(),
+            tilt: [0.0, 0.0],
+            prior: Vector3::zeros(),
+        }
+    }
+}
+
+/// One orientation of the data (readings with the same group, B and C).
+#[derive(Clone, Debug)]
+pub struct Orientation {
+    pub b: f64,
+    pub c: f64,
+    pub group: Option<i64>,
+    pub n_points: usize,
+    /// Apparent reference point in raw coordinates (closed-form, per-orientation fit).
+    pub apparent: Point3,
+}
+
+/// The result of the adjustment.
+#[derive(Clone, Debug)]
+pub struct HeadOffset {
+    /// The offset R (mm); components that are not observable hold the prior.
+    pub offset: Vector3,
+    pub observable: [bool; 3],
+    /// Standard uncertainty of each observable component (mm); `None` if not observable.
+    pub uncertainty: [Option<f64>; 3],
+    /// Sphere centre or vertex, in table coordinates at `c = 0` (= machine coordinates there).
+    pub reference_point: Point3,
+    pub reference_uncertainty: Vector3,
+    /// Fitted (or fixed) radius of the measured sphere surface.
+    pub radius: Option<f64>,
+    pub radius_uncertainty: Option<f64>,
+    /// Face normals of a vertex reference (table frame at `c = 0`), by face id.
+    pub face_normals: Vec<(i64, Vector3)>,
+    /// Root mean square of the orthogonal distances (mm).
+    pub rms: f64,
+    pub max_abs_residual: f64,
+    pub n_points: usize,
+    pub orientations: Vec<Orientation>,
+    /// The closed-form (apparent-centre) offset the adjustment started from.
+    pub closed_form_offset: Vector3,
+    /// Condition number of the column-scaled normal matrix at the solution.
+    pub condition: f64,
+    pub iterations: usize,
+    pub converged: bool,
+    /// Orthogonal distance of each reading to the fitted reference (mm), in input order.
+    pub residuals: Vec<f64>,
+}
+
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum HeadError {
+    #[error("no readings: the offset needs the reference measured in at least two orientations")]
+    NoData,
+    #[error(
+        "all {n} readings were taken in one orientation (b = {b_deg}°, c = {c_deg}°): the offset needs the \
+         reference measured in at least two orientations (swivel the head in B and/or turn the table in C \
+         between the measurements)"
+    )]
+    OneOrientation { n: usize, b_deg: f64, c_deg: f64 },
+    #[error(
+        "orientation b = {b_deg}°, c = {c_deg}° has {got} readings: {needed} are needed per orientation \
+         ({what})"
+    )]
+    OrientationTooFew { b_deg: f64, c_deg: f64, got: usize, needed: usize, what: &'static str },
+    #[error("{got} readings for {needed} unknowns: at least {needed} readings are needed")]
+    TooFewPoints { got: usize, needed: usize },
+    #[error("orientation b = {b_deg}°, c = {c_deg}°: {what}")]
+    Degenerate { b_deg: f64, c_deg: f64, what: String },
+    #[error("reading {index} has no face id: a vertex reference needs the 'face' column")]
+    MissingFace { index: usize },
+    #[error("laser reading {index} has a distance but the beam tilt is not below 90°")]
+    BadTilt { index: usize },
+    #[error("not a finite value in reading {index}")]
+    NotFinite { index: usize },
+    #[error("the radius must be positive and finite, got {0} mm")]
+    BadRadius(f64),
+    #[error("the orientations do not determine any component of the offset")]
+    NothingObservable,
+    #[error("the adjustment failed: {0}")]
+    Lsq(#[from] LsqError),
+}
+
+/// Unit beam direction `unit(tan α, tan β, −1)` in the head frame at `b = 0`.
+pub fn beam_direction(tilt: [f64; 2]) -> Vector3 {
+    Vector3::new(tilt[0].tan(), tilt[1].tan(), -1.0).normalize()
+}
+
+/// The measured point of one reading in machine coordinates: `Q = P + Ry(b)·R`, plus
+/// `dist·Ry(b)·u` for a laser reading.
+pub fn surface_point(p: &Point3, b: f64, offset: &Vector3, dist: Option<f64>, beam: &Vector3) -> Point3 {
+    let v = offset + beam * dist.unwrap_or(0.0);
+    p + ry(b) * v
+}
+
+/// Machine coordinates at table angle `c` to table coordinates at `c = 0`.
+pub fn machine_to_table(x: &Point3, c: f64, o: &Point3) -> Point3 {
+    o + rz(-c) * (x - o)
+}
+
+/// Per reading, precomputed: `X(R) = x0 + m·R` in table coordinates.
+struct Pre {
+    x0: Point3,
+    m: Matrix3,
+}
+
+/// Eigenvalues of the column-scaled normal matrix below this fraction of the largest are a
+/// null space (exact rank defects come out at rounding level, ~1e-16; a swivel of 0.01° between
+/// orientations still gives ~3e-8).
+const NULL_TOL: f64 = 1e-10;
+
+enum Kind {
+    Sphere { fixed_radius: Option<f64> },
+    Vertex { faces: Vec<(Vector3, Vector3, Vector3)>, face_of: Vec<usize> },
+}
+
+struct Problem<'a> {
+    pre: &'a [Pre],
+    free: Vec<usize>,
+    prior: Vector3,
+    kind: &'a Kind,
+}
+
+impl Problem<'_> {
+    fn offset(&self, p: &[f64]) -> Vector3 {
+        let mut r = self.prior;
+        for (k, &j) in self.free.iter().enumerate() {
+            r[j] = p[k];
+        }
+        r
+    }
+    fn nr(&self) -> usize {
+        self.free.len()
+    }
+}
+
+fn face_normal(n0: &Vector3, e1: &Vector3, e2: &Vector3, a: f64, b: f64) -> (Vector3, f64) {
+    let v = n0 + e1 * a + e2 * b;
+    let l = v.norm();
+    (v / l, l)
+}
+
+impl Residuals for Problem<'_> {
+    fn n_params(&self) -> usize {
+        let base = self.nr() + 3;
+        match self.kind {
+            Kind::Sphere { fixed_radius } => base + usize::from(fixed_radius.is_none()),
+            Kind::Vertex { faces, .. } => base + 2 * faces.len(),
+        }
+    }
+    fn n_residuals(&self) -> usize {
+        self.pre.len()
+    }
+    fn eval(&self, p: &[f64], i: usize, jac: &mut [f64]) -> f64 {
+        let nr = self.nr();
+        let r = self.offset(p);
+        let pre = &self.pre[i];
+        let x = pre.x0 + pre.m * r;
+        let a = Point3::new(p[nr], p[nr + 1], p[nr + 2]);
+        match self.kind {
+            Kind::Sphere { fixed_radius } => {
+                let d = x - a;
+                let len = d.norm();
+                let e = if len > 0.0 { d / len } else { Vector3::z() };
+                let g = pre.m.transpose() * e;
+                for (k, &j) in self.free.iter().enumerate() {
+                    jac[k] = g[j];
+                }
+                jac[nr] = -e.x;
+                jac[nr + 1] = -e.y;
+                jac[nr + 2] = -e.z;
+                let rad = match fixed_radius {
+                    Some(v) => *v,
+                    None => {
+                        jac[nr + 3] = -1.0;
+                        p[nr + 3]
+                    }
+                };
+                len - rad
+            }
+            Kind::Vertex { faces, face_of } => {
+                let f = face_of[i];
+                let (n0, e1, e2) = &faces[f];
+                let (pa, pb) = (p[nr + 3 + 2 * f], p[nr + 4 + 2 * f]);
+                let (n, l) = face_normal(n0, e1, e2, pa, pb);
+                let d = x - a;
+                let g = pre.m.transpose() * n;
+                for (k, &j) in self.free.iter().enumerate() {
+                    jac[k] = g[j];
+                }
+                jac[nr] = -n.x;
+                jac[nr + 1] = -n.y;
+                jac[nr + 2] = -n.z;
+                // d n / d a = (e1 − n (n·e1)) / |v|, likewise for b.
+                let dna = (e1 - n * n.dot(e1)) / l;
+                let dnb = (e2 - n * n.dot(e2)) / l;
+                jac[nr + 3 + 2 * f] = dna.dot(&d);
+                jac[nr + 4 + 2 * f] = dnb.dot(&d);
+                n.dot(&d)
+            }
+        }
+    }
+}
+
+/// Offset components in the null space of the column-scaled normal matrix (`r_cols[j]` is the
+/// parameter index of `R_j`).
+fn unobservable(jtj: &DMatrix, r_cols: &[(usize, usize)]) -> [bool; 3] {
+    let n = jtj.nrows();
+    let d: Vec<f64> = (0..n)
+        .map(|i| {
+            let v = jtj[(i, i)];
+            if v > 0.0 {
+                1.0 / v.sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let mut s = jtj.clone();
+    for a in 0..n {
+        for b in 0..n {
+            s[(a, b)] *= d[a] * d[b];
+        }
+    }
+    let eig = s.symmetric_eigen();
+    let max = eig.eigenvalues.iter().cloned().fold(0.0f64, f64::max);
+    let mut out = [false; 3];
+    for k in 0..n {
+        if eig.eigenvalues[k] <= NULL_TOL * max {
+            for &(j, col) in r_cols {
+                // A null direction with a noticeable share on R_j (or a column that is all zero).
+                if eig.eigenvectors[(col, k)].powi(2) > 1e-4 || d[col] == 0.0 {
+                    out[j] = true;
+                }
+            }
+        }
+    }
+    out
+}
+
+fn deg(x: f64) -> f64 {
+    let d = x.to_degrees();
+    (d * 1e6).round() / 1e6
+}
+
+/// Determine the head offset from readings of a reference object in several orientations.
+pub fn solve(readings: &[Reading], setup: &Setup) -> Result<HeadOffset, HeadError> {
+    if readings.is_empty() {
+        return Err(HeadError::NoData);
+    }
+    let beam = beam_direction(setup.tilt);
+    let o = setup.table_center;
+    for (i, r) in readings.iter().enumerate() {
+        let finite = r.b.is_finite() && r.c.is_finite() && r.p.coords.iter().all(|v| v.is_finite());
+        if !finite || r.dist.is_some_and(|d| !d.is_finite()) {
+            return Err(HeadError::NotFinite { index: i });
+        }
+        if r.dist.is_some()
+            && !(beam.iter().all(|v| v.is_finite()) && setup.tilt.iter().all(|t| t.abs() < 1.5))
+        {
+            return Err(HeadError::BadTilt { index: i });
+        }
+    }
+    if let Reference::Sphere { radius: Some(rad) } = setup.reference {
+        if !(rad > 0.0 && rad.is_finite()) {
+            return Err(HeadError::BadRadius(rad));
+        }
+    }
+    // Raw points without the offset: P' = P + Ry(b)·dist·u (the offset enters as + Ry(b)·R).
+    let raw: Vec<Point3> =
+        readings.iter().map(|r| surface_point(&r.p, r.b, &Vector3::zeros(), r.dist, &beam)).collect();
+
+    // Orientations: same group id, B and C (angles compared to 1e-9 rad).
+    let key = |r: &Reading| (r.group, (r.b * 1e9).round() as i64, (r.c * 1e9).round() as i64);
+    let mut groups: BTreeMap<(Option<i64>, i64, i64), Vec<usize>> = BTreeMap::new();
+    for (i, r) in readings.iter().enumerate() {
+        groups.entry(key(r)).or_default().push(i);
+    }
+    let distinct_angles: std::collections::BTreeSet<(i64, i64)> = groups.keys().map(|k| (k.1, k.2)).collect();
+    if distinct_angles.len() < 2 {
+        let r = &readings[0];
+        return Err(HeadError::OneOrientation { n: readings.len(), b_deg: deg(r.b), c_deg: deg(r.c) });
+    }
+
+    // Per-orientation closed-form reference points.
+    let mut apparent = Vec::new();
+    let mut orientations = Vec::new();
+    let mut radii = Vec::new();
+    let mut face_ids: Vec<i64> = Vec::new();
+    let mut face_normals_sum: Vec<Vector3> = Vec::new();
+    for idx in groups.values() {
+        let r0 = &readings[idx[0]];
+        let (bd, cd) = (deg(r0.b), deg(r0.c));
+        let pts: Vec<Point3> = idx.iter().map(|&i| raw[i]).collect();
+        let point = match setup.reference {
+            Reference::Sphere { .. } => {
+                if pts.len() < 4 {
+                    return Err(HeadError::OrientationTooFew {
+                        b_deg: bd,
+                        c_deg: cd,
+                        got: pts.len(),
+                        needed: 4,
+                        what: "a sphere fit needs at least 4 points, spread over the sphere",
+                    });
+                }
+                let (c, rad) = algebraic_sphere(&pts).ok_or_else(|| HeadError::Degenerate {
+                    b_deg: bd,
+                    c_deg: cd,
+                    what: "the points do not determine a sphere (coplanar or collinear): probe the sphere \
+                           from more directions"
+                        .into(),
+                })?;
+                radii.push(rad);
+                c
+            }
+            Reference::Vertex => {
+                let mut by_face: BTreeMap<i64, Vec<Point3>> = BTreeMap::new();
+                for &i in idx {
+                    let f = readings[i].face.ok_or(HeadError::MissingFace { index: i })?;
+                    by_face.entry(f).or_default().push(raw[i]);
+                }
+                let mut planes = Vec::new();
+                for (f, fp) in &by_face {
+                    let Some((n, m)) = plane_fit(fp) else {
+                        return Err(HeadError::Degenerate {
+                            b_deg: bd,
+                            c_deg: cd,
+                            what: format!(
+                                "face {f} has {} points that do not span a plane: each face needs at least 3 \
+                                 points, not on one line",
+                                fp.len()
+                            ),
+                        });
+                    };
+                    // Table-frame normal, sign-aligned with earlier orientations.
+                    let nt = rz(-r0.c) * n;
+                    match face_ids.iter().position(|x| x == f) {
+                        Some(k) => {
+                            let s = if face_normals_sum[k].dot(&nt) < 0.0 { -1.0 } else { 1.0 };
+                            face_normals_sum[k] += nt * s;
+                        }
+                        None => {
+                            face_ids.push(*f);
+                            face_normals_sum.push(nt);
+                        }
+                    }
+                    planes.push((n, m));
+                }
+                if planes.len() < 3 {
+                    return Err(HeadError::OrientationTooFew {
+                        b_deg: bd,
+                        c_deg: cd,
+                        got: planes.len(),
+                        needed: 3,
+                        what:
+                            "faces: a vertex needs at least 3 faces (with 3 points each) in every orientation",
+                    });
+                }
+                intersect_planes(&planes, 1e-3).ok_or_else(|| HeadError::Degenerate {
+                    b_deg: bd,
+                    c_deg: cd,
+                    what: "the face normals do not span space, so the faces do not meet in one point".into(),
+                })?
+            }
+        };
+        apparent.push(Apparent { b: r0.b, c: r0.c, point });
+        orientations.push(Orientation {
+            b: r0.b,
+            c: r0.c,
+            group: r0.group,
+            n_points: idx.len(),
+            apparent: point,
+        });
+    }
+
+    // Kind and parameters.
+    let kind = match setup.reference {
+        Reference::Sphere { radius } => Kind::Sphere { fixed_radius: radius },
+        Reference::Vertex => {
+            let faces = face_normals_sum
+                .iter()
+                .map(|s| {
+                    let n0 = s.normalize();
+                    let e1 = any_perpendicular(&n0);
+                    let e2 = n0.cross(&e1);
+                    (n0, e1, e2)
+                })
+                .collect();
+            let face_of = readings
+                .iter()
+                .map(|r| r.face.and_then(|f| face_ids.iter().position(|x| *x == f)).unwrap_or(0))
+                .collect();
+            Kind::Vertex { faces, face_of }
+        }
+    };
+    let radius0 = match setup.reference {
+        Reference::Sphere { radius: Some(r) } => Some(r),
+        Reference::Sphere { radius: None } => Some(radii.iter().sum::<f64>() / radii.len() as f64),
+        Reference::Vertex => None,
+    };
+    let n_unknowns_all = 3
+        + 3
+        + match &kind {
+            Kind::Sphere { fixed_radius } => usize::from(fixed_radius.is_none()),
+            Kind::Vertex { faces, .. } => 2 * faces.len(),
+        };
+    if readings.len() < n_unknowns_all {
+        return Err(HeadError::TooFewPoints { got: readings.len(), needed: n_unknowns_all });
+    }
+
+    let pre: Vec<Pre> = readings
+        .iter()
+        .zip(&raw)
+        .map(|(r, x)| Pre { x0: machine_to_table(x, r.c, &o), m: rz(-r.c) * ry(r.b) })
+        .collect();
+    let params_for = |free: &[usize], r: &Vector3, a: &Point3| {
+        let mut p: Vec<f64> = free.iter().map(|&j| r[j]).collect();
+        p.extend_from_slice(a.coords.as_slice());
+        match &kind {
+            Kind::Sphere { fixed_radius: None } => p.push(radius0.unwrap_or(1.0)),
+            Kind::Sphere { .. } => {}
+            Kind::Vertex { faces, .. } => p.extend(std::iter::repeat_n(0.0, 2 * faces.len())),
+        }
+        p
+    };
+
+    // Observability: null space of the full adjustment's normal matrix at a closed-form start.
+    let all = [0usize, 1, 2];
+    let (a_min, r_min) = {
+        // Closed form with the components the linear model cannot see held at the prior (used
+        // only to have a point at which to linearise the full adjustment).
+        let un = unobservable(&init::linear_normal(&apparent), &[(0, 3), (1, 4), (2, 5)]);
+        linear_solve(&apparent, &o, [!un[0], !un[1], !un[2]], &setup.prior)
+            .ok_or(HeadError::NothingObservable)?
+    };
+    let probe = Problem { pre: &pre, free: all.to_vec(), prior: setup.prior, kind: &kind };
+    let ne = lsq::normal_equations(&probe, &params_for(&all, &r_min, &a_min), usize::MAX);
+    let un = unobservable(&ne.jtj, &[(0, 0), (1, 1), (2, 2)]);
+    let observable = [!un[0], !un[1], !un[2]];
+    let free: Vec<usize> = (0..3).filter(|&j| observable[j]).collect();
+    if free.is_empty() {
+        return Err(HeadError::NothingObservable);
+    }
+    let (a0, r0) =
+        linear_solve(&apparent, &o, observable, &setup.prior).ok_or(HeadError::NothingObservable)?;
+
+    let problem = Problem { pre: &pre, free: free.clone(), prior: setup.prior, kind: &kind };
+    let x0 = params_for(&free, &r0, &a0);
+    let opt = LsqOptions { rank_tol: NULL_TOL, ..LsqOptions::default() };
+    let res = lsq::solve(&problem, &x0, &opt)?;
+    let nr = free.len();
+    let offset = problem.offset(&res.params);
+    let mut uncertainty = [None; 3];
+    for (k, &j) in free.iter().enumerate() {
+        uncertainty[j] = Some(res.std_dev(k));
+    }
+    let reference_point = Point3::new(res.params[nr], res.params[nr + 1], res.params[nr + 2]);
+    let reference_uncertainty = Vector3::new(res.std_dev(nr), res.std_dev(nr + 1), res.std_dev(nr + 2));
+    let (radius, radius_uncertainty) = match &kind {
+        Kind::Sphere { fixed_radius: Some(r) } => (Some(*r), None),
+        Kind::Sphere { fixed_radius: None } => (Some(res.params[nr + 3]), Some(res.std_dev(nr + 3))),
+        Kind::Vertex { .. } => (None, None),
+    };
+    let face_normals = match &kind {
+        Kind::Vertex { faces, .. } => faces
+            .iter()
+            .enumerate()
+            .map(|(f, (n0, e1, e2))| {
+                (
+                    face_ids[f],
+                    face_normal(n0, e1, e2, res.params[nr + 3 + 2 * f], res.params[nr + 4 + 2 * f]).0,
+                )
+            })
+            .collect(),
+        Kind::Sphere { .. } => Vec::new(),
+    };
+    let mut jac = vec![0.0; problem.n_params()];
+    let residuals: Vec<f64> = (0..pre.len()).map(|i| problem.eval(&res.params, i, &mut jac)).collect();
+    let n = residuals.len() as f64;
+    let rms = (residuals.iter().map(|r| r * r).sum::<f64>() / n).sqrt();
+    let max_abs_residual = residuals.iter().fold(0.0f64, |m, r| m.max(r.abs()));
+    Ok(HeadOffset {
+        offset,
+        observable,
+        uncertainty,
+        reference_point,
+        reference_uncertainty,
+        radius,
+        radius_uncertainty,
+        face_normals,
+        rms,
+        max_abs_residual,
+        n_points: readings.len(),
+        orientations,
+        closed_form_offset: r0,
+        condition: res.condition,
+        iterations: res.iterations,
+        converged: res.converged,
+        residuals,
+    })
+}
+
+#[cfg(test)]
+mod tests;
