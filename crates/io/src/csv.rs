@@ -127,9 +127,9 @@ impl Table {
             let line = trim_line(&text[pos..end]);
             let trimmed = line.trim_start();
             if trimmed.is_empty() {
-            } else if trimmed.starts_with('#') {
+            } else if let Some(comment) = trimmed.strip_prefix('#') {
                 if header.is_none() {
-                    comments.push(trimmed[1..].trim().to_string());
+                    comments.push(comment.trim().to_string());
                 }
             } else if header.is_none() {
                 split_fields(line, &mut fields);
@@ -188,13 +188,11 @@ impl Table {
 
     fn header_line(&self) -> usize {
         // The header is the line before the first data row, or found by scanning.
-        let mut line = 1;
-        for l in self.text.lines() {
+        for (line, l) in (1..).zip(self.text.lines()) {
             let t = l.trim_start().trim_start_matches('\u{feff}');
             if !t.is_empty() && !t.starts_with('#') {
                 return line;
             }
-            line += 1;
         }
         1
     }
