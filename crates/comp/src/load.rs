@@ -1,0 +1,171 @@
+//! Bed deformation under load: the portal geometry, the physics that turns a bed deflection into
+//! the portal's pitch and roll, and the contract's correction of measured points.
+//!
+//! Entry points: [`Portal`] (rails, height, bearing span, travel), [`portal_rotation`] (pitch and
+//! roll at one portal position from any deflection field `uz(x, y)`), [`LoadCorrection`]
+//! (pitch/roll curves + pivot → correction of a point).
+//!
+//! ## Physics and sign convention
+//!
+//! The portal rides on the two rails at `x = rail_x[0]`, `x = rail_x[1]` (top at
+//! `z = rail_height`), on bearings `bearing_span` apart along Y centred on the portal position
+//! `y`. The bed deflects by `uz(x, y)` (positive up). The portal, rigid, follows its bearings:
+//!
+//! - its physical tilt about +X is `α = (ū_front − ū_back) / span` (front = +Y bearing; ū = mean
+//!   over the two rails): a positive α lifts the +Y side;
+//! - its physical tilt about +Y is `β = −(ū_2 − ū_1) / (x_2 − x_1)` (ū_r = mean of the two
+//!   bearings on rail r): a positive β lowers the +X side.
+//!
+//! The scales on the portal read the same values as before, so the probe tip really is at
+//! `p_true ≈ p + (α, β, 0) × (p − o)` when the machine indicates `p`, with the pivot
+//! `o = ((x1 + x2)/2, y, rail_height)`. The contract corrects with `p − e`, `e = θ × (p − o)`, so
+//! the **reported** pitch and roll are `θ = −(α, β)`: the rotation of the bed (and of the part on
+//! it) as seen from the tilted portal — equivalently, the rotation that takes true coordinates
+//! to indicated ones. A load ahead of the portal (larger Y) sinks its front bearings: the portal
+//! tips forward (α < 0) and the reported pitch is positive. Maps imported from an outside FE
+//! package must use this sign (pitch_urad = (uz_back − uz_front)/span, roll_urad =
+//! (uz_rail2 − uz_rail1)/(x2 − x1), both ×10⁶).
+//!
+//! The common vertical sink of the four bearings (`ū`) moves the portal without rotating it; the
+//! contract's model has no term for it, and it is not corrected here.
+
+use crate::geometric::OutOfRange;
+use crate::influence::PortalCurves;
+use truepos_math::{Point3, Vector3};
+
+/// The portal and its travel (mm).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Portal {
+    pub rail_x: [f64; 2],
+    pub rail_height: f64,
+    pub bearing_span: f64,
+    pub y_range: [f64; 2],
+    pub y_step: f64,
+}
+
+/// Why a portal description is unusable.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PortalError {
+    #[error("the two rails must be at different x (rail_x_mm = [{0}, {1}])")]
+    Rails(f64, f64),
+    #[error("bearing_span_mm must be positive (got {0})")]
+    Span(f64),
+    #[error("y_range_mm must be increasing and y_step_mm positive (y_range_mm = [{0}, {1}], y_step_mm = {2})")]
+    Range(f64, f64, f64),
+    #[error("a portal value is not finite")]
+    NotFinite,
+}
+
+impl Portal {
+    pub fn validate(&self) -> Result<(), PortalError> {
+        let all = [self.rail_x[0], self.rail_x[1], self.rail_height, self.bearing_span, self.y_range[0], self.y_range[1], self.y_step];
+        if all.iter().any(|v| !v.is_finite()) {
+            return Err(PortalError::NotFinite);
+        }
+        if self.rail_x[0] == self.rail_x[1] {
+            return Err(PortalError::Rails(self.rail_x[0], self.rail_x[1]));
+        }
+        if self.bearing_span <= 0.0 {
+            return Err(PortalError::Span(self.bearing_span));
+        }
+        if !(self.y_range[1] > self.y_range[0] && self.y_step > 0.0) {
+            return Err(PortalError::Range(self.y_range[0], self.y_range[1], self.y_step));
+        }
+        Ok(())
+    }
+
+    /// Portal positions `y0, y0 + step, …`, ending exactly at `y1` (the last step may be shorter).
+    pub fn positions(&self) -> Vec<f64> {
+        let [y0, y1] = self.y_range;
+        let n = ((y1 - y0) / self.y_step - 1e-9).floor().max(0.0) as usize;
+        let mut v: Vec<f64> = (0..=n).map(|i| y0 + i as f64 * self.y_step).collect();
+        if y1 - v[v.len() - 1] > 1e-9 * self.y_step {
+            v.push(y1);
+        }
+        v
+    }
+
+    /// The pivot `o` of the contract at portal position `y`.
+    pub fn pivot(&self, y: f64) -> Point3 {
+        Point3::new(0.5 * (self.rail_x[0] + self.rail_x[1]), y, self.rail_height)
+    }
+}
+
+/// Reported `(pitch, roll)` (rad, convention of this module) of the portal at position `y` on a
+/// bed deflected by `uz` (mm, positive up).
+pub fn portal_rotation(uz: impl Fn(f64, f64) -> f64, portal: &Portal, y: f64) -> (f64, f64) {
+    let h = 0.5 * portal.bearing_span;
+    let [x1, x2] = portal.rail_x;
+    let (b1, f1) = (uz(x1, y - h), uz(x1, y + h));
+    let (b2, f2) = (uz(x2, y - h), uz(x2, y + h));
+    let pitch = 0.5 * ((b1 - f1) + (b2 - f2)) / portal.bearing_span;
+    let roll = (0.5 * (b2 + f2) - 0.5 * (b1 + f1)) / (x2 - x1);
+    (pitch, roll)
+}
+
+/// The load correction of one load case: pitch/roll curves and the pivot geometry.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoadCorrection {
+    pub curves: PortalCurves,
+    pub rail_center_x: f64,
+    pub rail_height: f64,
+}
+
+impl LoadCorrection {
+    pub fn new(curves: PortalCurves, portal: &Portal) -> Self {
+        Self { curves, rail_center_x: 0.5 * (portal.rail_x[0] + portal.rail_x[1]), rail_height: portal.rail_height }
+    }
+
+    /// The contract's error `e = (θx, θy, 0) × (p − o)` at indicated point `p` (portal at `p.y`).
+    #[inline]
+    pub fn error(&self, p: &Point3) -> Result<Vector3, OutOfRange> {
+        let (tx, ty) = self.curves.at(p.y)?;
+        let dx = p.x - self.rail_center_x;
+        let dz = p.z - self.rail_height;
+        // (tx, ty, 0) × (dx, 0, dz)
+        Ok(Vector3::new(ty * dz, -tx * dz, -ty * dx))
+    }
+
+    /// The corrected point `p − e`.
+    pub fn correct(&self, p: &Point3) -> Result<Point3, OutOfRange> {
+        Ok(p - self.error(p)?)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn portal() -> Portal {
+        Portal { rail_x: [0.0, 2000.0], rail_height: 100.0, bearing_span: 400.0, y_range: [200.0, 1800.0], y_step: 300.0 }
+    }
+
+    #[test]
+    fn positions_end_at_the_range() {
+        assert_eq!(portal().positions(), vec![200.0, 500.0, 800.0, 1100.0, 1400.0, 1700.0, 1800.0]);
+        let p = Portal { y_step: 400.0, ..portal() };
+        assert_eq!(p.positions(), vec![200.0, 600.0, 1000.0, 1400.0, 1800.0]);
+        assert!(Portal { rail_x: [5.0, 5.0], ..portal() }.validate().is_err());
+    }
+
+    #[test]
+    fn tilted_bed_gives_exact_rotation_and_correction_undoes_it() {
+        // A bed that tilts rigidly: uz = a·x + b·y. The portal follows: physical tilt about +X is
+        // α = b (front higher), about +Y is β = −a. Reported θ = (−b, a).
+        let (a, b) = (3e-6, -5e-6);
+        let (pitch, roll) = portal_rotation(|x, y| a * x + b * y, &portal(), 900.0);
+        assert!((pitch + b).abs() < 1e-18 && (roll - a).abs() < 1e-18, "{pitch} {roll}");
+        // The tip of the physically tilted portal: p_true = o + R(α, β)(p − o) (exact rotation).
+        let pr = portal();
+        let curves = PortalCurves::new(vec![0.0, 2000.0], vec![pitch; 2], vec![roll; 2]).unwrap();
+        let lc = LoadCorrection::new(curves, &pr);
+        let p = Point3::new(1700.0, 900.0, 650.0);
+        let o = pr.pivot(p.y);
+        let rot = nalgebra::Rotation3::new(Vector3::new(b, -a, 0.0));
+        let truth = o + rot * (p - o);
+        let corrected = lc.correct(&p).unwrap();
+        // Residual is second order: |θ|²·|p − o| ≈ 3.4e-11·1000 mm ≈ 3e-8 mm.
+        assert!((corrected - truth).norm() < 1e-7, "{}", (corrected - truth).norm());
+        assert!((p - truth).norm() > 1e-3, "the test must have a visible error");
+    }
+}
