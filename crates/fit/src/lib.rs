@@ -1,1 +1,419 @@
-//! Placeholder: this crate is being built (see ARCHITECTURE.md).
+//! # truepos-fit
+//!
+//! Least-squares (Gaussian, orthogonal-distance) geometric elements as ISO 10360-6 and ASME
+//! B89.4.10 define them, with the standard uncertainties of their parameters from the fit
+//! covariance `σ₀²(JᵀJ)⁻¹`, `σ₀² = SSR/(n − p)`.
+//!
+//! Entry points: [`line`], [`plane`], [`circle`] (3D reference definition: least-squares plane,
+//! then the least-squares 2D circle of the points projected into it), [`sphere`],
+//! [`sphere_with_radius`], [`cylinder`], [`cone`]. Each returns its `XxxFit` or a [`FitError`]
+//! naming why the data cannot determine the element (too few points, coincident, collinear,
+//! coplanar, a cone that is a cylinder, a cylinder on flat data, non-finite values).
+//!
+//! Method: line and plane are closed-form (principal axes of the scatter matrix, fixed 3×3
+//! symmetric eigen-decomposition). The others start from values that need no luck (algebraic
+//! Kåsa sphere/circle fits; for cylinder and cone an algebraic fit along every principal axis and
+//! a coarse grid of directions over the hemisphere, best kept) and refine them by
+//! Levenberg-Marquardt ([`engine`]) in a local frame re-expressed at every iteration (the
+//! current axis is z), which keeps the normal equations well conditioned. One iteration is one
+//! parallel, allocation-free pass over the points.
+
+// Negated comparisons are deliberate: `!(x > t)` also rejects NaN. Index loops over small
+// fixed-size matrices read better than iterator chains.
+#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
+
+// mod axial;
+mod engine;
+pub mod moments;
+
+// pub use axial::{cone, cylinder, ConeFit, CylinderFit};
+
+use engine::{covariance, minimise, Model};
+use moments::Moments;
+use nalgebra::{SVector, Vector2};
+use thiserror::Error;
+use truepos_math::{Matrix3, Point3, Vector3};
+
+/// Why a fit cannot be computed from the given points.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum FitError {
+    #[error("a {kind} fit needs at least {needed} points, {got} given")]
+    TooFewPoints { kind: &'static str, needed: usize, got: usize },
+    #[error("point {index} (0-based) has a coordinate that is not a finite number")]
+    NonFinite { index: usize },
+    #[error("all points coincide: no element is determined")]
+    CoincidentPoints,
+    #[error("the points are collinear: a {kind} is not determined")]
+    CollinearPoints { kind: &'static str },
+    #[error("the points are coplanar: a {kind} is not determined")]
+    CoplanarPoints { kind: &'static str },
+    #[error("the cone is a cylinder: its apex angle is not significantly different from 0 (apex at infinity); fit a cylinder")]
+    ConeIsCylinder,
+    #[error("the data is flat (a plane or a line), not a cylinder: its curvature is not significantly different from 0")]
+    CylinderIsFlat,
+    #[error("invalid fixed radius {0} mm (must be finite and positive)")]
+    InvalidRadius(f64),
+    #[error("the data does not determine the {kind}: the normal equations are singular")]
+    Undetermined { kind: &'static str },
+}
+
+/// Iteration cap for Levenberg-Marquardt (convergence takes 3–15 iterations on real data).
+const MAX_ITERATIONS: usize = 200;
+/// Reciprocal condition of the column-scaled normal matrix below which parameters are not
+/// determined (double precision leaves ~1e-16; a factor 1e4 margin for the accumulation).
+const RCOND: f64 = 1e-12;
+
+/// Root-sum-square standard uncertainty of a tilt described by two orthogonal angles (rad).
+fn rss(a: f64, b: f64) -> f64 {
+    (a.max(0.0) + b.max(0.0)).sqrt()
+}
+
+fn sqrt_diag(m: &Matrix3) -> Vector3 {
+    Vector3::new(m[(0, 0)].max(0.0).sqrt(), m[(1, 1)].max(0.0).sqrt(), m[(2, 2)].max(0.0).sqrt())
+}
+
+// ---------------------------------------------------------------------------------------------
+// Line
+
+/// Least-squares 3D line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LineFit {
+    /// The point on the line nearest the centroid (the centroid itself).
+    pub point: Point3,
+    /// Unit direction (sign: largest component positive).
+    pub direction: Vector3,
+    /// RMS orthogonal distance, mm.
+    pub rms: f64,
+    pub max_abs_residual: f64,
+    pub n_points: usize,
+    /// Standard uncertainty of `point` perpendicular to the line (root-sum-square of the two
+    /// perpendicular components), mm.
+    pub point_uncertainty: f64,
+    /// Standard uncertainty of the direction (root-sum-square of two tilt angles), rad.
+    pub direction_uncertainty: f64,
+}
+
+/// Make the largest-magnitude component of a direction positive (a stable sign convention).
+fn canonical(v: Vector3) -> Vector3 {
+    if v[v.iamax()] < 0.0 {
+        -v
+    } else {
+        v
+    }
+}
+
+/// Least-squares line (orthogonal distance).
+pub fn line(points: &[Point3]) -> Result<LineFit, FitError> {
+    let m = Moments::of(points)?;
+    m.require("line", 2, 0)?;
+    let dir = canonical(m.axis(2));
+    // SSR = total scatter minus what the direction explains.
+    let ssr = (m.eigenvalues[0] + m.eigenvalues[1]).max(0.0);
+    let n = points.len();
+    let max_abs = max_by(points, |p| {
+        let v = p - m.centroid;
+        (v - dir * v.dot(&dir)).norm()
+    });
+    // Two residual components per point, four parameters (two offsets, two tilts).
+    let dof = (2 * n) as f64 - 4.0;
+    let s2 = if dof > 0.0 { ssr / dof } else { 0.0 };
+    Ok(LineFit {
+        point: m.centroid,
+        direction: dir,
+        rms: (ssr / n as f64).sqrt(),
+        max_abs_residual: max_abs,
+        n_points: n,
+        point_uncertainty: (2.0 * s2 / n as f64).sqrt(),
+        direction_uncertainty: (2.0 * s2 / m.eigenvalues[2]).sqrt(),
+    })
+}
+
+fn max_by(points: &[Point3], f: impl Fn(&Point3) -> f64 + Sync) -> f64 {
+    use rayon::prelude::*;
+    if points.len() > 32 * 1024 {
+        points.par_iter().map(&f).reduce(|| 0.0, f64::max)
+    } else {
+        points.iter().map(f).fold(0.0, f64::max)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Plane
+
+/// Least-squares plane.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlaneFit {
+    /// The centroid (which lies on the least-squares plane).
+    pub point: Point3,
+    /// Unit normal (sign: largest component positive).
+    pub normal: Vector3,
+    pub rms: f64,
+    pub max_abs_residual: f64,
+    pub n_points: usize,
+    /// Standard uncertainty of the plane's position along its normal at `point`, mm.
+    pub offset_uncertainty: f64,
+    /// Standard uncertainty of the normal (root-sum-square of two tilt angles), rad.
+    pub normal_uncertainty: f64,
+}
+
+impl PlaneFit {
+    /// Signed distance of `p` from the plane (positive on the side the normal points to).
+    pub fn distance(&self, p: &Point3) -> f64 {
+        (p - self.point).dot(&self.normal)
+    }
+}
+
+fn plane_from_moments(points: &[Point3], m: &Moments) -> PlaneFit {
+    let normal = canonical(m.axis(0));
+    let n = points.len();
+    let ssr = m.eigenvalues[0].max(0.0);
+    let c = m.centroid;
+    let max_abs = max_by(points, |p| (p - c).dot(&normal).abs());
+    let dof = n as f64 - 3.0;
+    let s2 = if dof > 0.0 { ssr / dof } else { 0.0 };
+    PlaneFit {
+        point: c,
+        normal,
+        rms: (ssr / n as f64).sqrt(),
+        max_abs_residual: max_abs,
+        n_points: n,
+        offset_uncertainty: (s2 / n as f64).sqrt(),
+        normal_uncertainty: rss(s2 / m.eigenvalues[1], s2 / m.eigenvalues[2]),
+    }
+}
+
+/// Least-squares plane (orthogonal distance).
+pub fn plane(points: &[Point3]) -> Result<PlaneFit, FitError> {
+    let m = Moments::of(points)?;
+    m.require("plane", 3, 1)?;
+    Ok(plane_from_moments(points, &m))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Sphere
+
+/// Least-squares sphere.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SphereFit {
+    pub center: Point3,
+    pub radius: f64,
+    /// RMS of the orthogonal residuals `|p − c| − r`, mm.
+    pub rms: f64,
+    pub max_abs_residual: f64,
+    pub n_points: usize,
+    /// Standard uncertainties of the centre coordinates, mm.
+    pub center_uncertainty: Vector3,
+    /// Covariance of the centre, mm².
+    pub center_covariance: Matrix3,
+    /// Standard uncertainty of the radius, mm (0 when the radius was fixed).
+    pub radius_uncertainty: f64,
+    pub iterations: usize,
+}
+
+struct SphereModel;
+impl Model<4> for SphereModel {
+    type State = (Point3, f64);
+    #[inline(always)]
+    fn residual(&self, s: &(Point3, f64), p: &Point3, j: &mut [f64; 4]) -> f64 {
+        let (dx, dy, dz) = (p.x - s.0.x, p.y - s.0.y, p.z - s.0.z);
+        let d = (dx * dx + dy * dy + dz * dz).sqrt();
+        let inv = 1.0 / d;
+        j[0] = -dx * inv;
+        j[1] = -dy * inv;
+        j[2] = -dz * inv;
+        j[3] = -1.0;
+        d - s.1
+    }
+    fn apply(&self, s: &(Point3, f64), d: &SVector<f64, 4>) -> (Point3, f64) {
+        (s.0 + Vector3::new(d[0], d[1], d[2]), s.1 + d[3])
+    }
+    fn step_size(&self, d: &SVector<f64, 4>) -> f64 {
+        d.amax()
+    }
+}
+
+struct FixedSphereModel(f64);
+impl Model<3> for FixedSphereModel {
+    type State = Point3;
+    #[inline(always)]
+    fn residual(&self, s: &Point3, p: &Point3, j: &mut [f64; 3]) -> f64 {
+        let (dx, dy, dz) = (p.x - s.x, p.y - s.y, p.z - s.z);
+        let d = (dx * dx + dy * dy + dz * dz).sqrt();
+        let inv = 1.0 / d;
+        j[0] = -dx * inv;
+        j[1] = -dy * inv;
+        j[2] = -dz * inv;
+        d - self.0
+    }
+    fn apply(&self, s: &Point3, d: &SVector<f64, 3>) -> Point3 {
+        s + d
+    }
+    fn step_size(&self, d: &SVector<f64, 3>) -> f64 {
+        d.amax()
+    }
+}
+
+/// Least-squares sphere (orthogonal distance), from the algebraic (Kåsa) start.
+pub fn sphere(points: &[Point3]) -> Result<SphereFit, FitError> {
+    let m = Moments::of(points)?;
+    m.require("sphere", 4, 2)?;
+    let (c0, r0) = m.algebraic_sphere().ok_or(FitError::Undetermined { kind: "sphere" })?;
+    let model = SphereModel;
+    let sol = minimise(&model, (c0, r0), points, MAX_ITERATIONS)
+        .ok_or(FitError::Undetermined { kind: "sphere" })?;
+    let (center, radius) = sol.state;
+    let cov = covariance(&sol.acc, points.len(), RCOND).ok_or(FitError::Undetermined { kind: "sphere" })?;
+    let center_covariance = cov.fixed_view::<3, 3>(0, 0).into_owned();
+    let n = points.len();
+    Ok(SphereFit {
+        center,
+        radius: radius.abs(),
+        rms: (sol.acc.ssr / n as f64).sqrt(),
+        max_abs_residual: sol.acc.max_abs,
+        n_points: n,
+        center_uncertainty: sqrt_diag(&center_covariance),
+        center_covariance,
+        radius_uncertainty: cov[(3, 3)].max(0.0).sqrt(),
+        iterations: sol.iterations,
+    })
+}
+
+/// Least-squares sphere of known radius (only the centre is fitted), e.g. a calibrated
+/// reference sphere. The points must not be coplanar (a circle of points lies on two mirror
+/// spheres of the same radius).
+pub fn sphere_with_radius(points: &[Point3], radius: f64) -> Result<SphereFit, FitError> {
+    if !(radius.is_finite() && radius > 0.0) {
+        return Err(FitError::InvalidRadius(radius));
+    }
+    let m = Moments::of(points)?;
+    m.require("sphere", 3, 2)?;
+    // Start: the free algebraic sphere's centre, moved along the line from the centroid so the
+    // mean distance matches the fixed radius.
+    let c0 = match m.algebraic_sphere() {
+        Some((c, _)) => c,
+        None => m.centroid,
+    };
+    let model = FixedSphereModel(radius);
+    let sol =
+        minimise(&model, c0, points, MAX_ITERATIONS).ok_or(FitError::Undetermined { kind: "sphere" })?;
+    let center = sol.state;
+    let cov = covariance(&sol.acc, points.len(), RCOND).ok_or(FitError::Undetermined { kind: "sphere" })?;
+    let n = points.len();
+    Ok(SphereFit {
+        center,
+        radius,
+        rms: (sol.acc.ssr / n as f64).sqrt(),
+        max_abs_residual: sol.acc.max_abs,
+        n_points: n,
+        center_uncertainty: sqrt_diag(&cov),
+        center_covariance: cov,
+        radius_uncertainty: 0.0,
+        iterations: sol.iterations,
+    })
+}
+
+// ---------------------------------------------------------------------------------------------
+// Circle (3D)
+
+/// Least-squares 3D circle (ISO 10360-6 reference definition).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CircleFit {
+    pub center: Point3,
+    /// Unit normal of the least-squares plane (sign: largest component positive).
+    pub normal: Vector3,
+    pub radius: f64,
+    /// RMS of the 3D distance of the points from the circle, mm.
+    pub rms: f64,
+    pub max_abs_residual: f64,
+    /// RMS of the in-plane radial residuals (what the 2D circle fit minimises), mm.
+    pub radial_rms: f64,
+    /// RMS distance from the plane, mm.
+    pub plane_rms: f64,
+    pub n_points: usize,
+    /// Standard uncertainties of the centre coordinates, mm.
+    pub center_uncertainty: Vector3,
+    pub radius_uncertainty: f64,
+    /// Standard uncertainty of the normal (root-sum-square of two tilt angles), rad.
+    pub normal_uncertainty: f64,
+    pub iterations: usize,
+}
+
+struct CircleModel;
+impl Model<3> for CircleModel {
+    type State = (Vector2<f64>, f64);
+    #[inline(always)]
+    fn residual(&self, s: &(Vector2<f64>, f64), p: &Point3, j: &mut [f64; 3]) -> f64 {
+        let (dx, dy) = (p.x - s.0.x, p.y - s.0.y);
+        let d = (dx * dx + dy * dy).sqrt();
+        j[0] = -dx / d;
+        j[1] = -dy / d;
+        j[2] = -1.0;
+        d - s.1
+    }
+    fn apply(&self, s: &(Vector2<f64>, f64), d: &SVector<f64, 3>) -> (Vector2<f64>, f64) {
+        (s.0 + Vector2::new(d[0], d[1]), s.1 + d[2])
+    }
+    fn step_size(&self, d: &SVector<f64, 3>) -> f64 {
+        d.amax()
+    }
+}
+
+/// Algebraic (Kåsa) circle of 2D points stored as `(u, v, 0)` and centred: `(centre, radius)`.
+fn kasa_2d(q: &[Point3]) -> Option<(Vector2<f64>, f64)> {
+    let mut m = nalgebra::Matrix3::<f64>::zeros();
+    let mut rhs = Vector3::zeros();
+    for p in q {
+        let row = Vector3::new(2.0 * p.x, 2.0 * p.y, 1.0);
+        let s = p.x * p.x + p.y * p.y;
+        m += row * row.transpose();
+        rhs += row * s;
+    }
+    let sol = m.cholesky()?.solve(&rhs);
+    let r2 = sol[2] + sol[0] * sol[0] + sol[1] * sol[1];
+    (r2 > 0.0 && r2.is_finite()).then(|| (Vector2::new(sol[0], sol[1]), r2.sqrt()))
+}
+
+/// Least-squares 3D circle: the least-squares plane, then the least-squares circle of the
+/// points projected into it.
+pub fn circle(points: &[Point3]) -> Result<CircleFit, FitError> {
+    let m = Moments::of(points)?;
+    m.require("circle", 3, 1)?;
+    let pl = plane_from_moments(points, &m);
+    let (u, v, n) = (m.axis(2), m.axis(1), pl.normal);
+    let c = m.centroid;
+    let q: Vec<Point3> = points.iter().map(|p| Point3::new((p - c).dot(&u), (p - c).dot(&v), 0.0)).collect();
+    let start = kasa_2d(&q).ok_or(FitError::CollinearPoints { kind: "circle" })?;
+    let sol =
+        minimise(&CircleModel, start, &q, MAX_ITERATIONS).ok_or(FitError::Undetermined { kind: "circle" })?;
+    let (c2, radius) = sol.state;
+    let cov = covariance(&sol.acc, points.len(), RCOND).ok_or(FitError::Undetermined { kind: "circle" })?;
+    let center = c + u * c2.x + v * c2.y;
+    // Centre covariance: in-plane from the circle fit, along the normal from the plane offset.
+    let e = nalgebra::Matrix3x2::from_columns(&[u, v]);
+    let c_in = cov.fixed_view::<2, 2>(0, 0).into_owned();
+    let cc = e * c_in * e.transpose() + n * n.transpose() * pl.offset_uncertainty.powi(2);
+    let nn = points.len();
+    let mut ssr3 = 0.0;
+    let mut max3 = 0.0f64;
+    for (p, qq) in points.iter().zip(&q) {
+        let h = (p - c).dot(&n);
+        let rr = (qq.x - c2.x).hypot(qq.y - c2.y) - radius;
+        let d2 = h * h + rr * rr;
+        ssr3 += d2;
+        max3 = max3.max(d2.sqrt());
+    }
+    Ok(CircleFit {
+        center,
+        normal: n,
+        radius: radius.abs(),
+        rms: (ssr3 / nn as f64).sqrt(),
+        max_abs_residual: max3,
+        radial_rms: (sol.acc.ssr / nn as f64).sqrt(),
+        plane_rms: pl.rms,
+        n_points: nn,
+        center_uncertainty: sqrt_diag(&cc),
+        radius_uncertainty: cov[(2, 2)].max(0.0).sqrt(),
+        normal_uncertainty: pl.normal_uncertainty,
+        iterations: sol.iterations,
+    })
+}

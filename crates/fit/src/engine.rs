@@ -1,0 +1,226 @@
+//! The Gauss-Newton / Levenberg-Marquardt engine shared by the nonlinear fits.
+//!
+//! A [`Model`] gives one orthogonal residual per point and its gradient with respect to `N`
+//! *local* parameters (a step from the current state, e.g. a small tilt of the current axis),
+//! and applies a step to the state. [`accumulate`] streams `JᵀJ`, `Jᵀr`, the sum of squares and
+//! the largest residual over the points in parallel chunks (fixed-size nalgebra matrices, no
+//! allocation per point), so one iteration is one memory-bound pass. [`minimise`] runs
+//! Levenberg-Marquardt with Marquardt scaling; each trial point is evaluated once and its normal
+//! equations are reused as the next linearisation.
+
+use nalgebra::{SMatrix, SVector};
+use rayon::prelude::*;
+use truepos_math::Point3;
+
+/// Points per parallel chunk, and the count above which accumulation runs in parallel.
+const CHUNK: usize = 16 * 1024;
+const PARALLEL_ABOVE: usize = 32 * 1024;
+
+pub(crate) trait Model<const N: usize>: Sync {
+    type State: Clone + Send + Sync;
+    /// Orthogonal residual of `p` at state `s` (signed: positive outside); writes `∂r/∂δ`.
+    fn residual(&self, s: &Self::State, p: &Point3, jac: &mut [f64; N]) -> f64;
+    /// The state after the local step `d`.
+    fn apply(&self, s: &Self::State, d: &SVector<f64, N>) -> Self::State;
+    /// Size of a step relative to the problem's scale (positions divided by the data extent,
+    /// angles as they are), for the convergence test.
+    fn step_size(&self, d: &SVector<f64, N>) -> f64;
+}
+
+#[derive(Clone, Debug)]
+pub(crate) struct Acc<const N: usize> {
+    pub jtj: SMatrix<f64, N, N>,
+    pub jtr: SVector<f64, N>,
+    pub ssr: f64,
+    pub max_abs: f64,
+    pub finite: bool,
+}
+
+impl<const N: usize> Acc<N> {
+    fn zero() -> Self {
+        Self { jtj: SMatrix::zeros(), jtr: SVector::zeros(), ssr: 0.0, max_abs: 0.0, finite: true }
+    }
+    fn merge(mut self, o: Self) -> Self {
+        self.jtj += o.jtj;
+        self.jtr += o.jtr;
+        self.ssr += o.ssr;
+        self.max_abs = self.max_abs.max(o.max_abs);
+        self.finite &= o.finite;
+        self
+    }
+}
+
+fn accumulate_chunk<const N: usize, M: Model<N>>(m: &M, s: &M::State, pts: &[Point3]) -> Acc<N> {
+    // Upper triangle only, in a flat array: the compiler keeps this in registers for small N.
+    let mut jtj = [[0.0f64; N]; N];
+    let mut jtr = [0.0f64; N];
+    let mut ssr = 0.0;
+    let mut max_abs = 0.0f64;
+    let mut finite = true;
+    let mut j = [0.0f64; N];
+    for p in pts {
+        let r = m.residual(s, p, &mut j);
+        if !r.is_finite() {
+            finite = false;
+            continue;
+        }
+        ssr += r * r;
+        max_abs = max_abs.max(r.abs());
+        for a in 0..N {
+            jtr[a] += j[a] * r;
+            for b in a..N {
+                jtj[a][b] += j[a] * j[b];
+            }
+        }
+    }
+    let mut acc = Acc::<N>::zero();
+    for a in 0..N {
+        acc.jtr[a] = jtr[a];
+        for b in a..N {
+            acc.jtj[(a, b)] = jtj[a][b];
+            acc.jtj[(b, a)] = jtj[a][b];
+        }
+    }
+    if !jtr.iter().all(|v| v.is_finite()) || !jtj.iter().flatten().all(|v| v.is_finite()) {
+        finite = false;
+    }
+    acc.ssr = ssr;
+    acc.max_abs = max_abs;
+    acc.finite = finite;
+    acc
+}
+
+/// Normal equations of `m` at state `s` over all points.
+pub(crate) fn accumulate<const N: usize, M: Model<N>>(m: &M, s: &M::State, pts: &[Point3]) -> Acc<N> {
+    if pts.len() <= PARALLEL_ABOVE {
+        return accumulate_chunk(m, s, pts);
+    }
+    pts.par_chunks(CHUNK).map(|c| accumulate_chunk(m, s, c)).reduce(Acc::zero, Acc::merge)
+}
+
+pub(crate) struct Solution<const N: usize, S> {
+    pub state: S,
+    pub acc: Acc<N>,
+    pub iterations: usize,
+}
+
+/// Relative step size below which the iteration has converged.
+const STEP_TOL: f64 = 1e-14;
+
+/// Levenberg-Marquardt from `s0`. Returns `None` when residuals are not finite at the start.
+pub(crate) fn minimise<const N: usize, M: Model<N>>(
+    m: &M,
+    s0: M::State,
+    pts: &[Point3],
+    max_iterations: usize,
+) -> Option<Solution<N, M::State>> {
+    let mut s = s0;
+    let mut acc = accumulate(m, &s, pts);
+    if !acc.finite {
+        return None;
+    }
+    let mut lambda = 1e-4;
+    let mut iterations = 0;
+    let mut converged = false;
+    'outer: while iterations < max_iterations {
+        iterations += 1;
+        if acc.ssr == 0.0 {
+            converged = true;
+            break;
+        }
+        let mut tries = 0;
+        loop {
+            tries += 1;
+            let mut a = acc.jtj;
+            for j in 0..N {
+                a[(j, j)] += lambda * acc.jtj[(j, j)].max(1e-300);
+            }
+            let delta = match a.cholesky() {
+                Some(c) => c.solve(&(-acc.jtr)),
+                None => {
+                    lambda = (lambda * 10.0).max(1e-12);
+                    if tries > 60 {
+                        converged = true;
+                        break 'outer;
+                    }
+                    continue;
+                }
+            };
+            let size = m.step_size(&delta);
+            let sn = m.apply(&s, &delta);
+            let an = accumulate(m, &sn, pts);
+            if an.finite && an.ssr <= acc.ssr {
+                let gain = acc.ssr - an.ssr;
+                s = sn;
+                acc = an;
+                lambda = (lambda * 0.1).max(1e-16);
+                if size < STEP_TOL || (gain <= 1e-16 * acc.ssr && lambda < 1e-10) {
+                    converged = true;
+                    break 'outer;
+                }
+                break;
+            }
+            // A rejected step that is already negligible: we sit at the minimum to rounding.
+            if size < STEP_TOL {
+                converged = true;
+                break 'outer;
+            }
+            lambda *= 10.0;
+            if lambda > 1e16 || tries > 60 {
+                converged = true;
+                break 'outer;
+            }
+        }
+    }
+    let _ = converged;
+    Some(Solution { state: s, acc, iterations })
+}
+
+/// Covariance `σ₀²(JᵀJ)⁻¹` with `σ₀² = SSR/(m − N)`, or `None` when `JᵀJ` is numerically
+/// singular after scaling its columns to unit diagonal (reciprocal condition below `rcond`).
+pub(crate) fn covariance<const N: usize>(
+    acc: &Acc<N>,
+    n_points: usize,
+    rcond: f64,
+) -> Option<SMatrix<f64, N, N>> {
+    let mut d = [0.0; N];
+    for (j, dj) in d.iter_mut().enumerate() {
+        let v = acc.jtj[(j, j)];
+        if v <= 0.0 || !v.is_finite() {
+            return None;
+        }
+        *dj = 1.0 / v.sqrt();
+    }
+    let mut scaled = acc.jtj;
+    for a in 0..N {
+        for b in 0..N {
+            scaled[(a, b)] *= d[a] * d[b];
+        }
+    }
+    // Dynamic symmetric eigen-decomposition of a small normal matrix (not the dynamic SVD).
+    let eig = nalgebra::DMatrix::from_fn(N, N, |a, b| scaled[(a, b)]).symmetric_eigen();
+    let max = eig.eigenvalues.max();
+    let min = eig.eigenvalues.min();
+    if !(min > rcond * max) {
+        return None;
+    }
+    let mut inv = SMatrix::<f64, N, N>::zeros();
+    for k in 0..N {
+        let v = eig.eigenvectors.column(k);
+        let e = eig.eigenvalues[k];
+        for a in 0..N {
+            for b in 0..N {
+                inv[(a, b)] += v[a] * v[b] / e;
+            }
+        }
+    }
+    let dof = (n_points as f64 - N as f64).max(1.0);
+    let s2 = acc.ssr / dof;
+    let mut cov = inv;
+    for a in 0..N {
+        for b in 0..N {
+            cov[(a, b)] *= d[a] * d[b] * s2;
+        }
+    }
+    Some(cov)
+}
