@@ -16,7 +16,9 @@
 //! - [`stats`]: mean/standard deviation, weighted straight-line regression with standard
 //!   uncertainties.
 //! - [`interp`]: piecewise-linear interpolation on sorted abscissae.
+//! - [`air`]: refractive index of air (Ciddor, modified Edlén) as NIST computes it.
 
+pub mod air;
 pub mod bestfit;
 pub mod interp;
 pub mod lsq;
