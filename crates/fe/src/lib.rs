@@ -1,1 +1,125 @@
-//! Placeholder: this crate is being built (see ARCHITECTURE.md).
+//! truepos-fe: a finite-element model of a machine bed (granite or cast-iron plate) on its
+//! support pads, used to build influence maps of bed deflection under workpiece loads.
+//!
+//! Theory: thick (Mindlin-Reissner) plates, because machine beds are 200–400 mm thick and the
+//! transverse shear deformation is a few per cent of the bending deflection. Elements: the
+//! 4-node MITC4 quadrilateral (Bathe & Dvorkin 1985) — bilinear `w`, `ψx`, `ψy` with the
+//! transverse shear strains interpolated from the edge mid-points ("tying points"), which removes
+//! shear locking without the spurious zero-energy modes of uniformly reduced integration and
+//! without the over-soft behaviour of selective-reduced integration on coarse meshes. See
+//! [`element`] for the details.
+//!
+//! Entry points (the contract of `docs/conventions.md`, "Plate FE API"):
+//! - [`Bed`], [`Supports`], [`MeshOptions`]: the model description;
+//! - [`PlateModel::new`]: meshes, assembles and factorises (sparse Cholesky, faer) ONCE;
+//! - [`PlateModel::solve`] / [`PlateModel::solve_many`] / [`PlateModel::solve_pressure`]:
+//!   load cases, reusing the factorisation;
+//! - [`Deflection::uz`], [`Deflection::slope`], [`Deflection::reactions`]: results.
+//!
+//! Units: mm, N, N/mm² (MPa). Loads are `(x, y, force_n)` with force positive DOWNWARDS (a
+//! weight); the deflection `uz` is positive UP. The bed origin is the corner (0, 0); bed
+//! coordinates are machine X, Y.
+
+pub mod element;
+pub mod mesh;
+mod model;
+
+pub use mesh::Mesh;
+pub use model::{Deflection, PlateModel};
+
+/// Shear correction factor of the Mindlin-Reissner plate (Reissner's 5/6).
+pub const SHEAR_CORRECTION: f64 = 5.0 / 6.0;
+
+/// Errors of the plate model. All user-caused problems are reported here; nothing panics.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FeError {
+    /// A bed parameter is out of range (non-finite, non-positive, Poisson ratio outside
+    /// (-1, 0.5)).
+    #[error("invalid bed parameter {name} = {value}: {reason}")]
+    InvalidParameter { name: &'static str, value: f64, reason: &'static str },
+    /// A support point lies outside the bed or is not finite.
+    #[error("support {index} at ({x}, {y}) mm lies outside the bed (0..{size_x}, 0..{size_y}) mm")]
+    SupportOutsideBed { index: usize, x: f64, y: f64, size_x: f64, size_y: f64 },
+    /// The supports cannot restrain the rigid-body motion of the plate (fewer than three
+    /// non-collinear support points, or non-positive spring stiffness).
+    #[error("singular model: {0}")]
+    Singular(String),
+    /// A load point lies outside the bed or a load is not finite.
+    #[error("load {index} at ({x}, {y}) mm with force {force} N lies outside the bed or is not finite")]
+    InvalidLoad { index: usize, x: f64, y: f64, force: f64 },
+    /// The requested mesh would be too large (element size too small for the bed).
+    #[error("mesh too large: {nodes} nodes (limit {limit}); increase the element size")]
+    MeshTooLarge { nodes: usize, limit: usize },
+    /// The sparse factorisation failed (numerically singular or out of memory).
+    #[error("sparse factorisation failed: {0}")]
+    Factorisation(String),
+}
+
+/// How the bed is supported.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Supports {
+    /// Point supports on pads at `xy` (mm, bed coordinates). `stiffness_n_per_mm = None`:
+    /// rigid pads (the vertical deflection is constrained to zero at the pad); `Some(k)`:
+    /// elastic pads, each a vertical spring of stiffness `k` N/mm. Either way at least three
+    /// non-collinear pads are needed. Pads are placed on mesh nodes (the mesh lines are put
+    /// through them).
+    Points { xy: Vec<[f64; 2]>, stiffness_n_per_mm: Option<f64> },
+    /// All four edges "hard" simply supported: w = 0 and the rotation about the edge normal
+    /// (the tangential rotation) = 0, the bending moment normal to the edge free. This is the
+    /// support for which the Navier solutions and the Wang-Reddy-Lee Mindlin/Kirchhoff relation
+    /// hold exactly (no boundary layer); it is meant for checks against plate theory.
+    SimplySupportedEdges,
+}
+
+/// The machine bed: a rectangular plate of uniform thickness.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Bed {
+    /// Extent along machine X, mm.
+    pub size_x: f64,
+    /// Extent along machine Y, mm.
+    pub size_y: f64,
+    /// Plate thickness, mm.
+    pub thickness: f64,
+    /// Young's modulus, N/mm² (granite ≈ 4.5e4–6e4, cast iron ≈ 1.1e5–1.3e5).
+    pub youngs_modulus: f64,
+    /// Poisson ratio (granite ≈ 0.1–0.25, cast iron ≈ 0.26).
+    pub poisson: f64,
+    /// Supports.
+    pub supports: Supports,
+}
+
+impl Bed {
+    /// Plate bending stiffness D = E h³ / (12 (1 − ν²)), N·mm.
+    pub fn flexural_rigidity(&self) -> f64 {
+        self.youngs_modulus * self.thickness.powi(3) / (12.0 * (1.0 - self.poisson * self.poisson))
+    }
+
+    /// Transverse shear stiffness κ G h with κ = 5/6, N/mm.
+    pub fn shear_rigidity(&self) -> f64 {
+        SHEAR_CORRECTION * self.youngs_modulus / (2.0 * (1.0 + self.poisson)) * self.thickness
+    }
+}
+
+/// Meshing options.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeshOptions {
+    /// Target element edge length in mm. `0.0` (the [`Default`]) selects it automatically:
+    /// the largest of 1, 2, 2.5, 5 × 10^k not above max(size_x, size_y) / 64 (25 mm for a 2 m
+    /// bed; see docs/performance-fe.md for the convergence study behind this choice). Mesh lines
+    /// are at multiples of the element size from the origin, plus lines through every support
+    /// pad and the far edges, so load grids in multiples of the element size fall on nodes.
+    pub element_size: f64,
+}
+
+impl Default for MeshOptions {
+    fn default() -> Self {
+        MeshOptions { element_size: 0.0 }
+    }
+}
+
+impl MeshOptions {
+    /// Mesh with the given target element size (mm).
+    pub fn with_element_size(element_size: f64) -> Self {
+        MeshOptions { element_size }
+    }
+}
