@@ -22,11 +22,11 @@
 // fixed-size matrices read better than iterator chains.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 
-// mod axial;
+mod axial;
 mod engine;
 pub mod moments;
 
-// pub use axial::{cone, cylinder, ConeFit, CylinderFit};
+pub use axial::{cone, cylinder, ConeFit, CylinderFit};
 
 use engine::{covariance, minimise, Model};
 use moments::Moments;

@@ -116,3 +116,36 @@ fn spheres() {
         assert!(dg < POS_TOL, "{name}: fixed-radius centre {dg:e}");
     }
 }
+
+#[test]
+fn cylinders() {
+    for (name, pts, c) in sets("Cylinder") {
+        let f = truepos_fit::cylinder(&pts).unwrap();
+        let ang = axis_angle(&f.axis, &v3(&c[3..6]));
+        let d = dist_to_line(&p3(&c[0..3]), &f.point, &f.axis);
+        let dd = (2.0 * f.radius - c[6]).abs();
+        eprintln!("{name}: angle {ang:.2e} rad, axis distance {d:.2e} mm, diameter {dd:.2e} mm");
+        assert!(ang < ANG_TOL && d < POS_TOL && dd < POS_TOL, "{name}: {ang:e} {d:e} {dd:e}");
+    }
+}
+
+#[test]
+fn cones() {
+    for (name, pts, c) in sets("Cone") {
+        let f = truepos_fit::cone(&pts).unwrap();
+        // The cone axis is directed (towards increasing radius): compare the signed angle.
+        let a_cert = v3(&c[3..6]);
+        let ang = f.axis.cross(&a_cert).norm().atan2(f.axis.dot(&a_cert));
+        let pc = p3(&c[0..3]);
+        let d = dist_to_line(&pc, &f.point, &f.axis);
+        // Our surface distance at the certified axis point's position along our axis.
+        let t = (pc - f.point).dot(&f.axis);
+        let ds = (f.surface_distance_at(t) - c[6]).abs();
+        let dang = (f.apex_angle - c[7].to_radians()).abs();
+        eprintln!("{name}: axis {ang:.2e} rad, axis distance {d:.2e} mm, surface distance {ds:.2e} mm, apex angle {dang:.2e} rad");
+        assert!(
+            ang < ANG_TOL && d < POS_TOL && ds < POS_TOL && dang < ANG_TOL,
+            "{name}: {ang:e} {d:e} {ds:e} {dang:e}"
+        );
+    }
+}

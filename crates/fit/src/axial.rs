@@ -1,0 +1,389 @@
+//! Cylinder and cone: least-squares elements with an axis.
+//!
+//! Parametrisation (Forbes, NPL DITC 140/89): at every iteration the data is re-expressed in a
+//! frame whose origin is the current axis point nearest the centroid and whose z is the current
+//! axis; the step is `(x0, y0, a, b, …)`: a shift of the axis point in the frame's xy-plane and a
+//! tilt of the axis to `(a, b, 1)`. The Jacobian is evaluated at the step's origin, where it is
+//! simple and well conditioned; the frame is rebuilt after each accepted step.
+//!
+//! Cone residual (orthogonal distance, valid on both sides of the surface):
+//! `d = ρ·cos ψ − z·sin ψ − s`, with `ρ` the distance from the axis, `z` the coordinate along the
+//! axis from the axis point, `ψ` the half apex angle and `s` the orthogonal distance from the
+//! axis point to the surface (NIST's cone parameter).
+//!
+//! Starting values: for each candidate axis direction (the three principal axes and 64
+//! directions spread evenly over the hemisphere) an algebraic fit of `x² + y² = 2ax + 2by + e
+//! (+ f z + g z²)` to a subsample of at most 2000 points — exact for a cylinder (cone) whose axis
+//! is the candidate — scored by the geometric residual; the best few are refined with all points
+//! and the lowest sum of squares wins.
+
+use crate::engine::{covariance, minimise, Model};
+use crate::moments::Moments;
+use crate::{FitError, MAX_ITERATIONS, RCOND};
+use nalgebra::{SMatrix, SVector};
+use truepos_math::{any_perpendicular, Matrix3, Point3, Vector3};
+
+/// Least-squares cylinder.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CylinderFit {
+    /// The point on the axis nearest the centroid.
+    pub point: Point3,
+    /// Unit axis direction (sign: largest component positive).
+    pub axis: Vector3,
+    pub radius: f64,
+    pub rms: f64,
+    pub max_abs_residual: f64,
+    pub n_points: usize,
+    /// Standard uncertainty of `point` perpendicular to the axis (root-sum-square), mm.
+    pub point_uncertainty: f64,
+    /// Standard uncertainty of the axis direction (root-sum-square of two tilts), rad.
+    pub axis_uncertainty: f64,
+    pub radius_uncertainty: f64,
+    pub iterations: usize,
+}
+
+/// Least-squares cone.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConeFit {
+    pub apex: Point3,
+    /// Unit axis direction from the apex towards increasing radius.
+    pub axis: Vector3,
+    /// Full apex angle, rad.
+    pub apex_angle: f64,
+    /// The point on the axis nearest the centroid (where the data is).
+    pub point: Point3,
+    /// Orthogonal distance from `point` to the cone surface, mm.
+    pub surface_distance: f64,
+    pub rms: f64,
+    pub max_abs_residual: f64,
+    pub n_points: usize,
+    /// Standard uncertainties of the apex coordinates, mm (large for small apex angles).
+    pub apex_uncertainty: Vector3,
+    /// Standard uncertainty of `point` perpendicular to the axis (root-sum-square), mm.
+    pub point_uncertainty: f64,
+    /// Standard uncertainty of the axis direction (root-sum-square of two tilts), rad.
+    pub axis_uncertainty: f64,
+    /// Standard uncertainty of the full apex angle, rad.
+    pub apex_angle_uncertainty: f64,
+    pub surface_distance_uncertainty: f64,
+    pub iterations: usize,
+}
+
+/// A frame on the current axis: origin on the axis, rows of `r` are (u, v, axis).
+#[derive(Clone, Debug)]
+struct Frame {
+    o: Point3,
+    r: Matrix3,
+}
+
+impl Frame {
+    fn new(o: Point3, axis: Vector3) -> Frame {
+        let w = axis.normalize();
+        let u = any_perpendicular(&w);
+        let v = w.cross(&u);
+        Frame { o, r: Matrix3::from_rows(&[u.transpose(), v.transpose(), w.transpose()]) }
+    }
+    fn u(&self) -> Vector3 {
+        self.r.row(0).transpose()
+    }
+    fn v(&self) -> Vector3 {
+        self.r.row(1).transpose()
+    }
+    fn w(&self) -> Vector3 {
+        self.r.row(2).transpose()
+    }
+    #[inline(always)]
+    fn local(&self, p: &Point3) -> Vector3 {
+        self.r * (p - self.o)
+    }
+    /// The frame after the step (x0, y0, a, b), its origin moved along the new axis to the
+    /// point nearest `centre`; returns the frame and how far the origin moved along the axis.
+    fn stepped(&self, d0: f64, d1: f64, a: f64, b: f64, centre: &Point3) -> (Frame, f64) {
+        let (u, v, w) = (self.u(), self.v(), self.w());
+        let o = self.o + u * d0 + v * d1;
+        let wn = (w + u * a + v * b).normalize();
+        let t = (centre - o).dot(&wn);
+        let un = (u - wn * u.dot(&wn)).normalize();
+        let vn = wn.cross(&un);
+        (Frame { o: o + wn * t, r: Matrix3::from_rows(&[un.transpose(), vn.transpose(), wn.transpose()]) }, t)
+    }
+}
+
+struct CylModel {
+    centre: Point3,
+    scale: f64,
+}
+impl Model<5> for CylModel {
+    type State = (Frame, f64);
+    #[inline(always)]
+    fn residual(&self, s: &(Frame, f64), p: &Point3, j: &mut [f64; 5]) -> f64 {
+        let q = s.0.local(p);
+        let rho = (q.x * q.x + q.y * q.y).sqrt();
+        let (cx, cy) = (q.x / rho, q.y / rho);
+        j[0] = -cx;
+        j[1] = -cy;
+        j[2] = -cx * q.z;
+        j[3] = -cy * q.z;
+        j[4] = -1.0;
+        rho - s.1
+    }
+    fn apply(&self, s: &(Frame, f64), d: &SVector<f64, 5>) -> (Frame, f64) {
+        (s.0.stepped(d[0], d[1], d[2], d[3], &self.centre).0, s.1 + d[4])
+    }
+    fn step_size(&self, d: &SVector<f64, 5>) -> f64 {
+        (d[0].abs().max(d[1].abs()).max(d[4].abs()) / self.scale).max(d[2].abs()).max(d[3].abs())
+    }
+}
+
+struct ConeModel {
+    centre: Point3,
+    scale: f64,
+}
+/// State: frame, half apex angle ψ, surface distance s.
+type ConeState = (Frame, f64, f64);
+impl Model<6> for ConeModel {
+    type State = ConeState;
+    #[inline(always)]
+    fn residual(&self, s: &ConeState, p: &Point3, j: &mut [f64; 6]) -> f64 {
+        let q = s.0.local(p);
+        let rho = (q.x * q.x + q.y * q.y).sqrt();
+        let (sn, cs) = s.1.sin_cos();
+        let (cx, cy) = (q.x / rho, q.y / rho);
+        j[0] = -cx * cs;
+        j[1] = -cy * cs;
+        j[2] = -cs * cx * q.z - sn * q.x;
+        j[3] = -cs * cy * q.z - sn * q.y;
+        j[4] = -rho * sn - q.z * cs;
+        j[5] = -1.0;
+        rho * cs - q.z * sn - s.2
+    }
+    fn apply(&self, s: &ConeState, d: &SVector<f64, 6>) -> ConeState {
+        let (f, t) = s.0.stepped(d[0], d[1], d[2], d[3], &self.centre);
+        let psi = s.1 + d[4];
+        // Moving the axis point by t along the axis changes the surface distance by t·sin ψ.
+        (f, psi, s.2 + d[5] + t * psi.sin())
+    }
+    fn step_size(&self, d: &SVector<f64, 6>) -> f64 {
+        let pos = d[0].abs().max(d[1].abs()).max(d[5].abs()) / self.scale;
+        pos.max(d[2].abs()).max(d[3].abs()).max(d[4].abs())
+    }
+}
+
+/// Candidate axis directions: principal axes first, then an even spread over the hemisphere
+/// (Fibonacci lattice), so that no axis orientation is more than ~15° from a candidate.
+fn candidate_axes(m: &Moments) -> Vec<Vector3> {
+    let mut v = vec![m.axis(2), m.axis(1), m.axis(0)];
+    let n = 64;
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    for i in 0..n {
+        let z = 1.0 - (i as f64 + 0.5) / n as f64; // (0, 1]: upper hemisphere
+        let r = (1.0 - z * z).sqrt();
+        let phi = golden * i as f64;
+        v.push(Vector3::new(r * phi.cos(), r * phi.sin(), z));
+    }
+    v
+}
+
+/// At most `k` points spread over the data (every `n/k`-th).
+fn subsample(points: &[Point3], k: usize) -> Vec<Point3> {
+    if points.len() <= k {
+        return points.to_vec();
+    }
+    let step = points.len() as f64 / k as f64;
+    (0..k).map(|i| points[(i as f64 * step) as usize]).collect()
+}
+
+/// Algebraic start along `axis`: fits `x²+y² = 2ax + 2by + e [+ f z + g z²]` in a frame at the
+/// centroid. Returns (axis point, half angle ψ, surface distance s) with ψ = 0 for a cylinder.
+fn algebraic_axial(
+    sub: &[Point3],
+    centre: &Point3,
+    axis: &Vector3,
+    cone: bool,
+) -> Option<(Point3, f64, f64)> {
+    let f = Frame::new(*centre, *axis);
+    let k = if cone { 5 } else { 3 };
+    let mut ata = nalgebra::DMatrix::<f64>::zeros(k, k);
+    let mut atb = nalgebra::DVector::<f64>::zeros(k);
+    let mut row = [0.0; 5];
+    for p in sub {
+        let q = f.local(p);
+        row[0] = 2.0 * q.x;
+        row[1] = 2.0 * q.y;
+        row[2] = 1.0;
+        row[3] = q.z;
+        row[4] = q.z * q.z;
+        let rhs = q.x * q.x + q.y * q.y;
+        for a in 0..k {
+            atb[a] += row[a] * rhs;
+            for b in 0..k {
+                ata[(a, b)] += row[a] * row[b];
+            }
+        }
+    }
+    let sol = ata.cholesky()?.solve(&atb);
+    let (a, b, e) = (sol[0], sol[1], sol[2]);
+    let r0 = (e + a * a + b * b).max(0.0).sqrt();
+    let (psi, s) = if cone {
+        let slope = sol[4].max(0.0).sqrt().copysign(sol[3]);
+        let psi = slope.atan();
+        (psi, r0 * psi.cos())
+    } else {
+        (0.0, r0)
+    };
+    let o = f.o + f.u() * a + f.v() * b;
+    (r0 > 0.0 && psi.is_finite()).then_some((o, psi, s))
+}
+
+fn score(sub: &[Point3], o: &Point3, axis: &Vector3, psi: f64, s: f64) -> f64 {
+    let f = Frame::new(*o, *axis);
+    let (sn, cs) = psi.sin_cos();
+    sub.iter()
+        .map(|p| {
+            let q = f.local(p);
+            let d = q.x.hypot(q.y) * cs - q.z * sn - s;
+            d * d
+        })
+        .sum()
+}
+
+/// Best starting values `(axis point, axis, ψ, s)`, best first.
+fn starts(points: &[Point3], m: &Moments, cone: bool, keep: usize) -> Vec<(Point3, Vector3, f64, f64, f64)> {
+    let sub = subsample(points, 2000);
+    let mut c: Vec<(Point3, Vector3, f64, f64, f64)> = candidate_axes(m)
+        .into_iter()
+        .filter_map(|w| {
+            let (o, psi, s) = algebraic_axial(&sub, &m.centroid, &w, cone)?;
+            let sc = score(&sub, &o, &w, psi, s);
+            sc.is_finite().then_some((o, w, psi, s, sc))
+        })
+        .collect();
+    c.sort_by(|a, b| a.4.total_cmp(&b.4));
+    c.truncate(keep);
+    c
+}
+
+fn canonical(v: Vector3) -> Vector3 {
+    if v[v.iamax()] < 0.0 {
+        -v
+    } else {
+        v
+    }
+}
+
+/// Least-squares cylinder (orthogonal distance).
+pub fn cylinder(points: &[Point3]) -> Result<CylinderFit, FitError> {
+    let m = Moments::of(points)?;
+    m.require("cylinder", 5, 2)?;
+    let model = CylModel { centre: m.centroid, scale: m.extent() };
+    let mut best: Option<crate::engine::Solution<5, (Frame, f64)>> = None;
+    for (o, w, _, s, _) in starts(points, &m, false, 3) {
+        let (f, _) = Frame::new(o, w).stepped(0.0, 0.0, 0.0, 0.0, &m.centroid);
+        if let Some(sol) = minimise(&model, (f, s), points, MAX_ITERATIONS) {
+            if best.as_ref().is_none_or(|b| sol.acc.ssr < b.acc.ssr) {
+                best = Some(sol);
+            }
+        }
+    }
+    let sol = best.ok_or(FitError::Undetermined { kind: "cylinder" })?;
+    let (frame, radius) = &sol.state;
+    let radius = radius.abs();
+    let extent = m.extent();
+    let cov = covariance(&sol.acc, points.len(), RCOND);
+    let Some(cov) = cov else {
+        return Err(if radius > 100.0 * extent {
+            FitError::CylinderIsFlat
+        } else {
+            FitError::Undetermined { kind: "cylinder" }
+        });
+    };
+    let ur = cov[(4, 4)].max(0.0).sqrt();
+    // Flat data: the curvature 1/R is not significantly different from zero (|κ| ≤ 3 u(κ),
+    // u(κ) = u(R)/R², i.e. u(R) ≥ R/3), or the radius is a million times the data's extent.
+    if 3.0 * ur >= radius || radius > 1e6 * extent {
+        return Err(FitError::CylinderIsFlat);
+    }
+    let n = points.len();
+    Ok(CylinderFit {
+        point: frame.o,
+        axis: canonical(frame.w()),
+        radius,
+        rms: (sol.acc.ssr / n as f64).sqrt(),
+        max_abs_residual: sol.acc.max_abs,
+        n_points: n,
+        point_uncertainty: (cov[(0, 0)] + cov[(1, 1)]).max(0.0).sqrt(),
+        axis_uncertainty: (cov[(2, 2)] + cov[(3, 3)]).max(0.0).sqrt(),
+        radius_uncertainty: ur,
+        iterations: sol.iterations,
+    })
+}
+
+/// Least-squares cone (orthogonal distance).
+pub fn cone(points: &[Point3]) -> Result<ConeFit, FitError> {
+    let m = Moments::of(points)?;
+    m.require("cone", 6, 2)?;
+    let extent = m.extent();
+    let model = ConeModel { centre: m.centroid, scale: extent };
+    let mut best: Option<crate::engine::Solution<6, ConeState>> = None;
+    for (o, w, psi, s, _) in starts(points, &m, true, 4) {
+        let (f, t) = Frame::new(o, w).stepped(0.0, 0.0, 0.0, 0.0, &m.centroid);
+        if let Some(sol) = minimise(&model, (f, psi, s + t * psi.sin()), points, MAX_ITERATIONS) {
+            if best.as_ref().is_none_or(|b| sol.acc.ssr < b.acc.ssr) {
+                best = Some(sol);
+            }
+        }
+    }
+    let sol = best.ok_or(FitError::Undetermined { kind: "cone" })?;
+    let (frame, psi, s) = sol.state.clone();
+    // Orient the axis towards increasing radius (ψ > 0); the residual is invariant under
+    // (axis, ψ) → (−axis, −ψ), and the covariance's signs flip with the parameters.
+    let (w, psi) = if psi < 0.0 { (-frame.w(), -psi) } else { (frame.w(), psi) };
+    let cov = covariance(&sol.acc, points.len(), RCOND);
+    let upsi = cov.as_ref().map(|c| c[(4, 4)].max(0.0).sqrt());
+    let apex_dist = s / psi.sin();
+    // A cone whose half angle is not significantly different from 0 is a cylinder: apex at
+    // infinity. Also when ψ is below 1e-9 rad (exact cylinder data) or the apex is a million
+    // data extents away.
+    if psi < 1e-9 || upsi.is_none_or(|u| psi <= 3.0 * u) || !(apex_dist.abs() < 1e6 * extent) {
+        return Err(FitError::ConeIsCylinder);
+    }
+    let cov = cov.ok_or(FitError::Undetermined { kind: "cone" })?;
+    let apex = frame.o - w * apex_dist;
+    // Apex = o + δ0 u + δ1 v − (w + δ2 u + δ3 v)·s/sin ψ in the fit's own parameters.
+    let (u, v, wf) = (frame.u(), frame.v(), frame.w());
+    let psi_f = sol.state.1;
+    let big = sol.state.2 / psi_f.sin();
+    let mut jac = SMatrix::<f64, 3, 6>::zeros();
+    jac.set_column(0, &u);
+    jac.set_column(1, &v);
+    jac.set_column(2, &(-u * big));
+    jac.set_column(3, &(-v * big));
+    jac.set_column(4, &(wf * (sol.state.2 * psi_f.cos() / psi_f.sin().powi(2))));
+    jac.set_column(5, &(-wf / psi_f.sin()));
+    let ca = jac * cov * jac.transpose();
+    let n = points.len();
+    Ok(ConeFit {
+        apex,
+        axis: w,
+        apex_angle: 2.0 * psi,
+        point: frame.o,
+        surface_distance: s,
+        rms: (sol.acc.ssr / n as f64).sqrt(),
+        max_abs_residual: sol.acc.max_abs,
+        n_points: n,
+        apex_uncertainty: Vector3::new(ca[(0, 0)], ca[(1, 1)], ca[(2, 2)]).map(|x| x.max(0.0).sqrt()),
+        point_uncertainty: (cov[(0, 0)] + cov[(1, 1)]).max(0.0).sqrt(),
+        axis_uncertainty: (cov[(2, 2)] + cov[(3, 3)]).max(0.0).sqrt(),
+        apex_angle_uncertainty: 2.0 * cov[(4, 4)].max(0.0).sqrt(),
+        surface_distance_uncertainty: cov[(5, 5)].max(0.0).sqrt(),
+        iterations: sol.iterations,
+    })
+}
+
+impl ConeFit {
+    /// Orthogonal distance from a point on the axis at signed position `t` (along `axis` from
+    /// `point`) to the surface.
+    pub fn surface_distance_at(&self, t: f64) -> f64 {
+        self.surface_distance + t * (self.apex_angle / 2.0).sin()
+    }
+}
