@@ -1,1 +1,47 @@
-//! Placeholder: this crate is being built (see ARCHITECTURE.md).
+//! # truepos-scan — scanning path control for CMMs without stops
+//!
+//! Plans scans of circles (inside bores, outside bosses, on planes) and lines in two styles:
+//! **blended** (transfer at positioning speed along corner-free paths, a straight approach at
+//! 20°–60° to the surface normal entered at scanning speed, a settle path that overshoots the
+//! target deflection and decreases gradually to it, the scan with probe feedback, a continuous
+//! release, and straight on to the next approach: the commanded speed never reaches zero between
+//! the first approach and the last release) and **classic** (pre-hit point on the normal, stop,
+//! normal approach, search to the deflection, scan, stop, retract), and executes them on the
+//! virtual CMM with servo and stylus dynamics, missed surfaces handled both ways.
+//!
+//! Entry points:
+//! - [`feature`]: [`Feature`], [`Params`], [`validate`].
+//! - [`plan`]: [`plan::plan`] with [`Style`] → [`Plan`] (segments, sampling, stops).
+//! - [`execute`]: [`execute::execute`] on a [`execute::Machine`] against the true part → points
+//!   tagged by segment/feature with deflection and quality, per-feature form error, cycle time.
+//! - [`form`]: form error (peak-to-valley of least-squares residuals, via `truepos-fit`).
+
+pub mod execute;
+pub mod feature;
+pub mod form;
+pub mod plan;
+pub mod scenario;
+
+pub use feature::{validate, Feature, Geometry, Params, Side};
+pub use plan::{plan, Plan, SegmentKind, Style};
+
+/// Errors of planning and execution.
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+pub enum ScanError {
+    #[error("approach_angle_deg is {0}; it must be between 20 and 60 degrees")]
+    ApproachAngle(f64),
+    #[error("{0} is {1}; it must be a finite number above zero")]
+    Parameter(&'static str, f64),
+    #[error("quality_bands_mm [{0}, {1}] must be two positive numbers in increasing order")]
+    Bands(f64, f64),
+    #[error("feature '{id}': {why}")]
+    Feature { id: String, why: String },
+    #[error("feature '{id}': no contact within {limit} mm beyond the nominal contact point")]
+    NoContact { id: String, limit: f64 },
+    #[error("feature '{id}': only {n} scan points, too few for a form evaluation")]
+    TooFewPoints { id: String, n: usize },
+    #[error("feature '{id}': form fit failed: {why}")]
+    Fit { id: String, why: String },
+    #[error("{0}")]
+    Invalid(String),
+}

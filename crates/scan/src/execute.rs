@@ -1,0 +1,529 @@
+//! Execution of a [`Plan`] on the virtual CMM: servo dynamics of the machine axes, a 3D
+//! spring-mass-damper stylus with contact and friction on the true (displaced) part, the probe
+//! feedback (observer) that holds the target deflection, and the missed-surface behaviour.
+//!
+//! Entry points: [`execute`] with a [`Machine`] and the true features; it returns a [`Run`]:
+//! measured points tagged by segment and feature with deflection and quality mark, per-feature
+//! results (time, form error, contact shift, vibration at scan start) and the summary (cycle
+//! time, stops).
+//!
+//! The controller runs at `control_dt` (1 kHz); the physics is integrated at `physics_dt`
+//! (semi-implicit Euler). The servo is the error model of `truepos_sim::motion::Servo`
+//! (`ë + 2ζωė + ω²e = (1 − k_a)c̈`), integrated on line here because the command is not known in
+//! advance (it depends on the probe feedback and on where contact is made).
+//!
+//! Missed surfaces: contact is detected on the approach when the measured deflection exceeds
+//! `contact_threshold`. Early contact (surface before the nominal point) moves the plan on to its
+//! nominal contact instant and shifts the rest of the feature's path along the surface normal by
+//! where contact was made; the tangential part of the jump is blended out smoothly over
+//! `blend_time`. Late contact: when the approach reaches the nominal contact point without
+//! contact, the path bends along a logarithmic blend (direction `w + (−N − w)(1 − e^{−τ/τ_b})`)
+//! towards the nominal surface normal at the same speed until contact (or `search_limit`).
+
+use crate::feature::{Feature, Params};
+use crate::plan::{Geom, Plan, SegmentKind, Style};
+use crate::ScanError;
+use truepos_math::{Point3, Vector3};
+use truepos_sim::motion::Servo;
+use truepos_sim::noise;
+
+/// Stylus dynamics (effective tip mass on a 3D spring-damper) and contact.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stylus {
+    pub mass_kg: f64,
+    pub stiffness_n_per_mm: f64,
+    pub damping_ratio: f64,
+    pub contact_stiffness_n_per_mm: f64,
+    pub contact_damping_ratio: f64,
+    pub friction: f64,
+    /// Friction regularisation speed (mm/s).
+    pub slip_speed: f64,
+}
+
+impl Default for Stylus {
+    /// 50 Hz stylus (10 g on 1 N/mm), lightly damped; stiff contact; steel on steel friction.
+    fn default() -> Self {
+        Stylus {
+            mass_kg: 0.01,
+            stiffness_n_per_mm: 1.0,
+            damping_ratio: 0.05,
+            contact_stiffness_n_per_mm: 1000.0,
+            contact_damping_ratio: 0.3,
+            friction: 0.15,
+            slip_speed: 0.5,
+        }
+    }
+}
+
+/// The virtual CMM.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Machine {
+    pub servo: Servo,
+    pub stylus: Stylus,
+    pub encoder_noise: f64,
+    pub probe_noise: f64,
+    pub control_dt: f64,
+    pub physics_dt: f64,
+    /// Observer gain (1/s): normal path correction rate per mm of deflection error.
+    pub feedback_gain: f64,
+    pub contact_threshold: f64,
+    pub search_limit: f64,
+    /// Classic settle: time the deflection must stay inside half the first band.
+    pub settle_dwell: f64,
+    pub max_settle_wait: f64,
+    pub blend_time: f64,
+    /// Time constant of the late-contact bend (s).
+    pub bend_time: f64,
+}
+
+impl Default for Machine {
+    /// A bridge CMM position loop of 15 Hz, ζ = 0.6, 50 % acceleration feed-forward.
+    fn default() -> Self {
+        Machine {
+            servo: Servo { bandwidth_hz: 15.0, damping: 0.6, accel_feedforward: 0.5 },
+            stylus: Stylus::default(),
+            encoder_noise: 0.1e-3,
+            probe_noise: 0.2e-3,
+            control_dt: 1e-3,
+            physics_dt: 2.5e-5,
+            feedback_gain: 25.0,
+            contact_threshold: 0.004,
+            search_limit: 8.0,
+            settle_dwell: 0.05,
+            max_settle_wait: 3.0,
+            blend_time: 0.15,
+            bend_time: 0.05,
+        }
+    }
+}
+
+impl Machine {
+    pub fn check(&self) -> Result<(), ScanError> {
+        let s = &self.stylus;
+        let pos = [
+            ("servo.bandwidth_hz", self.servo.bandwidth_hz),
+            ("servo.damping", self.servo.damping),
+            ("stylus.mass_kg", s.mass_kg),
+            ("stylus.stiffness_n_per_mm", s.stiffness_n_per_mm),
+            ("stylus.contact_stiffness_n_per_mm", s.contact_stiffness_n_per_mm),
+            ("stylus.slip_speed_mm_s", s.slip_speed),
+            ("control_dt_s", self.control_dt),
+            ("physics_dt_s", self.physics_dt),
+            ("contact_threshold_mm", self.contact_threshold),
+            ("search_limit_mm", self.search_limit),
+            ("blend_time_s", self.blend_time),
+            ("bend_time_s", self.bend_time),
+        ];
+        for (n, v) in pos {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(ScanError::Parameter(n, v));
+            }
+        }
+        let nonneg = [
+            ("stylus.damping_ratio", s.damping_ratio),
+            ("stylus.contact_damping_ratio", s.contact_damping_ratio),
+            ("stylus.friction", s.friction),
+            ("encoder_noise_mm", self.encoder_noise),
+            ("probe_noise_mm", self.probe_noise),
+            ("feedback_gain", self.feedback_gain),
+            ("settle_dwell_s", self.settle_dwell),
+            ("max_settle_wait_s", self.max_settle_wait),
+        ];
+        for (n, v) in nonneg {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(ScanError::Parameter(n, v));
+            }
+        }
+        if !(0.0..=1.0).contains(&self.servo.accel_feedforward) {
+            return Err(ScanError::Parameter("servo.accel_feedforward", self.servo.accel_feedforward));
+        }
+        if self.physics_dt > self.control_dt {
+            return Err(ScanError::Invalid("physics_dt_s must not exceed control_dt_s".into()));
+        }
+        // semi-implicit Euler stability on the contact mode
+        let w = (1000.0 * (s.contact_stiffness_n_per_mm + s.stiffness_n_per_mm) / s.mass_kg).sqrt();
+        if w * self.physics_dt > 1.0 {
+            return Err(ScanError::Invalid(format!(
+                "physics_dt_s {} is too coarse for the contact frequency {:.0} Hz",
+                self.physics_dt,
+                w / (2.0 * std::f64::consts::PI)
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// One measured (and commanded) sample.
+#[derive(Clone, Copy, Debug)]
+pub struct Point {
+    pub t: f64,
+    /// Measured tip centre (machine scale + probe deflection).
+    pub position: Point3,
+    /// Commanded probe position.
+    pub commanded: Point3,
+    /// |measured deflection|.
+    pub deflection: f64,
+    /// Planned deflection at this instant.
+    pub target: f64,
+    pub segment: SegmentKind,
+    pub feature: usize,
+    pub quality: u8,
+    /// Commanded path speed (without the observer's corrections).
+    pub speed: f64,
+}
+
+/// Per-feature outcome.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FeatureRun {
+    pub id: String,
+    /// From the start of its approach to the end of its release.
+    pub time: f64,
+    /// Peak-to-valley of the residuals of the least-squares element fitted to the scan segment.
+    pub form_error: f64,
+    /// Shift of the path along the surface normal where contact was made (+: surface before
+    /// the nominal point).
+    pub contact_shift: f64,
+    pub contact_t: f64,
+    pub scan_start_t: f64,
+    /// RMS of deflection − target over the first 50 ms of the scan.
+    pub vibration_rms: f64,
+    /// Peak |deflection − target| over the first 50 ms of the scan.
+    pub vibration_peak: f64,
+    /// From contact until the deflection stays within the first quality band of the scan
+    /// deflection for 50 ms.
+    pub settle_time: f64,
+    pub scan_points: usize,
+    /// Share of scan points with quality 0.
+    pub quality0_share: f64,
+}
+
+/// Result of [`execute`].
+#[derive(Clone, Debug)]
+pub struct Run {
+    pub points: Vec<Point>,
+    pub features: Vec<FeatureRun>,
+    pub cycle_time: f64,
+    pub stops: usize,
+}
+
+/// Quality mark from |deflection − target| and the two bands.
+pub fn quality(err: f64, bands: [f64; 2]) -> u8 {
+    let e = err.abs();
+    if e <= bands[0] {
+        0
+    } else if e <= bands[1] {
+        5
+    } else {
+        9
+    }
+}
+
+enum Mode {
+    Plan,
+    Bend { p: Point3, dir0: Vector3, n0: Vector3, tb: f64, travel: f64, speed: f64 },
+}
+
+struct Blend {
+    o0: Vector3,
+    tb: f64,
+    dur: f64,
+}
+
+impl Blend {
+    fn at(&self, t: f64) -> Vector3 {
+        let x = ((t - self.tb) / self.dur).clamp(0.0, 1.0);
+        self.o0 * (1.0 - x * x * (3.0 - 2.0 * x))
+    }
+}
+
+/// Run `plan` on the virtual CMM against the true surfaces `truth` (one per planned feature,
+/// same order). Deterministic for a seed.
+pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> Result<Run, ScanError> {
+    machine.check()?;
+    if truth.len() != plan.features.len() {
+        return Err(ScanError::Invalid(format!(
+            "{} true features for {} planned",
+            truth.len(),
+            plan.features.len()
+        )));
+    }
+    let p: &Params = &plan.params;
+    let tip = p.tip_radius;
+    let dt = machine.control_dt;
+    let nsub = (dt / machine.physics_dt).ceil().max(1.0) as usize;
+    let h = dt / nsub as f64;
+    let st = &machine.stylus;
+    let m = st.mass_kg / 1000.0; // N·s²/mm
+    let cs = 2.0 * st.damping_ratio * (st.stiffness_n_per_mm * m).sqrt();
+    let cc = 2.0 * st.contact_damping_ratio * (st.contact_stiffness_n_per_mm * m).sqrt();
+    let w = 2.0 * std::f64::consts::PI * machine.servo.bandwidth_hz;
+    let (w2, two_zw, gain) = (w * w, 2.0 * machine.servo.damping * w, 1.0 - machine.servo.accel_feedforward);
+    let mut rng_e = noise::stream(seed, 1);
+    let mut rng_p = noise::stream(seed, 2);
+
+    let nseg = plan.segments.len();
+    let nf = plan.features.len();
+    let est = (plan.duration() / dt * 1.1) as usize + 16;
+    let mut points: Vec<Point> = Vec::with_capacity(est);
+    let mut contacted = vec![false; nf];
+    let mut shift = vec![0.0; nf];
+    let mut contact_t = vec![f64::NAN; nf];
+
+    let (mut i, mut tau) = (0usize, 0.0f64);
+    let mut mode = Mode::Plan;
+    let mut e_n = 0.0;
+    let mut blend = Blend { o0: Vector3::zeros(), tb: 0.0, dur: 1.0 };
+    let mut last_n = Vector3::z();
+    let mut settled_for = 0.0;
+    let first = plan.segments[0].eval(0.0, &plan.features[plan.segments[0].feature], tip);
+    let (mut c_prev, mut c_prev2) = (first.position, first.position);
+    // machine: following error e (per axis) and its rate; stylus deflection q and rate
+    let (mut e, mut ed) = (Vector3::zeros(), Vector3::zeros());
+    let (mut q, mut qd) = (Vector3::zeros(), Vector3::zeros());
+    let mut t = 0.0;
+    let max_ticks = ((plan.duration()
+        + nf as f64
+            * (machine.max_settle_wait + 2.0 * machine.search_limit / p.touch_speed.min(p.scan_speed))
+        + 10.0)
+        / dt) as usize;
+    let mut entered = usize::MAX;
+
+    for _tick in 0..max_ticks {
+        let seg = &plan.segments[i];
+        let fi = seg.feature;
+        let f = &plan.features[fi];
+        let tf = &truth[fi];
+        if entered != i {
+            entered = i;
+            if seg.kind == SegmentKind::Transfer && (e_n != 0.0 || blend.o0.norm() > 0.0) {
+                // hand the feature's correction over to a blend that fades during the transfer
+                let o = blend.at(t) + last_n * e_n;
+                e_n = 0.0;
+                blend = Blend { o0: o, tb: t, dur: seg.duration().clamp(0.05, 0.3) };
+            }
+            settled_for = 0.0;
+        }
+        // 1. command
+        let (base, n, target, speed) = match &mode {
+            Mode::Plan => {
+                let c = seg.eval(tau, f, tip);
+                (c.position, c.normal.unwrap_or(last_n), c.deflection, c.speed)
+            }
+            Mode::Bend { p, n0, speed, .. } => (*p, *n0, 0.0, *speed),
+        };
+        last_n = n;
+        let c = base + n * e_n + blend.at(t);
+        // 2. physics over the tick: command ramps from c_prev to c
+        let cv = (c - c_prev) / dt;
+        let ca = (c - c_prev * 2.0 + c_prev2.coords) / (dt * dt);
+        for k in 0..nsub {
+            let ck = c_prev + (c - c_prev) * ((k + 1) as f64 / nsub as f64);
+            let edd = ca * gain - ed * two_zw - e * w2;
+            ed += edd * h;
+            e += ed * h;
+            let x = ck - e;
+            let xv = cv - ed;
+            let xa = ca - edd;
+            let y = x + q;
+            let (dist, nrm) = tf.signed_distance(&y);
+            let g = dist - tip;
+            let mut force = -q * st.stiffness_n_per_mm - qd * cs;
+            if g < 0.0 {
+                let yv = xv + qd;
+                let vn = yv.dot(&nrm);
+                let fnorm = (-g * st.contact_stiffness_n_per_mm - cc * vn).max(0.0);
+                let vt = yv - nrm * vn;
+                let s = vt.norm();
+                let ff = if s > 1e-12 {
+                    -vt / s * (st.friction * fnorm * (s / st.slip_speed).tanh())
+                } else {
+                    Vector3::zeros()
+                };
+                force += nrm * fnorm + ff;
+            }
+            let qdd = force / m - xa;
+            qd += qdd * h;
+            q += qd * h;
+        }
+        c_prev2 = c_prev;
+        c_prev = c;
+        t += dt;
+        // 3. measure
+        let x = c - e;
+        let qm = q + noise::gaussian3(&mut rng_p, machine.probe_noise);
+        let xm = x + noise::gaussian3(&mut rng_e, machine.encoder_noise);
+        let defl = qm.norm();
+        points.push(Point {
+            t,
+            position: xm + qm,
+            commanded: c,
+            deflection: defl,
+            target,
+            segment: seg.kind,
+            feature: fi,
+            quality: quality(defl - target, p.quality_bands),
+            speed,
+        });
+        // 4. logic
+        let in_approach = seg.kind == SegmentKind::Approach && seg.contact_time.is_some() && !contacted[fi];
+        if in_approach && defl > machine.contact_threshold {
+            contacted[fi] = true;
+            contact_t[fi] = t;
+            let tc = seg.contact_time.unwrap_or(0.0);
+            let (ni, nt) = if tc >= seg.duration() - 1e-12 { (i + 1, 0.0) } else { (i, tc) };
+            let nseg_ = &plan.segments[ni.min(nseg - 1)];
+            let b = nseg_.eval(nt, f, tip);
+            let nb = b.normal.unwrap_or(n);
+            let o_now = c - b.position;
+            e_n = o_now.dot(&nb);
+            shift[fi] = e_n;
+            blend = Blend { o0: o_now - nb * e_n, tb: t, dur: machine.blend_time };
+            mode = Mode::Plan;
+            i = ni.min(nseg - 1);
+            tau = nt;
+            last_n = nb;
+            continue;
+        }
+        if seg.feedback && matches!(mode, Mode::Plan) {
+            e_n += machine.feedback_gain * (defl - target) * dt;
+        }
+        match &mut mode {
+            Mode::Bend { p: bp, dir0, n0, tb, travel, speed } => {
+                *tb += dt;
+                let d = *dir0 + (-*n0 - *dir0) * (1.0 - (-*tb / machine.bend_time).exp());
+                let d = if d.norm() > 1e-12 { d.normalize() } else { -*n0 };
+                *bp += d * (*speed * dt);
+                *travel += *speed * dt;
+                if *travel > machine.search_limit {
+                    return Err(ScanError::NoContact { id: f.id.clone(), limit: machine.search_limit });
+                }
+            }
+            Mode::Plan => {
+                tau += dt;
+                if seg.wait_settled {
+                    if (defl - p.deflection).abs() < 0.5 * p.quality_bands[0] {
+                        settled_for += dt;
+                    } else {
+                        settled_for = 0.0;
+                    }
+                    if settled_for >= machine.settle_dwell || tau >= machine.max_settle_wait {
+                        tau = 0.0;
+                        i += 1;
+                    }
+                } else if tau >= seg.duration() {
+                    if in_approach {
+                        let (dir0, n0) = match (&seg.geom, seg.plane) {
+                            (Geom::Line { a, b }, Some((_, n0))) => ((b - a).normalize(), n0),
+                            _ => (-n, n),
+                        };
+                        let speed = if plan.style == Style::Blended { p.scan_speed } else { p.touch_speed };
+                        let end = seg.eval(seg.duration(), f, tip).position + n * e_n;
+                        mode = Mode::Bend { p: end, dir0, n0, tb: 0.0, travel: 0.0, speed };
+                        e_n = 0.0;
+                    } else {
+                        tau -= seg.duration();
+                        i += 1;
+                    }
+                }
+                if i >= nseg {
+                    break;
+                }
+            }
+        }
+    }
+    if i < nseg {
+        return Err(ScanError::Invalid("execution did not finish (internal time limit)".into()));
+    }
+    let cycle_time = t;
+    let stops = count_stops(&points);
+    let features = summarise(plan, &points, &shift, &contact_t)?;
+    Ok(Run { points, features, cycle_time, stops })
+}
+
+/// Runs of zero commanded path speed between the first approach and the last release.
+pub fn count_stops(points: &[Point]) -> usize {
+    let a = points.iter().position(|q| q.segment == SegmentKind::Approach);
+    let b = points.iter().rposition(|q| q.segment == SegmentKind::Release);
+    let (Some(a), Some(b)) = (a, b) else { return 0 };
+    let mut n = 0;
+    let mut stopped = false;
+    for q in &points[a..=b] {
+        let z = q.speed <= 1e-9;
+        if z && !stopped {
+            n += 1;
+        }
+        stopped = z;
+    }
+    n
+}
+
+fn summarise(
+    plan: &Plan,
+    pts: &[Point],
+    shift: &[f64],
+    contact_t: &[f64],
+) -> Result<Vec<FeatureRun>, ScanError> {
+    let p = &plan.params;
+    let nf = plan.features.len();
+    let mut spans = vec![(usize::MAX, 0usize); nf];
+    for (k, q) in pts.iter().enumerate() {
+        if q.segment != SegmentKind::Transfer {
+            let s = &mut spans[q.feature];
+            s.0 = s.0.min(k);
+            s.1 = s.1.max(k);
+        }
+    }
+    let mut out = Vec::with_capacity(nf);
+    for (fi, f) in plan.features.iter().enumerate() {
+        let (a, b) = spans[fi];
+        if a == usize::MAX {
+            return Err(ScanError::Invalid(format!("feature '{}' was not executed", f.id)));
+        }
+        let seg = &pts[a..=b];
+        let scan: Vec<&Point> = seg.iter().filter(|q| q.segment == SegmentKind::Scan).collect();
+        let xyz: Vec<Point3> = scan.iter().map(|q| q.position).collect();
+        let form_error = crate::form::form_error(f, &xyz)?;
+        let t0 = scan.first().map_or(f64::NAN, |q| q.t);
+        let first: Vec<f64> =
+            scan.iter().take_while(|q| q.t < t0 + 0.05).map(|q| q.deflection - p.deflection).collect();
+        let vibration_rms = (first.iter().map(|x| x * x).sum::<f64>() / first.len().max(1) as f64).sqrt();
+        let vibration_peak = first.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        // settle time: first instant after contact from which 50 ms stay inside band 1
+        let tc = contact_t[fi];
+        let after: Vec<&Point> = seg
+            .iter()
+            .filter(|q| {
+                q.t >= tc
+                    && matches!(q.segment, SegmentKind::Approach | SegmentKind::Settle | SegmentKind::Scan)
+            })
+            .collect();
+        let mut settle_time = f64::NAN;
+        let mut run_start: Option<f64> = None;
+        for q in &after {
+            if (q.deflection - p.deflection).abs() <= p.quality_bands[0] {
+                let s = *run_start.get_or_insert(q.t);
+                if q.t - s >= 0.05 {
+                    settle_time = s - tc;
+                    break;
+                }
+            } else {
+                run_start = None;
+            }
+        }
+        let q0 = scan.iter().filter(|q| q.quality == 0).count();
+        out.push(FeatureRun {
+            id: f.id.clone(),
+            time: pts[b].t - pts[a].t,
+            form_error,
+            contact_shift: shift[fi],
+            contact_t: tc,
+            scan_start_t: t0,
+            vibration_rms,
+            vibration_peak,
+            settle_time,
+            scan_points: scan.len(),
+            quality0_share: q0 as f64 / scan.len().max(1) as f64,
+        });
+    }
+    Ok(out)
+}
