@@ -18,6 +18,7 @@
 //! - [`grid1`]: O(1)/binary-search interval lookup shared by all tables.
 
 pub mod correct;
+pub mod fe_map;
 pub mod geometric;
 pub mod grid1;
 pub mod influence;
@@ -27,4 +28,5 @@ pub mod statics;
 pub use correct::{CompError, Corrector};
 pub use geometric::{Axis, AxisErrors, AxisTable, Chain, GeometricMap, OutOfRange, Squareness};
 pub use influence::{InfluenceMap, InfluenceRow, PortalCurves};
+pub use fe_map::{BedModel, LoadGrid};
 pub use load::{LoadCorrection, Portal};
