@@ -39,6 +39,13 @@ impl GcodeError {
             GcodeError::MalformedNumber { line, .. } | GcodeError::Unsupported { line, .. } => *line,
         }
     }
+    /// The message without the location (for callers that add file, line and column).
+    pub fn detail(&self) -> String {
+        match self {
+            GcodeError::MalformedNumber { text, .. } => format!("malformed number '{text}'"),
+            GcodeError::Unsupported { message, .. } => message.clone(),
+        }
+    }
     pub fn column(&self) -> usize {
         match self {
             GcodeError::MalformedNumber { column, .. } | GcodeError::Unsupported { column, .. } => *column,

@@ -1,16 +1,98 @@
-//! `truepos somac`, `autoscale`, `orient`, `air` (being built; see ARCHITECTURE.md).
+//! Laser-tracker end-point control commands: `truepos autoscale`, `orient`, `air`, and
+//! `somac run` (the measure / compare / correct loop).
 
+use crate::output::print_json;
 use crate::report::Report;
-use crate::{DeviceError, Outcome};
+use crate::{DeviceError, Outcome, UsageError};
+use anyhow::Result;
+use serde_json::json;
+use std::path::PathBuf;
+use truepos_io::InputError;
+use truepos_math::air::{self, AirConditions, Formula};
+use truepos_math::bestfit::{self, BestFitOptions};
+
+use super::align::{match_by_id, read_id_points};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {}
+
 #[derive(clap::Args, Debug)]
-pub struct AutoscaleArgs {}
+#[command(
+    after_help = "Example:\n  truepos autoscale --reference balls_20C.csv --measured balls_now.csv --cte-ppm-per-c 23.6 --temperature-c 24.1 --json\n\nBoth files: id,x_mm,y_mm,z_mm, matched by id. The scale is the best-fit ratio of measured to\nreference size after removing rotation and translation (similarity fit)."
+)]
+pub struct AutoscaleArgs {
+    /// Feature positions at the reference temperature (20 °C), e.g. from the drawing.
+    #[arg(long)]
+    pub reference: PathBuf,
+    /// The same features measured now.
+    #[arg(long)]
+    pub measured: PathBuf,
+    /// Coefficient of thermal expansion of the part (ppm/°C), for the cross-check.
+    #[arg(long, requires = "temperature_c")]
+    pub cte_ppm_per_c: Option<f64>,
+    /// Part temperature now (°C), for the cross-check.
+    #[arg(long, requires = "cte_ppm_per_c")]
+    pub temperature_c: Option<f64>,
+    /// Reference temperature of the reference file (°C).
+    #[arg(long, default_value_t = 20.0)]
+    pub reference_temperature_c: f64,
+    #[arg(long)]
+    pub json: bool,
+}
+
 #[derive(clap::Args, Debug)]
-pub struct OrientArgs {}
+#[command(
+    after_help = "Example:\n  truepos orient --reference targets_nominal.csv --measured targets_now.csv --program spar.nc --output spar_oriented.nc --scale\n\nAt least three targets (id,x_mm,y_mm,z_mm in both files). Only the coordinates that change are\nrewritten; comments, line numbers, other words and spacing are kept byte for byte."
+)]
+pub struct OrientArgs {
+    /// Nominal target positions (the program's frame).
+    #[arg(long)]
+    pub reference: PathBuf,
+    /// Current measured target positions (machine frame).
+    #[arg(long)]
+    pub measured: PathBuf,
+    #[arg(long)]
+    pub program: PathBuf,
+    #[arg(long)]
+    pub output: PathBuf,
+    /// Also fit a uniform scale (parts that grew or shrank).
+    #[arg(long)]
+    pub scale: bool,
+    /// Decimals of rewritten coordinates (default 4 in mm programs, 5 in inch programs).
+    #[arg(long)]
+    pub decimals: Option<u8>,
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FormulaArg {
+    Ciddor,
+    Edlen,
+}
+
 #[derive(clap::Args, Debug)]
-pub struct AirArgs {}
+#[command(
+    after_help = "Example:\n  truepos air --temperature-c 20 --pressure-pa 101325 --humidity-pct 50 --json\n\nEquations as in NIST's Refractive Index of Air Calculator (Stone & Zimmerman)."
+)]
+pub struct AirArgs {
+    #[arg(long)]
+    pub temperature_c: f64,
+    #[arg(long)]
+    pub pressure_pa: f64,
+    #[arg(long)]
+    pub humidity_pct: f64,
+    /// CO2 mole fraction (µmol/mol); the modified Edlén equation assumes 450.
+    #[arg(long, default_value_t = 450.0)]
+    pub co2_ppm: f64,
+    /// Vacuum wavelength.
+    #[arg(long, default_value_t = 633.0)]
+    pub wavelength_nm: f64,
+    #[arg(long, value_enum, default_value_t = FormulaArg::Ciddor)]
+    pub formula: FormulaArg,
+    #[arg(long)]
+    pub json: bool,
+}
 
 #[derive(clap::Args, Debug)]
 pub struct SimArgs {
@@ -18,16 +100,185 @@ pub struct SimArgs {
     pub common: super::SimCommon,
 }
 
-fn todo() -> anyhow::Result<Outcome> {
-    Err(DeviceError("not available yet".into()).into())
+pub fn run(_a: Args) -> Result<Outcome> {
+    Err(DeviceError("somac run is not available yet".into()).into())
 }
-pub fn run(_a: Args) -> anyhow::Result<Outcome> { todo() }
-pub fn autoscale(_a: AutoscaleArgs) -> anyhow::Result<Outcome> { todo() }
-pub fn orient(_a: OrientArgs) -> anyhow::Result<Outcome> { todo() }
-pub fn air(_a: AirArgs) -> anyhow::Result<Outcome> { todo() }
-pub fn simulate(_a: SimArgs) -> anyhow::Result<Outcome> { todo() }
+
+pub fn simulate(_a: SimArgs) -> Result<Outcome> {
+    Err(DeviceError("the somac scenario is not available yet".into()).into())
+}
+
+/// Scale factor of `measured` relative to `reference` (similarity best fit), with its standard
+/// uncertainty from the residual scatter.
+pub struct ScaleFit {
+    pub scale: f64,
+    pub u_scale: f64,
+    pub rms_mm: f64,
+    pub n: usize,
+}
+
+pub fn fit_scale(
+    reference: &PathBuf,
+    measured: &PathBuf,
+) -> Result<(ScaleFit, truepos_math::Transform3, super::align::Matched)> {
+    let r = read_id_points(reference)?;
+    let m = read_id_points(measured)?;
+    let mt = match_by_id(&r, &m);
+    if mt.ids.len() < 3 {
+        return Err(InputError::in_file(
+            measured,
+            format!(
+                "{} ids in common with {}; at least 3 features are needed",
+                mt.ids.len(),
+                reference.display()
+            ),
+        )
+        .into());
+    }
+    let t = bestfit::best_fit(&mt.from, &mt.to, None, BestFitOptions { with_scale: true })
+        .map_err(|e| InputError::in_file(measured, format!("cannot fit a scale: {e}")))?;
+    let res = bestfit::residuals(&t, &mt.from, &mt.to);
+    let ssr: f64 = res.iter().map(|r| r.norm_squared()).sum();
+    let n = mt.ids.len();
+    // 7 parameters (3 rotation, 3 translation, scale) from 3n coordinates.
+    let dof = (3 * n).saturating_sub(7).max(1) as f64;
+    let sigma = (ssr / dof).sqrt();
+    let c = truepos_math::centroid(&mt.from);
+    let spread: f64 = mt.from.iter().map(|p| (p - c).norm_squared()).sum();
+    let u_scale = sigma / spread.sqrt();
+    Ok((ScaleFit { scale: t.scale, u_scale, rms_mm: (ssr / n as f64).sqrt(), n }, t, mt))
+}
+
+pub fn autoscale(a: AutoscaleArgs) -> Result<Outcome> {
+    let (f, _, _) = fit_scale(&a.reference, &a.measured)?;
+    let expected = match (a.cte_ppm_per_c, a.temperature_c) {
+        (Some(k), Some(t)) => {
+            if !k.is_finite() || !t.is_finite() {
+                return Err(
+                    UsageError("--cte-ppm-per-c and --temperature-c must be finite numbers".into()).into()
+                );
+            }
+            Some(1.0 + k * 1e-6 * (t - a.reference_temperature_c))
+        }
+        _ => None,
+    };
+    let discrepancy = expected.map(|e| (f.scale / e - 1.0) * 1e6);
+    if a.json {
+        print_json(&json!({
+            "scale": f.scale,
+            "scale_uncertainty": f.u_scale,
+            "scale_ppm": (f.scale - 1.0) * 1e6,
+            "expected_scale": expected,
+            "discrepancy_ppm": discrepancy,
+            "rms_mm": f.rms_mm,
+            "n_points": f.n,
+        }))?;
+    } else {
+        println!(
+            "scale            {:.9}  ({:+.2} ppm, u = {:.2} ppm)",
+            f.scale,
+            (f.scale - 1.0) * 1e6,
+            f.u_scale * 1e6
+        );
+        if let (Some(e), Some(d)) = (expected, discrepancy) {
+            println!("expected (CTE)   {e:.9}");
+            println!("discrepancy      {d:+.2} ppm");
+        }
+        println!("rms residual     {:.4} mm over {} features", f.rms_mm, f.n);
+    }
+    Ok(Outcome::Done)
+}
+
+pub fn orient(a: OrientArgs) -> Result<Outcome> {
+    let r = read_id_points(&a.reference)?;
+    let m = read_id_points(&a.measured)?;
+    let mt = match_by_id(&r, &m);
+    if mt.ids.len() < 3 {
+        return Err(InputError::in_file(
+            &a.measured,
+            format!(
+                "{} targets in common with {}; orientation needs at least 3",
+                mt.ids.len(),
+                a.reference.display()
+            ),
+        )
+        .into());
+    }
+    let measured_from_reference =
+        bestfit::best_fit(&mt.from, &mt.to, None, BestFitOptions { with_scale: a.scale })
+            .map_err(|e| InputError::in_file(&a.measured, format!("cannot orient: {e}")))?;
+    let text = std::fs::read(&a.program)
+        .map_err(|e| InputError::in_file(&a.program, format!("cannot read: {e}")))?;
+    let text = String::from_utf8(text).map_err(|e| {
+        let ok = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+        let line = ok.iter().filter(|&&b| b == b'\n').count() + 1;
+        InputError::at(&a.program, line, None, "not valid UTF-8 text")
+    })?;
+    let program = truepos_gcode::Program::parse(&text);
+    let gerr =
+        |e: truepos_gcode::GcodeError| InputError::at(&a.program, e.line(), Some(e.column()), e.detail());
+    program.check().map_err(gerr)?;
+    let opts = truepos_gcode::TransformOptions { decimals: a.decimals, ..Default::default() };
+    let out = program.transform(&measured_from_reference, &opts).map_err(gerr)?;
+    truepos_io::atomic::write_atomic(&a.output, out.as_bytes())?;
+    let res = bestfit::residuals(&measured_from_reference, &mt.from, &mt.to);
+    let norms: Vec<f64> = res.iter().map(|r| r.norm()).collect();
+    let rm = measured_from_reference.rotation;
+    let summary = json!({
+        "n_targets": mt.ids.len(),
+        "rotation": [[rm[(0,0)], rm[(0,1)], rm[(0,2)]], [rm[(1,0)], rm[(1,1)], rm[(1,2)]], [rm[(2,0)], rm[(2,1)], rm[(2,2)]]],
+        "translation_mm": crate::output::v3(measured_from_reference.translation),
+        "scale": measured_from_reference.scale,
+        "rms_mm": truepos_math::stats::rms(&norms),
+        "residuals": mt.ids.iter().zip(&norms).map(|(id, r)| json!({"id": id, "residual_mm": r})).collect::<Vec<_>>(),
+        "lines": program.lines.len(),
+    });
+    if a.json {
+        print_json(&summary)?;
+    } else {
+        eprintln!(
+            "oriented {} lines through the fit of {} targets (rms {:.4} mm) → {}",
+            program.lines.len(),
+            mt.ids.len(),
+            truepos_math::stats::rms(&norms),
+            a.output.display()
+        );
+    }
+    Ok(Outcome::Done)
+}
+
+pub fn air(a: AirArgs) -> Result<Outcome> {
+    let c = AirConditions {
+        temperature_c: a.temperature_c,
+        pressure_pa: a.pressure_pa,
+        humidity_pct: a.humidity_pct,
+        co2_ppm: a.co2_ppm,
+        wavelength_nm: a.wavelength_nm,
+    };
+    let f = match a.formula {
+        FormulaArg::Ciddor => Formula::Ciddor,
+        FormulaArg::Edlen => Formula::Edlen,
+    };
+    let n = air::refractive_index(&c, f).map_err(|e| UsageError(e.to_string()))?;
+    let warning = air::validity_warning(&c, f);
+    if let Some(w) = &warning {
+        eprintln!("warning: {w}");
+    }
+    let name = match f {
+        Formula::Ciddor => "ciddor",
+        Formula::Edlen => "edlen",
+    };
+    if a.json {
+        print_json(
+            &json!({ "n": n, "formula": name, "n_minus_1_ppm": (n - 1.0) * 1e6, "warning": warning }),
+        )?;
+    } else {
+        println!("n = {n:.15}  ({name}; n − 1 = {:.4} ppm)", (n - 1.0) * 1e6);
+    }
+    Ok(Outcome::Done)
+}
 
 /// This capability's section of the demo report.
-pub fn demo_section(_report: &mut Report) -> anyhow::Result<()> {
+pub fn demo_section(_report: &mut Report) -> Result<()> {
     Ok(())
 }
