@@ -24,7 +24,7 @@ pub fn algebraic_sphere(points: &[Point3]) -> Option<(Point3, f64)> {
     for p in points {
         scale = scale.max((p - m).norm());
     }
-    if !(scale > 0.0) || !scale.is_finite() {
+    if scale.is_nan() || scale <= 0.0 || !scale.is_finite() {
         return None;
     }
     for p in points {
@@ -44,13 +44,13 @@ pub fn algebraic_sphere(points: &[Point3]) -> Option<(Point3, f64)> {
     let eig = SymmetricEigen::new(s);
     let max = eig.eigenvalues.max();
     let min = eig.eigenvalues.min();
-    if !(min > 1e-10 * max) {
+    if min.is_nan() || min <= 1e-10 * max {
         return None;
     }
     let sol = n.cholesky()?.solve(&rhs);
     let c = Vector3::new(sol[0], sol[1], sol[2]);
     let r2 = sol[3] + c.norm_squared();
-    if !(r2 > 0.0) {
+    if r2.is_nan() || r2 <= 0.0 {
         return None;
     }
     Some((m + c * scale, r2.sqrt() * scale))
@@ -72,7 +72,7 @@ pub fn plane_fit(points: &[Point3]) -> Option<(Vector3, Point3)> {
     let mut idx = [0usize, 1, 2];
     idx.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
     let (l0, l1) = (eig.eigenvalues[idx[0]], eig.eigenvalues[idx[1]]);
-    if !(l1 > 0.0) || l0 > 0.5 * l1 {
+    if l1.is_nan() || l1 <= 0.0 || l0 > 0.5 * l1 {
         return None;
     }
     let n: Vector3 = eig.eigenvectors.column(idx[0]).into_owned();
@@ -89,7 +89,8 @@ pub fn intersect_planes(planes: &[(Vector3, Point3)], min_eig: f64) -> Option<Po
         b += n * n.dot(&p.coords);
     }
     let eig = SymmetricEigen::new(a);
-    if !(eig.eigenvalues.min() > min_eig) {
+    let min = eig.eigenvalues.min();
+    if min.is_nan() || min <= min_eig {
         return None;
     }
     a.cholesky().map(|c| Point3::from(c.solve(&b)))

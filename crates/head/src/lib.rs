@@ -53,8 +53,10 @@ pub enum Reference {
     /// A sphere; `radius` fixes the radius of the measured surface (for a touch probe: sphere
     /// radius + tip radius, the sphere of stylus-centre positions).
     Sphere { radius: Option<f64> },
-    /// A vertex: pyramid apex or cuboid corner, the common point of the measured faces.
-    Vertex,
+    /// A vertex: pyramid apex or cuboid corner, the common point of the measured faces (convex).
+    /// `tip_radius`: a touch probe's stylus centre runs on the faces moved out by it (0 for a
+    /// laser head).
+    Vertex { tip_radius: f64 },
 }
 
 /// Everything the adjustment needs besides the readings.
@@ -141,6 +143,11 @@ pub enum HeadError {
     TooFewPoints { got: usize, needed: usize },
     #[error("orientation b = {b_deg}°, c = {c_deg}°: {what}")]
     Degenerate { b_deg: f64, c_deg: f64, what: String },
+    #[error(
+        "only {got} orientation(s) show at least 3 faces: a vertex reference needs at least two \
+         orientations in each of which at least 3 faces (3 points each) are probed"
+    )]
+    TooFewVertexOrientations { got: usize },
     #[error("reading {index} has no face id: a vertex reference needs the 'face' column")]
     MissingFace { index: usize },
     #[error("laser reading {index} has a distance but the beam tilt is not below 90°")]
@@ -185,7 +192,7 @@ const NULL_TOL: f64 = 1e-10;
 
 enum Kind {
     Sphere { fixed_radius: Option<f64> },
-    Vertex { faces: Vec<(Vector3, Vector3, Vector3)>, face_of: Vec<usize> },
+    Vertex { faces: Vec<(Vector3, Vector3, Vector3)>, face_of: Vec<usize>, tip: f64 },
 }
 
 struct Problem<'a> {
@@ -252,7 +259,7 @@ impl Residuals for Problem<'_> {
                 };
                 len - rad
             }
-            Kind::Vertex { faces, face_of } => {
+            Kind::Vertex { faces, face_of, tip } => {
                 let f = face_of[i];
                 let (n0, e1, e2) = &faces[f];
                 let (pa, pb) = (p[nr + 3 + 2 * f], p[nr + 4 + 2 * f]);
@@ -270,7 +277,7 @@ impl Residuals for Problem<'_> {
                 let dnb = (e2 - n * n.dot(e2)) / l;
                 jac[nr + 3 + 2 * f] = dna.dot(&d);
                 jac[nr + 4 + 2 * f] = dnb.dot(&d);
-                n.dot(&d)
+                n.dot(&d) - tip
             }
         }
     }
@@ -356,6 +363,11 @@ pub fn solve(readings: &[Reading], setup: &Setup) -> Result<HeadOffset, HeadErro
         return Err(HeadError::OneOrientation { n: readings.len(), b_deg: deg(r.b), c_deg: deg(r.c) });
     }
 
+    let vertex_tip = match setup.reference {
+        Reference::Vertex { tip_radius } if tip_radius.is_finite() && tip_radius >= 0.0 => tip_radius,
+        Reference::Vertex { tip_radius } => return Err(HeadError::BadRadius(tip_radius)),
+        Reference::Sphere { .. } => 0.0,
+    };
     // Per-orientation closed-form reference points.
     let mut apparent = Vec::new();
     let mut orientations = Vec::new();
@@ -385,15 +397,15 @@ pub fn solve(readings: &[Reading], setup: &Setup) -> Result<HeadOffset, HeadErro
                         .into(),
                 })?;
                 radii.push(rad);
-                c
+                Some(c)
             }
-            Reference::Vertex => {
+            Reference::Vertex { .. } => {
                 let mut by_face: BTreeMap<i64, Vec<Point3>> = BTreeMap::new();
                 for &i in idx {
                     let f = readings[i].face.ok_or(HeadError::MissingFace { index: i })?;
                     by_face.entry(f).or_default().push(raw[i]);
                 }
-                let mut planes = Vec::new();
+                let mut planes: Vec<(i64, Vector3, Point3)> = Vec::new();
                 for (f, fp) in &by_face {
                     let Some((n, m)) = plane_fit(fp) else {
                         return Err(HeadError::Degenerate {
@@ -406,36 +418,49 @@ pub fn solve(readings: &[Reading], setup: &Setup) -> Result<HeadOffset, HeadErro
                             ),
                         });
                     };
-                    // Table-frame normal, sign-aligned with earlier orientations.
-                    let nt = rz(-r0.c) * n;
-                    match face_ids.iter().position(|x| x == f) {
-                        Some(k) => {
-                            let s = if face_normals_sum[k].dot(&nt) < 0.0 { -1.0 } else { 1.0 };
-                            face_normals_sum[k] += nt * s;
+                    planes.push((*f, n, m));
+                }
+                // Outward normals: at a convex vertex the other faces lie on the inner side.
+                for plane in planes.iter_mut() {
+                    let (f, n, m) = *plane;
+                    let mut side = 0.0;
+                    for (g, gp) in &by_face {
+                        if *g != f {
+                            side += gp.iter().map(|x| n.dot(&(x - m))).sum::<f64>();
                         }
+                    }
+                    let nt = rz(-r0.c) * n;
+                    let known = face_ids.iter().position(|x| *x == f);
+                    let flip = if side != 0.0 {
+                        side > 0.0
+                    } else if let Some(k) = known {
+                        face_normals_sum[k].dot(&nt) < 0.0
+                    } else {
+                        // One face only: it faces the head.
+                        n.dot(&(ry(r0.b) * Vector3::z())) < 0.0
+                    };
+                    let (n, nt) = if flip { (-n, -nt) } else { (n, nt) };
+                    plane.1 = n;
+                    match known {
+                        Some(k) => face_normals_sum[k] += nt,
                         None => {
-                            face_ids.push(*f);
+                            face_ids.push(f);
                             face_normals_sum.push(nt);
                         }
                     }
-                    planes.push((n, m));
                 }
                 if planes.len() < 3 {
-                    return Err(HeadError::OrientationTooFew {
-                        b_deg: bd,
-                        c_deg: cd,
-                        got: planes.len(),
-                        needed: 3,
-                        what:
-                            "faces: a vertex needs at least 3 faces (with 3 points each) in every orientation",
-                    });
+                    None
+                } else {
+                    // The stylus centre runs on the faces moved out by the tip radius.
+                    let moved: Vec<(Vector3, Point3)> =
+                        planes.iter().map(|(_, n, m)| (*n, m - n * vertex_tip)).collect();
+                    intersect_planes(&moved, 1e-3)
                 }
-                intersect_planes(&planes, 1e-3).ok_or_else(|| HeadError::Degenerate {
-                    b_deg: bd,
-                    c_deg: cd,
-                    what: "the face normals do not span space, so the faces do not meet in one point".into(),
-                })?
             }
+        };
+        let Some(point) = point else {
+            continue;
         };
         apparent.push(Apparent { b: r0.b, c: r0.c, point });
         orientations.push(Orientation {
@@ -447,10 +472,13 @@ pub fn solve(readings: &[Reading], setup: &Setup) -> Result<HeadOffset, HeadErro
         });
     }
 
+    if apparent.len() < 2 {
+        return Err(HeadError::TooFewVertexOrientations { got: apparent.len() });
+    }
     // Kind and parameters.
     let kind = match setup.reference {
         Reference::Sphere { radius } => Kind::Sphere { fixed_radius: radius },
-        Reference::Vertex => {
+        Reference::Vertex { .. } => {
             let faces = face_normals_sum
                 .iter()
                 .map(|s| {
@@ -464,13 +492,13 @@ pub fn solve(readings: &[Reading], setup: &Setup) -> Result<HeadOffset, HeadErro
                 .iter()
                 .map(|r| r.face.and_then(|f| face_ids.iter().position(|x| *x == f)).unwrap_or(0))
                 .collect();
-            Kind::Vertex { faces, face_of }
+            Kind::Vertex { faces, face_of, tip: vertex_tip }
         }
     };
     let radius0 = match setup.reference {
         Reference::Sphere { radius: Some(r) } => Some(r),
         Reference::Sphere { radius: None } => Some(radii.iter().sum::<f64>() / radii.len() as f64),
-        Reference::Vertex => None,
+        Reference::Vertex { .. } => None,
     };
     let n_unknowns_all = 3
         + 3

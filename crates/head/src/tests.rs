@@ -215,14 +215,14 @@ fn pyramid() -> Vec<Vector3> {
 fn vertex_pyramid_and_cuboid_corner() {
     let mut s = Synth::new(&COMBINED);
     s.n_per = 12;
-    let r = solve(&s.vertex(&pyramid()), &s.setup(Reference::Vertex)).unwrap();
+    let r = solve(&s.vertex(&pyramid()), &s.setup(Reference::Vertex { tip_radius: 0.0 })).unwrap();
     assert_eq!(r.observable, [true; 3]);
     assert!((r.offset - s.offset).norm() < 1e-8, "{}", r.offset);
     assert!((r.reference_point - s.a).norm() < 1e-8);
     assert_eq!(r.face_normals.len(), 4);
     let corner = [Vector3::new(1.0, 0.2, 0.1), Vector3::new(-0.2, 1.0, 0.05), Vector3::new(0.0, 0.0, 1.0)];
     s.noise = 0.0005;
-    let r = solve(&s.vertex(&corner), &s.setup(Reference::Vertex)).unwrap();
+    let r = solve(&s.vertex(&corner), &s.setup(Reference::Vertex { tip_radius: 0.0 })).unwrap();
     // 0.5 µm noise, 216 points on 3 faces over 6 orientations: ~0.2 µm (1σ); 1 µm bound.
     assert!((r.offset - s.offset).abs().max() < 1e-3, "{} vs {}", r.offset, s.offset);
 }
@@ -252,7 +252,7 @@ fn too_few_points_are_refused() {
 #[test]
 fn vertex_without_faces_is_refused() {
     let s = Synth::new(&SWIVEL);
-    let e = solve(&s.sphere(), &s.setup(Reference::Vertex)).unwrap_err();
+    let e = solve(&s.sphere(), &s.setup(Reference::Vertex { tip_radius: 0.0 })).unwrap_err();
     assert!(matches!(e, HeadError::MissingFace { .. }));
 }
 
