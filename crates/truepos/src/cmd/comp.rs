@@ -1,10 +1,354 @@
-//! `truepos comp` (being built; see ARCHITECTURE.md).
+//! `truepos comp`: the 21-parameter geometric error map (ISO 230-1): volumetric error at points,
+//! correction of measured points and compensation of commanded positions.
+//!
+//! Map file: CSV `axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad`, rows
+//! of one axis in any order (sorted here; a repeated position is an error). Squareness:
+//! `--squareness FILE`, TOML `[squareness] xy_urad, xz_urad, yz_urad` or CSV with those columns
+//! and one row. Component definitions and rotation axes: `truepos_comp::geometric` and the
+//! `--help` text below.
 
-use crate::{DeviceError, Outcome};
+use crate::output::{parse_triple, print_json};
+use crate::Outcome;
+use anyhow::{Context, Result};
+use serde::Deserialize;
+use serde_json::json;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use truepos_comp::correct::CompError;
+use truepos_comp::{Axis, AxisErrors, AxisTable, Chain, Corrector, GeometricMap, Squareness};
+use truepos_io::atomic::AtomicFile;
+use truepos_io::csv::{CsvWriter, Table};
+use truepos_io::InputError;
+use truepos_math::{Point3, Vector3};
+
+pub const COMPONENTS_HELP: &str = "\
+Map components (errors of motion, actual − nominal; µm and µrad in files):
+  axis  pos_um  str1_um  str2_um  roll_urad  pitch_urad  yaw_urad
+  x     δx      δy       δz       about X    about Y     about Z
+  y     δy      δz       δx       about Y    about X     about Z
+  z     δz      δx       δy       about Z    about X     about Y
+Rotations are right-handed about the machine axes. Squareness (µrad, positive = the angle
+between the positive axes is smaller than 90°): xy adds (0, xy·x, 0), xz adds (xz·z, 0, 0),
+yz adds (0, yz·z, 0).
+First-order volumetric error, bridge CMM (bed → Y → X → Z → tool, the default):
+  E = δY + εY × (x_vec + z_vec + t) + δX + εX × (z_vec + t) + δZ + εZ × t + squareness
+  (gantry, bed → X → Y → Z: X and Y swap roles), t = --probe-offset-mm (ram frame).
+A measured point p is corrected to p + E(p); with --commanded the file holds targets T and the
+output holds commanded positions c with c + E(c) = T (iterated below 1 nm).
+Tables are interpolated linearly; positions outside a table are an error unless --clamp.";
 
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+#[command(after_help = "Examples:\n  truepos comp correct --map map.csv --squareness sq.toml --points meas.csv --output corrected.csv\n  truepos comp correct --map map.csv --points targets.csv --output commanded.csv --commanded\n  truepos comp error --map map.csv --at points.csv --probe-offset-mm 0,0,-120 --json")]
+#[command(long_about = COMPONENTS_HELP)]
+pub struct Args {
+    #[command(subcommand)]
+    pub command: Sub,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<Outcome> {
-    Err(DeviceError("not available yet".into()).into())
+#[derive(clap::Subcommand, Debug)]
+pub enum Sub {
+    /// Correct measured points (or compensate targets with --commanded); adds dx_um,dy_um,dz_um.
+    #[command(long_about = COMPONENTS_HELP, after_help = "Example:\n  truepos comp correct --map map.csv --points meas.csv --output corrected.csv --probe-offset-mm 0,0,-150")]
+    Correct(CorrectArgs),
+    /// Volumetric error E(p) at the points of a file (JSON error_um per point, or --output CSV).
+    #[command(long_about = COMPONENTS_HELP, after_help = "Example:\n  truepos comp error --map map.csv --at points.csv --json")]
+    Error(ErrorArgs),
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ChainArg {
+    /// Bridge CMM: bed → Y → X → Z → tool.
+    Bridge,
+    /// Large gantry: bed → X → Y → Z → tool.
+    Gantry,
+}
+
+/// Options that describe the map.
+#[derive(clap::Args, Debug, Clone)]
+pub struct MapArgs {
+    /// Geometric error map (CSV: axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad).
+    #[arg(long)]
+    pub map: PathBuf,
+    /// Squareness: TOML `[squareness] xy_urad, xz_urad, yz_urad`, or CSV with those columns (one row).
+    #[arg(long)]
+    pub squareness: Option<PathBuf>,
+    /// Probe/tool offset in the ram frame, mm.
+    #[arg(long, value_parser = parse_triple, default_value = "0,0,0")]
+    pub probe_offset_mm: [f64; 3],
+    /// Kinematic chain.
+    #[arg(long, value_enum, default_value_t = ChainArg::Bridge)]
+    pub chain: ChainArg,
+    /// Hold the end values outside a table's range instead of refusing such points.
+    #[arg(long)]
+    pub clamp: bool,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct CorrectArgs {
+    #[command(flatten)]
+    pub map: MapArgs,
+    /// Points (x_mm,y_mm,z_mm and any other columns, passed through).
+    #[arg(long)]
+    pub points: PathBuf,
+    /// Output CSV: the input with corrected x_mm,y_mm,z_mm and dx_um,dy_um,dz_um added.
+    #[arg(long)]
+    pub output: PathBuf,
+    /// The points are targets: write commanded positions c with c + E(c) = T.
+    #[arg(long)]
+    pub commanded: bool,
+    /// Print a JSON summary on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct ErrorArgs {
+    #[command(flatten)]
+    pub map: MapArgs,
+    /// Points (x_mm,y_mm,z_mm).
+    #[arg(long)]
+    pub at: PathBuf,
+    /// Write a CSV (x_mm,y_mm,z_mm,ex_um,ey_um,ez_um) instead of printing.
+    #[arg(long)]
+    pub output: Option<PathBuf>,
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Read a geometric map CSV (errors with file, line, column).
+pub fn read_map(path: &Path) -> Result<GeometricMap, InputError> {
+    let t = Table::read(path)?;
+    let cols = ["position_mm", "pos_um", "str1_um", "str2_um", "pitch_urad", "yaw_urad", "roll_urad"];
+    let v = t.f64_columns(&cols)?;
+    let axes = t.str_column("axis")?;
+    let acol = t.column("axis").map(|c| c + 1);
+    let mut rows: [Vec<(f64, AxisErrors, usize)>; 3] = [vec![], vec![], vec![]];
+    for (i, a) in axes.iter().enumerate() {
+        let k = match a.trim().to_ascii_lowercase().as_str() {
+            "x" => 0,
+            "y" => 1,
+            "z" => 2,
+            other => return Err(InputError::at(path, t.line_number(i), acol, format!("axis must be x, y or z (got '{other}')")).with_column_name("axis")),
+        };
+        let r = &v[i * 7..i * 7 + 7];
+        let e = AxisErrors { pos: r[1] * 1e-3, str1: r[2] * 1e-3, str2: r[3] * 1e-3, pitch: r[4] * 1e-6, yaw: r[5] * 1e-6, roll: r[6] * 1e-6 };
+        rows[k].push((r[0], e, i));
+    }
+    let mut map = GeometricMap::default();
+    for (k, axis) in [Axis::X, Axis::Y, Axis::Z].into_iter().enumerate() {
+        let r = &mut rows[k];
+        if r.is_empty() {
+            continue;
+        }
+        r.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for w in r.windows(2) {
+            if w[0].0 == w[1].0 {
+                return Err(InputError::at(
+                    path,
+                    t.line_number(w[1].2.max(w[0].2)),
+                    t.column("position_mm").map(|c| c + 1),
+                    format!("axis {}: position {} mm appears twice (also line {})", axis.name(), w[0].0, t.line_number(w[1].2.min(w[0].2))),
+                ));
+            }
+        }
+        let pos: Vec<f64> = r.iter().map(|x| x.0).collect();
+        let e: Vec<AxisErrors> = r.iter().map(|x| x.1).collect();
+        let table = AxisTable::new(axis, pos, &e).map_err(|e| InputError::in_file(path, e.to_string()))?;
+        match axis {
+            Axis::X => map.x = Some(table),
+            Axis::Y => map.y = Some(table),
+            Axis::Z => map.z = Some(table),
+        }
+    }
+    if map.x.is_none() && map.y.is_none() && map.z.is_none() {
+        return Err(InputError::in_file(path, "the map has no rows"));
+    }
+    Ok(map)
+}
+
+#[derive(Deserialize)]
+struct SqFile {
+    squareness: SqToml,
+}
+#[derive(Deserialize)]
+struct SqToml {
+    #[serde(default)]
+    xy_urad: f64,
+    #[serde(default)]
+    xz_urad: f64,
+    #[serde(default)]
+    yz_urad: f64,
+}
+
+/// Read squareness from TOML or CSV (µrad in the file, rad returned).
+pub fn read_squareness(path: &Path) -> Result<Squareness, InputError> {
+    let is_toml = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml"));
+    let (xy, xz, yz) = if is_toml {
+        let f: SqFile = truepos_io::config::read_toml(path)?;
+        (f.squareness.xy_urad, f.squareness.xz_urad, f.squareness.yz_urad)
+    } else {
+        let t = Table::read(path)?;
+        let v = t.f64_columns(&["xy_urad", "xz_urad", "yz_urad"])?;
+        if t.n_rows() != 1 {
+            return Err(InputError::in_file(path, format!("a squareness CSV has exactly one data row (got {})", t.n_rows())));
+        }
+        (v[0], v[1], v[2])
+    };
+    for (n, v) in [("xy_urad", xy), ("xz_urad", xz), ("yz_urad", yz)] {
+        if !v.is_finite() {
+            return Err(InputError::in_file(path, format!("{n} is not finite")));
+        }
+    }
+    Ok(Squareness { xy: xy * 1e-6, xz: xz * 1e-6, yz: yz * 1e-6 })
+}
+
+/// The full map from the command-line options.
+pub fn load_map(a: &MapArgs) -> Result<GeometricMap, InputError> {
+    let mut map = read_map(&a.map)?;
+    if let Some(s) = &a.squareness {
+        map.squareness = read_squareness(s)?;
+    }
+    map.chain = match a.chain {
+        ChainArg::Bridge => Chain::BridgeYXZ,
+        ChainArg::Gantry => Chain::GantryXYZ,
+    };
+    map.clamp = a.clamp;
+    Ok(map)
+}
+
+/// Points of a CSV table as `Point3`.
+pub fn table_points(t: &Table) -> Result<Vec<Point3>, InputError> {
+    let v = t.f64_columns(&["x_mm", "y_mm", "z_mm"])?;
+    Ok(v.chunks_exact(3).map(|c| Point3::new(c[0], c[1], c[2])).collect())
+}
+
+/// Turn a batch error into an input error on the line of the point.
+pub fn batch_error(t: &Table, e: CompError) -> InputError {
+    InputError::at(&t.path, t.line_number(e.index()), None, e.to_string())
+}
+
+/// Write `t` with x_mm,y_mm,z_mm replaced by `points` and dx_um,dy_um,dz_um set to `d` (added,
+/// or replaced when the input already has them); every other column passed through.
+pub fn write_corrected(t: &Table, points: &[Point3], d: &[Vector3], out: &Path) -> Result<()> {
+    let xyz = [t.require("x_mm")?, t.require("y_mm")?, t.require("z_mm")?];
+    let extra = ["dx_um", "dy_um", "dz_um"];
+    let existing: Vec<Option<usize>> = extra.iter().map(|n| t.column(n)).collect();
+    let mut f = AtomicFile::create(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let mut w = CsvWriter::new(&mut f);
+    let mut header: Vec<&str> = t.header.iter().map(String::as_str).collect();
+    for (n, e) in extra.iter().zip(&existing) {
+        if e.is_none() {
+            header.push(n);
+        }
+    }
+    w.header(&header)?;
+    let mut buf = Vec::new();
+    for (r, (p, dv)) in points.iter().zip(d).enumerate() {
+        let fields = t.fields(r, &mut buf)?;
+        for (c, s) in fields.iter().enumerate() {
+            if let Some(k) = xyz.iter().position(|&x| x == c) {
+                w.field_f64(p[k])?;
+            } else if let Some(k) = existing.iter().position(|&e| e == Some(c)) {
+                w.field_f64(dv[k] * 1e3)?;
+            } else {
+                w.field_str(s)?;
+            }
+        }
+        for (k, e) in existing.iter().enumerate() {
+            if e.is_none() {
+                w.field_f64(dv[k] * 1e3)?;
+            }
+        }
+        w.end_row()?;
+    }
+    drop(w);
+    f.flush()?;
+    f.commit().with_context(|| format!("cannot write {}", out.display()))?;
+    Ok(())
+}
+
+/// RMS and maximum norm (µm) of displacements.
+pub fn rms_max_um(d: &[Vector3]) -> (f64, f64) {
+    if d.is_empty() {
+        return (0.0, 0.0);
+    }
+    let rms = (d.iter().map(|v| v.norm_squared()).sum::<f64>() / d.len() as f64).sqrt();
+    (rms * 1e3, d.iter().map(|v| v.norm()).fold(0.0, f64::max) * 1e3)
+}
+
+pub fn run(a: Args) -> Result<Outcome> {
+    match a.command {
+        Sub::Correct(c) => correct(c),
+        Sub::Error(e) => error(e),
+    }
+}
+
+fn correct(a: CorrectArgs) -> Result<Outcome> {
+    let map = load_map(&a.map)?;
+    let t = Table::read(&a.points)?;
+    let input = table_points(&t)?;
+    let [ox, oy, oz] = a.map.probe_offset_mm;
+    let corr = Corrector { geometric: Some(&map), load: None, probe_offset: Vector3::new(ox, oy, oz) };
+    let mut pts = input.clone();
+    let mut d = vec![Vector3::zeros(); pts.len()];
+    let mut iterations = 0;
+    if a.commanded {
+        iterations = corr.compensate(&mut pts).map_err(|e| batch_error(&t, e))?;
+        for (k, (c, t0)) in pts.iter().zip(&input).enumerate() {
+            d[k] = c - t0;
+        }
+    } else {
+        corr.correct_measured(&mut pts, Some(&mut d)).map_err(|e| batch_error(&t, e))?;
+    }
+    write_corrected(&t, &pts, &d, &a.output)?;
+    let (rms, max) = rms_max_um(&d);
+    if a.json {
+        let mut j = json!({
+            "n_points": pts.len(),
+            "output": a.output.display().to_string(),
+            "mode": if a.commanded { "commanded" } else { "measured" },
+            "rms_correction_um": rms,
+            "max_correction_um": max,
+        });
+        if a.commanded {
+            j["max_iterations"] = json!(iterations);
+        }
+        print_json(&j)?;
+    } else {
+        eprintln!("{} points {}; correction rms {rms:.3} µm, max {max:.3} µm → {}", pts.len(), if a.commanded { "compensated" } else { "corrected" }, a.output.display());
+    }
+    Ok(Outcome::Done)
+}
+
+fn error(a: ErrorArgs) -> Result<Outcome> {
+    let map = load_map(&a.map)?;
+    let t = Table::read(&a.at)?;
+    let pts = table_points(&t)?;
+    let [ox, oy, oz] = a.map.probe_offset_mm;
+    let off = Vector3::new(ox, oy, oz);
+    let mut e = Vec::with_capacity(pts.len());
+    for (i, p) in pts.iter().enumerate() {
+        e.push(map.error(p, &off).map_err(|source| batch_error(&t, CompError::OutOfRange { index: i, source }))?);
+    }
+    if let Some(out) = &a.output {
+        let mut f = AtomicFile::create(out).with_context(|| format!("cannot create {}", out.display()))?;
+        let mut w = CsvWriter::new(&mut f);
+        w.header(&["x_mm", "y_mm", "z_mm", "ex_um", "ey_um", "ez_um"])?;
+        for (p, v) in pts.iter().zip(&e) {
+            w.row_f64(&[p.x, p.y, p.z, v.x * 1e3, v.y * 1e3, v.z * 1e3])?;
+        }
+        drop(w);
+        f.commit()?;
+    }
+    if a.json {
+        print_json(&json!({
+            "n_points": pts.len(),
+            "error_um": e.iter().map(|v| [v.x * 1e3, v.y * 1e3, v.z * 1e3]).collect::<Vec<_>>(),
+        }))?;
+    } else if a.output.is_none() {
+        for (p, v) in pts.iter().zip(&e) {
+            println!("{:.4} {:.4} {:.4}  →  {:+.4} {:+.4} {:+.4} µm", p.x, p.y, p.z, v.x * 1e3, v.y * 1e3, v.z * 1e3);
+        }
+    }
+    Ok(Outcome::Done)
 }
