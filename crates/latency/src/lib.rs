@@ -1,1 +1,341 @@
-//! Placeholder: this crate is being built (see ARCHITECTURE.md).
+//! # truepos-latency — probe/machine system-delay calibration
+//!
+//! A scanning probe reports stylus deflection, the machine its encoder position; both are
+//! stamped on one master clock but captured with different latencies. The *system delay*
+//! `D` is how much later the machine data is stamped than the probe data for the same instant:
+//! the stylus centre at probe stamp `t` is `machine(t + D) + deflection(t)` (interface contract).
+//!
+//! Pure: the functions take time-stamped streams as slices and do no I/O.
+//!
+//! Entry points:
+//! - [`estimate`] with [`Options`] → [`Estimate`]: checks the streams, segments the contacts,
+//!   extrapolates each to zero deflection and runs one of the four methods
+//!   ([`Method::Artefact`], [`Method::Speeds`], [`Method::Scan`], [`Method::Inout`]), or picks
+//!   one ([`Method::Auto`]).
+//! - [`apply`]: stylus-centre positions at the probe stamps for a known delay.
+//! - modules: [`stream`] (checks, interpolation), [`contact`] (segmentation, extrapolation),
+//!   [`geom`] (feature fits with the delay), [`touch`] (touch methods), [`scan`] (scan method).
+
+pub mod contact;
+pub mod geom;
+pub mod scan;
+pub mod stream;
+pub mod touch;
+
+pub use contact::{Contact, Phase};
+pub use stream::{Streams, Which};
+pub use touch::PerAxis;
+
+use thiserror::Error;
+
+/// Why a delay cannot be computed. Every variant is caused by the input data or options.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum LatencyError {
+    #[error("{which} stream: {times} time stamps but {values} values")]
+    LengthMismatch { which: Which, times: usize, values: usize },
+    #[error("{which} stream: {n} sample(s); at least two are needed")]
+    TooShort { which: Which, n: usize },
+    #[error("{which} stream: sample {index} is not finite")]
+    NotFinite { which: Which, index: usize },
+    #[error("{which} stream: duplicate time stamp {t} s (sample {index})")]
+    DuplicateStamp { which: Which, index: usize, t: f64 },
+    #[error("{which} stream: time stamps not increasing: {t} s after {previous} s (sample {index})")]
+    NotIncreasing { which: Which, index: usize, t: f64, previous: f64 },
+    #[error(
+        "the streams do not overlap in time: machine {:.6}–{:.6} s, probe {:.6}–{:.6} s",
+        machine.0,
+        machine.1,
+        probe.0,
+        probe.1
+    )]
+    NoOverlap { machine: (f64, f64), probe: (f64, f64) },
+    #[error("no contact found: {0}")]
+    NoContact(String),
+    #[error(
+        "all contacts are at one speed ({0:.3} mm/s): the speeds method needs at least two speeds (or give the artefact size for the artefact method)"
+    )]
+    SingleSpeed(f64),
+    #[error("the data cannot determine the delay: {0}")]
+    Underdetermined(String),
+    #[error("degenerate data: {0}")]
+    Degenerate(String),
+    #[error("{0}")]
+    Options(String),
+}
+
+/// Calibration method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    Auto,
+    Artefact,
+    Speeds,
+    Scan,
+    Inout,
+}
+
+impl Method {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Method::Auto => "auto",
+            Method::Artefact => "artefact",
+            Method::Speeds => "speeds",
+            Method::Scan => "scan",
+            Method::Inout => "inout",
+        }
+    }
+}
+
+/// Known artefact size.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum KnownSize {
+    /// Sphere (or ring) diameter, mm.
+    SphereDiameter(f64),
+    /// Distance between two parallel faces, mm.
+    Gap(f64),
+}
+
+/// Options of [`estimate`].
+#[derive(Clone, Debug)]
+pub struct Options {
+    pub method: Method,
+    pub known_size: Option<KnownSize>,
+    /// Stylus tip radius (mm); sizes are of the artefact, points of the stylus centre.
+    pub tip_radius: f64,
+    /// Contact detection threshold on |deflection| (mm).
+    pub threshold: f64,
+    /// Separate delays for X, Y, Z.
+    pub per_axis: bool,
+    /// Search range of the scan method (s).
+    pub max_delay: f64,
+    /// Delay already applied to the data (s): the estimate is then a residual.
+    pub already_corrected: f64,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            method: Method::Auto,
+            known_size: None,
+            tip_radius: 0.0,
+            threshold: 0.005,
+            per_axis: false,
+            max_delay: 0.05,
+            already_corrected: 0.0,
+        }
+    }
+}
+
+/// The calibrated delay and what supports it.
+#[derive(Clone, Debug)]
+pub struct Estimate {
+    /// The method used (never `Auto`).
+    pub method: Method,
+    /// Total delay (s): `already_corrected + residual_delay`.
+    pub delay: f64,
+    /// Delay measured in the data as given (s).
+    pub residual_delay: f64,
+    pub uncertainty: f64,
+    pub n_contacts: usize,
+    /// Feature the contacts describe (touch methods).
+    pub feature: Option<&'static str>,
+    /// Artefact size at zero speed (speeds) or the known size (artefact), mm.
+    pub static_size: Option<f64>,
+    pub u_static_size: Option<f64>,
+    /// (speed mm/s, artefact size mm) per speed group (speeds method).
+    pub per_speed: Vec<(f64, f64)>,
+    pub per_axis: Option<PerAxis>,
+    /// RMS residual of the fit (mm).
+    pub rms: f64,
+    pub warnings: Vec<String>,
+    pub contacts: Vec<Contact>,
+    /// Per-contact delays of the in-out method (s, u).
+    pub inout_each: Vec<(f64, f64)>,
+    pub scan: Option<scan::ScanResult>,
+}
+
+/// Artefact size from a signed stylus-centre size (+ outer, − inner).
+pub fn artefact_size(signed: f64, tip_radius: f64) -> f64 {
+    if signed >= 0.0 {
+        signed - 2.0 * tip_radius
+    } else {
+        -signed + 2.0 * tip_radius
+    }
+}
+
+/// Signed stylus-centre size of a known artefact for a feature that is outer or inner.
+fn stylus_centre_size(k: KnownSize, outer: bool, tip_radius: f64) -> f64 {
+    let s = match k {
+        KnownSize::SphereDiameter(d) | KnownSize::Gap(d) => d,
+    };
+    if outer {
+        s + 2.0 * tip_radius
+    } else {
+        -(s - 2.0 * tip_radius)
+    }
+}
+
+/// Run the calibration.
+pub fn estimate(s: &Streams, opt: &Options) -> Result<Estimate, LatencyError> {
+    s.check()?;
+    if !(opt.threshold > 0.0) {
+        return Err(LatencyError::Options("the contact threshold must be positive".into()));
+    }
+    if let Some(KnownSize::SphereDiameter(d) | KnownSize::Gap(d)) = opt.known_size {
+        if !(d > 0.0) {
+            return Err(LatencyError::Options("the known artefact size must be positive".into()));
+        }
+    }
+    let mut mi = Vec::new();
+    stream::machine_at(s.machine_t, s.machine, s.probe_t, 0.0, &mut mi);
+    let copt = contact::ContactOptions { threshold: opt.threshold, ..Default::default() };
+    let contacts = contact::extract_contacts(s, &mi, &copt, 0.5);
+    let scan_like = contacts.is_empty() && scan::scan_samples(s, opt.threshold, 0.5).len() >= 50;
+    let method = match opt.method {
+        Method::Auto => {
+            if scan_like {
+                Method::Scan
+            } else if contacts.is_empty() {
+                return Err(no_contact(s, opt.threshold));
+            } else if opt.known_size.is_some() {
+                Method::Artefact
+            } else if touch::speed_groups(&contacts).len() >= 2 {
+                Method::Speeds
+            } else if contacts.iter().all(in_out_symmetric) {
+                Method::Inout
+            } else {
+                return Err(LatencyError::Underdetermined(
+                    "all contacts are at one speed and no artefact size is given (--sphere-diameter-mm or --gap-mm), and their approach and retract speeds differ so in-out does not apply".into(),
+                ));
+            }
+        }
+        m => m,
+    };
+    let mut est = Estimate {
+        method,
+        delay: 0.0,
+        residual_delay: 0.0,
+        uncertainty: 0.0,
+        n_contacts: contacts.len(),
+        feature: None,
+        static_size: None,
+        u_static_size: None,
+        per_speed: vec![],
+        per_axis: None,
+        rms: 0.0,
+        warnings: vec![],
+        contacts: vec![],
+        inout_each: vec![],
+        scan: None,
+    };
+    if method == Method::Scan {
+        let r = scan::scan_delay(s, opt.threshold, opt.max_delay)?;
+        est.residual_delay = r.delay;
+        est.uncertainty = r.u_delay;
+        est.rms = r.rms_after;
+        est.n_contacts = 1;
+        est.static_size = Some(2.0 * r.radius);
+        if opt.per_axis {
+            est.warnings
+                .push("--per-axis is not available with the scan method; use touches along each axis".into());
+        }
+        est.scan = Some(r);
+    } else {
+        if contacts.is_empty() {
+            return Err(no_contact(s, opt.threshold));
+        }
+        let approach = contacts.iter().filter(|c| c.phase == Phase::Approach).count();
+        if approach > 0 {
+            est.warnings.push(format!(
+                "{approach} contact(s) without usable retract data: extrapolated on approach data"
+            ));
+        }
+        let r = match method {
+            Method::Inout => {
+                let (r, each) = touch::inout(s, &contacts, opt.per_axis)?;
+                est.inout_each = each;
+                r
+            }
+            Method::Artefact | Method::Speeds => {
+                let normals: Vec<_> = contacts.iter().map(|c| c.normal).collect();
+                let feature = geom::Feature::classify(&normals)?;
+                est.feature = Some(feature.name());
+                if method == Method::Artefact {
+                    let k = opt.known_size.ok_or_else(|| {
+                        LatencyError::Options(
+                            "the artefact method needs --sphere-diameter-mm or --gap-mm".into(),
+                        )
+                    })?;
+                    let outer = geom::is_outer(feature, &contacts)?;
+                    let size = stylus_centre_size(k, outer, opt.tip_radius);
+                    if !(size.abs() > 0.0) || size * if outer { 1.0 } else { -1.0 } <= 0.0 {
+                        return Err(LatencyError::Options("the tip radius is larger than the gap".into()));
+                    }
+                    let mut r = touch::artefact(feature, &contacts, size, opt.per_axis)?;
+                    r.static_size = Some(artefact_size(size, opt.tip_radius));
+                    r
+                } else {
+                    let mut r = touch::speeds(feature, &contacts, opt.per_axis)?;
+                    r.static_size = r.static_size.map(|v| artefact_size(v, opt.tip_radius));
+                    for p in &mut r.per_speed {
+                        p.1 = artefact_size(p.1, opt.tip_radius);
+                    }
+                    r
+                }
+            }
+            Method::Scan | Method::Auto => unreachable_method(),
+        };
+        est.residual_delay = r.delay;
+        est.uncertainty = r.u_delay;
+        est.rms = r.rms;
+        est.static_size = r.static_size;
+        est.u_static_size = r.u_static_size;
+        est.per_speed = r.per_speed;
+        est.per_axis = r.per_axis;
+        est.warnings.extend(r.warnings);
+    }
+    if !(est.uncertainty.is_finite()) || !(est.residual_delay.is_finite()) {
+        return Err(LatencyError::Underdetermined("the fit gives no finite delay".into()));
+    }
+    est.delay = opt.already_corrected + est.residual_delay;
+    if let Some(pa) = &mut est.per_axis {
+        for d in pa.delay.iter_mut().flatten() {
+            *d += opt.already_corrected;
+        }
+    }
+    est.contacts = contacts;
+    Ok(est)
+}
+
+fn unreachable_method() -> touch::TouchResult {
+    // Scan and Auto are resolved before the touch branch; keep a harmless value.
+    touch::TouchResult { delay: f64::NAN, u_delay: f64::NAN, ..Default::default() }
+}
+
+fn no_contact(s: &Streams, threshold: f64) -> LatencyError {
+    let max = s.probe.iter().map(|d| (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()).fold(0.0f64, f64::max);
+    LatencyError::NoContact(format!(
+        "the largest deflection is {max:.6} mm, the threshold {threshold} mm (or no contact run has enough samples to extrapolate)"
+    ))
+}
+
+/// Approach and retract along the normal at the same speed (within 5 %)?
+fn in_out_symmetric(c: &Contact) -> bool {
+    match (c.phase, c.approach_velocity) {
+        (Phase::Retract, Some(va)) => {
+            let (a, r) = (-va.dot(&c.normal), c.normal_speed());
+            a > 0.0 && r > 0.0 && (a - r).abs() <= 0.05 * a.max(r)
+        }
+        _ => false,
+    }
+}
+
+/// Stylus-centre positions `machine(t + delay) + deflection(t)` at every probe stamp; NaN where
+/// the machine data does not cover `t + delay`. `out` is cleared and refilled.
+pub fn apply(s: &Streams, delay: f64, out: &mut Vec<[f64; 3]>) {
+    stream::machine_at(s.machine_t, s.machine, s.probe_t, delay, out);
+    for (p, d) in out.iter_mut().zip(s.probe) {
+        for k in 0..3 {
+            p[k] += d[k];
+        }
+    }
+}

@@ -1,0 +1,514 @@
+//! The scan method: a continuous scan of a circle or sphere whose path switches between two
+//! radii (so the deflection steps several times). With the wrong time shift the combined
+//! points `machine(t + D) + deflection(t)` show radial spikes at each step; the delay is the
+//! shift that minimises the form error.
+//!
+//! The shift is found in two stages: a bracket over `±max_delay` on a decimated subset
+//! (Kåsa fit inside, only to find the basin), then Brent's method on the profile sum of squared
+//! radial errors over every in-contact sample (a Gauss-Newton geometric circle/sphere fit inside
+//! each evaluation): sub-sample precision without differentiating noisy machine data. The
+//! curvature of the profile at the minimum gives the standard uncertainty.
+//!
+//! Entry points: [`scan_delay`], [`ScanResult`], [`radial_errors`].
+
+use crate::stream::{machine_pos_vel, Streams};
+use crate::LatencyError;
+use truepos_math::lsq::Residuals;
+use truepos_math::{Matrix3, Point3, Vector3};
+
+/// The scanned form.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Form {
+    /// A circle in the plane through `origin` with basis `e1`, `e2`.
+    Circle {
+        origin: Point3,
+        e1: Vector3,
+        e2: Vector3,
+    },
+    Sphere,
+}
+
+/// Result of the scan method.
+#[derive(Clone, Debug)]
+pub struct ScanResult {
+    pub delay: f64,
+    pub u_delay: f64,
+    pub form: Form,
+    /// Centre and radius of the stylus-centre circle or sphere.
+    pub center: Point3,
+    pub radius: f64,
+    /// RMS radial error of the combined points without shift and with the fitted shift (mm).
+    pub rms_before: f64,
+    pub rms_after: f64,
+    /// Probe sample indices used.
+    pub samples: Vec<usize>,
+    /// Number of deflection steps (direction changes of the radial motion) seen.
+    pub n_steps: usize,
+}
+
+struct ScanProblem<'a> {
+    s: &'a Streams<'a>,
+    idx: &'a [usize],
+    form: Form,
+}
+
+impl ScanProblem<'_> {
+    fn point(&self, i: usize, shift: f64) -> Option<(Vector3, Vector3)> {
+        let j = self.idx[i];
+        let (m, v) = machine_pos_vel(self.s.machine_t, self.s.machine, self.s.probe_t[j] + shift)?;
+        let d = self.s.probe[j];
+        Some((Vector3::new(m[0] + d[0], m[1] + d[1], m[2] + d[2]), Vector3::new(v[0], v[1], v[2])))
+    }
+}
+
+impl Residuals for ScanProblem<'_> {
+    fn n_params(&self) -> usize {
+        match self.form {
+            Form::Circle { .. } => 4,
+            Form::Sphere => 5,
+        }
+    }
+    fn n_residuals(&self) -> usize {
+        self.idx.len()
+    }
+    fn eval(&self, p: &[f64], i: usize, jac: &mut [f64]) -> f64 {
+        let shift = p[p.len() - 1];
+        let Some((q, v)) = self.point(i, shift) else {
+            // Outside the machine's time range: no information (zero residual and gradient).
+            jac.iter_mut().for_each(|j| *j = 0.0);
+            return 0.0;
+        };
+        match self.form {
+            Form::Circle { origin, e1, e2 } => {
+                let w = q - origin.coords;
+                let (u, vv) = (e1.dot(&w) - p[0], e2.dot(&w) - p[1]);
+                let d = (u * u + vv * vv).sqrt().max(1e-300);
+                jac[0] = -u / d;
+                jac[1] = -vv / d;
+                jac[2] = -1.0;
+                jac[3] = (e1 * (u / d) + e2 * (vv / d)).dot(&v);
+                d - p[2]
+            }
+            Form::Sphere => {
+                let w = q - Vector3::new(p[0], p[1], p[2]);
+                let d = w.norm().max(1e-300);
+                let g = w / d;
+                jac[0] = -g.x;
+                jac[1] = -g.y;
+                jac[2] = -g.z;
+                jac[3] = -1.0;
+                jac[4] = g.dot(&v);
+                d - p[3]
+            }
+        }
+    }
+}
+
+/// Kåsa fit of the combined points at `shift` over `sub` (indices into `prob.idx`): returns the
+/// geometric parameters (circle a, b, R or sphere cx, cy, cz, R) and the RMS radial error.
+fn kasa(prob: &ScanProblem, sub: &[usize], shift: f64) -> Option<(Vec<f64>, f64)> {
+    let mut pts = Vec::with_capacity(sub.len());
+    for &i in sub {
+        if let Some((q, _)) = prob.point(i, shift) {
+            pts.push(q);
+        }
+    }
+    if pts.len() < 5 {
+        return None;
+    }
+    let p = match prob.form {
+        Form::Circle { origin, e1, e2 } => {
+            let mut m = Matrix3::zeros();
+            let mut r = Vector3::zeros();
+            for q in &pts {
+                let w = q - origin.coords;
+                let (u, v) = (e1.dot(&w), e2.dot(&w));
+                let row = Vector3::new(u, v, 1.0);
+                m += row * row.transpose();
+                r += row * (u * u + v * v);
+            }
+            let s = m.try_inverse()? * r;
+            let (a, b) = (s[0] / 2.0, s[1] / 2.0);
+            vec![a, b, (s[2] + a * a + b * b).max(0.0).sqrt()]
+        }
+        Form::Sphere => {
+            let mut m = nalgebra::Matrix4::<f64>::zeros();
+            let mut r = nalgebra::Vector4::<f64>::zeros();
+            for q in &pts {
+                let row = nalgebra::Vector4::new(q.x, q.y, q.z, 1.0);
+                m += row * row.transpose();
+                r += row * q.norm_squared();
+            }
+            let s = m.try_inverse()? * r;
+            let c = Vector3::new(s[0], s[1], s[2]) / 2.0;
+            vec![c.x, c.y, c.z, (s[3] + c.norm_squared()).max(0.0).sqrt()]
+        }
+    };
+    let mut pp = p.clone();
+    pp.push(shift);
+    let mut jac = vec![0.0; pp.len()];
+    let mut ss = 0.0;
+    for &i in sub {
+        let r = prob.eval(&pp, i, &mut jac);
+        ss += r * r;
+    }
+    Some((p, (ss / sub.len() as f64).sqrt()))
+}
+
+/// Count the steps of the deflection magnitude between its low and high levels (hysteresis at
+/// the 25 % and 75 % points between the 10th and 90th percentiles).
+fn count_steps(s: &Streams, idx: &[usize], threshold: f64) -> usize {
+    let mut mags: Vec<f64> = idx
+        .iter()
+        .map(|&j| {
+            let d = s.probe[j];
+            (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+        })
+        .collect();
+    let series = mags.clone();
+    mags.sort_by(f64::total_cmp);
+    let q = |f: f64| mags[((mags.len() - 1) as f64 * f) as usize];
+    let (p10, p90) = (q(0.1), q(0.9));
+    if p90 - p10 < 2.0 * threshold {
+        return 0;
+    }
+    let (lo, hi) = (p10 + 0.25 * (p90 - p10), p10 + 0.75 * (p90 - p10));
+    let mut state = 0i8;
+    let mut steps = 0;
+    for m in series {
+        let ns = if m < lo {
+            -1
+        } else if m > hi {
+            1
+        } else {
+            state
+        };
+        if ns != state && state != 0 {
+            steps += 1;
+        }
+        state = ns;
+    }
+    steps
+}
+
+/// Probe samples in contact within runs whose deflection direction turns (the scan).
+pub fn scan_samples(s: &Streams, threshold: f64, min_turn: f64) -> Vec<usize> {
+    let mut idx = Vec::new();
+    for (a, b) in crate::contact::find_runs(s.probe, threshold, 20) {
+        let Some(n) = crate::contact::run_normal(s.probe, a, b) else { continue };
+        if crate::contact::run_turn(s.probe, a, b, &n) >= min_turn {
+            idx.extend(a..b);
+        }
+    }
+    idx
+}
+
+/// Delay from a scan. `max_delay` bounds the search (s).
+pub fn scan_delay(s: &Streams, threshold: f64, max_delay: f64) -> Result<ScanResult, LatencyError> {
+    let idx = scan_samples(s, threshold, 0.5);
+    if idx.len() < 50 {
+        return Err(LatencyError::NoContact(format!(
+            "no scan found: no contact run longer than 20 samples whose deflection direction turns (threshold {threshold} mm)"
+        )));
+    }
+    let n_steps = count_steps(s, &idx, threshold);
+    if n_steps < 2 {
+        return Err(LatencyError::Underdetermined(format!(
+            "the scan has {n_steps} deflection step(s): without direction changes of the radial motion the delay is not observable (switch the path between two radii several times)"
+        )));
+    }
+    // Plane of the combined points at zero shift: circle when they are flat.
+    let mut pts = Vec::with_capacity(idx.len());
+    for &j in &idx {
+        if let Some((m, _)) = machine_pos_vel(s.machine_t, s.machine, s.probe_t[j]) {
+            let d = s.probe[j];
+            pts.push(Vector3::new(m[0] + d[0], m[1] + d[1], m[2] + d[2]));
+        }
+    }
+    if pts.len() < 50 {
+        return Err(LatencyError::NoOverlap {
+            machine: (s.machine_t[0], s.machine_t[s.machine_t.len() - 1]),
+            probe: (s.probe_t[0], s.probe_t[s.probe_t.len() - 1]),
+        });
+    }
+    let c = pts.iter().sum::<Vector3>() / pts.len() as f64;
+    let mut cov = Matrix3::zeros();
+    for p in &pts {
+        cov += (p - c) * (p - c).transpose();
+    }
+    let e = cov.symmetric_eigen();
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&a, &b| e.eigenvalues[b].total_cmp(&e.eigenvalues[a]));
+    let lam = |k: usize| e.eigenvalues[order[k]].max(0.0);
+    let form = if lam(2).sqrt() < 0.02 * lam(0).sqrt() {
+        let e1: Vector3 = e.eigenvectors.column(order[0]).into_owned();
+        let nrm: Vector3 = e.eigenvectors.column(order[2]).into_owned();
+        Form::Circle { origin: Point3::from(c), e1, e2: nrm.cross(&e1) }
+    } else {
+        Form::Sphere
+    };
+    let prob = ScanProblem { s, idx: &idx, form };
+    // Stage 1: bracket the basin on a decimated subset.
+    let step = (idx.len() / 20_000).max(1);
+    let sub: Vec<usize> = (0..idx.len()).step_by(step).collect();
+    let n_grid = 200;
+    let h_grid = 2.0 * max_delay / n_grid as f64;
+    let mut best = (f64::INFINITY, 0.0, Vec::new());
+    for g in 0..=n_grid {
+        let shift = -max_delay + h_grid * g as f64;
+        if let Some((p, rms)) = kasa(&prob, &sub, shift) {
+            if rms < best.0 {
+                best = (rms, shift, p);
+            }
+        }
+    }
+    if best.2.is_empty() {
+        return Err(LatencyError::Degenerate("the scan points do not define a circle or sphere".into()));
+    }
+    // Stage 2: Brent's method on the profile sum of squares f(D) = min over the form of
+    // Σ radial², with a Gauss-Newton geometric fit inside, over every in-contact sample.
+    let mut prof = Profile { prob: &prob, geom: best.2.clone(), buf: Vec::with_capacity(idx.len()) };
+    let rms_before = (prof.ssr(0.0) / idx.len() as f64).sqrt();
+    prof.geom = best.2.clone();
+    let (a, b) = (best.1 - h_grid, best.1 + h_grid);
+    let tol = 1e-8;
+    let (delay, f0) = brent(|d| prof.ssr(d), a, b, tol);
+    let geom = prof.geom.clone();
+    // Curvature of the profile at the minimum gives the standard uncertainty:
+    // f(D) ≈ f₀ + k·(D − D̂)², var(D̂) = σ₀² / k, σ₀² = f₀ / (n − p).
+    let h = (0.2 * s.machine_dt()).max(1e-6);
+    let (fp, fm) = (prof.ssr(delay + h), prof.ssr(delay - h));
+    let k = (fp + fm - 2.0 * f0) / (2.0 * h * h);
+    let np = geom.len() + 1;
+    let n = idx.len();
+    if !(k > 0.0) || n <= np {
+        return Err(LatencyError::Underdetermined(
+            "the form error does not change with the shift: the scan does not determine the delay".into(),
+        ));
+    }
+    let sigma2 = f0 / (n - np) as f64;
+    // Interpolated machine values are correlated when the machine samples more slowly than the
+    // probe: count independent machine samples only.
+    let ratio = (s.machine_dt() / s.probe_dt()).max(1.0);
+    let u_delay = (sigma2 / k).sqrt() * ratio.sqrt();
+    let p = &geom;
+    let (center, radius) = match form {
+        Form::Circle { origin, e1, e2 } => (origin + e1 * p[0] + e2 * p[1], p[2]),
+        Form::Sphere => (Point3::new(p[0], p[1], p[2]), p[3]),
+    };
+    Ok(ScanResult {
+        delay,
+        u_delay,
+        form,
+        center,
+        radius,
+        rms_before,
+        rms_after: (f0 / n as f64).sqrt(),
+        samples: idx,
+        n_steps,
+    })
+}
+
+/// Radial error (mm) of each scan sample `(t_s, error)` for a shift: the distance of the
+/// combined point from the fitted centre minus the radius (for plots before/after).
+pub fn radial_errors(s: &Streams, r: &ScanResult, shift: f64) -> Vec<(f64, f64)> {
+    let prob = ScanProblem { s, idx: &r.samples, form: r.form };
+    let geom: Vec<f64> = match r.form {
+        Form::Circle { origin, e1, e2 } => {
+            let w = r.center - origin;
+            vec![e1.dot(&w), e2.dot(&w), r.radius]
+        }
+        Form::Sphere => vec![r.center.x, r.center.y, r.center.z, r.radius],
+    };
+    let sub: Vec<usize> = (0..r.samples.len()).collect();
+    // Refit the form at this shift so that "before" is the best form without the correction.
+    let geom = kasa(&prob, &sub, shift).map(|g| g.0).unwrap_or(geom);
+    let mut p = geom;
+    p.push(shift);
+    let mut jac = vec![0.0; p.len()];
+    (0..r.samples.len()).map(|i| (s.probe_t[r.samples[i]], prob.eval(&p, i, &mut jac))).collect()
+}
+
+/// The profile objective: combined points at a shift (one merge pass into a reused buffer) and
+/// a Gauss-Newton fit of the form, warm-started from the previous one.
+struct Profile<'a> {
+    prob: &'a ScanProblem<'a>,
+    geom: Vec<f64>,
+    buf: Vec<Vector3>,
+}
+
+impl Profile<'_> {
+    fn points(&mut self, shift: f64) {
+        let s = self.prob.s;
+        let (mt, m) = (s.machine_t, s.machine);
+        self.buf.clear();
+        let n = mt.len();
+        let mut i = 0usize;
+        for &j in self.prob.idx {
+            let t = s.probe_t[j] + shift;
+            if !(t >= mt[0] && t <= mt[n - 1]) {
+                continue;
+            }
+            while i + 2 < n && mt[i + 1] <= t {
+                i += 1;
+            }
+            let w = (t - mt[i]) / (mt[i + 1] - mt[i]);
+            let (a, b) = (m[i], m[i + 1]);
+            let d = s.probe[j];
+            self.buf.push(Vector3::new(
+                a[0] + w * (b[0] - a[0]) + d[0],
+                a[1] + w * (b[1] - a[1]) + d[1],
+                a[2] + w * (b[2] - a[2]) + d[2],
+            ));
+        }
+    }
+
+    /// Sum of squared radial errors at `shift` after a geometric fit of the form.
+    fn ssr(&mut self, shift: f64) -> f64 {
+        self.points(shift);
+        let mut g = self.geom.clone();
+        let mut last = f64::INFINITY;
+        for _ in 0..20 {
+            let (ssr, step) = match self.prob.form {
+                Form::Circle { origin, e1, e2 } => {
+                    let mut a = Matrix3::zeros();
+                    let mut r = Vector3::zeros();
+                    let mut ss = 0.0;
+                    for q in &self.buf {
+                        let w = q - origin.coords;
+                        let (u, v) = (e1.dot(&w) - g[0], e2.dot(&w) - g[1]);
+                        let d = (u * u + v * v).sqrt().max(1e-300);
+                        let res = d - g[2];
+                        let jr = Vector3::new(-u / d, -v / d, -1.0);
+                        a += jr * jr.transpose();
+                        r += jr * res;
+                        ss += res * res;
+                    }
+                    let st = a.try_inverse().map(|inv| -(inv * r));
+                    (ss, st.map(|v| vec![v[0], v[1], v[2]]))
+                }
+                Form::Sphere => {
+                    let mut a = nalgebra::Matrix4::<f64>::zeros();
+                    let mut r = nalgebra::Vector4::<f64>::zeros();
+                    let mut ss = 0.0;
+                    for q in &self.buf {
+                        let w = q - Vector3::new(g[0], g[1], g[2]);
+                        let d = w.norm().max(1e-300);
+                        let res = d - g[3];
+                        let jr = nalgebra::Vector4::new(-w.x / d, -w.y / d, -w.z / d, -1.0);
+                        a += jr * jr.transpose();
+                        r += jr * res;
+                        ss += res * res;
+                    }
+                    let st = a.try_inverse().map(|inv| -(inv * r));
+                    (ss, st.map(|v| vec![v[0], v[1], v[2], v[3]]))
+                }
+            };
+            let Some(step) = step else { return ssr };
+            let small = step.iter().all(|x| x.abs() < 1e-12);
+            if ssr >= last && small {
+                self.geom = g;
+                return ssr;
+            }
+            last = ssr;
+            for (x, d) in g.iter_mut().zip(&step) {
+                *x += d;
+            }
+            if small {
+                // One more pass evaluates the sum of squares at the converged parameters.
+                continue;
+            }
+        }
+        self.geom = g;
+        last
+    }
+}
+
+/// Brent's minimisation of `f` on `[a, b]` (parabolic interpolation with golden-section
+/// safeguards) to absolute tolerance `tol`: returns (argmin, min).
+pub fn brent(mut f: impl FnMut(f64) -> f64, a: f64, b: f64, tol: f64) -> (f64, f64) {
+    const CG: f64 = 0.381_966_011_250_105_1;
+    let (mut a, mut b) = (a.min(b), a.max(b));
+    let mut x = a + CG * (b - a);
+    let (mut w, mut v) = (x, x);
+    let mut fx = f(x);
+    let (mut fw, mut fv) = (fx, fx);
+    let (mut d, mut e) = (0.0f64, 0.0f64);
+    for _ in 0..200 {
+        let xm = 0.5 * (a + b);
+        let tol1 = tol + 1e-10 * x.abs();
+        let tol2 = 2.0 * tol1;
+        if (x - xm).abs() <= tol2 - 0.5 * (b - a) {
+            break;
+        }
+        let mut golden = true;
+        if e.abs() > tol1 {
+            let r = (x - w) * (fx - fv);
+            let mut q = (x - v) * (fx - fw);
+            let mut p = (x - v) * q - (x - w) * r;
+            q = 2.0 * (q - r);
+            if q > 0.0 {
+                p = -p;
+            }
+            q = q.abs();
+            let etemp = e;
+            e = d;
+            if p.abs() < (0.5 * q * etemp).abs() && p > q * (a - x) && p < q * (b - x) {
+                d = p / q;
+                let u = x + d;
+                if u - a < tol2 || b - u < tol2 {
+                    d = if xm >= x { tol1 } else { -tol1 };
+                }
+                golden = false;
+            }
+        }
+        if golden {
+            e = if x >= xm { a - x } else { b - x };
+            d = CG * e;
+        }
+        let u = if d.abs() >= tol1 { x + d } else { x + if d >= 0.0 { tol1 } else { -tol1 } };
+        let fu = f(u);
+        if fu <= fx {
+            if u >= x {
+                a = x;
+            } else {
+                b = x;
+            }
+            v = w;
+            fv = fw;
+            w = x;
+            fw = fx;
+            x = u;
+            fx = fu;
+        } else {
+            if u < x {
+                a = u;
+            } else {
+                b = u;
+            }
+            if fu <= fw || w == x {
+                v = w;
+                fv = fw;
+                w = u;
+                fw = fu;
+            } else if fu <= fv || v == x || v == w {
+                v = u;
+                fv = fu;
+            }
+        }
+    }
+    (x, fx)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::brent;
+
+    #[test]
+    fn brent_finds_the_minimum_of_a_parabola_and_a_quartic() {
+        let (x, f) = brent(|x| (x - 0.3).powi(2) + 1.0, -1.0, 2.0, 1e-10);
+        assert!((x - 0.3).abs() < 1e-8 && (f - 1.0).abs() < 1e-14);
+        let (x, _) = brent(|x| (x + 1.2345e-3).powi(4) + 2.0 * (x + 1.2345e-3).powi(2), -0.01, 0.01, 1e-12);
+        assert!((x + 1.2345e-3).abs() < 1e-9, "{x}");
+    }
+}
