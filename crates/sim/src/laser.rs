@@ -13,7 +13,6 @@
 //! [`Surface`] enum.
 
 use rand::Rng;
-use rand_distr::StandardNormal;
 use truepos_math::types::{ry, Point3, Vector3};
 
 /// A surface a laser beam (or a probe) can meet.
@@ -125,8 +124,7 @@ impl LaserHead {
         rng: &mut R,
     ) -> Result<f64, LaserError> {
         let t = self.reading_exact(focus, b, surface)?;
-        let z: f64 = rng.sample(StandardNormal);
-        Ok(t + self.noise * z)
+        Ok(t + crate::noise::gaussian(rng, self.noise))
     }
 
     /// The surface point the contract model assigns to a reading: `focus + dist·Ry(b)·u`.

@@ -22,8 +22,6 @@
 pub mod chain;
 pub mod rotary;
 
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use truepos_math::types::{ry, Point3, Vector3};
 
 pub use chain::SerialChain;
@@ -100,7 +98,7 @@ impl Machine {
     /// A machine of `kind` with a realistic error map drawn from `seed` (VMC table centre at the
     /// middle of the X/Y travel, z = 0).
     pub fn realistic(kind: MachineKind, seed: u64) -> Machine {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut rng = crate::noise::rng(seed);
         let errors = GeometricErrors::realistic(&mut rng, &kind.magnitudes());
         match kind {
             MachineKind::BridgeCmm => Machine::bridge_cmm(errors),

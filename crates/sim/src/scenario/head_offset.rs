@@ -27,9 +27,7 @@
 //! Defaults: 36 points per orientation over a 60° half-angle cap, 0.5 µm noise (1σ), a Ø 25 mm
 //! sphere off the table centre, a touch probe with a 1.5 mm tip radius, R = (42.5, −18.3, −165.2) mm.
 
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
-use rand_distr::StandardNormal;
+use rand::Rng;
 use serde::Serialize;
 use truepos_math::types::{ry, rz, Matrix3, Point3, Vector3};
 
@@ -477,7 +475,7 @@ pub fn observable_components(orientations: &[(f64, f64)]) -> [bool; 3] {
 /// Build the data set.
 pub fn simulate(cfg: &HeadOffsetConfig) -> Result<HeadOffsetData, HeadOffsetError> {
     cfg.validate()?;
-    let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+    let mut rng = crate::noise::rng(cfg.seed);
     let table = RotaryTable { centre: cfg.table_centre };
     let faces = Faces::new(cfg.reference);
     let n_faces = faces.as_ref().map_or(0, |f| f.normals.len());
@@ -557,8 +555,8 @@ pub fn simulate(cfg: &HeadOffsetConfig) -> Result<HeadOffsetData, HeadOffsetErro
                     }
                 }
                 None => {
-                    let e: f64 = rng.sample(StandardNormal);
-                    (s + (tip + cfg.noise * e) * n, None)
+                    let e = crate::noise::gaussian(&mut rng, cfg.noise);
+                    (s + (tip + e) * n, None)
                 }
             };
             let p = head_reference(&q, b, &cfg.offset);
