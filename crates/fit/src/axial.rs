@@ -273,8 +273,7 @@ fn canonical(v: Vector3) -> Vector3 {
 
 /// Least-squares cylinder (orthogonal distance).
 pub fn cylinder(points: &[Point3]) -> Result<CylinderFit, FitError> {
-    let m = Moments::of(points)?;
-    m.require("cylinder", 5, 2)?;
+    let m = Moments::for_fit(points, "cylinder", 5, 2)?;
     let model = CylModel { centre: m.centroid, scale: m.extent() };
     let mut best: Option<crate::engine::Solution<5, (Frame, f64)>> = None;
     for (o, w, _, s, _) in starts(points, &m, false, 3) {
@@ -320,8 +319,7 @@ pub fn cylinder(points: &[Point3]) -> Result<CylinderFit, FitError> {
 
 /// Least-squares cone (orthogonal distance).
 pub fn cone(points: &[Point3]) -> Result<ConeFit, FitError> {
-    let m = Moments::of(points)?;
-    m.require("cone", 6, 2)?;
+    let m = Moments::for_fit(points, "cone", 6, 2)?;
     let extent = m.extent();
     let model = ConeModel { centre: m.centroid, scale: extent };
     let mut best: Option<crate::engine::Solution<6, ConeState>> = None;

@@ -104,13 +104,10 @@ fn canonical(v: Vector3) -> Vector3 {
 
 /// Least-squares line (orthogonal distance).
 pub fn line(points: &[Point3]) -> Result<LineFit, FitError> {
-    let m = Moments::of(points)?;
-    m.require("line", 2, 0)?;
+    let m = Moments::for_fit(points, "line", 2, 0)?;
     let dir = canonical(m.axis(2));
-    // SSR = total scatter minus what the direction explains.
-    let ssr = (m.eigenvalues[0] + m.eigenvalues[1]).max(0.0);
     let n = points.len();
-    let max_abs = max_by(points, |p| {
+    let (ssr, max_abs) = ssr_max(points, |p| {
         let v = p - m.centroid;
         (v - dir * v.dot(&dir)).norm()
     });
@@ -128,12 +125,20 @@ pub fn line(points: &[Point3]) -> Result<LineFit, FitError> {
     })
 }
 
-fn max_by(points: &[Point3], f: impl Fn(&Point3) -> f64 + Sync) -> f64 {
+/// Sum of squares and largest absolute value of `f` over the points (one parallel pass). The
+/// sum of squares is computed from the residuals, not from eigenvalues: an eigenvalue near zero
+/// carries an absolute error of ~1e-16 of the largest one, which would put a floor of
+/// ~1e-8·extent under the RMS of nearly exact data.
+fn ssr_max(points: &[Point3], f: impl Fn(&Point3) -> f64 + Sync) -> (f64, f64) {
     use rayon::prelude::*;
+    let fold = |(s, m): (f64, f64), p: &Point3| {
+        let r = f(p);
+        (s + r * r, m.max(r.abs()))
+    };
     if points.len() > 32 * 1024 {
-        points.par_iter().map(&f).reduce(|| 0.0, f64::max)
+        points.par_iter().fold(|| (0.0, 0.0), fold).reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)))
     } else {
-        points.iter().map(f).fold(0.0, f64::max)
+        points.iter().fold((0.0, 0.0), fold)
     }
 }
 
@@ -166,9 +171,8 @@ impl PlaneFit {
 fn plane_from_moments(points: &[Point3], m: &Moments) -> PlaneFit {
     let normal = canonical(m.axis(0));
     let n = points.len();
-    let ssr = m.eigenvalues[0].max(0.0);
     let c = m.centroid;
-    let max_abs = max_by(points, |p| (p - c).dot(&normal).abs());
+    let (ssr, max_abs) = ssr_max(points, |p| (p - c).dot(&normal));
     let dof = n as f64 - 3.0;
     let s2 = if dof > 0.0 { ssr / dof } else { 0.0 };
     PlaneFit {
@@ -184,8 +188,7 @@ fn plane_from_moments(points: &[Point3], m: &Moments) -> PlaneFit {
 
 /// Least-squares plane (orthogonal distance).
 pub fn plane(points: &[Point3]) -> Result<PlaneFit, FitError> {
-    let m = Moments::of(points)?;
-    m.require("plane", 3, 1)?;
+    let m = Moments::for_fit(points, "plane", 3, 1)?;
     Ok(plane_from_moments(points, &m))
 }
 
@@ -255,8 +258,7 @@ impl Model<3> for FixedSphereModel {
 
 /// Least-squares sphere (orthogonal distance), from the algebraic (Kåsa) start.
 pub fn sphere(points: &[Point3]) -> Result<SphereFit, FitError> {
-    let m = Moments::of(points)?;
-    m.require("sphere", 4, 2)?;
+    let m = Moments::for_fit(points, "sphere", 4, 2)?;
     let (c0, r0) = m.algebraic_sphere().ok_or(FitError::Undetermined { kind: "sphere" })?;
     let model = SphereModel;
     let sol = minimise(&model, (c0, r0), points, MAX_ITERATIONS)
@@ -285,8 +287,7 @@ pub fn sphere_with_radius(points: &[Point3], radius: f64) -> Result<SphereFit, F
     if !(radius.is_finite() && radius > 0.0) {
         return Err(FitError::InvalidRadius(radius));
     }
-    let m = Moments::of(points)?;
-    m.require("sphere", 3, 2)?;
+    let m = Moments::for_fit(points, "sphere", 3, 2)?;
     // Start: the free algebraic sphere's centre, moved along the line from the centroid so the
     // mean distance matches the fixed radius.
     let c0 = match m.algebraic_sphere() {
@@ -376,8 +377,7 @@ fn kasa_2d(q: &[Point3]) -> Option<(Vector2<f64>, f64)> {
 /// Least-squares 3D circle: the least-squares plane, then the least-squares circle of the
 /// points projected into it.
 pub fn circle(points: &[Point3]) -> Result<CircleFit, FitError> {
-    let m = Moments::of(points)?;
-    m.require("circle", 3, 1)?;
+    let m = Moments::for_fit(points, "circle", 3, 1)?;
     let pl = plane_from_moments(points, &m);
     let (u, v, n) = (m.axis(2), m.axis(1), pl.normal);
     let c = m.centroid;

@@ -111,7 +111,7 @@ impl Moments {
     pub fn of(points: &[Point3]) -> Result<Moments, FitError> {
         check_finite(points)?;
         if points.is_empty() {
-            return Err(FitError::TooFewPoints { kind: "any", needed: 1, got: 0 });
+            return Err(FitError::TooFewPoints { kind: "point set", needed: 1, got: 0 });
         }
         let c0 = centroid(points);
         let s = if points.len() > PARALLEL_ABOVE {
@@ -157,6 +157,22 @@ impl Moments {
     /// RMS distance of the points from their centroid (the data's scale), mm.
     pub fn extent(&self) -> f64 {
         (self.eigenvalues.sum() / self.n as f64).sqrt()
+    }
+
+    /// Moments of `points` for a fit of `kind`: checks the count first (so an empty set is
+    /// "too few points"), then finiteness and the dimension (see [`require`](Self::require)).
+    pub fn for_fit(
+        points: &[Point3],
+        kind: &'static str,
+        needed: usize,
+        dimension: usize,
+    ) -> Result<Moments, FitError> {
+        if points.len() < needed {
+            return Err(FitError::TooFewPoints { kind, needed, got: points.len() });
+        }
+        let m = Moments::of(points)?;
+        m.require(kind, needed, dimension)?;
+        Ok(m)
     }
 
     /// Refuse point sets that cannot determine an element of `kind` with `needed` points and the
