@@ -69,6 +69,12 @@ pub struct Setup {
     pub tilt: [f64; 2],
     /// Value used for offset components the data cannot determine.
     pub prior: Vector3,
+    /// Laser heads ("laser tilt" method): the beam passes through the head reference point P, so
+    /// R is parallel to the beam direction u. Offset components no rotation reaches then follow
+    /// from the tilt and the measured components (`R_j = s·u_j`, `s` the least-squares length of
+    /// the measured part along u). Only an assumption about the head makes this possible: the
+    /// data alone never determines such a component.
+    pub beam_through_reference: bool,
 }
 
 impl Default for Setup {
@@ -78,6 +84,7 @@ impl Default for Setup {
             table_center: Point3::origin(),
             tilt: [0.0, 0.0],
             prior: Vector3::zeros(),
+            beam_through_reference: false,
         }
     }
 }
@@ -99,11 +106,17 @@ pub struct HeadOffset {
     /// The offset R (mm); components that are not observable hold the prior.
     pub offset: Vector3,
     pub observable: [bool; 3],
+    /// Components that come from the laser beam tilt (`Setup::beam_through_reference`), not
+    /// from the rotations.
+    pub from_tilt: [bool; 3],
     /// Standard uncertainty of each observable component (mm); `None` if not observable.
     pub uncertainty: [Option<f64>; 3],
     /// Sphere centre or vertex, in table coordinates at `c = 0` (= machine coordinates there).
     pub reference_point: Point3,
     pub reference_uncertainty: Vector3,
+    /// Components of the reference point the data gives only together with an unobservable
+    /// offset component (they follow the prior).
+    pub reference_depends_on_prior: [bool; 3],
     /// Fitted (or fixed) radius of the measured sphere surface.
     pub radius: Option<f64>,
     pub radius_uncertainty: Option<f64>,
@@ -283,9 +296,20 @@ impl Residuals for Problem<'_> {
     }
 }
 
-/// Offset components in the null space of the column-scaled normal matrix (`r_cols[j]` is the
-/// parameter index of `R_j`).
+/// Offset components in the null space of the column-scaled normal matrix (`(j, col)`: `R_j` is
+/// parameter `col`).
 fn unobservable(jtj: &DMatrix, r_cols: &[(usize, usize)]) -> [bool; 3] {
+    let flags = null_flags(jtj, &r_cols.iter().map(|c| c.1).collect::<Vec<_>>());
+    let mut out = [false; 3];
+    for (&(j, _), f) in r_cols.iter().zip(flags) {
+        out[j] = f;
+    }
+    out
+}
+
+/// For each parameter column in `cols`: does a null direction of the column-scaled normal matrix
+/// have a noticeable share on it (or is the column all zero)?
+fn null_flags(jtj: &DMatrix, cols: &[usize]) -> Vec<bool> {
     let n = jtj.nrows();
     let d: Vec<f64> = (0..n)
         .map(|i| {
@@ -305,13 +329,12 @@ fn unobservable(jtj: &DMatrix, r_cols: &[(usize, usize)]) -> [bool; 3] {
     }
     let eig = s.symmetric_eigen();
     let max = eig.eigenvalues.iter().cloned().fold(0.0f64, f64::max);
-    let mut out = [false; 3];
+    let mut out = vec![false; cols.len()];
     for k in 0..n {
         if eig.eigenvalues[k] <= NULL_TOL * max {
-            for &(j, col) in r_cols {
-                // A null direction with a noticeable share on R_j (or a column that is all zero).
+            for (o, &col) in out.iter_mut().zip(cols) {
                 if eig.eigenvectors[(col, k)].powi(2) > 1e-4 || d[col] == 0.0 {
-                    out[j] = true;
+                    *o = true;
                 }
             }
         }
@@ -538,6 +561,8 @@ pub fn solve(readings: &[Reading], setup: &Setup) -> Result<HeadOffset, HeadErro
     let probe = Problem { pre: &pre, free: all.to_vec(), prior: setup.prior, kind: &kind };
     let ne = lsq::normal_equations(&probe, &params_for(&all, &r_min, &a_min), usize::MAX);
     let un = unobservable(&ne.jtj, &[(0, 0), (1, 1), (2, 2)]);
+    let a_null = null_flags(&ne.jtj, &[3, 4, 5]);
+    let reference_depends_on_prior = [a_null[0], a_null[1], a_null[2]];
     let observable = [!un[0], !un[1], !un[2]];
     let free: Vec<usize> = (0..3).filter(|&j| observable[j]).collect();
     if free.is_empty() {
@@ -551,12 +576,44 @@ pub fn solve(readings: &[Reading], setup: &Setup) -> Result<HeadOffset, HeadErro
     let opt = LsqOptions { rank_tol: NULL_TOL, ..LsqOptions::default() };
     let res = lsq::solve(&problem, &x0, &opt)?;
     let nr = free.len();
-    let offset = problem.offset(&res.params);
+    let mut offset = problem.offset(&res.params);
     let mut uncertainty = [None; 3];
     for (k, &j) in free.iter().enumerate() {
         uncertainty[j] = Some(res.std_dev(k));
     }
-    let reference_point = Point3::new(res.params[nr], res.params[nr + 1], res.params[nr + 2]);
+    let mut reference_point = Point3::new(res.params[nr], res.params[nr + 1], res.params[nr + 2]);
+    let mut reference_depends_on_prior = reference_depends_on_prior;
+    let mut observable = observable;
+    let mut from_tilt = [false; 3];
+    let laser = readings.iter().any(|r| r.dist.is_some());
+    if setup.beam_through_reference && laser && free.len() < 3 {
+        // R = s·u: s from the measured components, s = Σ u_k R_k / Σ u_k² (k measured).
+        let su2: f64 = free.iter().map(|&j| beam[j] * beam[j]).sum();
+        if su2 > 1e-6 {
+            let g: Vec<f64> = free.iter().map(|&j| beam[j] / su2).collect();
+            let s: f64 = free.iter().zip(&g).map(|(&j, gk)| gk * offset[j]).sum();
+            let mut var_s = 0.0;
+            for (k, gk) in g.iter().enumerate() {
+                for (l, gl) in g.iter().enumerate() {
+                    var_s += gk * gl * res.covariance[(k, l)];
+                }
+            }
+            for j in 0..3 {
+                if !observable[j] {
+                    let derived = s * beam[j];
+                    // What the data fixes along a rotation axis is A_j − R_j: move A with R.
+                    if reference_depends_on_prior[j] {
+                        reference_point[j] += derived - offset[j];
+                        reference_depends_on_prior[j] = false;
+                    }
+                    offset[j] = derived;
+                    uncertainty[j] = Some(beam[j].abs() * var_s.max(0.0).sqrt());
+                    observable[j] = true;
+                    from_tilt[j] = true;
+                }
+            }
+        }
+    }
     let reference_uncertainty = Vector3::new(res.std_dev(nr), res.std_dev(nr + 1), res.std_dev(nr + 2));
     let (radius, radius_uncertainty) = match &kind {
         Kind::Sphere { fixed_radius: Some(r) } => (Some(*r), None),
@@ -584,9 +641,11 @@ pub fn solve(readings: &[Reading], setup: &Setup) -> Result<HeadOffset, HeadErro
     Ok(HeadOffset {
         offset,
         observable,
+        from_tilt,
         uncertainty,
         reference_point,
         reference_uncertainty,
+        reference_depends_on_prior,
         radius,
         radius_uncertainty,
         face_normals,

@@ -95,7 +95,13 @@ impl Synth {
     }
 
     fn setup(&self, reference: Reference) -> Setup {
-        Setup { reference, table_center: self.o, tilt: self.tilt, prior: Vector3::zeros() }
+        Setup {
+            reference,
+            table_center: self.o,
+            tilt: self.tilt,
+            prior: Vector3::zeros(),
+            beam_through_reference: false,
+        }
     }
 }
 
@@ -129,6 +135,8 @@ fn swivel_only_leaves_y_unobservable() {
     setup.prior = Vector3::new(0.0, 7.0, 0.0);
     let r = solve(&s.sphere(), &setup).unwrap();
     assert_eq!(r.observable, [true, false, true]);
+    assert_eq!(r.reference_depends_on_prior, [false, true, false]);
+    assert_eq!(r.from_tilt, [false; 3]);
     assert_eq!(r.uncertainty[1], None);
     // The unobservable component is the prior, exactly, never a "measured" number.
     assert_eq!(r.offset.y, 7.0);
@@ -200,6 +208,36 @@ fn touch_probe_with_fixed_radius() {
     // centre along each cap's axis; what is left is ~δr·(cos θ − mean cos θ), of order 10 µm.
     let w = solve(&s.sphere(), &s.setup(Reference::Sphere { radius: Some(14.3) })).unwrap();
     assert!(w.rms > 2e-3, "{}", w.rms);
+}
+
+#[test]
+fn laser_tilt_gives_the_component_no_rotation_reaches() {
+    // The beam passes through P: R = s·u. Swivel only (Y unreachable) and table only (Z).
+    for (orient, missing) in [(&SWIVEL, 1usize), (&TABLE, 2usize)] {
+        let mut s = Synth::new(orient);
+        s.laser = true;
+        s.tilt = [4f64.to_radians(), -3f64.to_radians()];
+        let u = Vector3::new(s.tilt[0].tan(), s.tilt[1].tan(), -1.0).normalize();
+        s.offset = u * 172.5;
+        let mut setup = s.setup(free_sphere());
+        let plain = solve(&s.sphere(), &setup).unwrap();
+        assert!(!plain.observable[missing]);
+        setup.beam_through_reference = true;
+        let r = solve(&s.sphere(), &setup).unwrap();
+        assert_eq!(r.observable, [true; 3]);
+        assert!(r.from_tilt[missing] && r.from_tilt.iter().filter(|f| **f).count() == 1);
+        // Exact data: rounding only.
+        assert!((r.offset - s.offset).norm() < 1e-8, "{} vs {}", r.offset, s.offset);
+        assert!((r.reference_point - s.a).norm() < 1e-8, "{}", r.reference_point);
+        assert!(r.uncertainty[missing].is_some());
+    }
+    // Without tilt the beam has no part along the measured components of a table-only set.
+    let mut s = Synth::new(&TABLE);
+    s.laser = true;
+    let mut setup = s.setup(free_sphere());
+    setup.beam_through_reference = true;
+    let r = solve(&s.sphere(), &setup).unwrap();
+    assert_eq!(r.observable, [true, true, false]);
 }
 
 fn pyramid() -> Vec<Vector3> {

@@ -31,7 +31,13 @@ fn setup(cfg: &HeadOffsetConfig, d: &HeadOffsetData, fixed_radius: bool) -> Setu
         Reference::Vertex { tip_radius: tip }
     };
     let tilt = t.tilt_deg.map_or([0.0, 0.0], |a| [a[0].to_radians(), a[1].to_radians()]);
-    Setup { reference, table_center: Point3::from(t.table_center_mm), tilt, prior: Vector3::zeros() }
+    Setup {
+        reference,
+        table_center: Point3::from(t.table_center_mm),
+        tilt,
+        prior: Vector3::zeros(),
+        beam_through_reference: false,
+    }
 }
 
 /// Largest error over the observable components (mm), after checking the flags.

@@ -196,6 +196,7 @@ fn bad_input_exits_2_saying_what_is_needed() {
     // Vertex without faces.
     let (points, _) = simulate(&dir.path().join("s"), "swivel", 1);
     expect_exit_2(&["head-offset", "--reference", "vertex"], &points, "face");
+    expect_exit_2(&["head-offset", "--beam-through-reference"], &points, "dist_mm");
 }
 
 #[test]

@@ -83,6 +83,10 @@ pub struct CalibrateArgs {
     /// Value held for offset components the data cannot determine (X,Y,Z mm).
     #[arg(long, value_parser = parse_triple, allow_hyphen_values = true, default_value = "0,0,0")]
     pub prior_offset_mm: [f64; 3],
+    /// Laser head whose beam passes through the head reference point (R parallel to the beam):
+    /// components no rotation reaches follow from --tilt-deg and the measured components.
+    #[arg(long)]
+    pub beam_through_reference: bool,
     /// Print one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
@@ -275,6 +279,12 @@ pub fn run(args: Args) -> Result<Outcome> {
         )
         .into());
     }
+    if a.beam_through_reference && input.table.column("dist_mm").is_none() {
+        return Err(UsageError(
+            "--beam-through-reference is for laser heads: the points file needs a dist_mm column".into(),
+        )
+        .into());
+    }
     let table_turns = input.readings.iter().any(|r| r.c != input.readings[0].c);
     let table_center =
         match a.table_center_mm {
@@ -293,9 +303,21 @@ pub fn run(args: Args) -> Result<Outcome> {
         }
         RefKind::Vertex => Reference::Vertex { tip_radius: a.tip_radius_mm },
     };
-    let setup = Setup { reference, table_center, tilt, prior: Vector3::from(a.prior_offset_mm) };
+    let setup = Setup {
+        reference,
+        table_center,
+        tilt,
+        prior: Vector3::from(a.prior_offset_mm),
+        beam_through_reference: a.beam_through_reference,
+    };
     let r = solve(&input.readings, &setup).map_err(|e| head_error(&points, e))?;
     for j in 0..3 {
+        if r.from_tilt[j] {
+            eprintln!(
+                "note: offset component {} comes from the beam tilt (R parallel to the beam), not from a rotation",
+                AXES[j]
+            );
+        }
         if !r.observable[j] {
             eprintln!(
                 "warning: offset component {} is not observable from these orientations ({}); held at the \
@@ -332,6 +354,8 @@ fn to_json(r: &HeadOffset, setup: &Setup, tip: f64, diameter: Option<f64>) -> se
     json!({
         "offset_mm": v3(r.offset),
         "observable": r.observable,
+        "from_tilt": r.from_tilt,
+        "reference_point_depends_on_prior": r.reference_depends_on_prior,
         "uncertainty_mm": unc,
         "reference": match setup.reference { Reference::Sphere { .. } => "sphere", Reference::Vertex { .. } => "vertex" },
         "reference_point_mm": v3(r.reference_point),
@@ -375,6 +399,16 @@ fn print_human(r: &HeadOffset, tip: f64) {
     }
     let p = r.reference_point;
     println!("reference point at c = 0: {:.6}, {:.6}, {:.6} mm", p.x, p.y, p.z);
+    for j in 0..3 {
+        if r.reference_depends_on_prior[j] {
+            println!(
+                "  (its {} follows the prior offset: only A{} − R{} is measured)",
+                AXES[j],
+                AXES[j].to_lowercase(),
+                AXES[j].to_lowercase()
+            );
+        }
+    }
     if let Some(rad) = r.radius {
         match r.radius_uncertainty {
             Some(u) => println!("radius {rad:.6} mm ± {:.4} µm", u * 1e3),
@@ -556,8 +590,13 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
             Reference::Vertex { tip_radius: t.tip_radius_mm.unwrap_or(0.0) }
         };
         let tilt = t.tilt_deg.map_or([0.0, 0.0], |a| [a[0].to_radians(), a[1].to_radians()]);
-        let setup =
-            Setup { reference, table_center: Point3::from(t.table_center_mm), tilt, prior: Vector3::zeros() };
+        let setup = Setup {
+            reference,
+            table_center: Point3::from(t.table_center_mm),
+            tilt,
+            prior: Vector3::zeros(),
+            beam_through_reference: false,
+        };
         let r = solve(&sim_readings(&d), &setup)?;
         let mut max_err = 0.0f64;
         for j in 0..3 {
