@@ -25,7 +25,7 @@ pub mod mesh;
 mod model;
 
 pub use mesh::Mesh;
-pub use model::{Deflection, PlateModel};
+pub use model::{Deflection, ModelOptions, PlateModel};
 
 /// Shear correction factor of the Mindlin-Reissner plate (Reissner's 5/6).
 pub const SHEAR_CORRECTION: f64 = 5.0 / 6.0;

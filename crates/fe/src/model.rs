@@ -23,11 +23,39 @@ use crate::{Bed, FeError, MeshOptions, Supports};
 
 const FREE_NONE: usize = usize::MAX;
 
-/// A support pad mapped onto the mesh.
+/// A support pad mapped onto the mesh: the consistent nodal weights (summing to 1) of a uniform
+/// distribution over its footprint; the pad acts on the weighted mean deflection `cᵀw`.
 #[derive(Debug, Clone)]
 struct Pad {
-    node: usize,
+    weights: Vec<(usize, f64)>,
     stiffness: Option<f64>,
+    /// Index of this pad's rigid constraint (coincident rigid pads share one), if rigid.
+    constraint: Option<usize>,
+}
+
+/// Exact rigid-pad constraints cᵀw = 0, imposed on the spring-supported system K_s by the
+/// Schur complement: u = u₀ − Z λ, S λ = Cᵀu₀, with Z = K_s⁻¹C and S = CᵀZ.
+#[derive(Debug)]
+struct RigidPads {
+    /// Weight vectors c (equation numbering), one per constraint.
+    c: Vec<Vec<(usize, f64)>>,
+    /// Z = K_s⁻¹ C, n_eq × m.
+    z: Mat<f64>,
+    /// Cholesky factor of S = CᵀZ.
+    s_chol: nalgebra::Cholesky<f64, nalgebra::Dyn>,
+}
+
+/// Options of the model beyond the mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ModelOptions {
+    /// Diameter (mm) of the disc over which each point load is spread on the mid-surface.
+    /// `None` (default): the plate thickness — a force on the top surface spreads at 45°
+    /// through the half-thickness. `Some(0.0)`: a true point load (consistent nodal loads of
+    /// the point itself). See [`PlateModel::with_options`] for why.
+    pub load_patch_diameter: Option<f64>,
+    /// Diameter (mm) of the support pads' footprint; `None` (default): the plate thickness;
+    /// `Some(0.0)`: a support at the single node.
+    pub pad_diameter: Option<f64>,
 }
 
 /// A bed model meshed, assembled and factorised once; solve any number of load cases with it.
@@ -40,6 +68,8 @@ pub struct PlateModel {
     n_eq: usize,
     llt: Llt<usize, f64>,
     pads: Vec<Pad>,
+    rigid: Option<RigidPads>,
+    load_radius: f64,
     /// For every constrained deflection DOF: (dof, row of the full stiffness matrix as
     /// (dof, value) pairs), to recover reactions.
     reaction_rows: Vec<(usize, Vec<(usize, f64)>)>,
@@ -132,11 +162,91 @@ fn validate(bed: &Bed) -> Result<(), FeError> {
     Ok(())
 }
 
+/// Consistent nodal weights (summing to 1) of a unit force spread uniformly over a disc of
+/// radius `r` centred at (x, y); the radius is reduced to the distance to the nearest bed edge
+/// so that the force's resultant stays exactly at (x, y). The disc is sampled with a symmetric
+/// midpoint grid (spacing ≤ element size / 3), each sample distributed with the bilinear shape
+/// functions of its element; bilinear interpolation reproduces linear fields, so the weights'
+/// first moments equal (x, y) exactly.
+fn patch_weights(mesh: &Mesh, x: f64, y: f64, r: f64, h: f64) -> Option<Vec<(usize, f64)>> {
+    let size_x = *mesh.xs.last()?;
+    let size_y = *mesh.ys.last()?;
+    let r = r.min(x).min(y).min(size_x - x).min(size_y - y).max(0.0);
+    let mut samples: Vec<(f64, f64)> = Vec::new();
+    if r > 1e-9 * size_x.max(size_y) {
+        let n = ((r / (h / 3.0)).ceil() as usize).clamp(4, 64);
+        let s = r / n as f64;
+        for i in 0..2 * n {
+            for j in 0..2 * n {
+                let (dx, dy) = ((i as f64 - n as f64 + 0.5) * s, (j as f64 - n as f64 + 0.5) * s);
+                if dx * dx + dy * dy <= r * r {
+                    samples.push((x + dx, y + dy));
+                }
+            }
+        }
+    }
+    if samples.is_empty() {
+        samples.push((x, y));
+    }
+    let wt = 1.0 / samples.len() as f64;
+    let mut acc: Vec<(usize, f64)> = Vec::with_capacity(4 * samples.len());
+    for (sx, sy) in samples {
+        let loc = mesh.locate(sx, sy)?;
+        let n = element::shape(loc.xi, loc.eta);
+        for (k, node) in mesh.element_nodes(loc.i, loc.j).into_iter().enumerate() {
+            if n[k] != 0.0 {
+                acc.push((node, wt * n[k]));
+            }
+        }
+    }
+    acc.sort_unstable_by_key(|a| a.0);
+    let mut out: Vec<(usize, f64)> = Vec::with_capacity(acc.len() / 2);
+    for (node, w) in acc {
+        match out.last_mut() {
+            Some(o) if o.0 == node => o.1 += w,
+            _ => out.push((node, w)),
+        }
+    }
+    Some(out)
+}
+
+fn diameter(name: &'static str, value: Option<f64>, default: f64) -> Result<f64, FeError> {
+    match value {
+        None => Ok(default),
+        Some(d) if d.is_finite() && d >= 0.0 => Ok(d),
+        Some(d) => Err(FeError::InvalidParameter { name, value: d, reason: "must be finite and >= 0" }),
+    }
+}
+
 impl PlateModel {
     /// Validate the bed, mesh it, assemble the stiffness matrix and factorise it (sparse
-    /// Cholesky). Fails with [`FeError`] on invalid parameters, pads outside the bed, or supports
-    /// that cannot hold the bed (fewer than three non-collinear pads).
+    /// Cholesky), with the default [`ModelOptions`] (loads and pads spread over a disc of
+    /// diameter = thickness). Fails with [`FeError`] on invalid parameters, pads outside the
+    /// bed, or supports that cannot hold the bed (fewer than three non-collinear pads).
     pub fn new(bed: &Bed, mesh_options: &MeshOptions) -> Result<PlateModel, FeError> {
+        Self::with_options(bed, mesh_options, &ModelOptions::default())
+    }
+
+    /// [`PlateModel::new`] with explicit [`ModelOptions`].
+    ///
+    /// Why loads and pads are spread over a footprint: in Mindlin-Reissner theory the
+    /// deflection under a concentrated force is logarithmically infinite (the shear part
+    /// w_s = P/(2π κGh)·ln(1/r)), so a true point load or a rigid point support makes the
+    /// local deflection grow without bound as the mesh is refined (by P/(2π κGh)·ln 2 per
+    /// halving, ~3e-5 mm for 1 kN on a 250 mm granite bed — the size of the whole influence
+    /// signal). Real forces act through a contact area and reach the mid-surface spread at
+    /// ~45° over the half-thickness, so each force is applied as a uniform pressure on a disc
+    /// of diameter = thickness by default, and each pad acts on the mean deflection over such a
+    /// disc. The results then converge at the element's O(h²) rate.
+    ///
+    /// Rigid pads are imposed exactly (constraint cᵀw = 0 on the pad's mean deflection, through
+    /// a Schur complement on top of auxiliary springs; see `RigidPads`), elastic pads as
+    /// springs on that mean deflection.
+    pub fn with_options(
+        bed: &Bed,
+        mesh_options: &MeshOptions,
+        options: &ModelOptions,
+    ) -> Result<PlateModel, FeError> {
         validate(bed)?;
         let h = if mesh_options.element_size == 0.0 {
             automatic_element_size(bed.size_x.max(bed.size_y))
@@ -144,6 +254,8 @@ impl PlateModel {
             check_positive("element_size", mesh_options.element_size)?;
             mesh_options.element_size
         };
+        let load_radius = 0.5 * diameter("load_patch_diameter", options.load_patch_diameter, bed.thickness)?;
+        let pad_radius = 0.5 * diameter("pad_diameter", options.pad_diameter, bed.thickness)?;
         let pad_xy: Vec<[f64; 2]> = match &bed.supports {
             Supports::Points { xy, .. } => {
                 xy.iter().map(|p| [p[0].clamp(0.0, bed.size_x), p[1].clamp(0.0, bed.size_y)]).collect()
@@ -153,36 +265,21 @@ impl PlateModel {
         let mesh = Mesh::build(bed.size_x, bed.size_y, h, &pad_xy)?;
         let n_dof = 3 * mesh.n_nodes();
 
-        // Constraints and pads.
+        // Edge constraints (eliminated DOFs).
         let mut constrained = vec![false; n_dof];
-        let mut pads = Vec::new();
-        match &bed.supports {
-            Supports::Points { stiffness_n_per_mm, .. } => {
-                let tol = 1e-6 * bed.size_x.max(bed.size_y);
-                for p in &pad_xy {
-                    let node = mesh.node_at(p[0], p[1], tol).ok_or_else(|| {
-                        FeError::Singular(format!("internal: pad ({}, {}) not on a node", p[0], p[1]))
-                    })?;
-                    if stiffness_n_per_mm.is_none() {
-                        constrained[3 * node] = true;
+        if let Supports::SimplySupportedEdges = bed.supports {
+            // Hard simple support: w = 0 and the tangential rotation = 0 on each edge.
+            let (nx, ny) = (mesh.nx(), mesh.ny());
+            for j in 0..ny {
+                for i in 0..nx {
+                    let n = mesh.node_index(i, j);
+                    if i == 0 || i == nx - 1 {
+                        constrained[3 * n] = true;
+                        constrained[3 * n + 2] = true; // ψy along the edge x = const
                     }
-                    pads.push(Pad { node, stiffness: *stiffness_n_per_mm });
-                }
-            }
-            Supports::SimplySupportedEdges => {
-                // Hard simple support: w = 0 and the tangential rotation = 0 on each edge.
-                let (nx, ny) = (mesh.nx(), mesh.ny());
-                for j in 0..ny {
-                    for i in 0..nx {
-                        let n = mesh.node_index(i, j);
-                        if i == 0 || i == nx - 1 {
-                            constrained[3 * n] = true;
-                            constrained[3 * n + 2] = true; // ψy along the edge x = const
-                        }
-                        if j == 0 || j == ny - 1 {
-                            constrained[3 * n] = true;
-                            constrained[3 * n + 1] = true; // ψx along the edge y = const
-                        }
+                    if j == 0 || j == ny - 1 {
+                        constrained[3 * n] = true;
+                        constrained[3 * n + 1] = true; // ψx along the edge y = const
                     }
                 }
             }
@@ -195,6 +292,9 @@ impl PlateModel {
                 n_eq += 1;
             }
         }
+        if n_eq == 0 {
+            return Err(FeError::Singular("no free degrees of freedom".into()));
+        }
         let mut reaction_index = vec![FREE_NONE; n_dof];
         let mut reaction_rows: Vec<(usize, Vec<(usize, f64)>)> = Vec::new();
         for d in (0..n_dof).step_by(3) {
@@ -204,9 +304,36 @@ impl PlateModel {
             }
         }
 
-        // Assembly: upper triangle of the free-free block, as (row, col, value) entries.
+        // Pads: footprint weights; rigid pads get a constraint each (coincident ones share).
         let material =
             PlateMaterial { d: bed.flexural_rigidity(), nu: bed.poisson, shear: bed.shear_rigidity() };
+        let mut pads: Vec<Pad> = Vec::new();
+        let mut constraint_centres: Vec<[f64; 2]> = Vec::new();
+        if let Supports::Points { stiffness_n_per_mm, .. } = &bed.supports {
+            let tol = 1e-6 * bed.size_x.max(bed.size_y);
+            for p in &pad_xy {
+                let weights = patch_weights(&mesh, p[0], p[1], pad_radius, h).ok_or_else(|| {
+                    FeError::Singular(format!("internal: pad ({}, {}) not on the mesh", p[0], p[1]))
+                })?;
+                let constraint = if stiffness_n_per_mm.is_none() {
+                    let found = constraint_centres
+                        .iter()
+                        .position(|c| (c[0] - p[0]).abs() <= tol && (c[1] - p[1]).abs() <= tol);
+                    Some(found.unwrap_or_else(|| {
+                        constraint_centres.push(*p);
+                        constraint_centres.len() - 1
+                    }))
+                } else {
+                    None
+                };
+                pads.push(Pad { weights, stiffness: *stiffness_n_per_mm, constraint });
+            }
+        }
+        // Auxiliary spring of rigid pads (its force vanishes once the constraint holds; it only
+        // makes K_s positive definite): of the order of the plate's own point stiffness.
+        let k_aux = 16.0 * material.d / (bed.size_x * bed.size_y);
+
+        // Assembly: upper triangle of the free-free block, as (row, col, value) entries.
         let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(mesh.n_elements() * 78);
         for j in 0..mesh.ny() - 1 {
             for i in 0..mesh.nx() - 1 {
@@ -231,13 +358,15 @@ impl PlateModel {
             }
         }
         for pad in &pads {
-            if let Some(k) = pad.stiffness {
-                let e = eq[3 * pad.node];
-                entries.push((e, e, k));
+            let k = pad.stiffness.unwrap_or(k_aux);
+            for &(na, wa) in &pad.weights {
+                for &(nb, wb) in &pad.weights {
+                    let (ea, eb) = (eq[3 * na], eq[3 * nb]);
+                    if ea <= eb {
+                        entries.push((ea, eb, k * wa * wb));
+                    }
+                }
             }
-        }
-        if n_eq == 0 {
-            return Err(FeError::Singular("no free degrees of freedom".into()));
         }
         // Merge duplicates (sorted by column then row).
         entries.sort_unstable_by_key(|&(r, c, _)| (c, r));
@@ -267,7 +396,44 @@ impl PlateModel {
             }
             row.1 = merged;
         }
-        Ok(PlateModel { bed: bed.clone(), mesh: Arc::new(mesh), eq, n_eq, llt, pads, reaction_rows })
+
+        // Rigid pads: Z = K_s⁻¹ C and the Cholesky factor of S = CᵀZ.
+        let m = constraint_centres.len();
+        let rigid = if m > 0 {
+            let mut c: Vec<Vec<(usize, f64)>> = vec![Vec::new(); m];
+            for pad in &pads {
+                if let Some(ci) = pad.constraint {
+                    if c[ci].is_empty() {
+                        c[ci] = pad.weights.iter().map(|&(n, w)| (eq[3 * n], w)).collect();
+                    }
+                }
+            }
+            let mut z = Mat::<f64>::zeros(n_eq, m);
+            for (ci, cv) in c.iter().enumerate() {
+                for &(e, w) in cv {
+                    z[(e, ci)] = w;
+                }
+            }
+            llt.solve_in_place(z.as_mut());
+            let s = nalgebra::DMatrix::from_fn(m, m, |a, b| c[a].iter().map(|&(e, w)| w * z[(e, b)]).sum());
+            let s = 0.5 * (&s + s.transpose());
+            let s_chol = nalgebra::Cholesky::new(s)
+                .ok_or_else(|| FeError::Singular("the rigid pads' constraints are dependent".into()))?;
+            Some(RigidPads { c, z, s_chol })
+        } else {
+            None
+        };
+        Ok(PlateModel {
+            bed: bed.clone(),
+            mesh: Arc::new(mesh),
+            eq,
+            n_eq,
+            llt,
+            pads,
+            rigid,
+            load_radius,
+            reaction_rows,
+        })
     }
 
     /// The bed this model was built from.
@@ -285,20 +451,31 @@ impl PlateModel {
         self.n_eq
     }
 
-    /// Consistent nodal load vector (full DOF numbering) of point loads: each force is
-    /// distributed to the deflection DOFs of the four nodes of the element holding it with the
-    /// element's bilinear shape functions (the work-equivalent loads).
+    /// Target element size used (mm).
+    fn element_size(&self) -> f64 {
+        let m = &self.mesh;
+        let dx = m.xs.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max);
+        let dy = m.ys.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max);
+        dx.max(dy)
+    }
+
+    /// Consistent nodal load vector (full DOF numbering) of point loads: each force is spread
+    /// over its load patch (see [`ModelOptions`]) and distributed to the deflection DOFs with the
+    /// elements' bilinear shape functions (work-equivalent loads).
     fn load_vector(&self, loads: &[(f64, f64, f64)], f: &mut [f64]) -> Result<(), FeError> {
+        let h = self.element_size();
         for (index, &(x, y, force)) in loads.iter().enumerate() {
             let bad = FeError::InvalidLoad { index, x, y, force };
             if !force.is_finite() {
                 return Err(bad);
             }
-            let loc = self.mesh.locate(x, y).ok_or(bad)?;
-            let n = element::shape(loc.xi, loc.eta);
-            let nodes = self.mesh.element_nodes(loc.i, loc.j);
-            for k in 0..4 {
-                f[3 * nodes[k]] += force * n[k];
+            self.mesh.locate(x, y).ok_or(bad.clone())?;
+            let size_x = self.bed.size_x;
+            let size_y = self.bed.size_y;
+            let (xc, yc) = (x.clamp(0.0, size_x), y.clamp(0.0, size_y));
+            let weights = patch_weights(&self.mesh, xc, yc, self.load_radius, h).ok_or(bad)?;
+            for (node, w) in weights {
+                f[3 * node] += force * w;
             }
         }
         Ok(())
@@ -375,37 +552,56 @@ impl PlateModel {
         fs.into_iter()
             .enumerate()
             .map(|(c, f)| {
-                let u: Vec<f64> =
-                    self.eq.iter().map(|&e| if e != FREE_NONE { rhs[(e, c)] } else { 0.0 }).collect();
-                self.deflection(u, &f)
+                // Rigid pads: λ = S⁻¹ Cᵀ u₀, u = u₀ − Z λ; λ are the pads' upward reactions.
+                let lambda = self.rigid.as_ref().map(|rp| {
+                    let g = nalgebra::DVector::from_iterator(
+                        rp.c.len(),
+                        rp.c.iter().map(|cv| cv.iter().map(|&(e, w)| w * rhs[(e, c)]).sum::<f64>()),
+                    );
+                    rp.s_chol.solve(&g)
+                });
+                let u: Vec<f64> = self
+                    .eq
+                    .iter()
+                    .map(|&e| {
+                        if e == FREE_NONE {
+                            return 0.0;
+                        }
+                        let mut v = rhs[(e, c)];
+                        if let (Some(rp), Some(l)) = (&self.rigid, &lambda) {
+                            for k in 0..l.len() {
+                                v -= rp.z[(e, k)] * l[k];
+                            }
+                        }
+                        v
+                    })
+                    .collect();
+                self.deflection(u, &f, lambda.as_ref())
             })
             .collect()
     }
 
-    fn deflection(&self, u: Vec<f64>, f: &[f64]) -> Deflection {
-        // Upward reactions at constrained deflection DOFs: r_up = f − (K u).
-        let mut node_reaction = std::collections::HashMap::new();
+    fn deflection(&self, u: Vec<f64>, f: &[f64], lambda: Option<&nalgebra::DVector<f64>>) -> Deflection {
+        // Upward reactions at eliminated deflection DOFs (edges): r_up = f − (K u).
         let mut total = 0.0;
         for (d, row) in &self.reaction_rows {
             let ku: f64 = row.iter().map(|&(j, v)| v * u[j]).sum();
-            let r = f[*d] - ku;
-            total += r;
-            node_reaction.insert(d / 3, r);
+            total += f[*d] - ku;
         }
-        // Pads: rigid share their node's reaction equally among coincident pads; springs k·w.
+        // Pads: rigid ones carry their constraint's λ (shared equally among coincident pads),
+        // elastic ones k·cᵀw.
         let mut reactions = Vec::with_capacity(self.pads.len());
         for pad in &self.pads {
-            match pad.stiffness {
-                None => {
-                    let share = self.pads.iter().filter(|p| p.node == pad.node).count() as f64;
-                    reactions.push(node_reaction.get(&pad.node).copied().unwrap_or(0.0) / share);
+            let mean_w: f64 = pad.weights.iter().map(|&(n, w)| w * u[3 * n]).sum();
+            let r = match (pad.constraint, lambda) {
+                (Some(ci), Some(l)) => {
+                    let share = self.pads.iter().filter(|p| p.constraint == Some(ci)).count();
+                    l[ci] / share as f64
                 }
-                Some(k) => {
-                    let r = k * u[3 * pad.node];
-                    total += r;
-                    reactions.push(r);
-                }
-            }
+                _ => pad.stiffness.unwrap_or(0.0) * mean_w,
+            };
+            total += r;
+            reactions.push(r);
         }
         Deflection { mesh: Arc::clone(&self.mesh), u, reactions, total_reaction: total }
     }
