@@ -221,3 +221,26 @@ fn laser_offsets_up_to_300_mm_and_bad_settings_are_refused() {
     // A vertical beam never sees the cuboid's vertical faces.
     assert!(simulate(&bad).is_err());
 }
+
+#[test]
+fn randomized_placements_and_offsets_stay_exact() {
+    // Sphere/vertex anywhere on the table, R in ±300 mm, random tilts and tip radii: the contract
+    // model with the true R still reproduces the truth exactly without noise, and to noise level
+    // with it (same bounds as above).
+    for seed in 0..20 {
+        for v in Variant::ALL {
+            let mut cfg = HeadOffsetConfig::randomized(v, seed);
+            assert!(cfg.offset.iter().all(|c| c.abs() <= 300.0));
+            let data = match simulate(&cfg) {
+                Ok(d) => d,
+                Err(e) => panic!("{} seed {seed}: {e}", v.name()),
+            };
+            let res = residuals(&data, &cfg, &cfg.offset);
+            // ~26 000 normal draws in all: P(any |z| > 5.5) ≈ 26 000 · 3.8e-8 ≈ 1e-3.
+            assert!(max_abs(&res) < 5.5 * cfg.noise, "{} seed {seed}: {}", v.name(), max_abs(&res));
+            cfg.noise = 0.0;
+            let data = simulate(&cfg).unwrap();
+            assert!(max_abs(&residuals(&data, &cfg, &cfg.offset)) < 1e-9);
+        }
+    }
+}

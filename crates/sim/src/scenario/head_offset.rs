@@ -20,7 +20,8 @@
 //!   returns `d`) plus N(0, σ) noise.
 //!
 //! Entry points: [`HeadOffsetConfig`] (with [`HeadOffsetConfig::preset`] for the [`Variant`]s
-//! swivel / table / both / laser / pyramid / cuboid), [`simulate`] → [`HeadOffsetData`]
+//! swivel / table / both / laser / pyramid / cuboid, and [`HeadOffsetConfig::randomized`]: the
+//! object anywhere on the table, R anywhere in ±300 mm), [`simulate`] → [`HeadOffsetData`]
 //! (`rows`: [`HeadOffsetRow`]; `truth`: [`HeadOffsetTruth`]), and [`observable_components`]
 //! (which components of R a set of orientations determines).
 //!
@@ -209,6 +210,38 @@ impl HeadOffsetConfig {
                 cfg.points_per_orientation = 36;
             }
         }
+        cfg
+    }
+}
+
+impl HeadOffsetConfig {
+    /// The preset of `variant` with the reference object placed at random anywhere on a Ø 600 mm
+    /// table (50–200 mm above it), a random offset R with each component in ±300 mm, and for a
+    /// laser head random tilts within ±5°; all drawn from `seed` (the data's noise too).
+    pub fn randomized(variant: Variant, seed: u64) -> HeadOffsetConfig {
+        let mut cfg = HeadOffsetConfig::preset(variant, seed);
+        // A separate stream so the placement does not share numbers with the measurement noise.
+        let mut rng = crate::noise::stream(seed, 0x4845_4144);
+        let mut u = |lo: f64, hi: f64| lo + (hi - lo) * rng.random::<f64>();
+        cfg.offset = Vector3::new(u(-300.0, 300.0), u(-300.0, 300.0), u(-300.0, 300.0));
+        let (r, phi) = (300.0 * u(0.0, 1.0).sqrt(), u(0.0, std::f64::consts::TAU));
+        let spot = cfg.table_centre + Vector3::new(r * phi.cos(), r * phi.sin(), u(50.0, 200.0));
+        let yaw = u(0.0, std::f64::consts::TAU);
+        cfg.reference = match cfg.reference {
+            Reference::Sphere { .. } => Reference::Sphere { centre: spot, radius: u(5.0, 25.0) },
+            Reference::Pyramid { faces, slope, inner, outer, .. } => {
+                Reference::Pyramid { apex: spot, faces, slope, yaw, inner, outer }
+            }
+            Reference::CuboidCorner { inner, outer, .. } => {
+                Reference::CuboidCorner { vertex: spot, yaw, inner, outer }
+            }
+        };
+        cfg.head = match cfg.head {
+            Head::TouchProbe { .. } => Head::TouchProbe { tip_radius: u(0.5, 2.5) },
+            Head::Laser { range, .. } => {
+                Head::Laser { tilt: [u(-5.0, 5.0) * DEG, u(-5.0, 5.0) * DEG], range }
+            }
+        };
         cfg
     }
 }
