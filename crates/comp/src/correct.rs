@@ -4,8 +4,11 @@
 //! point), [`Corrector::correct_measured`] (in place, parallel), [`Corrector::compensate`]
 //! (commanded positions by fixed-point inversion, parallel) and [`CompError`].
 //!
-//! A measured (indicated) point `p` becomes `p + E(p; t) − e(p)` (geometric error `E`, load
-//! error `e`, both evaluated at the indicated point; their interaction is second order). A target
+//! Points are indicated **tip** coordinates (the machine's axis positions plus the probe offset
+//! `t`, what a CMM reports); the map's tables are read at the axis positions `a = p − t`. A
+//! measured point `p` becomes `p + E(p − t; t) − e(p)` (geometric error `E` of
+//! `docs/conventions.md`, load error `e` of [`crate::load`], both at the indicated point; their
+//! interaction is second order). A target
 //! `T` is commanded at `c` with `c + E(c) − e(c) = T`, by `c ← T − (E(c) − e(c))` until the step
 //! is below 1 nm (the map's slopes are µm/mm, so the iteration contracts by ~10⁻⁵ per step);
 //! a map that does not contract (slopes near 1) is reported, never silently accepted.
@@ -52,12 +55,12 @@ pub struct Corrector<'a> {
 const CHUNK: usize = 4096;
 
 impl<'a> Corrector<'a> {
-    /// `corrected − p` at indicated point `p`: `E(p; t) − e(p)`.
+    /// `corrected − p` at indicated tip point `p`: `E(p − t; t) − e(p)`.
     #[inline]
     pub fn displacement(&self, p: &Point3) -> Result<Vector3, OutOfRange> {
         let mut d = Vector3::zeros();
         if let Some(g) = self.geometric {
-            d += g.error(p, &self.probe_offset)?;
+            d += g.error(&(p - self.probe_offset), &self.probe_offset)?;
         }
         if let Some(l) = self.load {
             d -= l.error(p)?;
@@ -178,7 +181,7 @@ mod tests {
     fn inverse_converges_below_a_nanometre() {
         let g = smooth_map();
         let c = Corrector { geometric: Some(&g), load: None, probe_offset: Vector3::new(10.0, -20.0, -150.0) };
-        let targets: Vec<Point3> = (0..500).map(|i| Point3::new(5.0 + (i * 37 % 990) as f64, 5.0 + (i * 53 % 990) as f64, 100.0 + (i * 71 % 800) as f64)).collect();
+        let targets: Vec<Point3> = (0..500).map(|i| Point3::new(20.0 + (i * 37 % 970) as f64, 5.0 + (i * 53 % 970) as f64, 100.0 + (i * 71 % 700) as f64)).collect();
         let mut cmd = targets.clone();
         let worst = c.compensate(&mut cmd).unwrap();
         assert!(worst <= 5, "contraction ~1e-5 per step: a few iterations ({worst})");

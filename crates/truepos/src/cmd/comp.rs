@@ -32,9 +32,12 @@ between the positive axes is smaller than 90°): xy adds (0, xy·x, 0), xz adds 
 yz adds (0, yz·z, 0).
 First-order volumetric error, bridge CMM (bed → Y → X → Z → tool, the default):
   E = δY + εY × (x_vec + z_vec + t) + δX + εX × (z_vec + t) + δZ + εZ × t + squareness
-  (gantry, bed → X → Y → Z: X and Y swap roles), t = --probe-offset-mm (ram frame).
-A measured point p is corrected to p + E(p); with --commanded the file holds targets T and the
-output holds commanded positions c with c + E(c) = T (iterated below 1 nm).
+  (gantry, bed → X → Y → Z: X and Y swap roles), t = --probe-offset-mm (ram frame),
+  x_vec = (x,0,0), z_vec = (0,0,z) the axis positions.
+Points are indicated tip coordinates (axis positions + t); the tables are read at the axis
+positions a = p − t. A measured point p is corrected to p + E(p − t); with --commanded the file
+holds target tip positions T and the output the tip positions c to command, c + E(c − t) = T
+(fixed-point iteration, converged below 1 nm; non-convergence is reported).
 Tables are interpolated linearly; positions outside a table are an error unless --clamp.";
 
 #[derive(clap::Args, Debug)]
@@ -50,7 +53,7 @@ pub enum Sub {
     /// Correct measured points (or compensate targets with --commanded); adds dx_um,dy_um,dz_um.
     #[command(long_about = COMPONENTS_HELP, after_help = "Example:\n  truepos comp correct --map map.csv --points meas.csv --output corrected.csv --probe-offset-mm 0,0,-150")]
     Correct(CorrectArgs),
-    /// Volumetric error E(p) at the points of a file (JSON error_um per point, or --output CSV).
+    /// Volumetric error E(p − t; t) at the tip points of a file (JSON error_um per point, or --output CSV).
     #[command(long_about = COMPONENTS_HELP, after_help = "Example:\n  truepos comp error --map map.csv --at points.csv --json")]
     Error(ErrorArgs),
 }
@@ -325,10 +328,10 @@ fn error(a: ErrorArgs) -> Result<Outcome> {
     let t = Table::read(&a.at)?;
     let pts = table_points(&t)?;
     let [ox, oy, oz] = a.map.probe_offset_mm;
-    let off = Vector3::new(ox, oy, oz);
+    let corr = Corrector { geometric: Some(&map), load: None, probe_offset: Vector3::new(ox, oy, oz) };
     let mut e = Vec::with_capacity(pts.len());
     for (i, p) in pts.iter().enumerate() {
-        e.push(map.error(p, &off).map_err(|source| batch_error(&t, CompError::OutOfRange { index: i, source }))?);
+        e.push(corr.displacement(p).map_err(|source| batch_error(&t, CompError::OutOfRange { index: i, source }))?);
     }
     if let Some(out) = &a.output {
         let mut f = AtomicFile::create(out).with_context(|| format!("cannot create {}", out.display()))?;

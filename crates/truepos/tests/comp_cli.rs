@@ -1,0 +1,133 @@
+//! `truepos comp` through the built binary: hand-computed corrections, pass-through, the inverse
+//! to 1 nm, help text, and bad input.
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_truepos"))
+}
+
+fn run(args: &[&str]) -> Output {
+    bin().args(args).output().unwrap()
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn expect_input_error(out: &Output, needles: &[&str]) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "stderr: {err}");
+    for n in needles {
+        assert!(err.contains(n), "expected '{n}' in: {err}");
+    }
+}
+
+/// Y pitch (about X) 10 µrad everywhere; X positioning 1 µm per 100 mm; all else 0.
+fn map_file(dir: &Path) -> PathBuf {
+    let mut t = String::from("axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad\n");
+    for i in (0..=10).rev() {
+        let p = 100.0 * i as f64;
+        t.push_str(&format!("x,{p},{},0,0,0,0,0\n", p / 100.0));
+        t.push_str(&format!("y,{p},0,0,0,10,0,0\n"));
+        t.push_str(&format!("z,{p},0,0,0,0,0,0\n"));
+    }
+    write(dir, "map.csv", &t)
+}
+
+#[test]
+fn correction_matches_hand_calculation_and_passes_columns_through() {
+    let d = tempfile::tempdir().unwrap();
+    let map = map_file(d.path());
+    let sq = write(d.path(), "sq.toml", "[squareness]\nxy_urad = 2\n");
+    // Tip (250, 500, 300) with probe offset (0, 0, −100): axis positions (250, 500, 400).
+    // δX = 2.5 µm along x; εY × (x_vec + z_vec + t) = (1e-5, 0, 0) × (250, 0, 300) = (0, −3, 0) µm;
+    // squareness xy·x = 2e-6 · 250 = 0.5 µm along y. Total (2.5, −2.5, 0) µm.
+    let pts = write(d.path(), "p.csv", "# measured\nid,x_mm,y_mm,z_mm,temp_c\nP1,250,500,300,20.5\n");
+    let outp = d.path().join("c.csv");
+    let o = run(&["comp", "correct", "--map", s(&map), "--squareness", s(&sq), "--points", s(&pts), "--output", s(&outp), "--probe-offset-mm", "0,0,-100", "--json"]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["n_points"], 1);
+    let text = std::fs::read_to_string(&outp).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next().unwrap(), "id,x_mm,y_mm,z_mm,temp_c,dx_um,dy_um,dz_um");
+    let r: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!((r[0], r[4]), ("P1", "20.5"));
+    let v: Vec<f64> = [r[1], r[2], r[3], r[5], r[6], r[7]].iter().map(|x| x.parse().unwrap()).collect();
+    let want = [250.0025, 499.9975, 300.0, 2.5, -2.5, 0.0];
+    for (a, b) in v.iter().zip(want) {
+        // Doubles of ~1e3 mm carry ~1e-13 mm rounding; 1e-9 leaves room and still catches any
+        // term error (the smallest term is 0.5 µm = 5e-4 mm).
+        assert!((a - b).abs() < 1e-9, "{v:?} vs {want:?}");
+    }
+    // The same squareness as a CSV file.
+    let sqc = write(d.path(), "sq.csv", "xy_urad,xz_urad,yz_urad\n2,0,0\n");
+    let o = run(&["comp", "error", "--map", s(&map), "--squareness", s(&sqc), "--at", s(&pts), "--probe-offset-mm", "0,0,-100", "--json"]);
+    let j: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let e: Vec<f64> = j["error_um"][0].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+    assert!((e[0] - 2.5).abs() < 1e-9 && (e[1] + 2.5).abs() < 1e-9 && e[2].abs() < 1e-9, "{e:?}");
+}
+
+#[test]
+fn commanded_positions_reach_the_target_within_a_nanometre() {
+    let d = tempfile::tempdir().unwrap();
+    let map = map_file(d.path());
+    let targets = write(d.path(), "t.csv", "x_mm,y_mm,z_mm\n100,200,300\n955.5,10,990\n0,1000,0\n");
+    let cmd = d.path().join("cmd.csv");
+    let o = run(&["comp", "correct", "--map", s(&map), "--points", s(&targets), "--output", s(&cmd), "--commanded", "--clamp", "--json"]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    // c + E(c) must equal T: evaluate E at the commanded positions with `comp error`.
+    let o = run(&["comp", "error", "--map", s(&map), "--at", s(&cmd), "--clamp", "--json"]);
+    let j: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let text = std::fs::read_to_string(&cmd).unwrap();
+    let t = [[100.0, 200.0, 300.0], [955.5, 10.0, 990.0], [0.0, 1000.0, 0.0]];
+    for (k, line) in text.lines().skip(1).enumerate() {
+        let c: Vec<f64> = line.split(',').take(3).map(|x| x.parse().unwrap()).collect();
+        let e: Vec<f64> = j["error_um"][k].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        for i in 0..3 {
+            let reached = c[i] + e[i] * 1e-3;
+            assert!((reached - t[k][i]).abs() < 1e-6, "target {k} axis {i}: {reached} vs {}", t[k][i]);
+        }
+        assert!((c[0] - t[k][0]).abs() > 1e-4 || t[k][0] == 0.0, "a real correction was applied");
+    }
+}
+
+#[test]
+fn help_names_the_rotation_axes() {
+    let o = run(&["comp", "correct", "--help"]);
+    let h = String::from_utf8_lossy(&o.stdout);
+    for n in ["pitch_urad", "about X", "about Y", "about Z", "squareness", "1 nm"] {
+        assert!(h.contains(n), "help lacks '{n}':\n{h}");
+    }
+}
+
+#[test]
+fn bad_maps_and_points_exit_2() {
+    let d = tempfile::tempdir().unwrap();
+    let map = map_file(d.path());
+    let pts = write(d.path(), "p.csv", "x_mm,y_mm,z_mm\n1,2,3\n1,2,1200\n");
+    let outp = d.path().join("never.csv");
+    let correct = |m: &Path, p: &Path| run(&["comp", "correct", "--map", s(m), "--points", s(p), "--output", s(&outp)]);
+    expect_input_error(&correct(&map, &pts), &["p.csv:3", "z = 1200"]);
+    assert!(!outp.exists());
+    let text = std::fs::read_to_string(&map).unwrap();
+    let m = write(d.path(), "w.csv", &text.replacen("\nx,", "\nw,", 1));
+    expect_input_error(&correct(&m, &pts), &["w.csv:2", "axis"]);
+    let m = write(d.path(), "dup.csv", &format!("{text}x,100,0,0,0,0,0,0\n"));
+    expect_input_error(&correct(&m, &pts), &["dup.csv", "appears twice"]);
+    let m = write(d.path(), "nan.csv", &text.replacen(",10,0,0\n", ",nan,0,0\n", 1));
+    expect_input_error(&correct(&m, &pts), &["nan.csv:3", "pitch_urad"]);
+    let sq = write(d.path(), "sq.toml", "[squareness]\nxy_urad = \"a\"\n");
+    let o = run(&["comp", "correct", "--map", s(&map), "--squareness", s(&sq), "--points", s(&pts), "--output", s(&outp)]);
+    expect_input_error(&o, &["sq.toml:2"]);
+    assert!(!outp.exists());
+}
