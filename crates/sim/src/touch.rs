@@ -99,7 +99,7 @@ impl TouchProbe {
         max_travel_mm: f64,
     ) -> Option<LineTrigger> {
         let len = dir.norm();
-        if !(len > 0.0) || !max_travel_mm.is_finite() {
+        if len.is_nan() || len <= 0.0 || !max_travel_mm.is_finite() {
             return None;
         }
         let u = dir / len;

@@ -553,30 +553,37 @@ pub fn simulate(cfg: &Config) -> Result<Dataset, LatencyError> {
         }
     }
 
-    // Machine stream.
-    let mut rng_m = stream(cfg.seed, 1);
-    let machine = AxisCapture::new(cfg.machine_rate_hz, lat_m)?.sample_point(
-        &clock,
-        cfg.encoder_noise_mm,
-        &mut rng_m,
-        |t| motion.state(t).p,
-    )?;
-
-    // Probe stream: the stylus is integrated on the probe's true-time grid.
+    // The two streams are independent: compute them side by side.
+    let machine_capture = AxisCapture::new(cfg.machine_rate_hz, lat_m)?;
     let pc = Capture::new(cfg.probe_rate_hz, lat_p)?;
-    let range = pc.index_range(&clock);
-    let (k0, k1) = (*range.start(), *range.end());
-    let n = (k1 - k0 + 1).max(0) as usize;
-    let substeps = (cfg.stylus_rate_hz / cfg.probe_rate_hz).ceil().max(1.0) as usize;
-    let t_first = pc.true_time(pc.stamp(k0));
-    let defl = stylus::simulate(&cfg.stylus, &*motion, artefact, t_first, pc.period_s(), n, substeps)?;
-    let mut rng_p = stream(cfg.seed, 2);
-    let mut probe = Vec::with_capacity(n);
-    let mut probe_in_contact = Vec::with_capacity(n);
-    for (i, (d, c)) in defl.into_iter().enumerate() {
-        probe.push((pc.stamp(k0 + i as i64), d + gaussian3(&mut rng_p, cfg.probe_noise_mm)));
-        probe_in_contact.push(c);
-    }
+    let motion_ref: &dyn Motion = &*motion;
+    let (machine, probe_side) = rayon::join(
+        || {
+            // Machine stream.
+            let mut rng_m = stream(cfg.seed, 1);
+            machine_capture.sample_point(&clock, cfg.encoder_noise_mm, &mut rng_m, |t| motion_ref.state(t).p)
+        },
+        || -> Result<_, ParamError> {
+            // Probe stream: the stylus is integrated on the probe's true-time grid.
+            let range = pc.index_range(&clock);
+            let (k0, k1) = (*range.start(), *range.end());
+            let n = (k1 - k0 + 1).max(0) as usize;
+            let substeps = (cfg.stylus_rate_hz / cfg.probe_rate_hz).ceil().max(1.0) as usize;
+            let t_first = pc.true_time(pc.stamp(k0));
+            let defl =
+                stylus::simulate(&cfg.stylus, motion_ref, artefact, t_first, pc.period_s(), n, substeps)?;
+            let mut rng_p = stream(cfg.seed, 2);
+            let mut probe = Vec::with_capacity(n);
+            let mut in_contact = Vec::with_capacity(n);
+            for (i, (d, c)) in defl.into_iter().enumerate() {
+                probe.push((pc.stamp(k0 + i as i64), d + gaussian3(&mut rng_p, cfg.probe_noise_mm)));
+                in_contact.push(c);
+            }
+            Ok((probe, in_contact))
+        },
+    );
+    let machine = machine?;
+    let (probe, probe_in_contact) = probe_side?;
 
     let per_axis = [lat_m[0] - lat_p, lat_m[1] - lat_p, lat_m[2] - lat_p];
     let (artefact_truth, size, centre_size) = if on_plates {
