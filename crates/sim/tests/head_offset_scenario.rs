@@ -244,3 +244,27 @@ fn randomized_placements_and_offsets_stay_exact() {
         }
     }
 }
+
+#[test]
+fn a_machine_with_geometric_errors_shows_through_at_the_micrometre_level() {
+    use truepos_sim::machine::{Machine, MachineKind};
+    let mut cfg = HeadOffsetConfig::preset(Variant::Both, 12);
+    cfg.noise = 0.0;
+    let ideal = simulate(&cfg).unwrap();
+    cfg.machine = Some(Machine::realistic(MachineKind::Vmc, 3));
+    let real = simulate(&cfg).unwrap();
+    assert!(real.truth.machine_errors);
+    // Same seed: same surface points, but the NC reports other axis positions: they differ by
+    // the volumetric error (realistic VMC: µm to tens of µm).
+    let dp = ideal
+        .rows
+        .iter()
+        .zip(&real.rows)
+        .map(|(a, b)| (Vector3::new(a.x_mm - b.x_mm, a.y_mm - b.y_mm, a.z_mm - b.z_mm)).norm())
+        .fold(0.0, f64::max);
+    assert!(dp > 1e-3 && dp < 0.1, "largest change of P {dp}");
+    // Against the truth the contract model is off by the error's variation over the data: above
+    // the noise-free 1e-9 but below the whole error.
+    let res = residuals(&real, &cfg, &cfg.offset);
+    assert!(max_abs(&res) > 1e-6 && max_abs(&res) < dp + 1e-9, "{}", max_abs(&res));
+}

@@ -141,6 +141,12 @@ pub struct HeadOffsetConfig {
     pub cap_half_angle: f64,
     /// Measuring noise, standard deviation (mm): along the normal (touch) or on `dist` (laser).
     pub noise: f64,
+    /// A machine with geometric errors (and thermal growth) whose NC reports the axis positions:
+    /// the rows' P are then the axis positions that put the erroneous machine's head point on
+    /// the surface (`Machine::head_point(P, b, R) = Q`), so the contract model with the true R is
+    /// off by the machine's volumetric error. `None` (presets): the ideal contract machine. Its
+    /// own rotary table is ignored; [`HeadOffsetConfig::table_centre`] is used.
+    pub machine: Option<crate::machine::Machine>,
 }
 
 impl Default for HeadOffsetConfig {
@@ -171,6 +177,7 @@ impl HeadOffsetConfig {
             points_per_orientation: 36,
             cap_half_angle: 60.0 * DEG,
             noise: 0.5e-3,
+            machine: None,
         };
         match variant {
             Variant::Swivel => cfg.b_angles = degs(&[0.0, 45.0, 90.0]),
@@ -278,6 +285,9 @@ pub struct FaceTruth {
 /// What a calibration should recover (`truth.json`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct HeadOffsetTruth {
+    /// Whether the rows come from a machine with geometric errors (see
+    /// [`HeadOffsetConfig::machine`]); then the contract model is exact only to that error.
+    pub machine_errors: bool,
     pub variant_reference: &'static str,
     /// R (mm).
     pub offset_mm: [f64; 3],
@@ -592,7 +602,13 @@ pub fn simulate(cfg: &HeadOffsetConfig) -> Result<HeadOffsetData, HeadOffsetErro
                     (s + (tip + e) * n, None)
                 }
             };
-            let p = head_reference(&q, b, &cfg.offset);
+            let p = match &cfg.machine {
+                None => head_reference(&q, b, &cfg.offset),
+                Some(m) => match m.command_for(&q, &(ry(b) * cfg.offset)) {
+                    Some(p) => p,
+                    None => return Err(invalid("machine", "geometric errors too large to invert")),
+                },
+            };
             if let Some(k) = face {
                 face_counts[k] += 1;
             }
@@ -619,6 +635,7 @@ pub fn simulate(cfg: &HeadOffsetConfig) -> Result<HeadOffsetData, HeadOffsetErro
         Reference::CuboidCorner { vertex, .. } => (vertex, None, "vertex"),
     };
     let truth = HeadOffsetTruth {
+        machine_errors: cfg.machine.is_some(),
         variant_reference: kind,
         offset_mm: cfg.offset.into(),
         observable: observable_components(&orientations),
