@@ -173,7 +173,8 @@ impl Config {
     /// latency 4 ms, probe latency 1.5 ms (delay +2.5 ms; per-axis 4 / 2.5 / 1 ms machine
     /// latencies for `per-axis`), encoder noise 1 µm, probe noise 0.3 µm, stylus dynamics on,
     /// servo on, Ø 25 mm sphere, 20 mm plate gap, 2 mm tip radius, 10 mm/s (speeds 5, 10, 20,
-    /// 30, 40 mm/s), 0.3 mm maximum deflection, 30° approach angle for `oblique`.
+    /// 30, 40 mm/s), 0.3 mm maximum deflection, 20 ms dwell at the deepest point (none for
+    /// `inout`), 30° approach angle for `oblique`.
     pub fn preset(variant: Variant) -> Self {
         let mut c = Config {
             variant,
@@ -210,6 +211,8 @@ impl Config {
             Variant::PerAxis => c.axis_latency_s = Some([0.004, 0.0025, 0.001]),
             Variant::MultiRate => c.probe_rate_hz = 4000.0,
             Variant::Oblique => c.approach_angle_deg = 30.0,
+            // No dwell at the deepest point: the extremum of both streams is then sharp.
+            Variant::InOut => c.dwell_s = 0.0,
             _ => {}
         }
         c
