@@ -29,13 +29,14 @@ fn bench(c: &mut Criterion) {
     let corr = Corrector { geometric: Some(&g), load: Some(&lc), probe_offset: Vector3::new(0.0, 0.0, -100.0) };
     let n = 10_000_000usize;
     let base: Vec<Point3> = (0..n).map(|i| Point3::new((i % 1999) as f64 + 0.3, ((i / 1999) % 1999) as f64 + 0.7, 100.0 + (i % 1700) as f64)).collect();
-    let mut pts = base.clone();
+    // Corrected in place repeatedly: each pass moves the points by micrometres only, so they stay
+    // inside the tables and every pass does the same work (no 240 MB copy inside the timing).
+    let mut pts = base;
     let mut g10 = c.benchmark_group("comp");
     g10.sample_size(10);
     g10.throughput(Throughput::Elements(n as u64));
     g10.bench_function("correct_10M_points_combined_map", |b| {
         b.iter(|| {
-            pts.copy_from_slice(&base);
             corr.correct_measured(&mut pts, None).unwrap();
         })
     });

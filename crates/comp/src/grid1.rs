@@ -79,12 +79,18 @@ impl Grid1 {
         } else {
             return None;
         };
-        let i = match self.uniform {
-            Some((x0, inv)) => (((x - x0) * inv) as usize).min(n - 2),
-            None => self.xs.partition_point(|&v| v <= x).saturating_sub(1).min(n - 2),
-        };
-        let f = ((x - self.xs[i]) / (self.xs[i + 1] - self.xs[i])).clamp(0.0, 1.0);
-        Some((i, f))
+        match self.uniform {
+            Some((x0, inv)) => {
+                // O(1): the fraction comes from the same product, no division.
+                let u = (x - x0) * inv;
+                let i = (u as usize).min(n - 2);
+                Some((i, (u - i as f64).clamp(0.0, 1.0)))
+            }
+            None => {
+                let i = self.xs.partition_point(|&v| v <= x).saturating_sub(1).min(n - 2);
+                Some((i, ((x - self.xs[i]) / (self.xs[i + 1] - self.xs[i])).clamp(0.0, 1.0)))
+            }
+        }
     }
 }
 
