@@ -213,7 +213,9 @@ pub struct SphereFit {
     pub iterations: usize,
 }
 
-struct SphereModel;
+struct SphereModel {
+    scale: f64,
+}
 impl Model<4> for SphereModel {
     type State = (Point3, f64);
     #[inline(always)]
@@ -231,11 +233,11 @@ impl Model<4> for SphereModel {
         (s.0 + Vector3::new(d[0], d[1], d[2]), s.1 + d[3])
     }
     fn step_size(&self, d: &SVector<f64, 4>) -> f64 {
-        d.amax()
+        d.amax() / self.scale
     }
 }
 
-struct FixedSphereModel(f64);
+struct FixedSphereModel(f64, f64);
 impl Model<3> for FixedSphereModel {
     type State = Point3;
     #[inline(always)]
@@ -252,7 +254,7 @@ impl Model<3> for FixedSphereModel {
         s + d
     }
     fn step_size(&self, d: &SVector<f64, 3>) -> f64 {
-        d.amax()
+        d.amax() / self.1
     }
 }
 
@@ -260,7 +262,7 @@ impl Model<3> for FixedSphereModel {
 pub fn sphere(points: &[Point3]) -> Result<SphereFit, FitError> {
     let m = Moments::for_fit(points, "sphere", 4, 2)?;
     let (c0, r0) = m.algebraic_sphere().ok_or(FitError::Undetermined { kind: "sphere" })?;
-    let model = SphereModel;
+    let model = SphereModel { scale: m.extent() };
     let sol = minimise(&model, (c0, r0), points, MAX_ITERATIONS)
         .ok_or(FitError::Undetermined { kind: "sphere" })?;
     let (center, radius) = sol.state;
@@ -294,7 +296,7 @@ pub fn sphere_with_radius(points: &[Point3], radius: f64) -> Result<SphereFit, F
         Some((c, _)) => c,
         None => m.centroid,
     };
-    let model = FixedSphereModel(radius);
+    let model = FixedSphereModel(radius, m.extent());
     let sol =
         minimise(&model, c0, points, MAX_ITERATIONS).ok_or(FitError::Undetermined { kind: "sphere" })?;
     let center = sol.state;
@@ -339,7 +341,9 @@ pub struct CircleFit {
     pub iterations: usize,
 }
 
-struct CircleModel;
+struct CircleModel {
+    scale: f64,
+}
 impl Model<3> for CircleModel {
     type State = (Vector2<f64>, f64);
     #[inline(always)]
@@ -355,7 +359,7 @@ impl Model<3> for CircleModel {
         (s.0 + Vector2::new(d[0], d[1]), s.1 + d[2])
     }
     fn step_size(&self, d: &SVector<f64, 3>) -> f64 {
-        d.amax()
+        d.amax() / self.scale
     }
 }
 
@@ -383,8 +387,8 @@ pub fn circle(points: &[Point3]) -> Result<CircleFit, FitError> {
     let c = m.centroid;
     let q: Vec<Point3> = points.iter().map(|p| Point3::new((p - c).dot(&u), (p - c).dot(&v), 0.0)).collect();
     let start = kasa_2d(&q).ok_or(FitError::CollinearPoints { kind: "circle" })?;
-    let sol =
-        minimise(&CircleModel, start, &q, MAX_ITERATIONS).ok_or(FitError::Undetermined { kind: "circle" })?;
+    let sol = minimise(&CircleModel { scale: m.extent() }, start, &q, MAX_ITERATIONS)
+        .ok_or(FitError::Undetermined { kind: "circle" })?;
     let (c2, radius) = sol.state;
     let cov = covariance(&sol.acc, points.len(), RCOND).ok_or(FitError::Undetermined { kind: "circle" })?;
     let center = c + u * c2.x + v * c2.y;

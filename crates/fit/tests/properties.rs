@@ -315,3 +315,30 @@ fn stated_uncertainty_matches_scatter() {
         check_z(n, z);
     }
 }
+
+/// Convergence on large noisy data: the sum of squares over 2e5 points carries rounding noise,
+/// so a convergence test that is too strict would run to the iteration cap (it did once: 200
+/// iterations). Levenberg-Marquardt from the algebraic start converges quadratically: a few
+/// iterations, asserted below 20 with margin.
+#[test]
+fn large_noisy_sphere_converges_quickly() {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let c = Point3::new(120.5, -40.25, 310.0);
+    let pts = sphere_points(c, 12.7, 200_000, 2.5, 0.002, &mut rng);
+    let f = sphere(&pts).unwrap();
+    assert!(f.iterations < 20, "{} iterations", f.iterations);
+    // 2 µm noise over 2e5 points: centre uncertainty ~1e-5 mm; 6σ bound.
+    assert!((f.center - c).norm() < 6.0 * f.center_uncertainty.norm(), "{:?}", f.center - c);
+    assert!((f.radius - 12.7).abs() < 6.0 * f.radius_uncertainty);
+    let cy = cylinder(&cylinder_points(
+        Point3::origin(),
+        Vector3::new(0.1, 0.2, 1.0).normalize(),
+        20.0,
+        60.0,
+        200_000,
+        0.002,
+        &mut rng,
+    ))
+    .unwrap();
+    assert!(cy.iterations < 20, "{} iterations", cy.iterations);
+}
