@@ -194,3 +194,43 @@ fn realistic_gantry_errors_are_tens_of_micrometres() {
     // Positioning ±40 µm, straightness ±25 µm, 10 µrad over metres: worst 20–500 µm.
     assert!(worst > 20e-3 && worst < 0.5, "worst {worst}");
 }
+
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+    use truepos_sim::laser::{ray_plane, ray_sphere};
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+
+        /// Commanding then moving lands on the target for any realistic machine, position, tool.
+        #[test]
+        fn command_inverts_the_chain(seed in 0u64..1000, fx in 0.0..1.0f64, fy in 0.0..1.0f64,
+                                     fz in 0.0..1.0f64, tz in -400.0..0.0f64, kind in 0usize..3) {
+            let m = Machine::realistic(KINDS[kind], seed);
+            let a = Point3::new(fx * m.travel[0], fy * m.travel[1], fz * m.travel[2]);
+            let t = Vector3::new(10.0, -5.0, tz);
+            let target = a + t;
+            let c = m.command_for(&target, &t).unwrap();
+            prop_assert!((m.tip(&c, &t) - target).norm() < 1e-9);
+        }
+
+        /// The laser's exact ray intersections lie on the surface.
+        #[test]
+        fn ray_hits_lie_on_the_surface(ox in -50.0..50.0f64, oy in -50.0..50.0f64, oz in 30.0..80.0f64,
+                                       dx in -0.3..0.3f64, dy in -0.3..0.3f64, r in 5.0..20.0f64) {
+            let o = Point3::new(ox * 0.1, oy * 0.1, oz);
+            let d = Vector3::new(dx, dy, -1.0).normalize();
+            let c = Point3::new(0.0, 0.0, 0.0);
+            if let Some(t) = ray_sphere(&o, &d, &c, r) {
+                prop_assert!(((o + t * d) - c).norm() - r < 1e-9);
+                prop_assert!(((o + t * d) - c).norm() - r > -1e-9);
+                // Entering point: the outward normal faces the beam.
+                prop_assert!(((o + t * d) - c).dot(&d) <= 1e-9);
+            }
+            let n = Vector3::new(0.1, -0.2, 1.0).normalize();
+            let t = ray_plane(&o, &d, &c, &n).unwrap();
+            prop_assert!(n.dot(&((o + t * d) - c)).abs() < 1e-9);
+        }
+    }
+}
