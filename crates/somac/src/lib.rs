@@ -1,1 +1,30 @@
-//! Placeholder: this crate is being built (see ARCHITECTURE.md).
+//! # truepos-somac — laser-tracker end-point control of large NC machines
+//!
+//! The machine keeps its own controller and encoders; an independent 3D measurement (laser
+//! trackers on a reflector at the end effector, taken while the machine is stopped) closes the
+//! loop. The program is trickle-fed one block at a time; at every block marked by the keyword
+//! (default the comment `(MSG,Measure SOMaC)`) the loop waits for a stable reading, compares it
+//! with the commanded position and sends incremental corrections until the error is within the
+//! threshold or the iteration limit is reached, within the single- and total-correction limits.
+//!
+//! Entry points:
+//! - [`params::Params`]: the user parameters and alarm set points.
+//! - [`device`]: the [`device::Controller`], [`device::Tracker`] and [`device::Cell`] traits a
+//!   real installation or the virtual cell implements.
+//! - [`run::run_program`]: the measure / compare / correct loop with alarms, real-time
+//!   orientation, auto-scaling, refractive-index updates, multi-tracker fusion and beam-break
+//!   recovery; it reports every event to an [`audit::AuditSink`].
+//! - [`fusion`]: weighted fusion of several trackers' readings.
+//! - [`stats`]: hole true-position statistics and capability in ppm of the diagonal.
+//! - [`virtual_cell`]: the virtual large gantry with trackers behind the same traits.
+
+pub mod audit;
+pub mod device;
+pub mod fusion;
+pub mod params;
+pub mod run;
+pub mod stats;
+pub mod virtual_cell;
+
+pub use params::Params;
+pub use run::{run_program, RunReport, StopReport, StopStatus};

@@ -1,0 +1,693 @@
+//! The measure / compare / correct loop ([`run_program`]).
+//!
+//! For every block of the program (fed one at a time): check the alarms at measurement blocks
+//! (temperature range → stop; temperature change or inclination change → new orientation; the
+//! part temperature moved by the auto-scale step → re-scale), update the trackers' refractive
+//! index when it has drifted, send the block, and at keyword blocks: wait for a stable reading
+//! (repeated samples within the standard-deviation limit; beam breaks recovered as configured),
+//! fuse the trackers, compare with the commanded position, and correct incrementally until the
+//! error is within the threshold or the iteration limit is reached. No correction move is longer
+//! than the single limit and the accumulated offset never exceeds the total limit (a clip raises
+//! an alarm). Each stop ends SUCCESS (within threshold), PARTIAL (measured and corrected but not
+//! within threshold: iterations exhausted or a limit reached) or FAILURE (no stable reading, beam
+//! not recovered, or the run halted).
+
+use crate::audit::{AuditSink, Event};
+use crate::device::{Cell, Controller, DeviceError, Inclinations, Tracker};
+use crate::fusion::{fuse, Reading};
+use crate::params::{BeamRecovery, Params};
+use thiserror::Error;
+use truepos_gcode::{Program, TransformOptions};
+use truepos_math::air::{refractive_index, Formula};
+use truepos_math::bestfit::{best_fit, BestFitOptions};
+use truepos_math::{Point3, Transform3, Vector3};
+
+/// A tracker with its alignment to the machine.
+pub struct TrackerSetup<T> {
+    pub tracker: T,
+    pub machine_from_tracker: Transform3,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StopStatus {
+    Success,
+    Partial,
+    Failure,
+}
+
+impl StopStatus {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            StopStatus::Success => "SUCCESS",
+            StopStatus::Partial => "PARTIAL",
+            StopStatus::Failure => "FAILURE",
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct StopReport {
+    /// 1-based program line.
+    pub line: usize,
+    /// Commanded position (machine frame, after orientation), without the correction offset.
+    pub commanded_mm: Point3,
+    /// Last fused reading, if any.
+    pub measured_mm: Option<Point3>,
+    pub corrections: Vec<Vector3>,
+    pub iterations: usize,
+    /// |measured − commanded| of the last reading (NaN when there was none).
+    pub final_error_mm: f64,
+    pub status: StopStatus,
+    pub message: Option<String>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Alarm {
+    pub line: usize,
+    pub kind: String,
+    pub message: String,
+    pub action: String,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunReport {
+    pub stops: Vec<StopReport>,
+    pub alarms: Vec<Alarm>,
+    /// The run stopped before the end of the program (a stop alarm).
+    pub halted: bool,
+    pub orientations: usize,
+    pub refractive_updates: usize,
+    pub machine_from_part: Transform3,
+    pub blocks_sent: usize,
+}
+
+#[derive(Debug, Error)]
+pub enum RunError {
+    #[error("invalid parameters: {0}")]
+    Params(String),
+    #[error(transparent)]
+    Device(#[from] DeviceError),
+    #[error("line {line}: {message}")]
+    Program { line: usize, message: String },
+    #[error("audit trail: {0}")]
+    Audit(String),
+}
+
+struct State {
+    machine_from_part: Transform3,
+    program: Program,
+    /// Per line of `program`: the commanded target (mm) and whether it is a measurement stop.
+    targets: Vec<(Option<Point3>, bool)>,
+    temp_orient: f64,
+    temp_scale: f64,
+    incl_base: Inclinations,
+    n_air: f64,
+    last_measured: Option<(Point3, Point3)>,
+    report: RunReport,
+}
+
+fn audit(a: &mut dyn AuditSink, e: Event) -> Result<(), RunError> {
+    a.record(&e).map_err(RunError::Audit)
+}
+
+/// Run `program` (in part coordinates) on the controller with the trackers.
+pub fn run_program<C: Controller, T: Tracker, E: Cell>(
+    program: &Program,
+    ctl: &mut C,
+    trackers: &mut [TrackerSetup<T>],
+    cell: &mut E,
+    params: &Params,
+    sink: &mut dyn AuditSink,
+) -> Result<RunReport, RunError> {
+    params.validate().map_err(RunError::Params)?;
+    if trackers.is_empty() {
+        return Err(RunError::Params("at least one tracker is needed".into()));
+    }
+    program.check().map_err(|e| RunError::Program { line: e.line(), message: e.detail() })?;
+    let t0 = cell.temperature_c();
+    let n0 = refractive_index(&cell.air(), Formula::Ciddor).map_err(|e| RunError::Params(e.to_string()))?;
+    for t in trackers.iter_mut() {
+        t.tracker.set_refractive_index(n0);
+    }
+    let mut st = State {
+        machine_from_part: Transform3::identity(),
+        program: program.clone(),
+        targets: vec![],
+        temp_orient: t0,
+        temp_scale: t0,
+        incl_base: cell.inclinations(),
+        n_air: n0,
+        last_measured: None,
+        report: RunReport {
+            stops: vec![],
+            alarms: vec![],
+            halted: false,
+            orientations: 0,
+            refractive_updates: 0,
+            machine_from_part: Transform3::identity(),
+            blocks_sent: 0,
+        },
+    };
+    st.targets = index_targets(&st.program, &params.keyword);
+    if params.orient && cell.part_nominal().len() >= 3 {
+        orient(program, ctl, trackers, cell, params, sink, &mut st, 0, "initial orientation")?;
+    }
+    let mut n_stops = 0usize;
+    for i in 0..st.program.lines.len() {
+        let line = i + 1;
+        let is_stop = st.targets[i].1;
+        if is_stop {
+            // Alarms and environment, checked at every measurement stop.
+            let temp = cell.temperature_c();
+            if temp < params.temperature_min_c || temp > params.temperature_max_c {
+                let a = Alarm {
+                    line,
+                    kind: "temperature_range".into(),
+                    message: format!(
+                        "part temperature {temp:.2} °C outside {}–{} °C",
+                        params.temperature_min_c, params.temperature_max_c
+                    ),
+                    action: "stop".into(),
+                };
+                raise(sink, ctl, &mut st, a)?;
+                st.report.halted = true;
+                break;
+            }
+            let incl = cell.inclinations();
+            let dincl = incl.max_change(&st.incl_base);
+            if dincl > params.inclination_limit_urad {
+                let a = Alarm {
+                    line,
+                    kind: "inclination".into(),
+                    message: format!(
+                        "inclination changed by {dincl:.1} µrad (limit {})",
+                        params.inclination_limit_urad
+                    ),
+                    action: "re-align trackers and re-orient".into(),
+                };
+                raise(sink, ctl, &mut st, a)?;
+                realign(ctl, trackers, cell, sink, &mut st, line)?;
+                st.incl_base = incl;
+                orient(program, ctl, trackers, cell, params, sink, &mut st, line, "inclination change")?;
+            } else if (temp - st.temp_orient).abs() > params.temperature_change_max_c {
+                let a = Alarm {
+                    line,
+                    kind: "temperature_change".into(),
+                    message: format!(
+                        "temperature changed by {:.2} °C since the last orientation (limit {})",
+                        temp - st.temp_orient,
+                        params.temperature_change_max_c
+                    ),
+                    action: "re-orient".into(),
+                };
+                raise(sink, ctl, &mut st, a)?;
+                orient(program, ctl, trackers, cell, params, sink, &mut st, line, "temperature change")?;
+            } else if (temp - st.temp_scale).abs() >= params.autoscale_step_c {
+                orient(
+                    program,
+                    ctl,
+                    trackers,
+                    cell,
+                    params,
+                    sink,
+                    &mut st,
+                    line,
+                    "auto-scale (temperature step)",
+                )?;
+            } else if params.orient_every > 0 && n_stops > 0 && n_stops.is_multiple_of(params.orient_every) {
+                orient(program, ctl, trackers, cell, params, sink, &mut st, line, "periodic orientation")?;
+            }
+            let n_new = refractive_index(&cell.air(), Formula::Ciddor)
+                .map_err(|e| RunError::Params(e.to_string()))?;
+            if ((n_new - st.n_air) / st.n_air).abs() * 1e6 > params.refractive_update_ppm {
+                audit(sink, Event::RefractiveIndex { line, old: st.n_air, new: n_new, time_s: ctl.now_s() })?;
+                for t in trackers.iter_mut() {
+                    t.tracker.set_refractive_index(n_new);
+                }
+                st.n_air = n_new;
+                st.report.refractive_updates += 1;
+            }
+        }
+        // The program may have been re-transformed: take the block again.
+        let target = st.targets[i].0;
+        ctl.send_block(line, st.program.line_text(i), target)?;
+        st.report.blocks_sent += 1;
+        audit(sink, Event::Block { line, text: st.program.line_text(i).to_string(), time_s: ctl.now_s() })?;
+        if is_stop {
+            let mut commanded = target.unwrap_or_else(Point3::origin);
+            let mut stop = measure_stop(ctl, trackers, cell, params, sink, &mut st, line, commanded)?;
+            // An inclinometer that moved during the stop invalidates its readings: re-align,
+            // re-orient, go to the (re-oriented) position and measure the stop again.
+            let incl = cell.inclinations();
+            let dincl = incl.max_change(&st.incl_base);
+            if dincl > params.inclination_limit_urad {
+                let a = Alarm {
+                    line,
+                    kind: "inclination".into(),
+                    message: format!(
+                        "inclination changed by {dincl:.1} µrad during the stop (limit {})",
+                        params.inclination_limit_urad
+                    ),
+                    action: "re-align trackers, re-orient, measure the stop again".into(),
+                };
+                raise(sink, ctl, &mut st, a)?;
+                realign(ctl, trackers, cell, sink, &mut st, line)?;
+                st.incl_base = incl;
+                orient(program, ctl, trackers, cell, params, sink, &mut st, line, "inclination change")?;
+                commanded = st.targets[i].0.unwrap_or(commanded);
+                ctl.move_to(commanded)?;
+                stop = measure_stop(ctl, trackers, cell, params, sink, &mut st, line, commanded)?;
+            }
+            audit(
+                sink,
+                Event::StopResult {
+                    line,
+                    status: stop.status.as_str().into(),
+                    final_error_mm: stop.final_error_mm,
+                    iterations: stop.iterations,
+                    time_s: ctl.now_s(),
+                },
+            )?;
+            sink.commit().map_err(RunError::Audit)?;
+            st.report.stops.push(stop);
+            n_stops += 1;
+        }
+    }
+    sink.commit().map_err(RunError::Audit)?;
+    st.report.machine_from_part = st.machine_from_part;
+    Ok(st.report)
+}
+
+fn raise<C: Controller>(sink: &mut dyn AuditSink, ctl: &C, st: &mut State, a: Alarm) -> Result<(), RunError> {
+    audit(
+        sink,
+        Event::Alarm {
+            line: a.line,
+            kind: a.kind.clone(),
+            message: a.message.clone(),
+            action: a.action.clone(),
+            time_s: ctl.now_s(),
+        },
+    )?;
+    st.report.alarms.push(a);
+    Ok(())
+}
+
+/// Real-time orientation (and scale) of the part from its targets; re-transforms the program.
+#[allow(clippy::too_many_arguments)]
+fn orient<C: Controller, T: Tracker, E: Cell>(
+    original: &Program,
+    ctl: &mut C,
+    trackers: &mut [TrackerSetup<T>],
+    cell: &mut E,
+    params: &Params,
+    sink: &mut dyn AuditSink,
+    st: &mut State,
+    line: usize,
+    reason: &str,
+) -> Result<(), RunError> {
+    if !params.orient {
+        return Ok(());
+    }
+    let nominal = cell.part_nominal();
+    let mut from = vec![];
+    let mut to = vec![];
+    // Each tracker measures the targets it sees; each target is fused over those trackers.
+    let seen: Vec<Vec<(String, Point3)>> =
+        (0..trackers.len()).map(|k| cell.measure_part_targets(k)).collect();
+    for (id, p_nom) in &nominal {
+        let mut rs = vec![];
+        for (k, t) in trackers.iter().enumerate() {
+            if let Some((_, p)) = seen[k].iter().find(|(i, _)| i == id) {
+                rs.push(Reading { p: t.machine_from_tracker.apply(p), sigma_mm: t.tracker.sigma_mm(p) });
+            }
+        }
+        if let Some(f) = fuse(&rs) {
+            from.push(*p_nom);
+            to.push(f.p);
+        }
+    }
+    let temp = cell.temperature_c();
+    let fit = best_fit(&from, &to, None, BestFitOptions { with_scale: params.orient_with_scale });
+    match fit {
+        Ok(t) => {
+            let res: Vec<f64> = from.iter().zip(&to).map(|(f, p)| (t.apply(f) - p).norm()).collect();
+            let rms = truepos_math::stats::rms(&res);
+            let expected = 1.0 + params.part_cte_ppm_per_c * 1e-6 * (temp - 20.0);
+            let disc_ppm = (t.scale / expected - 1.0) * 1e6;
+            if params.orient_with_scale && disc_ppm.abs() > 100.0 {
+                let a = Alarm {
+                    line,
+                    kind: "scale_discrepancy".into(),
+                    message: format!(
+                        "fitted scale {:.6} differs from the CTE expectation {:.6} by {disc_ppm:.0} ppm",
+                        t.scale, expected
+                    ),
+                    action: "continue (check the part temperature and CTE)".into(),
+                };
+                raise(sink, ctl, st, a)?;
+            }
+            st.machine_from_part = t;
+            st.program = Program::parse(
+                &original
+                    .transform(&t, &TransformOptions::default())
+                    .map_err(|e| RunError::Program { line: e.line(), message: e.detail() })?,
+            );
+            st.targets = index_targets(&st.program, &params.keyword);
+            st.temp_orient = temp;
+            st.temp_scale = temp;
+            st.report.orientations += 1;
+            audit(
+                sink,
+                Event::Orientation {
+                    line,
+                    reason: reason.into(),
+                    scale: t.scale,
+                    rms_mm: rms,
+                    time_s: ctl.now_s(),
+                },
+            )?;
+        }
+        Err(e) => {
+            let a = Alarm {
+                line,
+                kind: "orientation_failed".into(),
+                message: format!("{reason}: {} targets measured: {e}", to.len()),
+                action: "keep the previous orientation".into(),
+            };
+            raise(sink, ctl, st, a)?;
+        }
+    }
+    Ok(())
+}
+
+/// Re-align every tracker to the machine from the machine's reference targets.
+fn realign<C: Controller, T: Tracker, E: Cell>(
+    ctl: &mut C,
+    trackers: &mut [TrackerSetup<T>],
+    cell: &mut E,
+    sink: &mut dyn AuditSink,
+    st: &mut State,
+    line: usize,
+) -> Result<(), RunError> {
+    let reference = cell.machine_targets();
+    for (k, t) in trackers.iter_mut().enumerate() {
+        let seen = cell.measure_machine_targets(k);
+        let mut from = vec![];
+        let mut to = vec![];
+        for (id, p) in &seen {
+            if let Some((_, q)) = reference.iter().find(|(i, _)| i == id) {
+                from.push(*p);
+                to.push(*q);
+            }
+        }
+        match best_fit(&from, &to, None, BestFitOptions::default()) {
+            Ok(m) => t.machine_from_tracker = m,
+            Err(e) => {
+                let a = Alarm {
+                    line,
+                    kind: "alignment_failed".into(),
+                    message: format!("tracker {k}: {e}"),
+                    action: "keep the previous alignment".into(),
+                };
+                raise(sink, ctl, st, a)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// One stable, fused reading (machine frame) and the largest sample standard deviation.
+fn read<C: Controller, T: Tracker, E: Cell>(
+    ctl: &mut C,
+    trackers: &mut [TrackerSetup<T>],
+    cell: &mut E,
+    params: &Params,
+    sink: &mut dyn AuditSink,
+    st: &mut State,
+    line: usize,
+    commanded: Point3,
+) -> Result<Result<(Point3, f64), String>, RunError> {
+    ctl.wait(params.dwell_s);
+    let mut recoveries = 0;
+    let mut attempt = 0;
+    while attempt < params.stable_attempts {
+        let mut readings = vec![];
+        let mut worst_std = 0.0f64;
+        let mut any = false;
+        let mut unstable = false;
+        let mut lost = vec![];
+        for (k, t) in trackers.iter_mut().enumerate() {
+            let mut samples = Vec::with_capacity(params.samples);
+            for _ in 0..params.samples {
+                match t.tracker.measure() {
+                    Ok(p) => samples.push(p),
+                    Err(_) => {
+                        samples.clear();
+                        break;
+                    }
+                }
+            }
+            if samples.len() < params.samples {
+                lost.push(k);
+                continue;
+            }
+            any = true;
+            let n = samples.len() as f64;
+            let mean = samples.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / n;
+            let mut var = Vector3::zeros();
+            for p in &samples {
+                let d = p.coords - mean;
+                var += d.component_mul(&d);
+            }
+            let std = (var / (n - 1.0)).map(f64::sqrt).max();
+            worst_std = worst_std.max(std);
+            if std > params.stable_std_mm {
+                unstable = true;
+                continue;
+            }
+            let p_t = Point3::from(mean);
+            readings.push(Reading {
+                p: t.machine_from_tracker.apply(&p_t),
+                sigma_mm: t.tracker.sigma_mm(&p_t) / n.sqrt(),
+            });
+        }
+        if !any {
+            // Every beam broken: recover as configured.
+            recoveries += 1;
+            if recoveries > 3 {
+                return Ok(Err("beam broken on every tracker and not recovered".into()));
+            }
+            let a = Alarm {
+                line,
+                kind: "beam_break".into(),
+                message: "no tracker sees the reflector".into(),
+                action: format!("{:?} recovery", params.beam_recovery).to_lowercase(),
+            };
+            raise(sink, ctl, st, a)?;
+            recover(ctl, trackers, cell, params, st, commanded)?;
+            continue;
+        }
+        if !readings.is_empty() && !unstable {
+            let f = fuse(&readings).map(|r| r.p).unwrap_or(commanded);
+            // Trackers that lost the beam while others measured: reacquire by pointing (ADM).
+            for k in lost {
+                let t = &mut trackers[k];
+                if t.tracker.has_adm() {
+                    let p = t.machine_from_tracker.inverse().apply(&f);
+                    let _ = t.tracker.point_at(p);
+                }
+            }
+            return Ok(Ok((f, worst_std)));
+        }
+        if !readings.is_empty() && readings.len() == trackers.len() {
+            let f = fuse(&readings).map(|r| r.p).unwrap_or(commanded);
+            return Ok(Ok((f, worst_std)));
+        }
+        attempt += 1;
+        ctl.wait(params.settle_wait_s);
+    }
+    Ok(Err(format!(
+        "the reading never became stable within {} attempts (σ limit {} mm)",
+        params.stable_attempts, params.stable_std_mm
+    )))
+}
+
+fn recover<C: Controller, T: Tracker, E: Cell>(
+    ctl: &mut C,
+    trackers: &mut [TrackerSetup<T>],
+    cell: &mut E,
+    params: &Params,
+    st: &mut State,
+    commanded: Point3,
+) -> Result<(), RunError> {
+    let target = commanded + ctl.offset();
+    for (k, t) in trackers.iter_mut().enumerate() {
+        let tracker_from_machine = t.machine_from_tracker.inverse();
+        let strategy = match params.beam_recovery {
+            BeamRecovery::LookAhead if !t.tracker.has_adm() => BeamRecovery::Manual,
+            s => s,
+        };
+        match strategy {
+            BeamRecovery::Manual => {
+                cell.operator_restores_beam(k);
+                ctl.wait(30.0);
+            }
+            BeamRecovery::LookAhead => {
+                let _ = t.tracker.point_at(tracker_from_machine.apply(&target));
+            }
+            BeamRecovery::LookBack => {
+                if let Some((cmd, measured)) = st.last_measured {
+                    ctl.move_to(cmd)?;
+                    let _ = t.tracker.point_at(tracker_from_machine.apply(&measured));
+                    ctl.move_to(commanded)?;
+                } else {
+                    cell.operator_restores_beam(k);
+                    ctl.wait(30.0);
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn measure_stop<C: Controller, T: Tracker, E: Cell>(
+    ctl: &mut C,
+    trackers: &mut [TrackerSetup<T>],
+    cell: &mut E,
+    params: &Params,
+    sink: &mut dyn AuditSink,
+    st: &mut State,
+    line: usize,
+    commanded: Point3,
+) -> Result<StopReport, RunError> {
+    let mut stop = StopReport {
+        line,
+        commanded_mm: commanded,
+        measured_mm: None,
+        corrections: vec![],
+        iterations: 0,
+        final_error_mm: f64::NAN,
+        status: StopStatus::Failure,
+        message: None,
+    };
+    let mut limited = false;
+    loop {
+        let (m, std) = match read(ctl, trackers, cell, params, sink, st, line, commanded)? {
+            Ok(r) => r,
+            Err(msg) => {
+                let a = Alarm {
+                    line,
+                    kind: "no_reading".into(),
+                    message: msg.clone(),
+                    action: "stop marked FAILURE".into(),
+                };
+                raise(sink, ctl, st, a)?;
+                stop.message = Some(msg);
+                stop.status = StopStatus::Failure;
+                return Ok(stop);
+            }
+        };
+        let e = m - commanded;
+        stop.measured_mm = Some(m);
+        stop.final_error_mm = e.norm();
+        audit(
+            sink,
+            Event::Measurement {
+                line,
+                iteration: stop.iterations,
+                commanded_mm: commanded,
+                measured_mm: m,
+                error_mm: e.norm(),
+                samples_std_mm: std,
+                time_s: ctl.now_s(),
+            },
+        )?;
+        if e.norm() <= params.threshold_mm {
+            st.last_measured = Some((commanded, m));
+            stop.status = StopStatus::Success;
+            return Ok(stop);
+        }
+        if !params.correct {
+            st.last_measured = Some((commanded, m));
+            stop.status = StopStatus::Partial;
+            stop.message = Some("corrections disabled".into());
+            return Ok(stop);
+        }
+        if stop.iterations >= params.max_iterations || limited {
+            stop.status = StopStatus::Partial;
+            stop.message =
+                Some(if limited { "correction limited".into() } else { "iteration limit reached".into() });
+            return Ok(stop);
+        }
+        // The correction: −e, clipped to the single limit and to the total limit.
+        let mut delta = -e;
+        let mut clipped = false;
+        if delta.norm() > params.max_single_correction_mm {
+            delta *= params.max_single_correction_mm / delta.norm();
+            clipped = true;
+            let a = Alarm {
+                line,
+                kind: "max_single_correction".into(),
+                message: format!(
+                    "correction of {:.3} mm clipped to {} mm",
+                    e.norm(),
+                    params.max_single_correction_mm
+                ),
+                action: "clip".into(),
+            };
+            raise(sink, ctl, st, a)?;
+        }
+        let offset = ctl.offset();
+        let new_offset = offset + delta;
+        if new_offset.norm() > params.max_total_correction_mm {
+            // Largest step along delta that keeps |offset + s·delta| within the limit.
+            let (a2, b, c) = (
+                delta.norm_squared(),
+                2.0 * offset.dot(&delta),
+                offset.norm_squared() - params.max_total_correction_mm.powi(2),
+            );
+            let disc = (b * b - 4.0 * a2 * c).max(0.0);
+            let s = ((-b + disc.sqrt()) / (2.0 * a2)).clamp(0.0, 1.0);
+            delta *= s * (1.0 - 1e-12);
+            clipped = true;
+            limited = true;
+            let a = Alarm {
+                line,
+                kind: "max_total_correction".into(),
+                message: format!(
+                    "the total correction would reach {:.3} mm (limit {} mm)",
+                    new_offset.norm(),
+                    params.max_total_correction_mm
+                ),
+                action: "limit and mark PARTIAL".into(),
+            };
+            raise(sink, ctl, st, a)?;
+        }
+        if delta.norm() == 0.0 {
+            stop.status = StopStatus::Partial;
+            stop.message = Some("no correction possible within the total limit".into());
+            return Ok(stop);
+        }
+        ctl.correct(delta)?;
+        stop.iterations += 1;
+        stop.corrections.push(delta);
+        audit(
+            sink,
+            Event::Correction {
+                line,
+                iteration: stop.iterations,
+                delta_mm: delta,
+                offset_mm: ctl.offset(),
+                clipped,
+                time_s: ctl.now_s(),
+            },
+        )?;
+    }
+}
+
+/// Per line: the commanded target (mm) and whether the line is a measurement stop.
+fn index_targets(p: &Program, keyword: &str) -> Vec<(Option<Point3>, bool)> {
+    p.blocks().iter().map(|b| (b.target_mm, b.target_mm.is_some() && b.has_keyword(keyword))).collect()
+}

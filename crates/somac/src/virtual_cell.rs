@@ -1,0 +1,603 @@
+//! The virtual large gantry cell behind the [`crate::device`] traits: a 12 m × 4 m × 2 m gantry
+//! (the simulator's exact kinematic chain with geometric errors and thermal growth of its
+//! scales), a part (a wing spar) placed with a misalignment and expanding with its temperature,
+//! end-effector vibration after every move (so a reading taken too early is unstable), laser
+//! trackers with distance/angle noise, the refractive index of the air they assume, obstructed
+//! lines of sight and random beam interruptions, inclinometers, and a tracker that can be
+//! bumped (its pose changes: the inclinometers see it).
+//!
+//! Entry points: [`CellConfig`] (everything a scenario varies; `Default` is the demo cell),
+//! [`VirtualCell::new`] (the shared world), [`VirtualCell::controller`],
+//! [`VirtualCell::trackers`], [`VirtualCell::sensors`], [`VirtualCell::align_trackers`],
+//! [`VirtualCell::hole_errors`] (truth: drilled position against the warm part's true hole).
+
+use crate::device::{Cell, Controller, DeviceError, Inclinations, Tracker, TrackerFault};
+use crate::run::TrackerSetup;
+use rand::Rng;
+use std::cell::RefCell;
+use std::collections::BTreeMap;
+use std::rc::Rc;
+use truepos_math::air::{refractive_index, AirConditions, Formula};
+use truepos_math::bestfit::{best_fit, BestFitOptions};
+use truepos_math::types::{rx, ry, rz};
+use truepos_math::{Point3, Transform3, Vector3};
+use truepos_sim::errors::{ErrorMagnitudes, GeometricErrors};
+use truepos_sim::machine::Machine;
+use truepos_sim::noise::{self, SimRng};
+use truepos_sim::thermal::{Part, Step, TemperatureHistory, ThermalModel};
+
+/// An axis-aligned box (machine frame) that blocks a tracker's line of sight.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Obstruction {
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackerConfig {
+    /// Tracker head position in the machine frame (mm).
+    pub position_mm: [f64; 3],
+    /// Rotation of the tracker frame about Z relative to the machine (deg).
+    pub yaw_deg: f64,
+    /// Absolute distance meter (can reacquire by pointing: look-ahead recovery).
+    pub adm: bool,
+    pub obstructions: Vec<Obstruction>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct CellConfig {
+    pub seed: u64,
+    /// Multiplier on the gantry class's geometric error magnitudes (a worn machine > 1).
+    pub error_scale: f64,
+    /// Shop air temperature over time (°C).
+    pub air_temperature: TemperatureHistory,
+    pub pressure_pa: f64,
+    /// Pressure drift (Pa/h).
+    pub pressure_drift_pa_per_h: f64,
+    pub humidity_pct: f64,
+    /// Part CTE (1/K) and thermal time constant (s).
+    pub part_cte: f64,
+    pub part_tau_s: f64,
+    /// Actual placement of the part relative to its nominal (program) placement:
+    /// rotation about Z (µrad) and translation (mm).
+    pub placement_rz_urad: f64,
+    pub placement_mm: [f64; 3],
+    /// Reflector (drill point) offset from the ram reference point (mm, ram frame).
+    pub tool_offset_mm: [f64; 3],
+    /// End-effector vibration after a move: amplitude (mm), frequency (Hz), decay time (s).
+    pub vibration_mm: f64,
+    pub vibration_hz: f64,
+    pub vibration_tau_s: f64,
+    pub move_speed_mm_s: f64,
+    /// Time between tracker samples (s).
+    pub sample_interval_s: f64,
+    pub trackers: Vec<TrackerConfig>,
+    /// Tracker angular and distance noise: MPE ±(a + b·d) taken as 2σ (mm, mm/m).
+    pub tracker_mpe_a_mm: f64,
+    pub tracker_mpe_b_mm_per_m: f64,
+    /// Probability that someone walks through the beam at a reading.
+    pub beam_interrupt_probability: f64,
+    /// A tracker is bumped at this time (s): (time, tracker, tilt µrad).
+    pub tracker_bump: Option<(f64, usize, f64)>,
+}
+
+impl Default for CellConfig {
+    fn default() -> Self {
+        Self {
+            seed: 1,
+            error_scale: 3.0,
+            air_temperature: TemperatureHistory {
+                base: 23.5,
+                drift: 1.5 / 3600.0,
+                steps: vec![Step { time: 1500.0, delta: 0.8 }],
+                cycle_amplitude: 0.3,
+                cycle_period: 1800.0,
+                cycle_phase: 0.0,
+            },
+            pressure_pa: 100_800.0,
+            pressure_drift_pa_per_h: -120.0,
+            humidity_pct: 45.0,
+            part_cte: 23.0e-6,
+            part_tau_s: 1200.0,
+            placement_rz_urad: 150.0,
+            placement_mm: [1.2, -0.8, 0.3],
+            tool_offset_mm: [0.0, 0.0, -350.0],
+            vibration_mm: 0.05,
+            vibration_hz: 6.0,
+            vibration_tau_s: 0.35,
+            move_speed_mm_s: 300.0,
+            sample_interval_s: 0.02,
+            trackers: vec![
+                TrackerConfig {
+                    position_mm: [3000.0, -3000.0, 1200.0],
+                    yaw_deg: 30.0,
+                    adm: true,
+                    obstructions: vec![Obstruction {
+                        min: [5200.0, -2500.0, -500.0],
+                        max: [5600.0, -1000.0, 3000.0],
+                    }],
+                },
+                TrackerConfig {
+                    position_mm: [9000.0, -3000.0, 1200.0],
+                    yaw_deg: -20.0,
+                    adm: true,
+                    obstructions: vec![],
+                },
+            ],
+            tracker_mpe_a_mm: 0.015,
+            tracker_mpe_b_mm_per_m: 0.006,
+            beam_interrupt_probability: 0.01,
+            tracker_bump: Some((2400.0, 1, 120.0)),
+        }
+    }
+}
+
+struct TrackerState {
+    /// The true pose (changes when bumped).
+    tracker_from_machine: Transform3,
+    position: Point3,
+    adm: bool,
+    obstructions: Vec<Obstruction>,
+    n_assumed: f64,
+    lost: bool,
+    bumped: bool,
+    tilt_urad: f64,
+}
+
+/// The shared simulated world.
+pub struct World {
+    cfg: CellConfig,
+    t: f64,
+    machine: Machine,
+    thermal: ThermalModel,
+    part: Part,
+    /// actual_from_nominal placement of the part.
+    placement: Transform3,
+    tool: Vector3,
+    axes: Point3,
+    offset: Vector3,
+    last_move_end: f64,
+    vib_dir: Vector3,
+    rng: SimRng,
+    trackers: Vec<TrackerState>,
+    current_line: usize,
+    /// Per program line: time and static actual reflector position after its last motion.
+    line_states: BTreeMap<usize, (f64, Point3)>,
+    machine_targets: Vec<(String, Point3)>,
+    part_targets: Vec<(String, Point3)>,
+}
+
+impl World {
+    fn growth_at(&self, t: f64) -> [f64; 3] {
+        self.thermal.axis_growth(t)
+    }
+
+    /// Static (settled) actual reflector position.
+    fn reflector_static(&mut self) -> Point3 {
+        self.machine.chain.growth = self.growth_at(self.t);
+        self.machine.tip(&self.axes, &self.tool)
+    }
+
+    fn reflector_now(&mut self) -> Point3 {
+        let dt = (self.t - self.last_move_end).max(0.0);
+        let a = self.cfg.vibration_mm
+            * (-dt / self.cfg.vibration_tau_s).exp()
+            * (std::f64::consts::TAU * self.cfg.vibration_hz * dt).sin();
+        self.reflector_static() + a * self.vib_dir
+    }
+
+    fn air(&self) -> AirConditions {
+        AirConditions {
+            temperature_c: self.cfg.air_temperature.at(self.t),
+            pressure_pa: self.cfg.pressure_pa + self.cfg.pressure_drift_pa_per_h * self.t / 3600.0,
+            humidity_pct: self.cfg.humidity_pct,
+            co2_ppm: 450.0,
+            wavelength_nm: 633.0,
+        }
+    }
+
+    fn n_true(&self) -> f64 {
+        refractive_index(&self.air(), Formula::Ciddor).unwrap_or(1.00027)
+    }
+
+    fn apply_bump(&mut self) {
+        if let Some((tb, k, tilt)) = self.cfg.tracker_bump {
+            if self.t >= tb && k < self.trackers.len() && !self.trackers[k].bumped {
+                let tr = &mut self.trackers[k];
+                // Tilt about the tracker's own X axis through its head position.
+                let tilt_rad = tilt * 1e-6;
+                let pivot = tr.tracker_from_machine.apply(&tr.position);
+                let r = Transform3::rigid(rx(tilt_rad), Vector3::zeros());
+                let about = Transform3::rigid(truepos_math::Matrix3::identity(), pivot.coords)
+                    * r
+                    * Transform3::rigid(truepos_math::Matrix3::identity(), -pivot.coords);
+                tr.tracker_from_machine = about * tr.tracker_from_machine;
+                tr.bumped = true;
+                tr.tilt_urad = tilt;
+            }
+        }
+    }
+
+    fn line_of_sight(&self, k: usize, p: &Point3) -> bool {
+        let a = self.trackers[k].position;
+        !self.trackers[k].obstructions.iter().any(|o| segment_hits_box(&a, p, o))
+    }
+
+    fn sigma(&self, d_mm: f64) -> f64 {
+        0.5 * (self.cfg.tracker_mpe_a_mm + self.cfg.tracker_mpe_b_mm_per_m * d_mm / 1000.0)
+    }
+
+    /// A noisy reading of the machine-frame point `p` by tracker `k` (tracker frame).
+    fn observe(&mut self, k: usize, p: &Point3) -> Point3 {
+        let q = self.trackers[k].tracker_from_machine.apply(p);
+        let d = q.coords.norm();
+        let sigma = self.sigma(d) / 3f64.sqrt();
+        // Interferometric/ADM distance scales with the true and assumed refractive index.
+        let scale = self.n_true() / self.trackers[k].n_assumed;
+        let radial = q.coords / d.max(1e-9);
+        let noise = noise::gaussian3(&mut self.rng, sigma);
+        // Distance noise is a third of the transverse noise (ADM better than angles).
+        let noise = noise - radial * radial.dot(&noise) * (2.0 / 3.0);
+        Point3::from(q.coords * scale + noise)
+    }
+}
+
+/// Whether the segment a→b passes through the box (slab test).
+fn segment_hits_box(a: &Point3, b: &Point3, o: &Obstruction) -> bool {
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for i in 0..3 {
+        let d = b[i] - a[i];
+        if d.abs() < 1e-12 {
+            if a[i] < o.min[i] || a[i] > o.max[i] {
+                return false;
+            }
+        } else {
+            let (mut u, mut v) = ((o.min[i] - a[i]) / d, (o.max[i] - a[i]) / d);
+            if u > v {
+                std::mem::swap(&mut u, &mut v);
+            }
+            t0 = t0.max(u);
+            t1 = t1.min(v);
+            if t0 > t1 {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// The virtual cell: one world shared by the controller, the trackers and the sensors.
+#[derive(Clone)]
+pub struct VirtualCell {
+    world: Rc<RefCell<World>>,
+}
+
+impl VirtualCell {
+    /// Build the cell. `part_targets` and `holes` are nominal (program-frame) positions.
+    pub fn new(cfg: CellConfig, part_targets: Vec<(String, Point3)>) -> VirtualCell {
+        let mut rng = noise::stream(cfg.seed, 11);
+        let mut mags = ErrorMagnitudes::gantry();
+        mags.positioning *= cfg.error_scale;
+        mags.straightness *= cfg.error_scale;
+        mags.angular *= cfg.error_scale;
+        mags.squareness *= cfg.error_scale;
+        let errors = GeometricErrors::realistic(&mut rng, &mags);
+        let machine = Machine::gantry(errors);
+        let thermal = ThermalModel::steel(cfg.air_temperature.clone());
+        let part = Part {
+            cte: cfg.part_cte,
+            fixed: Point3::new(0.0, 0.0, 0.0),
+            air: cfg.air_temperature.clone(),
+            tau: cfg.part_tau_s,
+        };
+        let placement = Transform3::rigid(rz(cfg.placement_rz_urad * 1e-6), Vector3::from(cfg.placement_mm));
+        let trackers = cfg
+            .trackers
+            .iter()
+            .map(|tc| {
+                let pos = Point3::from(tc.position_mm);
+                // tracker_from_machine: rotate by −yaw about the head, origin at the head.
+                let r = rz(-tc.yaw_deg.to_radians()) * ry(0.0);
+                let t = Transform3::rigid(r, -(r * pos.coords));
+                TrackerState {
+                    tracker_from_machine: t,
+                    position: pos,
+                    adm: tc.adm,
+                    obstructions: tc.obstructions.clone(),
+                    n_assumed: 1.0,
+                    lost: false,
+                    bumped: false,
+                    tilt_urad: 0.0,
+                }
+            })
+            .collect();
+        let t = machine.travel;
+        let machine_targets: Vec<(String, Point3)> = (0..8)
+            .map(|i| {
+                let x = if i % 4 < 2 { 200.0 } else { t[0] - 200.0 };
+                let y = if i % 2 == 0 { -200.0 } else { t[1] + 200.0 };
+                let z = if i < 4 { -300.0 } else { 100.0 };
+                (format!("M{i}"), Point3::new(x + 37.0 * i as f64, y, z))
+            })
+            .collect();
+        let vib_dir = Vector3::new(1.0, 0.6, 0.25).normalize();
+        let tool = Vector3::from(cfg.tool_offset_mm);
+        let world = World {
+            cfg,
+            t: 0.0,
+            machine,
+            thermal,
+            part,
+            placement,
+            tool,
+            axes: Point3::new(100.0, 100.0, 1500.0),
+            offset: Vector3::zeros(),
+            last_move_end: -100.0,
+            vib_dir,
+            rng,
+            trackers,
+            current_line: 0,
+            line_states: BTreeMap::new(),
+            machine_targets,
+            part_targets,
+        };
+        VirtualCell { world: Rc::new(RefCell::new(world)) }
+    }
+
+    pub fn controller(&self) -> VirtualController {
+        VirtualController { world: self.world.clone() }
+    }
+
+    pub fn sensors(&self) -> VirtualSensors {
+        VirtualSensors { world: self.world.clone() }
+    }
+
+    /// Trackers aligned to the machine on its reference targets (three-dimensional best fit).
+    pub fn align_trackers(&self) -> Vec<TrackerSetup<VirtualTracker>> {
+        let n = self.world.borrow().trackers.len();
+        let mut sensors = self.sensors();
+        (0..n)
+            .map(|k| {
+                let seen = sensors.measure_machine_targets(k);
+                let refs = sensors.machine_targets();
+                let (mut from, mut to) = (vec![], vec![]);
+                for (id, p) in &seen {
+                    if let Some((_, q)) = refs.iter().find(|(i, _)| i == id) {
+                        from.push(*p);
+                        to.push(*q);
+                    }
+                }
+                let m = best_fit(&from, &to, None, BestFitOptions::default()).unwrap_or_default();
+                TrackerSetup {
+                    tracker: VirtualTracker { world: self.world.clone(), k },
+                    machine_from_tracker: m,
+                }
+            })
+            .collect()
+    }
+
+    /// True 3D error (mm) of the drilled position at each given program line: the settled
+    /// reflector position after the line's last motion against the true position of the hole
+    /// (nominal `holes[line]` on the placed part at its temperature at that time).
+    pub fn hole_errors(&self, holes: &BTreeMap<usize, Point3>) -> Vec<(usize, f64)> {
+        let w = self.world.borrow();
+        holes
+            .iter()
+            .filter_map(|(line, nominal)| {
+                let (t, actual) = w.line_states.get(line)?;
+                let truth = w.placement.apply(&w.part.position(nominal, *t));
+                Some((*line, (actual - truth).norm()))
+            })
+            .collect()
+    }
+
+    /// The machine's travel diagonal (mm), for capability in ppm.
+    pub fn diagonal_mm(&self) -> f64 {
+        let t = self.world.borrow().machine.travel;
+        (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt()
+    }
+
+    pub fn time_s(&self) -> f64 {
+        self.world.borrow().t
+    }
+}
+
+pub struct VirtualController {
+    world: Rc<RefCell<World>>,
+}
+
+impl VirtualController {
+    fn go(&mut self, target: Point3) {
+        let mut w = self.world.borrow_mut();
+        let axes = target + w.offset - w.tool;
+        let dist = (axes - w.axes).norm();
+        w.t += dist / w.cfg.move_speed_mm_s + if dist > 0.0 { 0.6 } else { 0.0 };
+        w.axes = axes;
+        if dist > 0.0 {
+            w.last_move_end = w.t;
+        }
+        w.apply_bump();
+        let line = w.current_line;
+        let p = w.reflector_static();
+        let t = w.t;
+        w.line_states.insert(line, (t, p));
+    }
+}
+
+impl Controller for VirtualController {
+    fn send_block(&mut self, line: usize, _text: &str, target_mm: Option<Point3>) -> Result<(), DeviceError> {
+        self.world.borrow_mut().current_line = line;
+        match target_mm {
+            Some(p) => self.go(p),
+            None => self.world.borrow_mut().t += 0.01,
+        }
+        Ok(())
+    }
+
+    fn correct(&mut self, delta_mm: Vector3) -> Result<(), DeviceError> {
+        if !delta_mm.iter().all(|v| v.is_finite()) {
+            return Err(DeviceError::Controller("correction is not finite".into()));
+        }
+        let mut w = self.world.borrow_mut();
+        w.offset += delta_mm;
+        w.axes += delta_mm;
+        w.t += delta_mm.norm() / 20.0 + 0.4;
+        w.last_move_end = w.t;
+        w.apply_bump();
+        let line = w.current_line;
+        let p = w.reflector_static();
+        let t = w.t;
+        w.line_states.insert(line, (t, p));
+        Ok(())
+    }
+
+    fn offset(&self) -> Vector3 {
+        self.world.borrow().offset
+    }
+
+    fn move_to(&mut self, target_mm: Point3) -> Result<(), DeviceError> {
+        self.go(target_mm);
+        Ok(())
+    }
+
+    fn wait(&mut self, seconds: f64) {
+        let mut w = self.world.borrow_mut();
+        w.t += seconds.max(0.0);
+        w.apply_bump();
+    }
+
+    fn now_s(&self) -> f64 {
+        self.world.borrow().t
+    }
+}
+
+pub struct VirtualTracker {
+    world: Rc<RefCell<World>>,
+    k: usize,
+}
+
+impl Tracker for VirtualTracker {
+    fn measure(&mut self) -> Result<Point3, TrackerFault> {
+        let mut w = self.world.borrow_mut();
+        let dt = w.cfg.sample_interval_s;
+        w.t += dt;
+        let k = self.k;
+        if w.trackers[k].lost {
+            return Err(TrackerFault::Lost);
+        }
+        let p = w.reflector_now();
+        let q = w.cfg.beam_interrupt_probability;
+        if !w.line_of_sight(k, &p) || w.rng.random::<f64>() < q {
+            w.trackers[k].lost = true;
+            return Err(TrackerFault::BeamBroken);
+        }
+        Ok(w.observe(k, &p))
+    }
+
+    fn point_at(&mut self, p: Point3) -> Result<(), TrackerFault> {
+        let mut w = self.world.borrow_mut();
+        let k = self.k;
+        if !w.trackers[k].adm {
+            return Err(TrackerFault::Lost);
+        }
+        let actual = w.reflector_static();
+        let aimed = w.trackers[k].tracker_from_machine.inverse().apply(&p);
+        if (aimed - actual).norm() < 5.0 && w.line_of_sight(k, &actual) {
+            w.trackers[k].lost = false;
+            Ok(())
+        } else {
+            Err(TrackerFault::BeamBroken)
+        }
+    }
+
+    fn has_adm(&self) -> bool {
+        self.world.borrow().trackers[self.k].adm
+    }
+
+    fn set_refractive_index(&mut self, n: f64) {
+        self.world.borrow_mut().trackers[self.k].n_assumed = n;
+    }
+
+    fn refractive_index(&self) -> f64 {
+        self.world.borrow().trackers[self.k].n_assumed
+    }
+
+    fn sigma_mm(&self, p: &Point3) -> f64 {
+        self.world.borrow().sigma(p.coords.norm())
+    }
+}
+
+pub struct VirtualSensors {
+    world: Rc<RefCell<World>>,
+}
+
+impl Cell for VirtualSensors {
+    fn temperature_c(&mut self) -> f64 {
+        let w = self.world.borrow();
+        w.part.temperature(w.t)
+    }
+
+    fn air(&mut self) -> AirConditions {
+        self.world.borrow().air()
+    }
+
+    fn inclinations(&mut self) -> Inclinations {
+        let mut w = self.world.borrow_mut();
+        let noise = [noise::gaussian(&mut w.rng, 1.0), noise::gaussian(&mut w.rng, 1.0)];
+        let tilt = w.trackers.iter().map(|t| t.tilt_urad).fold(0.0, f64::max);
+        Inclinations { machine: noise, part: [0.0, 0.0], tracker: [tilt, 0.0] }
+    }
+
+    fn measure_part_targets(&mut self, k: usize) -> Vec<(String, Point3)> {
+        let mut w = self.world.borrow_mut();
+        let t = w.t;
+        let targets = w.part_targets.clone();
+        let mut out = vec![];
+        for (id, nominal) in targets {
+            let actual = w.placement.apply(&w.part.position(&nominal, t));
+            if w.line_of_sight(k, &actual) {
+                // Several readings averaged at each nest.
+                let mut acc = Vector3::zeros();
+                for _ in 0..5 {
+                    acc += w.observe(k, &actual).coords;
+                }
+                out.push((id, Point3::from(acc / 5.0)));
+            }
+        }
+        w.t += 20.0;
+        out
+    }
+
+    fn part_nominal(&self) -> Vec<(String, Point3)> {
+        self.world.borrow().part_targets.clone()
+    }
+
+    fn measure_machine_targets(&mut self, k: usize) -> Vec<(String, Point3)> {
+        let mut w = self.world.borrow_mut();
+        let targets = w.machine_targets.clone();
+        let mut out = vec![];
+        for (id, p) in targets {
+            if w.line_of_sight(k, &p) {
+                let mut acc = Vector3::zeros();
+                for _ in 0..5 {
+                    acc += w.observe(k, &p).coords;
+                }
+                out.push((id, Point3::from(acc / 5.0)));
+            }
+        }
+        w.t += 30.0;
+        out
+    }
+
+    fn machine_targets(&self) -> Vec<(String, Point3)> {
+        self.world.borrow().machine_targets.clone()
+    }
+
+    fn operator_restores_beam(&mut self, k: usize) {
+        let mut w = self.world.borrow_mut();
+        let p = w.reflector_static();
+        if w.line_of_sight(k, &p) {
+            w.trackers[k].lost = false;
+        }
+    }
+}
