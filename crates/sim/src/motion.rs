@@ -6,15 +6,20 @@
 //! its end it rests at its last.
 //!
 //! Entry points:
-//! - [`Limits`] (`v_max`, `a_max`, optional `j_max`) and [`Profile`]: a rest-to-rest scalar
-//!   profile of a given length. Without `j_max` it is the time-optimal trapezoid; with `j_max` the
-//!   trapezoid is passed through a moving-average filter of length `a_max / j_max`, which gives
-//!   the standard jerk-limited S-curve exactly (jerk ≤ `j_max`, |a| ≤ `a_max`, |v| ≤ `v_max`).
+//! - [`Limits`] (`v_max`, `a_max`, optional `j_max`) and [`Profile`]: a scalar profile of a
+//!   given length. [`Profile::new`] is rest-to-rest: without `j_max` the time-optimal trapezoid;
+//!   with `j_max` the trapezoid passed through a moving-average filter of length
+//!   `a_max / j_max`, which gives the standard jerk-limited S-curve exactly (jerk ≤ `j_max`,
+//!   |a| ≤ `a_max`, |v| ≤ `v_max`). [`Profile::with_speeds`] goes from a start speed to an end
+//!   speed (acceleration-limited).
 //! - [`Trajectory`]: a commanded path built from pieces: [`Trajectory::line_to`] (rest-to-rest
-//!   straight move), [`Trajectory::cruise_to`] (constant speed, no ramps; the caller makes
-//!   velocities match at the joins), [`Trajectory::arc_to`] (rest-to-rest circular arc),
-//!   [`Trajectory::polyline`], [`Trajectory::dwell`], and [`Trajectory::custom`] (any
-//!   parametric `State` function of local time, e.g. a scan path).
+//!   straight move), [`Trajectory::line_speeds`] (straight move between given entry and exit
+//!   speeds, e.g. rest → scan speed), [`Trajectory::cruise_to`] (straight, constant speed),
+//!   [`Trajectory::arc_cruise`] (circular arc at constant speed), [`Trajectory::arc_to`]
+//!   (rest-to-rest circular arc), [`Trajectory::polyline`] (rest-to-rest through points),
+//!   [`Trajectory::dwell`], and [`Trajectory::custom`] (any parametric `State` function of local
+//!   time, e.g. a scan path). Constant-speed pieces do not ramp: the caller keeps speed and
+//!   direction continuous at the joins (a direction change at a join is an instant turn).
 //! - [`Servo`] / [`ServoMotion`]: the actual motion of an axis set under a position loop with
 //!   velocity feed-forward and partial acceleration feed-forward. Per axis the following error
 //!   `e = commanded − actual` obeys `ë + 2ζω ė + ω² e = (1 − k_a) c̈`: zero error at constant
@@ -84,37 +89,61 @@ impl Limits {
     }
 }
 
-/// A rest-to-rest scalar motion profile over a length (mm or rad).
+/// A scalar motion profile over a length (mm or rad): rest-to-rest (trapezoid or S-curve), or
+/// acceleration-limited between given start and end speeds.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Profile {
     len: f64,
     a: f64,
+    v0: f64,
+    v1: f64,
     vp: f64,
+    /// Durations of the acceleration, cruise and deceleration phases (s).
     ta: f64,
     tc: f64,
+    td: f64,
     /// Moving-average window (s); 0 for the plain trapezoid.
     tf: f64,
 }
 
 impl Profile {
-    /// The profile covering `len ≥ 0` within `limits`.
+    /// The rest-to-rest profile covering `len ≥ 0` within `limits`.
     pub fn new(len: f64, limits: &Limits) -> Result<Self, ParamError> {
-        check_nonneg("move length", len)?;
+        let mut p = Self::with_speeds(len, 0.0, 0.0, &Limits { j_max: None, ..*limits })?;
+        p.tf = limits.j_max.map_or(0.0, |j| limits.a_max / j);
         limits.validate()?;
-        let (v, a) = (limits.v_max, limits.a_max);
-        let (vp, ta, tc) = if len >= v * v / a {
-            (v, v / a, (len - v * v / a) / v)
-        } else {
-            let vp = (len * a).sqrt();
-            (vp, vp / a, 0.0)
-        };
-        let tf = limits.j_max.map_or(0.0, |j| a / j);
-        Ok(Profile { len, a, vp, ta, tc, tf })
+        Ok(p)
+    }
+
+    /// The fastest acceleration-limited profile covering `len` that starts at speed `v0` and
+    /// ends at speed `v1` (both ≤ `v_max`; `j_max` is ignored). Fails when `len` is too short to
+    /// change speed from `v0` to `v1` at `a_max`.
+    pub fn with_speeds(len: f64, v0: f64, v1: f64, limits: &Limits) -> Result<Self, ParamError> {
+        check_nonneg("move length", len)?;
+        Limits { j_max: None, ..*limits }.validate()?;
+        let (vm, a) = (limits.v_max, limits.a_max);
+        check_range("start speed", v0, 0.0, vm)?;
+        check_range("end speed", v1, 0.0, vm)?;
+        if (v1 * v1 - v0 * v0).abs() > 2.0 * a * len * (1.0 + 1e-12) + 1e-15 {
+            return Err(ParamError::Invalid {
+                name: "move length",
+                requirement: "long enough to change speed at the acceleration limit",
+                value: len,
+            });
+        }
+        let need = (2.0 * vm * vm - v0 * v0 - v1 * v1) / (2.0 * a);
+        let vp =
+            if len >= need { vm } else { ((2.0 * a * len + v0 * v0 + v1 * v1) / 2.0).sqrt().max(v0).max(v1) };
+        let ta = (vp - v0) / a;
+        let td = (vp - v1) / a;
+        let d_ramps = (vp * vp - v0 * v0) / (2.0 * a) + (vp * vp - v1 * v1) / (2.0 * a);
+        let tc = if vp > 0.0 { ((len - d_ramps) / vp).max(0.0) } else { 0.0 };
+        Ok(Profile { len, a, v0, v1, vp, ta, tc, td, tf: 0.0 })
     }
 
     /// Total duration (s).
     pub fn duration(&self) -> f64 {
-        2.0 * self.ta + self.tc + self.tf
+        self.ta + self.tc + self.td + self.tf
     }
 
     /// Length (mm or rad).
@@ -128,19 +157,20 @@ impl Profile {
     }
 
     fn t_trap(&self) -> f64 {
-        2.0 * self.ta + self.tc
+        self.ta + self.tc + self.td
     }
 
-    /// Trapezoid: (s, v, a, ∫s dt) at t.
+    /// Trapezoid: (s, v, a, ∫s dt) at t (the integral is used for rest-to-rest profiles only).
     fn trap(&self, t: f64) -> (f64, f64, f64, f64) {
-        let (a, vp, ta, tc) = (self.a, self.vp, self.ta, self.tc);
+        let (a, v0, vp) = (self.a, self.v0, self.vp);
+        let (ta, tc, td) = (self.ta, self.tc, self.td);
         if t <= 0.0 {
-            return (0.0, 0.0, 0.0, 0.0);
+            return (v0 * t, v0, 0.0, 0.5 * v0 * t * t);
         }
-        let s1 = 0.5 * a * ta * ta;
-        let i1 = a * ta * ta * ta / 6.0;
+        let s1 = v0 * ta + 0.5 * a * ta * ta;
+        let i1 = 0.5 * v0 * ta * ta + a * ta * ta * ta / 6.0;
         if t < ta {
-            return (0.5 * a * t * t, a * t, a, a * t * t * t / 6.0);
+            return (v0 * t + 0.5 * a * t * t, v0 + a * t, a, 0.5 * v0 * t * t + a * t * t * t / 6.0);
         }
         let t2 = ta + tc;
         let s2 = s1 + vp * tc;
@@ -155,12 +185,13 @@ impl Profile {
             let s = s2 + vp * u - 0.5 * a * u * u;
             return (s, vp - a * u, -a, i2 + s2 * u + 0.5 * vp * u * u - a * u * u * u / 6.0);
         }
-        let u = ta;
+        let u = td;
         let i3 = i2 + s2 * u + 0.5 * vp * u * u - a * u * u * u / 6.0;
-        (self.len, 0.0, 0.0, i3 + self.len * (t - tt))
+        let w = t - tt;
+        (self.len + self.v1 * w, self.v1, 0.0, i3 + self.len * w + 0.5 * self.v1 * w * w)
     }
 
-    /// (s, ṡ, s̈) at local time `t` (clamped to the profile).
+    /// (s, ṡ, s̈) at local time `t`.
     pub fn eval(&self, t: f64) -> (f64, f64, f64) {
         if self.tf <= 0.0 {
             let (s, v, a, _) = self.trap(t);
@@ -273,6 +304,27 @@ impl Trajectory {
         Ok(self)
     }
 
+    /// Straight move to `to` entering at speed `v_start` and leaving at `v_end` along the line
+    /// (acceleration-limited, cruising at `limits.v_max` where there is room). Chain these with
+    /// [`Trajectory::cruise_to`] for constant-speed paths without stops; the caller keeps the
+    /// direction continuous at the joins.
+    pub fn line_speeds(
+        &mut self,
+        to: Point3,
+        v_start: f64,
+        v_end: f64,
+        limits: &Limits,
+    ) -> Result<&mut Self, ParamError> {
+        let d = to - self.last.p;
+        let len = d.norm();
+        let profile = Profile::with_speeds(len, v_start, v_end, limits)?;
+        let dir = if len > 0.0 { d / len } else { Vector3::zeros() };
+        let from = self.last.p;
+        self.push(Piece::Line { from, dir, profile }, profile.duration());
+        self.last = State { p: to, v: dir * v_end, a: Vector3::zeros() };
+        Ok(self)
+    }
+
     /// Straight move to `to` at constant `speed` (no acceleration phase: the velocity jumps at
     /// the joins unless the neighbouring pieces match it).
     pub fn cruise_to(&mut self, to: Point3, speed: f64) -> Result<&mut Self, ParamError> {
@@ -309,6 +361,34 @@ impl Trajectory {
         self.push(Piece::Arc { centre, e1, e2, radius, sign, profile }, profile.duration());
         self.last.v = Vector3::zeros();
         self.last.a = Vector3::zeros();
+        Ok(self)
+    }
+
+    /// Circular arc at constant `speed` about the axis through `centre` along `normal`, turning
+    /// by `sweep_rad` (right-hand rule about `normal`) from the current position; centripetal
+    /// acceleration `speed²/radius`, no tangential ramps.
+    pub fn arc_cruise(
+        &mut self,
+        centre: Point3,
+        normal: Vector3,
+        sweep_rad: f64,
+        speed: f64,
+    ) -> Result<&mut Self, ParamError> {
+        check_positive("arc speed", speed)?;
+        let nn = normal.norm();
+        check_positive("arc normal length", nn)?;
+        let n = normal / nn;
+        let r_vec = self.last.p - centre;
+        let radial = r_vec - n * r_vec.dot(&n);
+        let radius = check_positive("arc radius", radial.norm())?;
+        let e1 = radial / radius;
+        let e2 = n.cross(&e1);
+        let centre = centre + n * r_vec.dot(&n);
+        let len = sweep_rad.abs() * radius;
+        let lim = Limits::accel(speed, 1.0);
+        let profile = Profile::with_speeds(len, speed, speed, &lim)?;
+        let sign = if sweep_rad < 0.0 { -1.0 } else { 1.0 };
+        self.push(Piece::Arc { centre, e1, e2, radius, sign, profile }, profile.duration());
         Ok(self)
     }
 
@@ -554,6 +634,35 @@ mod tests {
         }
         // Trapezoid duration: 100 mm at 50 mm/s, 1000 mm/s²: 2·0.05 + (100 − 2.5)/50 = 2.05 s.
         assert!((Profile::new(100.0, &Limits::accel(50.0, 1000.0)).unwrap().duration() - 2.05).abs() < 1e-12);
+    }
+
+    #[test]
+    fn profiles_between_speeds_join_without_velocity_jumps() {
+        let lim = Limits::accel(30.0, 800.0);
+        let p = Profile::with_speeds(10.0, 5.0, 20.0, &lim).unwrap();
+        let (s, v, _) = p.eval(p.duration());
+        assert!((s - 10.0).abs() < 1e-12 && (v - 20.0).abs() < 1e-12);
+        assert_eq!(p.eval(0.0).1, 5.0);
+        // Too short to go from 0 to 30 mm/s at 800 mm/s²: needs 0.5625 mm.
+        assert!(Profile::with_speeds(0.5, 0.0, 30.0, &lim).is_err());
+        // Rest → scan speed → constant-speed line → constant-speed arc → rest: continuous velocity.
+        let mut tr = Trajectory::new(0.0, Point3::origin());
+        tr.line_speeds(Point3::new(5.0, 0.0, 0.0), 0.0, 10.0, &lim).unwrap();
+        tr.cruise_to(Point3::new(15.0, 0.0, 0.0), 10.0).unwrap();
+        tr.arc_cruise(Point3::new(15.0, 5.0, 0.0), Vector3::z(), std::f64::consts::FRAC_PI_2, 10.0).unwrap();
+        let end = tr.position();
+        assert!((end - Point3::new(20.0, 5.0, 0.0)).norm() < 1e-12, "{end}");
+        tr.line_speeds(Point3::new(20.0, 10.0, 0.0), 10.0, 0.0, &lim).unwrap();
+        let t_end = tr.end_s();
+        let mut prev = tr.state(0.0).v;
+        for k in 1..=20_000 {
+            let v = tr.state(t_end * k as f64 / 20_000.0).v;
+            // Bounded acceleration: between samples Δt apart the velocity changes by at most
+            // max(a_max, v²/r = 20 mm/s²)·Δt (no jumps at the joins).
+            assert!((v - prev).norm() <= 800.0 * t_end / 20_000.0 + 1e-9, "jump at {k}");
+            prev = v;
+        }
+        check_derivatives(&tr, 0.0, t_end, 1e-5, 1e-2);
     }
 
     #[test]
