@@ -163,24 +163,27 @@ fn validate(bed: &Bed) -> Result<(), FeError> {
 }
 
 /// Consistent nodal weights (summing to 1) of a unit force spread uniformly over a disc of
-/// radius `r` centred at (x, y); the radius is reduced to the distance to the nearest bed edge
-/// so that the force's resultant stays exactly at (x, y). The disc is sampled with a symmetric
-/// midpoint grid (spacing ≤ element size / 3), each sample distributed with the bilinear shape
-/// functions of its element; bilinear interpolation reproduces linear fields, so the weights'
-/// first moments equal (x, y) exactly.
+/// radius `r` centred at (x, y). Near an edge the disc is squeezed into an ellipse whose
+/// semi-axis across that edge is the distance to it, so the resultant stays exactly at (x, y)
+/// (on an edge the patch becomes a short line load along the edge, which still has a finite
+/// Mindlin deflection; only at a corner does it degenerate to a point). The patch is sampled
+/// with a symmetric midpoint grid (spacing ≤ element size / 3), each sample distributed with
+/// the bilinear shape functions of its element; bilinear interpolation reproduces linear
+/// fields, so the weights' first moments equal (x, y) exactly.
 fn patch_weights(mesh: &Mesh, x: f64, y: f64, r: f64, h: f64) -> Option<Vec<(usize, f64)>> {
     let size_x = *mesh.xs.last()?;
     let size_y = *mesh.ys.last()?;
-    let r = r.min(x).min(y).min(size_x - x).min(size_y - y).max(0.0);
+    let rx = r.min(x).min(size_x - x).max(0.0);
+    let ry = r.min(y).min(size_y - y).max(0.0);
     let mut samples: Vec<(f64, f64)> = Vec::new();
-    if r > 1e-9 * size_x.max(size_y) {
-        let n = ((r / (h / 3.0)).ceil() as usize).clamp(4, 64);
-        let s = r / n as f64;
+    if rx.max(ry) > 1e-9 * size_x.max(size_y) {
+        let n = ((rx.max(ry) / (h / 3.0)).ceil() as usize).clamp(4, 64);
         for i in 0..2 * n {
             for j in 0..2 * n {
-                let (dx, dy) = ((i as f64 - n as f64 + 0.5) * s, (j as f64 - n as f64 + 0.5) * s);
-                if dx * dx + dy * dy <= r * r {
-                    samples.push((x + dx, y + dy));
+                let u = (i as f64 - n as f64 + 0.5) / n as f64;
+                let v = (j as f64 - n as f64 + 0.5) / n as f64;
+                if u * u + v * v <= 1.0 {
+                    samples.push((x + u * rx, y + v * ry));
                 }
             }
         }

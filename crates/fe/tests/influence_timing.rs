@@ -72,7 +72,8 @@ fn influence_map_timing() {
 #[test]
 #[ignore]
 fn mesh_convergence_study() {
-    let loads = [(500.0, 400.0), (1000.0, 800.0), (1700.0, 1200.0), (100.0, 700.0)];
+    let loads =
+        [(500.0, 400.0), (1000.0, 800.0), (1700.0, 1200.0), (100.0, 700.0), (0.0, 700.0), (1000.0, 1500.0)];
     let sizes = [100.0, 50.0, 25.0, 12.5, 6.25];
     let mut out: Vec<Vec<f64>> = Vec::new();
     for &h in &sizes {
