@@ -86,12 +86,12 @@ pub fn bessel_j1(x: f64) -> f64 {
     } else {
         let z = 8.0 / ax;
         let y = z * z;
-        let xx = ax - 2.356194491;
+        let xx = ax - 3.0 * std::f64::consts::FRAC_PI_4;
         let a1 =
             1.0 + y * (0.183105e-2 + y * (-0.3516396496e-4 + y * (0.2457520174e-5 + y * (-0.240337019e-6))));
         let a2 = 0.04687499995
             + y * (-0.2002690873e-3 + y * (0.8449199096e-5 + y * (-0.88228987e-6 + y * 0.105787412e-6)));
-        let ans = (0.636619772 / ax).sqrt() * (xx.cos() * a1 - z * xx.sin() * a2);
+        let ans = (std::f64::consts::FRAC_2_PI / ax).sqrt() * (xx.cos() * a1 - z * xx.sin() * a2);
         if x < 0.0 {
             -ans
         } else {
