@@ -133,6 +133,20 @@ fn print_figures() {
             all.push(check_with(v, seed, false, 1.0));
             worst = worst.max(all[all.len() - 1]);
         }
+        // Honesty of the uncertainty: rms of error/u over 20 seeds (≈ 1 if the covariance is right).
+        let mut z2 = 0.0;
+        let mut nz = 0;
+        for seed in 1..=20 {
+            let cfg = HeadOffsetConfig::preset(v, seed);
+            let d = simulate(&cfg).unwrap();
+            let r = solve(&readings(&d), &setup(&cfg, &d, false)).unwrap();
+            for j in 0..3 {
+                if let Some(u) = r.uncertainty[j] {
+                    z2 += ((r.offset[j] - d.truth.offset_mm[j]) / u).powi(2);
+                    nz += 1;
+                }
+            }
+        }
         let cfg = HeadOffsetConfig::preset(v, 1);
         let d = simulate(&cfg).unwrap();
         let t0 = std::time::Instant::now();
@@ -140,7 +154,7 @@ fn print_figures() {
         let dt = t0.elapsed();
         let truth = Vector3::from(d.truth.offset_mm);
         println!(
-            "{:8} n={:4} obs={:?} err_um=[{}] u_um=[{}] rms_um={:.3} iters={} time={:?} worst20_um={:.3} over1um={}",
+            "{:8} n={:4} obs={:?} err_um=[{}] u_um=[{}] rms_um={:.3} iters={} time={:?} worst20_um={:.3} over1um={} rms(err/u)={:.2}",
             v.name(),
             r.n_points,
             r.observable,
@@ -150,7 +164,8 @@ fn print_figures() {
             r.iterations,
             dt,
             worst * 1e3,
-            all.iter().filter(|e| **e > 1e-3).count()
+            all.iter().filter(|e| **e > 1e-3).count(),
+            (z2 / nz as f64).sqrt()
         );
     }
 }
