@@ -4,10 +4,10 @@
 //! Conventions (errors of motion, actual − nominal, mm and rad):
 //! - linear components of axis A, in file order `pos, str1, str2`: positioning along A, then
 //!   straightness along the next two axes in x→y→z→x order, i.e. component k is along machine
-//!   axis `(A + k) mod 3` ([`AxisErrors::linear`]);
+//!   axis `(A + k) mod 3` ([`GeometricErrors::linear`]);
 //! - angular components in file order `pitch, yaw, roll`, a small rotation vector about machine
 //!   X, Y, Z: X axis roll→X, pitch→Y, yaw→Z; Y axis roll→Y, pitch→X, yaw→Z; Z axis roll→Z,
-//!   pitch→X, yaw→Y ([`AxisErrors::rotation`]);
+//!   pitch→X, yaw→Y ([`GeometricErrors::rotation`]);
 //! - squareness `xy` (X travel (1, xy, 0)), `xz` (Z travel (xz, 0, 1)), `yz` (Z travel (0, yz, 1)),
 //!   positive when the angle between the positive axes is below 90° ([`Squareness`]).
 //!
