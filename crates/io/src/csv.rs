@@ -72,6 +72,36 @@ fn split_fields(line: &str, out: &mut Vec<(usize, usize)>) {
     }
 }
 
+/// [`split_fields`] for the common case without quotes: one byte loop, no `memchr` call per
+/// short field. Returns `false` (and leaves `out` unspecified) when the line has a quote.
+#[inline]
+fn split_fields_fast(line: &[u8], out: &mut Vec<(usize, usize)>) -> bool {
+    out.clear();
+    let mut start = 0;
+    let mut i = 0;
+    loop {
+        while i < line.len() && line[i] != b',' {
+            if line[i] == b'"' {
+                return false;
+            }
+            i += 1;
+        }
+        let (mut a, mut e) = (start, i);
+        while a < e && (line[a] == b' ' || line[a] == b'\t') {
+            a += 1;
+        }
+        while e > a && (line[e - 1] == b' ' || line[e - 1] == b'\t') {
+            e -= 1;
+        }
+        out.push((a, e));
+        if i >= line.len() {
+            return true;
+        }
+        i += 1;
+        start = i;
+    }
+}
+
 fn line_of(text: &str, offset: usize) -> usize {
     memchr::memchr_iter(b'\n', &text.as_bytes()[..offset]).count() + 1
 }
@@ -242,37 +272,48 @@ impl Table {
 
     /// As [`f64_columns`](Self::f64_columns) with column indices.
     pub fn f64_columns_at(&self, idx: &[usize]) -> Result<Vec<f64>, InputError> {
+        let mut out = vec![0.0; self.rows.len() * idx.len()];
+        self.parse_into(idx, &mut out)?;
+        Ok(out)
+    }
+
+    /// Parse columns `idx` of every row into `out` (row-major, `idx.len()` values per row).
+    fn parse_into(&self, idx: &[usize], out: &mut [f64]) -> Result<(), InputError> {
         let k = idx.len();
         let n = self.rows.len();
-        let mut out = vec![0.0; n * k];
+        debug_assert_eq!(out.len(), n * k);
         const CHUNK: usize = 16 * 1024;
         let width = self.header.len();
-        let errors: Vec<(usize, usize, String)> = out
-            .par_chunks_mut(CHUNK * k.max(1))
-            .enumerate()
-            .filter_map(|(c, dst)| {
-                let mut buf = Vec::with_capacity(width);
-                let first = c * CHUNK;
-                for (r, d) in dst.chunks_mut(k.max(1)).enumerate() {
-                    let row = first + r;
-                    let line = self.row_text(row);
+        let work = |c: usize, dst: &mut [f64]| -> Option<(usize, usize, String)> {
+            let mut buf = Vec::with_capacity(width);
+            let first = c * CHUNK;
+            for row in first..(first + CHUNK).min(n) {
+                let line = self.row_text(row);
+                if !split_fields_fast(line.as_bytes(), &mut buf) {
                     split_fields(line, &mut buf);
-                    if buf.len() != width {
-                        return Some((row, usize::MAX, buf.len().to_string()));
-                    }
-                    for (j, &col) in idx.iter().enumerate() {
-                        let (a, b) = buf[col];
-                        let s = &line[a..b];
-                        match parse_f64(s) {
-                            Some(v) => d[j] = v,
-                            None => return Some((row, col, s.to_string())),
-                        }
+                }
+                if buf.len() != width {
+                    return Some((row, usize::MAX, buf.len().to_string()));
+                }
+                let d = &mut dst[(row - first) * k..(row - first + 1) * k];
+                for (j, &col) in idx.iter().enumerate() {
+                    let (a, b) = buf[col];
+                    let s = &line[a..b];
+                    match parse_f64(s) {
+                        Some(v) => d[j] = v,
+                        None => return Some((row, col, s.to_string())),
                     }
                 }
-                None
-            })
-            .collect();
-        if let Some((row, col, s)) = errors.into_iter().min_by_key(|e| e.0) {
+            }
+            None
+        };
+        // Chunks of rows in parallel; the first bad row in file order is reported.
+        let first_error = if k == 0 {
+            (0..n.div_ceil(CHUNK)).into_par_iter().filter_map(|c| work(c, &mut [])).min_by_key(|e| e.0)
+        } else {
+            out.par_chunks_mut(CHUNK * k).enumerate().filter_map(|(c, dst)| work(c, dst)).min_by_key(|e| e.0)
+        };
+        if let Some((row, col, s)) = first_error {
             if col == usize::MAX {
                 return Err(self.ragged(row, s.parse().unwrap_or(0)));
             }
@@ -286,6 +327,15 @@ impl Table {
             return Err(InputError::at(&self.path, self.line_number(row), Some(col + 1), what)
                 .with_column_name(self.header[col].clone()));
         }
+        Ok(())
+    }
+
+    /// As [`f64_columns`](Self::f64_columns), one `[f64; K]` per row, parsed in place (no
+    /// copy: `Vec<[f64; 3]>` maps to `Vec<Point3>` in place).
+    pub fn f64_rows<const K: usize>(&self, names: &[&str; K]) -> Result<Vec<[f64; K]>, InputError> {
+        let idx: Vec<usize> = names.iter().map(|n| self.require(n)).collect::<Result<_, _>>()?;
+        let mut out = vec![[0.0; K]; self.rows.len()];
+        self.parse_into(&idx, out.as_flattened_mut())?;
         Ok(out)
     }
 
@@ -308,10 +358,66 @@ impl Table {
 }
 
 /// Parse a finite float (surrounding spaces already trimmed).
+///
+/// Plain decimals of at most 15 significant digits (what measuring machines write) take
+/// Clinger's fast path: the digits as an exact integer divided by an exact power of ten, one
+/// correctly rounded IEEE division, so the result is bit-identical to `str::parse`. Anything else
+/// (exponents, long mantissas, `inf`, malformed text) goes through `str::parse`.
 #[inline]
 pub fn parse_f64(s: &str) -> Option<f64> {
+    if let Some(v) = parse_f64_fast(s.as_bytes()) {
+        return Some(v);
+    }
     let v: f64 = s.parse().ok()?;
     v.is_finite().then_some(v)
+}
+
+/// Exact powers of ten representable in an f64 (10^0 … 10^22).
+const POW10: [f64; 23] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18,
+    1e19, 1e20, 1e21, 1e22,
+];
+
+/// Clinger's fast path for `[+-]digits[.digits]`; `None` means "use the general parser".
+#[inline]
+fn parse_f64_fast(b: &[u8]) -> Option<f64> {
+    let mut i = 0;
+    let neg = match b.first()? {
+        b'-' => {
+            i = 1;
+            true
+        }
+        b'+' => {
+            i = 1;
+            false
+        }
+        _ => false,
+    };
+    let mut mant: u64 = 0;
+    let mut digits = 0usize;
+    let int_start = i;
+    while i < b.len() && b[i].is_ascii_digit() {
+        mant = mant.wrapping_mul(10).wrapping_add((b[i] - b'0') as u64);
+        i += 1;
+    }
+    digits += i - int_start;
+    let mut frac = 0usize;
+    if i < b.len() && b[i] == b'.' {
+        i += 1;
+        let f0 = i;
+        while i < b.len() && b[i].is_ascii_digit() {
+            mant = mant.wrapping_mul(10).wrapping_add((b[i] - b'0') as u64);
+            i += 1;
+        }
+        frac = i - f0;
+        digits += frac;
+    }
+    // At most 15 digits: the mantissa is exact (< 2^53) and no wrapping happened.
+    if i != b.len() || digits == 0 || digits > 15 || frac > 22 {
+        return None;
+    }
+    let v = mant as f64 / POW10[frac];
+    Some(if neg { -v } else { v })
 }
 
 /// Write CSV rows with a header; floats in shortest round-trip form.
@@ -434,5 +540,66 @@ mod tests {
         let s = String::from_utf8(w.into_inner()).unwrap();
         let t = table(&s).unwrap();
         assert_eq!(t.f64_columns(&["a", "b"]).unwrap(), vec![0.1 + 0.2, -1e-300]);
+    }
+
+    #[test]
+    fn check_rectangular_finds_ragged_rows() {
+        let t = table("a,b\n1,2\n3\n").unwrap();
+        assert_eq!(t.check_rectangular().unwrap_err().line, Some(3));
+        assert!(table("a,b\n1,2\n3,4\n").unwrap().check_rectangular().is_ok());
+    }
+
+    #[test]
+    fn rows_match_columns() {
+        let t = table("x_mm,y_mm,z_mm\n1,2,3\n# later comment\n\n4,5,6\n").unwrap();
+        assert_eq!(t.f64_rows(&["z_mm", "x_mm"]).unwrap(), vec![[3.0, 1.0], [6.0, 4.0]]);
+        let e = table("x_mm\n1\nq\n").unwrap().f64_rows(&["x_mm"]).unwrap_err();
+        assert_eq!((e.line, e.column), (Some(3), Some(1)));
+    }
+
+    #[test]
+    fn fast_float_path_edge_cases_match_std() {
+        for s in [
+            "0",
+            "-0",
+            "-0.0",
+            "+1.5",
+            "123456789012345",
+            "0.000000000000001",
+            "9999999999999.99",
+            "1.",
+            ".5",
+            "-.5",
+            "00012.500",
+            "0.1",
+            "1.7976931348623157",
+            "12.7000015",
+        ] {
+            let want: f64 = s.parse().unwrap();
+            assert_eq!(parse_f64(s).map(f64::to_bits), Some(want.to_bits()), "{s}");
+        }
+        for s in ["", "-", ".", "+", "1.2.3", "1e5x", "--1", "1,5", "nan", "inf", "-inf", "1e400", "0x10"] {
+            let want = s.parse::<f64>().ok().filter(|v| v.is_finite());
+            assert_eq!(parse_f64(s).map(f64::to_bits), want.map(f64::to_bits), "{s}");
+        }
+    }
+
+    proptest::proptest! {
+        /// The fast path is bit-identical to `str::parse` on every decimal it accepts.
+        #[test]
+        fn fast_float_path_is_exact(int in 0u64..10_000_000_000, frac in 0u64..1_000_000_000, fd in 0usize..10, neg in proptest::bool::ANY) {
+            let s = format!("{}{}.{:0width$}", if neg { "-" } else { "" }, int, frac % 10u64.pow(fd as u32), width = fd);
+            let want: f64 = s.parse().unwrap();
+            proptest::prop_assert_eq!(parse_f64(&s).unwrap().to_bits(), want.to_bits(), "{}", s);
+        }
+
+        /// The quote-free splitter agrees with the general one.
+        #[test]
+        fn fast_split_matches(line in "[ a-z0-9.,\t-]{0,40}") {
+            let (mut a, mut b) = (Vec::new(), Vec::new());
+            split_fields(&line, &mut a);
+            proptest::prop_assert!(split_fields_fast(line.as_bytes(), &mut b));
+            proptest::prop_assert_eq!(a, b);
+        }
     }
 }

@@ -19,8 +19,8 @@ pub fn read_points(path: impl AsRef<Path>) -> Result<PointSet, InputError> {
         return Ok(PointSet { points: read_ds(path)?, ids: None });
     }
     let t = Table::read(path)?;
-    let xyz = t.f64_columns(&["x_mm", "y_mm", "z_mm"])?;
-    let points = xyz.chunks_exact(3).map(|c| Point3::new(c[0], c[1], c[2])).collect();
+    // `[f64; 3]` and `Point3` have the same layout: this collect reuses the allocation.
+    let points = t.f64_rows(&["x_mm", "y_mm", "z_mm"])?.into_iter().map(Point3::from).collect();
     let ids = match t.column("id") {
         Some(_) => Some(t.str_column("id")?),
         None => None,
