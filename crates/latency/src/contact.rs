@@ -217,6 +217,7 @@ fn extrapolate(
         let mut pos_vs_t = [Line::default(); 3];
         // Quadratic check of x(t): sums for a 3-parameter fit of x along the normal.
         let mut tq = Vec::new();
+        let mut tp = Vec::new();
         let (mut t_first, mut t_last) = (f64::NAN, f64::NAN);
         for j in range.clone() {
             let d = s.probe[j];
@@ -237,12 +238,14 @@ fn extrapolate(
             }
             along.add(defl, x);
             tq.push((t, x));
+            tp.push((t, defl));
         }
         if (along.n as usize) < opt.min_band {
             continue;
         }
         // Constant speed over the band? Compare a quadratic's velocity change with the speed.
-        if !constant_speed(&tq) && f > 0.15 {
+        // The probe (0.3 µm noise) sees a change of speed more sharply than the encoders.
+        if !(constant_speed(&tq) && constant_speed(&tp)) && f > 0.15 {
             continue;
         }
         let (ax, bx, _, _, sig) = along.fit()?;
@@ -280,9 +283,44 @@ fn extrapolate(
     None
 }
 
-/// The time-domain extrapolation (see [`extrapolate`]): `x_hi` is the machine position along the
-/// normal at the band's deepest deflection; `forward` for retract (the free stretch follows the
-/// band in time), backward for approach.
+/// Fraction of the band's deflection range left out at its deep end in the machine window.
+const MARGIN: f64 = 0.25;
+
+/// Accumulated sums for a quadratic `y = c₀ + c₁τ + c₂τ²` (no allocation).
+#[derive(Default, Clone, Copy)]
+struct Quad {
+    m: nalgebra::Matrix3<f64>,
+    r: nalgebra::Vector3<f64>,
+    yy: f64,
+    n: f64,
+}
+
+impl Quad {
+    fn add(&mut self, t: f64, y: f64) {
+        let row = nalgebra::Vector3::new(1.0, t, t * t);
+        self.m += row * row.transpose();
+        self.r += row * y;
+        self.yy += y * y;
+        self.n += 1.0;
+    }
+    /// Coefficients, inverse normal matrix and residual sum of squares.
+    fn fit(&self) -> Option<(nalgebra::Vector3<f64>, nalgebra::Matrix3<f64>, f64)> {
+        if self.n < 4.0 {
+            return None;
+        }
+        let inv = self.m.try_inverse()?;
+        let c = inv * self.r;
+        let ssr = (self.yy - c.dot(&self.r)).max(0.0);
+        Some((c, inv, ssr))
+    }
+}
+
+/// The time-domain extrapolation (see [`extrapolate`]): the probe gives the instant `t₀` of zero
+/// deflection (quadratic in time over the band); the machine's own samples over the same stretch
+/// of positions, extended beyond the contact by the band's length so that `t₀` lies inside,
+/// give the machine position at `t₀` (quadratic in time: the servo may still be settling). `x_hi`
+/// is the machine position along the normal at the band's deepest deflection; `forward` for
+/// retract (the free stretch follows the band in time), backward for approach.
 fn time_domain(
     s: &Streams,
     n: &Vector3,
@@ -292,95 +330,136 @@ fn time_domain(
     x_hi: f64,
     forward: bool,
 ) -> Option<Band> {
-    // Zero-deflection instant from the probe alone.
-    let mut dl = Line::default();
-    let t_ref = s.probe_t[range.start];
+    let mut dq = Quad::default();
     let (mut t_first, mut t_last) = (f64::NAN, f64::NAN);
     for j in range.clone() {
         let d = s.probe[j];
         let defl = d[0] * n.x + d[1] * n.y + d[2] * n.z;
         if defl >= lo && defl <= hi {
-            dl.add(s.probe_t[j] - t_ref, defl);
             if t_first.is_nan() {
                 t_first = s.probe_t[j];
             }
             t_last = s.probe_t[j];
         }
     }
-    let (a, b, ua, ub, _) = dl.fit()?;
-    let t0 = -a / b; // relative to t_ref
-    let mt = dl.sx / dl.n;
-    let u_t0 = (ua * ua + ((t0 - 0.0) * ub).powi(2)).sqrt() / b.abs();
-    let _ = mt;
-    // Machine samples on the same side of the machine's own turnaround, beyond x_hi.
-    let span = (t_last - t_first).abs().max(1e-6);
-    let w0 = s.machine_t.partition_point(|&t| t < t_first.min(t_last) - 4.0 * span - 0.05);
-    let w1 = s.machine_t.partition_point(|&t| t <= t_first.max(t_last) + 20.0 * span + 0.05);
-    if w1 <= w0 + 4 {
+    if t_first.is_nan() {
         return None;
     }
+    let t_ref = 0.5 * (t_first + t_last);
+    for j in range.clone() {
+        let d = s.probe[j];
+        let defl = d[0] * n.x + d[1] * n.y + d[2] * n.z;
+        if defl >= lo && defl <= hi {
+            dq.add(s.probe_t[j] - t_ref, defl);
+        }
+    }
+    let (c1, _, _) = dq.fit()?;
+    // Selecting samples on their noisy deflection truncates the noise at the band's ends and
+    // biases the fit: select again on time, where the first fit is inside the band.
+    let mut dq = Quad::default();
+    for j in range.clone() {
+        let t = s.probe_t[j] - t_ref;
+        let f = c1[0] + c1[1] * t + c1[2] * t * t;
+        if f >= lo && f <= hi {
+            let d = s.probe[j];
+            dq.add(t, d[0] * n.x + d[1] * n.y + d[2] * n.z);
+        }
+    }
+    let (c, inv_p, ssr_p) = dq.fit()?;
+    // Zero of the quadratic nearest the end of the band where δ → 0 (Newton from the line's root).
+    let t_end = if forward { t_last - t_ref } else { t_first - t_ref };
+    let mut t0 = if c[1] != 0.0 { -c[0] / c[1] } else { t_end };
+    for _ in 0..20 {
+        let f = c[0] + c[1] * t0 + c[2] * t0 * t0;
+        let df = c[1] + 2.0 * c[2] * t0;
+        if df == 0.0 {
+            return None;
+        }
+        let step = f / df;
+        t0 -= step;
+        if step.abs() < 1e-15 {
+            break;
+        }
+    }
+    let slope0 = c[1] + 2.0 * c[2] * t0;
+    if !t0.is_finite() || (t0 - t_end).abs() > (t_last - t_first).abs() + 0.05 {
+        return None;
+    }
+    let row0 = nalgebra::Vector3::new(1.0, t0, t0 * t0);
+    let sig_p = (ssr_p / (dq.n - 3.0).max(1.0)).sqrt();
+    let u_t0 = sig_p * (row0.dot(&(inv_p * row0))).max(0.0).sqrt() / slope0.abs();
+    // Machine samples on the same side of the machine's own turnaround, from x_hi over twice
+    // the band's length along the normal.
+    let span = (t_last - t_first).abs().max(1e-6);
     let along = |i: usize| {
         let m = s.machine[i];
         m[0] * n.x + m[1] * n.y + m[2] * n.z
     };
-    // Turnaround: the deepest machine position near the contact.
     let c0 = s.machine_t.partition_point(|&t| t < t_first.min(t_last) - span - 0.02);
-    let c1 = s.machine_t.partition_point(|&t| t <= t_first.max(t_last) + span + 0.02);
-    let turn = (c0..c1.max(c0 + 1).min(s.machine_t.len())).min_by(|&i, &j| along(i).total_cmp(&along(j)))?;
-    let band_len = (hi - lo).abs();
-    let mut best = None;
-    for ext in [8.0, 4.0, 2.0, 1.0] {
-        let top = x_hi + band_len * (1.0 + ext);
-        let idx: Vec<usize> = if forward {
-            (turn..w1)
-                .take_while(|&i| along(i) <= top + 0.5 * band_len)
-                .filter(|&i| along(i) >= x_hi && along(i) <= top)
-                .collect()
-        } else {
-            (w0..=turn)
-                .rev()
-                .take_while(|&i| along(i) <= top + 0.5 * band_len)
-                .filter(|&i| along(i) >= x_hi && along(i) <= top)
-                .collect()
-        };
-        if idx.len() < 4 {
-            continue;
-        }
-        let tx: Vec<(f64, f64)> = idx.iter().map(|&i| (s.machine_t[i] - t_ref, along(i))).collect();
-        if constant_speed(&tx) {
-            best = Some(idx);
-            break;
-        }
+    let c1 = s.machine_t.partition_point(|&t| t <= t_first.max(t_last) + span + 0.02).min(s.machine_t.len());
+    if c1 <= c0 + 4 {
+        return None;
     }
-    let idx = best?;
-    let mut lines = [Line::default(); 3];
-    let mut al = Line::default();
+    let turn = (c0..c1).min_by(|&i, &j| along(i).total_cmp(&along(j)))?;
+    let band_len = (hi - lo).abs();
+    // Symmetric about the zero-deflection position x_hi + hi, clear of the turnaround.
+    let bottom = x_hi + MARGIN * hi;
+    let top = x_hi + (2.0 - MARGIN) * hi;
+    let w1 = s.machine_t.partition_point(|&t| t <= t_first.max(t_last) + 10.0 * span + 0.05);
+    let w0 = s.machine_t.partition_point(|&t| t < t_first.min(t_last) - 10.0 * span - 0.05);
+    let keep = |i: &usize| along(*i) >= bottom && along(*i) <= top;
+    let stop = |i: &usize| along(*i) <= top + 0.5 * band_len;
+    let idx: Vec<usize> = if forward {
+        (turn..w1.max(turn)).take_while(stop).filter(keep).collect()
+    } else {
+        (w0.min(turn)..=turn).rev().take_while(stop).filter(keep).collect()
+    };
+    if idx.len() < 5 {
+        return None;
+    }
+    // As for the probe: select on time where a first fit lies in the window, not on noisy x.
+    let mut q1 = Quad::default();
+    for &i in &idx {
+        q1.add(s.machine_t[i] - t_ref, along(i));
+    }
+    let (g, _, _) = q1.fit()?;
+    let (i_lo, i_hi) = (*idx.iter().min()?, *idx.iter().max()?);
+    let pad = 3;
+    let idx: Vec<usize> = (i_lo.saturating_sub(pad)..(i_hi + pad + 1).min(s.machine_t.len()))
+        .filter(|&i| {
+            let t = s.machine_t[i] - t_ref;
+            let x = g[0] + g[1] * t + g[2] * t * t;
+            x >= bottom && x <= top
+        })
+        .collect();
+    if idx.len() < 5 {
+        return None;
+    }
+    let mut q = [Quad::default(); 3];
+    let mut qa = Quad::default();
     for &i in &idx {
         let t = s.machine_t[i] - t_ref;
-        for (k, l) in lines.iter_mut().enumerate() {
-            l.add(t, s.machine[i][k]);
+        for (k, qk) in q.iter_mut().enumerate() {
+            qk.add(t, s.machine[i][k]);
         }
-        al.add(t, along(i));
+        qa.add(t, along(i));
     }
     let mut p = [0.0; 3];
     let mut v = [0.0; 3];
     for k in 0..3 {
-        let (a, b, ..) = lines[k].fit()?;
-        // Line parameterised at t = 0 (t_ref): value at t0.
-        p[k] = a + b * t0;
-        v[k] = b;
+        let (ck, _, _) = q[k].fit()?;
+        p[k] = ck[0] + ck[1] * t0 + ck[2] * t0 * t0;
+        v[k] = ck[1] + 2.0 * ck[2] * t0;
     }
-    let (_, _, _, _, sig) = al.fit()?;
-    let mx = al.sx / al.n;
-    let sxx = al.sxx - al.n * mx * mx;
-    let lev = (1.0 / al.n + (t0 - mx).powi(2) / sxx).sqrt();
+    let (_, inv_m, ssr_m) = qa.fit()?;
+    let lev = row0.dot(&(inv_m * row0)).max(0.0).sqrt();
     let vn = Vector3::new(v[0], v[1], v[2]).dot(n);
     Some(Band {
         point: Point3::new(p[0], p[1], p[2]),
         unit: lev,
         u_time: u_t0 * vn.abs(),
-        ssr: sig * sig * (al.n - 2.0),
-        dof: al.n - 2.0,
+        ssr: ssr_m,
+        dof: qa.n - 3.0,
         velocity: Vector3::new(v[0], v[1], v[2]),
         n_used: idx.len(),
     })

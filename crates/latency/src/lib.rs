@@ -243,6 +243,13 @@ pub fn estimate(s: &Streams, opt: &Options) -> Result<Estimate, LatencyError> {
         if contacts.is_empty() {
             return Err(no_contact(s, opt.threshold));
         }
+        let runs = contact::find_runs(s.probe, opt.threshold, copt.min_band).len();
+        if runs > contacts.len() {
+            est.warnings.push(format!(
+                "{} of {runs} deflection runs gave no surface point (too few samples at constant speed, or a scan)",
+                runs - contacts.len()
+            ));
+        }
         let approach = contacts.iter().filter(|c| c.phase == Phase::Approach).count();
         if approach > 0 {
             est.warnings.push(format!(

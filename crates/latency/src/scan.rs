@@ -248,31 +248,53 @@ pub fn scan_delay(s: &Streams, threshold: f64, max_delay: f64) -> Result<ScanRes
         Form::Sphere
     };
     let prob = ScanProblem { s, idx: &idx, form };
-    // Stage 1: bracket the basin on a decimated subset.
+    // Noise of each stream (robust, from second differences): linear interpolation between two
+    // noisy machine samples at fraction w has variance σ_m²·(w² + (1 − w)²), which swings with
+    // the shift (period: one machine sample) and would pull an unweighted minimum towards
+    // half-sample shifts. Each combined point is weighted by its own variance.
+    let t_lo = s.probe_t[idx[0]] - max_delay;
+    let t_hi = s.probe_t[idx[idx.len() - 1]] + max_delay;
+    let m0 = s.machine_t.partition_point(|&t| t < t_lo);
+    let m1 = s.machine_t.partition_point(|&t| t <= t_hi);
+    let sig_m2 = noise_variance(&s.machine[m0..m1]);
+    let sig_p2 = noise_variance(&idx.iter().map(|&j| s.probe[j]).collect::<Vec<_>>());
+    let floor = 1e-14; // (0.1 nm)²: noise-free data still gets finite weights
+                       // Starting geometry: algebraic fit at zero shift.
+    let all: Vec<usize> = (0..idx.len()).collect();
+    let (g0, rms0) = kasa(&prob, &all, 0.0)
+        .ok_or_else(|| LatencyError::Degenerate("the scan points do not define a circle or sphere".into()))?;
+    let _ = rms0;
+    // Stage 1: bracket the basin on a decimated subset (weighted profile, as stage 2).
     let step = (idx.len() / 20_000).max(1);
     let sub: Vec<usize> = (0..idx.len()).step_by(step).collect();
     let n_grid = 200;
     let h_grid = 2.0 * max_delay / n_grid as f64;
-    let mut best = (f64::INFINITY, 0.0, Vec::new());
+    let mut coarse = Profile::new(&prob, sub, g0.clone(), sig_m2.max(floor), sig_p2.max(floor));
+    let mut best = (f64::INFINITY, 0.0, g0.clone());
     for g in 0..=n_grid {
         let shift = -max_delay + h_grid * g as f64;
-        if let Some((p, rms)) = kasa(&prob, &sub, shift) {
-            if rms < best.0 {
-                best = (rms, shift, p);
-            }
+        let f = coarse.ssr(shift);
+        if f < best.0 {
+            best = (f, shift, coarse.geom.clone());
         }
     }
-    if best.2.is_empty() {
+    if !best.0.is_finite() {
         return Err(LatencyError::Degenerate("the scan points do not define a circle or sphere".into()));
     }
-    // Stage 2: Brent's method on the profile sum of squares f(D) = min over the form of
-    // Σ radial², with a Gauss-Newton geometric fit inside, over every in-contact sample.
-    let mut prof = Profile { prob: &prob, geom: best.2.clone(), buf: Vec::with_capacity(idx.len()) };
-    let rms_before = (prof.ssr(0.0) / idx.len() as f64).sqrt();
+    // Stage 2: Brent's method on the weighted profile sum of squares f(D) = min over the form
+    // of Σ w·radial², with a Gauss-Newton geometric fit inside, over every in-contact sample.
+    let mut prof = Profile::new(&prob, all, g0, sig_m2.max(floor), sig_p2.max(floor));
+    let f_before = prof.ssr(0.0);
+    let rms_before = prof.rms();
+    let _ = f_before;
     prof.geom = best.2.clone();
     let (a, b) = (best.1 - h_grid, best.1 + h_grid);
     let tol = 1e-8;
     let (delay, f0) = brent(|d| prof.ssr(d), a, b, tol);
+    let rms_after = {
+        prof.ssr(delay);
+        prof.rms()
+    };
     let geom = prof.geom.clone();
     // Curvature of the profile at the minimum gives the standard uncertainty:
     // f(D) ≈ f₀ + k·(D − D̂)², var(D̂) = σ₀² / k, σ₀² = f₀ / (n − p).
@@ -296,17 +318,7 @@ pub fn scan_delay(s: &Streams, threshold: f64, max_delay: f64) -> Result<ScanRes
         Form::Circle { origin, e1, e2 } => (origin + e1 * p[0] + e2 * p[1], p[2]),
         Form::Sphere => (Point3::new(p[0], p[1], p[2]), p[3]),
     };
-    Ok(ScanResult {
-        delay,
-        u_delay,
-        form,
-        center,
-        radius,
-        rms_before,
-        rms_after: (f0 / n as f64).sqrt(),
-        samples: idx,
-        n_steps,
-    })
+    Ok(ScanResult { delay, u_delay, form, center, radius, rms_before, rms_after, samples: idx, n_steps })
 }
 
 /// Radial error (mm) of each scan sample `(t_s, error)` for a shift: the distance of the
@@ -333,18 +345,52 @@ pub fn radial_errors(s: &Streams, r: &ScanResult, shift: f64) -> Vec<(f64, f64)>
 /// a Gauss-Newton fit of the form, warm-started from the previous one.
 struct Profile<'a> {
     prob: &'a ScanProblem<'a>,
+    /// Indices into `prob.idx` used.
+    sub: Vec<usize>,
     geom: Vec<f64>,
-    buf: Vec<Vector3>,
+    sig_m2: f64,
+    sig_p2: f64,
+    /// Combined points and their weights at the last shift.
+    buf: Vec<(Vector3, f64)>,
+    /// Unweighted sum of squares at the last evaluation.
+    last_ss: f64,
 }
 
-impl Profile<'_> {
+/// Robust noise variance per component of a sampled 3-vector signal from its second
+/// differences: `median(Δ²)² / 0.4549 / 6` averaged over the components (white noise; smooth
+/// motion contributes nothing at these rates).
+fn noise_variance(v: &[[f64; 3]]) -> f64 {
+    if v.len() < 5 {
+        return 0.0;
+    }
+    let mut acc = 0.0;
+    for k in 0..3 {
+        let mut d2: Vec<f64> = v.windows(3).map(|w| (w[2][k] - 2.0 * w[1][k] + w[0][k]).powi(2)).collect();
+        let mid = d2.len() / 2;
+        let (_, med, _) = d2.select_nth_unstable_by(mid, f64::total_cmp);
+        acc += *med / 0.4549 / 6.0;
+    }
+    acc / 3.0
+}
+
+impl<'a> Profile<'a> {
+    fn new(prob: &'a ScanProblem<'a>, sub: Vec<usize>, geom: Vec<f64>, sig_m2: f64, sig_p2: f64) -> Self {
+        let n = sub.len();
+        Profile { prob, sub, geom, sig_m2, sig_p2, buf: Vec::with_capacity(n), last_ss: 0.0 }
+    }
+
+    fn rms(&self) -> f64 {
+        (self.last_ss / self.buf.len().max(1) as f64).sqrt()
+    }
+
     fn points(&mut self, shift: f64) {
         let s = self.prob.s;
         let (mt, m) = (s.machine_t, s.machine);
         self.buf.clear();
         let n = mt.len();
         let mut i = 0usize;
-        for &j in self.prob.idx {
+        for &k in &self.sub {
+            let j = self.prob.idx[k];
             let t = s.probe_t[j] + shift;
             if !(t >= mt[0] && t <= mt[n - 1]) {
                 continue;
@@ -355,71 +401,79 @@ impl Profile<'_> {
             let w = (t - mt[i]) / (mt[i + 1] - mt[i]);
             let (a, b) = (m[i], m[i + 1]);
             let d = s.probe[j];
-            self.buf.push(Vector3::new(
-                a[0] + w * (b[0] - a[0]) + d[0],
-                a[1] + w * (b[1] - a[1]) + d[1],
-                a[2] + w * (b[2] - a[2]) + d[2],
+            let var = self.sig_p2 + self.sig_m2 * (w * w + (1.0 - w) * (1.0 - w));
+            self.buf.push((
+                Vector3::new(
+                    a[0] + w * (b[0] - a[0]) + d[0],
+                    a[1] + w * (b[1] - a[1]) + d[1],
+                    a[2] + w * (b[2] - a[2]) + d[2],
+                ),
+                1.0 / var,
             ));
         }
     }
 
-    /// Sum of squared radial errors at `shift` after a geometric fit of the form.
+    /// Weighted sum of squared radial errors at `shift` after a weighted geometric fit of the
+    /// form (warm-started from the previous one).
     fn ssr(&mut self, shift: f64) -> f64 {
         self.points(shift);
+        if self.buf.len() < 10 {
+            return f64::INFINITY;
+        }
         let mut g = self.geom.clone();
         let mut last = f64::INFINITY;
-        for _ in 0..20 {
-            let (ssr, step) = match self.prob.form {
+        let mut last_ss = 0.0;
+        for _ in 0..30 {
+            let (ssr, ss, step) = match self.prob.form {
                 Form::Circle { origin, e1, e2 } => {
                     let mut a = Matrix3::zeros();
                     let mut r = Vector3::zeros();
-                    let mut ss = 0.0;
-                    for q in &self.buf {
+                    let (mut sw, mut ss) = (0.0, 0.0);
+                    for (q, wt) in &self.buf {
                         let w = q - origin.coords;
                         let (u, v) = (e1.dot(&w) - g[0], e2.dot(&w) - g[1]);
                         let d = (u * u + v * v).sqrt().max(1e-300);
                         let res = d - g[2];
                         let jr = Vector3::new(-u / d, -v / d, -1.0);
-                        a += jr * jr.transpose();
-                        r += jr * res;
+                        a += jr * jr.transpose() * *wt;
+                        r += jr * (res * wt);
+                        sw += wt * res * res;
                         ss += res * res;
                     }
                     let st = a.try_inverse().map(|inv| -(inv * r));
-                    (ss, st.map(|v| vec![v[0], v[1], v[2]]))
+                    (sw, ss, st.map(|v| vec![v[0], v[1], v[2]]))
                 }
                 Form::Sphere => {
                     let mut a = nalgebra::Matrix4::<f64>::zeros();
                     let mut r = nalgebra::Vector4::<f64>::zeros();
-                    let mut ss = 0.0;
-                    for q in &self.buf {
+                    let (mut sw, mut ss) = (0.0, 0.0);
+                    for (q, wt) in &self.buf {
                         let w = q - Vector3::new(g[0], g[1], g[2]);
                         let d = w.norm().max(1e-300);
                         let res = d - g[3];
                         let jr = nalgebra::Vector4::new(-w.x / d, -w.y / d, -w.z / d, -1.0);
-                        a += jr * jr.transpose();
-                        r += jr * res;
+                        a += jr * jr.transpose() * *wt;
+                        r += jr * (res * wt);
+                        sw += wt * res * res;
                         ss += res * res;
                     }
                     let st = a.try_inverse().map(|inv| -(inv * r));
-                    (ss, st.map(|v| vec![v[0], v[1], v[2], v[3]]))
+                    (sw, ss, st.map(|v| vec![v[0], v[1], v[2], v[3]]))
                 }
             };
             let Some(step) = step else { return ssr };
             let small = step.iter().all(|x| x.abs() < 1e-12);
             if ssr >= last && small {
-                self.geom = g;
-                return ssr;
+                break;
             }
             last = ssr;
+            last_ss = ss;
             for (x, d) in g.iter_mut().zip(&step) {
                 *x += d;
             }
-            if small {
-                // One more pass evaluates the sum of squares at the converged parameters.
-                continue;
-            }
         }
         self.geom = g;
+        self.last_ss = last_ss;
         last
     }
 }

@@ -167,8 +167,34 @@ pub fn speeds(feature: Feature, contacts: &[Contact], per_axis: bool) -> Result<
     if xs.len() < 2 {
         return Err(LatencyError::SingleSpeed(out.per_speed.first().map_or(0.0, |p| p.0)));
     }
-    let (a, b, ua, ub, _) = weighted_line(&xs, &ys, &us)
+    let (mut a, mut b, mut ua, mut ub, _) = weighted_line(&xs, &ys, &us)
         .ok_or_else(|| LatencyError::Underdetermined("the speed groups do not differ in speed".into()))?;
+    // One speed group whose size departs from the line by more than 3 of its own standard
+    // uncertainties (and 3 of the line's scatter) does not follow the linear model (e.g. the
+    // servo has not settled at that speed): leave it out, with a warning, when ≥ 4 groups remain.
+    if xs.len() >= 5 {
+        let worst = (0..xs.len())
+            .map(|i| (i, ((ys[i] - a - b * xs[i]) / us[i]).abs()))
+            .max_by(|p, q| p.1.total_cmp(&q.1));
+        if let Some((i, z)) = worst {
+            if z > 3.0 {
+                let (mut x2, mut y2, mut u2) = (xs.clone(), ys.clone(), us.clone());
+                x2.remove(i);
+                y2.remove(i);
+                u2.remove(i);
+                if let Some(f) = weighted_line(&x2, &y2, &u2) {
+                    let zi = ((ys[i] - f.0 - f.1 * xs[i]) / us[i]).abs();
+                    if zi > 3.0 {
+                        out.warnings.push(format!(
+                            "speed {:.3} mm/s left out: its size departs from the size-speed line by {:.1} standard uncertainties",
+                            out.per_speed[i].0, zi
+                        ));
+                        (a, b, ua, ub) = (f.0, f.1, f.2, f.3);
+                    }
+                }
+            }
+        }
+    }
     out.delay = -b;
     out.u_delay = ub;
     out.static_size = Some(a);

@@ -1,0 +1,128 @@
+//! Every method on the virtual cell (`truepos-sim`, engineer B1's physics: servo following
+//! error, stylus spring-mass-damper with friction and restitution, exact artefact contacts,
+//! separate capture latencies, encoders 1 µm, probe 0.3 µm, 1 kHz streams) against its truth,
+//! for positive and negative delays.
+//!
+//! Tolerances (contract): |error| < 10 µs for the touch methods, < 20 µs for the scan, and
+//! |error| < 3 stated standard uncertainties. Repeats are set so the stated uncertainty is a
+//! few µs (a calibration repeats its pattern to average the encoder noise).
+
+use truepos_latency::{estimate, KnownSize, Method, Options, Streams};
+use truepos_sim::scenario::latency::{self as scen, ArtefactTruth, Config, Variant};
+
+struct Owned {
+    mt: Vec<f64>,
+    m: Vec<[f64; 3]>,
+    pt: Vec<f64>,
+    p: Vec<[f64; 3]>,
+}
+
+fn owned(d: &scen::Dataset) -> Owned {
+    Owned {
+        mt: d.machine.iter().map(|x| x.0).collect(),
+        m: d.machine.iter().map(|x| [x.1.x, x.1.y, x.1.z]).collect(),
+        pt: d.probe.iter().map(|x| x.0).collect(),
+        p: d.probe.iter().map(|x| [x.1.x, x.1.y, x.1.z]).collect(),
+    }
+}
+
+fn config(variant: Variant, delay: f64, seed: u64, repeats: usize) -> Config {
+    let mut c = Config::preset(variant);
+    c.seed = seed;
+    c.repeats = repeats;
+    if let Some(ax) = &mut c.axis_latency_s {
+        // Keep the per-axis spread, shift the mean delay.
+        let mean = ax.iter().sum::<f64>() / 3.0 - c.probe_latency_s;
+        for l in ax.iter_mut() {
+            *l += delay - mean;
+        }
+    }
+    c.machine_latency_s = c.probe_latency_s + delay;
+    c
+}
+
+fn run(variant: Variant, method: Method, delay: f64, seed: u64, repeats: usize, tol: f64) {
+    let c = config(variant, delay, seed, repeats);
+    let d = scen::simulate(&c).expect("scenario");
+    let o = owned(&d);
+    let s = Streams { machine_t: &o.mt, machine: &o.m, probe_t: &o.pt, probe: &o.p };
+    let known = match (method, d.truth.artefact) {
+        (Method::Artefact, ArtefactTruth::Sphere { diameter_mm, .. }) => {
+            Some(KnownSize::SphereDiameter(diameter_mm))
+        }
+        (Method::Artefact, ArtefactTruth::Plates { gap_mm, .. }) => Some(KnownSize::Gap(gap_mm)),
+        _ => None,
+    };
+    let opt = Options { method, known_size: known, tip_radius: d.truth.tip_radius_mm, ..Options::default() };
+    let e = estimate(&s, &opt).unwrap_or_else(|err| panic!("{variant:?} {delay}: {err}"));
+    let err = e.delay - d.truth.delay_s;
+    eprintln!(
+        "{:10} {:8} truth {:9.2} µs  got {:9.2} µs  u {:6.2} µs  error {:+7.2} µs  ({} contacts) {:?}",
+        variant.name(),
+        e.method.name(),
+        d.truth.delay_s * 1e6,
+        e.delay * 1e6,
+        e.uncertainty * 1e6,
+        err * 1e6,
+        e.n_contacts,
+        e.warnings
+    );
+    assert!(err.abs() < tol, "{variant:?}: error {err:e} s beyond {tol:e} s");
+    assert!(
+        err.abs() < 3.0 * e.uncertainty,
+        "{variant:?}: error {err:e} s beyond 3 u = {:e} s",
+        3.0 * e.uncertainty
+    );
+    if let Some(s0) = e.static_size {
+        if method == Method::Speeds {
+            // Static size from the intercept: within a few µm of the artefact (u ≈ 1 µm).
+            assert!(
+                (s0 - d.truth.static_size_mm).abs() < 5e-3,
+                "static size {s0} vs {}",
+                d.truth.static_size_mm
+            );
+        }
+    }
+}
+
+#[test]
+fn sphere_artefact() {
+    run(Variant::Sphere, Method::Artefact, 2.5e-3, 1, 12, 10e-6);
+    run(Variant::Sphere, Method::Artefact, -1.5e-3, 2, 12, 10e-6);
+}
+
+#[test]
+fn plates_artefact() {
+    run(Variant::Plates, Method::Artefact, 2.5e-3, 3, 24, 10e-6);
+    run(Variant::Plates, Method::Artefact, -1.5e-3, 4, 24, 10e-6);
+}
+
+#[test]
+fn speeds() {
+    run(Variant::Speeds, Method::Speeds, 2.5e-3, 5, 8, 10e-6);
+    run(Variant::Speeds, Method::Speeds, -1.5e-3, 6, 8, 10e-6);
+}
+
+#[test]
+fn scan() {
+    run(Variant::Scan, Method::Scan, 2.5e-3, 7, 2, 20e-6);
+    run(Variant::Scan, Method::Scan, -1.5e-3, 8, 2, 20e-6);
+}
+
+#[test]
+fn inout() {
+    run(Variant::InOut, Method::Inout, 2.5e-3, 9, 12, 10e-6);
+    run(Variant::InOut, Method::Inout, -1.5e-3, 10, 12, 10e-6);
+}
+
+#[test]
+fn multi_rate_and_oblique() {
+    run(Variant::MultiRate, Method::Artefact, 2.5e-3, 11, 24, 10e-6);
+    run(Variant::Oblique, Method::Artefact, -1.5e-3, 12, 24, 10e-6);
+}
+
+#[test]
+fn auto_picks_a_method() {
+    run(Variant::Speeds, Method::Auto, 1.0e-3, 13, 8, 10e-6);
+    run(Variant::Scan, Method::Auto, -0.5e-3, 14, 2, 20e-6);
+}

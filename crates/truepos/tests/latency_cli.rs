@@ -1,0 +1,256 @@
+//! `truepos latency`, `latency apply` and `simulate latency` through the command line: results
+//! against the virtual cell's truth.json, and bad input → exit 2 with file and line.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_truepos"))
+}
+
+fn run(args: &[&str]) -> Output {
+    bin().args(args).output().expect("run truepos")
+}
+
+fn simulate(dir: &Path, variant: &str, extra: &[&str]) -> serde_json::Value {
+    let out = dir.to_str().unwrap();
+    let mut args = vec!["simulate", "latency", "--out", out, "--seed", "3", "--variant", variant];
+    args.extend_from_slice(extra);
+    let o = run(&args);
+    assert!(o.status.success(), "simulate failed: {}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&std::fs::read(dir.join("truth.json")).unwrap()).unwrap()
+}
+
+fn files(dir: &Path) -> (String, String) {
+    (
+        dir.join("machine.csv").to_str().unwrap().to_string(),
+        dir.join("probe.csv").to_str().unwrap().to_string(),
+    )
+}
+
+fn json_of(o: &Output) -> serde_json::Value {
+    assert!(o.status.success(), "exit {:?}: {}", o.status.code(), String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).expect("one JSON object on stdout")
+}
+
+#[test]
+fn sphere_artefact_from_files_matches_truth() {
+    let tmp = tempfile::tempdir().unwrap();
+    let truth = simulate(tmp.path(), "sphere", &["--repeats", "12", "--delay-s", "-0.002"]);
+    let (m, p) = files(tmp.path());
+    let d = truth["artefact"]["diameter_mm"].as_f64().unwrap().to_string();
+    let r = truth["tip_radius_mm"].as_f64().unwrap().to_string();
+    let j = json_of(&run(&[
+        "latency",
+        "--machine",
+        &m,
+        "--probe",
+        &p,
+        "--sphere-diameter-mm",
+        &d,
+        "--tip-radius-mm",
+        &r,
+        "--json",
+    ]));
+    assert_eq!(j["method"], "artefact");
+    // 60 touches; a touch may be left out (with a warning) when its retract is too short.
+    assert!(j["n_contacts"].as_u64().unwrap() >= 58, "{}", j["n_contacts"]);
+    let got = j["delay_s"].as_f64().unwrap();
+    let u = j["uncertainty_s"].as_f64().unwrap();
+    let want = truth["delay_s"].as_f64().unwrap();
+    assert!((want + 0.002).abs() < 1e-12);
+    // Contract: within 10 µs and within 3 stated standard uncertainties.
+    assert!((got - want).abs() < 10e-6 && (got - want).abs() < 3.0 * u, "{got} vs {want} (u {u})");
+    assert!(j["rms_mm"].as_f64().unwrap() < 0.01);
+}
+
+#[test]
+fn speeds_report_per_speed_and_static_size() {
+    let tmp = tempfile::tempdir().unwrap();
+    let truth = simulate(tmp.path(), "speeds", &["--repeats", "8"]);
+    let (m, p) = files(tmp.path());
+    let j = json_of(&run(&["latency", "--machine", &m, "--probe", &p, "--tip-radius-mm", "2", "--json"]));
+    assert_eq!(j["method"], "speeds");
+    let want = truth["delay_s"].as_f64().unwrap();
+    let got = j["delay_s"].as_f64().unwrap();
+    let u = j["uncertainty_s"].as_f64().unwrap();
+    assert!((got - want).abs() < 10e-6 && (got - want).abs() < 3.0 * u, "{got} vs {want} (u {u})");
+    let ps = j["per_speed"].as_array().unwrap();
+    assert!(ps.len() >= 4);
+    assert!(ps[0]["speed_mm_s"].as_f64().unwrap() > 0.0 && ps[0]["size_mm"].as_f64().unwrap() > 24.0);
+    // Static size: the 25 mm sphere within a few µm (intercept u ≈ 1 µm).
+    assert!((j["static_size_mm"].as_f64().unwrap() - 25.0).abs() < 5e-3);
+}
+
+#[test]
+fn apply_puts_stylus_centres_on_the_sphere() {
+    let tmp = tempfile::tempdir().unwrap();
+    let truth = simulate(tmp.path(), "sphere", &["--repeats", "1"]);
+    let (m, p) = files(tmp.path());
+    let out = tmp.path().join("centres.csv");
+    let delay = truth["delay_s"].as_f64().unwrap().to_string();
+    let o = run(&[
+        "latency",
+        "apply",
+        "--delay-s",
+        &delay,
+        "--machine",
+        &m,
+        "--probe",
+        &p,
+        "--output",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&out).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    assert_eq!(lines.next().unwrap(), "t_s,x_mm,y_mm,z_mm");
+    let c = &truth["artefact"]["centre_mm"];
+    let c = [c[0].as_f64().unwrap(), c[1].as_f64().unwrap(), c[2].as_f64().unwrap()];
+    let rc = truth["stylus_centre_size_mm"].as_f64().unwrap() / 2.0;
+    // Compare only samples in firm contact: deflection over 50 µm.
+    let probe = std::fs::read_to_string(&p).unwrap();
+    let defl: std::collections::HashMap<String, f64> = probe
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            let v: Vec<f64> = f[1..4].iter().map(|s| s.parse().unwrap()).collect();
+            (f[0].to_string(), (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+        })
+        .collect();
+    let mut n = 0;
+    for l in lines {
+        let f: Vec<f64> = l.split(',').map(|s| s.parse().unwrap()).collect();
+        let key = l.split(',').next().unwrap();
+        if defl.get(key).copied().unwrap_or(0.0) > 0.05 {
+            let r = ((f[1] - c[0]).powi(2) + (f[2] - c[1]).powi(2) + (f[3] - c[2]).powi(2)).sqrt();
+            // Encoder 1 µm + probe 0.3 µm noise, stylus dynamics: within 6 µm of the surface.
+            assert!((r - rc).abs() < 6e-3, "stylus centre {r} vs {rc} at t = {}", f[0]);
+            n += 1;
+        }
+    }
+    assert!(n > 50, "{n} points in contact");
+}
+
+#[test]
+fn residual_of_already_corrected_data() {
+    let tmp = tempfile::tempdir().unwrap();
+    let truth = simulate(tmp.path(), "inout", &["--repeats", "12"]);
+    let (m, p) = files(tmp.path());
+    // Correct the machine stamps by D0 = 2 ms: t ← t − D0.
+    let d0 = 0.002;
+    let text = std::fs::read_to_string(&m).unwrap();
+    let mut fixed = String::new();
+    for (i, l) in text.lines().enumerate() {
+        if i == 0 {
+            fixed.push_str(l);
+        } else {
+            let (t, rest) = l.split_once(',').unwrap();
+            fixed.push_str(&format!("{},{}", t.parse::<f64>().unwrap() - d0, rest));
+        }
+        fixed.push('\n');
+    }
+    let m2 = tmp.path().join("machine_corrected.csv");
+    std::fs::write(&m2, fixed).unwrap();
+    let j = json_of(&run(&[
+        "latency",
+        "--machine",
+        m2.to_str().unwrap(),
+        "--probe",
+        &p,
+        "--already-corrected-s",
+        "0.002",
+        "--json",
+    ]));
+    let want = truth["delay_s"].as_f64().unwrap();
+    let u = j["uncertainty_s"].as_f64().unwrap();
+    let res = j["residual_delay_s"].as_f64().unwrap();
+    assert!((res - (want - d0)).abs() < 10e-6 && (res - (want - d0)).abs() < 3.0 * u, "{res}");
+    assert!((j["delay_s"].as_f64().unwrap() - want).abs() < 10e-6);
+}
+
+fn expect_exit2(o: &Output, needles: &[&str]) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "stderr: {err}");
+    for n in needles {
+        assert!(err.contains(n), "'{n}' not in: {err}");
+    }
+    assert!(o.stdout.is_empty(), "nothing on stdout on error");
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn bad_input_exits_2_with_file_and_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    simulate(tmp.path(), "sphere", &["--repeats", "1"]);
+    let (m, p) = files(tmp.path());
+    let s = |p: &PathBuf| p.to_str().unwrap().to_string();
+    // Unsorted machine stamps: rows 2 and 3 swapped → line 4 of the file (header is line 1).
+    let text = std::fs::read_to_string(&m).unwrap();
+    let mut lines: Vec<&str> = text.lines().collect();
+    lines.swap(2, 3);
+    let unsorted = write(tmp.path(), "unsorted.csv", &(lines.join("\n") + "\n"));
+    expect_exit2(
+        &run(&["latency", "--machine", &s(&unsorted), "--probe", &p]),
+        &["unsorted.csv:4", "increase"],
+    );
+    // Duplicate probe stamp on line 6.
+    let text = std::fs::read_to_string(&p).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let t4 = lines[4].split(',').next().unwrap().to_string();
+    let rest = lines[5].split_once(',').unwrap().1.to_string();
+    lines[5] = format!("{t4},{rest}");
+    let dup = write(tmp.path(), "dup.csv", &(lines.join("\n") + "\n"));
+    expect_exit2(&run(&["latency", "--machine", &m, "--probe", &s(&dup)]), &["dup.csv:6", "duplicate"]);
+    // Streams that do not overlap in time.
+    let far = write(tmp.path(), "far.csv", "t_s,x_mm,y_mm,z_mm\n1000,0,0,0\n1001,0,0,0\n");
+    expect_exit2(&run(&["latency", "--machine", &s(&far), "--probe", &p]), &["do not overlap"]);
+    // No contact above the threshold.
+    expect_exit2(&run(&["latency", "--machine", &m, "--probe", &p, "--threshold-mm", "5"]), &["no contact"]);
+    // One speed with --method speeds.
+    expect_exit2(&run(&["latency", "--machine", &m, "--probe", &p, "--method", "speeds"]), &["one speed"]);
+    // A value that is not a number: file, line and column.
+    let bad = write(tmp.path(), "bad.csv", "t_s,a_mm,b_mm,c_mm\n0,0,0,0\n0.001,x,0,0\n");
+    expect_exit2(&run(&["latency", "--machine", &m, "--probe", &s(&bad)]), &["bad.csv:3"]);
+    // Apply: no partial output on bad input.
+    let out = tmp.path().join("out.csv");
+    expect_exit2(
+        &run(&[
+            "latency",
+            "apply",
+            "--delay-s",
+            "0.001",
+            "--machine",
+            &s(&unsorted),
+            "--probe",
+            &p,
+            "--output",
+            &s(&out),
+        ]),
+        &["unsorted.csv:4"],
+    );
+    assert!(!out.exists());
+    // Missing files option.
+    expect_exit2(&run(&["latency", "--machine", &m]), &["--probe"]);
+}
+
+#[test]
+fn scan_variant_via_auto() {
+    let tmp = tempfile::tempdir().unwrap();
+    let truth = simulate(tmp.path(), "scan", &["--repeats", "2", "--delay-s", "0.0031"]);
+    let (m, p) = files(tmp.path());
+    let j = json_of(&run(&["latency", "--machine", &m, "--probe", &p, "--json"]));
+    assert_eq!(j["method"], "scan");
+    let want = truth["delay_s"].as_f64().unwrap();
+    let got = j["delay_s"].as_f64().unwrap();
+    let u = j["uncertainty_s"].as_f64().unwrap();
+    // Contract: the scan method within 20 µs and 3 u.
+    assert!((got - want).abs() < 20e-6 && (got - want).abs() < 3.0 * u, "{got} vs {want} (u {u})");
+    assert!(j["scan_rms_after_mm"].as_f64().unwrap() < j["scan_rms_before_mm"].as_f64().unwrap());
+}
