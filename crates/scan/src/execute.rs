@@ -41,10 +41,11 @@ pub struct Stylus {
 }
 
 impl Default for Stylus {
-    /// 50 Hz stylus (10 g on 1 N/mm), lightly damped; stiff contact; steel on steel friction.
+    /// 110 Hz stylus (2 g effective mass on 1 N/mm), lightly damped; stiff contact; steel on
+    /// steel friction.
     fn default() -> Self {
         Stylus {
-            mass_kg: 0.01,
+            mass_kg: 0.002,
             stiffness_n_per_mm: 1.0,
             damping_ratio: 0.05,
             contact_stiffness_n_per_mm: 1000.0,
@@ -86,12 +87,12 @@ impl Default for Machine {
             probe_noise: 0.2e-3,
             control_dt: 1e-3,
             physics_dt: 2.5e-5,
-            feedback_gain: 25.0,
-            contact_threshold: 0.004,
+            feedback_gain: 60.0,
+            contact_threshold: 0.01,
             search_limit: 8.0,
             settle_dwell: 0.05,
             max_settle_wait: 3.0,
-            blend_time: 0.15,
+            blend_time: 0.1,
             bend_time: 0.05,
         }
     }
@@ -170,6 +171,9 @@ pub struct Point {
     pub quality: u8,
     /// Commanded path speed (without the observer's corrections).
     pub speed: f64,
+    /// The commanded path speed was zero at some instant of this tick (a hold, or a segment
+    /// boundary where the speed profile reaches zero).
+    pub halted: bool,
 }
 
 /// Per-feature outcome.
@@ -189,9 +193,11 @@ pub struct FeatureRun {
     pub vibration_rms: f64,
     /// Peak |deflection − target| over the first 50 ms of the scan.
     pub vibration_peak: f64,
-    /// From contact until the deflection stays within the first quality band of the scan
-    /// deflection for 50 ms.
+    /// From contact until the deflection follows the planned deflection within half the first
+    /// quality band for 50 ms.
     pub settle_time: f64,
+    /// From contact to the start of the scan segment.
+    pub ready_time: f64,
     pub scan_points: usize,
     /// Share of scan points with quality 0.
     pub quality0_share: f64,
@@ -287,6 +293,7 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
         + 10.0)
         / dt) as usize;
     let mut entered = usize::MAX;
+    let mut halt_pending = false;
 
     for _tick in 0..max_ticks {
         let seg = &plan.segments[i];
@@ -314,6 +321,7 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
         last_n = n;
         let c = base + n * e_n + blend.at(t);
         // 2. physics over the tick: command ramps from c_prev to c
+        let touchable = seg.kind != SegmentKind::Transfer;
         let cv = (c - c_prev) / dt;
         let ca = (c - c_prev * 2.0 + c_prev2.coords) / (dt * dt);
         for k in 0..nsub {
@@ -328,7 +336,9 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
             let (dist, nrm) = tf.signed_distance(&y);
             let g = dist - tip;
             let mut force = -q * st.stiffness_n_per_mm - qd * cs;
-            if g < 0.0 {
+            // transfers are collision-free by assumption (the feature's surface is modelled as
+            // unbounded, so it is only touched from its approach to its release)
+            if g < 0.0 && touchable {
                 let yv = xv + qd;
                 let vn = yv.dot(&nrm);
                 let fnorm = (-g * st.contact_stiffness_n_per_mm - cc * vn).max(0.0);
@@ -363,7 +373,9 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
             feature: fi,
             quality: quality(defl - target, p.quality_bands),
             speed,
+            halted: speed <= 1e-9 || halt_pending,
         });
+        halt_pending = false;
         // 4. logic
         let in_approach = seg.kind == SegmentKind::Approach && seg.contact_time.is_some() && !contacted[fi];
         if in_approach && defl > machine.contact_threshold {
@@ -375,16 +387,19 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
             let b = nseg_.eval(nt, f, tip);
             let nb = b.normal.unwrap_or(n);
             let o_now = c - b.position;
-            e_n = o_now.dot(&nb);
+            // the measured tip centre touches the true surface: the surface's offset from the
+            // nominal one along the normal there is the tip centre's distance minus the radius
+            e_n = f.signed_distance(&(xm + qm)).0 - tip;
             shift[fi] = e_n;
             blend = Blend { o0: o_now - nb * e_n, tb: t, dur: machine.blend_time };
             mode = Mode::Plan;
             i = ni.min(nseg - 1);
-            tau = nt;
+            // advance by this tick so the commanded speed does not stall
+            tau = nt + dt;
             last_n = nb;
             continue;
         }
-        if seg.feedback && matches!(mode, Mode::Plan) {
+        if seg.feedback && tau >= seg.feedback_after && matches!(mode, Mode::Plan) {
             e_n += machine.feedback_gain * (defl - target) * dt;
         }
         match &mut mode {
@@ -409,6 +424,7 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
                     if settled_for >= machine.settle_dwell || tau >= machine.max_settle_wait {
                         tau = 0.0;
                         i += 1;
+                        halt_pending = true;
                     }
                 } else if tau >= seg.duration() {
                     if in_approach {
@@ -417,10 +433,16 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
                             _ => (-n, n),
                         };
                         let speed = if plan.style == Style::Blended { p.scan_speed } else { p.touch_speed };
-                        let end = seg.eval(seg.duration(), f, tip).position + n * e_n;
+                        // carry the part of the tick beyond the approach end into the bend
+                        let end = seg.eval(seg.duration(), f, tip).position
+                            + n * e_n
+                            + dir0 * (speed * (tau - seg.duration()));
                         mode = Mode::Bend { p: end, dir0, n0, tb: 0.0, travel: 0.0, speed };
                         e_n = 0.0;
+                        halt_pending |= seg.end_speed() <= 1e-9;
                     } else {
+                        halt_pending |= seg.end_speed() <= 1e-9
+                            || plan.segments.get(i + 1).is_some_and(|n| n.start_speed() <= 1e-9);
                         tau -= seg.duration();
                         i += 1;
                     }
@@ -433,6 +455,11 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
     }
     if i < nseg {
         return Err(ScanError::Invalid("execution did not finish (internal time limit)".into()));
+    }
+    if halt_pending {
+        if let Some(last) = points.last_mut() {
+            last.halted = true;
+        }
     }
     let cycle_time = t;
     let stops = count_stops(&points);
@@ -448,7 +475,7 @@ pub fn count_stops(points: &[Point]) -> usize {
     let mut n = 0;
     let mut stopped = false;
     for q in &points[a..=b] {
-        let z = q.speed <= 1e-9;
+        let z = q.halted;
         if z && !stopped {
             n += 1;
         }
@@ -521,6 +548,7 @@ fn summarise(
             vibration_rms,
             vibration_peak,
             settle_time,
+            ready_time: t0 - tc,
             scan_points: scan.len(),
             quality0_share: q0 as f64 / scan.len().max(1) as f64,
         });

@@ -68,8 +68,11 @@ pub struct Params {
     pub tip_radius: f64,
     /// Normal clearance of approach start / release end from the surface.
     pub clearance: f64,
-    /// Tangential length of the settle path.
+    /// Least tangential length of the settle path (mm).
     pub settle_length: f64,
+    /// Least duration of the settle path at scanning speed (s): the settle path is at least
+    /// `settle_time · scan_speed` long, so the transient has time to die out at any speed.
+    pub settle_time: f64,
     /// Path acceleration limit.
     pub accel: f64,
     /// Classic style: speed of the approach along the normal (touch/search speed).
@@ -90,6 +93,7 @@ impl Default for Params {
             tip_radius: 1.5,
             clearance: 3.0,
             settle_length: 3.0,
+            settle_time: 0.15,
             accel: 1500.0,
             touch_speed: 3.0,
             prehit_dwell: 0.3,
@@ -119,6 +123,7 @@ pub fn validate(features: &[Feature], p: &Params) -> Result<(), ScanError> {
     pos("tip_radius_mm", p.tip_radius)?;
     pos("clearance_mm", p.clearance)?;
     pos("settle_mm", p.settle_length)?;
+    pos("settle_s", p.settle_time)?;
     pos("accel_mm_s2", p.accel)?;
     pos("touch_speed_mm_s", p.touch_speed)?;
     if !(p.overshoot.is_finite() && p.overshoot >= 0.0) {

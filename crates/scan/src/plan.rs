@@ -197,8 +197,9 @@ pub struct Segment {
     /// Duration of a [`Geom::Hold`] (nominal, for the classic settle the executor extends it
     /// until the deflection has settled).
     pub hold: f64,
-    /// Probe feedback (observer) on.
+    /// Probe feedback (observer) on (from local time `feedback_after`).
     pub feedback: bool,
+    pub feedback_after: f64,
     /// For approaches: the segment-local time at which the nominal contact point is passed.
     pub contact_time: Option<f64>,
     /// Classic settle: wait until the deflection has settled.
@@ -240,6 +241,7 @@ impl Segment {
             profile: Profile::constant(0.0, 0.0),
             hold: 0.0,
             feedback: false,
+            feedback_after: 0.0,
             contact_time: None,
             wait_settled: false,
             plane: None,
@@ -279,6 +281,7 @@ impl Segment {
             profile: Profile::constant(0.0, 0.0),
             hold: duration,
             feedback: false,
+            feedback_after: 0.0,
             contact_time: None,
             wait_settled: false,
             plane: None,
@@ -419,7 +422,7 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
     let cot = ca / sa;
     let peak = p.deflection + p.overshoot;
     let x1 = 1.5 * peak / cot;
-    let settle_len = p.settle_length.max(2.0 * x1);
+    let settle_len = settle_extension(p);
     let lift = p.clearance;
     let xr = 0.5;
     let k = cot / (3.0 * xr * xr);
@@ -461,6 +464,10 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
         ap.plane = Some((f.point(uc, 0.0), n0));
         segs.push(ap);
         let pen = Penetration::Settle { s0: cot, peak, x1, end: p.deflection, len: settle_len };
+        // The settle starts open loop on the contact point's shift: integrating the deflection
+        // error through the transient of the turn (servo lag of the normal deceleration) would
+        // wind the observer up and leave an error at the scan start. The feedback comes on once
+        // the deflection is past its peak, 30 % into the gradual decrease.
         let mut st = Segment::new(
             SegmentKind::Settle,
             i,
@@ -471,6 +478,7 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
             p.accel,
         );
         st.feedback = true;
+        st.feedback_after = (x1 + 0.3 * (settle_len - x1)) / settle_len * st.duration();
         segs.push(st);
         let ext = f.extent();
         let mut sc = Segment::new(
@@ -688,5 +696,5 @@ impl Plan {
 pub fn settle_extension(p: &Params) -> f64 {
     let cot = p.approach_angle.cos() / p.approach_angle.sin();
     let x1 = 1.5 * (p.deflection + p.overshoot) / cot;
-    p.settle_length.max(2.0 * x1)
+    p.settle_length.max(2.0 * x1).max(p.settle_time * p.scan_speed)
 }

@@ -162,7 +162,7 @@ pub fn scenario(seed: u64, n: usize) -> ScanScenario {
     ScanScenario {
         features,
         approach_angle_deg: 45.0,
-        scan_speed_mm_s: 20.0,
+        scan_speed_mm_s: 40.0,
         move_speed_mm_s: 200.0,
         deflection_mm: 0.3,
         overshoot_mm: 0.1,
