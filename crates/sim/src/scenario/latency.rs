@@ -235,6 +235,9 @@ impl Config {
         check_nonneg("probe noise", self.probe_noise_mm)?;
         self.stylus.validate()?;
         check_positive("stylus rate", self.stylus_rate_hz)?;
+        if self.stylus_rate_hz > 1e7 {
+            return Err(invalid("stylus rate", "must be at most 10 MHz"));
+        }
         check_positive("sphere diameter", self.sphere_diameter_mm)?;
         check_positive("plate gap", self.plate_gap_mm)?;
         check_positive("speed", self.speed_mm_s)?;
@@ -257,8 +260,8 @@ impl Config {
         if !(self.approach_angle_deg.is_finite() && self.approach_angle_deg.abs() <= 75.0) {
             return Err(invalid("approach angle", "must be within ±75° of the surface normal"));
         }
-        if self.repeats == 0 {
-            return Err(invalid("repeats", "must be at least 1"));
+        if self.repeats == 0 || self.repeats > 100_000 {
+            return Err(invalid("repeats", "must be between 1 and 100000"));
         }
         if self.variant == Variant::Speeds && self.speeds_mm_s.is_empty() {
             return Err(invalid("speeds", "needs at least one speed"));
@@ -538,6 +541,13 @@ pub fn simulate(cfg: &Config) -> Result<Dataset, LatencyError> {
         }
     }
     tr.dwell(lead)?;
+    // Refuse runaway sizes before any large allocation (the servo adds < 1 s of settling).
+    let t_est = tr.end_s() + 1.0;
+    for rate in [cfg.machine_rate_hz, cfg.probe_rate_hz] {
+        if t_est * rate > MAX_SAMPLES {
+            return Err(invalid("duration × rate", format!("{:.0} samples is too many", t_est * rate)));
+        }
+    }
 
     let motion: Box<dyn Motion> = match &cfg.servo {
         Some(s) => Box::new(ServoMotion::new(tr, s, 2e-4)?),
@@ -547,14 +557,6 @@ pub fn simulate(cfg: &Config) -> Result<Dataset, LatencyError> {
     let lat_p = cfg.probe_latency_s;
     let t_end = motion.end_s();
     let clock = MasterClock::new(0.0, t_end)?;
-    for rate in [cfg.machine_rate_hz, cfg.probe_rate_hz] {
-        if t_end * rate > MAX_SAMPLES {
-            return Err(invalid(
-                "sample rate",
-                format!("{:.0} samples per stream is too many", t_end * rate),
-            ));
-        }
-    }
 
     // The two streams are independent: compute them side by side.
     let machine_capture = AxisCapture::new(cfg.machine_rate_hz, lat_m)?;
@@ -776,6 +778,7 @@ mod tests {
         assert!(simulate(&Config { probe_rate_hz: 0.0, ..ok.clone() }).is_err());
         assert!(simulate(&Config { encoder_noise_mm: f64::NAN, ..ok.clone() }).is_err());
         assert!(simulate(&Config { repeats: 0, ..ok.clone() }).is_err());
+        assert!(simulate(&Config { probe_rate_hz: 1e9, ..ok.clone() }).is_err());
         assert!(simulate(&Config { variant: Variant::Plates, plate_gap_mm: 4.0, ..ok.clone() }).is_err());
         assert!(simulate(&Config { approach_angle_deg: 89.0, ..ok }).is_err());
     }
