@@ -146,6 +146,26 @@ fn thermal_growth_scales_the_axes() {
 }
 
 #[test]
+fn machine_follows_a_thermal_history() {
+    use truepos_sim::thermal::{Step, TemperatureHistory, ThermalModel};
+    // Air at 20 °C, +3 K step at t = 0+ (1 s); steel scales with a 1800 s lag fixed at x = 0.
+    let air = TemperatureHistory {
+        steps: vec![Step { time: 1.0, delta: 3.0 }],
+        ..TemperatureHistory::constant(20.0)
+    };
+    let model = ThermalModel::steel(air);
+    let a = Point3::new(1000.0, 0.0, 0.0);
+    let dx = |t: f64| {
+        let m = Machine::bridge_cmm(GeometricErrors::zero()).at_time(&model, t);
+        (m.tip(&a, &Vector3::zeros()) - a).x
+    };
+    // Before the step: 20 °C, no growth. One time constant later: 11.5e-6·3·(1 − e⁻¹)·1000 mm.
+    assert!(dx(0.5).abs() < 1e-15);
+    let want = 11.5e-6 * 3.0 * (1.0 - (-1.0f64).exp()) * 1000.0;
+    assert!((dx(1801.0) - want).abs() < 1e-12, "{} vs {want}", dx(1801.0));
+}
+
+#[test]
 fn commanded_positions_put_the_tool_on_target() {
     let mut rng = ChaCha8Rng::seed_from_u64(4);
     for kind in KINDS {

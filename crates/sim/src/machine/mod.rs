@@ -16,7 +16,8 @@
 //!
 //! Common entry points: [`Machine::realistic`] (a machine of a kind with a seeded realistic error
 //! map), [`Machine::tip`] (exact actual tool/tip position), [`Machine::nominal_tip`],
-//! [`Machine::first_order_error`], [`Machine::command_for`], [`Machine::with_growth`]; the chain
+//! [`Machine::first_order_error`], [`Machine::command_for`], [`Machine::with_growth`] /
+//! [`Machine::at_time`] (thermal growth); the chain
 //! itself is [`chain::SerialChain`].
 
 pub mod chain;
@@ -115,6 +116,12 @@ impl Machine {
         self.chain.growth = growth;
         self.chain.growth_origin = origin;
         self
+    }
+
+    /// The same machine at time `t` of a thermal model: scale growth
+    /// [`crate::thermal::ThermalModel::axis_growth`] about the model's scale origins.
+    pub fn at_time(self, thermal: &crate::thermal::ThermalModel, t: f64) -> Machine {
+        self.with_growth(thermal.axis_growth(t), thermal.origin)
     }
 
     /// Whether the axis positions are inside the travel (with `margin` mm to spare).
