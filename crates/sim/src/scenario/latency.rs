@@ -65,6 +65,7 @@ pub enum Variant {
     /// sections of different angular length.
     Scan,
     /// One point (+X of the sphere), driven in and out.
+    #[serde(rename = "inout")]
     InOut,
     /// The five sphere points with a different capture latency per machine axis.
     PerAxis,
