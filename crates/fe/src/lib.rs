@@ -16,6 +16,10 @@
 //!   load cases, reusing the factorisation;
 //! - [`Deflection::uz`], [`Deflection::slope`], [`Deflection::reactions`]: results.
 //!
+//! Forces and pads act over a disc of diameter = thickness on the mid-surface by default
+//! ([`ModelOptions`]): Mindlin theory gives an infinite deflection under a true point force, so
+//! without this the results would not converge with mesh refinement (docs/performance-fe.md).
+//!
 //! Units: mm, N, N/mm² (MPa). Loads are `(x, y, force_n)` with force positive DOWNWARDS (a
 //! weight); the deflection `uz` is positive UP. The bed origin is the corner (0, 0); bed
 //! coordinates are machine X, Y.
@@ -61,8 +65,9 @@ pub enum Supports {
     /// Point supports on pads at `xy` (mm, bed coordinates). `stiffness_n_per_mm = None`:
     /// rigid pads (the vertical deflection is constrained to zero at the pad); `Some(k)`:
     /// elastic pads, each a vertical spring of stiffness `k` N/mm. Either way at least three
-    /// non-collinear pads are needed. Pads are placed on mesh nodes (the mesh lines are put
-    /// through them).
+    /// non-collinear pads are needed. The mesh lines are put through every pad; each pad acts
+    /// on the mean deflection over a disc of diameter = thickness around it (see
+    /// [`ModelOptions`]), a rigid pad holding that mean exactly at zero.
     Points { xy: Vec<[f64; 2]>, stiffness_n_per_mm: Option<f64> },
     /// All four edges "hard" simply supported: w = 0 and the rotation about the edge normal
     /// (the tangential rotation) = 0, the bending moment normal to the edge free. This is the

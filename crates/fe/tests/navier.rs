@@ -45,6 +45,27 @@ fn thin_plate_point_load_matches_navier() {
         }
     }
     eprintln!("thin plate vs Navier: worst relative error {worst:.2e}");
+    // Slopes (from the interpolated normal rotations) against the x and y derivatives of the
+    // series, at points away from the load and off the nodes. The derivative series falls as
+    // 1/k³ (slower), so 1200 terms; tolerance 0.5 % of the largest slope there, as the rotation
+    // field of bilinear elements is one order less accurate than the deflection.
+    let mut smax: f64 = 0.0;
+    let mut serr: f64 = 0.0;
+    for &(x, y) in &[(612.5, 287.5), (150.0, 137.5), (812.5, 650.0), (487.5, 212.5)] {
+        let dx = 0.01;
+        let sx = (navier_point_kirchhoff(a, b, d, p, load, (x + dx, y), 1200)
+            - navier_point_kirchhoff(a, b, d, p, load, (x - dx, y), 1200))
+            / (2.0 * dx);
+        let sy = (navier_point_kirchhoff(a, b, d, p, load, (x, y + dx), 1200)
+            - navier_point_kirchhoff(a, b, d, p, load, (x, y - dx), 1200))
+            / (2.0 * dx);
+        // uz is up, the series is down.
+        let fe = def.slope(x, y);
+        smax = smax.max(sx.abs()).max(sy.abs());
+        serr = serr.max((fe[0] + sx).abs()).max((fe[1] + sy).abs());
+    }
+    eprintln!("slope error {:.2e} of max slope {smax:.3e}", serr / smax);
+    assert!(serr < 0.005 * smax, "slope error {serr} vs max {smax}");
     // Equilibrium: the edge reactions carry the load.
     assert!((def.total_reaction() - p).abs() < 1e-6 * p);
 }

@@ -207,3 +207,54 @@ fn singular_and_invalid_models_are_rejected() {
     let def = model.solve(&[(10.0, 5.0, 1.0)]).unwrap();
     assert!(def.uz(-1.0, 0.0).is_nan() && def.try_uz(2000.5, 0.0).is_none());
 }
+
+/// Pads and loads on edges and corners: the footprints are squeezed so each resultant stays at
+/// its nominal point, hence the three-pad statics still hold exactly (1e-9, round-off).
+#[test]
+fn edge_pads_and_edge_loads_keep_statics() {
+    let pads = [[0.0, 0.0], [2000.0, 700.0], [600.0, 1500.0]];
+    let model = PlateModel::new(&granite(rigid(&pads)), &MESH).unwrap();
+    let loads = [(0.0, 900.0, 1000.0), (1300.0, 0.0, 2000.0), (2000.0, 1500.0, 500.0), (60.0, 40.0, 800.0)];
+    let def = model.solve(&loads).unwrap();
+    let total: f64 = loads.iter().map(|l| l.2).sum();
+    let mx: f64 = loads.iter().map(|l| l.0 * l.2).sum();
+    let my: f64 = loads.iter().map(|l| l.1 * l.2).sum();
+    let m = nalgebra::Matrix3::from_fn(|r, c| match r {
+        0 => 1.0,
+        1 => pads[c][0],
+        _ => pads[c][1],
+    });
+    let r = m.lu().solve(&nalgebra::Vector3::new(total, mx, my)).unwrap();
+    for k in 0..3 {
+        assert!((def.reactions()[k] - r[k]).abs() < 1e-9 * total, "pad {k}");
+    }
+}
+
+/// Linearity and statics on random load sets (property test): solve(A ∪ B) = solve(A) +
+/// solve(B), and three-pad reactions equal the statics, for loads anywhere on the bed.
+#[test]
+fn superposition_and_statics_property() {
+    use proptest::prelude::*;
+    use proptest::test_runner::{Config, TestRunner};
+    let pads = [[300.0, 200.0], [1700.0, 250.0], [1000.0, 1400.0]];
+    let model = PlateModel::new(&granite(rigid(&pads)), &MESH).unwrap();
+    let load = (0.0..=2000.0f64, 0.0..=1500.0f64, -5000.0..5000.0f64);
+    let mut runner = TestRunner::new(Config { cases: 24, ..Config::default() });
+    runner
+        .run(&(prop::collection::vec(load.clone(), 1..4), prop::collection::vec(load, 1..4)), |(a, b)| {
+            let both: Vec<_> = a.iter().chain(&b).copied().collect();
+            let (da, db, dab) =
+                (model.solve(&a).unwrap(), model.solve(&b).unwrap(), model.solve(&both).unwrap());
+            let scale: f64 = both.iter().map(|l| l.2.abs()).sum::<f64>().max(1.0);
+            for &(x, y) in &[(10.0, 10.0), (777.0, 333.0), (1990.0, 1490.0), (1000.0, 750.0)] {
+                let lin = dab.uz(x, y) - da.uz(x, y) - db.uz(x, y);
+                // Deflections are ~1e-6 mm/N: round-off of the solve ~1e-15 relative.
+                prop_assert!(lin.abs() < 1e-15 * scale);
+            }
+            let total: f64 = both.iter().map(|l| l.2).sum();
+            let rsum: f64 = dab.reactions().iter().sum();
+            prop_assert!((rsum - total).abs() < 1e-9 * scale);
+            Ok(())
+        })
+        .unwrap();
+}
