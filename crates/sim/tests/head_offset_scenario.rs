@@ -268,3 +268,42 @@ fn a_machine_with_geometric_errors_shows_through_at_the_micrometre_level() {
     let res = residuals(&real, &cfg, &cfg.offset);
     assert!(max_abs(&res) > 1e-6 && max_abs(&res) < dp + 1e-9, "{}", max_abs(&res));
 }
+
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn any_f64() -> impl Strategy<Value = f64> {
+        prop_oneof![-1e6..1e6f64, Just(0.0), Just(f64::NAN), Just(f64::INFINITY), Just(-1e300), Just(1e-300)]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(200))]
+
+        /// Any configuration either simulates or is refused with an error: never a panic, never
+        /// a non-finite coordinate in an accepted data set of sane size.
+        #[test]
+        fn no_panic_on_any_config(v in 0usize..6, seed in any::<u64>(), ox in any_f64(), b in any_f64(),
+                                  c in any_f64(), n in 0usize..60, noise in any_f64(), cap in any_f64(),
+                                  radius in any_f64(), tip in any_f64()) {
+            let mut cfg = HeadOffsetConfig::preset(Variant::ALL[v], seed);
+            cfg.offset.x = ox;
+            cfg.b_angles.push(b);
+            cfg.c_angles.push(c);
+            cfg.points_per_orientation = n;
+            cfg.noise = noise;
+            cfg.cap_half_angle = cap;
+            if let Reference::Sphere { centre, .. } = cfg.reference {
+                cfg.reference = Reference::Sphere { centre, radius };
+            }
+            if let Head::TouchProbe { .. } = cfg.head {
+                cfg.head = Head::TouchProbe { tip_radius: tip };
+            }
+            if let Ok(d) = simulate(&cfg) {
+                if ox.abs() < 1e100 && radius.abs() < 1e100 && noise.abs() < 1e100 {
+                    prop_assert!(d.rows.iter().all(|r| r.x_mm.is_finite() && r.y_mm.is_finite() && r.z_mm.is_finite()));
+                }
+            }
+        }
+    }
+}

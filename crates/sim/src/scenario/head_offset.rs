@@ -36,7 +36,7 @@ use crate::laser::{LaserHead, Surface};
 use crate::machine::rotary::{head_reference, RotaryTable};
 
 /// Largest number of rows a configuration may ask for (guards the CLI against runaway sizes).
-pub const MAX_ROWS: usize = 10_000_000;
+pub const MAX_ROWS: usize = 1_000_000;
 
 /// Invalid configuration.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
