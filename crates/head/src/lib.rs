@@ -161,11 +161,14 @@ pub enum HeadError {
          orientations in each of which at least 3 faces (3 points each) are probed"
     )]
     TooFewVertexOrientations { got: usize },
-    #[error("reading {index} has no face id: a vertex reference needs the 'face' column")]
+    #[error(
+        "a reading without a face id: a vertex reference needs the 'face' column (the face each point was \
+         probed on; reading index {index})"
+    )]
     MissingFace { index: usize },
-    #[error("laser reading {index} has a distance but the beam tilt is not below 90°")]
+    #[error("a laser reading (dist) needs beam tilt angles below 85° (reading index {index})")]
     BadTilt { index: usize },
-    #[error("not a finite value in reading {index}")]
+    #[error("a value is not finite (reading index {index})")]
     NotFinite { index: usize },
     #[error("the radius must be positive and finite, got {0} mm")]
     BadRadius(f64),
@@ -360,7 +363,8 @@ pub fn solve(readings: &[Reading], setup: &Setup) -> Result<HeadOffset, HeadErro
             return Err(HeadError::NotFinite { index: i });
         }
         if r.dist.is_some()
-            && !(beam.iter().all(|v| v.is_finite()) && setup.tilt.iter().all(|t| t.abs() < 1.5))
+            && !(beam.iter().all(|v| v.is_finite())
+                && setup.tilt.iter().all(|t| t.abs() < 85f64.to_radians()))
         {
             return Err(HeadError::BadTilt { index: i });
         }

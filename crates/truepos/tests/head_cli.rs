@@ -230,3 +230,35 @@ fn simulate_writes_the_contract_columns() {
     assert!(text.lines().any(|l| l == "b_deg,c_deg,x_mm,y_mm,z_mm,face,group"));
     assert_eq!(truth["variant_reference"], "vertex");
 }
+
+#[test]
+fn face_and_group_ids_may_be_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let (points, truth) = simulate(dir.path(), "cuboid", 4);
+    let (numeric, _) = calibrate(&points, &truth, &[]);
+    // Rename the ids: faces 0,1,2 → top,east,north; groups n → "g<n>".
+    let text = std::fs::read_to_string(&points).unwrap();
+    let mut out = String::new();
+    let mut header_seen = false;
+    for l in text.lines() {
+        if l.starts_with('#') || !header_seen {
+            header_seen |= !l.starts_with('#');
+            out.push_str(l);
+        } else {
+            let mut f: Vec<String> = l.split(',').map(String::from).collect();
+            let n = f.len();
+            f[n - 2] = ["top", "east", "north"][f[n - 2].parse::<usize>().unwrap()].to_string();
+            f[n - 1] = format!("g{}", f[n - 1]);
+            out.push_str(&f.join(","));
+        }
+        out.push('\n');
+    }
+    let named = dir.path().join("named.csv");
+    std::fs::write(&named, out).unwrap();
+    let (v, _) = calibrate(&named, &truth, &[]);
+    assert_eq!(v["offset_mm"], numeric["offset_mm"], "the ids' spelling does not change the result");
+    let faces: Vec<&str> =
+        v["face_normals"].as_array().unwrap().iter().map(|f| f["face"].as_str().unwrap()).collect();
+    assert!(faces.contains(&"top") && faces.contains(&"north"), "{faces:?}");
+    assert!(v["orientations"][0]["group"].as_str().unwrap().starts_with('g'));
+}

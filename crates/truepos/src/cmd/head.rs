@@ -164,6 +164,9 @@ pub struct SimArgs {
 struct Input {
     readings: Vec<Reading>,
     table: Table,
+    /// The `face` / `group` ids as written (Reading::face / group index these).
+    face_names: Vec<String>,
+    group_names: Vec<String>,
 }
 
 fn missing_angles(table: &Table, name: &str) -> InputError {
@@ -178,34 +181,30 @@ fn missing_angles(table: &Table, name: &str) -> InputError {
     )
 }
 
-/// Parse an integer id column (`face`, `group`) if present.
-fn int_column(table: &Table, name: &str) -> Result<Option<Vec<i64>>, InputError> {
-    let Some(col) = table.column(name) else {
+/// An id column (`face`, `group`) if present: any text, interned; empty fields have no id.
+/// Returns the index of each row's id and the distinct ids in order of appearance.
+fn id_column(table: &Table, name: &str) -> Result<Option<(Vec<Option<i64>>, Vec<String>)>, InputError> {
+    if table.column(name).is_none() {
         return Ok(None);
-    };
+    }
     let values = table.str_column(name)?;
-    values
+    let mut names: Vec<String> = Vec::new();
+    let mut index = std::collections::HashMap::new();
+    let ids = values
         .iter()
-        .enumerate()
-        .map(|(row, s)| {
-            let v = s.trim();
-            v.parse::<i64>()
-                .ok()
-                .or_else(|| {
-                    v.parse::<f64>().ok().filter(|f| f.fract() == 0.0 && f.abs() < 1e15).map(|f| f as i64)
-                })
-                .ok_or_else(|| {
-                    InputError::at(
-                        &table.path,
-                        table.line_number(row),
-                        Some(col + 1),
-                        format!("not an integer id: '{v}'"),
-                    )
-                    .with_column_name(name)
-                })
+        .map(|v| {
+            let v = v.trim();
+            if v.is_empty() {
+                return None;
+            }
+            let k = *index.entry(v.to_string()).or_insert_with(|| {
+                names.push(v.to_string());
+                names.len() - 1
+            });
+            Some(k as i64)
         })
-        .collect::<Result<Vec<_>, _>>()
-        .map(Some)
+        .collect();
+    Ok(Some((ids, names)))
 }
 
 fn read_input(path: &Path, need_c: bool) -> Result<Input, InputError> {
@@ -220,19 +219,24 @@ fn read_input(path: &Path, need_c: bool) -> Result<Input, InputError> {
     let c =
         if table.column("c_deg").is_some() { table.f64_column("c_deg")? } else { vec![0.0; table.n_rows()] };
     let dist = if table.column("dist_mm").is_some() { Some(table.f64_column("dist_mm")?) } else { None };
-    let face = int_column(&table, "face")?;
-    let group = int_column(&table, "group")?;
+    let face = id_column(&table, "face")?;
+    let group = id_column(&table, "group")?;
     let readings = (0..table.n_rows())
         .map(|i| Reading {
             b: b[i].to_radians(),
             c: c[i].to_radians(),
             p: Point3::new(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]),
             dist: dist.as_ref().map(|d| d[i]),
-            face: face.as_ref().map(|f| f[i]),
-            group: group.as_ref().map(|g| g[i]),
+            face: face.as_ref().and_then(|f| f.0[i]),
+            group: group.as_ref().and_then(|g| g.0[i]),
         })
         .collect();
-    Ok(Input { readings, table })
+    Ok(Input {
+        readings,
+        table,
+        face_names: face.map(|f| f.1).unwrap_or_default(),
+        group_names: group.map(|g| g.1).unwrap_or_default(),
+    })
 }
 
 fn tilt_rad(t: [f64; 2], name: &str) -> Result<[f64; 2], UsageError> {
@@ -242,8 +246,15 @@ fn tilt_rad(t: [f64; 2], name: &str) -> Result<[f64; 2], UsageError> {
     Ok([t[0].to_radians(), t[1].to_radians()])
 }
 
-fn head_error(path: &Path, e: HeadError) -> InputError {
-    InputError::in_file(path, e.to_string())
+fn head_error(table: &Table, e: HeadError) -> InputError {
+    match e {
+        HeadError::MissingFace { index } | HeadError::NotFinite { index } | HeadError::BadTilt { index }
+            if index < table.n_rows() =>
+        {
+            InputError::at(&table.path, table.line_number(index), None, e.to_string())
+        }
+        _ => InputError::in_file(&table.path, e.to_string()),
+    }
 }
 
 const AXES: [&str; 3] = ["X", "Y", "Z"];
@@ -310,7 +321,7 @@ pub fn run(args: Args) -> Result<Outcome> {
         prior: Vector3::from(a.prior_offset_mm),
         beam_through_reference: a.beam_through_reference,
     };
-    let r = solve(&input.readings, &setup).map_err(|e| head_error(&points, e))?;
+    let r = solve(&input.readings, &setup).map_err(|e| head_error(&input.table, e))?;
     for j in 0..3 {
         if r.from_tilt[j] {
             eprintln!(
@@ -329,7 +340,7 @@ pub fn run(args: Args) -> Result<Outcome> {
         }
     }
     if a.json {
-        print_json(&to_json(&r, &setup, a.tip_radius_mm, a.sphere_diameter_mm))?;
+        print_json(&to_json(&r, &setup, a.tip_radius_mm, a.sphere_diameter_mm, &input))?;
     } else {
         print_human(&r, a.tip_radius_mm);
     }
@@ -344,7 +355,14 @@ fn why_unobservable(j: usize) -> &'static str {
     }
 }
 
-fn to_json(r: &HeadOffset, setup: &Setup, tip: f64, diameter: Option<f64>) -> serde_json::Value {
+fn to_json(
+    r: &HeadOffset,
+    setup: &Setup,
+    tip: f64,
+    diameter: Option<f64>,
+    input: &Input,
+) -> serde_json::Value {
+    let name = |names: &[String], id: i64| names.get(id as usize).cloned().unwrap_or_default();
     let unc: Vec<serde_json::Value> =
         r.uncertainty.iter().map(|u| u.map_or(serde_json::Value::Null, |v| json!(v))).collect();
     let sphere_diameter = match (setup.reference, r.radius) {
@@ -369,10 +387,10 @@ fn to_json(r: &HeadOffset, setup: &Setup, tip: f64, diameter: Option<f64>) -> se
         "n_points": r.n_points,
         "n_orientations": r.orientations.len(),
         "orientations": r.orientations.iter().map(|o| json!({
-            "b_deg": o.b.to_degrees(), "c_deg": o.c.to_degrees(), "group": o.group,
+            "b_deg": o.b.to_degrees(), "c_deg": o.c.to_degrees(), "group": o.group.map(|g| name(&input.group_names, g)),
             "n_points": o.n_points, "apparent_point_mm": v3(o.apparent),
         })).collect::<Vec<_>>(),
-        "face_normals": r.face_normals.iter().map(|(id, n)| json!({"face": id, "normal": v3(*n)})).collect::<Vec<_>>(),
+        "face_normals": r.face_normals.iter().map(|(id, n)| json!({"face": name(&input.face_names, *id), "normal": v3(*n)})).collect::<Vec<_>>(),
         "prior_offset_mm": v3(setup.prior),
         "closed_form_offset_mm": v3(r.closed_form_offset),
         "table_center_mm": v3(setup.table_center),
