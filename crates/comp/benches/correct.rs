@@ -2,7 +2,9 @@
 //! 10 mm tables + load pitch/roll curves), in place, all cores.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use truepos_comp::{Axis, AxisErrors, AxisTable, Corrector, GeometricMap, LoadCorrection, Portal, PortalCurves, Squareness};
+use truepos_comp::{
+    Axis, AxisErrors, AxisTable, Corrector, GeometricMap, LoadCorrection, Portal, PortalCurves, Squareness,
+};
 use truepos_math::{Point3, Vector3};
 
 fn map() -> GeometricMap {
@@ -12,23 +14,52 @@ fn map() -> GeometricMap {
             .iter()
             .map(|&p| {
                 let u = p / 2000.0;
-                AxisErrors { pos: s * 3e-3 * u, str1: s * 1e-3 * (6.0 * u).sin(), str2: s * 1e-3 * u * u, pitch: s * 3e-6 * (3.0 * u).cos(), yaw: s * 2e-6 * u, roll: s * 1e-6 * (5.0 * u).sin() }
+                AxisErrors {
+                    pos: s * 3e-3 * u,
+                    str1: s * 1e-3 * (6.0 * u).sin(),
+                    str2: s * 1e-3 * u * u,
+                    pitch: s * 3e-6 * (3.0 * u).cos(),
+                    yaw: s * 2e-6 * u,
+                    roll: s * 1e-6 * (5.0 * u).sin(),
+                }
             })
             .collect();
         AxisTable::new(axis, pos.clone(), &e).unwrap()
     };
-    GeometricMap { x: Some(mk(Axis::X, 1.0)), y: Some(mk(Axis::Y, -1.0)), z: Some(mk(Axis::Z, 0.5)), squareness: Squareness { xy: 3e-6, xz: -2e-6, yz: 1e-6 }, ..Default::default() }
+    GeometricMap {
+        x: Some(mk(Axis::X, 1.0)),
+        y: Some(mk(Axis::Y, -1.0)),
+        z: Some(mk(Axis::Z, 0.5)),
+        squareness: Squareness { xy: 3e-6, xz: -2e-6, yz: 1e-6 },
+        ..Default::default()
+    }
 }
 
 fn bench(c: &mut Criterion) {
     let g = map();
-    let portal = Portal { rail_x: [0.0, 2000.0], rail_height: 0.0, bearing_span: 400.0, y_range: [0.0, 2000.0], y_step: 50.0 };
+    let portal = Portal {
+        rail_x: [0.0, 2000.0],
+        rail_height: 0.0,
+        bearing_span: 400.0,
+        y_range: [0.0, 2000.0],
+        y_step: 50.0,
+    };
     let ys: Vec<f64> = (0..=40).map(|i| 50.0 * i as f64).collect();
-    let curves = PortalCurves::new(ys.clone(), ys.iter().map(|y| 1e-6 * (y / 300.0).sin()).collect(), ys.iter().map(|y| 2e-7 * y / 2000.0).collect()).unwrap();
+    let curves = PortalCurves::new(
+        ys.clone(),
+        ys.iter().map(|y| 1e-6 * (y / 300.0).sin()).collect(),
+        ys.iter().map(|y| 2e-7 * y / 2000.0).collect(),
+    )
+    .unwrap();
     let lc = LoadCorrection::new(curves, &portal);
-    let corr = Corrector { geometric: Some(&g), load: Some(&lc), probe_offset: Vector3::new(0.0, 0.0, -100.0) };
+    let corr =
+        Corrector { geometric: Some(&g), load: Some(&lc), probe_offset: Vector3::new(0.0, 0.0, -100.0) };
     let n = 10_000_000usize;
-    let base: Vec<Point3> = (0..n).map(|i| Point3::new((i % 1999) as f64 + 0.3, ((i / 1999) % 1999) as f64 + 0.7, 100.0 + (i % 1700) as f64)).collect();
+    let base: Vec<Point3> = (0..n)
+        .map(|i| {
+            Point3::new((i % 1999) as f64 + 0.3, ((i / 1999) % 1999) as f64 + 0.7, 100.0 + (i % 1700) as f64)
+        })
+        .collect();
     // Corrected in place repeatedly: each pass moves the points by micrometres only, so they stay
     // inside the tables and every pass does the same work (no 240 MB copy inside the timing).
     let mut pts = base;

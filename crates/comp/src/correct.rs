@@ -70,7 +70,11 @@ impl<'a> Corrector<'a> {
 
     /// Correct measured points in place; `corrections` (same length, if given) receives the
     /// displacement applied to each. On error nothing meaningful is left in `points`.
-    pub fn correct_measured(&self, points: &mut [Point3], corrections: Option<&mut [Vector3]>) -> Result<(), CompError> {
+    pub fn correct_measured(
+        &self,
+        points: &mut [Point3],
+        corrections: Option<&mut [Vector3]>,
+    ) -> Result<(), CompError> {
         let run = |(ci, (pts, mut cor)): (usize, (&mut [Point3], Option<&mut [Vector3]>))| -> Result<(), CompError> {
             for (k, p) in pts.iter_mut().enumerate() {
                 let d = self.displacement(p).map_err(|source| CompError::OutOfRange { index: ci * CHUNK + k, source })?;
@@ -84,7 +88,13 @@ impl<'a> Corrector<'a> {
         let results: Vec<Result<(), CompError>> = match corrections {
             Some(c) => {
                 assert_eq!(c.len(), points.len(), "corrections must have one entry per point");
-                points.par_chunks_mut(CHUNK).zip(c.par_chunks_mut(CHUNK)).map(|(p, c)| (p, Some(c))).enumerate().map(run).collect()
+                points
+                    .par_chunks_mut(CHUNK)
+                    .zip(c.par_chunks_mut(CHUNK))
+                    .map(|(p, c)| (p, Some(c)))
+                    .enumerate()
+                    .map(run)
+                    .collect()
             }
             None => points.par_chunks_mut(CHUNK).map(|p| (p, None)).enumerate().map(run).collect(),
         };
@@ -122,7 +132,9 @@ impl<'a> Corrector<'a> {
                     let index = ci * CHUNK + k;
                     let (c, it) = self.command_for(p).map_err(|f| match f {
                         InverseFail::Range(source) => CompError::OutOfRange { index, source },
-                        InverseFail::NoConvergence { iterations, last_step_mm } => CompError::NoConvergence { index, iterations, last_step_mm },
+                        InverseFail::NoConvergence { iterations, last_step_mm } => {
+                            CompError::NoConvergence { index, iterations, last_step_mm }
+                        }
                     })?;
                     *p = c;
                     worst = worst.max(it);
@@ -131,18 +143,14 @@ impl<'a> Corrector<'a> {
             })
             .collect();
         let mut worst = 0;
-        let mut first: Option<CompError> = None;
+        let mut errors = Vec::new();
         for r in results {
             match r {
                 Ok(w) => worst = worst.max(w),
-                Err(e) => {
-                    if first.as_ref().map_or(true, |f| e.index() < f.index()) {
-                        first = Some(e);
-                    }
-                }
+                Err(e) => errors.push(e),
             }
         }
-        first.map_or(Ok(worst), Err)
+        errors.into_iter().min_by_key(CompError::index).map_or(Ok(worst), Err)
     }
 }
 
@@ -169,19 +177,40 @@ mod tests {
                 .iter()
                 .map(|&p| {
                     let u = p / 1000.0;
-                    AxisErrors { pos: s * 5e-3 * u, str1: s * 2e-3 * (u * 6.0).sin(), str2: -s * 1e-3 * u * u, pitch: s * 8e-6 * (u * 3.0).cos(), yaw: -s * 4e-6 * u, roll: s * 3e-6 * (u * 5.0).sin() }
+                    AxisErrors {
+                        pos: s * 5e-3 * u,
+                        str1: s * 2e-3 * (u * 6.0).sin(),
+                        str2: -s * 1e-3 * u * u,
+                        pitch: s * 8e-6 * (u * 3.0).cos(),
+                        yaw: -s * 4e-6 * u,
+                        roll: s * 3e-6 * (u * 5.0).sin(),
+                    }
                 })
                 .collect();
             AxisTable::new(axis, pos.clone(), &e).unwrap()
         };
-        GeometricMap { x: Some(mk(Axis::X, 1.0)), y: Some(mk(Axis::Y, -0.7)), z: Some(mk(Axis::Z, 0.5)), ..Default::default() }
+        GeometricMap {
+            x: Some(mk(Axis::X, 1.0)),
+            y: Some(mk(Axis::Y, -0.7)),
+            z: Some(mk(Axis::Z, 0.5)),
+            ..Default::default()
+        }
     }
 
     #[test]
     fn inverse_converges_below_a_nanometre() {
         let g = smooth_map();
-        let c = Corrector { geometric: Some(&g), load: None, probe_offset: Vector3::new(10.0, -20.0, -150.0) };
-        let targets: Vec<Point3> = (0..500).map(|i| Point3::new(20.0 + (i * 37 % 970) as f64, 5.0 + (i * 53 % 970) as f64, 100.0 + (i * 71 % 700) as f64)).collect();
+        let c =
+            Corrector { geometric: Some(&g), load: None, probe_offset: Vector3::new(10.0, -20.0, -150.0) };
+        let targets: Vec<Point3> = (0..500)
+            .map(|i| {
+                Point3::new(
+                    20.0 + (i * 37 % 970) as f64,
+                    5.0 + (i * 53 % 970) as f64,
+                    100.0 + (i * 71 % 700) as f64,
+                )
+            })
+            .collect();
         let mut cmd = targets.clone();
         let worst = c.compensate(&mut cmd).unwrap();
         assert!(worst <= 5, "contraction ~1e-5 per step: a few iterations ({worst})");
@@ -196,7 +225,10 @@ mod tests {
         // Positioning error E = 1.05·x (slope > 1): c ← T − E(c) oscillates with growing
         // amplitude (×1.05 per step, ~11× in 50 steps, so it stays inside the table's range).
         let pos = vec![-1e5, 1e5];
-        let e = [AxisErrors { pos: -1.05e5, ..Default::default() }, AxisErrors { pos: 1.05e5, ..Default::default() }];
+        let e = [
+            AxisErrors { pos: -1.05e5, ..Default::default() },
+            AxisErrors { pos: 1.05e5, ..Default::default() },
+        ];
         let g = GeometricMap { x: Some(AxisTable::new(Axis::X, pos, &e).unwrap()), ..Default::default() };
         let c = Corrector { geometric: Some(&g), load: None, probe_offset: Vector3::zeros() };
         let mut t = vec![Point3::new(500.0, 0.0, 0.0)];
@@ -214,7 +246,9 @@ mod tests {
     fn parallel_equals_serial() {
         let g = smooth_map();
         let c = Corrector { geometric: Some(&g), load: None, probe_offset: Vector3::new(0.0, 0.0, -100.0) };
-        let pts: Vec<Point3> = (0..20_000).map(|i| Point3::new((i % 1000) as f64, (i / 20) as f64, (i % 7) as f64 * 100.0)).collect();
+        let pts: Vec<Point3> = (0..20_000)
+            .map(|i| Point3::new((i % 1000) as f64, (i / 20) as f64, (i % 7) as f64 * 100.0))
+            .collect();
         let mut a = pts.clone();
         let mut cor = vec![Vector3::zeros(); pts.len()];
         c.correct_measured(&mut a, Some(&mut cor)).unwrap();

@@ -66,8 +66,17 @@ pub fn load_grid(model: &BedModel) -> Result<(Vec<f64>, Vec<f64>), FeMapError> {
     if !(g.spacing.is_finite() && g.spacing > 0.0 && g.unit_load_n.is_finite() && g.unit_load_n > 0.0) {
         return Err(FeMapError::Grid(g.spacing, g.unit_load_n));
     }
-    if !(model.bed.size_x.is_finite() && model.bed.size_x > 0.0 && model.bed.size_y.is_finite() && model.bed.size_y > 0.0) {
-        return Err(FeError::InvalidParameter { name: "size", value: model.bed.size_x.min(model.bed.size_y), reason: "must be positive and finite" }.into());
+    if !(model.bed.size_x.is_finite()
+        && model.bed.size_x > 0.0
+        && model.bed.size_y.is_finite()
+        && model.bed.size_y > 0.0)
+    {
+        return Err(FeError::InvalidParameter {
+            name: "size",
+            value: model.bed.size_x.min(model.bed.size_y),
+            reason: "must be positive and finite",
+        }
+        .into());
     }
     if model.bed.size_x / g.spacing > 10_000.0 || model.bed.size_y / g.spacing > 10_000.0 {
         return Err(FeMapError::Grid(g.spacing, g.unit_load_n));
@@ -82,7 +91,9 @@ pub fn check_portal(model: &BedModel) -> Result<(), FeMapError> {
     let (sx, sy) = (model.bed.size_x, model.bed.size_y);
     for x in p.rail_x {
         if !(0.0..=sx).contains(&x) {
-            return Err(FeMapError::PortalOffBed(format!("rail at x = {x} mm is outside the bed (0..{sx} mm)")));
+            return Err(FeMapError::PortalOffBed(format!(
+                "rail at x = {x} mm is outside the bed (0..{sx} mm)"
+            )));
         }
     }
     let h = 0.5 * p.bearing_span;
@@ -100,13 +111,18 @@ pub fn check_portal(model: &BedModel) -> Result<(), FeMapError> {
 
 /// The influence map of the model: for each unit load, pitch and roll at every portal position.
 /// `progress(k)` is called with the number of load cases done (from any thread).
-pub fn influence_map(model: &BedModel, mesh: &MeshOptions, progress: &(dyn Fn(usize) + Sync)) -> Result<InfluenceMap, FeMapError> {
+pub fn influence_map(
+    model: &BedModel,
+    mesh: &MeshOptions,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<InfluenceMap, FeMapError> {
     check_portal(model)?;
     let (xs, ys) = load_grid(model)?;
     let plate = PlateModel::new(&model.bed, mesh)?;
     let py = model.portal.positions();
     let unit = model.grid.unit_load_n;
-    let cases: Vec<[(f64, f64, f64); 1]> = xs.iter().flat_map(|&x| ys.iter().map(move |&y| [(x, y, unit)])).collect();
+    let cases: Vec<[(f64, f64, f64); 1]> =
+        xs.iter().flat_map(|&x| ys.iter().map(move |&y| [(x, y, unit)])).collect();
     let np = py.len();
     let mut pitch = Vec::with_capacity(cases.len() * np);
     let mut roll = Vec::with_capacity(cases.len() * np);
@@ -127,7 +143,12 @@ pub fn influence_map(model: &BedModel, mesh: &MeshOptions, progress: &(dyn Fn(us
 }
 
 /// Deflection `uz` (mm, positive up) at `at` under point loads `(x, y, F)` (F downwards, N).
-pub fn deflection_at(bed: &Bed, mesh: &MeshOptions, loads: &[(f64, f64, f64)], at: &[[f64; 2]]) -> Result<Vec<Option<f64>>, FeError> {
+pub fn deflection_at(
+    bed: &Bed,
+    mesh: &MeshOptions,
+    loads: &[(f64, f64, f64)],
+    at: &[[f64; 2]],
+) -> Result<Vec<Option<f64>>, FeError> {
     let plate = PlateModel::new(bed, mesh)?;
     let d = plate.solve(loads)?;
     Ok(at.iter().map(|p| d.try_uz(p[0], p[1])).collect())

@@ -110,7 +110,11 @@ impl AxisTable {
     /// A table from strictly increasing positions (mm) and the component errors there.
     pub fn new(axis: Axis, positions: Vec<f64>, errors: &[AxisErrors]) -> Result<Self, MapError> {
         if positions.len() != errors.len() {
-            return Err(MapError::Length { axis: axis.name(), positions: positions.len(), values: errors.len() });
+            return Err(MapError::Length {
+                axis: axis.name(),
+                positions: positions.len(),
+                values: errors.len(),
+            });
         }
         let mut nodes = Vec::with_capacity(errors.len());
         for (p, e) in positions.iter().zip(errors) {
@@ -244,7 +248,8 @@ mod tests {
         let e = map.error(&Point3::new(250.0, 500.0, 300.0), &Vector3::new(20.0, 0.0, 0.0)).unwrap();
         assert!((e - Vector3::new(0.0, 1e-4, 0.0)).norm() < 1e-15, "{e}");
         // Squareness xy = 2 µrad at x = 400: +0.8 µm in y.
-        let map = GeometricMap { squareness: Squareness { xy: 2e-6, ..Default::default() }, ..Default::default() };
+        let map =
+            GeometricMap { squareness: Squareness { xy: 2e-6, ..Default::default() }, ..Default::default() };
         let e = map.error(&Point3::new(400.0, 0.0, 0.0), &Vector3::zeros()).unwrap();
         assert!((e.y - 0.8e-3).abs() < 1e-15);
     }
@@ -258,6 +263,7 @@ mod tests {
         assert!(t.at(1000.5, false).is_err());
         assert_eq!(t.at(1000.5, true).unwrap().0.x, 1.0);
         assert!(AxisTable::new(Axis::Y, vec![0.0, 1.0], &[AxisErrors::default()]).is_err());
-        assert!(AxisTable::new(Axis::Y, vec![0.0], &[AxisErrors { pos: f64::NAN, ..Default::default() }]).is_err());
+        assert!(AxisTable::new(Axis::Y, vec![0.0], &[AxisErrors { pos: f64::NAN, ..Default::default() }])
+            .is_err());
     }
 }

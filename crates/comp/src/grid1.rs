@@ -27,7 +27,11 @@ impl Grid1 {
         }
         for i in 0..xs.len() {
             if !xs[i].is_finite() || (i > 0 && xs[i] <= xs[i - 1]) {
-                return Err(GridError::NotIncreasing { index: i, value: xs[i], previous: if i > 0 { xs[i - 1] } else { f64::NAN } });
+                return Err(GridError::NotIncreasing {
+                    index: i,
+                    value: xs[i],
+                    previous: if i > 0 { xs[i - 1] } else { f64::NAN },
+                });
             }
         }
         let n = xs.len();
@@ -35,7 +39,10 @@ impl Grid1 {
             let span = xs[n - 1] - xs[0];
             let step = span / (n - 1) as f64;
             let tol = 1e-9 * span.abs().max(1.0);
-            xs.iter().enumerate().all(|(i, &x)| (x - (xs[0] + i as f64 * step)).abs() <= tol).then_some((xs[0], 1.0 / step))
+            xs.iter()
+                .enumerate()
+                .all(|(i, &x)| (x - (xs[0] + i as f64 * step)).abs() <= tol)
+                .then_some((xs[0], 1.0 / step))
         } else {
             None
         };

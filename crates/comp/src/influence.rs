@@ -32,7 +32,9 @@ pub enum InfluenceError {
     UnitLoad(f64),
     #[error("row {row}: a value is not finite")]
     NotFinite { row: usize },
-    #[error("row {row}: duplicate entry for load ({x}, {y}) mm at portal y = {py} mm (first in row {first})")]
+    #[error(
+        "row {row}: duplicate entry for load ({x}, {y}) mm at portal y = {py} mm (first in row {first})"
+    )]
     Duplicate { row: usize, first: usize, x: f64, y: f64, py: f64 },
     #[error("the map is not a complete grid: {present} of {expected} (load_x × load_y × portal_y) entries are present; missing e.g. load ({x}, {y}) mm at portal y = {py} mm")]
     Incomplete { present: usize, expected: usize, x: f64, y: f64, py: f64 },
@@ -73,17 +75,36 @@ fn sorted_unique(mut v: Vec<f64>) -> Vec<f64> {
 
 impl InfluenceMap {
     /// A map from its grid axes and values in `[ix][iy][ip]` order.
-    pub fn from_grid(unit_load_n: f64, load_x: Vec<f64>, load_y: Vec<f64>, portal_y: Vec<f64>, pitch: Vec<f64>, roll: Vec<f64>) -> Result<Self, InfluenceError> {
+    pub fn from_grid(
+        unit_load_n: f64,
+        load_x: Vec<f64>,
+        load_y: Vec<f64>,
+        portal_y: Vec<f64>,
+        pitch: Vec<f64>,
+        roll: Vec<f64>,
+    ) -> Result<Self, InfluenceError> {
         let mut rows = Vec::with_capacity(pitch.len());
         let n = load_x.len() * load_y.len() * portal_y.len();
         if pitch.len() != n || roll.len() != n {
-            return Err(InfluenceError::Incomplete { present: pitch.len().min(roll.len()), expected: n, x: f64::NAN, y: f64::NAN, py: f64::NAN });
+            return Err(InfluenceError::Incomplete {
+                present: pitch.len().min(roll.len()),
+                expected: n,
+                x: f64::NAN,
+                y: f64::NAN,
+                py: f64::NAN,
+            });
         }
         let mut k = 0;
         for &x in &load_x {
             for &y in &load_y {
                 for &py in &portal_y {
-                    rows.push(InfluenceRow { load_x: x, load_y: y, portal_y: py, pitch: pitch[k], roll: roll[k] });
+                    rows.push(InfluenceRow {
+                        load_x: x,
+                        load_y: y,
+                        portal_y: py,
+                        pitch: pitch[k],
+                        roll: roll[k],
+                    });
                     k += 1;
                 }
             }
@@ -119,7 +140,13 @@ impl InfluenceMap {
         for (i, r) in rows.iter().enumerate() {
             let k = (idx(&xs, r.load_x) * ny + idx(&ys, r.load_y)) * np + idx(&ps, r.portal_y);
             if owner[k] != usize::MAX {
-                return Err(InfluenceError::Duplicate { row: i, first: owner[k], x: r.load_x, y: r.load_y, py: r.portal_y });
+                return Err(InfluenceError::Duplicate {
+                    row: i,
+                    first: owner[k],
+                    x: r.load_x,
+                    y: r.load_y,
+                    py: r.portal_y,
+                });
             }
             owner[k] = i;
             pitch[k] = r.pitch;
@@ -167,7 +194,15 @@ impl InfluenceMap {
         let mut pitch = vec![0.0; np];
         let mut roll = vec![0.0; np];
         for (index, &(x, y, f)) in loads.iter().enumerate() {
-            let nc = NotCovered { index, x, y, x0: self.load_x.first(), x1: self.load_x.last(), y0: self.load_y.first(), y1: self.load_y.last() };
+            let nc = NotCovered {
+                index,
+                x,
+                y,
+                x0: self.load_x.first(),
+                x1: self.load_x.last(),
+                y0: self.load_y.first(),
+                y1: self.load_y.last(),
+            };
             let (ix, fx) = self.load_x.locate(x, false).ok_or(nc)?;
             let (iy, fy) = self.load_y.locate(y, false).ok_or(nc)?;
             let s = f / self.unit_load_n;
@@ -210,9 +245,17 @@ impl PortalCurves {
     /// `(pitch, roll)` at portal position `y`, linear between nodes; outside the range refused.
     #[inline]
     pub fn at(&self, y: f64) -> Result<(f64, f64), OutOfRange> {
-        let (i, f) = self.y.locate(y, false).ok_or(OutOfRange { what: "portal y", value: y, min: self.y.first(), max: self.y.last() })?;
+        let (i, f) = self.y.locate(y, false).ok_or(OutOfRange {
+            what: "portal y",
+            value: y,
+            min: self.y.first(),
+            max: self.y.last(),
+        })?;
         let j = (i + 1).min(self.pitch.len() - 1);
-        Ok((self.pitch[i] + f * (self.pitch[j] - self.pitch[i]), self.roll[i] + f * (self.roll[j] - self.roll[i])))
+        Ok((
+            self.pitch[i] + f * (self.pitch[j] - self.pitch[i]),
+            self.roll[i] + f * (self.roll[j] - self.roll[i]),
+        ))
     }
 }
 

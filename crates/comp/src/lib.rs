@@ -26,7 +26,7 @@ pub mod load;
 pub mod statics;
 
 pub use correct::{CompError, Corrector};
+pub use fe_map::{BedModel, LoadGrid};
 pub use geometric::{Axis, AxisErrors, AxisTable, Chain, GeometricMap, OutOfRange, Squareness};
 pub use influence::{InfluenceMap, InfluenceRow, PortalCurves};
-pub use fe_map::{BedModel, LoadGrid};
 pub use load::{LoadCorrection, Portal};

@@ -50,7 +50,9 @@ pub enum PortalError {
     Rails(f64, f64),
     #[error("bearing_span_mm must be positive (got {0})")]
     Span(f64),
-    #[error("y_range_mm must be increasing and y_step_mm positive (y_range_mm = [{0}, {1}], y_step_mm = {2})")]
+    #[error(
+        "y_range_mm must be increasing and y_step_mm positive (y_range_mm = [{0}, {1}], y_step_mm = {2})"
+    )]
     Range(f64, f64, f64),
     #[error("a portal value is not finite")]
     NotFinite,
@@ -58,7 +60,15 @@ pub enum PortalError {
 
 impl Portal {
     pub fn validate(&self) -> Result<(), PortalError> {
-        let all = [self.rail_x[0], self.rail_x[1], self.rail_height, self.bearing_span, self.y_range[0], self.y_range[1], self.y_step];
+        let all = [
+            self.rail_x[0],
+            self.rail_x[1],
+            self.rail_height,
+            self.bearing_span,
+            self.y_range[0],
+            self.y_range[1],
+            self.y_step,
+        ];
         if all.iter().any(|v| !v.is_finite()) {
             return Err(PortalError::NotFinite);
         }
@@ -113,7 +123,11 @@ pub struct LoadCorrection {
 
 impl LoadCorrection {
     pub fn new(curves: PortalCurves, portal: &Portal) -> Self {
-        Self { curves, rail_center_x: 0.5 * (portal.rail_x[0] + portal.rail_x[1]), rail_height: portal.rail_height }
+        Self {
+            curves,
+            rail_center_x: 0.5 * (portal.rail_x[0] + portal.rail_x[1]),
+            rail_height: portal.rail_height,
+        }
     }
 
     /// The contract's error `e = (θx, θy, 0) × (p − o)` at indicated point `p` (portal at `p.y`).
@@ -137,7 +151,13 @@ mod tests {
     use super::*;
 
     fn portal() -> Portal {
-        Portal { rail_x: [0.0, 2000.0], rail_height: 100.0, bearing_span: 400.0, y_range: [200.0, 1800.0], y_step: 300.0 }
+        Portal {
+            rail_x: [0.0, 2000.0],
+            rail_height: 100.0,
+            bearing_span: 400.0,
+            y_range: [200.0, 1800.0],
+            y_step: 300.0,
+        }
     }
 
     #[test]

@@ -95,7 +95,11 @@ pub fn distribute(weight_n: f64, cog: [f64; 2], rests: &[[f64; 2]]) -> Result<Ve
 /// Check explicit forces `(x, y, F)`: none negative, and, if the load case also states a weight
 /// or a centre of gravity, consistent with them (weight to 0.1 %, centre of gravity to 1 mm —
 /// what a load-cell reading and a drawing agree to). Returns `(weight, cog)`.
-pub fn check_explicit(forces: &[(f64, f64, f64)], weight_n: Option<f64>, cog: Option<[f64; 2]>) -> Result<(f64, [f64; 2]), StaticsError> {
+pub fn check_explicit(
+    forces: &[(f64, f64, f64)],
+    weight_n: Option<f64>,
+    cog: Option<[f64; 2]>,
+) -> Result<(f64, [f64; 2]), StaticsError> {
     if forces.is_empty() {
         return Err(StaticsError::NoRestPoints);
     }
@@ -176,23 +180,49 @@ mod tests {
         let f = distribute(900.0, [300.0, 0.0], &[[0.0, 0.0], [900.0, 0.0]]).unwrap();
         assert!((f[0] - 600.0).abs() < 1e-9 && (f[1] - 300.0).abs() < 1e-9);
         // Two points, CoG off their line: cannot balance.
-        assert!(matches!(distribute(900.0, [300.0, 10.0], &[[0.0, 0.0], [900.0, 0.0]]), Err(StaticsError::CannotBalance { .. })));
+        assert!(matches!(
+            distribute(900.0, [300.0, 10.0], &[[0.0, 0.0], [900.0, 0.0]]),
+            Err(StaticsError::CannotBalance { .. })
+        ));
         // One point not under the CoG.
-        assert!(matches!(distribute(900.0, [1.0, 0.0], &[[0.0, 0.0]]), Err(StaticsError::CannotBalance { .. })));
+        assert!(matches!(
+            distribute(900.0, [1.0, 0.0], &[[0.0, 0.0]]),
+            Err(StaticsError::CannotBalance { .. })
+        ));
         // Three collinear points, CoG off the line.
-        assert!(matches!(distribute(900.0, [1.0, 5.0], &[[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]), Err(StaticsError::CannotBalance { .. })));
+        assert!(matches!(
+            distribute(900.0, [1.0, 5.0], &[[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]),
+            Err(StaticsError::CannotBalance { .. })
+        ));
         // CoG outside the triangle: tension.
-        assert!(matches!(distribute(900.0, [-100.0, 100.0], &[[0.0, 0.0], [1000.0, 0.0], [0.0, 500.0]]), Err(StaticsError::Tension { .. })));
+        assert!(matches!(
+            distribute(900.0, [-100.0, 100.0], &[[0.0, 0.0], [1000.0, 0.0], [0.0, 500.0]]),
+            Err(StaticsError::Tension { .. })
+        ));
         assert!(distribute(0.0, [0.0, 0.0], &[[0.0, 0.0]]).is_err());
         assert_eq!(distribute(1.0, [0.0, 0.0], &[]), Err(StaticsError::NoRestPoints));
     }
 
     #[test]
     fn explicit_forces() {
-        let (w, c) = check_explicit(&[(0.0, 0.0, 5500.0), (1000.0, 0.0, 2500.0), (0.0, 500.0, 2000.0)], Some(10_000.0), Some([250.0, 100.0])).unwrap();
+        let (w, c) = check_explicit(
+            &[(0.0, 0.0, 5500.0), (1000.0, 0.0, 2500.0), (0.0, 500.0, 2000.0)],
+            Some(10_000.0),
+            Some([250.0, 100.0]),
+        )
+        .unwrap();
         assert!((w - 10_000.0).abs() < 1e-9 && (c[0] - 250.0).abs() < 1e-9 && (c[1] - 100.0).abs() < 1e-9);
-        assert!(matches!(check_explicit(&[(0.0, 0.0, 5500.0), (1000.0, 0.0, 2500.0)], Some(10_000.0), None), Err(StaticsError::ExplicitWeight { .. })));
-        assert!(matches!(check_explicit(&[(0.0, 0.0, 10.0), (1000.0, 0.0, 10.0)], None, Some([0.0, 0.0])), Err(StaticsError::ExplicitCog { .. })));
-        assert!(matches!(check_explicit(&[(0.0, 0.0, -1.0)], None, None), Err(StaticsError::NegativeExplicit { .. })));
+        assert!(matches!(
+            check_explicit(&[(0.0, 0.0, 5500.0), (1000.0, 0.0, 2500.0)], Some(10_000.0), None),
+            Err(StaticsError::ExplicitWeight { .. })
+        ));
+        assert!(matches!(
+            check_explicit(&[(0.0, 0.0, 10.0), (1000.0, 0.0, 10.0)], None, Some([0.0, 0.0])),
+            Err(StaticsError::ExplicitCog { .. })
+        ));
+        assert!(matches!(
+            check_explicit(&[(0.0, 0.0, -1.0)], None, None),
+            Err(StaticsError::NegativeExplicit { .. })
+        ));
     }
 }

@@ -8,11 +8,24 @@ use truepos_sim::machine::{Machine, MachineKind};
 
 /// The comp map holding the simulator's errors sampled every `step` mm.
 fn map_of(g: &GeometricErrors, travel: [f64; 3], step: f64) -> GeometricMap {
-    let mut m = GeometricMap { squareness: Squareness { xy: g.squareness.xy, xz: g.squareness.xz, yz: g.squareness.yz }, ..Default::default() };
+    let mut m = GeometricMap {
+        squareness: Squareness { xy: g.squareness.xy, xz: g.squareness.xz, yz: g.squareness.yz },
+        ..Default::default()
+    };
     for (sa, ca) in [(SAxis::X, Axis::X), (SAxis::Y, Axis::Y), (SAxis::Z, Axis::Z)] {
         let rows: Vec<_> = g.table(travel, step).into_iter().filter(|r| r.axis == sa).collect();
         let pos: Vec<f64> = rows.iter().map(|r| r.position).collect();
-        let e: Vec<AxisErrors> = rows.iter().map(|r| AxisErrors { pos: r.values[0], str1: r.values[1], str2: r.values[2], pitch: r.values[3], yaw: r.values[4], roll: r.values[5] }).collect();
+        let e: Vec<AxisErrors> = rows
+            .iter()
+            .map(|r| AxisErrors {
+                pos: r.values[0],
+                str1: r.values[1],
+                str2: r.values[2],
+                pitch: r.values[3],
+                yaw: r.values[4],
+                roll: r.values[5],
+            })
+            .collect();
         let t = AxisTable::new(ca, pos, &e).unwrap();
         match ca {
             Axis::X => m.x = Some(t),
@@ -73,7 +86,12 @@ fn first_order_model_matches_the_exact_chain_to_second_order() {
     assert!((e10 / e1 - 10.0).abs() < 0.5);
     let ratio = d10 / d1;
     assert!((70.0..130.0).contains(&ratio), "residual ratio {ratio} (d1 {d1}, d10 {d10})");
-    eprintln!("max |E| {:.3} µm; first-order residual {:.2e} µm (×10 errors: {:.2e} µm, ratio {ratio:.1})", e1 * 1e3, d1 * 1e3, d10 * 1e3);
+    eprintln!(
+        "max |E| {:.3} µm; first-order residual {:.2e} µm (×10 errors: {:.2e} µm, ratio {ratio:.1})",
+        e1 * 1e3,
+        d1 * 1e3,
+        d10 * 1e3
+    );
 }
 
 #[test]
@@ -85,7 +103,13 @@ fn inverse_reaches_targets_on_the_exact_chain() {
     let map = map_of(&m.chain.errors, m.travel, 1.0);
     let corr = Corrector { geometric: Some(&map), load: None, probe_offset: tool };
     // Targets whose axis positions stay 10 mm inside the travel (the tables end there).
-    let targets: Vec<Point3> = (0..=10).flat_map(|i| (0..=6).map(move |k| Point3::new(10.0 + 98.0 * i as f64, 10.0 + 148.0 * i as f64, 10.0 + 120.0 * k as f64) + tool)).collect();
+    let targets: Vec<Point3> = (0..=10)
+        .flat_map(|i| {
+            (0..=6).map(move |k| {
+                Point3::new(10.0 + 98.0 * i as f64, 10.0 + 148.0 * i as f64, 10.0 + 120.0 * k as f64) + tool
+            })
+        })
+        .collect();
     let mut cmd = targets.clone();
     let iters = corr.compensate(&mut cmd).unwrap();
     let mut worst = 0.0f64;
@@ -102,5 +126,9 @@ fn inverse_reaches_targets_on_the_exact_chain() {
         let exact = m.command_for(t, &tool).unwrap();
         assert!(((c - tool) - exact).norm() < 1e-5);
     }
-    eprintln!("inverse: {} targets, at most {iters} iterations; exact-chain tip vs target max {:.2e} µm", targets.len(), worst * 1e3);
+    eprintln!(
+        "inverse: {} targets, at most {iters} iterations; exact-chain tip vs target max {:.2e} µm",
+        targets.len(),
+        worst * 1e3
+    );
 }

@@ -19,8 +19,18 @@ fn rms_max(v: &[Vector3]) -> (f64, f64) {
 fn load_correction_removes_95_percent_on_the_virtual_cmm() {
     let cfg = LoadConfig::default();
     let data = simulate(&cfg, 7).unwrap();
-    let portal = Portal { rail_x: cfg.rail_x, rail_height: cfg.rail_height, bearing_span: cfg.bearing_span, y_range: cfg.y_range, y_step: cfg.y_step };
-    let model = BedModel { bed: cfg.bed.clone(), portal, grid: LoadGrid { spacing: cfg.grid_spacing, unit_load_n: cfg.unit_load_n } };
+    let portal = Portal {
+        rail_x: cfg.rail_x,
+        rail_height: cfg.rail_height,
+        bearing_span: cfg.bearing_span,
+        y_range: cfg.y_range,
+        y_step: cfg.y_step,
+    };
+    let model = BedModel {
+        bed: cfg.bed.clone(),
+        portal,
+        grid: LoadGrid { spacing: cfg.grid_spacing, unit_load_n: cfg.unit_load_n },
+    };
     let t0 = std::time::Instant::now();
     let map = influence_map(&model, &MeshOptions::with_element_size(cfg.map_element_size), &|_| {}).unwrap();
     let t_map = t0.elapsed().as_secs_f64();
@@ -37,8 +47,14 @@ fn load_correction_removes_95_percent_on_the_virtual_cmm() {
     // no correction can remove it) subtracted.
     let mut corrected: Vec<Point3> = data.indicated.clone();
     corr.correct_measured(&mut corrected, None).unwrap();
-    let before: Vec<Vector3> = data.indicated_exact.iter().zip(&data.true_points).map(|(i, t)| i - t).collect();
-    let after: Vec<Vector3> = corrected.iter().zip(&data.indicated).zip(data.indicated_exact.iter().zip(&data.true_points)).map(|((c, n), (e, t))| (c - (n - e)) - t).collect();
+    let before: Vec<Vector3> =
+        data.indicated_exact.iter().zip(&data.true_points).map(|(i, t)| i - t).collect();
+    let after: Vec<Vector3> = corrected
+        .iter()
+        .zip(&data.indicated)
+        .zip(data.indicated_exact.iter().zip(&data.true_points))
+        .map(|((c, n), (e, t))| (c - (n - e)) - t)
+        .collect();
     let with_noise: Vec<Vector3> = corrected.iter().zip(&data.true_points).map(|(c, t)| c - t).collect();
     let (rb, mb) = rms_max(&before);
     let (ra, ma) = rms_max(&after);
@@ -49,7 +65,13 @@ fn load_correction_removes_95_percent_on_the_virtual_cmm() {
     );
     for (k, y) in data.portal_y.iter().enumerate().step_by(4) {
         let (p, r) = lc.curves.at(*y).unwrap();
-        eprintln!("y {y:7.1}  pitch {:8.4} (true {:8.4})  roll {:8.4} (true {:8.4}) µrad", p * 1e6, data.pitch[k] * 1e6, r * 1e6, data.roll[k] * 1e6);
+        eprintln!(
+            "y {y:7.1}  pitch {:8.4} (true {:8.4})  roll {:8.4} (true {:8.4}) µrad",
+            p * 1e6,
+            data.pitch[k] * 1e6,
+            r * 1e6,
+            data.roll[k] * 1e6
+        );
     }
     assert!(rb > 1e-3, "the scenario must produce a visible error (rms {rb} mm)");
     assert!(ra < 0.05 * rb && ma < 0.05 * mb, "≥ 95 % reduction required");

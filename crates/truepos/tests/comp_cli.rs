@@ -53,7 +53,21 @@ fn correction_matches_hand_calculation_and_passes_columns_through() {
     // squareness xy·x = 2e-6 · 250 = 0.5 µm along y. Total (2.5, −2.5, 0) µm.
     let pts = write(d.path(), "p.csv", "# measured\nid,x_mm,y_mm,z_mm,temp_c\nP1,250,500,300,20.5\n");
     let outp = d.path().join("c.csv");
-    let o = run(&["comp", "correct", "--map", s(&map), "--squareness", s(&sq), "--points", s(&pts), "--output", s(&outp), "--probe-offset-mm", "0,0,-100", "--json"]);
+    let o = run(&[
+        "comp",
+        "correct",
+        "--map",
+        s(&map),
+        "--squareness",
+        s(&sq),
+        "--points",
+        s(&pts),
+        "--output",
+        s(&outp),
+        "--probe-offset-mm",
+        "0,0,-100",
+        "--json",
+    ]);
     assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
     let j: Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(j["n_points"], 1);
@@ -71,7 +85,19 @@ fn correction_matches_hand_calculation_and_passes_columns_through() {
     }
     // The same squareness as a CSV file.
     let sqc = write(d.path(), "sq.csv", "xy_urad,xz_urad,yz_urad\n2,0,0\n");
-    let o = run(&["comp", "error", "--map", s(&map), "--squareness", s(&sqc), "--at", s(&pts), "--probe-offset-mm", "0,0,-100", "--json"]);
+    let o = run(&[
+        "comp",
+        "error",
+        "--map",
+        s(&map),
+        "--squareness",
+        s(&sqc),
+        "--at",
+        s(&pts),
+        "--probe-offset-mm",
+        "0,0,-100",
+        "--json",
+    ]);
     let j: Value = serde_json::from_slice(&o.stdout).unwrap();
     let e: Vec<f64> = j["error_um"][0].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
     assert!((e[0] - 2.5).abs() < 1e-9 && (e[1] + 2.5).abs() < 1e-9 && e[2].abs() < 1e-9, "{e:?}");
@@ -83,7 +109,19 @@ fn commanded_positions_reach_the_target_within_a_nanometre() {
     let map = map_file(d.path());
     let targets = write(d.path(), "t.csv", "x_mm,y_mm,z_mm\n100,200,300\n955.5,10,990\n0,1000,0\n");
     let cmd = d.path().join("cmd.csv");
-    let o = run(&["comp", "correct", "--map", s(&map), "--points", s(&targets), "--output", s(&cmd), "--commanded", "--clamp", "--json"]);
+    let o = run(&[
+        "comp",
+        "correct",
+        "--map",
+        s(&map),
+        "--points",
+        s(&targets),
+        "--output",
+        s(&cmd),
+        "--commanded",
+        "--clamp",
+        "--json",
+    ]);
     assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
     // c + E(c) must equal T: evaluate E at the commanded positions with `comp error`.
     let o = run(&["comp", "error", "--map", s(&map), "--at", s(&cmd), "--clamp", "--json"]);
@@ -116,7 +154,8 @@ fn bad_maps_and_points_exit_2() {
     let map = map_file(d.path());
     let pts = write(d.path(), "p.csv", "x_mm,y_mm,z_mm\n1,2,3\n1,2,1200\n");
     let outp = d.path().join("never.csv");
-    let correct = |m: &Path, p: &Path| run(&["comp", "correct", "--map", s(m), "--points", s(p), "--output", s(&outp)]);
+    let correct =
+        |m: &Path, p: &Path| run(&["comp", "correct", "--map", s(m), "--points", s(p), "--output", s(&outp)]);
     expect_input_error(&correct(&map, &pts), &["p.csv:3", "z = 1200"]);
     assert!(!outp.exists());
     let text = std::fs::read_to_string(&map).unwrap();
@@ -127,7 +166,18 @@ fn bad_maps_and_points_exit_2() {
     let m = write(d.path(), "nan.csv", &text.replacen(",10,0,0\n", ",nan,0,0\n", 1));
     expect_input_error(&correct(&m, &pts), &["nan.csv:3", "pitch_urad"]);
     let sq = write(d.path(), "sq.toml", "[squareness]\nxy_urad = \"a\"\n");
-    let o = run(&["comp", "correct", "--map", s(&map), "--squareness", s(&sq), "--points", s(&pts), "--output", s(&outp)]);
+    let o = run(&[
+        "comp",
+        "correct",
+        "--map",
+        s(&map),
+        "--squareness",
+        s(&sq),
+        "--points",
+        s(&pts),
+        "--output",
+        s(&outp),
+    ]);
     expect_input_error(&o, &["sq.toml:2"]);
     assert!(!outp.exists());
 }

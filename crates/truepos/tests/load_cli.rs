@@ -54,10 +54,31 @@ fn virtual_cmm_load_error_removed_by_95_percent() {
     let dir = d.path().join("sim");
     let out = run(&["simulate", "load", "--out", s(&dir), "--seed", "4"]);
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-    let (bed, load, points, map, corrected) = (dir.join("bed.toml"), dir.join("load.toml"), dir.join("points.csv"), dir.join("map.csv"), dir.join("corrected.csv"));
+    let (bed, load, points, map, corrected) = (
+        dir.join("bed.toml"),
+        dir.join("load.toml"),
+        dir.join("points.csv"),
+        dir.join("map.csv"),
+        dir.join("corrected.csv"),
+    );
     ok_json(&run(&["load", "map", "--bed", s(&bed), "--output", s(&map), "--json"]));
-    let j = ok_json(&run(&["load", "correct", "--map", s(&map), "--load", s(&load), "--bed", s(&bed), "--points", s(&points), "--output", s(&corrected), "--json"]));
-    let truth: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();
+    let j = ok_json(&run(&[
+        "load",
+        "correct",
+        "--map",
+        s(&map),
+        "--load",
+        s(&load),
+        "--bed",
+        s(&bed),
+        "--points",
+        s(&points),
+        "--output",
+        s(&corrected),
+        "--json",
+    ]));
+    let truth: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();
     // Forces from statics (exact three-point solution) equal the simulator's.
     for (a, b) in f64s(&j["forces_n"]).iter().zip(f64s(&truth["forces_n"])) {
         assert!((a - b).abs() < 1e-6 * b, "{a} vs {b}");
@@ -100,7 +121,11 @@ fn hand_map(dir: &Path) -> PathBuf {
         for (j, y) in [0.0, 1000.0].iter().enumerate() {
             for (k, py) in [0.0, 500.0, 1000.0].iter().enumerate() {
                 let (i, j, k) = (i as f64, j as f64, k as f64);
-                t.push_str(&format!("{},{},{py},{y},{x}\n", 2.0 + 20.0 * i - 50.0 * j + 300.0 * k, 1.0 + 10.0 * i + 100.0 * j + 1000.0 * k));
+                t.push_str(&format!(
+                    "{},{},{py},{y},{x}\n",
+                    2.0 + 20.0 * i - 50.0 * j + 300.0 * k,
+                    1.0 + 10.0 * i + 100.0 * j + 1000.0 * k
+                ));
             }
         }
     }
@@ -114,7 +139,11 @@ fn imported_map_superposition_and_correction_match_hand_calculation() {
     let d = tempfile::tempdir().unwrap();
     let map = hand_map(d.path());
     // Explicit forces: 2000 N at (250, 750), 500 N at (1000, 0).
-    let load = write(d.path(), "load.toml", "[[rest]]\nx_mm = 250\ny_mm = 750\nforce_n = 2000\n[[rest]]\nx_mm = 1000\ny_mm = 0\nforce_n = 500\n");
+    let load = write(
+        d.path(),
+        "load.toml",
+        "[[rest]]\nx_mm = 250\ny_mm = 750\nforce_n = 2000\n[[rest]]\nx_mm = 1000\ny_mm = 0\nforce_n = 500\n",
+    );
     let j = ok_json(&run(&["load", "curves", "--map", s(&map), "--load", s(&load), "--json"]));
     // By hand: load 1 (fx .25, fy .75) pitch 1 + 2.5 + 75 + 1000k, × 2; load 2 (i = 1, j = 0)
     // pitch 11 + 1000k, × 0.5 → 162.5 + 2500k. Roll: (2 + 5 − 37.5 + 300k)·2 + (22 + 300k)·0.5
@@ -133,20 +162,39 @@ fn imported_map_superposition_and_correction_match_hand_calculation() {
     let bed = write(d.path(), "bed.toml", BED);
     let pts = write(d.path(), "pts.csv", "id,z_mm,x_mm,y_mm,note\nA,400,800,250,\"keep, me\"\n");
     let outp = d.path().join("out.csv");
-    ok_json(&run(&["load", "correct", "--map", s(&map), "--load", s(&load), "--bed", s(&bed), "--points", s(&pts), "--output", s(&outp), "--json"]));
+    ok_json(&run(&[
+        "load",
+        "correct",
+        "--map",
+        s(&map),
+        "--load",
+        s(&load),
+        "--bed",
+        s(&bed),
+        "--points",
+        s(&pts),
+        "--output",
+        s(&outp),
+        "--json",
+    ]));
     let text = std::fs::read_to_string(&outp).unwrap();
     let mut lines = text.lines();
     assert_eq!(lines.next().unwrap(), "id,z_mm,x_mm,y_mm,note,dx_um,dy_um,dz_um");
     let row: Vec<&str> = lines.next().unwrap().split(',').collect();
     assert_eq!(row[0], "A");
     assert_eq!(&row[4..6], &["\"keep", " me\""], "quoted pass-through column kept");
-    let v: Vec<f64> = [row[1], row[2], row[3], row[6], row[7], row[8]].iter().map(|x| x.parse().unwrap()).collect();
+    let v: Vec<f64> =
+        [row[1], row[2], row[3], row[6], row[7], row[8]].iter().map(|x| x.parse().unwrap()).collect();
     let want = [400.0 + 0.0975, 800.0 - 0.0975, 250.0 + 0.42375, -97.5, 423.75, 97.5];
     for (a, b) in v.iter().zip(want) {
         assert!((a - b).abs() < 1e-9, "{v:?} vs {want:?}");
     }
     // Statics from mass/CoG: three points, by hand 5500/2500/2000 N (see the statics unit test).
-    let load3 = write(d.path(), "load3.toml", "weight_n = 10000\ncog_mm = [250, 100]\nrest_points_mm = [[0, 0], [1000, 0], [0, 500]]\n");
+    let load3 = write(
+        d.path(),
+        "load3.toml",
+        "weight_n = 10000\ncog_mm = [250, 100]\nrest_points_mm = [[0, 0], [1000, 0], [0, 500]]\n",
+    );
     let j = ok_json(&run(&["load", "curves", "--map", s(&map), "--load", s(&load3), "--json"]));
     for (a, b) in f64s(&j["forces_n"]).iter().zip([5500.0, 2500.0, 2000.0]) {
         assert!((a - b).abs() < 1e-9);
@@ -159,31 +207,70 @@ fn bad_load_cases_maps_and_beds_exit_2() {
     let map = hand_map(d.path());
     let bed = write(d.path(), "bed.toml", BED);
     let curves = |load: &Path| run(&["load", "curves", "--map", s(&map), "--load", s(load), "--json"]);
-    let l = write(d.path(), "outside.toml", "mass_kg = 500\ncog_mm = [-100, 100]\nrest_points_mm = [[0, 0], [1000, 0], [0, 500]]\n");
+    let l = write(
+        d.path(),
+        "outside.toml",
+        "mass_kg = 500\ncog_mm = [-100, 100]\nrest_points_mm = [[0, 0], [1000, 0], [0, 500]]\n",
+    );
     expect_input_error(&curves(&l), &["outside.toml", "tension"]);
-    let l = write(d.path(), "two.toml", "mass_kg = 500\ncog_mm = [300, 100]\nrest_points_mm = [[0, 0], [1000, 0]]\n");
+    let l = write(
+        d.path(),
+        "two.toml",
+        "mass_kg = 500\ncog_mm = [300, 100]\nrest_points_mm = [[0, 0], [1000, 0]]\n",
+    );
     expect_input_error(&curves(&l), &["two.toml", "cannot carry"]);
     let l = write(d.path(), "neg.toml", "[[rest]]\nx_mm = 1\ny_mm = 1\nforce_n = -5\n");
     expect_input_error(&curves(&l), &["neg.toml", "negative"]);
-    let l = write(d.path(), "off.toml", "mass_kg = 500\ncog_mm = [600, 500]\nrest_points_mm = [[200, 200], [1200, 500], [200, 800]]\n");
+    let l = write(
+        d.path(),
+        "off.toml",
+        "mass_kg = 500\ncog_mm = [600, 500]\nrest_points_mm = [[200, 200], [1200, 500], [200, 800]]\n",
+    );
     expect_input_error(&curves(&l), &["off.toml", "does not cover"]);
     // A point whose portal position is outside the map's portal range: line named, no output.
-    let l = write(d.path(), "ok.toml", "weight_n = 1000\ncog_mm = [500, 500]\nrest_points_mm = [[500, 500]]\n");
+    let l =
+        write(d.path(), "ok.toml", "weight_n = 1000\ncog_mm = [500, 500]\nrest_points_mm = [[500, 500]]\n");
     let pts = write(d.path(), "pts.csv", "x_mm,y_mm,z_mm\n1,2,3\n1,1500,3\n");
     let outp = d.path().join("never.csv");
-    let o = run(&["load", "correct", "--map", s(&map), "--load", s(&l), "--bed", s(&bed), "--points", s(&pts), "--output", s(&outp)]);
+    let o = run(&[
+        "load",
+        "correct",
+        "--map",
+        s(&map),
+        "--load",
+        s(&l),
+        "--bed",
+        s(&bed),
+        "--points",
+        s(&pts),
+        "--output",
+        s(&outp),
+    ]);
     expect_input_error(&o, &["pts.csv:3", "portal y"]);
     assert!(!outp.exists());
     // Maps: no unit-load comment; an incomplete grid.
     let text = std::fs::read_to_string(&map).unwrap();
     let m = write(d.path(), "nounit.csv", &text.replace("# unit_load_n = 1000\n", ""));
-    expect_input_error(&run(&["load", "curves", "--map", s(&m), "--load", s(&l)]), &["nounit.csv", "unit_load_n"]);
-    let m = write(d.path(), "holes.csv", &text.lines().take(text.lines().count() - 1).collect::<Vec<_>>().join("\n"));
-    expect_input_error(&run(&["load", "curves", "--map", s(&m), "--load", s(&l)]), &["holes.csv", "complete grid"]);
+    expect_input_error(
+        &run(&["load", "curves", "--map", s(&m), "--load", s(&l)]),
+        &["nounit.csv", "unit_load_n"],
+    );
+    let m = write(
+        d.path(),
+        "holes.csv",
+        &text.lines().take(text.lines().count() - 1).collect::<Vec<_>>().join("\n"),
+    );
+    expect_input_error(
+        &run(&["load", "curves", "--map", s(&m), "--load", s(&l)]),
+        &["holes.csv", "complete grid"],
+    );
     // A singular FE model: two supports cannot hold the plate.
     let b = write(d.path(), "two_pads.toml", &format!("[bed]\nsize_x_mm = 1000\nsize_y_mm = 1000\nthickness_mm = 100\nyoungs_modulus_mpa = 50000\npoisson = 0.2\nsupports_mm = [[100, 100], [900, 900]]\n{}", BED.replace("y_range_mm = [0, 1000]", "y_range_mm = [200, 800]")));
     let outp = d.path().join("map_never.csv");
-    expect_input_error(&run(&["load", "map", "--bed", s(&b), "--output", s(&outp)]), &["two_pads.toml", "singular"]);
+    expect_input_error(
+        &run(&["load", "map", "--bed", s(&b), "--output", s(&outp)]),
+        &["two_pads.toml", "singular"],
+    );
     assert!(!outp.exists());
 }
 
@@ -193,9 +280,20 @@ fn deflection_matches_navier_plate_theory() {
     // series; Mindlin's shear term is ~1e-3 of the deflection at these distances from the load.
     let d = tempfile::tempdir().unwrap();
     let bed = write(d.path(), "ss.toml", "[bed]\nsize_x_mm = 1000\nsize_y_mm = 1000\nthickness_mm = 10\nyoungs_modulus_mpa = 200000\npoisson = 0.3\nsupports = \"simply-supported-edges\"\n");
-    let load = write(d.path(), "c.toml", "weight_n = 1000\ncog_mm = [500, 500]\nrest_points_mm = [[500, 500]]\n");
+    let load =
+        write(d.path(), "c.toml", "weight_n = 1000\ncog_mm = [500, 500]\nrest_points_mm = [[500, 500]]\n");
     let at = write(d.path(), "at.csv", "x_mm,y_mm\n250,500\n500,250\n750,750\n100,900\n");
-    let j = ok_json(&run(&["load", "deflection", "--bed", s(&bed), "--load", s(&load), "--at", s(&at), "--json"]));
+    let j = ok_json(&run(&[
+        "load",
+        "deflection",
+        "--bed",
+        s(&bed),
+        "--load",
+        s(&load),
+        "--at",
+        s(&at),
+        "--json",
+    ]));
     let uz = f64s(&j["uz_mm"]);
     let dflex = 200000.0 * 1000.0 / (12.0 * (1.0 - 0.09));
     let pi = std::f64::consts::PI;
@@ -208,7 +306,8 @@ fn deflection_matches_navier_plate_theory() {
                 if s == 0.0 {
                     continue;
                 }
-                w += s * (m * pi * x / 1000.0).sin() * (n * pi * y / 1000.0).sin() / ((m / 1000.0).powi(2) + (n / 1000.0).powi(2)).powi(2);
+                w += s * (m * pi * x / 1000.0).sin() * (n * pi * y / 1000.0).sin()
+                    / ((m / 1000.0).powi(2) + (n / 1000.0).powi(2)).powi(2);
             }
         }
         4.0 * 1000.0 / (pi.powi(4) * dflex * 1e6) * w

@@ -76,7 +76,10 @@ impl Default for LoadConfig {
                 thickness: 200.0,
                 youngs_modulus: 50_000.0,
                 poisson: 0.2,
-                supports: Supports::Points { xy: vec![[350.0, 250.0], [2150.0, 250.0], [2150.0, 1350.0], [350.0, 1350.0]], stiffness_n_per_mm: None },
+                supports: Supports::Points {
+                    xy: vec![[350.0, 250.0], [2150.0, 250.0], [2150.0, 1350.0], [350.0, 1350.0]],
+                    stiffness_n_per_mm: None,
+                },
             },
             rail_x: [100.0, 2400.0],
             rail_height: 50.0,
@@ -154,7 +157,9 @@ fn portal_tilt(uz: &dyn Fn(f64, f64) -> f64, c: &LoadConfig, y: f64) -> (f64, f6
 /// Build the data set.
 pub fn simulate(c: &LoadConfig, seed: u64) -> Result<LoadData, LoadScenarioError> {
     let weight = c.mass_kg * G;
-    let forces = three_pad_forces(weight, c.cog, &c.rests).filter(|f| f.iter().all(|v| *v > 0.0)).ok_or(LoadScenarioError::Statics([f64::NAN; 3]))?;
+    let forces = three_pad_forces(weight, c.cog, &c.rests)
+        .filter(|f| f.iter().all(|v| *v > 0.0))
+        .ok_or(LoadScenarioError::Statics([f64::NAN; 3]))?;
     let plate = PlateModel::new(&c.bed, &MeshOptions::with_element_size(c.sim_element_size))?;
     let loads: Vec<(f64, f64, f64)> = c.rests.iter().zip(forces).map(|(r, f)| (r[0], r[1], f)).collect();
     let d = plate.solve(&loads)?;
@@ -164,8 +169,22 @@ pub fn simulate(c: &LoadConfig, seed: u64) -> Result<LoadData, LoadScenarioError
         return Err(LoadScenarioError::Geometry("bearings leave the bed".into()));
     }
     // The die rests rigidly on its pads: plane w = c0 + c1 x + c2 y through the pad deflections.
-    let rest_uz = [uz(c.rests[0][0], c.rests[0][1]), uz(c.rests[1][0], c.rests[1][1]), uz(c.rests[2][0], c.rests[2][1])];
-    let m = nalgebra::Matrix3::new(1.0, c.rests[0][0], c.rests[0][1], 1.0, c.rests[1][0], c.rests[1][1], 1.0, c.rests[2][0], c.rests[2][1]);
+    let rest_uz = [
+        uz(c.rests[0][0], c.rests[0][1]),
+        uz(c.rests[1][0], c.rests[1][1]),
+        uz(c.rests[2][0], c.rests[2][1]),
+    ];
+    let m = nalgebra::Matrix3::new(
+        1.0,
+        c.rests[0][0],
+        c.rests[0][1],
+        1.0,
+        c.rests[1][0],
+        c.rests[1][1],
+        1.0,
+        c.rests[2][0],
+        c.rests[2][1],
+    );
     let w = m.lu().solve(&nalgebra::Vector3::from(rest_uz)).ok_or(LoadScenarioError::Statics(forces))?;
     let true_points: Vec<Point3> = c
         .design_points
@@ -179,7 +198,10 @@ pub fn simulate(c: &LoadConfig, seed: u64) -> Result<LoadData, LoadScenarioError
     let mut indicated_exact = Vec::with_capacity(true_points.len());
     for t in &true_points {
         if !(c.y_range[0]..=c.y_range[1]).contains(&t.y) {
-            return Err(LoadScenarioError::Geometry(format!("point y = {} mm outside the portal travel", t.y)));
+            return Err(LoadScenarioError::Geometry(format!(
+                "point y = {} mm outside the portal travel",
+                t.y
+            )));
         }
         // Tip = o + R (p − o)  ⇒  p = o + Rᵀ (tip − o), with o and R at the portal position p.y.
         let mut p = *t;

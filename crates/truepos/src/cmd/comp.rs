@@ -41,7 +41,9 @@ holds target tip positions T and the output the tip positions c to command, c + 
 Tables are interpolated linearly; positions outside a table are an error unless --clamp.";
 
 #[derive(clap::Args, Debug)]
-#[command(after_help = "Examples:\n  truepos comp correct --map map.csv --squareness sq.toml --points meas.csv --output corrected.csv\n  truepos comp correct --map map.csv --points targets.csv --output commanded.csv --commanded\n  truepos comp error --map map.csv --at points.csv --probe-offset-mm 0,0,-120 --json")]
+#[command(
+    after_help = "Examples:\n  truepos comp correct --map map.csv --squareness sq.toml --points meas.csv --output corrected.csv\n  truepos comp correct --map map.csv --points targets.csv --output commanded.csv --commanded\n  truepos comp error --map map.csv --at points.csv --probe-offset-mm 0,0,-120 --json"
+)]
 #[command(long_about = COMPONENTS_HELP)]
 pub struct Args {
     #[command(subcommand)]
@@ -131,10 +133,25 @@ pub fn read_map(path: &Path) -> Result<GeometricMap, InputError> {
             "x" => 0,
             "y" => 1,
             "z" => 2,
-            other => return Err(InputError::at(path, t.line_number(i), acol, format!("axis must be x, y or z (got '{other}')")).with_column_name("axis")),
+            other => {
+                return Err(InputError::at(
+                    path,
+                    t.line_number(i),
+                    acol,
+                    format!("axis must be x, y or z (got '{other}')"),
+                )
+                .with_column_name("axis"))
+            }
         };
         let r = &v[i * 7..i * 7 + 7];
-        let e = AxisErrors { pos: r[1] * 1e-3, str1: r[2] * 1e-3, str2: r[3] * 1e-3, pitch: r[4] * 1e-6, yaw: r[5] * 1e-6, roll: r[6] * 1e-6 };
+        let e = AxisErrors {
+            pos: r[1] * 1e-3,
+            str1: r[2] * 1e-3,
+            str2: r[3] * 1e-3,
+            pitch: r[4] * 1e-6,
+            yaw: r[5] * 1e-6,
+            roll: r[6] * 1e-6,
+        };
         rows[k].push((r[0], e, i));
     }
     let mut map = GeometricMap::default();
@@ -150,7 +167,12 @@ pub fn read_map(path: &Path) -> Result<GeometricMap, InputError> {
                     path,
                     t.line_number(w[1].2.max(w[0].2)),
                     t.column("position_mm").map(|c| c + 1),
-                    format!("axis {}: position {} mm appears twice (also line {})", axis.name(), w[0].0, t.line_number(w[1].2.min(w[0].2))),
+                    format!(
+                        "axis {}: position {} mm appears twice (also line {})",
+                        axis.name(),
+                        w[0].0,
+                        t.line_number(w[1].2.min(w[0].2))
+                    ),
                 ));
             }
         }
@@ -193,7 +215,10 @@ pub fn read_squareness(path: &Path) -> Result<Squareness, InputError> {
         let t = Table::read(path)?;
         let v = t.f64_columns(&["xy_urad", "xz_urad", "yz_urad"])?;
         if t.n_rows() != 1 {
-            return Err(InputError::in_file(path, format!("a squareness CSV has exactly one data row (got {})", t.n_rows())));
+            return Err(InputError::in_file(
+                path,
+                format!("a squareness CSV has exactly one data row (got {})", t.n_rows()),
+            ));
         }
         (v[0], v[1], v[2])
     };
@@ -264,7 +289,6 @@ pub fn write_corrected(t: &Table, points: &[Point3], d: &[Vector3], out: &Path) 
         }
         w.end_row()?;
     }
-    drop(w);
     f.flush()?;
     f.commit().with_context(|| format!("cannot write {}", out.display()))?;
     Ok(())
@@ -318,7 +342,12 @@ fn correct(a: CorrectArgs) -> Result<Outcome> {
         }
         print_json(&j)?;
     } else {
-        eprintln!("{} points {}; correction rms {rms:.3} µm, max {max:.3} µm → {}", pts.len(), if a.commanded { "compensated" } else { "corrected" }, a.output.display());
+        eprintln!(
+            "{} points {}; correction rms {rms:.3} µm, max {max:.3} µm → {}",
+            pts.len(),
+            if a.commanded { "compensated" } else { "corrected" },
+            a.output.display()
+        );
     }
     Ok(Outcome::Done)
 }
@@ -331,7 +360,10 @@ fn error(a: ErrorArgs) -> Result<Outcome> {
     let corr = Corrector { geometric: Some(&map), load: None, probe_offset: Vector3::new(ox, oy, oz) };
     let mut e = Vec::with_capacity(pts.len());
     for (i, p) in pts.iter().enumerate() {
-        e.push(corr.displacement(p).map_err(|source| batch_error(&t, CompError::OutOfRange { index: i, source }))?);
+        e.push(
+            corr.displacement(p)
+                .map_err(|source| batch_error(&t, CompError::OutOfRange { index: i, source }))?,
+        );
     }
     if let Some(out) = &a.output {
         let mut f = AtomicFile::create(out).with_context(|| format!("cannot create {}", out.display()))?;
@@ -340,7 +372,6 @@ fn error(a: ErrorArgs) -> Result<Outcome> {
         for (p, v) in pts.iter().zip(&e) {
             w.row_f64(&[p.x, p.y, p.z, v.x * 1e3, v.y * 1e3, v.z * 1e3])?;
         }
-        drop(w);
         f.commit()?;
     }
     if a.json {
@@ -350,7 +381,15 @@ fn error(a: ErrorArgs) -> Result<Outcome> {
         }))?;
     } else if a.output.is_none() {
         for (p, v) in pts.iter().zip(&e) {
-            println!("{:.4} {:.4} {:.4}  →  {:+.4} {:+.4} {:+.4} µm", p.x, p.y, p.z, v.x * 1e3, v.y * 1e3, v.z * 1e3);
+            println!(
+                "{:.4} {:.4} {:.4}  →  {:+.4} {:+.4} {:+.4} µm",
+                p.x,
+                p.y,
+                p.z,
+                v.x * 1e3,
+                v.y * 1e3,
+                v.z * 1e3
+            );
         }
     }
     Ok(Outcome::Done)

@@ -54,7 +54,9 @@ pub enum Sub {
     #[command(long_about = SIGN_HELP, after_help = "Example:\n  truepos load curves --map map.csv --load load.toml --json")]
     Curves(CurvesCmd),
     /// Bed deflection uz (mm, positive up) of the load case at given x_mm,y_mm points.
-    #[command(after_help = "Example:\n  truepos load deflection --bed bed.toml --load load.toml --at points.csv --json")]
+    #[command(
+        after_help = "Example:\n  truepos load deflection --bed bed.toml --load load.toml --at points.csv --json"
+    )]
     Deflection(DeflectionCmd),
 }
 
@@ -204,14 +206,34 @@ fn read_bed(path: &Path) -> Result<BedInfo, InputError> {
                 (None, Some(other)) => return Err(InputError::in_file(path, format!("[bed] supports = \"{other}\": the only keyword is \"simply-supported-edges\" (or give supports_mm)"))),
                 (None, None) => return Err(InputError::in_file(path, "[bed]: supports_mm = [[x, y], ...] (or supports = \"simply-supported-edges\") is required")),
             };
-            Some((Bed { size_x: b.size_x_mm, size_y: b.size_y_mm, thickness: b.thickness_mm, youngs_modulus: b.youngs_modulus_mpa, poisson: b.poisson, supports }, b.element_size_mm))
+            Some((
+                Bed {
+                    size_x: b.size_x_mm,
+                    size_y: b.size_y_mm,
+                    thickness: b.thickness_mm,
+                    youngs_modulus: b.youngs_modulus_mpa,
+                    poisson: b.poisson,
+                    supports,
+                },
+                b.element_size_mm,
+            ))
         }
     };
-    let portal = f.portal.map(|p| Portal { rail_x: p.rail_x_mm, rail_height: p.rail_height_mm, bearing_span: p.bearing_span_mm, y_range: p.y_range_mm, y_step: p.y_step_mm });
+    let portal = f.portal.map(|p| Portal {
+        rail_x: p.rail_x_mm,
+        rail_height: p.rail_height_mm,
+        bearing_span: p.bearing_span_mm,
+        y_range: p.y_range_mm,
+        y_step: p.y_step_mm,
+    });
     if let Some(p) = &portal {
         p.validate().map_err(|e| InputError::in_file(path, format!("[portal]: {e}")))?;
     }
-    Ok(BedInfo { bed, portal, grid: LoadGrid { spacing: f.grid.spacing_mm, unit_load_n: f.grid.unit_load_n } })
+    Ok(BedInfo {
+        bed,
+        portal,
+        grid: LoadGrid { spacing: f.grid.spacing_mm, unit_load_n: f.grid.unit_load_n },
+    })
 }
 
 #[derive(Deserialize, Debug)]
@@ -249,20 +271,34 @@ fn read_load(path: &Path) -> Result<LoadCase, InputError> {
         (None, Some(w)) => Some(w),
         (Some(m), Some(w)) => {
             if (m * G - w).abs() > 1e-3 * w.abs() {
-                return Err(err(format!("mass_kg = {m} (weight {:.3} N) and weight_n = {w} disagree; give one", m * G)));
+                return Err(err(format!(
+                    "mass_kg = {m} (weight {:.3} N) and weight_n = {w} disagree; give one",
+                    m * G
+                )));
             }
             Some(w)
         }
         (None, None) => None,
     };
     match (f.rest_points_mm, f.rest) {
-        (Some(_), Some(_)) => Err(err("give either rest_points_mm or [[rest]] entries with forces, not both".into())),
-        (None, None) => Err(err("no resting points: give rest_points_mm = [[x, y], ...] or [[rest]] x_mm, y_mm, force_n".into())),
+        (Some(_), Some(_)) => {
+            Err(err("give either rest_points_mm or [[rest]] entries with forces, not both".into()))
+        }
+        (None, None) => {
+            Err(err("no resting points: give rest_points_mm = [[x, y], ...] or [[rest]] x_mm, y_mm, force_n"
+                .into()))
+        }
         (Some(r), None) => {
-            let w = weight.ok_or_else(|| err("mass_kg or weight_n is required with rest_points_mm".into()))?;
+            let w =
+                weight.ok_or_else(|| err("mass_kg or weight_n is required with rest_points_mm".into()))?;
             let c = f.cog_mm.ok_or_else(|| err("cog_mm = [x, y] is required with rest_points_mm".into()))?;
             let forces = statics::distribute(w, c, &r).map_err(|e| err(e.to_string()))?;
-            Ok(LoadCase { loads: r.iter().zip(&forces).map(|(p, f)| (p[0], p[1], *f)).collect(), weight_n: w, cog: c, explicit: false })
+            Ok(LoadCase {
+                loads: r.iter().zip(&forces).map(|(p, f)| (p[0], p[1], *f)).collect(),
+                weight_n: w,
+                cog: c,
+                explicit: false,
+            })
         }
         (None, Some(rest)) => {
             let loads: Vec<(f64, f64, f64)> = rest.iter().map(|r| (r.x_mm, r.y_mm, r.force_n)).collect();
@@ -282,12 +318,27 @@ pub fn read_influence(path: &Path) -> Result<InfluenceMap, InputError> {
             let (k, v) = c.split_once('=')?;
             (k.trim() == "unit_load_n").then(|| v.trim().to_string())
         })
-        .ok_or_else(|| InputError::in_file(path, "missing the comment line '# unit_load_n = <N>' before the header"))?;
-    let unit: f64 = unit.parse().ok().filter(|v: &f64| v.is_finite() && *v > 0.0).ok_or_else(|| InputError::in_file(path, format!("unit_load_n = '{unit}' is not a positive number")))?;
+        .ok_or_else(|| {
+            InputError::in_file(path, "missing the comment line '# unit_load_n = <N>' before the header")
+        })?;
+    let unit: f64 = unit.parse().ok().filter(|v: &f64| v.is_finite() && *v > 0.0).ok_or_else(|| {
+        InputError::in_file(path, format!("unit_load_n = '{unit}' is not a positive number"))
+    })?;
     let v = t.f64_columns(&["load_x_mm", "load_y_mm", "portal_y_mm", "pitch_urad", "roll_urad"])?;
-    let rows: Vec<InfluenceRow> = v.chunks_exact(5).map(|r| InfluenceRow { load_x: r[0], load_y: r[1], portal_y: r[2], pitch: r[3] * 1e-6, roll: r[4] * 1e-6 }).collect();
+    let rows: Vec<InfluenceRow> = v
+        .chunks_exact(5)
+        .map(|r| InfluenceRow {
+            load_x: r[0],
+            load_y: r[1],
+            portal_y: r[2],
+            pitch: r[3] * 1e-6,
+            roll: r[4] * 1e-6,
+        })
+        .collect();
     InfluenceMap::from_rows(unit, &rows).map_err(|e| match e {
-        InfluenceError::Duplicate { row, .. } | InfluenceError::NotFinite { row } => InputError::at(path, t.line_number(row), None, e.to_string()),
+        InfluenceError::Duplicate { row, .. } | InfluenceError::NotFinite { row } => {
+            InputError::at(path, t.line_number(row), None, e.to_string())
+        }
         _ => InputError::in_file(path, e.to_string()),
     })
 }
@@ -302,13 +353,18 @@ fn write_influence(map: &InfluenceMap, out: &Path, note: &str) -> Result<()> {
     for r in map.rows() {
         w.row_f64(&[r.load_x, r.load_y, r.portal_y, r.pitch * 1e6, r.roll * 1e6])?;
     }
-    drop(w);
     f.commit().with_context(|| format!("cannot write {}", out.display()))?;
     Ok(())
 }
 
-fn superpose(map: &InfluenceMap, case: &LoadCase, map_path: &Path, load_path: &Path) -> Result<PortalCurves, InputError> {
-    map.superpose(&case.loads).map_err(|e| InputError::in_file(load_path, format!("{e} ({})", map_path.display())))
+fn superpose(
+    map: &InfluenceMap,
+    case: &LoadCase,
+    map_path: &Path,
+    load_path: &Path,
+) -> Result<PortalCurves, InputError> {
+    map.superpose(&case.loads)
+        .map_err(|e| InputError::in_file(load_path, format!("{e} ({})", map_path.display())))
 }
 
 fn mesh_for(cli: Option<f64>, file: Option<f64>) -> Result<MeshOptions, crate::UsageError> {
@@ -345,9 +401,18 @@ fn map_cmd(a: MapCmd) -> Result<Outcome> {
     let n = xs.len() * ys.len();
     let pb = progress(n as u64, "influence map");
     let t0 = std::time::Instant::now();
-    let map = fe_map::influence_map(&model, &mesh, &|k| pb.set_position(k as u64)).map_err(|e| InputError::in_file(&a.bed, e.to_string()))?;
+    let map = fe_map::influence_map(&model, &mesh, &|k| pb.set_position(k as u64))
+        .map_err(|e| InputError::in_file(&a.bed, e.to_string()))?;
     pb.finish_and_clear();
-    write_influence(&map, &a.output, &format!("plate FE of {} (element size {})", a.bed.display(), if mesh.element_size > 0.0 { format!("{} mm", mesh.element_size) } else { "automatic".into() }))?;
+    write_influence(
+        &map,
+        &a.output,
+        &format!(
+            "plate FE of {} (element size {})",
+            a.bed.display(),
+            if mesh.element_size > 0.0 { format!("{} mm", mesh.element_size) } else { "automatic".into() }
+        ),
+    )?;
     let secs = t0.elapsed().as_secs_f64();
     if a.json {
         print_json(&json!({
@@ -358,7 +423,11 @@ fn map_cmd(a: MapCmd) -> Result<Outcome> {
             "seconds": secs,
         }))?;
     } else {
-        eprintln!("{n} unit loads × {} portal positions in {secs:.1} s → {}", map.portal_y().len(), a.output.display());
+        eprintln!(
+            "{n} unit loads × {} portal positions in {secs:.1} s → {}",
+            map.portal_y().len(),
+            a.output.display()
+        );
     }
     Ok(Outcome::Done)
 }
@@ -367,11 +436,19 @@ fn correct_cmd(a: CorrectCmd) -> Result<Outcome> {
     let map = read_influence(&a.map)?;
     let case = read_load(&a.load)?;
     let info = read_bed(&a.bed)?;
-    let portal = info.portal.ok_or_else(|| InputError::in_file(&a.bed, "[portal] section (rail_x_mm, rail_height_mm, …) is required"))?;
+    let portal = info.portal.ok_or_else(|| {
+        InputError::in_file(&a.bed, "[portal] section (rail_x_mm, rail_height_mm, …) is required")
+    })?;
     let curves = superpose(&map, &case, &a.map, &a.load)?;
     let lc = LoadCorrection::new(curves, &portal);
     let geo = match &a.geometric_map {
-        Some(m) => Some(load_map(&MapArgs { map: m.clone(), squareness: a.squareness.clone(), probe_offset_mm: a.probe_offset_mm, chain: ChainArg::Bridge, clamp: false })?),
+        Some(m) => Some(load_map(&MapArgs {
+            map: m.clone(),
+            squareness: a.squareness.clone(),
+            probe_offset_mm: a.probe_offset_mm,
+            chain: ChainArg::Bridge,
+            clamp: false,
+        })?),
         None => None,
     };
     let [ox, oy, oz] = a.probe_offset_mm;
@@ -381,7 +458,10 @@ fn correct_cmd(a: CorrectCmd) -> Result<Outcome> {
     let mut d = vec![Vector3::zeros(); pts.len()];
     corr.correct_measured(&mut pts, Some(&mut d)).map_err(|e| {
         let mut ie = batch_error(&t, e);
-        ie.message.push_str(&format!(" (the influence map {} covers portal y only over this range)", a.map.display()));
+        ie.message.push_str(&format!(
+            " (the influence map {} covers portal y only over this range)",
+            a.map.display()
+        ));
         ie
     })?;
     write_corrected(&t, &pts, &d, &a.output)?;
@@ -396,7 +476,11 @@ fn correct_cmd(a: CorrectCmd) -> Result<Outcome> {
             "max_correction_um": max,
         }))?;
     } else {
-        eprintln!("{} points corrected; correction rms {rms:.3} µm, max {max:.3} µm → {}", pts.len(), a.output.display());
+        eprintln!(
+            "{} points corrected; correction rms {rms:.3} µm, max {max:.3} µm → {}",
+            pts.len(),
+            a.output.display()
+        );
     }
     Ok(Outcome::Done)
 }
@@ -443,7 +527,14 @@ fn deflection_cmd(a: DeflectionCmd) -> Result<Outcome> {
     })?;
     let mut out = Vec::with_capacity(uz.len());
     for (i, u) in uz.iter().enumerate() {
-        out.push(u.ok_or_else(|| InputError::at(&a.at, t.line_number(i), None, format!("point ({}, {}) mm is outside the bed", at[i][0], at[i][1])))?);
+        out.push(u.ok_or_else(|| {
+            InputError::at(
+                &a.at,
+                t.line_number(i),
+                None,
+                format!("point ({}, {}) mm is outside the bed", at[i][0], at[i][1]),
+            )
+        })?);
     }
     if a.json {
         print_json(&json!({ "uz_mm": out, "forces_n": case.loads.iter().map(|l| l.2).collect::<Vec<_>>() }))?;
@@ -462,7 +553,10 @@ use truepos_sim::scenario::load::{simulate as sim_load, LoadConfig, LoadData};
 
 fn bed_toml(c: &LoadConfig) -> String {
     let supports = match &c.bed.supports {
-        Supports::Points { xy, .. } => format!("supports_mm = [{}]", xy.iter().map(|p| format!("[{}, {}]", p[0], p[1])).collect::<Vec<_>>().join(", ")),
+        Supports::Points { xy, .. } => format!(
+            "supports_mm = [{}]",
+            xy.iter().map(|p| format!("[{}, {}]", p[0], p[1])).collect::<Vec<_>>().join(", ")
+        ),
         Supports::SimplySupportedEdges => "supports = \"simply-supported-edges\"".into(),
     };
     format!(
@@ -490,7 +584,10 @@ fn write_scenario(dir: &Path, seed: u64) -> Result<(LoadConfig, LoadData)> {
     let mut f = AtomicFile::create(dir.join("points.csv"))?;
     {
         let mut w = CsvWriter::new(&mut f);
-        w.comment(&format!("indicated coordinates on the loaded virtual CMM, seed {seed}, probing noise {} µm per axis", cfg.noise_sigma * 1e3))?;
+        w.comment(&format!(
+            "indicated coordinates on the loaded virtual CMM, seed {seed}, probing noise {} µm per axis",
+            cfg.noise_sigma * 1e3
+        ))?;
         w.header(&["id", "x_mm", "y_mm", "z_mm"])?;
         for (i, p) in data.indicated.iter().enumerate() {
             w.field_str(&format!("P{}", i + 1))?;
@@ -525,7 +622,12 @@ fn write_scenario(dir: &Path, seed: u64) -> Result<(LoadConfig, LoadData)> {
 
 pub fn simulate(a: SimArgs) -> Result<Outcome> {
     let (_, data) = write_scenario(&a.common.out, a.common.seed)?;
-    eprintln!("load scenario: {} points, forces {:?} N → {}", data.indicated.len(), data.forces_n.map(|f| (f * 10.0).round() / 10.0), a.common.out.display());
+    eprintln!(
+        "load scenario: {} points, forces {:?} N → {}",
+        data.indicated.len(),
+        data.forces_n.map(|f| (f * 10.0).round() / 10.0),
+        a.common.out.display()
+    );
     Ok(Outcome::Done)
 }
 
@@ -533,8 +635,18 @@ pub fn simulate(a: SimArgs) -> Result<Outcome> {
 pub fn demo_section(report: &mut Report) -> Result<()> {
     let dir = report.dir.join("load");
     let (cfg, data) = write_scenario(&dir, 1)?;
-    let portal = Portal { rail_x: cfg.rail_x, rail_height: cfg.rail_height, bearing_span: cfg.bearing_span, y_range: cfg.y_range, y_step: cfg.y_step };
-    let model = BedModel { bed: cfg.bed.clone(), portal, grid: LoadGrid { spacing: cfg.grid_spacing, unit_load_n: cfg.unit_load_n } };
+    let portal = Portal {
+        rail_x: cfg.rail_x,
+        rail_height: cfg.rail_height,
+        bearing_span: cfg.bearing_span,
+        y_range: cfg.y_range,
+        y_step: cfg.y_step,
+    };
+    let model = BedModel {
+        bed: cfg.bed.clone(),
+        portal,
+        grid: LoadGrid { spacing: cfg.grid_spacing, unit_load_n: cfg.unit_load_n },
+    };
     let t0 = std::time::Instant::now();
     let map = fe_map::influence_map(&model, &MeshOptions::with_element_size(cfg.map_element_size), &|_| {})?;
     let t_map = t0.elapsed().as_secs_f64();
@@ -546,31 +658,75 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
     let corr = Corrector { geometric: None, load: Some(&lc), probe_offset: Vector3::zeros() };
     let mut corrected: Vec<Point3> = data.indicated.clone();
     corr.correct_measured(&mut corrected, None)?;
-    let err = |a: &[Point3]| -> Vec<Vector3> { a.iter().zip(&data.true_points).map(|(p, t)| p - t).collect() };
+    let err =
+        |a: &[Point3]| -> Vec<Vector3> { a.iter().zip(&data.true_points).map(|(p, t)| p - t).collect() };
     let before = err(&data.indicated_exact);
-    let after_load: Vec<Point3> = corrected.iter().zip(&data.indicated).zip(&data.indicated_exact).map(|((c, n), e)| c - (n - e)).collect();
+    let after_load: Vec<Point3> = corrected
+        .iter()
+        .zip(&data.indicated)
+        .zip(&data.indicated_exact)
+        .map(|((c, n), e)| c - (n - e))
+        .collect();
     let after = err(&after_load);
     let (rb, mb) = rms_max_um(&before);
     let (ra, ma) = rms_max_um(&after);
     let (rn0, mn0) = rms_max_um(&err(&data.indicated));
     let (rn, mn) = rms_max_um(&err(&corrected));
-    let heat = report::heatmap("Bed deflection uz under the die", &data.grid_x, &data.grid_y, &data.uz.iter().map(|r| r.iter().map(|v| v * 1e3).collect()).collect::<Vec<Vec<f64>>>(), "µm")?;
+    let heat = report::heatmap(
+        "Bed deflection uz under the die",
+        &data.grid_x,
+        &data.grid_y,
+        &data.uz.iter().map(|r| r.iter().map(|v| v * 1e3).collect()).collect::<Vec<Vec<f64>>>(),
+        "µm",
+    )?;
     let curve_plot = report::xy_plot(
         "Portal pitch and roll along Y",
         "portal y (mm)",
         "µrad",
         &[
-            Series::line("pitch (map, superposed)", curves.y().iter().zip(&curves.pitch).map(|(y, p)| (*y, p * 1e6)).collect()),
-            Series::points("pitch (truth, fine FE)", data.portal_y.iter().zip(&data.pitch).map(|(y, p)| (*y, p * 1e6)).collect()),
-            Series::line("roll (map, superposed)", curves.y().iter().zip(&curves.roll).map(|(y, p)| (*y, p * 1e6)).collect()),
-            Series::points("roll (truth, fine FE)", data.portal_y.iter().zip(&data.roll).map(|(y, p)| (*y, p * 1e6)).collect()),
+            Series::line(
+                "pitch (map, superposed)",
+                curves.y().iter().zip(&curves.pitch).map(|(y, p)| (*y, p * 1e6)).collect(),
+            ),
+            Series::points(
+                "pitch (truth, fine FE)",
+                data.portal_y.iter().zip(&data.pitch).map(|(y, p)| (*y, p * 1e6)).collect(),
+            ),
+            Series::line(
+                "roll (map, superposed)",
+                curves.y().iter().zip(&curves.roll).map(|(y, p)| (*y, p * 1e6)).collect(),
+            ),
+            Series::points(
+                "roll (truth, fine FE)",
+                data.portal_y.iter().zip(&data.roll).map(|(y, p)| (*y, p * 1e6)).collect(),
+            ),
         ],
     )?;
     let rows = vec![
-        vec!["load-induced error (noise excluded)".into(), format!("{rb:.3}"), format!("{mb:.3}"), format!("{ra:.4}"), format!("{ma:.4}"), format!("{:.2} %", 100.0 * (1.0 - ra / rb))],
-        vec![format!("measured − true (incl. {:.1} µm probing noise)", cfg.noise_sigma * 1e3), format!("{rn0:.3}"), format!("{mn0:.3}"), format!("{rn:.3}"), format!("{mn:.3}"), format!("{:.2} %", 100.0 * (1.0 - rn / rn0))],
+        vec![
+            "load-induced error (noise excluded)".into(),
+            format!("{rb:.3}"),
+            format!("{mb:.3}"),
+            format!("{ra:.4}"),
+            format!("{ma:.4}"),
+            format!("{:.2} %", 100.0 * (1.0 - ra / rb)),
+        ],
+        vec![
+            format!("measured − true (incl. {:.1} µm probing noise)", cfg.noise_sigma * 1e3),
+            format!("{rn0:.3}"),
+            format!("{mn0:.3}"),
+            format!("{rn:.3}"),
+            format!("{mn:.3}"),
+            format!("{:.2} %", 100.0 * (1.0 - rn / rn0)),
+        ],
     ];
-    let force_rows: Vec<Vec<String>> = cfg.rests.iter().zip(&forces).zip(&data.forces_n).map(|((r, f), t)| vec![format!("({:.0}, {:.0})", r[0], r[1]), format!("{f:.2}"), format!("{t:.2}")]).collect();
+    let force_rows: Vec<Vec<String>> = cfg
+        .rests
+        .iter()
+        .zip(&forces)
+        .zip(&data.forces_n)
+        .map(|((r, f), t)| vec![format!("({:.0}, {:.0})", r[0], r[1]), format!("{f:.2}"), format!("{t:.2}")])
+        .collect();
     let html = format!(
         "<p>A {} kg die on three pads on a {}×{}×{} mm granite bed (four support pads). The influence map ({} unit loads of {} N on a {} mm grid × {} portal positions, FE element {} mm) took {t_map:.1} s; the simulator's truth uses a {} mm mesh. {} points measured at two heights with {} µm probing noise.</p>{}{}<p>Forces on the pads by statics:</p>{}<p>Errors of the measured points against truth (µm):</p>{}",
         cfg.mass_kg, cfg.bed.size_x, cfg.bed.size_y, cfg.bed.thickness,
