@@ -333,10 +333,15 @@ impl GeometricErrors {
     }
 
     /// The full map as a table: for each axis, positions `0, step, …, travel` (the last one exactly
-    /// `travel`) and their six components. `step > 0`.
+    /// `travel`) and their six components. Empty if `step ≤ 0`, a travel is negative or not
+    /// finite, or an axis would need more than 1e7 rows.
     pub fn table(&self, travel: [f64; 3], step: f64) -> Vec<MapRow> {
         let mut rows = Vec::new();
         if step.is_nan() || step <= 0.0 {
+            return rows;
+        }
+        // Refuse absurd requests (non-finite or negative travel, more than 1e7 rows per axis).
+        if travel.iter().any(|t| !t.is_finite() || *t < 0.0 || t / step > 1e7) {
             return rows;
         }
         for axis in Axis::ALL {
