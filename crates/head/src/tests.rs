@@ -327,3 +327,40 @@ proptest! {
         prop_assert!((r.reference_point - s.a).norm() < 1e-7);
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 16, ..ProptestConfig::default() })]
+    /// The partial data sets and the vertex reference converge from anywhere too, with the right
+    /// flags: swivel only → Y not observable, table only → Z not observable.
+    #[test]
+    fn partial_and_vertex_data_converge_from_anywhere(
+        ax in -800.0f64..800.0, ay in -600.0f64..600.0, az in -300.0f64..400.0,
+        rx_ in -300.0f64..300.0, ry_ in -300.0f64..300.0, rz_ in -300.0f64..300.0,
+        ox in -500.0f64..500.0, oy in -500.0f64..500.0, seed in 0u64..1000,
+    ) {
+        for (orient, flags) in [(&SWIVEL[..], [true, false, true]), (&TABLE[..], [true, true, false])] {
+            let mut s = Synth::new(orient);
+            s.a = Point3::new(ax, ay, az);
+            s.o = Point3::new(ox, oy, 0.0);
+            s.offset = Vector3::new(rx_, ry_, rz_);
+            s.seed = seed;
+            s.n_per = 10;
+            let r = solve(&s.sphere(), &s.setup(free_sphere())).unwrap();
+            prop_assert_eq!(r.observable, flags);
+            for j in 0..3 {
+                if flags[j] {
+                    prop_assert!((r.offset[j] - s.offset[j]).abs() < 1e-7, "{} vs {}", r.offset, s.offset);
+                } else {
+                    prop_assert_eq!(r.offset[j], 0.0);
+                }
+            }
+        }
+        let mut s = Synth::new(&COMBINED);
+        s.a = Point3::new(ax, ay, az);
+        s.offset = Vector3::new(rx_, ry_, rz_);
+        s.seed = seed;
+        s.n_per = 6;
+        let r = solve(&s.vertex(&pyramid()), &s.setup(Reference::Vertex { tip_radius: 0.0 })).unwrap();
+        prop_assert!((r.offset - s.offset).norm() < 1e-7, "{} vs {}", r.offset, s.offset);
+    }
+}
