@@ -701,4 +701,31 @@ mod tests {
         assert!((m.state(m.end_s() + 1.0).p.x - 100.0).abs() < 1e-6);
         check_derivatives(&m, 0.0, m.end_s(), 1e-3, 2.0);
     }
+
+    proptest::proptest! {
+        #[test]
+        fn random_moves_arrive_within_limits(
+            pts in proptest::collection::vec((-50.0..50.0f64, -50.0..50.0f64, -50.0..50.0f64), 1..5),
+            v in 1.0..100.0f64, a in 100.0..5000.0f64, jerk in proptest::option::of(1e4..1e6f64),
+        ) {
+            let lim = Limits { v_max: v, a_max: a, j_max: jerk };
+            let mut tr = Trajectory::new(0.0, Point3::origin());
+            let targets: Vec<Point3> = pts.iter().map(|&(x, y, z)| Point3::new(x, y, z)).collect();
+            tr.polyline(&targets, &lim).unwrap();
+            let end = tr.end_s();
+            // Each vertex is reached at rest at the end of its piece.
+            for (i, p) in targets.iter().enumerate() {
+                let t = tr.piece_start_s(i).unwrap() + (if i + 1 < targets.len() {
+                    tr.piece_start_s(i + 1).unwrap() - tr.piece_start_s(i).unwrap()
+                } else { end - tr.piece_start_s(i).unwrap() });
+                let st = tr.state(t - 1e-12);
+                proptest::prop_assert!((st.p - p).norm() < 1e-6, "vertex {i}: {} vs {p}", st.p);
+            }
+            for k in 0..=2000 {
+                let st = tr.state(end * k as f64 / 2000.0);
+                proptest::prop_assert!(st.v.norm() <= v * (1.0 + 1e-9));
+                proptest::prop_assert!(st.a.norm() <= a * (1.0 + 1e-9));
+            }
+        }
+    }
 }
