@@ -565,7 +565,9 @@ mod tests {
 
     /// A body moving along −x into a plane at x = 0 (outward normal +x), turning round at depth
     /// 0.2 mm and leaving at the same speed; the machine data lags by `delay`.
-    pub(crate) fn touch(delay: f64, speed: f64) -> (Vec<f64>, Vec<[f64; 3]>, Vec<f64>, Vec<[f64; 3]>) {
+    type Streams4 = (Vec<f64>, Vec<[f64; 3]>, Vec<f64>, Vec<[f64; 3]>);
+
+    pub(crate) fn touch(delay: f64, speed: f64) -> Streams4 {
         let depth = 0.2;
         let start = 0.5; // body starts 0.5 mm off the surface
         let t_turn = (start + depth) / speed;

@@ -353,10 +353,8 @@ pub fn fit(feature: Feature, contacts: &[Contact], spec: FitSpec) -> Result<Feat
         DelayMode::None => {}
         DelayMode::Common => x0.push(spec.fixed_delay[0]),
         DelayMode::PerAxis(mask) => {
-            for k in 0..3 {
-                if mask[k] {
-                    x0.push(spec.fixed_delay[k]);
-                }
+            for (k, _) in mask.iter().enumerate().filter(|(_, &m)| m) {
+                x0.push(spec.fixed_delay[k]);
             }
         }
     }

@@ -16,6 +16,9 @@
 //! - modules: [`stream`] (checks, interpolation), [`contact`] (segmentation, extrapolation),
 //!   [`geom`] (feature fits with the delay), [`touch`] (touch methods), [`scan`] (scan method).
 
+// `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod contact;
 pub mod geom;
 pub mod scan;

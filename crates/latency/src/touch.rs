@@ -65,11 +65,9 @@ pub fn artefact(
             let spec =
                 FitSpec { size: Some(size), fixed_delay: [f.delay[0]; 3], delay: DelayMode::PerAxis(mask) };
             let g = geom::fit(feature, contacts, spec)?;
-            for k in 0..3 {
-                if mask[k] {
-                    pa.delay[k] = Some(g.delay[k]);
-                    pa.u_delay[k] = Some(g.u_delay[k]);
-                }
+            for (k, _) in mask.iter().enumerate().filter(|(_, &m)| m) {
+                pa.delay[k] = Some(g.delay[k]);
+                pa.u_delay[k] = Some(g.u_delay[k]);
             }
         }
         for (k, name) in ["X", "Y", "Z"].iter().enumerate() {
@@ -94,7 +92,9 @@ pub fn speed_groups(contacts: &[Contact]) -> Vec<Vec<usize>> {
         if groups.is_empty() || s > 1.1 * last {
             groups.push(Vec::new());
         }
-        groups.last_mut().map(|g| g.push(i));
+        if let Some(g) = groups.last_mut() {
+            g.push(i);
+        }
         last = s;
     }
     groups

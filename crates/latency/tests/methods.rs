@@ -112,8 +112,8 @@ fn per_axis_delays_from_six_points_at_several_speeds() {
     let e = estimate(&d.streams(), &Options { method: Method::Speeds, per_axis: true, ..Default::default() })
         .unwrap();
     let pa = e.per_axis.unwrap();
-    for k in 0..3 {
-        check(&format!("per-axis {k}"), pa.delay[k].unwrap(), pa.u_delay[k].unwrap(), truth[k], 10e-6);
+    for (k, t) in truth.iter().enumerate() {
+        check(&format!("per-axis {k}"), pa.delay[k].unwrap(), pa.u_delay[k].unwrap(), *t, 10e-6);
     }
 }
 

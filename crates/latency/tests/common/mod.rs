@@ -2,7 +2,7 @@
 //! (the stylus centre is pushed back onto the stylus-centre surface, the deflection is the
 //! push), trapezoidal motion, per-axis machine capture delays, white encoder and probe noise.
 //! Independent of `truepos-sim` so that the algorithms are checked against two simulators.
-#![allow(dead_code)]
+#![allow(dead_code, clippy::too_many_arguments)]
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -149,8 +149,8 @@ pub fn sample(cap: &Capture, t_end: f64, body: impl Fn(f64) -> (Point3, Shape)) 
         .iter()
         .map(|&t| {
             let mut v = [0.0; 3];
-            for k in 0..3 {
-                v[k] = body(t - cap.delay[k]).0[k] + if noise_m { nm.sample(&mut rng) } else { 0.0 };
+            for (k, x) in v.iter_mut().enumerate() {
+                *x = body(t - cap.delay[k]).0[k] + if noise_m { nm.sample(&mut rng) } else { 0.0 };
             }
             v
         })
