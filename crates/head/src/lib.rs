@@ -172,7 +172,10 @@ pub enum HeadError {
     NotFinite { index: usize },
     #[error("the radius must be positive and finite, got {0} mm")]
     BadRadius(f64),
-    #[error("the orientations do not determine any component of the offset")]
+    #[error(
+        "the orientations do not determine any component of the offset: the reference must be measured \
+         in at least two orientations that differ in the head swivel B or the table angle C (modulo 360°)"
+    )]
     NothingObservable,
     #[error("the adjustment failed: {0}")]
     Lsq(#[from] LsqError),

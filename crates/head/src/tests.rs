@@ -364,3 +364,10 @@ proptest! {
         prop_assert!((r.offset - s.offset).norm() < 1e-7, "{} vs {}", r.offset, s.offset);
     }
 }
+
+#[test]
+fn a_full_table_turn_is_not_a_second_orientation() {
+    let s = Synth::new(&[(0.0, 0.0), (0.0, 360.0)]);
+    let e = solve(&s.sphere(), &s.setup(free_sphere())).unwrap_err();
+    assert!(matches!(e, HeadError::NothingObservable), "{e}");
+}
