@@ -258,3 +258,70 @@ fn superposition_and_statics_property() {
         })
         .unwrap();
 }
+
+/// Statically indeterminate elastic support: a (nearly) rigid plate on five equal springs
+/// settles as a rigid body, w_i = a + b x_i + c y_i, so the reactions k·w_i follow from force and
+/// moment balance alone. The bed is made 1e4 times stiffer than granite so its own bending is
+/// ~1e-6 of the spring compression; tolerance 1e-4 of the load.
+#[test]
+fn stiff_plate_on_springs_settles_rigidly() {
+    let pads = vec![[100.0, 100.0], [1900.0, 200.0], [1800.0, 1400.0], [300.0, 1300.0], [1000.0, 800.0]];
+    let k = 1.0e3;
+    let mut bed = granite(Supports::Points { xy: pads.clone(), stiffness_n_per_mm: Some(k) });
+    bed.youngs_modulus *= 1e4;
+    let model = PlateModel::new(&bed, &MESH).unwrap();
+    let loads = [(500.0, 600.0, 4000.0), (1600.0, 1100.0, 2500.0)];
+    let def = model.solve(&loads).unwrap();
+    // Σ k (a + b x_i + c y_i) (1, x_i, y_i) = Σ F (1, x, y).
+    let mut n = nalgebra::Matrix3::zeros();
+    for p in &pads {
+        let v = nalgebra::Vector3::new(1.0, p[0], p[1]);
+        n += k * v * v.transpose();
+    }
+    let total: f64 = loads.iter().map(|l| l.2).sum();
+    let rhs = nalgebra::Vector3::new(
+        total,
+        loads.iter().map(|l| l.0 * l.2).sum(),
+        loads.iter().map(|l| l.1 * l.2).sum(),
+    );
+    let abc = n.lu().solve(&rhs).unwrap();
+    for (p, r) in pads.iter().zip(def.reactions()) {
+        let expected = k * (abc[0] + abc[1] * p[0] + abc[2] * p[1]);
+        assert!((r - expected).abs() < 1e-4 * total, "FE {r} vs rigid-body {expected}");
+    }
+}
+
+/// A narrow plate strip on four corner pads under uniform pressure behaves as a simply
+/// supported Timoshenko beam: linear plate theory gives a free-edged strip in bending the
+/// beam stiffness E·b h³/12 exactly (the anticlastic solution w ∝ x² − ν y², so no 1/(1 − ν²)),
+/// hence w_mid = 5 Q L⁴/(384 E I) + Q L²/(8 κ G b h) with Q = q b (Timoshenko beam, κ = 5/6).
+/// Tolerance 1 %: the strip's ends are held at the corners only, not along the end edges, so
+/// the end sections sag and twist locally (an effect of order (b/L)² ≈ 1 % here), plus the
+/// 25 mm mesh error (~0.1 %).
+#[test]
+fn narrow_strip_on_corner_pads_matches_timoshenko_beam() {
+    let (l, b, h) = (2000.0, 200.0, 100.0);
+    let bed = Bed {
+        size_x: l,
+        size_y: b,
+        thickness: h,
+        youngs_modulus: 2.1e5,
+        poisson: 0.3,
+        supports: Supports::Points {
+            xy: vec![[0.0, 0.0], [l, 0.0], [0.0, b], [l, b]],
+            stiffness_n_per_mm: None,
+        },
+    };
+    let model = PlateModel::new(&bed, &MeshOptions::with_element_size(25.0)).unwrap();
+    let q = 0.01; // N/mm²
+    let def = model.solve_pressure(q, &[]).unwrap();
+    let w_mid = -(0..=8).map(|j| def.uz(l / 2.0, j as f64 * 25.0)).sum::<f64>() / 9.0;
+    let e = bed.youngs_modulus;
+    let g = e / (2.0 * (1.0 + bed.poisson));
+    let i = b * h.powi(3) / 12.0;
+    let qb = q * b;
+    let beam = 5.0 * qb * l.powi(4) / (384.0 * e * i) + qb * l * l / (8.0 * (5.0 / 6.0) * g * b * h);
+    let err = (w_mid - beam) / beam;
+    eprintln!("strip: FE {w_mid:.6e}, Timoshenko beam {beam:.6e}, rel err {err:.2e}");
+    assert!(err.abs() < 0.01, "rel err {err}");
+}
