@@ -226,3 +226,29 @@ mod tests {
         ));
     }
 }
+
+#[cfg(test)]
+mod props {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Whatever the layout, an accepted distribution balances forces and moments and has no
+        /// tension; a CoG at the centroid of ≥ 3 points on a circle is always accepted.
+        #[test]
+        fn accepted_distributions_balance(n in 3usize..7, r in 100.0f64..2000.0, phase in 0.0f64..6.0,
+                                          cx in -300.0f64..300.0, cy in -300.0f64..300.0, w in 1.0f64..1e5) {
+            let pts: Vec<[f64; 2]> = (0..n).map(|k| {
+                let a = phase + k as f64 * std::f64::consts::TAU / n as f64;
+                [cx + r * a.cos(), cy + r * a.sin()]
+            }).collect();
+            let f = distribute(w, [cx, cy], &pts).unwrap();
+            let s: f64 = f.iter().sum();
+            let mx: f64 = pts.iter().zip(&f).map(|(p, f)| f * (p[0] - cx)).sum();
+            let my: f64 = pts.iter().zip(&f).map(|(p, f)| f * (p[1] - cy)).sum();
+            prop_assert!((s - w).abs() < 1e-9 * w);
+            prop_assert!(mx.abs() < 1e-9 * w * r && my.abs() < 1e-9 * w * r);
+            prop_assert!(f.iter().all(|v| *v >= 0.0));
+        }
+    }
+}
