@@ -307,3 +307,25 @@ mod properties {
         }
     }
 }
+
+#[test]
+fn a_c_axis_location_error_breaks_the_contract_by_twice_the_offset() {
+    use truepos_sim::errors::GeometricErrors;
+    use truepos_sim::machine::{Machine, RotaryAxisErrors};
+    let mut cfg = HeadOffsetConfig::preset(Variant::Table, 2);
+    cfg.noise = 0.0;
+    let mut m = Machine::vmc(GeometricErrors::zero(), cfg.table_centre);
+    m.rotary_errors = RotaryAxisErrors { c_offset: Vector3::new(0.01, 0.0, 0.0), ..Default::default() };
+    cfg.machine = Some(m);
+    let data = simulate(&cfg).unwrap();
+    // Rows at c = 0 still fit exactly; at c = 180° the sphere is 2·10 µm off along x, so the
+    // signed residuals reach about ±20 µm·cos(angle to x) over the 60° cap.
+    let res = residuals(&data, &cfg, &cfg.offset);
+    let at = |c: f64| -> f64 {
+        max_abs(
+            &data.rows.iter().zip(&res).filter(|(r, _)| r.c_deg == c).map(|(_, e)| *e).collect::<Vec<_>>(),
+        )
+    };
+    assert!(at(0.0) < 1e-9, "{}", at(0.0));
+    assert!(at(180.0) > 0.015 && at(180.0) <= 0.02 + 1e-9, "{}", at(180.0));
+}

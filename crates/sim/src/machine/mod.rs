@@ -23,10 +23,12 @@
 pub mod chain;
 pub mod rotary;
 
-use truepos_math::types::{ry, Point3, Vector3};
+use truepos_math::types::{Point3, Vector3};
 
 pub use chain::SerialChain;
-pub use rotary::{head_point, head_reference, RotaryTable};
+pub use rotary::{
+    head_point, head_point_with, head_reference, head_reference_with, RotaryAxisErrors, RotaryTable,
+};
 
 use crate::errors::{Axis, ErrorMagnitudes, GeometricErrors};
 
@@ -66,6 +68,8 @@ pub struct Machine {
     pub chain: SerialChain,
     /// The C-axis rotary table (VMC only).
     pub table: Option<RotaryTable>,
+    /// Location errors of the B and C axes (VMC; zero by default).
+    pub rotary_errors: RotaryAxisErrors,
 }
 
 impl Machine {
@@ -75,6 +79,7 @@ impl Machine {
             travel: kind.magnitudes().travel,
             chain: SerialChain::new(kind.chain_order(), errors),
             table: None,
+            rotary_errors: RotaryAxisErrors::default(),
         }
     }
 
@@ -153,8 +158,11 @@ impl Machine {
     /// VMC head: the actual measuring reference point in machine coordinates when the NC reports
     /// the head reference point at `axes`, the head is swivelled by `b` and has offset `offset`
     /// (head frame at b = 0). With zero errors this is the contract's `P + Ry(b)·R`.
+    /// B-axis location errors ([`Machine::rotary_errors`]) turn the offset about the real axis.
     pub fn head_point(&self, axes: &Point3, b: f64, offset: &Vector3) -> Point3 {
-        self.chain.actual(axes, &(ry(b) * offset))
+        let p0 = Point3::origin();
+        let tool = head_point_with(&p0, b, offset, &self.rotary_errors) - p0;
+        self.chain.actual(axes, &tool)
     }
 
     /// VMC head and table: the head's measuring point expressed at its `c = 0` table position
@@ -163,7 +171,14 @@ impl Machine {
     pub fn head_point_on_table(&self, axes: &Point3, b: f64, c: f64, offset: &Vector3) -> Point3 {
         let q = self.head_point(axes, b, offset);
         match &self.table {
-            Some(t) => t.to_table(&q, c),
+            Some(t) => {
+                // Undo the real table rotation: about the real axis through centre + c_offset.
+                let e = &self.rotary_errors;
+                let o = t.centre + e.c_offset;
+                let back =
+                    nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(e.c_axis()), -c);
+                o + back * (q - o)
+            }
             None => q,
         }
     }

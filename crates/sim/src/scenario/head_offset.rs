@@ -33,7 +33,7 @@ use serde::Serialize;
 use truepos_math::types::{ry, rz, Matrix3, Point3, Vector3};
 
 use crate::laser::{LaserHead, Surface};
-use crate::machine::rotary::{head_reference, RotaryTable};
+use crate::machine::rotary::{head_point_with, head_reference, RotaryTable};
 
 /// Largest number of rows a configuration may ask for (guards the CLI against runaway sizes).
 pub const MAX_ROWS: usize = 1_000_000;
@@ -144,7 +144,8 @@ pub struct HeadOffsetConfig {
     /// A machine with geometric errors (and thermal growth) whose NC reports the axis positions:
     /// the rows' P are then the axis positions that put the erroneous machine's head point on
     /// the surface (`Machine::head_point(P, b, R) = Q`), so the contract model with the true R is
-    /// off by the machine's volumetric error. `None` (presets): the ideal contract machine. Its
+    /// off by the machine's volumetric error; its [`crate::machine::RotaryAxisErrors`] move the
+    /// real B and C axes (the table turns about `table_centre + c_offset`). `None` (presets): the ideal contract machine. Its
     /// own rotary table is ignored; [`HeadOffsetConfig::table_centre`] is used.
     pub machine: Option<crate::machine::Machine>,
 }
@@ -520,6 +521,9 @@ pub fn simulate(cfg: &HeadOffsetConfig) -> Result<HeadOffsetData, HeadOffsetErro
     cfg.validate()?;
     let mut rng = crate::noise::rng(cfg.seed);
     let table = RotaryTable { centre: cfg.table_centre };
+    // Rotary-axis location errors of the machine, if any (zero: the contract model).
+    let rot_err = cfg.machine.as_ref().map(|m| m.rotary_errors).unwrap_or_default();
+    let origin = Point3::origin();
     let faces = Faces::new(cfg.reference);
     let n_faces = faces.as_ref().map_or(0, |f| f.normals.len());
     let mut face_counts = vec![0usize; n_faces];
@@ -546,7 +550,7 @@ pub fn simulate(cfg: &HeadOffsetConfig) -> Result<HeadOffsetData, HeadOffsetErro
             None => Vec::new(),
             Some(f) => (0..n_faces)
                 .filter(|&k| {
-                    let n = table.rotate_vector(&f.normals[k], c);
+                    let n = table.rotate_vector_with(&f.normals[k], c, &rot_err);
                     let cos_inc = n.dot(&toward_head);
                     // A touch probe reaches faces up to slightly past perpendicular to its axis
                     // (stylus side contact); a laser needs ≤ 70° incidence.
@@ -571,15 +575,15 @@ pub fn simulate(cfg: &HeadOffsetConfig) -> Result<HeadOffsetData, HeadOffsetErro
             // Surface point S, outward normal n, surface (for the laser), face id.
             let (s, n, surface, face) = match (&faces, cfg.reference) {
                 (None, Reference::Sphere { centre, radius }) => {
-                    let ctr = table.to_machine(&centre, c);
+                    let ctr = table.to_machine_with(&centre, c, &rot_err);
                     let n = cap_direction(&mut rng, &toward_head, cfg.cap_half_angle);
                     (ctr + radius * n, n, Surface::Sphere { centre: ctr, radius }, None)
                 }
                 (Some(f), _) => {
                     let k = visible[made % visible.len()];
                     let (u1, u2) = (rng.random::<f64>(), rng.random::<f64>());
-                    let p = table.to_machine(&f.sample(k, u1, u2), c);
-                    let n = table.rotate_vector(&f.normals[k], c);
+                    let p = table.to_machine_with(&f.sample(k, u1, u2), c, &rot_err);
+                    let n = table.rotate_vector_with(&f.normals[k], c, &rot_err);
                     (p, n, Surface::Plane { point: p, normal: n }, Some(k))
                 }
                 (None, _) => unreachable!("faces exist for every non-sphere reference"),
@@ -604,10 +608,12 @@ pub fn simulate(cfg: &HeadOffsetConfig) -> Result<HeadOffsetData, HeadOffsetErro
             };
             let p = match &cfg.machine {
                 None => head_reference(&q, b, &cfg.offset),
-                Some(m) => match m.command_for(&q, &(ry(b) * cfg.offset)) {
-                    Some(p) => p,
-                    None => return Err(invalid("machine", "geometric errors too large to invert")),
-                },
+                Some(m) => {
+                    match m.command_for(&q, &(head_point_with(&origin, b, &cfg.offset, &rot_err) - origin)) {
+                        Some(p) => p,
+                        None => return Err(invalid("machine", "geometric errors too large to invert")),
+                    }
+                }
             };
             if let Some(k) = face {
                 face_counts[k] += 1;
