@@ -352,8 +352,16 @@ impl VirtualCell {
         VirtualSensors { world: self.world.clone() }
     }
 
-    /// Trackers aligned to the machine on its reference targets (three-dimensional best fit).
+    /// Trackers aligned to the machine on its reference targets (three-dimensional best fit),
+    /// after setting their refractive index from the cell's air sensors, as an operator does.
     pub fn align_trackers(&self) -> Vec<TrackerSetup<VirtualTracker>> {
+        let n_air = {
+            let w = self.world.borrow();
+            w.n_true()
+        };
+        for t in self.world.borrow_mut().trackers.iter_mut() {
+            t.n_assumed = n_air;
+        }
         let n = self.world.borrow().trackers.len();
         let mut sensors = self.sensors();
         (0..n)
@@ -527,6 +535,9 @@ impl Tracker for VirtualTracker {
     }
 }
 
+/// Readings averaged on a static target nest (part or machine reference).
+const NEST_READINGS: usize = 25;
+
 pub struct VirtualSensors {
     world: Rc<RefCell<World>>,
 }
@@ -556,12 +567,12 @@ impl Cell for VirtualSensors {
         for (id, nominal) in targets {
             let actual = w.placement.apply(&w.part.position(&nominal, t));
             if w.line_of_sight(k, &actual) {
-                // Several readings averaged at each nest.
+                // A static nest: many readings averaged.
                 let mut acc = Vector3::zeros();
-                for _ in 0..5 {
+                for _ in 0..NEST_READINGS {
                     acc += w.observe(k, &actual).coords;
                 }
-                out.push((id, Point3::from(acc / 5.0)));
+                out.push((id, Point3::from(acc / NEST_READINGS as f64)));
             }
         }
         w.t += 20.0;
@@ -579,10 +590,10 @@ impl Cell for VirtualSensors {
         for (id, p) in targets {
             if w.line_of_sight(k, &p) {
                 let mut acc = Vector3::zeros();
-                for _ in 0..5 {
+                for _ in 0..NEST_READINGS {
                     acc += w.observe(k, &p).coords;
                 }
-                out.push((id, Point3::from(acc / 5.0)));
+                out.push((id, Point3::from(acc / NEST_READINGS as f64)));
             }
         }
         w.t += 30.0;

@@ -6,14 +6,15 @@ use crate::Outcome;
 use clap::{Parser, Subcommand};
 
 pub mod align;
+pub mod comp;
 pub mod demo;
 pub mod fit;
 pub mod head;
 pub mod latency;
 pub mod load;
-pub mod comp;
 pub mod scan;
 pub mod somac;
+pub mod somac_run;
 
 /// truepos: calibrate, compensate and control probe-equipped machine tools and CMMs.
 ///

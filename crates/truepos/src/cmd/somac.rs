@@ -2,8 +2,7 @@
 //! `somac run` (the measure / compare / correct loop).
 
 use crate::output::print_json;
-use crate::report::Report;
-use crate::{DeviceError, Outcome, UsageError};
+use crate::{Outcome, UsageError};
 use anyhow::Result;
 use serde_json::json;
 use std::path::PathBuf;
@@ -14,7 +13,16 @@ use truepos_math::bestfit::{self, BestFitOptions};
 use super::align::{match_by_id, read_id_points};
 
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    #[command(subcommand)]
+    pub command: SomacCommand,
+}
+
+#[derive(clap::Subcommand, Debug)]
+pub enum SomacCommand {
+    /// Run a program with the measure / compare / correct loop (virtual gantry and trackers).
+    Run(super::somac_run::RunArgs),
+}
 
 #[derive(clap::Args, Debug)]
 #[command(
@@ -94,18 +102,12 @@ pub struct AirArgs {
     pub json: bool,
 }
 
-#[derive(clap::Args, Debug)]
-pub struct SimArgs {
-    #[command(flatten)]
-    pub common: super::SimCommon,
-}
+pub use super::somac_run::{demo_section, simulate, SimArgs};
 
-pub fn run(_a: Args) -> Result<Outcome> {
-    Err(DeviceError("somac run is not available yet".into()).into())
-}
-
-pub fn simulate(_a: SimArgs) -> Result<Outcome> {
-    Err(DeviceError("the somac scenario is not available yet".into()).into())
+pub fn run(a: Args) -> Result<Outcome> {
+    match a.command {
+        SomacCommand::Run(r) => super::somac_run::run(r),
+    }
 }
 
 /// Scale factor of `measured` relative to `reference` (similarity best fit), with its standard
@@ -276,9 +278,4 @@ pub fn air(a: AirArgs) -> Result<Outcome> {
         println!("n = {n:.15}  ({name}; n − 1 = {:.4} ppm)", (n - 1.0) * 1e6);
     }
     Ok(Outcome::Done)
-}
-
-/// This capability's section of the demo report.
-pub fn demo_section(_report: &mut Report) -> Result<()> {
-    Ok(())
 }
