@@ -71,8 +71,9 @@ impl Mesh {
     /// Build the mesh of a `size_x` × `size_y` bed with target element size `h` and grid lines
     /// through every point of `through` (support pads).
     pub fn build(size_x: f64, size_y: f64, h: f64, through: &[[f64; 2]]) -> Result<Mesh, FeError> {
-        let nodes_estimate = ((size_x / h).ceil() + 2.0 + through.len() as f64)
-            * ((size_y / h).ceil() + 2.0 + through.len() as f64);
+        // Guard before building the lines (an absurdly small h would allocate without bound);
+        // the exact count, including the lines through the pads, is checked afterwards.
+        let nodes_estimate = ((size_x / h).ceil() + 2.0) * ((size_y / h).ceil() + 2.0);
         if !nodes_estimate.is_finite() || nodes_estimate > MAX_NODES as f64 {
             let est = if nodes_estimate.is_finite() { nodes_estimate as usize } else { usize::MAX };
             return Err(FeError::MeshTooLarge { nodes: est, limit: MAX_NODES });
