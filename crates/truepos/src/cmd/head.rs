@@ -181,9 +181,12 @@ fn missing_angles(table: &Table, name: &str) -> InputError {
     )
 }
 
+/// Row ids (index into the names) and the distinct names in order of appearance.
+type IdColumn = (Vec<Option<i64>>, Vec<String>);
+
 /// An id column (`face`, `group`) if present: any text, interned; empty fields have no id.
 /// Returns the index of each row's id and the distinct ids in order of appearance.
-fn id_column(table: &Table, name: &str) -> Result<Option<(Vec<Option<i64>>, Vec<String>)>, InputError> {
+fn id_column(table: &Table, name: &str) -> Result<Option<IdColumn>, InputError> {
     if table.column(name).is_none() {
         return Ok(None);
     }
