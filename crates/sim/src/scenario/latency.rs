@@ -18,8 +18,12 @@
 //! (reached before the contact), into the surface until the normal deflection reaches
 //! `max_deflection_mm`, dwells, and retracts at the same speed, so that during the constant-speed
 //! retract the deflection falls linearly with body position (extrapolation to zero deflection
-//! gives the contact point). The acceleration of the contact moves is raised where needed so the
-//! stop takes at most a quarter of the in-contact travel: `a ≥ 2v²/travel`.
+//! gives the contact point). In free air the body accelerates at `accel_mm_s2` (transfers are
+//! also jerk-limited), so the inertial deflection of the stylus stays near `a/ω²` ≈ 1 µm, well
+//! below contact-detection thresholds; inside a contact the deceleration to the deepest point
+//! and the acceleration away from it are raised where needed so each takes at most a quarter of
+//! the in-contact travel: `a ≥ 2v²/travel`. After the release the stylus rings with amplitude
+//! ≈ `v/ω` (physical; it follows the contact immediately).
 //!
 //! Entry points: [`Variant`] (sphere, plates, speeds, scan, in-out, per-axis, multi-rate,
 //! oblique), [`Config::preset`] (realistic defaults for a variant; every field may then be
@@ -145,7 +149,12 @@ pub struct Config {
     /// Distance from the touching position at which a contact move starts (mm); raised where
     /// needed so the contact speed is reached before the contact.
     pub standoff_mm: f64,
+    /// Acceleration of the moves in free air (mm/s²). Inside a contact the deceleration to the
+    /// deepest point and the acceleration away from it are raised where needed (see the module
+    /// docs).
     pub accel_mm_s2: f64,
+    /// Jerk limit of the rest-to-rest transfer moves and of the scan's approach and retract
+    /// (mm/s³); `None` for trapezoidal moves.
     pub jerk_mm_s3: Option<f64>,
     pub transfer_speed_mm_s: f64,
     /// Dwell at the deepest point of a contact (s).
@@ -173,7 +182,8 @@ impl Config {
     /// Realistic defaults for a variant: 1 kHz streams (probe 4 kHz for `multi-rate`), machine
     /// latency 4 ms, probe latency 1.5 ms (delay +2.5 ms; per-axis 4 / 2.5 / 1 ms machine
     /// latencies for `per-axis`), encoder noise 1 µm, probe noise 0.3 µm, stylus dynamics on,
-    /// servo on, Ø 25 mm sphere, 20 mm plate gap, 2 mm tip radius, 10 mm/s (speeds 5, 10, 20,
+    /// servo on, 1000 mm/s² and 10 000 mm/s³ in free air, transfers at 50 mm/s, Ø 25 mm
+    /// sphere, 20 mm plate gap, 2 mm tip radius, 10 mm/s (speeds 5, 10, 20,
     /// 30, 40 mm/s), 0.3 mm maximum deflection, 20 ms dwell at the deepest point (none for
     /// `inout`), 30° approach angle for `oblique`.
     pub fn preset(variant: Variant) -> Self {
@@ -198,8 +208,8 @@ impl Config {
             speeds_mm_s: vec![5.0, 10.0, 20.0, 30.0, 40.0],
             max_deflection_mm: 0.3,
             standoff_mm: 1.0,
-            accel_mm_s2: 2000.0,
-            jerk_mm_s3: None,
+            accel_mm_s2: 1000.0,
+            jerk_mm_s3: Some(10_000.0),
             transfer_speed_mm_s: 50.0,
             dwell_s: 0.02,
             approach_angle_deg: 0.0,
@@ -503,9 +513,11 @@ pub fn simulate(cfg: &Config) -> Result<Dataset, LatencyError> {
             let v = plan.speed;
             let travel_in = cfg.max_deflection_mm / cos_in;
             let a_c = cfg.accel_mm_s2.max(2.0 * v * v / travel_in);
-            let lim = Limits { v_max: v, a_max: a_c, j_max: cfg.jerk_mm_s3 };
-            // Reach v (and let the servo settle for 20 ms) before the touch.
-            let standoff = cfg.standoff_mm.max(1.5 * v * v / (2.0 * a_c) + 0.02 * v);
+            let lim_free = Limits { v_max: v, a_max: cfg.accel_mm_s2, j_max: None };
+            let lim_in = Limits { v_max: v, a_max: a_c, j_max: None };
+            // Reach v in free air (and let the servo and the stylus settle for 20 ms) before
+            // the touch.
+            let standoff = cfg.standoff_mm.max(1.5 * v * v / (2.0 * cfg.accel_mm_s2) + 0.02 * v);
             let touching = plan.surface + plan.normal * r_tip;
             let start = touching - plan.approach * standoff;
             let deepest = touching + plan.approach * travel_in;
@@ -516,9 +528,13 @@ pub fn simulate(cfg: &Config) -> Result<Dataset, LatencyError> {
                 tr.polyline(&route, &transfer)?;
             }
             let t_start = tr.end_s();
-            tr.line_to(deepest, &lim)?;
+            // In: accelerate in free air, touch at v, stop at the deepest point.
+            tr.line_speeds(touching, 0.0, v, &lim_free)?;
+            tr.line_speeds(deepest, v, 0.0, &lim_in)?;
             tr.dwell(cfg.dwell_s)?;
-            tr.line_to(start, &lim)?;
+            // Out: accelerate to v while in contact, leave at v, stop in free air.
+            tr.line_speeds(touching, 0.0, v, &lim_in)?;
+            tr.line_speeds(start, v, 0.0, &lim_free)?;
             let t_end = tr.end_s();
             if !speeds_used.contains(&v) {
                 speeds_used.push(v);
@@ -692,6 +708,7 @@ fn build_scan(
     // Radial approach into the first path radius at the scan speed.
     let lim_in = Limits { v_max: v, a_max: cfg.accel_mm_s2, j_max: cfg.jerk_mm_s3 };
     let t_start = tr.end_s();
+    // (Rest-to-rest: the radial approach stops on the first path radius before the sweep.)
     tr.line_to(c + Vector3::x() * (r_c - first), &lim_in)?;
     tr.dwell(cfg.dwell_s)?;
     let switches = scan_switches(cfg);
