@@ -7,8 +7,9 @@
 //! results (time, form error, contact shift, vibration at scan start) and the summary (cycle
 //! time, stops).
 //!
-//! The controller runs at `control_dt` (1 kHz); the physics is integrated at `physics_dt`
-//! (semi-implicit Euler). The servo is the error model of `truepos_sim::motion::Servo`
+//! The controller runs at `control_dt` (1 kHz); the physics is integrated at `physics_dt`. The
+//! stylus is `truepos_sim::stylus::Stylus` (spring-mass-damper per axis, contact with
+//! restitution and Coulomb friction) against the true feature's surface. The servo is the error model of `truepos_sim::motion::Servo`
 //! (`ë + 2ζωė + ω²e = (1 − k_a)c̈`), integrated on line here because the command is not known in
 //! advance (it depends on the probe feedback and on where contact is made).
 //!
@@ -24,35 +25,30 @@ use crate::feature::{Feature, Params};
 use crate::plan::{Geom, Plan, SegmentKind, Style};
 use crate::ScanError;
 use truepos_math::{Point3, Vector3};
-use truepos_sim::motion::Servo;
+use truepos_sim::artefact::{Artefact, SurfacePoint};
+use truepos_sim::motion::{Servo, State};
 use truepos_sim::noise;
+use truepos_sim::stylus::{Stylus, StylusParams};
 
-/// Stylus dynamics (effective tip mass on a 3D spring-damper) and contact.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Stylus {
-    pub mass_kg: f64,
-    pub stiffness_n_per_mm: f64,
-    pub damping_ratio: f64,
-    pub contact_stiffness_n_per_mm: f64,
-    pub contact_damping_ratio: f64,
-    pub friction: f64,
-    /// Friction regularisation speed (mm/s).
-    pub slip_speed: f64,
+/// A true feature as an artefact for the stylus model: its unbounded surface (exact nearest
+/// point for planes and cylinders).
+#[derive(Debug)]
+struct Surface<'a>(&'a Feature);
+
+impl Artefact for Surface<'_> {
+    fn closest(&self, p: &Point3) -> SurfacePoint {
+        let (distance, normal) = self.0.signed_distance(p);
+        SurfacePoint { distance, point: p - normal * distance, normal }
+    }
 }
 
-impl Default for Stylus {
-    /// 110 Hz stylus (2 g effective mass on 1 N/mm), lightly damped; stiff contact; steel on
-    /// steel friction.
-    fn default() -> Self {
-        Stylus {
-            mass_kg: 0.002,
-            stiffness_n_per_mm: 1.0,
-            damping_ratio: 0.05,
-            contact_stiffness_n_per_mm: 1000.0,
-            contact_damping_ratio: 0.3,
-            friction: 0.15,
-            slip_speed: 0.5,
-        }
+/// Nothing to touch (transfers are collision-free by assumption).
+#[derive(Debug)]
+struct Clear;
+
+impl Artefact for Clear {
+    fn closest(&self, p: &Point3) -> SurfacePoint {
+        SurfacePoint { distance: 1e9, point: p - Vector3::z() * 1e9, normal: Vector3::z() }
     }
 }
 
@@ -60,7 +56,9 @@ impl Default for Stylus {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Machine {
     pub servo: Servo,
-    pub stylus: Stylus,
+    /// Stylus dynamics and contact (`truepos_sim::stylus`); its tip radius is replaced by the
+    /// plan's `tip_radius` at execution.
+    pub stylus: StylusParams,
     pub encoder_noise: f64,
     pub probe_noise: f64,
     pub control_dt: f64,
@@ -82,11 +80,11 @@ impl Default for Machine {
     fn default() -> Self {
         Machine {
             servo: Servo { bandwidth_hz: 15.0, damping: 0.6, accel_feedforward: 0.5 },
-            stylus: Stylus::default(),
+            stylus: StylusParams::default(),
             encoder_noise: 0.1e-3,
             probe_noise: 0.2e-3,
             control_dt: 1e-3,
-            physics_dt: 2.5e-5,
+            physics_dt: 1e-4,
             feedback_gain: 60.0,
             contact_threshold: 0.01,
             search_limit: 8.0,
@@ -100,14 +98,10 @@ impl Default for Machine {
 
 impl Machine {
     pub fn check(&self) -> Result<(), ScanError> {
-        let s = &self.stylus;
+        self.stylus.validate().map_err(|e| ScanError::Invalid(format!("stylus: {e}")))?;
         let pos = [
             ("servo.bandwidth_hz", self.servo.bandwidth_hz),
             ("servo.damping", self.servo.damping),
-            ("stylus.mass_kg", s.mass_kg),
-            ("stylus.stiffness_n_per_mm", s.stiffness_n_per_mm),
-            ("stylus.contact_stiffness_n_per_mm", s.contact_stiffness_n_per_mm),
-            ("stylus.slip_speed_mm_s", s.slip_speed),
             ("control_dt_s", self.control_dt),
             ("physics_dt_s", self.physics_dt),
             ("contact_threshold_mm", self.contact_threshold),
@@ -121,9 +115,6 @@ impl Machine {
             }
         }
         let nonneg = [
-            ("stylus.damping_ratio", s.damping_ratio),
-            ("stylus.contact_damping_ratio", s.contact_damping_ratio),
-            ("stylus.friction", s.friction),
             ("encoder_noise_mm", self.encoder_noise),
             ("probe_noise_mm", self.probe_noise),
             ("feedback_gain", self.feedback_gain),
@@ -140,15 +131,6 @@ impl Machine {
         }
         if self.physics_dt > self.control_dt {
             return Err(ScanError::Invalid("physics_dt_s must not exceed control_dt_s".into()));
-        }
-        // semi-implicit Euler stability on the contact mode
-        let w = (1000.0 * (s.contact_stiffness_n_per_mm + s.stiffness_n_per_mm) / s.mass_kg).sqrt();
-        if w * self.physics_dt > 1.0 {
-            return Err(ScanError::Invalid(format!(
-                "physics_dt_s {} is too coarse for the contact frequency {:.0} Hz",
-                self.physics_dt,
-                w / (2.0 * std::f64::consts::PI)
-            )));
         }
         Ok(())
     }
@@ -258,10 +240,8 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
     let dt = machine.control_dt;
     let nsub = (dt / machine.physics_dt).ceil().max(1.0) as usize;
     let h = dt / nsub as f64;
-    let st = &machine.stylus;
-    let m = st.mass_kg / 1000.0; // N·s²/mm
-    let cs = 2.0 * st.damping_ratio * (st.stiffness_n_per_mm * m).sqrt();
-    let cc = 2.0 * st.contact_damping_ratio * (st.contact_stiffness_n_per_mm * m).sqrt();
+    let mut stylus = Stylus::new(StylusParams { tip_radius_mm: tip, ..machine.stylus }, h)
+        .map_err(|e| ScanError::Invalid(format!("stylus: {e}")))?;
     let w = 2.0 * std::f64::consts::PI * machine.servo.bandwidth_hz;
     let (w2, two_zw, gain) = (w * w, 2.0 * machine.servo.damping * w, 1.0 - machine.servo.accel_feedforward);
     let mut rng_e = noise::stream(seed, 1);
@@ -285,7 +265,7 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
     let (mut c_prev, mut c_prev2) = (first.position, first.position);
     // machine: following error e (per axis) and its rate; stylus deflection q and rate
     let (mut e, mut ed) = (Vector3::zeros(), Vector3::zeros());
-    let (mut q, mut qd) = (Vector3::zeros(), Vector3::zeros());
+    let mut body_prev = State::rest(first.position);
     let mut t = 0.0;
     let max_ticks = ((plan.duration()
         + nf as f64
@@ -324,37 +304,18 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
         let touchable = seg.kind != SegmentKind::Transfer;
         let cv = (c - c_prev) / dt;
         let ca = (c - c_prev * 2.0 + c_prev2.coords) / (dt * dt);
+        let surface = Surface(tf);
+        let art: &dyn Artefact = if touchable { &surface } else { &Clear };
         for k in 0..nsub {
             let ck = c_prev + (c - c_prev) * ((k + 1) as f64 / nsub as f64);
             let edd = ca * gain - ed * two_zw - e * w2;
             ed += edd * h;
             e += ed * h;
-            let x = ck - e;
-            let xv = cv - ed;
-            let xa = ca - edd;
-            let y = x + q;
-            let (dist, nrm) = tf.signed_distance(&y);
-            let g = dist - tip;
-            let mut force = -q * st.stiffness_n_per_mm - qd * cs;
-            // transfers are collision-free by assumption (the feature's surface is modelled as
-            // unbounded, so it is only touched from its approach to its release)
-            if g < 0.0 && touchable {
-                let yv = xv + qd;
-                let vn = yv.dot(&nrm);
-                let fnorm = (-g * st.contact_stiffness_n_per_mm - cc * vn).max(0.0);
-                let vt = yv - nrm * vn;
-                let s = vt.norm();
-                let ff = if s > 1e-12 {
-                    -vt / s * (st.friction * fnorm * (s / st.slip_speed).tanh())
-                } else {
-                    Vector3::zeros()
-                };
-                force += nrm * fnorm + ff;
-            }
-            let qdd = force / m - xa;
-            qd += qdd * h;
-            q += qd * h;
+            let body = State { p: ck - e, v: cv - ed, a: ca - edd };
+            stylus.step(&body_prev, &body, art);
+            body_prev = body;
         }
+        let q = stylus.deflection();
         c_prev2 = c_prev;
         c_prev = c;
         t += dt;

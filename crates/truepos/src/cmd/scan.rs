@@ -18,9 +18,10 @@ use truepos_io::atomic::AtomicFile;
 use truepos_io::csv::CsvWriter;
 use truepos_io::InputError;
 use truepos_math::{Point3, Vector3};
-use truepos_scan::execute::{execute, Machine, Run as ScanRun, Stylus};
+use truepos_scan::execute::{execute, Machine, Run as ScanRun};
 use truepos_scan::{plan, validate, Feature, Geometry, Params, Plan, ScanError, SegmentKind, Side, Style};
 use truepos_sim::motion::Servo;
+use truepos_sim::stylus::StylusParams;
 
 #[derive(clap::Args, Debug)]
 #[command(
@@ -117,9 +118,10 @@ pub struct PlanArgs {
 pub struct RunArgs {
     #[command(flatten)]
     pub common: Common,
-    /// Virtual CMM (TOML: [servo] bandwidth_hz, damping, accel_feedforward; [stylus] mass_kg,
-    /// stiffness_n_per_mm, damping_ratio, contact_stiffness_n_per_mm, friction; encoder_noise_um,
-    /// probe_noise_um, feedback_gain_per_s, contact_threshold_mm). Default: the built-in CMM.
+    /// Virtual CMM (TOML: [servo] bandwidth_hz, damping, accel_feedforward; [stylus]
+    /// natural_freq_hz = [x, y, z], damping_ratio = [x, y, z], restitution, friction;
+    /// encoder_noise_um, probe_noise_um, feedback_gain_per_s, contact_threshold_mm).
+    /// Default: the built-in CMM (15 Hz servo, 150/200 Hz stylus).
     #[arg(long)]
     pub machine: Option<PathBuf>,
     /// The true part: `truth.json` of `truepos simulate scan` (features matched by id).
@@ -289,11 +291,9 @@ struct ServoToml {
 #[derive(Deserialize, Debug)]
 #[serde(deny_unknown_fields)]
 struct StylusToml {
-    mass_kg: Option<f64>,
-    stiffness_n_per_mm: Option<f64>,
-    damping_ratio: Option<f64>,
-    contact_stiffness_n_per_mm: Option<f64>,
-    contact_damping_ratio: Option<f64>,
+    natural_freq_hz: Option<[f64; 3]>,
+    damping_ratio: Option<[f64; 3]>,
+    restitution: Option<f64>,
     friction: Option<f64>,
 }
 
@@ -310,15 +310,13 @@ fn load_machine(path: Option<&PathBuf>) -> Result<Machine> {
         };
     }
     if let Some(s) = t.stylus {
-        let d = Stylus::default();
-        m.stylus = Stylus {
-            mass_kg: s.mass_kg.unwrap_or(d.mass_kg),
-            stiffness_n_per_mm: s.stiffness_n_per_mm.unwrap_or(d.stiffness_n_per_mm),
+        let d = m.stylus;
+        m.stylus = StylusParams {
+            natural_freq_hz: s.natural_freq_hz.unwrap_or(d.natural_freq_hz),
             damping_ratio: s.damping_ratio.unwrap_or(d.damping_ratio),
-            contact_stiffness_n_per_mm: s.contact_stiffness_n_per_mm.unwrap_or(d.contact_stiffness_n_per_mm),
-            contact_damping_ratio: s.contact_damping_ratio.unwrap_or(d.contact_damping_ratio),
+            restitution: s.restitution.unwrap_or(d.restitution),
             friction: s.friction.unwrap_or(d.friction),
-            slip_speed: d.slip_speed,
+            ..d
         };
     }
     if let Some(v) = t.encoder_noise_um {
@@ -814,7 +812,7 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
         &shifts,
     );
     let html = format!(
-        "<p>{} features (bores, bosses, circles on the top plane, lines) of a part whose every fifth feature is 1.2–1.8 mm off nominal, scanned at {} mm/s with {} mm deflection on the virtual CMM (15 Hz servo, 110 Hz stylus with friction), the blended and the classic way. Cycle time saving of the blended style: <b>{:.1} %</b>. Vibration at scan start: deviation of the deflection from its target over the first 50 ms of the scan. Form error: peak-to-valley of the residuals of the least-squares element fitted to the scan segment (the true features are perfect, so this is what noise and dynamics leave).</p>\n{}\n{}\n{}\n{}\n<p>Missed surfaces (blended): the path shift where contact was made against the true offset.</p>\n{}",
+        "<p>{} features (bores, bosses, circles on the top plane, lines) of a part whose every fifth feature is 1.2–1.8 mm off nominal, scanned at {} mm/s with {} mm deflection on the virtual CMM (15 Hz servo; 150 Hz stylus with restitution and Coulomb friction), the blended and the classic way. Cycle time saving of the blended style: <b>{:.1} %</b>. Vibration at scan start: deviation of the deflection from its target over the first 50 ms of the scan. Form error: peak-to-valley of the residuals of the least-squares element fitted to the scan segment (the true features are perfect, so this is what noise and dynamics leave).</p>\n{}\n{}\n{}\n{}\n<p>Missed surfaces (blended): the path shift where contact was made against the true offset.</p>\n{}",
         nominal.len(),
         params.scan_speed,
         params.deflection,
