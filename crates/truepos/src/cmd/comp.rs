@@ -42,7 +42,7 @@ Tables are interpolated linearly; positions outside a table are an error unless 
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Examples:\n  truepos comp correct --map map.csv --squareness sq.toml --points meas.csv --output corrected.csv\n  truepos comp correct --map map.csv --points targets.csv --output commanded.csv --commanded\n  truepos comp error --map map.csv --at points.csv --probe-offset-mm 0,0,-120 --json"
+    after_help = "Examples:\n  truepos comp correct --map map.csv --squareness sq.toml --points meas.csv --output corrected.csv\n  truepos comp correct --map map.csv --points targets.csv --output commanded.csv --commanded\n  truepos comp error --map map.csv --at points.csv --probe-offset-mm 0,0,-120 --json\n\nMap columns axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad. Rotation axes:\nX: roll about X, pitch about Y, yaw about Z; Y: roll about Y, pitch about X, yaw about Z;\nZ: roll about Z, pitch about X, yaw about Y. Details: truepos comp correct --help"
 )]
 #[command(long_about = COMPONENTS_HELP)]
 pub struct Args {

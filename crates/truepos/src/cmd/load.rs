@@ -33,10 +33,18 @@ pitch/roll is the rotation of the bed (and the part) as seen from the portal = m
 portal's physical tilt: pitch_urad = 1e6·(uz_back − uz_front)/bearing_span (front = +Y bearing,
 mean of both rails), roll_urad = 1e6·(uz_rail2 − uz_rail1)/(x2 − x1) (uz positive up; mean of
 the two bearings on each rail). A load ahead of the portal gives a positive pitch. Imported maps
-must use this sign. The portal's common vertical sink is not part of the model.";
+must use this sign. The portal's common vertical sink is not part of the model.
+
+Load case: mass_kg (× 9.80665) or weight_n, cog_mm, rest_points_mm: forces by statics (exact
+for three points; the minimum-norm balanced distribution for more). A distribution that needs
+tension (centre of gravity outside the support polygon) or that cannot balance (fewer than
+three points not carrying the CoG) is an input error. Explicit [[rest]] forces are used as given;
+they must not be negative, and if weight or cog_mm are also given they must agree (0.1 %, 1 mm).
+Resting points outside the map's load grid, or measured points outside its portal-Y range, are
+input errors (the map does not cover the part).";
 
 #[derive(clap::Args, Debug)]
-#[command(long_about = SIGN_HELP, after_help = "Examples:\n  truepos load map --bed bed.toml --output map.csv\n  truepos load curves --map map.csv --load load.toml --json\n  truepos load correct --map map.csv --load load.toml --bed bed.toml --points meas.csv --output corrected.csv\n  truepos load deflection --bed bed.toml --load load.toml --at points.csv --json")]
+#[command(long_about = SIGN_HELP, after_help = "Examples:\n  truepos load map --bed bed.toml --output map.csv\n  truepos load curves --map map.csv --load load.toml --json\n  truepos load correct --map map.csv --load load.toml --bed bed.toml --points meas.csv --output corrected.csv\n  truepos load deflection --bed bed.toml --load load.toml --at points.csv --json\n\nPitch is about +X, roll about +Y, signed so that p − (pitch, roll, 0) × (p − o) corrects a\nmeasured point (the bed seen from the portal; a load ahead of the portal gives positive pitch).\nDetails, statics and coverage rules: truepos load correct --help")]
 pub struct Args {
     #[command(subcommand)]
     pub command: Sub,
@@ -131,9 +139,18 @@ pub struct DeflectionCmd {
 }
 
 #[derive(clap::Args, Debug)]
+#[command(
+    after_help = "Example:\n  truepos simulate load --out data/load --seed 1\n  truepos load map --bed data/load/bed.toml --output data/load/map.csv\n  truepos load correct --map data/load/map.csv --load data/load/load.toml --bed data/load/bed.toml --points data/load/points.csv --output corrected.csv"
+)]
 pub struct SimArgs {
     #[command(flatten)]
     pub common: super::SimCommon,
+    /// Mass of the die (kg).
+    #[arg(long, default_value_t = 2000.0)]
+    pub mass_kg: f64,
+    /// Probing noise, standard deviation per axis (µm).
+    #[arg(long, default_value_t = 0.3)]
+    pub noise_um: f64,
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -575,8 +592,14 @@ fn load_toml(c: &LoadConfig) -> String {
     )
 }
 
-fn write_scenario(dir: &Path, seed: u64) -> Result<(LoadConfig, LoadData)> {
-    let cfg = LoadConfig::default();
+fn write_scenario(dir: &Path, seed: u64, mass_kg: f64, noise_um: f64) -> Result<(LoadConfig, LoadData)> {
+    if !(mass_kg.is_finite() && mass_kg > 0.0 && noise_um.is_finite() && noise_um >= 0.0) {
+        return Err(crate::UsageError(format!(
+            "--mass-kg must be positive and --noise-um non-negative (got {mass_kg}, {noise_um})"
+        ))
+        .into());
+    }
+    let cfg = LoadConfig { mass_kg, noise_sigma: noise_um * 1e-3, ..LoadConfig::default() };
     let data = sim_load(&cfg, seed).map_err(|e| crate::DeviceError(format!("load scenario: {e}")))?;
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     write_atomic(dir.join("bed.toml"), bed_toml(&cfg).as_bytes())?;
@@ -621,7 +644,7 @@ fn write_scenario(dir: &Path, seed: u64) -> Result<(LoadConfig, LoadData)> {
 }
 
 pub fn simulate(a: SimArgs) -> Result<Outcome> {
-    let (_, data) = write_scenario(&a.common.out, a.common.seed)?;
+    let (_, data) = write_scenario(&a.common.out, a.common.seed, a.mass_kg, a.noise_um)?;
     eprintln!(
         "load scenario: {} points, forces {:?} N → {}",
         data.indicated.len(),
@@ -634,7 +657,7 @@ pub fn simulate(a: SimArgs) -> Result<Outcome> {
 /// This capability's section of the demo report.
 pub fn demo_section(report: &mut Report) -> Result<()> {
     let dir = report.dir.join("load");
-    let (cfg, data) = write_scenario(&dir, 1)?;
+    let (cfg, data) = write_scenario(&dir, 1, 2000.0, 0.3)?;
     let portal = Portal {
         rail_x: cfg.rail_x,
         rail_height: cfg.rail_height,
