@@ -50,10 +50,51 @@ impl Token {
 }
 
 pub(crate) fn parse(source: &str) -> Program {
+    // Large programs are tokenised in parallel chunks split at line ends.
+    const CHUNK: usize = 1 << 20;
     let b = source.as_bytes();
-    let mut tokens = Vec::with_capacity(source.len() / 4);
-    let mut lines = Vec::with_capacity(source.len() / 16 + 1);
-    let mut pos = 0;
+    if b.len() <= 2 * CHUNK {
+        let (tokens, lines) = parse_range(source, 0, b.len());
+        return Program { source: source.to_string(), tokens, lines };
+    }
+    let mut bounds = vec![0];
+    let mut at = CHUNK;
+    while at < b.len() {
+        match memchr_nl(&b[at..]) {
+            Some(p) => {
+                bounds.push(at + p + 1);
+                at = at + p + 1 + CHUNK;
+            }
+            None => break,
+        }
+    }
+    bounds.push(b.len());
+    bounds.dedup();
+    use rayon::prelude::*;
+    let parts: Vec<(Vec<Token>, Vec<Line>)> =
+        bounds.par_windows(2).map(|w| parse_range(source, w[0], w[1])).collect();
+    let n_tok = parts.iter().map(|p| p.0.len()).sum();
+    let n_lines = parts.iter().map(|p| p.1.len()).sum();
+    let mut tokens = Vec::with_capacity(n_tok);
+    let mut lines = Vec::with_capacity(n_lines);
+    for (t, l) in parts {
+        let base = tokens.len();
+        lines.extend(l.into_iter().map(|mut line| {
+            line.tokens = line.tokens.start + base..line.tokens.end + base;
+            line
+        }));
+        tokens.extend(t);
+    }
+    Program { source: source.to_string(), tokens, lines }
+}
+
+/// Tokenise the lines in `source[from..to]` (`from` at a line start, `to` after a line end or
+/// at the end of the source). Offsets are absolute.
+fn parse_range(source: &str, from: usize, to: usize) -> (Vec<Token>, Vec<Line>) {
+    let b = &source.as_bytes()[..to];
+    let mut tokens = Vec::with_capacity((to - from) / 4);
+    let mut lines = Vec::with_capacity((to - from) / 16 + 1);
+    let mut pos = from;
     while pos < b.len() {
         let nl = memchr_nl(&b[pos..]).map(|p| pos + p);
         let (end, next) = match nl {
@@ -66,12 +107,12 @@ pub(crate) fn parse(source: &str) -> Program {
         lines.push(Line { start: pos, end, next, tokens: t0..tokens.len() });
         pos = next;
     }
-    Program { source: source.to_string(), tokens, lines }
+    (tokens, lines)
 }
 
 #[inline]
 fn memchr_nl(b: &[u8]) -> Option<usize> {
-    b.iter().position(|&c| c == b'\n')
+    memchr::memchr(b'\n', b)
 }
 
 fn lex_line(src: &str, start: usize, end: usize, out: &mut Vec<Token>) {
@@ -240,6 +281,25 @@ mod tests {
         assert_eq!(k[4].0, TokenKind::Word { letter: b'X', value: -1.5, decimals: Some(2) });
         assert_eq!(k[6].0, TokenKind::Word { letter: b'Y', value: 0.5, decimals: Some(1) });
         assert_eq!(k[2].0, TokenKind::Word { letter: b'G', value: 1.0, decimals: None });
+    }
+
+    #[test]
+    fn parallel_chunks_give_the_sequential_result() {
+        let mut s = String::new();
+        let mut i = 0u64;
+        while s.len() < 5 << 20 {
+            i += 1;
+            s.push_str(&format!("N{i} G1 X{}.{} Y-{} (c{}) ; t\r\n", i % 997, i % 13, i % 89, i % 7));
+            if i % 1000 == 0 {
+                s.push_str("\n%\n#1=2 X[#1]\n");
+            }
+        }
+        s.push_str("G0 X1");
+        let p = parse(&s);
+        let (tokens, lines) = parse_range(&s, 0, s.len());
+        assert_eq!(p.tokens, tokens);
+        assert_eq!(p.lines, lines);
+        assert_eq!(p.to_string(), s);
     }
 
     #[test]
