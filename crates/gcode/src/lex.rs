@@ -290,7 +290,7 @@ mod tests {
         while s.len() < 5 << 20 {
             i += 1;
             s.push_str(&format!("N{i} G1 X{}.{} Y-{} (c{}) ; t\r\n", i % 997, i % 13, i % 89, i % 7));
-            if i % 1000 == 0 {
+            if i.is_multiple_of(1000) {
                 s.push_str("\n%\n#1=2 X[#1]\n");
             }
         }
