@@ -826,3 +826,27 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
     report.add("scan", "Scanning without stops: blended vs classic", html);
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn demo_section_compares_both_styles() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut r = Report::new(dir.path());
+        demo_section(&mut r).unwrap();
+        let html = std::fs::read_to_string(r.write().unwrap()).unwrap();
+        assert!(html.contains("Scanning without stops"));
+        assert!(html.contains("blended") && html.contains("classic"));
+        assert!(html.matches("<svg").count() >= 3, "path plots and deflection plot");
+    }
+
+    #[test]
+    fn id_line_finds_the_feature() {
+        let t = "a = 1\n[[feature]]\nid = \"x1\"\n[[feature]]\n  id = 'y'\n";
+        assert_eq!(id_line(t, "x1"), Some(3));
+        assert_eq!(id_line(t, "y"), Some(5));
+        assert_eq!(id_line(t, "z"), None);
+    }
+}
