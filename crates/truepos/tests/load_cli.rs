@@ -318,3 +318,69 @@ fn deflection_matches_navier_plate_theory() {
         assert!((u + w).abs() < 0.02 * w, "({x}, {y}): uz {u} vs −{w}");
     }
 }
+
+#[test]
+fn combined_geometric_and_load_correction_is_the_sum_of_both() {
+    let d = tempfile::tempdir().unwrap();
+    let map = hand_map(d.path());
+    let bed = write(d.path(), "bed.toml", BED);
+    let load =
+        write(d.path(), "l.toml", "weight_n = 1000\ncog_mm = [500, 500]\nrest_points_mm = [[500, 500]]\n");
+    // Geometric map: Y pitch 10 µrad, X positioning 1 µm / 100 mm (hand values in comp_cli.rs).
+    let mut g = String::from("axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad\n");
+    for i in 0..=10 {
+        let p = 100.0 * i as f64;
+        g.push_str(&format!("x,{p},{},0,0,0,0,0\ny,{p},0,0,0,10,0,0\nz,{p},0,0,0,0,0,0\n", p / 100.0));
+    }
+    let gm = write(d.path(), "geo.csv", &g);
+    let pts = write(d.path(), "p.csv", "x_mm,y_mm,z_mm\n250,500,300\n700,120,650\n");
+    let read = |p: &Path| -> Vec<Vec<f64>> {
+        let (_, rows) = csv_rows(p);
+        rows.iter().map(|r| r[3..6].iter().map(|v| v.parse().unwrap()).collect()).collect()
+    };
+    let (a, b, c) = (d.path().join("load.csv"), d.path().join("geo_out.csv"), d.path().join("both.csv"));
+    ok_json(&run(&[
+        "load",
+        "correct",
+        "--map",
+        s(&map),
+        "--load",
+        s(&load),
+        "--bed",
+        s(&bed),
+        "--points",
+        s(&pts),
+        "--output",
+        s(&a),
+        "--json",
+    ]));
+    let o = run(&["comp", "correct", "--map", s(&gm), "--points", s(&pts), "--output", s(&b)]);
+    assert_eq!(o.status.code(), Some(0));
+    ok_json(&run(&[
+        "load",
+        "correct",
+        "--map",
+        s(&map),
+        "--load",
+        s(&load),
+        "--bed",
+        s(&bed),
+        "--points",
+        s(&pts),
+        "--output",
+        s(&c),
+        "--geometric-map",
+        s(&gm),
+        "--json",
+    ]));
+    for ((x, y), z) in read(&a).iter().zip(read(&b)).zip(read(&c)) {
+        for i in 0..3 {
+            // Both corrections are evaluated at the indicated point and added: exact sum.
+            assert!((x[i] + y[i] - z[i]).abs() < 1e-9, "{x:?} + {y:?} vs {z:?}");
+        }
+        assert!(
+            x.iter().any(|v| v.abs() > 1.0) && y.iter().any(|v| v.abs() > 1.0),
+            "both corrections are visible"
+        );
+    }
+}
