@@ -21,8 +21,8 @@
 //! gives the contact point). In free air the body accelerates at `accel_mm_s2` (transfers are
 //! also jerk-limited), so the inertial deflection of the stylus stays near `a/ω²` ≈ 1 µm, well
 //! below contact-detection thresholds; inside a contact the deceleration to the deepest point
-//! and the acceleration away from it are raised where needed so each takes at most a quarter of
-//! the in-contact travel: `a ≥ 2v²/travel`. After the release the stylus rings with amplitude
+//! and the acceleration away from it are `contact_accel_mm_s2`, raised where needed so each
+//! takes at most a quarter of the in-contact travel: `a ≥ 2v²/travel`. After the release the stylus rings with amplitude
 //! ≈ `v/ω` (physical; it follows the contact immediately).
 //!
 //! Entry points: [`Variant`] (sphere, plates, speeds, scan, in-out, per-axis, multi-rate,
@@ -153,6 +153,9 @@ pub struct Config {
     /// deepest point and the acceleration away from it are raised where needed (see the module
     /// docs).
     pub accel_mm_s2: f64,
+    /// Least acceleration inside a contact (mm/s²): deceleration to the deepest point and
+    /// acceleration away from it (raised further where needed, see the module docs).
+    pub contact_accel_mm_s2: f64,
     /// Jerk limit of the rest-to-rest transfer moves and of the scan's approach and retract
     /// (mm/s³); `None` for trapezoidal moves.
     pub jerk_mm_s3: Option<f64>,
@@ -182,7 +185,8 @@ impl Config {
     /// Realistic defaults for a variant: 1 kHz streams (probe 4 kHz for `multi-rate`), machine
     /// latency 4 ms, probe latency 1.5 ms (delay +2.5 ms; per-axis 4 / 2.5 / 1 ms machine
     /// latencies for `per-axis`), encoder noise 1 µm, probe noise 0.3 µm, stylus dynamics on,
-    /// servo on, 1000 mm/s² and 10 000 mm/s³ in free air, transfers at 50 mm/s, Ø 25 mm
+    /// servo on, 1000 mm/s² and 10 000 mm/s³ in free air, 2000 mm/s² in contact, transfers at
+    /// 50 mm/s, Ø 25 mm
     /// sphere, 20 mm plate gap, 2 mm tip radius, 10 mm/s (speeds 5, 10, 20,
     /// 30, 40 mm/s), 0.3 mm maximum deflection, 20 ms dwell at the deepest point (none for
     /// `inout`), 30° approach angle for `oblique`.
@@ -209,6 +213,7 @@ impl Config {
             max_deflection_mm: 0.3,
             standoff_mm: 1.0,
             accel_mm_s2: 1000.0,
+            contact_accel_mm_s2: 2000.0,
             jerk_mm_s3: Some(10_000.0),
             transfer_speed_mm_s: 50.0,
             dwell_s: 0.02,
@@ -258,6 +263,7 @@ impl Config {
         check_positive("max deflection", self.max_deflection_mm)?;
         check_nonneg("standoff", self.standoff_mm)?;
         check_positive("acceleration", self.accel_mm_s2)?;
+        check_positive("contact acceleration", self.contact_accel_mm_s2)?;
         if let Some(j) = self.jerk_mm_s3 {
             check_positive("jerk", j)?;
         }
@@ -512,7 +518,7 @@ pub fn simulate(cfg: &Config) -> Result<Dataset, LatencyError> {
             }
             let v = plan.speed;
             let travel_in = cfg.max_deflection_mm / cos_in;
-            let a_c = cfg.accel_mm_s2.max(2.0 * v * v / travel_in);
+            let a_c = cfg.contact_accel_mm_s2.max(2.0 * v * v / travel_in);
             let lim_free = Limits { v_max: v, a_max: cfg.accel_mm_s2, j_max: None };
             let lim_in = Limits { v_max: v, a_max: a_c, j_max: None };
             // Reach v in free air (and let the servo and the stylus settle for 20 ms) before
