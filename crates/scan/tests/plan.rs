@@ -166,3 +166,65 @@ fn scan_segment_follows_the_nominal_surface_at_the_target_deflection() {
         }
     }
 }
+
+mod props {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn feature_strategy() -> impl Strategy<Value = Feature> {
+        let axis =
+            (-1.0..1.0f64, -1.0..1.0f64, 0.2..1.0f64).prop_map(|(x, y, z)| Vector3::new(x, y, z).normalize());
+        let circle =
+            (axis.clone(), 8.0..40.0f64, 0usize..3, -3.14..3.14f64, prop_oneof![0.5..6.3f64, -6.3..-0.5f64])
+                .prop_map(|(axis, radius, side, start, sweep)| Feature {
+                    id: "c".into(),
+                    geometry: Geometry::Circle {
+                        center: Point3::new(10.0, -20.0, 5.0),
+                        axis,
+                        radius,
+                        side: [Side::Inside, Side::Outside, Side::Plane][side],
+                        start,
+                        sweep,
+                    },
+                });
+        let line = (axis, 5.0..80.0f64, -3.14..3.14f64).prop_map(|(n, len, a)| {
+            let (u, v) = Feature::basis(&n);
+            let d = u * a.cos() + v * a.sin();
+            Feature {
+                id: "l".into(),
+                geometry: Geometry::Line {
+                    start: Point3::new(1.0, 2.0, 3.0),
+                    end: Point3::new(1.0, 2.0, 3.0) + d * len,
+                    normal: n,
+                },
+            }
+        });
+        prop_oneof![circle, line]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        #[test]
+        fn any_valid_program_plans_without_stops_at_the_requested_angle(
+            fs in proptest::collection::vec(feature_strategy(), 1..5),
+            deg in 20.0..60.0f64,
+        ) {
+            let features: Vec<Feature> = fs.into_iter().enumerate().map(|(i, mut f)| { f.id = format!("f{i}"); f }).collect();
+            let p = Params { approach_angle: deg.to_radians(), ..Params::default() };
+            prop_assume!(validate(&features, &p).is_ok());
+            let pl = plan(&features, &p, Style::Blended);
+            prop_assert_eq!(pl.stops(), 0);
+            for (dir, n) in pl.approaches() {
+                let ang = (-dir.dot(&n)).clamp(-1.0, 1.0).acos().to_degrees();
+                prop_assert!((ang - deg).abs() < 1e-6);
+            }
+            let (a, b) = pl.window();
+            for s in pl.sample(5e-3).iter().filter(|s| s.t >= a && s.t <= b) {
+                prop_assert!(s.speed >= p.scan_speed * (1.0 - 1e-9));
+                prop_assert!(s.position.coords.iter().all(|c| c.is_finite()));
+            }
+            let pc = plan(&features, &p, Style::Classic);
+            prop_assert_eq!(pc.stops(), 4 * features.len());
+        }
+    }
+}
