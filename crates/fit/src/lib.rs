@@ -28,7 +28,7 @@ pub mod moments;
 
 pub use axial::{cone, cylinder, ConeFit, CylinderFit};
 
-use engine::{covariance, minimise, Model};
+use engine::{covariance, minimise, Model, BLOCK};
 use moments::Moments;
 use nalgebra::{SVector, Vector2};
 use thiserror::Error;
@@ -228,6 +228,34 @@ impl Model<4> for SphereModel {
         j[2] = -dz * inv;
         j[3] = -1.0;
         d - s.1
+    }
+    #[inline(always)]
+    fn residuals_block(
+        &self,
+        s: &(Point3, f64),
+        pts: &[Point3],
+        r: &mut [f64; BLOCK],
+        j: &mut [[f64; 4]; BLOCK],
+    ) {
+        // Structure of arrays over the block so that sqrt and 1/x run two (or four) points per
+        // instruction: the divider, not memory, bounds the per-point loop otherwise.
+        let (mut dx, mut dy, mut dz, mut q) = ([0.0; BLOCK], [0.0; BLOCK], [0.0; BLOCK], [1.0; BLOCK]);
+        for (k, p) in pts.iter().enumerate() {
+            dx[k] = p.x - s.0.x;
+            dy[k] = p.y - s.0.y;
+            dz[k] = p.z - s.0.z;
+            q[k] = dx[k] * dx[k] + dy[k] * dy[k] + dz[k] * dz[k];
+        }
+        let mut d = [0.0; BLOCK];
+        let mut inv = [0.0; BLOCK];
+        for k in 0..BLOCK {
+            d[k] = q[k].sqrt();
+            inv[k] = 1.0 / d[k];
+        }
+        for k in 0..pts.len() {
+            j[k] = [-dx[k] * inv[k], -dy[k] * inv[k], -dz[k] * inv[k], -1.0];
+            r[k] = d[k] - s.1;
+        }
     }
     fn apply(&self, s: &(Point3, f64), d: &SVector<f64, 4>) -> (Point3, f64) {
         (s.0 + Vector3::new(d[0], d[1], d[2]), s.1 + d[3])

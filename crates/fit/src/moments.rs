@@ -109,11 +109,17 @@ fn sums(points: &[Point3], c: &Point3) -> Sums {
 impl Moments {
     /// Check finiteness and compute the moments (two passes over the points).
     pub fn of(points: &[Point3]) -> Result<Moments, FitError> {
-        check_finite(points)?;
         if points.is_empty() {
             return Err(FitError::TooFewPoints { kind: "point set", needed: 1, got: 0 });
         }
         let c0 = centroid(points);
+        // One pass fewer on good data: a non-finite coordinate makes the sum non-finite, and
+        // only then is the offending point searched for. (Finite points whose sum overflows
+        // are reported as the first point, as no coordinate is usable at that magnitude.)
+        if !(c0.x.is_finite() && c0.y.is_finite() && c0.z.is_finite()) {
+            check_finite(points)?;
+            return Err(FitError::NonFinite { index: 0 });
+        }
         let s = if points.len() > PARALLEL_ABOVE {
             points.par_chunks(CHUNK).map(|ch| sums(ch, &c0)).reduce(Sums::zero, Sums::add)
         } else {
