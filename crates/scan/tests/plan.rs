@@ -175,7 +175,7 @@ mod props {
         let axis =
             (-1.0..1.0f64, -1.0..1.0f64, 0.2..1.0f64).prop_map(|(x, y, z)| Vector3::new(x, y, z).normalize());
         let circle =
-            (axis.clone(), 8.0..40.0f64, 0usize..3, -3.14..3.14f64, prop_oneof![0.5..6.3f64, -6.3..-0.5f64])
+            (axis.clone(), 8.0..40.0f64, 0usize..3, -3.0..3.0f64, prop_oneof![0.5..6.3f64, -6.3..-0.5f64])
                 .prop_map(|(axis, radius, side, start, sweep)| Feature {
                     id: "c".into(),
                     geometry: Geometry::Circle {
@@ -187,7 +187,7 @@ mod props {
                         sweep,
                     },
                 });
-        let line = (axis, 5.0..80.0f64, -3.14..3.14f64).prop_map(|(n, len, a)| {
+        let line = (axis, 5.0..80.0f64, -3.0..3.0f64).prop_map(|(n, len, a)| {
             let (u, v) = Feature::basis(&n);
             let d = u * a.cos() + v * a.sin();
             Feature {

@@ -190,3 +190,40 @@ fn bad_input_exits_2_with_a_clear_message() {
     let line = GOOD.lines().position(|l| l.contains("id = \"b1\"")).unwrap() + 1;
     assert!(err.contains(&format!("{line}")), "{err}");
 }
+
+#[test]
+fn machine_file_is_read_and_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let f = d.join("f.toml");
+    std::fs::write(&f, GOOD).unwrap();
+    let m = d.join("cmm.toml");
+    std::fs::write(&m, "probe_noise_um = 0.1\n[servo]\nbandwidth_hz = 25\n[stylus]\nfriction = 0.1\nnatural_freq_hz = [120, 120, 180]\n").unwrap();
+    let out = d.join("p.csv");
+    let r = json(&truepos(&[
+        "scan",
+        "run",
+        "--features",
+        s(&f),
+        "--machine",
+        s(&m),
+        "--output",
+        s(&out),
+        "--json",
+    ]));
+    assert_eq!(r["stops"], 0);
+    assert_eq!(r["features"].as_array().unwrap().len(), 2);
+    // an unknown key and an impossible value are input errors (exit 2), naming the file
+    for (name, text) in
+        [("unknown", "[servo]\nbandwith_hz = 25\n"), ("negative", "[servo]\nbandwidth_hz = -3\n")]
+    {
+        let m = d.join(format!("{name}.toml"));
+        std::fs::write(&m, text).unwrap();
+        let o = d.join(format!("{name}.csv"));
+        let out = truepos(&["scan", "run", "--features", s(&f), "--machine", s(&m), "--output", s(&o)]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{name}: {err}");
+        assert!(err.contains(&format!("{name}.toml")), "{err}");
+        assert!(!o.exists());
+    }
+}
