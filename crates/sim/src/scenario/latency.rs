@@ -385,8 +385,10 @@ pub struct Dataset {
     pub machine: Vec<(f64, Point3)>,
     /// `(t_s, deflection a, b, c)` as the probe reports it.
     pub probe: Vec<(f64, Vector3)>,
-    /// Per probe sample: whether the tip truly touched the surface at that instant (not
-    /// written to the contract files; for tests and plots).
+    /// Per probe sample: whether the tip truly touched the surface in the stylus sub-step ending
+    /// at that instant (then the stylus centre lies exactly on the stylus-centre surface; a
+    /// bounce that leaves the surface before the sample is not flagged). Not written to the
+    /// contract files; for tests and plots.
     pub probe_in_contact: Vec<bool>,
     pub truth: Truth,
 }
