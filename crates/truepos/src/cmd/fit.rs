@@ -328,3 +328,31 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
     report.add("fit", "Least-squares fitting against NIST reference data", html);
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The demo's NIST table covers every data set and every one passes the project's limits
+    /// (the library's own tests check the same sets independently in crates/fit/tests/nist.rs).
+    #[test]
+    fn nist_table_covers_every_set_and_passes() {
+        let dir = shared_data_dir().expect("shared data (set TRUEPOS_SHARED_DATA)").join("nist-fit");
+        let rows = nist_table(&dir).unwrap();
+        let n_ds = ["Line3d", "Plane", "Circle3d", "Sphere", "Cylinder", "Cone"]
+            .iter()
+            .map(|f| {
+                std::fs::read_dir(dir.join(f))
+                    .unwrap()
+                    .filter(|e| e.as_ref().unwrap().path().extension().is_some_and(|x| x == "ds"))
+                    .count()
+            })
+            .sum::<usize>();
+        assert_eq!(rows.len(), n_ds);
+        for r in &rows {
+            assert!(r.position_dev_mm < NIST_POS_TOL_MM && r.angle_dev_rad < NIST_ANG_TOL_RAD, "{}", r.name);
+        }
+        let mut report = Report::new(std::env::temp_dir().join("truepos-fit-demo-test"));
+        demo_section(&mut report).unwrap();
+    }
+}
