@@ -265,5 +265,27 @@ mod tests {
         let mx: f64 = f.iter().zip(&c.rests).map(|(f, r)| f * (r[0] - c.cog[0])).sum();
         let my: f64 = f.iter().zip(&c.rests).map(|(f, r)| f * (r[1] - c.cog[1])).sum();
         assert!((s - 1000.0).abs() < 1e-9 && mx.abs() < 1e-7 && my.abs() < 1e-7);
+        // A coarse truth mesh keeps the test fast; the relations checked hold for any mesh.
+        let c = LoadConfig { sim_element_size: 50.0, ..LoadConfig::default() };
+        let d = simulate(&c, 3).unwrap();
+        let plate = PlateModel::new(&c.bed, &MeshOptions::with_element_size(50.0)).unwrap();
+        let loads: Vec<(f64, f64, f64)> =
+            c.rests.iter().zip(d.forces_n).map(|(r, f)| (r[0], r[1], f)).collect();
+        let defl = plate.solve(&loads).unwrap();
+        let uz = |x: f64, y: f64| defl.uz(x, y);
+        let mut noise = Vec::new();
+        for ((p, t), n) in d.indicated_exact.iter().zip(&d.true_points).zip(&d.indicated) {
+            // The tip of the tilted portal at the indicated position is the true point.
+            let (a, b, _) = portal_tilt(&uz, &c, p.y);
+            let o = Point3::new(0.5 * (c.rail_x[0] + c.rail_x[1]), p.y, c.rail_height);
+            let tip = o + Rotation3::new(Vector3::new(a, b, 0.0)) * (p - o);
+            assert!((tip - t).norm() < 1e-10, "{}", (tip - t).norm());
+            noise.extend((n - p).iter().copied());
+        }
+        // The die sinks: every true point is below its design position.
+        assert!(d.true_points.iter().zip(&c.design_points).all(|(t, p)| t.z < p.z));
+        // Probing noise has the configured σ (378 draws: ±15 % is > 4 standard errors).
+        let sd = (noise.iter().map(|v| v * v).sum::<f64>() / noise.len() as f64).sqrt();
+        assert!((sd / c.noise_sigma - 1.0).abs() < 0.15, "noise σ {sd}");
     }
 }
