@@ -44,7 +44,7 @@ pub enum FeMapError {
     Portal(#[from] PortalError),
     #[error("the portal does not fit on the bed: {0}")]
     PortalOffBed(String),
-    #[error("grid: spacing_mm and unit_load_n must be positive (got {0} mm, {1} N)")]
+    #[error("grid: spacing_mm and unit_load_n must be positive, at most 1,000 nodes per bed side (got {0} mm, {1} N)")]
     Grid(f64, f64),
     #[error("influence map: {0}")]
     Map(#[from] InfluenceError),
@@ -78,7 +78,8 @@ pub fn load_grid(model: &BedModel) -> Result<(Vec<f64>, Vec<f64>), FeMapError> {
         }
         .into());
     }
-    if model.bed.size_x / g.spacing > 10_000.0 || model.bed.size_y / g.spacing > 10_000.0 {
+    // At most 1,000 nodes per side (10⁶ FE solves): a finer grid is a typo, not a map.
+    if model.bed.size_x / g.spacing > 1000.0 || model.bed.size_y / g.spacing > 1000.0 {
         return Err(FeMapError::Grid(g.spacing, g.unit_load_n));
     }
     Ok((grid_positions(model.bed.size_x, g.spacing), grid_positions(model.bed.size_y, g.spacing)))

@@ -78,7 +78,10 @@ impl Portal {
         if self.bearing_span <= 0.0 {
             return Err(PortalError::Span(self.bearing_span));
         }
-        if !(self.y_range[1] > self.y_range[0] && self.y_step > 0.0) {
+        // At most 100,000 portal positions: beyond that the step is a typo, not a map.
+        if !(self.y_range[1] > self.y_range[0] && self.y_step > 0.0)
+            || (self.y_range[1] - self.y_range[0]) / self.y_step > 1e5
+        {
             return Err(PortalError::Range(self.y_range[0], self.y_range[1], self.y_step));
         }
         Ok(())
