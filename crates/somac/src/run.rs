@@ -475,8 +475,23 @@ fn read<C: Controller, T: Tracker, E: Cell>(
         if !any {
             // Every beam broken: recover as configured.
             recoveries += 1;
-            if recoveries > 3 {
+            if recoveries > 4 {
                 return Ok(Err("beam broken on every tracker and not recovered".into()));
+            }
+            if recoveries == 4 && params.beam_recovery != BeamRecovery::Manual {
+                // The automatic strategy failed three times: call the operator.
+                let a = Alarm {
+                    line,
+                    kind: "beam_break".into(),
+                    message: "automatic recovery failed".into(),
+                    action: "manual recovery".into(),
+                };
+                raise(sink, ctl, st, a)?;
+                for k in 0..trackers.len() {
+                    cell.operator_restores_beam(k);
+                }
+                ctl.wait(30.0);
+                continue;
             }
             let a = Alarm {
                 line,

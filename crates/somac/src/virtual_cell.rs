@@ -2,9 +2,10 @@
 //! (the simulator's exact kinematic chain with geometric errors and thermal growth of its
 //! scales), a part (a wing spar) placed with a misalignment and expanding with its temperature,
 //! end-effector vibration after every move (so a reading taken too early is unstable), laser
-//! trackers with distance/angle noise, the refractive index of the air they assume, obstructed
-//! lines of sight and random beam interruptions, inclinometers, and a tracker that can be
-//! bumped (its pose changes: the inclinometers see it).
+//! trackers (the simulator's [`truepos_sim::tracker::Tracker`]: MPE noise model, refractive
+//! index true vs assumed, obstructed lines of sight) with random beam interruptions and lost
+//! reflectors, inclinometers, and a tracker that can be bumped (its pose changes: the
+//! inclinometers see it).
 //!
 //! Entry points: [`CellConfig`] (everything a scenario varies; `Default` is the demo cell),
 //! [`VirtualCell::new`] (the shared world), [`VirtualCell::controller`],
@@ -19,12 +20,13 @@ use std::collections::BTreeMap;
 use std::rc::Rc;
 use truepos_math::air::{refractive_index, AirConditions, Formula};
 use truepos_math::bestfit::{best_fit, BestFitOptions};
-use truepos_math::types::{rx, ry, rz};
+use truepos_math::types::{rx, rz};
 use truepos_math::{Point3, Transform3, Vector3};
 use truepos_sim::errors::{ErrorMagnitudes, GeometricErrors};
 use truepos_sim::machine::Machine;
 use truepos_sim::noise::{self, SimRng};
 use truepos_sim::thermal::{Part, Step, TemperatureHistory, ThermalModel};
+use truepos_sim::tracker::BeamBreak;
 
 /// An axis-aligned box (machine frame) that blocks a tracker's line of sight.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -126,19 +128,18 @@ impl Default for CellConfig {
             ],
             tracker_mpe_a_mm: 0.015,
             tracker_mpe_b_mm_per_m: 0.006,
-            beam_interrupt_probability: 0.01,
+            beam_interrupt_probability: 0.002,
             tracker_bump: Some((2400.0, 1, 120.0)),
         }
     }
 }
 
 struct TrackerState {
-    /// The true pose (changes when bumped).
-    tracker_from_machine: Transform3,
-    position: Point3,
+    /// The simulator's tracker: true pose (changes when bumped), MPE noise model, refractive
+    /// index (true and assumed), obstructions.
+    sim: truepos_sim::tracker::Tracker,
     adm: bool,
-    obstructions: Vec<Obstruction>,
-    n_assumed: f64,
+    /// Lost the reflector after a beam break, until reacquired.
     lost: bool,
     bumped: bool,
     tilt_urad: f64,
@@ -204,14 +205,9 @@ impl World {
         if let Some((tb, k, tilt)) = self.cfg.tracker_bump {
             if self.t >= tb && k < self.trackers.len() && !self.trackers[k].bumped {
                 let tr = &mut self.trackers[k];
-                // Tilt about the tracker's own X axis through its head position.
-                let tilt_rad = tilt * 1e-6;
-                let pivot = tr.tracker_from_machine.apply(&tr.position);
-                let r = Transform3::rigid(rx(tilt_rad), Vector3::zeros());
-                let about = Transform3::rigid(truepos_math::Matrix3::identity(), pivot.coords)
-                    * r
-                    * Transform3::rigid(truepos_math::Matrix3::identity(), -pivot.coords);
-                tr.tracker_from_machine = about * tr.tracker_from_machine;
+                // Tilt about the tracker's own X axis, through its head.
+                let m_from_t = tr.sim.cell_from_tracker;
+                tr.sim.cell_from_tracker = m_from_t * Transform3::rigid(rx(tilt * 1e-6), Vector3::zeros());
                 tr.bumped = true;
                 tr.tilt_urad = tilt;
             }
@@ -219,51 +215,31 @@ impl World {
     }
 
     fn line_of_sight(&self, k: usize, p: &Point3) -> bool {
-        let a = self.trackers[k].position;
-        !self.trackers[k].obstructions.iter().any(|o| segment_hits_box(&a, p, o))
+        let tr = &self.trackers[k].sim;
+        let a = tr.position();
+        !tr.beam_breaks.iter().any(|b| b.blocks(&a, p, self.t))
     }
 
-    fn sigma(&self, d_mm: f64) -> f64 {
-        0.5 * (self.cfg.tracker_mpe_a_mm + self.cfg.tracker_mpe_b_mm_per_m * d_mm / 1000.0)
-    }
-
-    /// A noisy reading of the machine-frame point `p` by tracker `k` (tracker frame).
+    /// A noisy reading of the machine-frame point `p` by tracker `k` (tracker frame), with the
+    /// simulator's MPE model and the true refractive index of the air now.
     fn observe(&mut self, k: usize, p: &Point3) -> Point3 {
-        let q = self.trackers[k].tracker_from_machine.apply(p);
-        let d = q.coords.norm();
-        let sigma = self.sigma(d) / 3f64.sqrt();
-        // Interferometric/ADM distance scales with the true and assumed refractive index.
-        let scale = self.n_true() / self.trackers[k].n_assumed;
-        let radial = q.coords / d.max(1e-9);
-        let noise = noise::gaussian3(&mut self.rng, sigma);
-        // Distance noise is a third of the transverse noise (ADM better than angles).
-        let noise = noise - radial * radial.dot(&noise) * (2.0 / 3.0);
-        Point3::from(q.coords * scale + noise)
-    }
-}
-
-/// Whether the segment a→b passes through the box (slab test).
-fn segment_hits_box(a: &Point3, b: &Point3, o: &Obstruction) -> bool {
-    let (mut t0, mut t1) = (0.0f64, 1.0f64);
-    for i in 0..3 {
-        let d = b[i] - a[i];
-        if d.abs() < 1e-12 {
-            if a[i] < o.min[i] || a[i] > o.max[i] {
-                return false;
-            }
-        } else {
-            let (mut u, mut v) = ((o.min[i] - a[i]) / d, (o.max[i] - a[i]) / d);
-            if u > v {
-                std::mem::swap(&mut u, &mut v);
-            }
-            t0 = t0.max(u);
-            t1 = t1.min(v);
-            if t0 > t1 {
-                return false;
-            }
+        let n = self.n_true();
+        let t = self.t;
+        let tr = &mut self.trackers[k].sim;
+        tr.n_true = n;
+        match tr.measure(p, t, &mut self.rng) {
+            Ok(r) => r.to_tracker_point(),
+            // Callers check the line of sight first; out of range cannot happen in the cell.
+            Err(_) => tr.cell_from_tracker.inverse().apply(p),
         }
     }
-    true
+
+    /// 3D standard uncertainty of one reading at distance `d_mm`.
+    fn sigma(&self, k: usize, d_mm: f64) -> f64 {
+        let tr = &self.trackers[k].sim;
+        let (st, sd) = (tr.sigma_transverse(d_mm), tr.sigma_distance(d_mm));
+        (2.0 * st * st + sd * sd).sqrt()
+    }
 }
 
 /// The virtual cell: one world shared by the controller, the trackers and the sensors.
@@ -295,20 +271,21 @@ impl VirtualCell {
             .trackers
             .iter()
             .map(|tc| {
-                let pos = Point3::from(tc.position_mm);
-                // tracker_from_machine: rotate by −yaw about the head, origin at the head.
-                let r = rz(-tc.yaw_deg.to_radians()) * ry(0.0);
-                let t = Transform3::rigid(r, -(r * pos.coords));
-                TrackerState {
-                    tracker_from_machine: t,
-                    position: pos,
-                    adm: tc.adm,
-                    obstructions: tc.obstructions.clone(),
-                    n_assumed: 1.0,
-                    lost: false,
-                    bumped: false,
-                    tilt_urad: 0.0,
-                }
+                // machine_from_tracker: origin at the head, rotated by yaw about Z.
+                let m_from_t = Transform3::rigid(rz(tc.yaw_deg.to_radians()), Vector3::from(tc.position_mm));
+                let mut sim = truepos_sim::tracker::Tracker::new(m_from_t);
+                sim.mpe_const = cfg.tracker_mpe_a_mm;
+                sim.mpe_per_length = cfg.tracker_mpe_b_mm_per_m * 1e-3;
+                sim.distance_mpe_const = cfg.tracker_mpe_a_mm;
+                sim.distance_mpe_per_length = cfg.tracker_mpe_b_mm_per_m * 1e-3;
+                // The MPE bounds the 3D point error (as ~2σ): σ per component = MPE / (2√3).
+                sim.sigma_fraction = 0.5 / 3f64.sqrt();
+                sim.beam_breaks = tc
+                    .obstructions
+                    .iter()
+                    .map(|o| BeamBreak::Box { min: Point3::from(o.min), max: Point3::from(o.max) })
+                    .collect();
+                TrackerState { sim, adm: tc.adm, lost: false, bumped: false, tilt_urad: 0.0 }
             })
             .collect();
         let t = machine.travel;
@@ -360,7 +337,7 @@ impl VirtualCell {
             w.n_true()
         };
         for t in self.world.borrow_mut().trackers.iter_mut() {
-            t.n_assumed = n_air;
+            t.sim.n_assumed = n_air;
         }
         let n = self.world.borrow().trackers.len();
         let mut sensors = self.sensors();
@@ -509,7 +486,7 @@ impl Tracker for VirtualTracker {
             return Err(TrackerFault::Lost);
         }
         let actual = w.reflector_static();
-        let aimed = w.trackers[k].tracker_from_machine.inverse().apply(&p);
+        let aimed = w.trackers[k].sim.cell_from_tracker.apply(&p);
         if (aimed - actual).norm() < 5.0 && w.line_of_sight(k, &actual) {
             w.trackers[k].lost = false;
             Ok(())
@@ -523,20 +500,20 @@ impl Tracker for VirtualTracker {
     }
 
     fn set_refractive_index(&mut self, n: f64) {
-        self.world.borrow_mut().trackers[self.k].n_assumed = n;
+        self.world.borrow_mut().trackers[self.k].sim.n_assumed = n;
     }
 
     fn refractive_index(&self) -> f64 {
-        self.world.borrow().trackers[self.k].n_assumed
+        self.world.borrow().trackers[self.k].sim.n_assumed
     }
 
     fn sigma_mm(&self, p: &Point3) -> f64 {
-        self.world.borrow().sigma(p.coords.norm())
+        self.world.borrow().sigma(self.k, p.coords.norm())
     }
 }
 
 /// Readings averaged on a static target nest (part or machine reference).
-const NEST_READINGS: usize = 25;
+const NEST_READINGS: usize = 100;
 
 pub struct VirtualSensors {
     world: Rc<RefCell<World>>,

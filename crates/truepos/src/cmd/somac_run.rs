@@ -294,7 +294,7 @@ fn scenario(seed: u64, holes_per_row: usize) -> (CellConfig, truepos_sim::scenar
     // Aluminium (23 ppm/°C): re-scale every 0.1 °C so the stale scale stays below ~12 µm at 5 m.
     let params = Params {
         autoscale_step_c: 0.1,
-        threshold_mm: 0.012,
+        threshold_mm: 0.015,
         max_iterations: 6,
         samples: 10,
         ..Params::default()
