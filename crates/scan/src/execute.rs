@@ -165,7 +165,10 @@ pub struct FeatureRun {
     /// From the start of its approach to the end of its release.
     pub time: f64,
     /// Peak-to-valley of the residuals of the least-squares element fitted to the scan segment.
+    /// NaN when the scan segment cannot determine it (see `form_note`).
     pub form_error: f64,
+    /// Why the form error is not available (too few scan points, degenerate fit).
+    pub form_note: Option<String>,
     /// Shift of the path along the surface normal where contact was made (+: surface before
     /// the nominal point).
     pub contact_shift: f64,
@@ -193,6 +196,9 @@ pub struct Run {
     pub cycle_time: f64,
     pub stops: usize,
 }
+
+/// Longest program (machine time, s) [`execute`] accepts.
+pub const MAX_MACHINE_TIME: f64 = 1.0e5;
 
 /// Quality mark from |deflection − target| and the two bands.
 pub fn quality(err: f64, bands: [f64; 2]) -> u8 {
@@ -228,6 +234,12 @@ impl Blend {
 /// same order). Deterministic for a seed.
 pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> Result<Run, ScanError> {
     machine.check()?;
+    let dur = plan.duration();
+    if !(dur.is_finite() && dur <= MAX_MACHINE_TIME) {
+        return Err(ScanError::Invalid(format!(
+            "the program takes {dur:.3e} s of machine time; at most {MAX_MACHINE_TIME} s can be simulated"
+        )));
+    }
     if truth.len() != plan.features.len() {
         return Err(ScanError::Invalid(format!(
             "{} true features for {} planned",
@@ -470,7 +482,10 @@ fn summarise(
         let seg = &pts[a..=b];
         let scan: Vec<&Point> = seg.iter().filter(|q| q.segment == SegmentKind::Scan).collect();
         let xyz: Vec<Point3> = scan.iter().map(|q| q.position).collect();
-        let form_error = crate::form::form_error(f, &xyz)?;
+        let (form_error, form_note) = match crate::form::form_error(f, &xyz) {
+            Ok(v) => (v, None),
+            Err(e) => (f64::NAN, Some(e.to_string())),
+        };
         let t0 = scan.first().map_or(f64::NAN, |q| q.t);
         let first: Vec<f64> =
             scan.iter().take_while(|q| q.t < t0 + 0.05).map(|q| q.deflection - p.deflection).collect();
@@ -503,6 +518,7 @@ fn summarise(
             id: f.id.clone(),
             time: pts[b].t - pts[a].t,
             form_error,
+            form_note,
             contact_shift: shift[fi],
             contact_t: tc,
             scan_start_t: t0,

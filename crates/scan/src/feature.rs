@@ -151,8 +151,11 @@ pub fn validate(features: &[Feature], p: &Params) -> Result<(), ScanError> {
     Ok(())
 }
 
+/// Largest coordinate or radius accepted (mm): 1 km.
+pub const MAX_COORD: f64 = 1.0e6;
+
 fn finite3(v: &Vector3) -> bool {
-    v.iter().all(|c| c.is_finite())
+    v.iter().all(|c| c.is_finite() && c.abs() <= MAX_COORD)
 }
 
 impl Feature {
@@ -163,11 +166,11 @@ impl Feature {
             Geometry::Circle { center, axis, radius, side, start, sweep } => {
                 if !finite3(&center.coords)
                     || !finite3(axis)
-                    || !radius.is_finite()
+                    || !(radius.abs() <= MAX_COORD)
                     || !start.is_finite()
                     || !sweep.is_finite()
                 {
-                    return Err(bad("a value is not a finite number".into()));
+                    return Err(bad("a value is not a finite number of at most 1e6".into()));
                 }
                 if (axis.norm() - 1.0).abs() > UNIT_TOL {
                     return Err(bad(format!("axis has length {:.6}; it must be a unit vector", axis.norm())));
@@ -190,7 +193,7 @@ impl Feature {
             }
             Geometry::Line { start, end, normal } => {
                 if !finite3(&start.coords) || !finite3(&end.coords) || !finite3(normal) {
-                    return Err(bad("a value is not a finite number".into()));
+                    return Err(bad("a value is not a finite number of at most 1e6".into()));
                 }
                 let d = end - start;
                 if d.norm() < 1e-9 {

@@ -227,3 +227,17 @@ fn machine_file_is_read_and_checked() {
         assert!(!o.exists());
     }
 }
+
+#[test]
+fn a_scan_too_short_for_a_form_error_reports_null_not_a_number() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // a 0.1 mm line at 30 mm/s: 3 ms of scan, fewer points than a form evaluation needs
+    let f = d.join("short.toml");
+    std::fs::write(&f, GOOD.replace("end_mm = [60, 0, 0]", "end_mm = [30.1, 0, 0]")).unwrap();
+    let r = json(&truepos(&["scan", "run", "--features", s(&f), "--output", s(&d.join("p.csv")), "--json"]));
+    let l1 = &r["features"][1];
+    assert!(l1["form_error_mm"].is_null(), "{l1}");
+    assert!(l1["form_error_note"].as_str().unwrap().contains("too few"), "{l1}");
+    assert!(r["features"][0]["form_error_mm"].as_f64().is_some());
+}

@@ -451,6 +451,15 @@ fn run_plan(a: PlanArgs) -> Result<Outcome> {
     let (features, params) = load(&a.common)?;
     let style: Style = a.common.style.into();
     let pl = plan(&features, &params, style);
+    let n = pl.duration() / a.dt_s;
+    if !(n.is_finite() && n <= 5.0e7) {
+        return Err(UsageError(format!(
+            "the path takes {:.3e} s; at --dt-s {} that is more than 5e7 points",
+            pl.duration(),
+            a.dt_s
+        ))
+        .into());
+    }
     let samples = pl.sample(a.dt_s);
     let mut f =
         AtomicFile::create(&a.output).with_context(|| format!("cannot create {}", a.output.display()))?;
@@ -526,7 +535,10 @@ fn run_run(a: RunArgs) -> Result<Outcome> {
     let style: Style = a.common.style.into();
     let pl = plan(&features, &params, style);
     let r = execute(&pl, &truth, &machine, a.seed).map_err(|e| match e {
+        // the surface was not found: a measurement failure
         ScanError::NoContact { .. } => anyhow::Error::new(DeviceError(e.to_string())),
+        // a program the virtual CMM refuses (too long, bad machine): the user's input
+        ScanError::Invalid(m) => anyhow::Error::new(InputError::in_file(&a.common.features, m)),
         other => anyhow::Error::new(DeviceError(format!("execution failed: {other}"))),
     })?;
     let mut f =
@@ -578,10 +590,13 @@ fn run_run(a: RunArgs) -> Result<Outcome> {
         );
         for f in &r.features {
             eprintln!(
-                "  {:12} {:7.3} s  form {:7.2} µm  shift {:+8.3} mm  scan-start vibration {:6.2} µm rms",
+                "  {:12} {:7.3} s  form {:>7} µm  shift {:+8.3} mm  scan-start vibration {:6.2} µm rms",
                 f.id,
                 f.time,
-                f.form_error * 1e3,
+                match &f.form_note {
+                    None => format!("{:.2}", f.form_error * 1e3),
+                    Some(_) => "-".to_string(),
+                },
                 f.contact_shift,
                 f.vibration_rms * 1e3
             );
@@ -600,7 +615,8 @@ fn run_json(r: &ScanRun, style: Style) -> serde_json::Value {
         "features": r.features.iter().map(|f| json!({
             "id": f.id,
             "time_s": f.time,
-            "form_error_mm": f.form_error,
+            "form_error_mm": if f.form_error.is_finite() { json!(f.form_error) } else { serde_json::Value::Null },
+            "form_error_note": f.form_note,
             "contact_shift_mm": f.contact_shift,
             "vibration_rms_mm": f.vibration_rms,
             "vibration_peak_mm": f.vibration_peak,
