@@ -166,7 +166,8 @@ impl Feature {
             Geometry::Circle { center, axis, radius, side, start, sweep } => {
                 if !finite3(&center.coords)
                     || !finite3(axis)
-                    || !(radius.abs() <= MAX_COORD)
+                    || !radius.is_finite()
+                    || radius.abs() > MAX_COORD
                     || !start.is_finite()
                     || !sweep.is_finite()
                 {
