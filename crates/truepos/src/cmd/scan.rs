@@ -736,7 +736,7 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
     let rb = execute(&pb, &truth, &machine, 1).map_err(|e| anyhow::anyhow!("blended run: {e}"))?;
     let rc = execute(&pc, &truth, &machine, 1).map_err(|e| anyhow::anyhow!("classic run: {e}"))?;
 
-    // path plots (XY of the first four features), coloured by segment
+    // path plots (XY of the boss `boss1` with its incoming transfer), coloured by segment
     let kinds = [
         SegmentKind::Transfer,
         SegmentKind::Approach,
@@ -751,7 +751,7 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
             .map(|k| {
                 let pts = samples
                     .iter()
-                    .filter(|q| pl.segments[q.segment].kind == *k && pl.segments[q.segment].feature < 4)
+                    .filter(|q| pl.segments[q.segment].kind == *k && pl.segments[q.segment].feature == 1)
                     .map(|q| (q.position.x, q.position.y))
                     .collect();
                 Series::points(k.as_str(), pts)
@@ -759,8 +759,8 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
             .collect();
         report::xy_plot(title, "x (mm)", "y (mm)", &series)
     };
-    let plot_b = path_plot(&pb, "Blended path (first four features), by segment")?;
-    let plot_c = path_plot(&pc, "Classic path (first four features), by segment")?;
+    let plot_b = path_plot(&pb, "Blended path around boss1 (XY), by segment")?;
+    let plot_c = path_plot(&pc, "Classic path around boss1 (XY), by segment")?;
 
     // deflection against time around the first contact on feature 1 (a boss), both styles
     let defl = |r: &ScanRun, label: &str| -> Series {
@@ -853,6 +853,7 @@ mod tests {
         let mut r = Report::new(dir.path());
         demo_section(&mut r).unwrap();
         let html = std::fs::read_to_string(r.write().unwrap()).unwrap();
+
         assert!(html.contains("Scanning without stops"));
         assert!(html.contains("blended") && html.contains("classic"));
         assert!(html.matches("<svg").count() >= 3, "path plots and deflection plot");
