@@ -14,7 +14,10 @@
 //! - [`plan`]: [`plan::plan`] with [`Style`] → [`Plan`] (segments, sampling, stops).
 //! - [`execute`]: [`execute::execute`] on a [`execute::Machine`] against the true part → points
 //!   tagged by segment/feature with deflection and quality, per-feature form error, cycle time.
+//!   The stylus is `truepos_sim::stylus`; the servo error model is `truepos_sim::motion::Servo`'s,
+//!   integrated on line (the command depends on the probe feedback).
 //! - [`form`]: form error (peak-to-valley of least-squares residuals, via `truepos-fit`).
+//! - [`scenario`]: the virtual cell's `scan` scenario as features, true features and parameters.
 
 pub mod execute;
 pub mod feature;
