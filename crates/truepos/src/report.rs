@@ -40,7 +40,12 @@ impl Report {
         }
         html.push_str("</ul>\n");
         for s in &self.sections {
-            html.push_str(&format!("<section id=\"{}\"><h2>{}</h2>\n{}\n</section>\n", s.id, escape(&s.title), s.html));
+            html.push_str(&format!(
+                "<section id=\"{}\"><h2>{}</h2>\n{}\n</section>\n",
+                s.id,
+                escape(&s.title),
+                s.html
+            ));
         }
         html.push_str("</body></html>\n");
         let path = self.dir.join("index.html");
@@ -152,7 +157,9 @@ pub fn xy_plot(title: &str, x_label: &str, y_label: &str, series: &[Series]) -> 
                         .draw_series(LineSeries::new(s.points.iter().copied(), color.stroke_width(2)))
                         .map_err(plot_err)?
                         .label(s.label.clone())
-                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], color.stroke_width(2)));
+                        .legend(move |(x, y)| {
+                            PathElement::new(vec![(x, y), (x + 16, y)], color.stroke_width(2))
+                        });
                 }
                 Style::Points => {
                     chart
@@ -216,9 +223,16 @@ pub fn histogram(title: &str, x_label: &str, sets: &[(&str, &[f64])], bins: usiz
                 }))
                 .map_err(plot_err)?
                 .label(label.to_string())
-                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 12, y + 5)], color.mix(0.45).filled()));
+                .legend(move |(x, y)| {
+                    Rectangle::new([(x, y - 5), (x + 12, y + 5)], color.mix(0.45).filled())
+                });
         }
-        chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(plot_err)?;
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(plot_err)?;
         root.present().map_err(plot_err)?;
     }
     Ok(svg)
@@ -252,9 +266,16 @@ pub fn heatmap(title: &str, x: &[f64], y: &[f64], values: &[Vec<f64>], unit: &st
             .draw_series(values.iter().enumerate().flat_map(|(j, row)| {
                 row.iter().enumerate().map(move |(i, &v)| {
                     let t = ((v - lo) / span).clamp(0.0, 1.0);
-                    let c = RGBColor((255.0 * t) as u8, (80.0 * (1.0 - (2.0 * t - 1.0).abs())) as u8, (255.0 * (1.0 - t)) as u8);
+                    let c = RGBColor(
+                        (255.0 * t) as u8,
+                        (80.0 * (1.0 - (2.0 * t - 1.0).abs())) as u8,
+                        (255.0 * (1.0 - t)) as u8,
+                    );
                     let (cx, cy) = (x[i], y[j]);
-                    Rectangle::new([(cx - dx / 2.0, cy - dy / 2.0), (cx + dx / 2.0, cy + dy / 2.0)], c.filled())
+                    Rectangle::new(
+                        [(cx - dx / 2.0, cy - dy / 2.0), (cx + dx / 2.0, cy + dy / 2.0)],
+                        c.filled(),
+                    )
                 })
             }))
             .map_err(plot_err)?;

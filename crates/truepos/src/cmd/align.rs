@@ -25,7 +25,9 @@ pub enum Method {
 }
 
 #[derive(clap::Args, Debug)]
-#[command(after_help = "Example:\n  truepos align --from tracker.csv --to machine.csv --json\n\nBoth files have columns id,x_mm,y_mm,z_mm; points are matched by id. The result maps\n`from` coordinates to `to` coordinates: to = scale · rotation · from + translation.")]
+#[command(
+    after_help = "Example:\n  truepos align --from tracker.csv --to machine.csv --json\n\nBoth files have columns id,x_mm,y_mm,z_mm; points are matched by id. The result maps\n`from` coordinates to `to` coordinates: to = scale · rotation · from + translation."
+)]
 pub struct Args {
     /// Points in the source frame (columns id,x_mm,y_mm,z_mm).
     #[arg(long)]
@@ -97,12 +99,20 @@ pub fn match_by_id(from: &IdPoints, to: &IdPoints) -> Matched {
 }
 
 /// Fit `to_from_from` with the options of the command line.
-pub fn fit_transform(m: &Matched, weights: Option<&[f64]>, scale: bool, method: Method, file: &PathBuf) -> Result<Transform3, InputError> {
+pub fn fit_transform(
+    m: &Matched,
+    weights: Option<&[f64]>,
+    scale: bool,
+    method: Method,
+    file: &PathBuf,
+) -> Result<Transform3, InputError> {
     let r = match method {
         Method::BestFit => bestfit::best_fit(&m.from, &m.to, weights, BestFitOptions { with_scale: scale }),
         Method::ThreePoint => bestfit::three_point(&m.from, &m.to, scale),
     };
-    r.map_err(|e| InputError::in_file(file, format!("cannot align the {} points matched by id: {e}", m.ids.len())))
+    r.map_err(|e| {
+        InputError::in_file(file, format!("cannot align the {} points matched by id: {e}", m.ids.len()))
+    })
 }
 
 pub fn run(a: Args) -> Result<Outcome> {
@@ -112,7 +122,12 @@ pub fn run(a: Args) -> Result<Outcome> {
     if m.ids.len() < 3 {
         return Err(InputError::in_file(
             &a.to,
-            format!("only {} ids are common to {} and {}; at least 3 are needed", m.ids.len(), a.from.display(), a.to.display()),
+            format!(
+                "only {} ids are common to {} and {}; at least 3 are needed",
+                m.ids.len(),
+                a.from.display(),
+                a.to.display()
+            ),
         )
         .into());
     }
@@ -124,12 +139,23 @@ pub fn run(a: Args) -> Result<Outcome> {
             } else if from.table.column(col).is_some() {
                 (&from.table, &m.from_rows)
             } else {
-                return Err(UsageError(format!("weight column '{col}' is in neither {} nor {}", a.to.display(), a.from.display())).into());
+                return Err(UsageError(format!(
+                    "weight column '{col}' is in neither {} nor {}",
+                    a.to.display(),
+                    a.from.display()
+                ))
+                .into());
             };
             let all = src.f64_column(col)?;
             for (i, w) in all.iter().enumerate() {
                 if *w < 0.0 {
-                    return Err(InputError::at(&src.path, src.line_number(i), src.column(col).map(|c| c + 1), "negative weight").into());
+                    return Err(InputError::at(
+                        &src.path,
+                        src.line_number(i),
+                        src.column(col).map(|c| c + 1),
+                        "negative weight",
+                    )
+                    .into());
                 }
             }
             Some(rows.iter().map(|&r| all[r]).collect::<Vec<f64>>())
@@ -156,7 +182,12 @@ pub fn run(a: Args) -> Result<Outcome> {
         println!("to = scale · rotation · from + translation  ({} points)", m.ids.len());
         println!("scale        {:.9}", t.scale);
         for i in 0..3 {
-            println!("rotation     {:+.12} {:+.12} {:+.12}", t.rotation[(i, 0)], t.rotation[(i, 1)], t.rotation[(i, 2)]);
+            println!(
+                "rotation     {:+.12} {:+.12} {:+.12}",
+                t.rotation[(i, 0)],
+                t.rotation[(i, 1)],
+                t.rotation[(i, 2)]
+            );
         }
         println!("translation  {:.6} {:.6} {:.6} mm", t.translation.x, t.translation.y, t.translation.z);
         println!("rms residual {:.6} mm", rms);
@@ -174,21 +205,40 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
     // A tracker 3 m from the machine origin, rotated; 8 reflector positions; 10 µm noise.
     let truth = Transform3::rigid(rz(0.7) * ry(0.01) * rx(-0.02), Vector3::new(3000.0, -1200.0, 150.0));
     let machine: Vec<Point3> = (0..8)
-        .map(|i| Point3::new(if i & 1 == 0 { 0.0 } else { 4000.0 }, if i & 2 == 0 { 0.0 } else { 2000.0 }, if i & 4 == 0 { 0.0 } else { 800.0 }))
+        .map(|i| {
+            Point3::new(
+                if i & 1 == 0 { 0.0 } else { 4000.0 },
+                if i & 2 == 0 { 0.0 } else { 2000.0 },
+                if i & 4 == 0 { 0.0 } else { 800.0 },
+            )
+        })
         .collect();
     let tracker_from_machine = truth.inverse();
     // Deterministic "noise" with ~10 µm amplitude.
     let tracker: Vec<Point3> = machine
         .iter()
         .enumerate()
-        .map(|(i, p)| tracker_from_machine.apply(p) + Vector3::new(((i * 7) % 5) as f64 - 2.0, ((i * 3) % 5) as f64 - 2.0, ((i * 11) % 5) as f64 - 2.0) * 0.005)
+        .map(|(i, p)| {
+            tracker_from_machine.apply(p)
+                + Vector3::new(
+                    ((i * 7) % 5) as f64 - 2.0,
+                    ((i * 3) % 5) as f64 - 2.0,
+                    ((i * 11) % 5) as f64 - 2.0,
+                ) * 0.005
+        })
         .collect();
     let est = bestfit::best_fit(&tracker, &machine, None, BestFitOptions::default())?;
     let rows: Vec<Vec<String>> = machine
         .iter()
         .zip(&tracker)
         .enumerate()
-        .map(|(i, (m, t))| vec![format!("P{i}"), format!("{:.1}, {:.1}, {:.1}", m.x, m.y, m.z), format!("{:.4}", (est.apply(t) - m).norm() * 1000.0)])
+        .map(|(i, (m, t))| {
+            vec![
+                format!("P{i}"),
+                format!("{:.1}, {:.1}, {:.1}", m.x, m.y, m.z),
+                format!("{:.4}", (est.apply(t) - m).norm() * 1000.0),
+            ]
+        })
         .collect();
     let html = format!(
         "<p>Machine from tracker by weighted least squares (SVD, reflection guard) over 8 reflector positions with ±10 µm noise. Rotation error {:.2} µrad, translation error {:.2} µm.</p>{}",
