@@ -317,7 +317,8 @@ pub fn sphere_with_radius(points: &[Point3], radius: f64) -> Result<SphereFit, F
     if !(radius.is_finite() && radius > 0.0) {
         return Err(FitError::InvalidRadius(radius));
     }
-    let m = Moments::for_fit(points, "sphere", 3, 2)?;
+    // Four points: any three are coplanar, and coplanar points leave a mirror ambiguity.
+    let m = Moments::for_fit(points, "sphere", 4, 2)?;
     // Start: the free algebraic sphere's centre, moved along the line from the centroid so the
     // mean distance matches the fixed radius.
     let c0 = match m.algebraic_sphere() {
