@@ -364,7 +364,19 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
             // nominal one along the normal there is the tip centre's distance minus the radius
             e_n = f.signed_distance(&(xm + qm)).0 - tip;
             shift[fi] = e_n;
-            blend = Blend { o0: o_now - nb * e_n, tb: t, dur: machine.blend_time };
+            // blend the remaining jump out within `blend_time`; when the command is ahead of
+            // the plan (late contact) the fade runs against the motion, so it is slowed until
+            // it takes at most 3/8 of the path speed (smoothstep peak rate 1.5·|o|/T) and the
+            // command never stops
+            let o0 = o_now - nb * e_n;
+            let ahead = nseg_.eval(nt + 1e-3, f, tip).position - b.position;
+            let v = b.speed.max(p.touch_speed.min(p.scan_speed));
+            let dur = if o0.dot(&ahead) > 0.0 {
+                machine.blend_time.max(4.0 * o0.norm() / v)
+            } else {
+                machine.blend_time
+            };
+            blend = Blend { o0, tb: t, dur };
             mode = Mode::Plan;
             i = ni.min(nseg - 1);
             // advance by this tick so the commanded speed does not stall

@@ -110,6 +110,16 @@ fn missed_surfaces_two_millimetres_both_ways() {
             let r = execute(&pl, &truth, &m, 3).unwrap_or_else(|e| panic!("{style:?} {off}: {e}"));
             if style == Style::Blended {
                 assert_eq!(r.stops, 0, "{off}");
+                // the executed command itself (plan + observer + missed-surface shift) never
+                // comes near a standstill between approach and release: the slowest case is a
+                // boss 2 mm smaller (path radius 14 → 12 mm: −14 %) while the late-contact jump
+                // fades against the motion (≤ 3/8 of the speed), about 0.48 v; 0.25 v is the bound
+                let a = r.points.iter().position(|q| q.segment == SegmentKind::Approach).unwrap();
+                let b = r.points.iter().rposition(|q| q.segment == SegmentKind::Release).unwrap();
+                for w in r.points[a..=b].windows(2) {
+                    let v = (w[1].commanded - w[0].commanded).norm() / (w[1].t - w[0].t);
+                    assert!(v > 0.25 * p.scan_speed, "{off}: commanded speed {v} at t={}", w[1].t);
+                }
             }
             let mut peaks = Vec::new();
             for (k, f) in r.features.iter().enumerate() {
