@@ -206,6 +206,22 @@ fn extrapolate(
     opt: &ContactOptions,
     forward: bool,
 ) -> Option<Band> {
+    // Only the contiguous descent from the peak: after the tip leaves the surface the stylus
+    // rings (and on approach it may bounce), and those samples can lie in the band too.
+    let defl = |j: usize| {
+        let d = s.probe[j];
+        d[0] * n.x + d[1] * n.y + d[2] * n.z
+    };
+    let range = if forward {
+        let stop = (range.start..range.end).find(|&j| defl(j) < lo).unwrap_or(range.end);
+        range.start..stop
+    } else {
+        let first = (range.start..range.end).rev().find(|&j| defl(j) < lo).map_or(range.start, |j| j + 1);
+        first..range.end
+    };
+    if range.len() < opt.min_band {
+        return None;
+    }
     let t_ref = s.probe_t[range.start];
     for f in [0.6, 0.5, 0.4, 0.3, 0.2, 0.15] {
         let hi = f * peak;

@@ -249,7 +249,7 @@ pub fn estimate(s: &Streams, opt: &Options) -> Result<Estimate, LatencyError> {
         let runs = contact::find_runs(s.probe, opt.threshold, copt.min_band).len();
         if runs > contacts.len() {
             est.warnings.push(format!(
-                "{} of {runs} deflection runs gave no surface point (too few samples at constant speed, or a scan)",
+                "{} of {runs} deflection runs gave no surface point (stylus ringing after a contact, too few samples at constant speed, or a scan)",
                 runs - contacts.len()
             ));
         }

@@ -248,10 +248,10 @@ pub fn scan_delay(s: &Streams, threshold: f64, max_delay: f64) -> Result<ScanRes
         Form::Sphere
     };
     let prob = ScanProblem { s, idx: &idx, form };
-    // Noise of each stream (robust, from second differences): linear interpolation between two
-    // noisy machine samples at fraction w has variance σ_m²·(w² + (1 − w)²), which swings with
-    // the shift (period: one machine sample) and would pull an unweighted minimum towards
-    // half-sample shifts. Each combined point is weighted by its own variance.
+    // Noise of each stream (robust, from second differences): interpolating noisy machine
+    // samples at fraction w has a variance that swings with the shift (period: one machine
+    // sample) and would pull an unweighted minimum towards half-sample shifts. Each combined
+    // point is weighted by its own variance.
     let t_lo = s.probe_t[idx[0]] - max_delay;
     let t_hi = s.probe_t[idx[idx.len() - 1]] + max_delay;
     let m0 = s.machine_t.partition_point(|&t| t < t_lo);
@@ -265,7 +265,7 @@ pub fn scan_delay(s: &Streams, threshold: f64, max_delay: f64) -> Result<ScanRes
         .ok_or_else(|| LatencyError::Degenerate("the scan points do not define a circle or sphere".into()))?;
     let _ = rms0;
     // Stage 1: bracket the basin on a decimated subset (weighted profile, as stage 2).
-    let step = (idx.len() / 20_000).max(1);
+    let step = (idx.len() / 5_000).max(1);
     let sub: Vec<usize> = (0..idx.len()).step_by(step).collect();
     let n_grid = 200;
     let h_grid = 2.0 * max_delay / n_grid as f64;
@@ -462,12 +462,12 @@ impl<'a> Profile<'a> {
                 }
             };
             let Some(step) = step else { return ssr };
-            let small = step.iter().all(|x| x.abs() < 1e-12);
-            if ssr >= last && small {
-                break;
-            }
             last = ssr;
             last_ss = ss;
+            // Converged when the step is below a picometre: the sum of squares at `g` is final.
+            if step.iter().all(|x| x.abs() < 1e-9) {
+                break;
+            }
             for (x, d) in g.iter_mut().zip(&step) {
                 *x += d;
             }
