@@ -97,7 +97,7 @@ impl Default for CellConfig {
                 cycle_phase: 0.0,
             },
             pressure_pa: 100_800.0,
-            pressure_drift_pa_per_h: -120.0,
+            pressure_drift_pa_per_h: -600.0,
             humidity_pct: 45.0,
             part_cte: 23.0e-6,
             part_tau_s: 1200.0,
@@ -129,7 +129,7 @@ impl Default for CellConfig {
             tracker_mpe_a_mm: 0.015,
             tracker_mpe_b_mm_per_m: 0.006,
             beam_interrupt_probability: 0.002,
-            tracker_bump: Some((2400.0, 1, 120.0)),
+            tracker_bump: Some((900.0, 1, 120.0)),
         }
     }
 }
