@@ -69,42 +69,60 @@ impl<const N: usize> Acc<N> {
 }
 
 fn accumulate_chunk<const N: usize, M: Model<N>>(m: &M, s: &M::State, pts: &[Point3]) -> Acc<N> {
-    // Upper triangle only, in a flat array: the compiler keeps this in registers for small N.
-    let mut jtj = [[0.0f64; N]; N];
-    let mut jtr = [0.0f64; N];
-    let mut ssr = 0.0;
-    let mut max_abs = 0.0f64;
+    // One partial sum per block lane ([`BLOCK`] of them) for every entry: the updates are
+    // element-wise over the lanes, so they vectorise and no long dependency chain forms; the
+    // lanes are added once at the end of the chunk. Only the upper triangle is accumulated.
+    let mut jtj = [[[0.0f64; BLOCK]; N]; N];
+    let mut jtr = [[0.0f64; BLOCK]; N];
+    let mut ssr = [0.0f64; BLOCK];
+    let mut max_abs = [0.0f64; BLOCK];
     let mut rb = [0.0f64; BLOCK];
     let mut jb = [[0.0f64; N]; BLOCK];
+    let mut jt = [[0.0f64; BLOCK]; N];
     for block in pts.chunks(BLOCK) {
         m.residuals_block(s, block, &mut rb, &mut jb);
-        for k in 0..block.len() {
-            let (r, j) = (rb[k], &jb[k]);
-            // No branch per point: a non-finite residual or gradient poisons the sums, which
-            // are checked once per chunk below.
-            ssr += r * r;
-            max_abs = max_abs.max(r.abs());
-            for a in 0..N {
-                jtr[a] += j[a] * r;
-                for b in a..N {
-                    jtj[a][b] += j[a] * j[b];
+        // Lanes past a short last block contribute nothing.
+        for k in block.len()..BLOCK {
+            rb[k] = 0.0;
+            jb[k] = [0.0; N];
+        }
+        for a in 0..N {
+            for k in 0..BLOCK {
+                jt[a][k] = jb[k][a];
+            }
+        }
+        // No branch per point: a non-finite residual or gradient poisons the sums, which are
+        // checked once per chunk below.
+        for k in 0..BLOCK {
+            ssr[k] += rb[k] * rb[k];
+            max_abs[k] = max_abs[k].max(rb[k].abs());
+        }
+        for a in 0..N {
+            for k in 0..BLOCK {
+                jtr[a][k] += jt[a][k] * rb[k];
+            }
+            for b in a..N {
+                for k in 0..BLOCK {
+                    jtj[a][b][k] += jt[a][k] * jt[b][k];
                 }
             }
         }
     }
     let mut acc = Acc::<N>::zero();
     for a in 0..N {
-        acc.jtr[a] = jtr[a];
+        acc.jtr[a] = jtr[a].iter().sum();
         for b in a..N {
-            acc.jtj[(a, b)] = jtj[a][b];
-            acc.jtj[(b, a)] = jtj[a][b];
+            let v: f64 = jtj[a][b].iter().sum();
+            acc.jtj[(a, b)] = v;
+            acc.jtj[(b, a)] = v;
         }
     }
-    let finite =
-        ssr.is_finite() && jtr.iter().all(|v| v.is_finite()) && jtj.iter().flatten().all(|v| v.is_finite());
-    acc.ssr = ssr;
-    acc.max_abs = max_abs;
-    acc.finite = finite;
+    acc.ssr = ssr.iter().sum();
+    acc.max_abs = max_abs.iter().fold(0.0, |m, &v| if v > m || v.is_nan() { v } else { m });
+    acc.finite = acc.ssr.is_finite()
+        && acc.max_abs.is_finite()
+        && acc.jtr.iter().all(|v| v.is_finite())
+        && acc.jtj.iter().all(|v| v.is_finite());
     acc
 }
 
