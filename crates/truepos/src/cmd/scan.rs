@@ -381,7 +381,7 @@ struct FeatureGeomJson {
     normal: Option<[f64; 3]>,
 }
 
-fn load_part(path: &Path, nominal: &[Feature]) -> Result<Vec<Feature>> {
+fn load_part(path: &Path, nominal: &[Feature], params: &Params) -> Result<Vec<Feature>> {
     let bytes = std::fs::read(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
     let t: TruthFile = serde_json::from_slice(&bytes).map_err(|e| {
         InputError::at(path, e.line(), Some(e.column()), format!("not a scan truth.json: {e}"))
@@ -415,6 +415,7 @@ fn load_part(path: &Path, nominal: &[Feature]) -> Result<Vec<Feature>> {
             _ => return Err(bad().into()),
         };
         let tf = Feature { id: f.id.clone(), geometry };
+        tf.check(params).map_err(|e| InputError::in_file(path, format!("true geometry: {e}")))?;
         if std::mem::discriminant(&tf.geometry) != std::mem::discriminant(&f.geometry) {
             return Err(InputError::in_file(
                 path,
@@ -529,7 +530,7 @@ fn run_run(a: RunArgs) -> Result<Outcome> {
     let (features, params) = load(&a.common)?;
     let machine = load_machine(a.machine.as_ref())?;
     let truth = match &a.part {
-        Some(p) => load_part(p, &features)?,
+        Some(p) => load_part(p, &features, &params)?,
         None => features.clone(),
     };
     let style: Style = a.common.style.into();
