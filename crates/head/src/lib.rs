@@ -316,36 +316,7 @@ fn unobservable(jtj: &DMatrix, r_cols: &[(usize, usize)]) -> [bool; 3] {
 /// For each parameter column in `cols`: does a null direction of the column-scaled normal matrix
 /// have a noticeable share on it (or is the column all zero)?
 fn null_flags(jtj: &DMatrix, cols: &[usize]) -> Vec<bool> {
-    let n = jtj.nrows();
-    let d: Vec<f64> = (0..n)
-        .map(|i| {
-            let v = jtj[(i, i)];
-            if v > 0.0 {
-                1.0 / v.sqrt()
-            } else {
-                0.0
-            }
-        })
-        .collect();
-    let mut s = jtj.clone();
-    for a in 0..n {
-        for b in 0..n {
-            s[(a, b)] *= d[a] * d[b];
-        }
-    }
-    let eig = s.symmetric_eigen();
-    let max = eig.eigenvalues.iter().cloned().fold(0.0f64, f64::max);
-    let mut out = vec![false; cols.len()];
-    for k in 0..n {
-        if eig.eigenvalues[k] <= NULL_TOL * max {
-            for (o, &col) in out.iter_mut().zip(cols) {
-                if eig.eigenvectors[(col, k)].powi(2) > 1e-4 || d[col] == 0.0 {
-                    *o = true;
-                }
-            }
-        }
-    }
-    out
+    truepos_math::lsq::null_space_flags(jtj, cols, NULL_TOL, 1e-4)
 }
 
 fn deg(x: f64) -> f64 {

@@ -138,36 +138,19 @@ pub fn normal_equations<P: Residuals>(problem: &P, params: &[f64], parallel_thre
     Normal { jtj, jtr: DVector::from_vec(jtr), ssr, finite }
 }
 
-/// Rank and condition of the normal matrix after scaling its columns to unit diagonal.
-pub fn scaled_rank(jtj: &DMatrix, rank_tol: f64) -> (usize, f64, DMatrix) {
-    let n = jtj.nrows();
-    let d: Vec<f64> = (0..n)
-        .map(|i| {
-            let v = jtj[(i, i)];
-            if v > 0.0 {
-                1.0 / v.sqrt()
-            } else {
-                0.0
-            }
-        })
-        .collect();
-    let mut s = jtj.clone();
-    for a in 0..n {
-        for b in 0..n {
-            s[(a, b)] *= d[a] * d[b];
-        }
-    }
-    let eig = s.clone().symmetric_eigen();
-    let max = eig.eigenvalues.iter().cloned().fold(0.0f64, f64::max);
-    let min = eig.eigenvalues.iter().cloned().fold(f64::INFINITY, f64::min);
-    let rank = eig.eigenvalues.iter().filter(|&&e| e > rank_tol * max.max(f64::MIN_POSITIVE)).count();
-    let cond = if min > 0.0 { max / min } else { f64::INFINITY };
-    (rank, cond, s)
+/// The normal matrix with its columns scaled to unit diagonal (`S = D·JᵀJ·D`,
+/// `D = diag(1/√(JᵀJ)ᵢᵢ)`, 0 for an all-zero column) and the eigen-decomposition of `S`. Scaling
+/// makes ranks and null spaces independent of the parameters' units.
+pub struct ScaledEigen {
+    /// The scale factors `Dᵢᵢ`.
+    pub d: Vec<f64>,
+    pub eigenvalues: DVector,
+    /// Columns are the eigenvectors of `S`.
+    pub eigenvectors: DMatrix,
+    pub max: f64,
 }
 
-/// Pseudo-inverse of a symmetric positive semi-definite matrix through column scaling and
-/// its eigen-decomposition, dropping eigenvalues below `rank_tol · max`.
-pub fn spd_pinv(jtj: &DMatrix, rank_tol: f64) -> DMatrix {
+pub fn scaled_eigen(jtj: &DMatrix) -> ScaledEigen {
     let n = jtj.nrows();
     let d: Vec<f64> = (0..n)
         .map(|i| {
@@ -187,17 +170,57 @@ pub fn spd_pinv(jtj: &DMatrix, rank_tol: f64) -> DMatrix {
     }
     let eig = s.symmetric_eigen();
     let max = eig.eigenvalues.iter().cloned().fold(0.0f64, f64::max);
+    ScaledEigen { d, eigenvalues: eig.eigenvalues, eigenvectors: eig.eigenvectors, max }
+}
+
+/// Rank and condition of the normal matrix after scaling its columns to unit diagonal.
+pub fn scaled_rank(jtj: &DMatrix, rank_tol: f64) -> (usize, f64) {
+    let e = scaled_eigen(jtj);
+    let min = e.eigenvalues.iter().cloned().fold(f64::INFINITY, f64::min);
+    let rank = e.eigenvalues.iter().filter(|&&v| v > rank_tol * e.max.max(f64::MIN_POSITIVE)).count();
+    let cond = if min > 0.0 { e.max / min } else { f64::INFINITY };
+    (rank, cond)
+}
+
+/// For each parameter column in `cols`: whether a null direction of the column-scaled normal
+/// matrix (eigenvalue ≤ `null_tol · max`) has a share above `share` (squared component) on it,
+/// or the column is all zero — i.e. the data cannot determine that parameter.
+pub fn null_space_flags(jtj: &DMatrix, cols: &[usize], null_tol: f64, share: f64) -> Vec<bool> {
+    let e = scaled_eigen(jtj);
+    let mut out = vec![false; cols.len()];
+    for k in 0..jtj.nrows() {
+        if e.eigenvalues[k] <= null_tol * e.max {
+            for (o, &col) in out.iter_mut().zip(cols) {
+                if e.eigenvectors[(col, k)].powi(2) > share {
+                    *o = true;
+                }
+            }
+        }
+    }
+    for (o, &col) in out.iter_mut().zip(cols) {
+        if e.d[col] == 0.0 {
+            *o = true;
+        }
+    }
+    out
+}
+
+/// Pseudo-inverse of a symmetric positive semi-definite matrix through column scaling and
+/// its eigen-decomposition, dropping eigenvalues below `rank_tol · max`.
+pub fn spd_pinv(jtj: &DMatrix, rank_tol: f64) -> DMatrix {
+    let n = jtj.nrows();
+    let e = scaled_eigen(jtj);
     let mut inv = DMatrix::zeros(n, n);
     for k in 0..n {
-        let e = eig.eigenvalues[k];
-        if e > rank_tol * max && e > 0.0 {
-            let v = eig.eigenvectors.column(k);
-            inv += (v * v.transpose()) / e;
+        let v = e.eigenvalues[k];
+        if v > rank_tol * e.max && v > 0.0 {
+            let c = e.eigenvectors.column(k);
+            inv += (c * c.transpose()) / v;
         }
     }
     for a in 0..n {
         for b in 0..n {
-            inv[(a, b)] *= d[a] * d[b];
+            inv[(a, b)] *= e.d[a] * e.d[b];
         }
     }
     inv
@@ -261,7 +284,7 @@ pub fn solve<P: Residuals>(problem: &P, x0: &[f64], opt: &LsqOptions) -> Result<
             break;
         }
     }
-    let (rank, condition, _) = scaled_rank(&ne.jtj, opt.rank_tol);
+    let (rank, condition) = scaled_rank(&ne.jtj, opt.rank_tol);
     let dof = (m as f64 - n as f64).max(1.0);
     let sigma0 = (ne.ssr / dof).sqrt();
     let covariance = spd_pinv(&ne.jtj, opt.rank_tol) * (sigma0 * sigma0);

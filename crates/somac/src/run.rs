@@ -173,22 +173,7 @@ pub fn run_program<C: Controller, T: Tracker, E: Cell>(
                 st.report.halted = true;
                 break;
             }
-            let incl = cell.inclinations();
-            let dincl = incl.max_change(&st.incl_base);
-            if dincl > params.inclination_limit_urad {
-                let a = Alarm {
-                    line,
-                    kind: "inclination".into(),
-                    message: format!(
-                        "inclination changed by {dincl:.1} µrad (limit {})",
-                        params.inclination_limit_urad
-                    ),
-                    action: "re-align trackers and re-orient".into(),
-                };
-                raise(sink, ctl, &mut st, a)?;
-                realign(ctl, trackers, cell, sink, &mut st, line)?;
-                st.incl_base = incl;
-                orient(program, ctl, trackers, cell, params, sink, &mut st, line, "inclination change")?;
+            if check_inclination(program, ctl, trackers, cell, params, sink, &mut st, line, "")? {
             } else if (temp - st.temp_orient).abs() > params.temperature_change_max_c {
                 let a = Alarm {
                     line,
@@ -238,22 +223,17 @@ pub fn run_program<C: Controller, T: Tracker, E: Cell>(
             let mut stop = measure_stop(ctl, trackers, cell, params, sink, &mut st, line, commanded)?;
             // An inclinometer that moved during the stop invalidates its readings: re-align,
             // re-orient, go to the (re-oriented) position and measure the stop again.
-            let incl = cell.inclinations();
-            let dincl = incl.max_change(&st.incl_base);
-            if dincl > params.inclination_limit_urad {
-                let a = Alarm {
-                    line,
-                    kind: "inclination".into(),
-                    message: format!(
-                        "inclination changed by {dincl:.1} µrad during the stop (limit {})",
-                        params.inclination_limit_urad
-                    ),
-                    action: "re-align trackers, re-orient, measure the stop again".into(),
-                };
-                raise(sink, ctl, &mut st, a)?;
-                realign(ctl, trackers, cell, sink, &mut st, line)?;
-                st.incl_base = incl;
-                orient(program, ctl, trackers, cell, params, sink, &mut st, line, "inclination change")?;
+            if check_inclination(
+                program,
+                ctl,
+                trackers,
+                cell,
+                params,
+                sink,
+                &mut st,
+                line,
+                " during the stop",
+            )? {
                 commanded = st.targets[i].0.unwrap_or(commanded);
                 ctl.move_to(commanded)?;
                 stop = measure_stop(ctl, trackers, cell, params, sink, &mut st, line, commanded)?;
@@ -276,6 +256,41 @@ pub fn run_program<C: Controller, T: Tracker, E: Cell>(
     sink.commit().map_err(RunError::Audit)?;
     st.report.machine_from_part = st.machine_from_part;
     Ok(st.report)
+}
+
+/// If an inclinometer moved beyond the limit since the last orientation: alarm, re-align the
+/// trackers on the machine targets, re-orient the part. Returns whether it did.
+#[allow(clippy::too_many_arguments)]
+fn check_inclination<C: Controller, T: Tracker, E: Cell>(
+    program: &Program,
+    ctl: &mut C,
+    trackers: &mut [TrackerSetup<T>],
+    cell: &mut E,
+    params: &Params,
+    sink: &mut dyn AuditSink,
+    st: &mut State,
+    line: usize,
+    when: &str,
+) -> Result<bool, RunError> {
+    let incl = cell.inclinations();
+    let dincl = incl.max_change(&st.incl_base);
+    if dincl <= params.inclination_limit_urad {
+        return Ok(false);
+    }
+    let a = Alarm {
+        line,
+        kind: "inclination".into(),
+        message: format!(
+            "inclination changed by {dincl:.1} µrad{when} (limit {})",
+            params.inclination_limit_urad
+        ),
+        action: "re-align trackers and re-orient".into(),
+    };
+    raise(sink, ctl, st, a)?;
+    realign(ctl, trackers, cell, sink, st, line)?;
+    st.incl_base = incl;
+    orient(program, ctl, trackers, cell, params, sink, st, line, "inclination change")?;
+    Ok(true)
 }
 
 fn raise<C: Controller>(sink: &mut dyn AuditSink, ctl: &C, st: &mut State, a: Alarm) -> Result<(), RunError> {

@@ -234,6 +234,22 @@ impl World {
         }
     }
 
+    /// Tracker `k`'s readings of static nests at the given machine-frame positions (those in
+    /// its line of sight), each the mean of many readings.
+    fn measure_nests(&mut self, k: usize, nests: &[(String, Point3)]) -> Vec<(String, Point3)> {
+        let mut out = vec![];
+        for (id, p) in nests {
+            if self.line_of_sight(k, p) {
+                let mut acc = Vector3::zeros();
+                for _ in 0..NEST_READINGS {
+                    acc += self.observe(k, p).coords;
+                }
+                out.push((id.clone(), Point3::from(acc / NEST_READINGS as f64)));
+            }
+        }
+        out
+    }
+
     /// 3D standard uncertainty of one reading at distance `d_mm`.
     fn sigma(&self, k: usize, d_mm: f64) -> f64 {
         let tr = &self.trackers[k].sim;
@@ -539,19 +555,12 @@ impl Cell for VirtualSensors {
     fn measure_part_targets(&mut self, k: usize) -> Vec<(String, Point3)> {
         let mut w = self.world.borrow_mut();
         let t = w.t;
-        let targets = w.part_targets.clone();
-        let mut out = vec![];
-        for (id, nominal) in targets {
-            let actual = w.placement.apply(&w.part.position(&nominal, t));
-            if w.line_of_sight(k, &actual) {
-                // A static nest: many readings averaged.
-                let mut acc = Vector3::zeros();
-                for _ in 0..NEST_READINGS {
-                    acc += w.observe(k, &actual).coords;
-                }
-                out.push((id, Point3::from(acc / NEST_READINGS as f64)));
-            }
-        }
+        let actual: Vec<(String, Point3)> = w
+            .part_targets
+            .iter()
+            .map(|(id, nominal)| (id.clone(), w.placement.apply(&w.part.position(nominal, t))))
+            .collect();
+        let out = w.measure_nests(k, &actual);
         w.t += 20.0;
         out
     }
@@ -563,16 +572,7 @@ impl Cell for VirtualSensors {
     fn measure_machine_targets(&mut self, k: usize) -> Vec<(String, Point3)> {
         let mut w = self.world.borrow_mut();
         let targets = w.machine_targets.clone();
-        let mut out = vec![];
-        for (id, p) in targets {
-            if w.line_of_sight(k, &p) {
-                let mut acc = Vector3::zeros();
-                for _ in 0..NEST_READINGS {
-                    acc += w.observe(k, &p).coords;
-                }
-                out.push((id, Point3::from(acc / NEST_READINGS as f64)));
-            }
-        }
+        let out = w.measure_nests(k, &targets);
         w.t += 30.0;
         out
     }
