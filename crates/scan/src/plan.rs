@@ -118,9 +118,12 @@ pub enum Geom {
     },
 }
 
-/// Trapezoidal speed profile over a length.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// Speed profile over a length: a trapezoid, or (for curved transfers) a sampled profile that
+/// respects a lateral-acceleration speed limit along the curve.
+#[derive(Clone, Debug, PartialEq)]
 pub struct Profile {
+    /// (t, s, v) samples of a curvature-limited profile; `None` for a trapezoid.
+    table: Option<Vec<[f64; 3]>>,
     pub len: f64,
     pub v0: f64,
     pub v1: f64,
@@ -138,7 +141,18 @@ impl Profile {
     pub fn new(len: f64, v0: f64, vmax: f64, v1: f64, a: f64) -> Profile {
         let len = len.max(0.0);
         if len <= 1e-12 {
-            return Profile { len: 0.0, v0, v1, vp: v0, a0: 0.0, a1: 0.0, t0: 0.0, tc: 0.0, t1: 0.0 };
+            return Profile {
+                table: None,
+                len: 0.0,
+                v0,
+                v1,
+                vp: v0,
+                a0: 0.0,
+                a1: 0.0,
+                t0: 0.0,
+                tc: 0.0,
+                t1: 0.0,
+            };
         }
         let need = (v1 * v1 - v0 * v0).abs() / (2.0 * len);
         let a = a.max(need * (1.0 + 1e-9));
@@ -154,7 +168,38 @@ impl Profile {
         let t0 = (vp - v0) / a;
         let t1 = (vp - v1) / a;
         let tc = if vp > 0.0 { dc / vp } else { 0.0 };
-        Profile { len, v0, v1, vp, a0: a, a1: a, t0, tc, t1 }
+        Profile { table: None, len, v0, v1, vp, a0: a, a1: a, t0, tc, t1 }
+    }
+
+    /// Time-optimal profile along a curve sampled at equal distances `ds` with speed limits
+    /// `vlim` (one per sample, the first and last replaced by `v0` and `v1`): forward and
+    /// backward passes with acceleration `a`, then constant acceleration between samples.
+    pub fn limited(ds: f64, vlim: &[f64], v0: f64, v1: f64, a: f64) -> Profile {
+        let n = vlim.len();
+        if n < 2 || ds <= 0.0 {
+            return Profile::new(ds * n.saturating_sub(1) as f64, v0, v0.max(v1), v1, a);
+        }
+        let mut v: Vec<f64> = vlim.to_vec();
+        v[0] = v0;
+        v[n - 1] = v1;
+        for i in 1..n {
+            v[i] = v[i].min((v[i - 1] * v[i - 1] + 2.0 * a * ds).sqrt());
+        }
+        v[n - 1] = v1;
+        for i in (0..n - 1).rev() {
+            v[i] = v[i].min((v[i + 1] * v[i + 1] + 2.0 * a * ds).sqrt());
+        }
+        v[0] = v0;
+        let mut table = Vec::with_capacity(n);
+        let mut t = 0.0;
+        table.push([0.0, 0.0, v[0]]);
+        for i in 1..n {
+            let vm = (v[i - 1] + v[i]).max(1e-9);
+            t += 2.0 * ds / vm;
+            table.push([t, ds * i as f64, v[i]]);
+        }
+        let len = ds * (n - 1) as f64;
+        Profile { table: Some(table), len, v0, v1, vp: v0.max(v1), a0: a, a1: a, t0: 0.0, tc: 0.0, t1: 0.0 }
     }
 
     /// Constant speed.
@@ -163,7 +208,10 @@ impl Profile {
     }
 
     pub fn duration(&self) -> f64 {
-        self.t0 + self.tc + self.t1
+        match &self.table {
+            Some(tb) => tb.last().map_or(0.0, |r| r[0]),
+            None => self.t0 + self.tc + self.t1,
+        }
     }
 
     /// Distance and speed at time `t` from the start.
@@ -172,6 +220,14 @@ impl Profile {
             return (0.0, self.v0);
         }
         let t = t.clamp(0.0, self.duration());
+        if let Some(tb) = &self.table {
+            let i = tb.partition_point(|r| r[0] <= t).clamp(1, tb.len() - 1) - 1;
+            let (r0, r1) = (tb[i], tb[i + 1]);
+            let dt = r1[0] - r0[0];
+            let acc = if dt > 0.0 { (r1[2] - r0[2]) / dt } else { 0.0 };
+            let tau = t - r0[0];
+            return ((r0[1] + r0[2] * tau + 0.5 * acc * tau * tau).min(r1[1]), r0[2] + acc * tau);
+        }
         if t < self.t0 {
             (self.v0 * t + 0.5 * self.a0 * t * t, self.v0 + self.a0 * t)
         } else if t < self.t0 + self.tc {
@@ -269,7 +325,33 @@ impl Segment {
             table.push((j as f64 + f) / TABLE_N as f64);
         }
         s.table = table;
-        s.profile = Profile::new(len, speeds.0, speeds.1, speeds.2, accel);
+        s.profile = if matches!(s.geom, Geom::Bezier(_)) && len > 1e-9 {
+            // cap the speed where the curve bends: lateral acceleration v²/ρ ≤ accel
+            const N: usize = 128;
+            let ds = len / N as f64;
+            let pts: Vec<Point3> =
+                (0..=N).map(|k| s.carrier(s.lambda_at(ds * k as f64, len), f, tip)).collect();
+            let mut vlim = vec![speeds.1; N + 1];
+            for k in 1..N {
+                let (a, b) = (pts[k] - pts[k - 1], pts[k + 1] - pts[k]);
+                let (la, lb) = (a.norm(), b.norm());
+                if la > 1e-12 && lb > 1e-12 {
+                    let turn = (a.dot(&b) / (la * lb)).clamp(-1.0, 1.0).acos();
+                    if turn > 1e-12 {
+                        let rho = 0.5 * (la + lb) / turn;
+                        vlim[k] = vlim[k].min((accel * rho).sqrt());
+                    }
+                }
+            }
+            // never below half the slower end speed: a near-cusp must not become a stop
+            let floor = 0.5 * speeds.0.max(speeds.2).min(if speeds.0 > 0.0 { speeds.0 } else { speeds.2 });
+            for v in vlim.iter_mut() {
+                *v = v.max(floor);
+            }
+            Profile::limited(ds, &vlim, speeds.0, speeds.2, accel)
+        } else {
+            Profile::new(len, speeds.0, speeds.1, speeds.2, accel)
+        };
         s
     }
 
@@ -330,10 +412,14 @@ impl Segment {
     }
 
     fn lambda(&self, s: f64) -> f64 {
-        if self.profile.len <= 0.0 {
+        self.lambda_at(s, self.profile.len)
+    }
+
+    fn lambda_at(&self, s: f64, len: f64) -> f64 {
+        if len <= 0.0 {
             return 0.0;
         }
-        let x = (s / self.profile.len).clamp(0.0, 1.0) * TABLE_N as f64;
+        let x = (s / len).clamp(0.0, 1.0) * TABLE_N as f64;
         let i = (x.floor() as usize).min(TABLE_N - 1);
         let f = x - i as f64;
         self.table[i] + (self.table[i + 1] - self.table[i]) * f

@@ -46,8 +46,9 @@ fn blended_never_stops_between_first_approach_and_last_release() {
     for s in samples.iter().filter(|s| s.t >= a && s.t <= b) {
         min_v = min_v.min(s.speed);
     }
-    // every segment in the window runs at scanning speed or faster
-    assert!(min_v >= p.scan_speed * (1.0 - 1e-9), "min speed {min_v}");
+    // never near a standstill: transfers slow down in tight bends (lateral acceleration
+    // limit) but never below half the scanning speed
+    assert!(min_v >= 0.5 * p.scan_speed * (1.0 - 1e-9), "min speed {min_v}");
     // positions continuous: no jump larger than what the top speed allows in one step
     for w in samples.windows(2) {
         let d = (w[1].position - w[0].position).norm();
@@ -220,7 +221,7 @@ mod props {
             }
             let (a, b) = pl.window();
             for s in pl.sample(5e-3).iter().filter(|s| s.t >= a && s.t <= b) {
-                prop_assert!(s.speed >= p.scan_speed * (1.0 - 1e-9));
+                prop_assert!(s.speed >= 0.5 * p.scan_speed * (1.0 - 1e-9));
                 prop_assert!(s.position.coords.iter().all(|c| c.is_finite()));
             }
             let pc = plan(&features, &p, Style::Classic);
