@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 LINES=${1:-1000000}
 PY_LINES=$(( LINES < 100000 ? LINES : 100000 ))
 WORK=${TMPDIR:-/tmp}/truepos-bench-gcode
-VENV=${TMPDIR:-/tmp}/truepos-bench-venv
+VENV=${TMPDIR:-/tmp}/truepos-bench-gcode-venv
 mkdir -p "$WORK"
 cargo build --release --quiet
 BIN=$PWD/target/release/truepos
