@@ -15,10 +15,29 @@ use rayon::prelude::*;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+/// The file's text: owned, or a read-only memory map of a large regular file (no copy). Either
+/// way it has been checked to be UTF-8 without NUL bytes.
+enum Text {
+    Owned(String),
+    Mapped(memmap2::Mmap),
+}
+
+impl std::ops::Deref for Text {
+    type Target = str;
+    fn deref(&self) -> &str {
+        match self {
+            Text::Owned(s) => s,
+            // SAFETY: validated as UTF-8 in `Table::from_mapped` before construction; the map is
+            // read-only and private to this process.
+            Text::Mapped(m) => unsafe { std::str::from_utf8_unchecked(&m[..]) },
+        }
+    }
+}
+
 /// A parsed CSV file: the text, the header and the byte offset of each data row.
 pub struct Table {
     pub path: PathBuf,
-    text: String,
+    text: Text,
     pub header: Vec<String>,
     /// Comment lines before the header, without the leading `#` and surrounding spaces.
     pub comments: Vec<String>,
@@ -106,6 +125,20 @@ fn split_fields_fast(line: &[u8], out: &mut Vec<(usize, usize)>) -> bool {
 /// reads into disjoint parts of one buffer), which spreads the kernel's copy and the page faults
 /// of the fresh buffer over the cores; anything unusual (a pipe, a file that changes size while
 /// read) falls back to `std::fs::read`.
+/// A read-only map of a regular file of at least 8 MiB (`None` for smaller files, pipes, or
+/// when mapping fails: the caller then reads it). Mapping saves the kernel copy of the whole
+/// file; the pages come straight from the page cache.
+fn map_large_file(path: &Path) -> Option<memmap2::Mmap> {
+    let file = std::fs::File::open(path).ok()?;
+    let meta = file.metadata().ok()?;
+    if !meta.is_file() || meta.len() < 8 << 20 {
+        return None;
+    }
+    // SAFETY: a private read-only map; the input file is not expected to change while truepos
+    // reads it (as with any reader, a file truncated meanwhile is an error the OS reports).
+    unsafe { memmap2::Mmap::map(&file).ok() }
+}
+
 pub fn read_file(path: &Path) -> std::io::Result<Vec<u8>> {
     const PART: usize = 4 << 20;
     #[cfg(unix)]
@@ -221,26 +254,36 @@ impl Table {
     /// Read and index a CSV file.
     pub fn read(path: impl AsRef<Path>) -> Result<Self, InputError> {
         let path = path.as_ref();
+        if let Some(map) = map_large_file(path) {
+            return Self::from_text(path, Self::check_bytes(path, &map[..]).map(|_| Text::Mapped(map))?);
+        }
         let bytes = read_file(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
         Self::from_bytes(path, bytes)
     }
 
+    /// NUL bytes and invalid UTF-8 are input errors (a binary file is not a CSV file).
+    fn check_bytes(path: &Path, bytes: &[u8]) -> Result<(), InputError> {
+        if let Some(p) = memchr::memchr(0, bytes) {
+            let line = memchr::memchr_iter(b'\n', &bytes[..p]).count() + 1;
+            return Err(InputError::at(path, line, None, "binary data (NUL byte): not a CSV text file"));
+        }
+        if let Err(e) = std::str::from_utf8(bytes) {
+            let line = memchr::memchr_iter(b'\n', &bytes[..e.valid_up_to()]).count() + 1;
+            return Err(InputError::at(path, line, None, "not valid UTF-8 text: not a CSV file"));
+        }
+        Ok(())
+    }
+
     /// Index CSV data that came from `path` (used in messages).
     pub fn from_bytes(path: impl AsRef<Path>, bytes: Vec<u8>) -> Result<Self, InputError> {
-        let path = path.as_ref().to_path_buf();
-        if let Some(p) = memchr::memchr(0, &bytes) {
-            let line = memchr::memchr_iter(b'\n', &bytes[..p]).count() + 1;
-            return Err(InputError::at(&path, line, None, "binary data (NUL byte): not a CSV text file"));
-        }
-        let text = match String::from_utf8(bytes) {
-            Ok(t) => t,
-            Err(e) => {
-                let p = e.utf8_error().valid_up_to();
-                let b = e.as_bytes();
-                let line = memchr::memchr_iter(b'\n', &b[..p]).count() + 1;
-                return Err(InputError::at(&path, line, None, "not valid UTF-8 text: not a CSV file"));
-            }
-        };
+        let path = path.as_ref();
+        Self::check_bytes(path, &bytes)?;
+        let text = String::from_utf8(bytes).map_err(|_| InputError::in_file(path, "not valid UTF-8 text"))?;
+        Self::from_text(path, Text::Owned(text))
+    }
+
+    fn from_text(path: &Path, text: Text) -> Result<Self, InputError> {
+        let path = path.to_path_buf();
         let start = if text.starts_with('\u{feff}') { 3 } else { 0 };
         let mut comments = Vec::new();
         let mut header = None;
@@ -713,6 +756,36 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("UTF-8"));
+    }
+
+    #[test]
+    fn large_files_are_mapped_and_checked_like_small_ones() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("big.csv");
+        let mut text = String::from("# big\nx_mm,y_mm,z_mm\n");
+        let n = 400_000;
+        for i in 0..n {
+            text.push_str(&format!("{i}.125,{}.5,-{i}.0625\n", i % 7));
+        }
+        assert!(text.len() > 8 << 20);
+        std::fs::write(&p, &text).unwrap();
+        let t = Table::read(&p).unwrap();
+        let v = t.f64_columns(&["x_mm", "y_mm", "z_mm"]).unwrap();
+        assert_eq!(v.len(), 3 * n);
+        assert_eq!(
+            &v[3 * (n - 1)..],
+            &[(n - 1) as f64 + 0.125, ((n - 1) % 7) as f64 + 0.5, -((n - 1) as f64) - 0.0625]
+        );
+        // A bad value deep in the mapped file: located by line.
+        let bad = text.replacen("123456.125", "123456.1x5", 1);
+        std::fs::write(&p, &bad).unwrap();
+        let e = Table::read(&p).unwrap().f64_columns(&["x_mm"]).unwrap_err();
+        assert_eq!(e.line, Some(123456 + 3));
+        // A NUL byte: not a text file.
+        let mut bin = text.into_bytes();
+        bin[5_000_000] = 0;
+        std::fs::write(&p, &bin).unwrap();
+        assert!(Table::read(&p).unwrap_err().to_string().contains("binary"));
     }
 
     #[test]
