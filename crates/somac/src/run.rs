@@ -512,7 +512,12 @@ fn read<C: Controller, T: Tracker, E: Cell>(
                 line,
                 kind: "beam_break".into(),
                 message: "no tracker sees the reflector".into(),
-                action: format!("{:?} recovery", params.beam_recovery).to_lowercase(),
+                action: match params.beam_recovery {
+                    BeamRecovery::LookAhead if !trackers.iter().any(|t| t.tracker.has_adm()) => {
+                        "manual recovery (look-ahead needs an absolute distance meter)".into()
+                    }
+                    s => format!("{s:?} recovery").to_lowercase(),
+                },
             };
             raise(sink, ctl, st, a)?;
             recover(ctl, trackers, cell, params, st, commanded)?;

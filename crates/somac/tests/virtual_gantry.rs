@@ -223,3 +223,37 @@ mod limits {
         }
     }
 }
+
+/// Frequent beam interruptions, each recovery strategy: every stop still gets its reading and the
+/// holes stay within tolerance; the alarms name the strategy used.
+#[test]
+fn beam_break_recovery_strategies() {
+    use truepos_somac::params::BeamRecovery;
+    for (strategy, adm, expect) in [
+        (BeamRecovery::Manual, true, "manual recovery"),
+        (BeamRecovery::LookAhead, true, "lookahead recovery"),
+        (BeamRecovery::LookBack, true, "lookback recovery"),
+        // A tracker without an absolute distance meter cannot reacquire by pointing: manual.
+        (BeamRecovery::LookAhead, false, "manual recovery (look-ahead needs an absolute distance meter)"),
+    ] {
+        let mut cfg =
+            CellConfig { beam_interrupt_probability: 0.03, tracker_bump: None, ..CellConfig::default() };
+        for t in cfg.trackers.iter_mut() {
+            t.adm = adm;
+        }
+        let params = Params { beam_recovery: strategy, ..spar_params() };
+        let (report, e, _) = run(cfg, &params, 20);
+        let s = hole_stats(&e);
+        let breaks: Vec<&str> =
+            report.alarms.iter().filter(|a| a.kind == "beam_break").map(|a| a.action.as_str()).collect();
+        eprintln!(
+            "{strategy:?} adm {adm}: {} beam-break alarms, mean {:.4} max {:.4} mm",
+            breaks.len(),
+            s.mean_error_mm,
+            s.max_error_mm
+        );
+        assert!(breaks.iter().any(|a| *a == expect), "{strategy:?}: {breaks:?}");
+        assert!(report.stops.iter().all(|st| st.status != StopStatus::Failure), "{strategy:?}");
+        assert!(s.max_error_mm <= 0.050, "{strategy:?}: {s:?}");
+    }
+}
