@@ -252,7 +252,7 @@ fn beam_break_recovery_strategies() {
             s.mean_error_mm,
             s.max_error_mm
         );
-        assert!(breaks.iter().any(|a| *a == expect), "{strategy:?}: {breaks:?}");
+        assert!(breaks.contains(&expect), "{strategy:?}: {breaks:?}");
         assert!(report.stops.iter().all(|st| st.status != StopStatus::Failure), "{strategy:?}");
         assert!(s.max_error_mm <= 0.050, "{strategy:?}: {s:?}");
     }
