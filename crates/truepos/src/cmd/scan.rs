@@ -35,9 +35,15 @@ pub struct Args {
 #[derive(clap::Subcommand, Debug)]
 pub enum Action {
     /// Plan the path (no machine): writes t_s,x_mm,y_mm,z_mm,segment,feature,speed_mm_s.
+    #[command(
+        after_help = "Example:\n  truepos scan plan --features data/scan/features.toml --output path.csv --style blended"
+    )]
     Plan(PlanArgs),
     /// Plan and execute on the virtual CMM: writes the measured points with deflection and
     /// quality, prints cycle time, stops and per-feature form error.
+    #[command(
+        after_help = "Example:\n  truepos scan run --features data/scan/features.toml --part data/scan/truth.json --output points.csv --json"
+    )]
     Run(RunArgs),
 }
 

@@ -45,6 +45,9 @@ pub struct RunArgs {
 }
 
 #[derive(clap::Args, Debug)]
+#[command(
+    after_help = "Example:\n  truepos simulate somac --out spar --seed 1   # program.nc, cell.toml, truth.json"
+)]
 pub struct SimArgs {
     #[command(flatten)]
     pub common: super::SimCommon,
