@@ -288,6 +288,39 @@ pub fn scan_delay(s: &Streams, threshold: f64, max_delay: f64) -> Result<ScanRes
     let rms_before = prof.rms();
     let _ = f_before;
     prof.geom = best.2.clone();
+    // Stage 2 combines on the machine clock: each machine sample with the deflection
+    // interpolated at its stamp minus the shift (the same model: the stylus centre at machine
+    // stamp T is machine(T) + deflection(T − D)). The machine samples then enter unchanged at
+    // every shift, and only the quieter probe (0.3 µm against 1 µm) is interpolated: the swing
+    // of the interpolated noise with the fractional part of the shift in samples — which pulls
+    // the minimum towards whole- or half-sample shifts unless the weights cancel it exactly —
+    // shrinks by the ratio of the variances. The sample set is fixed once (all machine stamps
+    // whose shifted time stays inside one contact run over the whole bracket), so the profile
+    // is continuous.
+    let margin = h_grid + 2.0 * s.machine_dt().max(s.probe_dt());
+    let mut on_machine = Vec::new();
+    let mut r0 = 0;
+    for r in 1..=idx.len() {
+        if r == idx.len() || idx[r] != idx[r - 1] + 1 {
+            let (ta, tb) = (s.probe_t[idx[r0]] + margin, s.probe_t[idx[r - 1]] - margin);
+            let i0 = s.machine_t.partition_point(|&t| t - best.1 < ta);
+            let i1 = s.machine_t.partition_point(|&t| t - best.1 <= tb);
+            on_machine.extend(i0..i1.max(i0));
+            r0 = r;
+        }
+    }
+    if on_machine.len() >= 50 {
+        // Take the clock on which the profile is smoother (see [`roughness`]): on equal clocks
+        // every point has the same interpolation phase and the noisier machine should not be
+        // interpolated; a much faster probe clock spreads the machine's phases instead.
+        let probe_points: Vec<f64> = idx.iter().map(|&j| s.probe_t[j] + best.1).collect();
+        let machine_points: Vec<f64> = on_machine.iter().map(|&i| s.machine_t[i] - best.1).collect();
+        let a = roughness(&probe_points, s.machine_t, sig_p2.max(floor), sig_m2.max(floor));
+        let b = roughness(&machine_points, s.probe_t, sig_m2.max(floor), sig_p2.max(floor));
+        if b < a {
+            prof.machine_samples = Some(on_machine);
+        }
+    }
     let (a, b) = (best.1 - h_grid, best.1 + h_grid);
     let tol = 1e-8;
     let (delay, f0) = brent(|d| prof.ssr(d), a, b, tol);
@@ -302,7 +335,7 @@ pub fn scan_delay(s: &Streams, threshold: f64, max_delay: f64) -> Result<ScanRes
     let (fp, fm) = (prof.ssr(delay + h), prof.ssr(delay - h));
     let k = (fp + fm - 2.0 * f0) / (2.0 * h * h);
     let np = geom.len() + 1;
-    let n = idx.len();
+    let n = prof.buf.len();
     if !(k > 0.0) || n <= np {
         return Err(LatencyError::Underdetermined(
             "the form error does not change with the shift: the scan does not determine the delay".into(),
@@ -311,7 +344,12 @@ pub fn scan_delay(s: &Streams, threshold: f64, max_delay: f64) -> Result<ScanRes
     let sigma2 = f0 / (n - np) as f64;
     // Interpolated machine values are correlated when the machine samples more slowly than the
     // probe: count independent machine samples only.
-    let ratio = (s.machine_dt() / s.probe_dt()).max(1.0);
+    // The same holds for interpolated probe values on the machine clock.
+    let ratio = if prof.machine_samples.is_some() {
+        (s.probe_dt() / s.machine_dt()).max(1.0)
+    } else {
+        (s.machine_dt() / s.probe_dt()).max(1.0)
+    };
     let u_delay = (sigma2 / k).sqrt() * ratio.sqrt();
     let p = &geom;
     let (center, radius) = match form {
@@ -341,6 +379,33 @@ pub fn radial_errors(s: &Streams, r: &ScanResult, shift: f64) -> Vec<(f64, f64)>
     (0..r.samples.len()).map(|i| (s.probe_t[r.samples[i]], prob.eval(&p, i, &mut jac))).collect()
 }
 
+/// How rough the profile is when the points `fixed + interpolated(t + shift)` are formed at the
+/// times `t` (already shifted) by linear interpolation on the clock `grid` (noise variances
+/// `sig_f2` of the fixed, `sig_i2` of the interpolated stream). Each time the shift carries a
+/// group of points with one interpolation phase across a sample of `grid`, the profile's slope
+/// jumps by a random amount ∝ √(group)·σᵢ/Δt·σ (the second difference of the interpolated noise);
+/// against the profile's curvature ∝ N/σ² this moves the minimum by about
+/// `σᵢ·σ / (Δt·√(N·phases))`, which is returned (relative units; smaller is better).
+fn roughness(t: &[f64], grid: &[f64], sig_f2: f64, sig_i2: f64) -> f64 {
+    let n = grid.len();
+    if n < 2 || t.is_empty() {
+        return f64::INFINITY;
+    }
+    let dt = (grid[n - 1] - grid[0]) / (n - 1) as f64;
+    const BINS: usize = 64;
+    let mut hist = [0usize; BINS];
+    let mut var = 0.0;
+    for &x in t {
+        let i = grid.partition_point(|&g| g <= x).clamp(1, n - 1) - 1;
+        let w = ((x - grid[i]) / (grid[i + 1] - grid[i])).clamp(0.0, 1.0);
+        hist[((w * BINS as f64) as usize).min(BINS - 1)] += 1;
+        var += sig_f2 + sig_i2 * (w * w + (1.0 - w) * (1.0 - w));
+    }
+    let nt = t.len() as f64;
+    let phases = hist.iter().filter(|&&c| c as f64 >= 0.01 * nt).count().max(1) as f64;
+    sig_i2.sqrt() * (var / nt).sqrt() / (dt * (nt * phases).sqrt())
+}
+
 /// The profile objective: combined points at a shift (one merge pass into a reused buffer) and
 /// a Gauss-Newton fit of the form, warm-started from the previous one.
 struct Profile<'a> {
@@ -354,6 +419,9 @@ struct Profile<'a> {
     buf: Vec<(Vector3, f64)>,
     /// Unweighted sum of squares at the last evaluation.
     last_ss: f64,
+    /// When set, combine on the machine clock: these machine samples with the deflection
+    /// interpolated at their stamp minus the shift (instead of `sub` on the probe clock).
+    machine_samples: Option<Vec<usize>>,
 }
 
 /// Robust noise variance per component of a sampled 3-vector signal from its second
@@ -376,7 +444,16 @@ fn noise_variance(v: &[[f64; 3]]) -> f64 {
 impl<'a> Profile<'a> {
     fn new(prob: &'a ScanProblem<'a>, sub: Vec<usize>, geom: Vec<f64>, sig_m2: f64, sig_p2: f64) -> Self {
         let n = sub.len();
-        Profile { prob, sub, geom, sig_m2, sig_p2, buf: Vec::with_capacity(n), last_ss: 0.0 }
+        Profile {
+            prob,
+            sub,
+            geom,
+            sig_m2,
+            sig_p2,
+            buf: Vec::with_capacity(n),
+            last_ss: 0.0,
+            machine_samples: None,
+        }
     }
 
     fn rms(&self) -> f64 {
@@ -387,6 +464,32 @@ impl<'a> Profile<'a> {
         let s = self.prob.s;
         let (mt, m) = (s.machine_t, s.machine);
         self.buf.clear();
+        if let Some(ms) = &self.machine_samples {
+            let (pt, p) = (s.probe_t, s.probe);
+            let n = pt.len();
+            let mut j = 0usize;
+            for &i in ms {
+                let t = mt[i] - shift;
+                if !(t >= pt[0] && t <= pt[n - 1]) {
+                    continue;
+                }
+                while j + 2 < n && pt[j + 1] <= t {
+                    j += 1;
+                }
+                let w = (t - pt[j]) / (pt[j + 1] - pt[j]);
+                let (a, b, q) = (p[j], p[j + 1], m[i]);
+                let var = self.sig_m2 + self.sig_p2 * (w * w + (1.0 - w) * (1.0 - w));
+                self.buf.push((
+                    Vector3::new(
+                        q[0] + a[0] + w * (b[0] - a[0]),
+                        q[1] + a[1] + w * (b[1] - a[1]),
+                        q[2] + a[2] + w * (b[2] - a[2]),
+                    ),
+                    1.0 / var,
+                ));
+            }
+            return;
+        }
         let n = mt.len();
         let mut i = 0usize;
         for &k in &self.sub {
