@@ -72,6 +72,19 @@ pub fn find_runs(probe: &[[f64; 3]], threshold: f64, min_len: usize) -> Vec<(usi
     let mut start = None;
     for (i, d) in probe.iter().enumerate() {
         let on = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > th2;
+        // A deflection that reverses between two samples without passing below the threshold
+        // (the stylus ringing after a release, faster than the sampling) starts a new run: the
+        // ringing must not make a touch look like a scan.
+        if let (true, Some(s)) = (on, start) {
+            let p: &[f64; 3] = &probe[i - 1];
+            if p[0] * d[0] + p[1] * d[1] + p[2] * d[2] < 0.0 {
+                if i - s >= min_len {
+                    runs.push((s, i));
+                }
+                start = Some(i);
+                continue;
+            }
+        }
         match (on, start) {
             (true, None) => start = Some(i),
             (false, Some(s)) => {
@@ -168,9 +181,13 @@ struct Band {
     /// Standard uncertainty of the intercept per unit residual sigma (leverage), with the
     /// correlation inflation; the pooled sigma of all contacts multiplies it.
     unit: f64,
-    /// Standard uncertainty of the point along the normal from the zero-deflection instant
-    /// (probe noise), added in quadrature.
+    /// Standard uncertainty of the point along the normal from the zero-deflection instant per
+    /// unit probe residual sigma; the probe sigma pooled over all contacts multiplies it, and the
+    /// product is added in quadrature.
     u_time: f64,
+    /// Residual sum of squares and degrees of freedom of the probe's fit of δ(t).
+    ssr_p: f64,
+    dof_p: f64,
     ssr: f64,
     dof: f64,
     velocity: Vector3,
@@ -290,6 +307,8 @@ fn extrapolate(
             point: Point3::new(p[0], p[1], p[2]),
             unit: along.leverage() * inflate,
             u_time: 0.0,
+            ssr_p: 0.0,
+            dof_p: 0.0,
             ssr: sig * sig * (along.n - 2.0),
             dof: along.n - 2.0,
             velocity: Vector3::new(v[0], v[1], v[2]),
@@ -402,8 +421,11 @@ fn time_domain(
         return None;
     }
     let row0 = nalgebra::Vector3::new(1.0, t0, t0 * t0);
-    let sig_p = (ssr_p / (dq.n - 3.0).max(1.0)).sqrt();
-    let u_t0 = sig_p * (row0.dot(&(inv_p * row0))).max(0.0).sqrt() / slope0.abs();
+    // Per unit probe sigma: the sigma is pooled over all contacts. A per-contact residual sigma
+    // (14 degrees of freedom) makes the weights of the joint fit scatter by ±40 % and, where
+    // the stylus signal departs a little from the quadratic, correlate with the point's error:
+    // on the plates that biased the delay by −7 µs (probe noise alone).
+    let u_t0 = (row0.dot(&(inv_p * row0))).max(0.0).sqrt() / slope0.abs();
     // Machine samples on the same side of the machine's own turnaround, from x_hi over twice
     // the band's length along the normal.
     let span = (t_last - t_first).abs().max(1e-6);
@@ -474,6 +496,8 @@ fn time_domain(
         point: Point3::new(p[0], p[1], p[2]),
         unit: lev,
         u_time: u_t0 * vn.abs(),
+        ssr_p,
+        dof_p: dq.n - 3.0,
         ssr: ssr_m,
         dof: qa.n - 3.0,
         velocity: Vector3::new(v[0], v[1], v[2]),
@@ -521,6 +545,7 @@ fn constant_speed(tx: &[(f64, f64)]) -> bool {
 pub fn extract_contacts(s: &Streams, mi: &[[f64; 3]], opt: &ContactOptions, max_turn: f64) -> Vec<Contact> {
     let mut out = Vec::new();
     let mut pooled = (0.0, 0.0);
+    let mut pooled_p = (0.0, 0.0);
     let mut u_times = Vec::new();
     for (start, end) in find_runs(s.probe, opt.threshold, opt.min_band) {
         let Some(n) = run_normal(s.probe, start, end) else { continue };
@@ -547,6 +572,8 @@ pub fn extract_contacts(s: &Streams, mi: &[[f64; 3]], opt: &ContactOptions, max_
         };
         pooled.0 += band.ssr;
         pooled.1 += band.dof;
+        pooled_p.0 += band.ssr_p;
+        pooled_p.1 += band.dof_p;
         u_times.push(band.u_time);
         out.push(Contact {
             start,
@@ -568,8 +595,9 @@ pub fn extract_contacts(s: &Streams, mi: &[[f64; 3]], opt: &ContactOptions, max_
     let sigma = if pooled.1 > 0.0 { (pooled.0 / pooled.1).sqrt() } else { 0.0 };
     // Exact data would give zero uncertainty and infinite weights: floor at 1 nm.
     let sigma = sigma.max(1e-6);
+    let sigma_p = if pooled_p.1 > 0.0 { (pooled_p.0 / pooled_p.1).sqrt() } else { 0.0 };
     for (c, ut) in out.iter_mut().zip(&u_times) {
-        c.u_point = (c.u_point * sigma).hypot(*ut);
+        c.u_point = (c.u_point * sigma).hypot(*ut * sigma_p);
     }
     out
 }
@@ -630,5 +658,16 @@ mod tests {
         }
         assert_eq!(find_runs(&p, 0.005, 3), vec![(40, 60)]);
         assert!((run_normal(&p, 40, 60).unwrap() + Vector3::y()).norm() < 1e-15);
+        // A reversal between two samples (ringing after a release) without a sample below the
+        // threshold splits the run, so the touch is not taken for a turning scan.
+        let mut p = vec![[0.0; 3]; 100];
+        for d in &mut p[20..50] {
+            *d = [0.02, 0.0, 0.0];
+        }
+        for d in &mut p[50..56] {
+            *d = [-0.008, 0.0, 0.0];
+        }
+        assert_eq!(find_runs(&p, 0.005, 4), vec![(20, 50), (50, 56)]);
+        assert!(run_turn(&p, 20, 50, &Vector3::x()) < 1e-12);
     }
 }
