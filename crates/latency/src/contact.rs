@@ -70,34 +70,37 @@ pub fn find_runs(probe: &[[f64; 3]], threshold: f64, min_len: usize) -> Vec<(usi
     let th2 = threshold * threshold;
     let mut runs = Vec::new();
     let mut start = None;
+    let mut ringing = false;
     for (i, d) in probe.iter().enumerate() {
         let on = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > th2;
         // A deflection that reverses between two samples without passing below the threshold
-        // (the stylus ringing after a release, faster than the sampling) starts a new run: the
-        // ringing must not make a touch look like a scan.
+        // (the stylus ringing after a release, faster than the sampling) ends the run, and the
+        // ringing after it is no run at all: it must not make a touch look like a scan.
         if let (true, Some(s)) = (on, start) {
             let p: &[f64; 3] = &probe[i - 1];
             if p[0] * d[0] + p[1] * d[1] + p[2] * d[2] < 0.0 {
-                if i - s >= min_len {
+                if i - s >= min_len && !ringing {
                     runs.push((s, i));
                 }
                 start = Some(i);
+                ringing = true;
                 continue;
             }
         }
         match (on, start) {
             (true, None) => start = Some(i),
             (false, Some(s)) => {
-                if i - s >= min_len {
+                if i - s >= min_len && !ringing {
                     runs.push((s, i));
                 }
                 start = None;
+                ringing = false;
             }
             _ => {}
         }
     }
     if let Some(s) = start {
-        if probe.len() - s >= min_len {
+        if probe.len() - s >= min_len && !ringing {
             runs.push((s, probe.len()));
         }
     }
@@ -667,7 +670,7 @@ mod tests {
         for d in &mut p[50..56] {
             *d = [-0.008, 0.0, 0.0];
         }
-        assert_eq!(find_runs(&p, 0.005, 4), vec![(20, 50), (50, 56)]);
+        assert_eq!(find_runs(&p, 0.005, 4), vec![(20, 50)]);
         assert!(run_turn(&p, 20, 50, &Vector3::x()) < 1e-12);
     }
 }
