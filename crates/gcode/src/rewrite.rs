@@ -194,7 +194,9 @@ impl Program {
                             }
                         }
                         if known {
-                            new_vals[k] = Some(round_to(acc, dec));
+                            // Exact: compared with the written value before any rounding, so a
+                            // value the transform leaves alone is never rewritten, however large.
+                            new_vals[k] = Some(acc);
                         } else if blk.axes[k].is_some() {
                             let missing = (0..3)
                                 .find(|&j| pos[j].is_none() && (s * r[(k, j)]).abs() > MIX_EPS)
@@ -208,14 +210,16 @@ impl Program {
                             (Some(orig), Some(ti)) => {
                                 if (v - orig).abs() >= half {
                                     edits.replace.push((ti, fmt_num(v, dec)));
+                                    written[k] = Some(round_to(v, dec));
+                                } else {
+                                    written[k] = Some(orig);
                                 }
-                                written[k] = Some(v);
                             }
                             _ => {
                                 if mixes[k] || written[k].is_none_or(|w| (w - v).abs() >= half) {
                                     self.plan_insert(toks, &mut edits, k, &AXES, &fmt_num(v, dec));
+                                    written[k] = Some(round_to(v, dec));
                                 }
-                                written[k] = Some(v);
                             }
                         }
                     }
@@ -229,7 +233,9 @@ impl Program {
                         let inc = round_to(inc, dec);
                         match (blk.axes[k], axis_token(AXES[k])) {
                             (Some(orig), Some(ti)) => {
-                                if (inc - orig).abs() >= half {
+                                // Unchanged by the transform (to the resolution, before rounding):
+                                // keep the text.
+                                if (dn - orig).abs() >= half && (inc - orig).abs() >= half {
                                     edits.replace.push((ti, fmt_num(inc, dec)));
                                 }
                             }
@@ -245,11 +251,7 @@ impl Program {
                 // Canned-cycle R plane: a Z level.
                 if let (MotionMode::Cycle(_), Some(rv)) = (blk.after.motion, blk.r) {
                     if let Some(ti) = axis_token(b'R') {
-                        let nv = if blk.after.absolute {
-                            round_to(s * rv + t[2] / units_mm, dec)
-                        } else {
-                            round_to(s * rv, dec)
-                        };
+                        let nv = if blk.after.absolute { s * rv + t[2] / units_mm } else { s * rv };
                         if (nv - rv).abs() >= half {
                             edits.replace.push((ti, fmt_num(nv, dec)));
                         }
@@ -289,7 +291,6 @@ impl Program {
                         if blk.after.arc_absolute {
                             nv += t[k] / units_mm;
                         }
-                        let nv = round_to(nv, dec);
                         match (blk.ijk[k], axis_token(CENTRE[k])) {
                             (Some(orig), Some(ti)) => {
                                 if (nv - orig).abs() >= half {
@@ -305,7 +306,7 @@ impl Program {
                     }
                 }
                 if let (Some(rv), Some(ti)) = (blk.r, axis_token(b'R')) {
-                    let nv = round_to(s * rv, dec);
+                    let nv = s * rv;
                     if (nv - rv).abs() >= half {
                         edits.replace.push((ti, fmt_num(nv, dec)));
                     }
@@ -407,6 +408,18 @@ mod tests {
         let e = tr(p, Transform3::rigid(rx(0.2), Vector3::zeros())).unwrap_err();
         assert_eq!(e.line(), 2);
         assert!(e.to_string().contains("tilts"));
+    }
+
+    /// Found by the fuzzer: a value beyond 2^53·10^-4 was rewritten by the identity transform
+    /// (rounding to 4 decimals is not representable there). Unchanged values keep their text.
+    #[test]
+    fn huge_values_are_not_rewritten_by_the_identity() {
+        for p in [
+            "G3 X0 Y0 Z0 r22222222222222222222222222222222222222222222222222g3g3\n",
+            "G90 G0 X1e300 Y2 Z3\nG1 X123456789012345678.25\n",
+        ] {
+            assert_eq!(tr(p, Transform3::identity()).unwrap(), p);
+        }
     }
 
     #[test]
