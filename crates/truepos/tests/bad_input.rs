@@ -2,36 +2,13 @@
 //! with a message naming the file and, where there is one, the line and column; commands that
 //! write an output file must leave none behind.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_truepos"))
-}
-
-fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, bytes).unwrap();
-    p
-}
+mod common;
+use common::*;
+use std::path::Path;
+use std::process::Output;
 
 fn fit(kind: &str, file: &Path) -> Output {
     bin().args(["fit", kind]).arg(file).arg("--json").output().unwrap()
-}
-
-/// Exit code 2, nothing on stdout, and stderr containing every `needle`.
-fn expect_input_error(out: &Output, needles: &[&str]) {
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "stderr: {err}");
-    assert!(
-        out.stdout.is_empty(),
-        "stdout must stay empty on error: {}",
-        String::from_utf8_lossy(&out.stdout)
-    );
-    for n in needles {
-        assert!(err.contains(n), "expected '{n}' in: {err}");
-    }
-    assert!(!err.contains("panicked"), "{err}");
 }
 
 #[test]

@@ -3,13 +3,11 @@
 //! fields, observability flags and warnings, `apply`, and bad input (exit 2 with a message saying
 //! what data is needed, no partial output).
 
+mod common;
+use common::*;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_truepos"))
-}
+use std::process::Output;
 
 fn simulate(dir: &Path, variant: &str, seed: u64) -> (PathBuf, Value) {
     let out = bin()

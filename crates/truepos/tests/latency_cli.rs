@@ -1,12 +1,10 @@
 //! `truepos latency`, `latency apply` and `simulate latency` through the command line: results
 //! against the virtual cell's truth.json, and bad input → exit 2 with file and line.
 
+mod common;
+use common::*;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_truepos"))
-}
+use std::process::Output;
 
 fn run(args: &[&str]) -> Output {
     bin().args(args).output().expect("run truepos")
@@ -182,12 +180,6 @@ fn expect_exit2(o: &Output, needles: &[&str]) {
         assert!(err.contains(n), "'{n}' not in: {err}");
     }
     assert!(o.stdout.is_empty(), "nothing on stdout on error");
-}
-
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).unwrap();
-    p
 }
 
 #[test]

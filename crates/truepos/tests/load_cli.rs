@@ -1,13 +1,11 @@
 //! `truepos load` and `truepos simulate load` through the built binary: the virtual CMM end to
 //! end, hand-made imported maps against hand calculations, plate theory, and bad input.
 
+mod common;
+use common::*;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_truepos"))
-}
+use std::process::Output;
 
 fn run(args: &[&str]) -> Output {
     bin().args(args).output().unwrap()
@@ -18,23 +16,8 @@ fn ok_json(out: &Output) -> Value {
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).unwrap();
-    p
-}
-
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
-}
-
-fn expect_input_error(out: &Output, needles: &[&str]) {
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "stderr: {err}");
-    assert!(out.stdout.is_empty());
-    for n in needles {
-        assert!(err.contains(n), "expected '{n}' in: {err}");
-    }
 }
 
 fn f64s(v: &Value) -> Vec<f64> {
