@@ -84,11 +84,11 @@ fn degenerate_geometry_is_named() {
         expect_input_error(&fit(kind, &f), &["two.csv", kind, "at least"]);
     }
     // Coincident points.
-    let f = write(d.path(), "same.csv", &csv(&[[1., 2., 3.]; 6]));
+    let f = write(d.path(), "same.csv", csv(&[[1., 2., 3.]; 6]));
     expect_input_error(&fit("line", &f), &["same.csv", "coincide"]);
     // Collinear points: a plane and a circle are not determined.
     let line: Vec<[f64; 3]> = (0..10).map(|i| [i as f64, 2.0 * i as f64, -(i as f64)]).collect();
-    let f = write(d.path(), "collinear.csv", &csv(&line));
+    let f = write(d.path(), "collinear.csv", csv(&line));
     expect_input_error(&fit("plane", &f), &["collinear.csv", "collinear"]);
     expect_input_error(&fit("circle", &f), &["collinear.csv", "collinear"]);
     // Coplanar points (a circle): a sphere, cylinder and cone are not determined.
@@ -98,7 +98,7 @@ fn degenerate_geometry_is_named() {
             [10.0 * a.cos(), 10.0 * a.sin(), 4.0]
         })
         .collect();
-    let f = write(d.path(), "coplanar.csv", &csv(&circ));
+    let f = write(d.path(), "coplanar.csv", csv(&circ));
     for kind in ["sphere", "cylinder", "cone"] {
         expect_input_error(&fit(kind, &f), &["coplanar.csv", "coplanar"]);
     }
@@ -109,7 +109,7 @@ fn degenerate_geometry_is_named() {
             [5.0 * a.cos(), 5.0 * a.sin(), (i % 5) as f64 * 3.0]
         })
         .collect();
-    let f = write(d.path(), "cylinder.csv", &csv(&cyl));
+    let f = write(d.path(), "cylinder.csv", csv(&cyl));
     expect_input_error(&fit("cone", &f), &["cylinder.csv", "cylinder"]);
     // A cylinder fitted to noisy-free flat data spread in two directions plus a small
     // deterministic bump pattern (not coplanar, but flat: no significant curvature).
@@ -119,7 +119,7 @@ fn degenerate_geometry_is_named() {
             [x, y, 1e-3 * (((i * 7919) % 13) as f64 - 6.0) / 6.0]
         })
         .collect();
-    let f = write(d.path(), "flat.csv", &csv(&flat));
+    let f = write(d.path(), "flat.csv", csv(&flat));
     expect_input_error(&fit("cylinder", &f), &["flat.csv", "flat"]);
 }
 

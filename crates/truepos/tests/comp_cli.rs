@@ -143,11 +143,11 @@ fn bad_maps_and_points_exit_2() {
     expect_input_error(&correct(&map, &pts), &["p.csv:3", "z = 1200"]);
     assert!(!outp.exists());
     let text = std::fs::read_to_string(&map).unwrap();
-    let m = write(d.path(), "w.csv", &text.replacen("\nx,", "\nw,", 1));
+    let m = write(d.path(), "w.csv", text.replacen("\nx,", "\nw,", 1));
     expect_input_error(&correct(&m, &pts), &["w.csv:2", "axis"]);
-    let m = write(d.path(), "dup.csv", &format!("{text}x,100,0,0,0,0,0,0\n"));
+    let m = write(d.path(), "dup.csv", format!("{text}x,100,0,0,0,0,0,0\n"));
     expect_input_error(&correct(&m, &pts), &["dup.csv", "appears twice"]);
-    let m = write(d.path(), "nan.csv", &text.replacen(",10,0,0\n", ",nan,0,0\n", 1));
+    let m = write(d.path(), "nan.csv", text.replacen(",10,0,0\n", ",nan,0,0\n", 1));
     expect_input_error(&correct(&m, &pts), &["nan.csv:3", "pitch_urad"]);
     let sq = write(d.path(), "sq.toml", "[squareness]\nxy_urad = \"a\"\n");
     let o = run(&[

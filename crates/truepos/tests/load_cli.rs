@@ -233,7 +233,7 @@ fn bad_load_cases_maps_and_beds_exit_2() {
     assert!(!outp.exists());
     // Maps: no unit-load comment; an incomplete grid.
     let text = std::fs::read_to_string(&map).unwrap();
-    let m = write(d.path(), "nounit.csv", &text.replace("# unit_load_n = 1000\n", ""));
+    let m = write(d.path(), "nounit.csv", text.replace("# unit_load_n = 1000\n", ""));
     expect_input_error(
         &run(&["load", "curves", "--map", s(&m), "--load", s(&l)]),
         &["nounit.csv", "unit_load_n"],
@@ -241,14 +241,14 @@ fn bad_load_cases_maps_and_beds_exit_2() {
     let m = write(
         d.path(),
         "holes.csv",
-        &text.lines().take(text.lines().count() - 1).collect::<Vec<_>>().join("\n"),
+        text.lines().take(text.lines().count() - 1).collect::<Vec<_>>().join("\n"),
     );
     expect_input_error(
         &run(&["load", "curves", "--map", s(&m), "--load", s(&l)]),
         &["holes.csv", "complete grid"],
     );
     // A singular FE model: two supports cannot hold the plate.
-    let b = write(d.path(), "two_pads.toml", &format!("[bed]\nsize_x_mm = 1000\nsize_y_mm = 1000\nthickness_mm = 100\nyoungs_modulus_mpa = 50000\npoisson = 0.2\nsupports_mm = [[100, 100], [900, 900]]\n{}", BED.replace("y_range_mm = [0, 1000]", "y_range_mm = [200, 800]")));
+    let b = write(d.path(), "two_pads.toml", format!("[bed]\nsize_x_mm = 1000\nsize_y_mm = 1000\nthickness_mm = 100\nyoungs_modulus_mpa = 50000\npoisson = 0.2\nsupports_mm = [[100, 100], [900, 900]]\n{}", BED.replace("y_range_mm = [0, 1000]", "y_range_mm = [200, 800]")));
     let outp = d.path().join("map_never.csv");
     expect_input_error(
         &run(&["load", "map", "--bed", s(&b), "--output", s(&outp)]),
