@@ -59,7 +59,8 @@ pub fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
 }
 
-/// An HTML table from a header and rows of already formatted cells.
+/// An HTML table from a header and rows of already formatted cells (escaped; cells reading
+/// `pass` / `FAIL` are coloured).
 pub fn table(header: &[&str], rows: &[Vec<String>]) -> String {
     let mut h = String::from("<table><tr>");
     for c in header {
@@ -69,7 +70,13 @@ pub fn table(header: &[&str], rows: &[Vec<String>]) -> String {
     for r in rows {
         h.push_str("<tr>");
         for c in r {
-            h.push_str(&format!("<td>{}</td>", escape(c)));
+            // Verdict cells are coloured.
+            let class = match c.as_str() {
+                "pass" => " class=\"pass\"",
+                "FAIL" | "fail" => " class=\"fail\"",
+                _ => "",
+            };
+            h.push_str(&format!("<td{class}>{}</td>", escape(c)));
         }
         h.push_str("</tr>\n");
     }

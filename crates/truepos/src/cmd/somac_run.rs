@@ -506,23 +506,20 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
     )?;
     let hist1 =
         report::histogram("True hole position error with correction", "error (µm)", &[("with", &e1)], 30)?;
-    let corr: Vec<(f64, f64)> = r1
-        .report
-        .stops
-        .iter()
-        .enumerate()
-        .map(|(i, s)| {
-            (
-                i as f64,
-                s.corrections.iter().fold(truepos_math::Vector3::zeros(), |a, c| a + c).norm() * 1000.0,
-            )
-        })
-        .collect();
+    // Corrections over time: the offset in force (what the machine's own error amounts to at
+    // that place and time) and each correction move sent.
+    let (mut offset, mut moves) = (vec![], vec![]);
+    for e in &audit.events {
+        if let truepos_somac::audit::Event::Correction { delta_mm, offset_mm, time_s, .. } = e {
+            offset.push((time_s / 60.0, offset_mm.norm() * 1000.0));
+            moves.push((time_s / 60.0, delta_mm.norm() * 1000.0));
+        }
+    }
     let plot = report::xy_plot(
-        "Correction applied at each stop",
-        "stop",
-        "|correction| (µm)",
-        &[Series::points("correction", corr)],
+        "Corrections over time",
+        "time (min)",
+        "µm",
+        &[Series::points("|offset in force|", offset), Series::points("|correction move|", moves)],
     )?;
     let alarms: Vec<Vec<String>> = r1
         .report
