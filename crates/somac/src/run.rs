@@ -160,32 +160,31 @@ pub fn run_program<C: Controller, T: Tracker, E: Cell>(
             // Alarms and environment, checked at every measurement stop.
             let temp = cell.temperature_c();
             if temp < params.temperature_min_c || temp > params.temperature_max_c {
-                let a = Alarm {
+                alarm(
+                    sink,
+                    ctl,
+                    &mut st,
                     line,
-                    kind: "temperature_range".into(),
-                    message: format!(
+                    "temperature_range",
+                    format!(
                         "part temperature {temp:.2} °C outside {}–{} °C",
                         params.temperature_min_c, params.temperature_max_c
                     ),
-                    action: "stop".into(),
-                };
-                raise(sink, ctl, &mut st, a)?;
+                    "stop",
+                )?;
                 st.report.halted = true;
                 break;
             }
-            if check_inclination(program, ctl, trackers, cell, params, sink, &mut st, line, "")? {
+            let realigned = check_inclination(program, ctl, trackers, cell, params, sink, &mut st, line, "")?;
+            if realigned {
+                // Re-aligned and re-oriented just now.
             } else if (temp - st.temp_orient).abs() > params.temperature_change_max_c {
-                let a = Alarm {
-                    line,
-                    kind: "temperature_change".into(),
-                    message: format!(
-                        "temperature changed by {:.2} °C since the last orientation (limit {})",
-                        temp - st.temp_orient,
-                        params.temperature_change_max_c
-                    ),
-                    action: "re-orient".into(),
-                };
-                raise(sink, ctl, &mut st, a)?;
+                let message = format!(
+                    "temperature changed by {:.2} °C since the last orientation (limit {})",
+                    temp - st.temp_orient,
+                    params.temperature_change_max_c
+                );
+                alarm(sink, ctl, &mut st, line, "temperature_change", message, "re-orient")?;
                 orient(program, ctl, trackers, cell, params, sink, &mut st, line, "temperature change")?;
             } else if (temp - st.temp_scale).abs() >= params.autoscale_step_c {
                 orient(
@@ -277,20 +276,32 @@ fn check_inclination<C: Controller, T: Tracker, E: Cell>(
     if dincl <= params.inclination_limit_urad {
         return Ok(false);
     }
-    let a = Alarm {
+    alarm(
+        sink,
+        ctl,
+        st,
         line,
-        kind: "inclination".into(),
-        message: format!(
-            "inclination changed by {dincl:.1} µrad{when} (limit {})",
-            params.inclination_limit_urad
-        ),
-        action: "re-align trackers and re-orient".into(),
-    };
-    raise(sink, ctl, st, a)?;
+        "inclination",
+        format!("inclination changed by {dincl:.1} µrad{when} (limit {})", params.inclination_limit_urad),
+        "re-align trackers and re-orient",
+    )?;
     realign(ctl, trackers, cell, sink, st, line)?;
     st.incl_base = incl;
     orient(program, ctl, trackers, cell, params, sink, st, line, "inclination change")?;
     Ok(true)
+}
+
+/// Raise an alarm of `kind` at `line`.
+fn alarm<C: Controller>(
+    sink: &mut dyn AuditSink,
+    ctl: &C,
+    st: &mut State,
+    line: usize,
+    kind: &str,
+    message: String,
+    action: &str,
+) -> Result<(), RunError> {
+    raise(sink, ctl, st, Alarm { line, kind: kind.into(), message, action: action.into() })
 }
 
 fn raise<C: Controller>(sink: &mut dyn AuditSink, ctl: &C, st: &mut State, a: Alarm) -> Result<(), RunError> {
@@ -351,16 +362,18 @@ fn orient<C: Controller, T: Tracker, E: Cell>(
             let expected = 1.0 + params.part_cte_ppm_per_c * 1e-6 * (temp - 20.0);
             let disc_ppm = (t.scale / expected - 1.0) * 1e6;
             if params.orient_with_scale && disc_ppm.abs() > 100.0 {
-                let a = Alarm {
+                alarm(
+                    sink,
+                    ctl,
+                    st,
                     line,
-                    kind: "scale_discrepancy".into(),
-                    message: format!(
+                    "scale_discrepancy",
+                    format!(
                         "fitted scale {:.6} differs from the CTE expectation {:.6} by {disc_ppm:.0} ppm",
                         t.scale, expected
                     ),
-                    action: "continue (check the part temperature and CTE)".into(),
-                };
-                raise(sink, ctl, st, a)?;
+                    "continue (check the part temperature and CTE)",
+                )?;
             }
             st.machine_from_part = t;
             st.program = Program::parse(
@@ -384,16 +397,34 @@ fn orient<C: Controller, T: Tracker, E: Cell>(
             )?;
         }
         Err(e) => {
-            let a = Alarm {
+            alarm(
+                sink,
+                ctl,
+                st,
                 line,
-                kind: "orientation_failed".into(),
-                message: format!("{reason}: {} targets measured: {e}", to.len()),
-                action: "keep the previous orientation".into(),
-            };
-            raise(sink, ctl, st, a)?;
+                "orientation_failed",
+                format!("{reason}: {} targets measured: {e}", to.len()),
+                "keep the previous orientation",
+            )?;
         }
     }
     Ok(())
+}
+
+/// `machine_from_tracker` from a tracker's readings of reference targets (tracker frame) and
+/// their calibrated machine-frame positions, matched by id (rigid best fit).
+pub fn machine_from_tracker(
+    seen: &[(String, Point3)],
+    reference: &[(String, Point3)],
+) -> Result<Transform3, truepos_math::bestfit::BestFitError> {
+    let (mut from, mut to) = (vec![], vec![]);
+    for (id, p) in seen {
+        if let Some((_, q)) = reference.iter().find(|(i, _)| i == id) {
+            from.push(*p);
+            to.push(*q);
+        }
+    }
+    best_fit(&from, &to, None, BestFitOptions::default())
 }
 
 /// Re-align every tracker to the machine from the machine's reference targets.
@@ -408,24 +439,18 @@ fn realign<C: Controller, T: Tracker, E: Cell>(
     let reference = cell.machine_targets();
     for (k, t) in trackers.iter_mut().enumerate() {
         let seen = cell.measure_machine_targets(k);
-        let mut from = vec![];
-        let mut to = vec![];
-        for (id, p) in &seen {
-            if let Some((_, q)) = reference.iter().find(|(i, _)| i == id) {
-                from.push(*p);
-                to.push(*q);
-            }
-        }
-        match best_fit(&from, &to, None, BestFitOptions::default()) {
+        match machine_from_tracker(&seen, &reference) {
             Ok(m) => t.machine_from_tracker = m,
             Err(e) => {
-                let a = Alarm {
+                alarm(
+                    sink,
+                    ctl,
+                    st,
                     line,
-                    kind: "alignment_failed".into(),
-                    message: format!("tracker {k}: {e}"),
-                    action: "keep the previous alignment".into(),
-                };
-                raise(sink, ctl, st, a)?;
+                    "alignment_failed",
+                    format!("tracker {k}: {e}"),
+                    "keep the previous alignment",
+                )?;
             }
         }
     }
@@ -495,31 +520,35 @@ fn read<C: Controller, T: Tracker, E: Cell>(
             }
             if recoveries == 4 && params.beam_recovery != BeamRecovery::Manual {
                 // The automatic strategy failed three times: call the operator.
-                let a = Alarm {
+                alarm(
+                    sink,
+                    ctl,
+                    st,
                     line,
-                    kind: "beam_break".into(),
-                    message: "automatic recovery failed".into(),
-                    action: "manual recovery".into(),
-                };
-                raise(sink, ctl, st, a)?;
+                    "beam_break",
+                    "automatic recovery failed".into(),
+                    "manual recovery",
+                )?;
                 for k in 0..trackers.len() {
                     cell.operator_restores_beam(k);
                 }
                 ctl.wait(30.0);
                 continue;
             }
-            let a = Alarm {
+            alarm(
+                sink,
+                ctl,
+                st,
                 line,
-                kind: "beam_break".into(),
-                message: "no tracker sees the reflector".into(),
-                action: match params.beam_recovery {
+                "beam_break",
+                "no tracker sees the reflector".into(),
+                &match params.beam_recovery {
                     BeamRecovery::LookAhead if !trackers.iter().any(|t| t.tracker.has_adm()) => {
                         "manual recovery (look-ahead needs an absolute distance meter)".into()
                     }
                     s => format!("{s:?} recovery").to_lowercase(),
                 },
-            };
-            raise(sink, ctl, st, a)?;
+            )?;
             recover(ctl, trackers, cell, params, st, commanded)?;
             continue;
         }
@@ -612,13 +641,7 @@ fn measure_stop<C: Controller, T: Tracker, E: Cell>(
         let (m, std) = match read(ctl, trackers, cell, params, sink, st, line, commanded)? {
             Ok(r) => r,
             Err(msg) => {
-                let a = Alarm {
-                    line,
-                    kind: "no_reading".into(),
-                    message: msg.clone(),
-                    action: "stop marked FAILURE".into(),
-                };
-                raise(sink, ctl, st, a)?;
+                alarm(sink, ctl, st, line, "no_reading", msg.clone(), "stop marked FAILURE")?;
                 stop.message = Some(msg);
                 stop.status = StopStatus::Failure;
                 return Ok(stop);
@@ -662,17 +685,15 @@ fn measure_stop<C: Controller, T: Tracker, E: Cell>(
         if delta.norm() > params.max_single_correction_mm {
             delta *= params.max_single_correction_mm / delta.norm();
             clipped = true;
-            let a = Alarm {
+            alarm(
+                sink,
+                ctl,
+                st,
                 line,
-                kind: "max_single_correction".into(),
-                message: format!(
-                    "correction of {:.3} mm clipped to {} mm",
-                    e.norm(),
-                    params.max_single_correction_mm
-                ),
-                action: "clip".into(),
-            };
-            raise(sink, ctl, st, a)?;
+                "max_single_correction",
+                format!("correction of {:.3} mm clipped to {} mm", e.norm(), params.max_single_correction_mm),
+                "clip",
+            )?;
         }
         let offset = ctl.offset();
         let new_offset = offset + delta;
@@ -688,17 +709,19 @@ fn measure_stop<C: Controller, T: Tracker, E: Cell>(
             delta *= s * (1.0 - 1e-12);
             clipped = true;
             limited = true;
-            let a = Alarm {
+            alarm(
+                sink,
+                ctl,
+                st,
                 line,
-                kind: "max_total_correction".into(),
-                message: format!(
+                "max_total_correction",
+                format!(
                     "the total correction would reach {:.3} mm (limit {} mm)",
                     new_offset.norm(),
                     params.max_total_correction_mm
                 ),
-                action: "limit and mark PARTIAL".into(),
-            };
-            raise(sink, ctl, st, a)?;
+                "limit and mark PARTIAL",
+            )?;
         }
         if delta.norm() == 0.0 {
             stop.status = StopStatus::Partial;

@@ -19,7 +19,6 @@ use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::rc::Rc;
 use truepos_math::air::{refractive_index, AirConditions, Formula};
-use truepos_math::bestfit::{best_fit, BestFitOptions};
 use truepos_math::types::{rx, rz};
 use truepos_math::{Point3, Transform3, Vector3};
 use truepos_sim::errors::{ErrorMagnitudes, GeometricErrors};
@@ -347,7 +346,10 @@ impl VirtualCell {
 
     /// Trackers aligned to the machine on its reference targets (three-dimensional best fit),
     /// after setting their refractive index from the cell's air sensors, as an operator does.
-    pub fn align_trackers(&self) -> Vec<TrackerSetup<VirtualTracker>> {
+    /// Fails when a tracker sees fewer than three non-collinear reference targets.
+    pub fn align_trackers(
+        &self,
+    ) -> Result<Vec<TrackerSetup<VirtualTracker>>, truepos_math::bestfit::BestFitError> {
         let n_air = {
             let w = self.world.borrow();
             w.n_true()
@@ -361,18 +363,11 @@ impl VirtualCell {
             .map(|k| {
                 let seen = sensors.measure_machine_targets(k);
                 let refs = sensors.machine_targets();
-                let (mut from, mut to) = (vec![], vec![]);
-                for (id, p) in &seen {
-                    if let Some((_, q)) = refs.iter().find(|(i, _)| i == id) {
-                        from.push(*p);
-                        to.push(*q);
-                    }
-                }
-                let m = best_fit(&from, &to, None, BestFitOptions::default()).unwrap_or_default();
-                TrackerSetup {
+                let m = crate::run::machine_from_tracker(&seen, &refs)?;
+                Ok(TrackerSetup {
                     tracker: VirtualTracker { world: self.world.clone(), k },
                     machine_from_tracker: m,
-                }
+                })
             })
             .collect()
     }

@@ -14,7 +14,7 @@ use truepos_somac::{run_program, Params, RunReport};
 fn run(cfg: CellConfig, params: &Params, holes_per_row: usize) -> (RunReport, Vec<f64>, MemoryAudit) {
     let sp = spar(&SparConfig { holes_per_row, ..Default::default() });
     let cell = VirtualCell::new(cfg, sp.targets.clone());
-    let mut trackers = cell.align_trackers();
+    let mut trackers = cell.align_trackers().unwrap();
     let mut ctl = cell.controller();
     let mut sensors = cell.sensors();
     let mut audit = MemoryAudit::default();

@@ -323,7 +323,11 @@ pub fn run_virtual(
 ) -> Result<VirtualRun> {
     let program = truepos_gcode::Program::parse(program_text);
     let cell = VirtualCell::new(cfg, targets);
-    let mut trackers = cell.align_trackers();
+    let mut trackers = cell.align_trackers().map_err(|e| {
+        truepos_somac::device::DeviceError::Controller(format!(
+            "aligning the trackers on the machine targets: {e}"
+        ))
+    })?;
     let mut ctl = cell.controller();
     let mut sensors = cell.sensors();
     let report = run_program(&program, &mut ctl, &mut trackers, &mut sensors, params, sink)?;
