@@ -313,6 +313,15 @@ pub fn estimate(s: &Streams, opt: &Options) -> Result<Estimate, LatencyError> {
         }
     }
     est.contacts = contacts;
+    if est.residual_delay.abs() > opt.max_delay {
+        // A capture delay is milliseconds; a result this large means the inputs disagree (most
+        // often a size given for the artefact rather than for the stylus-centre surface).
+        est.warnings.push(format!(
+            "the delay {:.1} ms is beyond ±{:.0} ms, implausible for a capture delay: check the artefact size and --tip-radius-mm (sizes are of the stylus-centre surface unless a tip radius is given)",
+            est.residual_delay * 1e3,
+            opt.max_delay * 1e3
+        ));
+    }
     Ok(est)
 }
 

@@ -270,3 +270,32 @@ fn scan_fractional_sample_delay() {
     assert!((got - want).abs() < 20e-6 && (got - want).abs() < 3.0 * u, "{got} vs {want} (u {u})");
     assert!(j["scan_rms_after_mm"].as_f64().unwrap() < j["scan_rms_before_mm"].as_f64().unwrap());
 }
+
+/// A size given for the artefact while the tip radius is left at 0 (sizes then mean the
+/// stylus-centre surface) yields an absurd delay: the result carries a warning naming the cause.
+#[test]
+fn implausible_delay_is_flagged() {
+    let tmp = tempfile::tempdir().unwrap();
+    simulate(tmp.path(), "sphere", &[]);
+    let (m, p) = files(tmp.path());
+    let o = run(&["latency", "--machine", &m, "--probe", &p, "--sphere-diameter-mm", "25", "--json"]);
+    let v = json_of(&o);
+    let w = v["warnings"].to_string();
+    assert!(w.contains("implausible") && w.contains("--tip-radius-mm"), "{w}");
+    // With the tip radius the same data give the true 2.5 ms and no such warning.
+    let o = run(&[
+        "latency",
+        "--machine",
+        &m,
+        "--probe",
+        &p,
+        "--sphere-diameter-mm",
+        "25",
+        "--tip-radius-mm",
+        "2",
+        "--json",
+    ]);
+    let v = json_of(&o);
+    assert!(!v["warnings"].to_string().contains("implausible"));
+    assert!((v["delay_s"].as_f64().unwrap() - 0.0025).abs() < 0.0001, "{v}");
+}
