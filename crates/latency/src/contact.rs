@@ -40,7 +40,20 @@ pub struct Contact {
     /// Standard uncertainty of `point` along the normal (mm), from the extrapolation's leverage and
     /// the residual scatter pooled over all contacts.
     pub u_point: f64,
-    /// Machine velocity over the extrapolation band (mm/s).
+    /// The same surface point from the deflection domain alone (machine position against
+    /// deflection over the band, intercept at zero deflection), and its standard uncertainty.
+    /// `point` comes from the time domain where it can: the probe's instant of zero deflection
+    /// and the machine's own samples around it — more machine samples, and indifferent to the
+    /// tip dragging sideways under friction. But the servo may still be settling from the
+    /// acceleration away from the surface: the speed then wavers by about 1 % through the band
+    /// (30 mm/s on the virtual cell), the quadratics in time bend to it and the point moves by
+    /// 0.1 µm, by an amount that depends on the speed. The deflection domain does not see the
+    /// motion in time at all (machine position plus deflection is the surface position however
+    /// the body moves), so the speeds method, whose gradient a speed-dependent error would bias,
+    /// switches to this one when the two disagree (see [`crate::estimate`]).
+    pub point_defl: Point3,
+    pub u_point_defl: f64,
+    /// Machine velocity at the zero-deflection instant (mm/s).
     pub velocity: Vector3,
     /// Machine velocity over the approach band (mm/s), when it could be measured.
     pub approach_velocity: Option<Vector3>,
@@ -117,14 +130,20 @@ pub fn run_normal(probe: &[[f64; 3]], start: usize, end: usize) -> Option<Vector
     (n > 0.0).then(|| s / n)
 }
 
-/// How far the deflection direction turns within a run: the largest angle (rad) between a
-/// sample's direction and the run's mean direction (scans turn, touches do not).
+/// How far the deflection direction turns within a run: the largest angle (rad) between the
+/// run's mean direction and the direction of a sample deflected at least half as far as the
+/// deepest one (scans turn, touches do not). The shallow samples are left out: with friction the
+/// tip drags sideways as a touch starts and slips the other way as it leaves, so near the
+/// threshold an oblique touch's direction swings by 30–40° (measured on the virtual cell's 30°
+/// approaches) while its deep part holds within a few degrees.
 pub fn run_turn(probe: &[[f64; 3]], start: usize, end: usize, normal: &Vector3) -> f64 {
+    let norm = |d: &[f64; 3]| (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+    let peak = probe[start..end].iter().map(norm).fold(0.0f64, f64::max);
     let mut min_cos = 1.0f64;
     for d in &probe[start..end] {
-        let v = Vector3::new(d[0], d[1], d[2]);
-        let n = v.norm();
-        if n > 0.0 {
+        let n = norm(d);
+        if n > 0.0 && n >= 0.5 * peak {
+            let v = Vector3::new(d[0], d[1], d[2]);
             min_cos = min_cos.min(v.dot(normal) / n);
         }
     }
@@ -195,6 +214,19 @@ struct Band {
     dof: f64,
     velocity: Vector3,
     n_used: usize,
+    /// The same band's deflection-domain point (see [`Contact::point_defl`]).
+    defl_domain: DeflDomain,
+}
+
+/// A zero-deflection point from the deflection domain: the intercept of machine position
+/// against deflection.
+#[derive(Clone, Copy, Default)]
+struct DeflDomain {
+    point: Point3,
+    /// Leverage per unit residual sigma (with the correlation inflation).
+    unit: f64,
+    ssr: f64,
+    dof: f64,
 }
 
 /// Options of the contact extraction.
@@ -232,11 +264,17 @@ fn extrapolate(
         let d = s.probe[j];
         d[0] * n.x + d[1] * n.y + d[2] * n.z
     };
+    // The descent runs on past the run's end (where the noisy deflection first fell below the
+    // threshold) down to half the threshold: a sample whose true deflection is just above `lo`
+    // must not be dropped for its noise alone, or the samples kept at the band's shallow end are
+    // biased high (upward noise) and the zero-deflection instant with them. The time-domain
+    // fit selects on its fitted curve, not on these noisy values.
+    let stop_at = 0.5 * lo;
     let range = if forward {
-        let stop = (range.start..range.end).find(|&j| defl(j) < lo).unwrap_or(range.end);
+        let stop = (range.start..s.probe.len()).find(|&j| defl(j) < stop_at).unwrap_or(s.probe.len());
         range.start..stop
     } else {
-        let first = (range.start..range.end).rev().find(|&j| defl(j) < lo).map_or(range.start, |j| j + 1);
+        let first = (0..range.end).rev().find(|&j| defl(j) < stop_at).map_or(0, |j| j + 1);
         first..range.end
     };
     if range.len() < opt.min_band {
@@ -296,26 +334,39 @@ fn extrapolate(
         // of δ against t over the band); the machine line x(t) over its whole constant-speed
         // stretch (the band and beyond, where the body keeps moving freely) gives the machine
         // position at t₀. Same model, many more machine samples.
-        if let Some(b) = time_domain(s, n, range.clone(), lo, hi, ax + bx * hi, forward) {
-            return Some(b);
-        }
-        // Fallback: machine position (interpolated at the probe stamps) against deflection.
-        // Interpolated values between machine samples are correlated: count only the
-        // independent machine samples in the band when the machine is slower than the probe.
+        // The deflection domain: machine position (interpolated at the probe stamps) against
+        // deflection. Interpolated values between machine samples are correlated: count only
+        // the independent machine samples in the band when the machine is slower than the probe.
         let i0 = s.machine_t.partition_point(|&t| t < t_first);
         let i1 = s.machine_t.partition_point(|&t| t <= t_last);
         let n_machine = (i1.saturating_sub(i0)).max(2) as f64;
         let inflate = (n_used as f64 / n_machine).max(1.0).sqrt();
-        return Some(Band {
+        let defl_domain = DeflDomain {
             point: Point3::new(p[0], p[1], p[2]),
             unit: along.leverage() * inflate,
+            ssr: sig * sig * (along.n - 2.0),
+            dof: along.n - 2.0,
+        };
+        // Preferred: the time domain. The probe gives the instant of zero deflection t₀ (line
+        // of δ against t over the band); the machine line x(t) over its whole constant-speed
+        // stretch (the band and beyond, where the body keeps moving freely) gives the machine
+        // position at t₀. Same model, many more machine samples.
+        if let Some(mut b) = time_domain(s, n, range.clone(), lo, hi, ax + bx * hi, forward) {
+            b.defl_domain = defl_domain;
+            return Some(b);
+        }
+        // Fallback: the deflection domain alone.
+        return Some(Band {
+            point: defl_domain.point,
+            unit: defl_domain.unit,
             u_time: 0.0,
             ssr_p: 0.0,
             dof_p: 0.0,
-            ssr: sig * sig * (along.n - 2.0),
-            dof: along.n - 2.0,
+            ssr: defl_domain.ssr,
+            dof: defl_domain.dof,
             velocity: Vector3::new(v[0], v[1], v[2]),
             n_used,
+            defl_domain,
         });
     }
     None
@@ -505,6 +556,7 @@ fn time_domain(
         dof: qa.n - 3.0,
         velocity: Vector3::new(v[0], v[1], v[2]),
         n_used: idx.len(),
+        defl_domain: DeflDomain::default(),
     })
 }
 
@@ -541,6 +593,53 @@ fn constant_speed(tx: &[(f64, f64)]) -> bool {
     dv.abs() <= 0.005 * c[1].abs() || dv.abs() <= 2.0 * u_dv
 }
 
+/// The deepest sample of a run along `n`: (index, deflection).
+fn deepest(probe: &[[f64; 3]], start: usize, end: usize, n: &Vector3) -> (usize, f64) {
+    let (mut peak, mut pd) = (start, f64::NEG_INFINITY);
+    for (j, d) in probe.iter().enumerate().take(end).skip(start) {
+        let v = d[0] * n.x + d[1] * n.y + d[2] * n.z;
+        if v > pd {
+            pd = v;
+            peak = j;
+        }
+    }
+    (peak, pd)
+}
+
+/// The surface normal of a touch, free of friction to first order: the mean of the unit
+/// deflection directions of the approach and of the retract, each over the samples between the
+/// threshold and 60 % of the peak. With friction the tip drags sideways against the motion, one
+/// way going in and the other coming out (and holds whatever it had while the machine dwells), so
+/// the direction of the whole run leans off the normal (4° for the virtual cell's in-plane 30°
+/// approaches, 9° for the vertical one) while the two halves lean off it by about as much on
+/// opposite sides. `None` when either half has no sample in that range.
+pub fn touch_normal(
+    probe: &[[f64; 3]],
+    start: usize,
+    peak: usize,
+    end: usize,
+    rough: &Vector3,
+    lo: f64,
+) -> Option<Vector3> {
+    let (_, pd) = deepest(probe, start, end, rough);
+    let hi = 0.6 * pd;
+    let mean_dir = |r: std::ops::Range<usize>| -> Option<Vector3> {
+        let mut acc = Vector3::zeros();
+        for d in &probe[r] {
+            let v = Vector3::new(d[0], d[1], d[2]);
+            let a = v.dot(rough);
+            if a >= lo && a <= hi {
+                acc += v / v.norm();
+            }
+        }
+        let n = acc.norm();
+        (n > 0.0).then(|| acc / n)
+    };
+    let sum = mean_dir(start..peak)? + mean_dir(peak..end)?;
+    let n = sum.norm();
+    (n > 0.0).then(|| sum / n)
+}
+
 /// Extract every contact (touch) from the streams: segmentation, normal, phases, extrapolation
 /// to zero deflection (retract preferred, approach as fallback). `mi` is the machine position
 /// at the probe stamps ([`crate::stream::machine_at`] with shift 0 for raw data). Runs whose
@@ -549,22 +648,17 @@ pub fn extract_contacts(s: &Streams, mi: &[[f64; 3]], opt: &ContactOptions, max_
     let mut out = Vec::new();
     let mut pooled = (0.0, 0.0);
     let mut pooled_p = (0.0, 0.0);
+    let mut pooled_d = (0.0, 0.0);
     let mut u_times = Vec::new();
     for (start, end) in find_runs(s.probe, opt.threshold, opt.min_band) {
         let Some(n) = run_normal(s.probe, start, end) else { continue };
         if run_turn(s.probe, start, end, &n) > max_turn {
             continue;
         }
-        let (mut peak, mut pd) = (start, f64::NEG_INFINITY);
-        for j in start..end {
-            let d = s.probe[j];
-            let v = d[0] * n.x + d[1] * n.y + d[2] * n.z;
-            if v > pd {
-                pd = v;
-                peak = j;
-            }
-        }
         let lo = opt.threshold;
+        let (peak, _) = deepest(s.probe, start, end, &n);
+        let n = touch_normal(s.probe, start, peak, end, &n, lo).unwrap_or(n);
+        let (peak, pd) = deepest(s.probe, start, end, &n);
         let retract = extrapolate(s, mi, &n, peak..end, lo, pd, opt, true);
         let approach = extrapolate(s, mi, &n, start..peak + 1, lo, pd, opt, false);
         let approach_velocity = approach.as_ref().map(|b| b.velocity);
@@ -575,6 +669,8 @@ pub fn extract_contacts(s: &Streams, mi: &[[f64; 3]], opt: &ContactOptions, max_
         };
         pooled.0 += band.ssr;
         pooled.1 += band.dof;
+        pooled_d.0 += band.defl_domain.ssr;
+        pooled_d.1 += band.defl_domain.dof;
         pooled_p.0 += band.ssr_p;
         pooled_p.1 += band.dof_p;
         u_times.push(band.u_time);
@@ -587,6 +683,8 @@ pub fn extract_contacts(s: &Streams, mi: &[[f64; 3]], opt: &ContactOptions, max_
             peak_deflection: pd,
             point: band.point,
             u_point: band.unit,
+            point_defl: band.defl_domain.point,
+            u_point_defl: band.defl_domain.unit,
             velocity: band.velocity,
             approach_velocity,
             phase,
@@ -599,8 +697,10 @@ pub fn extract_contacts(s: &Streams, mi: &[[f64; 3]], opt: &ContactOptions, max_
     // Exact data would give zero uncertainty and infinite weights: floor at 1 nm.
     let sigma = sigma.max(1e-6);
     let sigma_p = if pooled_p.1 > 0.0 { (pooled_p.0 / pooled_p.1).sqrt() } else { 0.0 };
+    let sigma_d = if pooled_d.1 > 0.0 { (pooled_d.0 / pooled_d.1).sqrt() } else { 0.0 }.max(1e-6);
     for (c, ut) in out.iter_mut().zip(&u_times) {
         c.u_point = (c.u_point * sigma).hypot(*ut * sigma_p);
+        c.u_point_defl *= sigma_d;
     }
     out
 }

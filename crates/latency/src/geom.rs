@@ -27,8 +27,12 @@ pub enum Feature {
 }
 
 impl Feature {
-    /// Classify from the contact normals' scatter matrix `Σ n nᵀ` (eigenvalues `λ1 ≥ λ2 ≥ λ3`):
+    /// Classify from the scatter matrix `Σ n nᵀ` (eigenvalues `λ1 ≥ λ2 ≥ λ3`) of the distinct
+    /// contact directions (normals within 15° of each other form one direction, counted once):
     /// one direction (`λ2 < 5 %`) → pair; a plane (`λ3 < 5 %`) → circle; otherwise sphere.
+    /// Counting directions rather than contacts keeps a direction probed less often than the
+    /// others (one +Z touch among 192 in the XY plane) from being taken for scatter around a
+    /// circle, whose fit would then put that point 14 mm off.
     pub fn classify(normals: &[Vector3]) -> Result<Feature, LatencyError> {
         if normals.len() < 2 {
             return Err(LatencyError::Underdetermined(format!(
@@ -36,11 +40,20 @@ impl Feature {
                 normals.len()
             )));
         }
-        let mut m = Matrix3::zeros();
-        for n in normals {
-            m += n * n.transpose();
+        let cos = 15f64.to_radians().cos();
+        let mut dirs: Vec<(Vector3, Vector3)> = Vec::new(); // (first normal, sum)
+        for q in normals {
+            match dirs.iter_mut().find(|d| d.0.dot(q) > cos) {
+                Some(d) => d.1 += q,
+                None => dirs.push((*q, *q)),
+            }
         }
-        let n = normals.len() as f64;
+        let mut m = Matrix3::zeros();
+        for (_, sum) in &dirs {
+            let u = sum.normalize();
+            m += u * u.transpose();
+        }
+        let n = dirs.len() as f64;
         let e = m.symmetric_eigen();
         let mut idx = [0usize, 1, 2];
         idx.sort_by(|&a, &b| e.eigenvalues[b].total_cmp(&e.eigenvalues[a]));
@@ -217,14 +230,15 @@ impl Residuals for Problem<'_> {
             // the last one).
             jac[j] = dg[j] * w;
         }
+        let v = c.velocity;
         match self.spec.delay {
             DelayMode::None => {}
-            DelayMode::Common => jac[g] = dq.dot(&c.velocity) * w,
+            DelayMode::Common => jac[g] = dq.dot(&v) * w,
             DelayMode::PerAxis(mask) => {
                 let mut j = g;
                 for k in 0..3 {
                     if mask[k] {
-                        jac[j] = dq[k] * c.velocity[k] * w;
+                        jac[j] = dq[k] * v[k] * w;
                         j += 1;
                     }
                 }
@@ -472,4 +486,35 @@ pub fn axes_with_opposite_pairs(contacts: &[Contact]) -> [bool; 3] {
         *mk = pos && neg;
     }
     m
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn classification_counts_directions_not_contacts() {
+        let (x, y, z) = (Vector3::x(), Vector3::y(), Vector3::z());
+        let mut normals = Vec::new();
+        for _ in 0..48 {
+            normals.extend([x, -x, y, -y]);
+        }
+        assert!(matches!(Feature::classify(&normals), Ok(Feature::Circle { .. })));
+        // One touch on top makes the data three-dimensional: a sphere, not a circle with an
+        // outlier 14 mm inside it.
+        normals.push(z);
+        assert_eq!(Feature::classify(&normals), Ok(Feature::Sphere));
+        // Many touches on ±X and one on +Y leave a circle; ±X alone a pair.
+        let mut pair: Vec<Vector3> = (0..40).map(|k| if k % 2 == 0 { x } else { -x }).collect();
+        match Feature::classify(&pair) {
+            Ok(Feature::Pair { axis }) => assert!(axis.x.abs() > 1.0 - 1e-12),
+            other => panic!("{other:?}"),
+        }
+        pair.push(y);
+        assert!(matches!(Feature::classify(&pair), Ok(Feature::Circle { .. })));
+        // Normals a few degrees apart (friction, noise) are one direction.
+        let tilt = Vector3::new(1.0, 0.05, 0.0).normalize();
+        let near: Vec<Vector3> = (0..40).map(|k| if k % 2 == 0 { tilt } else { -x }).collect();
+        assert!(matches!(Feature::classify(&near), Ok(Feature::Pair { .. })));
+    }
 }
