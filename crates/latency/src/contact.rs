@@ -50,7 +50,7 @@ pub struct Contact {
     /// 0.1 µm, by an amount that depends on the speed. The deflection domain does not see the
     /// motion in time at all (machine position plus deflection is the surface position however
     /// the body moves), so the speeds method, whose gradient a speed-dependent error would bias,
-    /// switches to this one when the two disagree (see [`crate::estimate`]).
+    /// uses this one (see [`crate::estimate`]).
     pub point_defl: Point3,
     pub u_point_defl: f64,
     /// Machine velocity at the zero-deflection instant (mm/s).
