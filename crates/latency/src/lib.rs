@@ -300,8 +300,14 @@ pub fn estimate(s: &Streams, opt: &Options) -> Result<Estimate, LatencyError> {
                             contacts = contacts2;
                             r
                         }
-                        // The first pass stands when the second cannot be fitted.
-                        Err(_) => r0,
+                        // The first pass stands when the second cannot be fitted; say so.
+                        Err(e) => {
+                            let mut r0 = r0;
+                            r0.warnings.push(format!(
+                                "the refit on the delay-corrected data failed ({e}); the delay is from the first pass, whose velocity correction is linearised"
+                            ));
+                            r0
+                        }
                     }
                 } else {
                     r0
