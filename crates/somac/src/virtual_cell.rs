@@ -432,7 +432,11 @@ impl Controller for VirtualController {
 
     fn correct(&mut self, delta_mm: Vector3) -> Result<(), DeviceError> {
         if !delta_mm.iter().all(|v| v.is_finite()) {
-            return Err(DeviceError::Controller("correction is not finite".into()));
+            return Err(DeviceError::Rejected {
+                address: "virtual".into(),
+                what: "correction move".into(),
+                message: "correction is not finite".into(),
+            });
         }
         let mut w = self.world.borrow_mut();
         w.offset += delta_mm;

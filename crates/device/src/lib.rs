@@ -1,0 +1,233 @@
+//! # truepos-device — how truepos sees machines
+//!
+//! Capability crates never talk to a simulator or a wire protocol directly: they drive the traits
+//! here, and backends implement them — the virtual plant (`truepos-cell`), LinuxCNC through
+//! linuxcncrsh (`truepos-linuxcnc`), and CMMs through I++ DME (`truepos-ippdme`).
+//!
+//! Entry points:
+//! - [`ProbingMachine`]: a machine with a touch probe — position, positioning moves, single-point
+//!   probing ([`ProbeRequest`] → [`ProbeHit`]), abort. Used by `probe sphere`, head-offset
+//!   acquisition and inspection.
+//! - [`Controller`], [`Tracker`], [`Cell`]: the end-point control loop's NC controller fed block by
+//!   block, its laser trackers and the rest of the cell's sensors.
+//! - [`DeviceError`]: every failure of a device, naming the device's address; the binary maps it
+//!   to exit code 3.
+//!
+//! Frames and units: every position is in the machine frame, millimetres; feeds in mm/s.
+
+use thiserror::Error;
+use truepos_math::air::AirConditions;
+use truepos_math::{Point3, Vector3};
+
+/// A failure of a device. Every variant that concerns a real device names its address
+/// (`linuxcncrsh://127.0.0.1:5007`, `ippdme://…`, `virtual`).
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum DeviceError {
+    /// The device could not be reached (connection refused, no route, …).
+    #[error("{address}: cannot connect: {message}")]
+    Connect { address: String, message: String },
+    /// The device did not answer in time.
+    #[error("{address}: no answer within {seconds} s while {what}")]
+    Timeout { address: String, what: String, seconds: f64 },
+    /// The connection broke during a command.
+    #[error("{address}: connection lost while {what}: {message}")]
+    ConnectionLost { address: String, what: String, message: String },
+    /// The device is not in a state truepos may use (e-stop, machine off, not homed, busy).
+    /// truepos never releases an e-stop or switches a machine on itself.
+    #[error("{address}: not ready: {reason}")]
+    NotReady { address: String, reason: String },
+    /// The controller reported an error for a command (its own message, verbatim).
+    #[error("{address}: {what}: the controller reports: {message}")]
+    Controller { address: String, what: String, message: String },
+    /// A probing move ended without contact; the machine has been retracted.
+    #[error("{address}: {what}: the probe move ended without contact")]
+    NoContact { address: String, what: String },
+    /// The device answered something the protocol does not allow.
+    #[error("{address}: protocol error while {what}: {message}")]
+    Protocol { address: String, what: String, message: String },
+    /// A request the device cannot carry out (outside its travel, not finite, …).
+    #[error("{address}: {what}: {message}")]
+    Rejected { address: String, what: String, message: String },
+    /// Tracker `k` failed for a reason other than a beam break.
+    #[error("tracker {0}: {1}")]
+    Tracker(usize, String),
+}
+
+/// What a device is, for reports and the audit trail.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DeviceInfo {
+    /// The address it was opened with (`virtual`, `linuxcncrsh://HOST:PORT`, `ippdme://HOST:PORT`).
+    pub address: String,
+    /// The device's own name and version as it reports them (e.g. `LinuxCNC 2.9.0`,
+    /// `I++ DME 1.4.3`), or the virtual machine's description.
+    pub version: String,
+}
+
+/// One single-point probing: touch the surface near `nominal_mm` coming from outside the
+/// material along `-approach`.
+///
+/// The tip centre starts at `nominal_mm + (approach_mm + tip_radius_mm)·approach`, moves along
+/// `-approach` at `feed_mm_s` until the probe triggers, at most to
+/// `nominal_mm + (tip_radius_mm − search_mm)·approach`, latches, then retracts by `retract_mm`
+/// along `approach`. (The same geometry as I++ DME's `PtMeas` with its Approach/Search/Retract
+/// properties.)
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProbeRequest {
+    /// Nominal surface point (machine frame, mm).
+    pub nominal_mm: Point3,
+    /// Unit vector pointing out of the material at the nominal point.
+    pub approach: Vector3,
+    /// Radius of the stylus ball (mm).
+    pub tip_radius_mm: f64,
+    /// Distance between the ball and the nominal surface at the start of the probing move (mm).
+    pub approach_mm: f64,
+    /// How far beyond the nominal surface the move may go before it ends without contact (mm).
+    pub search_mm: f64,
+    /// Retract distance along `approach` after the contact (mm).
+    pub retract_mm: f64,
+    /// Probing feed (mm/s).
+    pub feed_mm_s: f64,
+}
+
+impl ProbeRequest {
+    /// Tip-centre position where the probing move starts.
+    pub fn start_mm(&self) -> Point3 {
+        self.nominal_mm + self.approach * (self.approach_mm + self.tip_radius_mm)
+    }
+    /// Tip-centre position where the probing move ends if nothing is touched.
+    pub fn end_mm(&self) -> Point3 {
+        self.nominal_mm + self.approach * (self.tip_radius_mm - self.search_mm)
+    }
+}
+
+/// The result of one probing.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProbeHit {
+    /// Tip-centre position latched at the contact (machine frame, mm).
+    pub tip_center_mm: Point3,
+    /// Unit surface normal at the contact, if the device reports one (I++ DME does).
+    pub normal: Option<Vector3>,
+}
+
+/// A machine with a touch-trigger (or scanning) probe: a CMM, or a machine tool with a
+/// spindle probe. Positions are tip-centre positions in the machine frame (mm).
+///
+/// Implementations must never release an e-stop or switch a machine on; opening one checks that
+/// the machine is on, homed and idle and returns [`DeviceError::NotReady`] otherwise. Every wait
+/// has a timeout.
+pub trait ProbingMachine {
+    /// Address and version, for reports and the audit trail.
+    fn info(&self) -> DeviceInfo;
+    /// Where the tip centre is now.
+    fn position(&mut self) -> Result<Point3, DeviceError>;
+    /// A straight positioning move (not probing). A probe trigger during it is an error.
+    /// Callers plan their own clearance moves.
+    fn move_to(&mut self, target_mm: Point3) -> Result<(), DeviceError>;
+    /// Probe one point as [`ProbeRequest`] describes. No contact within the search distance is
+    /// [`DeviceError::NoContact`], with the machine back at the start point.
+    fn probe(&mut self, request: &ProbeRequest) -> Result<ProbeHit, DeviceError>;
+    /// Stop all motion now (best effort; also used on the way out of a failure).
+    fn abort(&mut self) -> Result<(), DeviceError>;
+}
+
+/// Why a tracker reading failed.
+#[derive(Debug, Error, Clone, Copy, PartialEq, Eq)]
+pub enum TrackerFault {
+    #[error("beam broken (no line of sight to the reflector)")]
+    BeamBroken,
+    #[error("the tracker lost the reflector and needs it brought back")]
+    Lost,
+}
+
+/// An NC controller fed one block at a time.
+pub trait Controller {
+    /// Execute one block; returns when the machine has come to its commanded stop.
+    /// `target_mm` is the block's commanded end position (program frame = machine frame) if
+    /// it moves. The controller adds its external correction offset to every target.
+    fn send_block(&mut self, line: usize, text: &str, target_mm: Option<Point3>) -> Result<(), DeviceError>;
+    /// An incremental correction move, which also shifts the external offset by `delta_mm`.
+    fn correct(&mut self, delta_mm: Vector3) -> Result<(), DeviceError>;
+    /// The external correction offset now in force.
+    fn offset(&self) -> Vector3;
+    /// Move to a commanded position (plus offset), for look-back recovery.
+    fn move_to(&mut self, target_mm: Point3) -> Result<(), DeviceError>;
+    /// Let time pass (waiting for the machine to settle, for an operator, …).
+    fn wait(&mut self, seconds: f64);
+    /// Time since the start of the run (s).
+    fn now_s(&self) -> f64;
+}
+
+/// A laser tracker measuring the end effector's reflector.
+pub trait Tracker {
+    /// One reading of the reflector (tracker frame, mm).
+    fn measure(&mut self) -> Result<Point3, TrackerFault>;
+    /// Point the beam at a position (tracker frame) and lock on when the reflector arrives.
+    /// Only absolute-distance (ADM) trackers can reacquire this way.
+    fn point_at(&mut self, p: Point3) -> Result<(), TrackerFault>;
+    fn has_adm(&self) -> bool;
+    /// Set the refractive index the tracker uses for its distances.
+    fn set_refractive_index(&mut self, n: f64);
+    fn refractive_index(&self) -> f64;
+    /// Standard uncertainty (mm) of a reading at `p` (tracker frame), for fusion weights.
+    fn sigma_mm(&self, p: &Point3) -> f64;
+}
+
+/// Differential inclinometer readings (µrad, two tilt components each).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Inclinations {
+    pub machine: [f64; 2],
+    pub part: [f64; 2],
+    pub tracker: [f64; 2],
+}
+
+impl Inclinations {
+    /// The largest change of any component relative to `base`.
+    pub fn max_change(&self, base: &Inclinations) -> f64 {
+        let mut m = 0.0f64;
+        for (a, b) in [(self.machine, base.machine), (self.part, base.part), (self.tracker, base.tracker)] {
+            for k in 0..2 {
+                m = m.max((a[k] - b[k]).abs());
+            }
+        }
+        m
+    }
+}
+
+/// The rest of the cell: sensors and the targets the trackers measure directly.
+pub trait Cell {
+    /// Part temperature (°C).
+    fn temperature_c(&mut self) -> f64;
+    fn air(&mut self) -> AirConditions;
+    fn inclinations(&mut self) -> Inclinations;
+    /// Tracker `k`'s readings of the part's targets (id, tracker frame) — for real-time
+    /// orientation and auto-scaling. Nominal positions are in [`Cell::part_nominal`].
+    fn measure_part_targets(&mut self, k: usize) -> Vec<(String, Point3)>;
+    /// Nominal positions of the part's targets at the reference temperature (program frame).
+    fn part_nominal(&self) -> Vec<(String, Point3)>;
+    /// Tracker `k`'s readings of the machine's reference targets (tracker frame), and their
+    /// calibrated machine-frame positions — for (re-)aligning the tracker to the machine.
+    fn measure_machine_targets(&mut self, k: usize) -> Vec<(String, Point3)>;
+    fn machine_targets(&self) -> Vec<(String, Point3)>;
+    /// An operator brings the reflector back into the beam (manual recovery).
+    fn operator_restores_beam(&mut self, k: usize);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn probe_request_start_and_end_follow_ptmeas_geometry() {
+        let r = ProbeRequest {
+            nominal_mm: Point3::new(10.0, 0.0, 5.0),
+            approach: Vector3::new(0.0, 0.0, 1.0),
+            tip_radius_mm: 1.5,
+            approach_mm: 2.0,
+            search_mm: 4.0,
+            retract_mm: 2.0,
+            feed_mm_s: 1.0,
+        };
+        assert_eq!(r.start_mm(), Point3::new(10.0, 0.0, 8.5));
+        assert_eq!(r.end_mm(), Point3::new(10.0, 0.0, 2.5));
+    }
+}
