@@ -137,9 +137,9 @@ fn solve<M: Cheb>(
     let (mut lo, mut hi) = range(m, &s, q);
     let mut f = objective(o, lo, hi);
     // Start with a box of the order of the zone (or of the residual spread).
-    let mut delta = (0.5 * (hi - lo)).clamp(1e-9, 0.1);
+    let mut delta = (0.1 * (hi - lo)).clamp(1e-9, 0.1);
     let mut res: Vec<(f64, [f64; 4])> = Vec::with_capacity(q.len());
-    let mut rows: Vec<Row> = Vec::new();
+    let (mut up, mut down): (Vec<usize>, Vec<usize>) = (Vec::new(), Vec::new());
     let mut fresh = true;
     for it in 1..=MAX_STEPS {
         if fresh {
@@ -160,32 +160,33 @@ fn solve<M: Cheb>(
             top = top.max(r - gi);
             bot = bot.min(r + gi);
         }
-        rows.clear();
-        for (r, j) in &res {
+        up.clear();
+        down.clear();
+        for (i, (r, j)) in res.iter().enumerate() {
             let gi = g(j);
             if upper && r + gi >= top {
-                let mut a = [0.0; MAXD];
-                a[..k].copy_from_slice(&j[..k]);
-                a[ti] = -1.0;
-                rows.push(Row { a, b: -r });
+                up.push(i);
             }
             if lower && r - gi <= bot {
-                let mut a = [0.0; MAXD];
+                down.push(i);
+            }
+        }
+        let row = |i: usize, is_up: bool| -> Row {
+            let (r, j) = &res[i];
+            let mut a = [0.0; MAXD];
+            if is_up {
+                a[..k].copy_from_slice(&j[..k]);
+                a[ti] = -1.0;
+                Row { a, b: -r }
+            } else {
                 for t in 0..k {
                     a[t] = -j[t];
                 }
                 a[si] = 1.0;
-                rows.push(Row { a, b: *r });
+                Row { a, b: *r }
             }
-        }
-        for t in 0..k {
-            let mut a = [0.0; MAXD];
-            a[t] = 1.0;
-            rows.push(Row { a, b: delta });
-            a[t] = -1.0;
-            rows.push(Row { a, b: delta });
-        }
-        let sol = lp::minimise(nv, &c[..nv], &rows).map_err(|_| ChebFail::NotConverged)?;
+        };
+        let sol = solve_lp(nv, &c[..nv], k, delta, &up, &down, row).map_err(|_| ChebFail::NotConverged)?;
         let pred = f - sol.objective;
         let step = &sol.x[..k];
         let size = step.iter().fold(0.0f64, |a, v| a.max(v.abs()));
@@ -220,6 +221,82 @@ fn solve<M: Cheb>(
         }
     }
     Err(ChebFail::NotConverged)
+}
+
+/// The linearised Chebyshev LP: rows `row(i, true)` for `i` in `up` (bounding the upper
+/// extreme), `row(i, false)` for `i` in `lo`, and the box `|δⱼ| ≤ delta`, solved by constraint
+/// generation: a working set of the box and, of each kind, the rows with the smallest
+/// right-hand side (the extreme residuals, tightest at δ = 0); then the most violated of the
+/// others are added until none is violated. The optimum of a subset that satisfies every row
+/// is the optimum of the whole LP, so this is exact; each simplex has a few dozen rows however
+/// many points there are, and no row is built for a point that never enters.
+fn solve_lp(
+    nv: usize,
+    c: &[f64],
+    k: usize,
+    delta: f64,
+    up: &[usize],
+    lo: &[usize],
+    row: impl Fn(usize, bool) -> Row,
+) -> Result<lp::LpSolution, lp::LpError> {
+    const START: usize = 16;
+    const ADD: usize = 16;
+    let mut work: Vec<Row> = Vec::new();
+    for t in 0..k {
+        let mut a = [0.0; MAXD];
+        a[t] = 1.0;
+        work.push(Row { a, b: delta });
+        a[t] = -1.0;
+        work.push(Row { a, b: delta });
+    }
+    let mut in_up = vec![false; up.len()];
+    let mut in_lo = vec![false; lo.len()];
+    for (list, flags, is_up) in [(up, &mut in_up, true), (lo, &mut in_lo, false)] {
+        let mut idx: Vec<usize> = (0..list.len()).collect();
+        if idx.len() > START {
+            idx.select_nth_unstable_by(START, |&a, &b| {
+                row(list[a], is_up).b.total_cmp(&row(list[b], is_up).b)
+            });
+            idx.truncate(START);
+        }
+        for p in idx {
+            flags[p] = true;
+            work.push(row(list[p], is_up));
+        }
+    }
+    loop {
+        let sol = lp::minimise(nv, c, &work)?;
+        let mut viol: Vec<(f64, usize, bool)> = Vec::new();
+        for (list, flags, is_up) in [(up, &in_up, true), (lo, &in_lo, false)] {
+            for (p, &i) in list.iter().enumerate() {
+                if flags[p] {
+                    continue;
+                }
+                let r = row(i, is_up);
+                let ax: f64 = (0..nv).map(|t| r.a[t] * sol.x[t]).sum();
+                let v = ax - r.b;
+                if v > lp::TOL * (1.0 + r.b.abs()) {
+                    viol.push((v, p, is_up));
+                }
+            }
+        }
+        if viol.is_empty() {
+            return Ok(sol);
+        }
+        if viol.len() > ADD {
+            viol.select_nth_unstable_by(ADD, |a, b| b.0.total_cmp(&a.0));
+            viol.truncate(ADD);
+        }
+        for (_, p, is_up) in viol {
+            if is_up {
+                in_up[p] = true;
+                work.push(row(up[p], true));
+            } else {
+                in_lo[p] = true;
+                work.push(row(lo[p], false));
+            }
+        }
+    }
 }
 
 /// Points centred on the centroid and divided by the extent (entries of order 1 for the LP).

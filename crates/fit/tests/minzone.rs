@@ -422,6 +422,9 @@ fn timings_10k_100k() {
     for n in [10_000usize, 100_000] {
         let p = plane_set(1, n, 0.005);
         let t = std::time::Instant::now();
+        let _ = truepos_fit::plane(&p).unwrap();
+        eprintln!("ls plane n={n}: {:.1} ms", t.elapsed().as_secs_f64() * 1e3);
+        let t = std::time::Instant::now();
         let z = minzone::plane_zone(&p).unwrap();
         eprintln!(
             "plane   n={n}: {:.1} ms, form {:.6} mm, {} steps",
