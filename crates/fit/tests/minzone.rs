@@ -107,7 +107,7 @@ fn inside_hull2(p: &[[f64; 2]], c: [f64; 2]) -> bool {
 fn brute_circle(p: &[[f64; 2]]) -> (f64, f64, f64) {
     let n = p.len();
     let (mut mz, mut mic, mut mcc) = (f64::INFINITY, 0.0f64, f64::INFINITY);
-    let mut try_c = |c: [f64; 2], mz: &mut f64, mic: &mut f64, mcc: &mut f64| {
+    let try_c = |c: [f64; 2], mz: &mut f64, mic: &mut f64, mcc: &mut f64| {
         let (lo, hi) = range2(p, c);
         *mz = mz.min(hi - lo);
         *mcc = mcc.min(hi);

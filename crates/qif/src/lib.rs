@@ -594,7 +594,7 @@ pub fn read_plan(text: &str, kind: FeatureKind) -> Result<Plan, PlanError> {
                 }
             },
         };
-        if !(scale > 0.0) {
+        if scale.is_nan() || scale <= 0.0 {
             return Err(at(&doc, lu, "the linear unit's conversion factor is not positive".into()));
         }
         plan.unit = name;
