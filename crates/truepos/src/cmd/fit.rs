@@ -315,7 +315,7 @@ pub fn evaluation_json(e: &Evaluation) -> Value {
             "nominal_mm": d.tolerance.nominal,
             "lower_deviation_mm": d.tolerance.lower,
             "upper_deviation_mm": d.tolerance.upper,
-            "actual_mm": d.tolerance.nominal + d.deviation,
+            "actual_mm": e.radius.map_or(d.tolerance.nominal + d.deviation, |r| 2.0 * r),
             "deviation_mm": d.deviation,
             "decision_rule": d.rule.name(),
             "verdict": d.verdict.name(),
