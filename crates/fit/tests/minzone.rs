@@ -444,3 +444,35 @@ fn timings_10k_100k() {
         );
     }
 }
+
+mod invariants {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        /// The minimum zone is never wider than the least-squares element's zone; the inscribed
+        /// radius ≤ the zone's inner radius … ≤ the circumscribed radius; the reported zones
+        /// hold every point.
+        #[test]
+        fn zone_orderings(seed in 0u64..10_000, n in 8usize..60, dev in 1e-4f64..0.05) {
+            let q: Vec<Point3> = circle_set(seed, n, 20.0, dev).iter().map(|a| Point3::new(a[0], a[1], 1.0)).collect();
+            let ls = truepos_fit::circle(&q).unwrap();
+            let z = minzone::circle_fit(&q, Criterion::MinimumZone).unwrap();
+            let i = minzone::circle_fit(&q, Criterion::MaximumInscribed).unwrap();
+            let o = minzone::circle_fit(&q, Criterion::MinimumCircumscribed).unwrap();
+            prop_assert!(z.form <= ls.form + 1e-12);
+            prop_assert!(i.radius <= ls.radius + 1e-12 && ls.radius <= o.radius + 1e-12);
+            prop_assert!(i.form >= z.form - 1e-12 && o.form >= z.form - 1e-12);
+            for p in &q {
+                let r = (p - o.center).norm();
+                prop_assert!(r <= o.radius + 1e-12);
+                prop_assert!((p - i.center).norm() >= i.radius - 1e-12);
+            }
+            let p = plane_set(seed, n, dev);
+            let lsp = truepos_fit::plane(&p).unwrap();
+            let zp = minzone::plane_zone(&p).unwrap();
+            prop_assert!(zp.form <= lsp.form + 1e-12);
+        }
+    }
+}

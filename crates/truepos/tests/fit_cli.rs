@@ -388,6 +388,13 @@ fn degenerate_data_beyond_exact_integers() {
     let (code, _, err) = run(&["plane", "--json"], &f);
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("collinear"), "{err}");
+    // An open arc has no bounded inscribed circle.
+    let arc: Vec<[f64; 3]> =
+        (0..20).map(|i| [10.0 * (i as f64 * 0.05).cos(), 10.0 * (i as f64 * 0.05).sin(), 0.0]).collect();
+    let f = write_csv(dir.path(), "arc.csv", &arc);
+    let (code, _, err) = run(&["circle", "--method", "mic", "--json"], &f);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("inscribed") && err.contains("arc.csv"), "{err}");
     // Identical points at large coordinates.
     let same = vec![[1234.5678, -9876.54321, 0.1]; 7];
     let f = write_csv(dir.path(), "same.csv", &same);
