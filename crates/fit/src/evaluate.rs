@@ -167,7 +167,7 @@ pub struct Evaluation {
     pub form: f64,
     /// Chebyshev circles, spheres, cylinders: the zone's inner and outer radius, mm.
     pub zone_radii: Option<(f64, f64)>,
-    /// Standard uncertainties: least-squares fits only.
+    /// Standard uncertainties: least-squares fits with more residuals than parameters only.
     pub uncertainty: Option<Uncertainty>,
     /// Least-squares expanded uncertainty of the diameter (used as the guard band).
     pub diameter_expanded_uncertainty: Option<f64>,
@@ -317,8 +317,20 @@ fn ls(kind: Kind, points: &[Point3]) -> Result<Evaluation, FitError> {
             ];
         }
     }
-    e.diameter_expanded_uncertainty = u.radius.map(|r| 2.0 * COVERAGE_FACTOR * r);
-    e.uncertainty = Some(u);
+    // σ̂² = SSR/(n − p) needs n > p: with as many residuals as parameters the fit is exact
+    // whatever the noise, and its uncertainty is not determined (not zero).
+    let (n, p) = match kind {
+        Kind::Line => (2 * points.len(), 4),
+        Kind::Plane => (points.len(), 3),
+        Kind::Circle => (points.len(), 3),
+        Kind::Sphere => (points.len(), 4),
+        Kind::Cylinder => (points.len(), 5),
+        Kind::Cone => (points.len(), 6),
+    };
+    if n > p {
+        e.diameter_expanded_uncertainty = u.radius.map(|r| 2.0 * COVERAGE_FACTOR * r);
+        e.uncertainty = Some(u);
+    }
     Ok(e)
 }
 

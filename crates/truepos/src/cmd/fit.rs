@@ -291,6 +291,9 @@ pub fn evaluation_json(e: &Evaluation) -> Value {
         m.insert("outer_radius_mm".into(), json!(o));
     }
     for (k, v) in &e.extras {
+        if e.uncertainty.is_none() && k.contains("uncertainty") {
+            continue;
+        }
         m.insert((*k).into(), if *k == "iterations" { json!(*v as u64) } else { json!(v) });
     }
     if let Some(u) = &e.uncertainty {
@@ -307,6 +310,11 @@ pub fn evaluation_json(e: &Evaluation) -> Value {
         m.insert("uncertainty".into(), uncertainty_json(u));
         m.insert("coverage_factor".into(), json!(COVERAGE_FACTOR));
         m.insert("expanded_uncertainty".into(), uncertainty_json(&u.scaled(COVERAGE_FACTOR)));
+    } else if e.method == Method::LeastSquares {
+        m.insert(
+            "uncertainty_note".into(),
+            json!("not determined: as many residuals as parameters (n − p = 0), the fit is exact whatever the noise"),
+        );
     }
     let mut chars = Vec::new();
     if let Some(d) = &e.size_decision {
