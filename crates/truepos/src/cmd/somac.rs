@@ -169,6 +169,8 @@ pub fn autoscale(a: AutoscaleArgs) -> Result<Outcome> {
         print_json(&json!({
             "scale": f.scale,
             "scale_uncertainty": f.u_scale,
+            "coverage_factor": truepos_fit::evaluate::COVERAGE_FACTOR,
+            "expanded_uncertainty": {"scale": truepos_fit::evaluate::COVERAGE_FACTOR * f.u_scale},
             "scale_ppm": (f.scale - 1.0) * 1e6,
             "expected_scale": expected,
             "discrepancy_ppm": discrepancy,
