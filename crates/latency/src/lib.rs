@@ -308,7 +308,8 @@ pub fn estimate(s: &Streams, opt: &Options) -> Result<Estimate, LatencyError> {
     let (residual_delay, u_delay, rms, n_contacts, evidence) = if method == Method::Scan {
         let r = scan::scan_delay(s, opt.threshold, opt.max_delay)?;
         if opt.per_axis {
-            warnings.push("--per-axis is not available with the scan method; use touches along each axis".into());
+            warnings
+                .push("--per-axis is not available with the scan method; use touches along each axis".into());
         }
         (r.delay, r.u_delay, r.rms_after, 1, Evidence::Scan(r))
     } else {
@@ -325,7 +326,9 @@ pub fn estimate(s: &Streams, opt: &Options) -> Result<Estimate, LatencyError> {
         }
         let approach = contacts.iter().filter(|c| c.phase == Phase::Approach).count();
         if approach > 0 {
-            warnings.push(format!("{approach} contact(s) without usable retract data: extrapolated on approach data"));
+            warnings.push(format!(
+                "{approach} contact(s) without usable retract data: extrapolated on approach data"
+            ));
         }
         let mut feature = "";
         let mut per_contact = Vec::new();

@@ -75,11 +75,7 @@ fn run(variant: Variant, method: Method, delay: f64, seed: u64, repeats: usize, 
         e.warnings
     );
     assert!(err.abs() < tol, "{variant:?}: error {err:e} s beyond {tol:e} s");
-    assert!(
-        err.abs() < 3.0 * e.u_delay,
-        "{variant:?}: error {err:e} s beyond 3 u = {:e} s",
-        3.0 * e.u_delay
-    );
+    assert!(err.abs() < 3.0 * e.u_delay, "{variant:?}: error {err:e} s beyond 3 u = {:e} s", 3.0 * e.u_delay);
     if let Some(s0) = e.static_size() {
         if method == Method::Speeds {
             // Static size from the intercept: within a few µm of the artefact (u ≈ 1 µm).

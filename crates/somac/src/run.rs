@@ -353,7 +353,7 @@ impl<C: Controller, T: Tracker, E: Cell> Loop<'_, C, T, E> {
                 "inclination changed by {dincl:.1} µrad{when} (limit {})",
                 self.params.inclination_limit_urad
             ),
-            "re-align self.trackers and re-orient",
+            "re-align trackers and re-orient",
         )?;
         self.realign(line)?;
         self.st.incl_base = incl;

@@ -13,9 +13,7 @@ use serde_json::json;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use truepos_head::file::{head_error, read_input, Input};
-use truepos_head::{
-    beam_direction, machine_to_table, solve, surface_point, HeadOffset, Params, Reference,
-};
+use truepos_head::{beam_direction, machine_to_table, solve, surface_point, HeadOffset, Params, Reference};
 use truepos_io::atomic::AtomicFile;
 use truepos_io::csv::CsvWriter;
 use truepos_io::InputError;

@@ -242,11 +242,7 @@ pub fn run(a: Args) -> Result<Outcome> {
         print_json(&estimate_json(&e, &opt))?;
     } else {
         println!("method        {}", e.method().name());
-        println!(
-            "delay         {:+.3} µs ± {:.3} µs (standard uncertainty)",
-            e.delay * 1e6,
-            e.u_delay * 1e6
-        );
+        println!("delay         {:+.3} µs ± {:.3} µs (standard uncertainty)", e.delay * 1e6, e.u_delay * 1e6);
         if opt.already_corrected != 0.0 {
             println!(
                 "residual      {:+.3} µs (data already corrected by {:+.3} µs)",
