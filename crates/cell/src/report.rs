@@ -51,7 +51,7 @@ impl Report {
         let path = self.dir.join("index.html");
         truepos_io::atomic::write_atomic(&path, html.as_bytes())?;
         let summary = serde_json::to_vec_pretty(&self.summary())?;
-        truepos_io::atomic::write_atomic(&self.dir.join("summary.json"), &summary)?;
+        truepos_io::atomic::write_atomic(self.dir.join("summary.json"), &summary)?;
         Ok(path)
     }
 

@@ -1,9 +1,12 @@
 //! The stream files of delay calibration, defined once: [`read_stream`] reads `t_s` and three
 //! value columns of a CSV; [`input_error`] turns a [`LatencyError`] about a stream into an input
-//! error naming the file and line.
+//! error naming the file and line; [`write_centres`] writes the stylus centres of
+//! `truepos latency apply`.
 
 use crate::{LatencyError, Which};
+use std::io::Write;
 use std::path::Path;
+use truepos_io::atomic::AtomicFile;
 use truepos_io::csv::Table;
 use truepos_io::InputError;
 
@@ -55,4 +58,41 @@ pub fn input_error(e: LatencyError, machine: &StreamFile, probe: &StreamFile) ->
         LatencyError::NoContact(_) => InputError::in_file(&probe.table.path, e.to_string()),
         _ => InputError::new(e.to_string()),
     }
+}
+
+/// Write stylus-centre positions at the probe stamps (`t_s,x_mm,y_mm,z_mm`, then the probe file's
+/// other columns unchanged), atomically; rows whose centre is NaN (machine data not covering
+/// `t + delay`) are left out.
+pub fn write_centres(path: &Path, delay_s: f64, probe: &StreamFile, out: &[[f64; 3]]) -> std::io::Result<()> {
+    // Pass through the probe file's other columns.
+    let used = ["t_s", "a_mm", "b_mm", "c_mm", "x_mm", "y_mm", "z_mm"];
+    let extra: Vec<usize> =
+        (0..probe.table.header.len()).filter(|&i| !used.contains(&probe.table.header[i].as_str())).collect();
+    let mut f = AtomicFile::create(path)?;
+    {
+        let mut w = truepos_io::csv::CsvWriter::new(std::io::BufWriter::new(&mut f));
+        w.comment(&format!("stylus centre = machine(t + {} s) + deflection(t)", delay_s))?;
+        let mut names: Vec<&str> = vec!["t_s", "x_mm", "y_mm", "z_mm"];
+        names.extend(extra.iter().map(|&i| probe.table.header[i].as_str()));
+        w.header(&names)?;
+        let mut buf = Vec::new();
+        for (i, p) in out.iter().enumerate() {
+            if p[0].is_nan() {
+                continue;
+            }
+            w.field_f64(probe.t[i])?;
+            for x in p {
+                w.field_f64(*x)?;
+            }
+            if !extra.is_empty() {
+                let fields = probe.table.fields(i, &mut buf).map_err(std::io::Error::other)?;
+                for &c in &extra {
+                    w.field_str(fields[c])?;
+                }
+            }
+            w.end_row()?;
+        }
+        w.into_inner().flush()?;
+    }
+    f.commit()
 }

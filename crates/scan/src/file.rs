@@ -1,12 +1,18 @@
-//! The features file of `truepos scan` (TOML: `[[feature]]` tables and top-level scan
-//! parameters), defined once: [`FeaturesFile`], read by [`read_features`] with
-//! [`ParamOverrides`] (the command line's options of the same names). Unknown keys are errors;
+//! The files of `truepos scan`, each defined once: the features file (TOML: `[[feature]]`
+//! tables and top-level scan parameters; [`FeaturesFile`], read by [`read_features`] with
+//! [`ParamOverrides`], the command line's options of the same names), the planned path CSV
+//! ([`write_path`]) and the measured points CSV ([`write_points`]). Unknown keys are errors;
 //! errors name the file, and the line of the feature's `id` where there is one.
 
+use crate::execute::Run;
 use crate::feature::{validate, Feature, Geometry, Params, Side};
+use crate::plan::{PathSample, Plan};
 use crate::ScanError;
 use serde::Deserialize;
+use std::io::Write;
 use std::path::Path;
+use truepos_io::atomic::AtomicFile;
+use truepos_io::csv::CsvWriter;
 use truepos_io::InputError;
 use truepos_math::{Point3, Vector3};
 
@@ -163,6 +169,76 @@ pub fn read_features(path: &Path, c: &ParamOverrides) -> Result<(Vec<Feature>, P
         Err(e @ ScanError::ApproachAngle(_)) => Err(FeaturesError::Usage(e)),
         Err(e) => Err(InputError::in_file(path, e.to_string()).into()),
     }
+}
+
+/// Write a planned path as the contract's CSV (`t_s,x_mm,y_mm,z_mm,segment,feature,speed_mm_s`),
+/// atomically; `style` names the style in the comment line.
+pub fn write_path(path: &Path, pl: &Plan, samples: &[PathSample], style: &str) -> std::io::Result<()> {
+    let mut f = AtomicFile::create(path)?;
+    {
+        let mut w = CsvWriter::new(std::io::BufWriter::new(&mut f));
+        w.comment(&format!("truepos scan plan, style {}: commanded probe (tip centre) path", style))?;
+        w.header(&["t_s", "x_mm", "y_mm", "z_mm", "segment", "feature", "speed_mm_s"])?;
+        for s in samples {
+            let seg = &pl.segments[s.segment];
+            w.field_f64(s.t)?;
+            w.field_f64(s.position.x)?;
+            w.field_f64(s.position.y)?;
+            w.field_f64(s.position.z)?;
+            w.field_str(seg.kind.as_str())?;
+            w.field_str(&pl.features[seg.feature].id)?;
+            w.field_f64(s.speed)?;
+            w.end_row()?;
+        }
+        w.into_inner().flush()?;
+    }
+    f.commit()
+}
+
+/// Write measured points as the contract's CSV (`t_s,x_mm,y_mm,z_mm,segment,feature,
+/// deflection_mm,quality,target_deflection_mm`), atomically.
+pub fn write_points(
+    path: &Path,
+    r: &Run,
+    features: &[Feature],
+    params: &Params,
+    style: &str,
+) -> std::io::Result<()> {
+    let mut f = AtomicFile::create(path)?;
+    {
+        let mut w = CsvWriter::new(std::io::BufWriter::new(&mut f));
+        w.comment(&format!(
+            "truepos scan run, style {}: measured tip centre (scale + probe deflection); quality 0/5/9 from |deflection - target| in bands {} / {} mm",
+            style,
+            params.quality_bands[0],
+            params.quality_bands[1]
+        ))?;
+        w.header(&[
+            "t_s",
+            "x_mm",
+            "y_mm",
+            "z_mm",
+            "segment",
+            "feature",
+            "deflection_mm",
+            "quality",
+            "target_deflection_mm",
+        ])?;
+        for q in &r.points {
+            w.field_f64(q.t)?;
+            w.field_f64(q.position.x)?;
+            w.field_f64(q.position.y)?;
+            w.field_f64(q.position.z)?;
+            w.field_str(q.segment.as_str())?;
+            w.field_str(&features[q.feature].id)?;
+            w.field_f64(q.deflection)?;
+            w.field_str(&q.quality.to_string())?;
+            w.field_f64(q.target)?;
+            w.end_row()?;
+        }
+        w.into_inner().flush()?;
+    }
+    f.commit()
 }
 
 #[cfg(test)]

@@ -18,7 +18,7 @@ use truepos_io::atomic::AtomicFile;
 use truepos_io::csv::CsvWriter;
 use truepos_io::InputError;
 use truepos_math::{Point3, Vector3};
-use truepos_sim::scenario::head_offset::{self as sim, HeadOffsetConfig, HeadOffsetData, Variant};
+use truepos_sim::scenario::head_offset::{self as sim, HeadOffsetConfig, Variant};
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RefKind {
@@ -409,81 +409,13 @@ fn apply(a: ApplyArgs) -> Result<Outcome> {
     Ok(Outcome::Done)
 }
 
-/// Write `points.csv` (contract columns) for a simulated data set.
-fn write_points(path: &Path, d: &HeadOffsetData, command: &str) -> Result<()> {
-    let laser = d.rows.iter().any(|r| r.dist_mm.is_some());
-    let vertex = d.rows.iter().any(|r| r.face.is_some());
-    let mut file = create_output(path)?;
-    {
-        let mut w = CsvWriter::new(&mut file);
-        w.comment("truepos simulate head-offset: raw head reference points P reported by the NC")?;
-        w.comment(&format!("calibrate with: {command}"))?;
-        let mut header = vec!["b_deg", "c_deg", "x_mm", "y_mm", "z_mm"];
-        if laser {
-            header.push("dist_mm");
-        }
-        if vertex {
-            header.push("face");
-        }
-        header.push("group");
-        w.header(&header)?;
-        for r in &d.rows {
-            w.field_f64(r.b_deg)?;
-            w.field_f64(r.c_deg)?;
-            w.field_f64(r.x_mm)?;
-            w.field_f64(r.y_mm)?;
-            w.field_f64(r.z_mm)?;
-            if laser {
-                w.field_f64(r.dist_mm.unwrap_or(0.0))?;
-            }
-            if vertex {
-                w.field_str(&r.face.map_or(String::new(), |f| f.to_string()))?;
-            }
-            w.field_str(&r.group.to_string())?;
-            w.end_row()?;
-        }
-    }
-    file.commit()?;
-    Ok(())
-}
-
-/// The `truepos head-offset` command line that calibrates a simulated data set.
-fn suggested_command(d: &HeadOffsetData, points: &Path) -> String {
-    let t = &d.truth;
-    let c = t.table_center_mm;
-    let mut cmd = format!(
-        "truepos head-offset --points {} --table-center-mm {},{},{}",
-        points.display(),
-        c[0],
-        c[1],
-        c[2]
-    );
-    if t.variant_reference == "vertex" {
-        cmd.push_str(" --reference vertex");
-    }
-    if let Some(tip) = t.tip_radius_mm {
-        cmd.push_str(&format!(" --tip-radius-mm {tip}"));
-    }
-    if let Some(a) = t.tilt_deg {
-        cmd.push_str(&format!(" --tilt-deg {},{}", a[0], a[1]));
-    }
-    cmd
-}
-
 pub fn simulate(args: SimArgs) -> Result<Outcome> {
     let cfg = HeadOffsetConfig::preset(args.variant.sim(), args.common.seed);
     let d = sim::simulate(&cfg).map_err(|e| UsageError(e.to_string()))?;
-    std::fs::create_dir_all(&args.common.out).map_err(|e| {
-        InputError::in_file(&args.common.out, format!("cannot create the output directory: {e}"))
-    })?;
-    let points = args.common.out.join("points.csv");
-    let command = suggested_command(&d, &points);
-    write_points(&points, &d, &command)?;
-    let truth = args.common.out.join("truth.json");
-    let mut text = serde_json::to_string_pretty(&d.truth)?;
-    text.push('\n');
-    truepos_io::atomic::write_atomic(&truth, text.as_bytes())?;
-    eprintln!("wrote {} and {} ({} readings)", points.display(), truth.display(), d.rows.len());
-    eprintln!("calibrate with: {command}");
+    // Where the data set cannot be written is the user's choice of --out: an input error.
+    let w = truepos_cell::scenarios::head::write_dataset(&args.common.out, &d)
+        .map_err(|e| InputError::in_file(&args.common.out, format!("{e:#}")))?;
+    eprintln!("wrote {} and {} ({} readings)", w.points.display(), w.truth.display(), d.rows.len());
+    eprintln!("calibrate with: {}", w.command);
     Ok(Outcome::Done)
 }

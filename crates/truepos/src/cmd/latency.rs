@@ -13,9 +13,7 @@ use crate::output::print_json;
 use crate::{Outcome, UsageError};
 use anyhow::{Context, Result};
 use serde_json::json;
-use std::io::Write;
 use std::path::PathBuf;
-use truepos_io::atomic::AtomicFile;
 use truepos_io::InputError;
 use truepos_latency::file::{input_error, read_stream};
 use truepos_latency::{self as lat, KnownSize, Method, Options, Streams};
@@ -294,38 +292,8 @@ fn apply(a: ApplyArgs) -> Result<Outcome> {
         )
         .into());
     }
-    // Pass through the probe file's other columns.
-    let used = ["t_s", "a_mm", "b_mm", "c_mm", "x_mm", "y_mm", "z_mm"];
-    let extra: Vec<usize> =
-        (0..probe.table.header.len()).filter(|&i| !used.contains(&probe.table.header[i].as_str())).collect();
-    let mut f =
-        AtomicFile::create(&a.output).with_context(|| format!("cannot create {}", a.output.display()))?;
-    {
-        let mut w = truepos_io::csv::CsvWriter::new(std::io::BufWriter::new(&mut f));
-        w.comment(&format!("stylus centre = machine(t + {} s) + deflection(t)", a.delay_s))?;
-        let mut names: Vec<&str> = vec!["t_s", "x_mm", "y_mm", "z_mm"];
-        names.extend(extra.iter().map(|&i| probe.table.header[i].as_str()));
-        w.header(&names)?;
-        let mut buf = Vec::new();
-        for (i, p) in out.iter().enumerate() {
-            if p[0].is_nan() {
-                continue;
-            }
-            w.field_f64(probe.t[i])?;
-            for x in p {
-                w.field_f64(*x)?;
-            }
-            if !extra.is_empty() {
-                let fields = probe.table.fields(i, &mut buf)?;
-                for &c in &extra {
-                    w.field_str(fields[c])?;
-                }
-            }
-            w.end_row()?;
-        }
-        w.into_inner().flush()?;
-    }
-    f.commit().with_context(|| format!("cannot write {}", a.output.display()))?;
+    truepos_latency::file::write_centres(&a.output, a.delay_s, &probe, &out)
+        .with_context(|| format!("cannot write {}", a.output.display()))?;
     let skipped = out.len() - n_ok;
     if skipped > 0 {
         eprintln!("warning: {skipped} probe row(s) skipped: the machine data does not cover t + delay there");

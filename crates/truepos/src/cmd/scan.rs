@@ -10,11 +10,8 @@ use crate::output::{parse_pair, print_json};
 use crate::{DeviceError, Outcome, UsageError};
 use anyhow::{Context, Result};
 use serde_json::json;
-use std::io::Write;
 use std::path::PathBuf;
 use truepos_cell::scanning_cmm::{read_machine_file, run_scan, CmmConfig};
-use truepos_io::atomic::AtomicFile;
-use truepos_io::csv::CsvWriter;
 use truepos_io::InputError;
 use truepos_scan::execute::{ControlParams, Run as ScanRun};
 use truepos_scan::file::{read_features, FeaturesError, ParamOverrides};
@@ -204,29 +201,8 @@ fn run_plan(a: PlanArgs) -> Result<Outcome> {
         .into());
     }
     let samples = pl.sample(a.dt_s);
-    let mut f =
-        AtomicFile::create(&a.output).with_context(|| format!("cannot create {}", a.output.display()))?;
-    {
-        let mut w = CsvWriter::new(std::io::BufWriter::new(&mut f));
-        w.comment(&format!(
-            "truepos scan plan, style {}: commanded probe (tip centre) path",
-            style_name(style)
-        ))?;
-        w.header(&["t_s", "x_mm", "y_mm", "z_mm", "segment", "feature", "speed_mm_s"])?;
-        for s in &samples {
-            let seg = &pl.segments[s.segment];
-            w.field_f64(s.t)?;
-            w.field_f64(s.position.x)?;
-            w.field_f64(s.position.y)?;
-            w.field_f64(s.position.z)?;
-            w.field_str(seg.kind.as_str())?;
-            w.field_str(&features[seg.feature].id)?;
-            w.field_f64(s.speed)?;
-            w.end_row()?;
-        }
-        w.into_inner().flush()?;
-    }
-    f.commit().with_context(|| format!("cannot write {}", a.output.display()))?;
+    truepos_scan::file::write_path(&a.output, &pl, &samples, style_name(style))
+        .with_context(|| format!("cannot write {}", a.output.display()))?;
     let per = plan_feature_times(&pl);
     if a.common.json {
         print_json(&json!({
@@ -287,42 +263,8 @@ fn run_run(a: RunArgs) -> Result<Outcome> {
         ScanError::Invalid(m) => anyhow::Error::new(InputError::in_file(&a.common.features, m)),
         other => anyhow::Error::new(DeviceError(format!("execution failed: {other}"))),
     })?;
-    let mut f =
-        AtomicFile::create(&a.output).with_context(|| format!("cannot create {}", a.output.display()))?;
-    {
-        let mut w = CsvWriter::new(std::io::BufWriter::new(&mut f));
-        w.comment(&format!(
-            "truepos scan run, style {}: measured tip centre (scale + probe deflection); quality 0/5/9 from |deflection - target| in bands {} / {} mm",
-            style_name(style),
-            params.quality_bands[0],
-            params.quality_bands[1]
-        ))?;
-        w.header(&[
-            "t_s",
-            "x_mm",
-            "y_mm",
-            "z_mm",
-            "segment",
-            "feature",
-            "deflection_mm",
-            "quality",
-            "target_deflection_mm",
-        ])?;
-        for q in &r.points {
-            w.field_f64(q.t)?;
-            w.field_f64(q.position.x)?;
-            w.field_f64(q.position.y)?;
-            w.field_f64(q.position.z)?;
-            w.field_str(q.segment.as_str())?;
-            w.field_str(&features[q.feature].id)?;
-            w.field_f64(q.deflection)?;
-            w.field_str(&q.quality.to_string())?;
-            w.field_f64(q.target)?;
-            w.end_row()?;
-        }
-        w.into_inner().flush()?;
-    }
-    f.commit().with_context(|| format!("cannot write {}", a.output.display()))?;
+    truepos_scan::file::write_points(&a.output, &r, &features, &params, style_name(style))
+        .with_context(|| format!("cannot write {}", a.output.display()))?;
     if a.common.json {
         print_json(&run_json(&r, style))?;
     } else {
