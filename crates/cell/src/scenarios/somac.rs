@@ -2,9 +2,9 @@
 //! trackers ([`crate::gantry`]), its cell file (`cell.toml`), the run on the virtual cell with the
 //! true hole errors, the data set with its `truth.json`, and the demo section.
 //!
-//! Entry points: [`CellFile`] (the cell file: virtual gantry, trackers, part targets and the
-//! loop's `[loop]` parameters), [`scenario`], [`run_virtual`], [`write_scenario`],
-//! [`demo_section`].
+//! Entry points: [`read_cell_file`] / [`CellFile`] (the cell file: virtual gantry, trackers,
+//! part targets and the loop's `[loop]` parameters), [`scenario`], [`run_virtual`],
+//! [`write_scenario`], [`demo_section`].
 
 use crate::gantry::{CellConfig, Obstruction, TrackerConfig, VirtualCell};
 use crate::report::{self, Report, Series};
@@ -377,6 +377,14 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
     );
     report.add("somac", "Laser-tracker end-point control of a large gantry", html);
     Ok(())
+}
+
+/// Read a cell file (`cell.toml`): the virtual cell, the part's targets and the loop
+/// parameters. Unknown keys and bad values name the file (and line and column where TOML
+/// parsing finds them).
+pub fn read_cell_file(path: &Path) -> Result<(CellConfig, Targets, Params), InputError> {
+    let file: CellFile = truepos_io::config::read_toml(path)?;
+    file.to_config(path)
 }
 
 /// What [`write_scenario`] wrote.

@@ -11,7 +11,7 @@ use anyhow::{Context, Result};
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
-use truepos_cell::scenarios::somac::{run_virtual, write_scenario, CellFile};
+use truepos_cell::scenarios::somac::{read_cell_file, run_virtual, write_scenario};
 use truepos_io::InputError;
 use truepos_somac::run::StopStatus;
 use truepos_somac::stats::{capability_ppm, hole_stats};
@@ -56,8 +56,7 @@ fn failing(report: &RunReport) -> bool {
 }
 
 pub fn run(a: RunArgs) -> Result<Outcome> {
-    let cell_file: CellFile = truepos_io::config::read_toml(&a.cell)?;
-    let (cfg, targets, mut params) = cell_file.to_config(&a.cell)?;
+    let (cfg, targets, mut params) = read_cell_file(&a.cell)?;
     if a.no_correct {
         params.correct = false;
     }
