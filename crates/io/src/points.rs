@@ -31,8 +31,7 @@ pub fn read_points(path: impl AsRef<Path>) -> Result<PointSet, InputError> {
 /// Read a NIST `.ds` file.
 pub fn read_ds(path: impl AsRef<Path>) -> Result<Vec<Point3>, InputError> {
     let path = path.as_ref();
-    let bytes =
-        crate::csv::read_file(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+    let bytes = crate::limits::read_text(path, ".ds")?;
     parse_ds(path, &bytes)
 }
 
