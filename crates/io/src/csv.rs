@@ -405,7 +405,8 @@ impl Table {
     /// Parse columns `idx` of every row into `out` (row-major, `idx.len()` values per row).
     fn parse_into(&self, idx: &[usize], out: &mut [f64]) -> Result<(), InputError> {
         let rows = Rows { text: self.text.as_bytes(), rows: &self.rows, width: self.header.len() };
-        rows.parse_into(idx, out).map_err(|e| e.into_input_error(&self.path, &self.header, |r| self.line_number(r)))
+        rows.parse_into(idx, out)
+            .map_err(|e| e.into_input_error(&self.path, &self.header, |r| self.line_number(r)))
     }
 
     /// As [`f64_columns`](Self::f64_columns), one `[f64; K]` per row, parsed in place (no
@@ -540,7 +541,10 @@ impl Rows<'_> {
         let first_error = if k == 0 {
             (0..n.div_ceil(CHUNK)).into_par_iter().filter_map(|c| work(c, &mut [])).min_by_key(|e| e.row)
         } else {
-            out.par_chunks_mut(CHUNK * k).enumerate().filter_map(|(c, dst)| work(c, dst)).min_by_key(|e| e.row)
+            out.par_chunks_mut(CHUNK * k)
+                .enumerate()
+                .filter_map(|(c, dst)| work(c, dst))
+                .min_by_key(|e| e.row)
         };
         match first_error {
             Some(e) => Err(e),

@@ -230,8 +230,8 @@ mod tests {
             assert_eq!(parse_f64(s).map(f64::to_bits), Some(want.to_bits()), "{s}");
         }
         for s in [
-            "", "-", ".", "+", "1.2.3", "1e5x", "--1", "1,5", "nan", "NaN", "inf", "-inf", "infinity", "1e400",
-            "0x10", "e5", " 1", "1 ",
+            "", "-", ".", "+", "1.2.3", "1e5x", "--1", "1,5", "nan", "NaN", "inf", "-inf", "infinity",
+            "1e400", "0x10", "e5", " 1", "1 ",
         ] {
             assert_eq!(parse_f64(s), None, "{s}");
         }

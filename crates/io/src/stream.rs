@@ -166,7 +166,8 @@ fn reader_thread(path: PathBuf, mut file: std::fs::File, tx: SyncSender<Result<B
                 Err(e) => {
                     let ok = &e.as_bytes()[..e.utf8_error().valid_up_to()];
                     let l = line + memchr::memchr_iter(b'\n', ok).count();
-                    let _ = tx.send(Err(InputError::at(&path, l, None, "not valid UTF-8 text: not a CSV file")));
+                    let _ =
+                        tx.send(Err(InputError::at(&path, l, None, "not valid UTF-8 text: not a CSV file")));
                     return;
                 }
             };
@@ -229,7 +230,12 @@ impl CsvStream {
                     let names: Vec<String> = f.iter().map(|&(a, b)| l[a..b].to_string()).collect();
                     for (i, n) in names.iter().enumerate() {
                         if n.is_empty() {
-                            return Err(InputError::at(&path, line, Some(i + 1), "empty column name in the header"));
+                            return Err(InputError::at(
+                                &path,
+                                line,
+                                Some(i + 1),
+                                "empty column name in the header",
+                            ));
                         }
                         if names[..i].contains(n) {
                             return Err(InputError::at(
@@ -298,7 +304,8 @@ impl CsvStream {
             };
             let mut rows = Vec::with_capacity(block.text.len() / 24 + 1);
             if let Some(bad) = index_rows(&block.text, 0, block.text.len(), &mut rows) {
-                let line = block.first_line + memchr::memchr_iter(b'\n', &block.text.as_bytes()[..bad]).count();
+                let line =
+                    block.first_line + memchr::memchr_iter(b'\n', &block.text.as_bytes()[..bad]).count();
                 return Err(limits::line_too_long(&self.path, line));
             }
             if rows.is_empty() {
@@ -617,14 +624,15 @@ mod tests {
         }
         let inp = write(dir.path(), "in.csv", &text);
         let out = dir.path().join("out.csv");
-        let sum = rewrite_points(&inp, &out, ["dx_um", "dy_um", "dz_um"], Default::default(), |first, p, e| {
-            for (k, (q, d)) in p.iter_mut().zip(e.iter_mut()).enumerate() {
-                q.x += 1.0;
-                *d = [(first + k) as f64, 0.25, -1.0];
-            }
-            Ok(())
-        })
-        .unwrap();
+        let sum =
+            rewrite_points(&inp, &out, ["dx_um", "dy_um", "dz_um"], Default::default(), |first, p, e| {
+                for (k, (q, d)) in p.iter_mut().zip(e.iter_mut()).enumerate() {
+                    q.x += 1.0;
+                    *d = [(first + k) as f64, 0.25, -1.0];
+                }
+                Ok(())
+            })
+            .unwrap();
         assert_eq!(sum.n_points, n);
         assert!(sum.n_chunks >= 2);
         let t = crate::csv::Table::read(&out).unwrap();

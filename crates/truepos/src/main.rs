@@ -47,7 +47,11 @@ fn exit_code(err: &anyhow::Error) -> u8 {
         }
         // An output error carried inside an io::Error by a library that returns io::Result.
         if let Some(io) = cause.downcast_ref::<std::io::Error>() {
-            if io.get_ref().and_then(|i| i.downcast_ref::<truepos_io::atomic::OutputError>()).is_some_and(|o| o.is_path()) {
+            if io
+                .get_ref()
+                .and_then(|i| i.downcast_ref::<truepos_io::atomic::OutputError>())
+                .is_some_and(|o| o.is_path())
+            {
                 return 2;
             }
         }
@@ -61,7 +65,9 @@ fn exit_code(err: &anyhow::Error) -> u8 {
 /// True when the error is a write to a closed pipe (`truepos … --json | head -c 10`): the
 /// reader has gone, nothing is wrong with the work, and the process ends quietly.
 fn is_broken_pipe(err: &anyhow::Error) -> bool {
-    err.chain().any(|c| c.downcast_ref::<std::io::Error>().is_some_and(|e| e.kind() == std::io::ErrorKind::BrokenPipe))
+    err.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>().is_some_and(|e| e.kind() == std::io::ErrorKind::BrokenPipe)
+    })
 }
 
 /// `println!` panics when stdout is a closed pipe; that panic is the same quiet end.
@@ -70,7 +76,10 @@ fn is_broken_pipe_panic(msg: &str) -> bool {
 }
 
 fn panic_message(p: &(dyn std::any::Any + Send)) -> String {
-    p.downcast_ref::<String>().cloned().or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string())).unwrap_or_default()
+    p.downcast_ref::<String>()
+        .cloned()
+        .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+        .unwrap_or_default()
 }
 
 fn main() -> ExitCode {
