@@ -17,6 +17,7 @@
 //! - [`num`]: exact fast float parsing, shortest round-trip and fixed-decimal formatting.
 //! - [`stream::CsvStream`]: CSV in chunks with constant memory, reading overlapped with work;
 //!   [`stream::BackgroundWriter`] for the output side.
+//! - [`parquet_file`]: Parquet point and stream files (same column names), read and written.
 //! - [`limits`]: bounds on every input (file size, line length, binary data).
 
 pub mod atomic;
@@ -25,6 +26,7 @@ pub mod csv;
 pub mod error;
 pub mod limits;
 pub mod num;
+pub mod parquet_file;
 pub mod points;
 pub mod stream;
 
