@@ -21,12 +21,15 @@
 //!   reported as not observable.
 //! - [`surface_point`] / [`beam_direction`]: the contract's forward model, used by
 //!   `truepos head-offset apply`.
+//! - [`acquire::probe_sphere`]: collect the points by probing a reference sphere through any
+//!   `truepos_device::ProbingMachine` (the virtual machine tool, LinuxCNC, a CMM).
 //!
 //! The classical methods are special cases of the one adjustment: head swivel only determines
 //! the offset components in the XZ plane (Y is not observable); table rotation only determines X
 //! and Y (the triangle of apparent centres about the known table centre; Z is not observable);
 //! any mix of both determines all three.
 
+pub mod acquire;
 pub mod init;
 
 use init::{algebraic_sphere, intersect_planes, linear_solve, plane_fit, Apparent};
