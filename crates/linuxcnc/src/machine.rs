@@ -405,6 +405,9 @@ impl LinuxCnc {
             None => Point3::from(self.get_vec3("abs_cmd_pos", what)?),
         };
         let dist = (target - from).norm();
+        if dist == 0.0 && self.commanded.is_some() {
+            return Ok(());
+        }
         let q = self.to_program(target);
         let (line, speed) = match feed_mm_min {
             Some(f) => (format!("G1 X{} Y{} Z{} F{:.3}", fmt_mm(q.x), fmt_mm(q.y), fmt_mm(q.z), f), f / 60.0),
@@ -498,7 +501,7 @@ impl ProbingMachine for LinuxCnc {
         check_request(&self.address, r)?;
         let start = r.start_mm();
         let end = r.end_mm();
-        self.move_to(start)?;
+        ProbingMachine::move_to(self, start)?;
         let f = r.feed_mm_s * 60.0;
         let what = format!("G38.2 probing move from {} to {} at F{f:.1}", fmt_point(&start), fmt_point(&end));
         let q = self.to_program(&end);

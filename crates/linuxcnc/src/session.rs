@@ -58,10 +58,6 @@ impl Session {
         }))
     }
 
-    pub fn address(&self) -> &str {
-        &self.address
-    }
-
     fn lost(&self, what: &str, message: String) -> DeviceError {
         DeviceError::ConnectionLost { address: self.address.clone(), what: what.to_string(), message }
     }
