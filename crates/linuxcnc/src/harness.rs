@@ -119,6 +119,37 @@ fn any_process_named(name: &str) -> bool {
     rd.flatten().any(|e| fs::read_to_string(e.path().join("comm")).map(|c| c.trim() == name).unwrap_or(false))
 }
 
+/// Stop LinuxCNCs left by a test process that was killed before it could stop them (their
+/// configuration directory names a process id that no longer exists): SIGTERM to their
+/// `linuxcncrsh`, found by that directory in its command line.
+fn reap_orphans() {
+    let Ok(rd) = fs::read_dir("/proc") else { return };
+    let marker = format!("{}/truepos-lcnc-", std::env::temp_dir().display());
+    let mut reaped = false;
+    for e in rd.flatten() {
+        let Some(pid) = e.file_name().to_str().and_then(|s| s.parse::<u32>().ok()) else { continue };
+        if fs::read_to_string(e.path().join("comm")).map(|c| c.trim() != "linuxcncrsh").unwrap_or(true) {
+            continue;
+        }
+        let Ok(cmdline) = fs::read(e.path().join("cmdline")) else { continue };
+        let cmdline = String::from_utf8_lossy(&cmdline).replace('\0', " ");
+        let Some(at) = cmdline.find(&marker) else { continue };
+        let owner: String = cmdline[at + marker.len()..].chars().take_while(|c| c.is_ascii_digit()).collect();
+        if owner.is_empty() || Path::new("/proc").join(&owner).exists() {
+            continue;
+        }
+        eprintln!("harness: stopping a LinuxCNC left by the killed test process {owner} (linuxcncrsh {pid})");
+        signal(&pid.to_string(), "-TERM");
+        reaped = true;
+    }
+    if reaped {
+        let t = Instant::now();
+        while any_process_named("linuxcnc") && t.elapsed() < Duration::from_secs(10) {
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+}
+
 fn set_key(text: &str, key: &str, value: &str) -> String {
     text.lines()
         .map(|l| {
@@ -223,6 +254,7 @@ impl SimLinuxCnc {
         } else {
             None
         };
+        reap_orphans();
         // Another LinuxCNC (not ours) would be killed by our start: wait for it, then give up.
         let lock = std::env::temp_dir().join("linuxcnc.lock");
         let t = Instant::now();
