@@ -14,7 +14,7 @@
 use rusqlite::{params, Connection};
 use std::path::Path;
 use thiserror::Error;
-use truepos_somac::audit::{AuditSink, Event};
+use truepos_somac::audit::{AuditSink, Event, SinkError};
 
 #[derive(Debug, Error)]
 pub enum AuditError {
@@ -23,9 +23,10 @@ pub enum AuditError {
 }
 
 /// Numbered, portable migrations.
-pub const MIGRATIONS: &[(i64, &str)] = &[(
-    1,
-    "CREATE TABLE runs (
+pub const MIGRATIONS: &[(i64, &str)] = &[
+    (
+        1,
+        "CREATE TABLE runs (
         id INTEGER PRIMARY KEY,
         started_at TEXT NOT NULL,
         program TEXT NOT NULL,
@@ -87,7 +88,14 @@ pub const MIGRATIONS: &[(i64, &str)] = &[(
         iterations INTEGER NOT NULL,
         time_s REAL NOT NULL
     );",
-)];
+    ),
+    (
+        2,
+        // The controller a run drove (address and version as it reports them).
+        "ALTER TABLE runs ADD COLUMN controller TEXT;
+         ALTER TABLE runs ADD COLUMN controller_version TEXT;",
+    ),
+];
 
 /// An audit trail in a SQLite file.
 pub struct SqliteAudit {
@@ -124,6 +132,24 @@ impl SqliteAudit {
         conn.execute("INSERT INTO runs (started_at, program) VALUES (?1, ?2)", params![started_at, program])?;
         let run_id = conn.last_insert_rowid();
         Ok(Self { conn, run_id, in_tx: false })
+    }
+
+    /// Record the controller this run drives: its address and version.
+    pub fn set_controller(&mut self, address: &str, version: &str) -> Result<(), AuditError> {
+        self.conn.execute(
+            "UPDATE runs SET controller = ?1, controller_version = ?2 WHERE id = ?3",
+            params![address, version, self.run_id],
+        )?;
+        Ok(())
+    }
+
+    /// The controller recorded for this run (address, version).
+    pub fn controller(&self) -> Result<(Option<String>, Option<String>), AuditError> {
+        Ok(self.conn.query_row(
+            "SELECT controller, controller_version FROM runs WHERE id = ?1",
+            params![self.run_id],
+            |r| Ok((r.get(0)?, r.get(1)?)),
+        )?)
     }
 
     pub fn run_id(&self) -> i64 {
@@ -215,7 +241,7 @@ impl SqliteAudit {
             Event::Alarm { line, kind, message, action, time_s } => {
                 self.conn.execute(
                     "INSERT INTO alarms VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
-                    params![id, *line as i64, kind, message, action, time_s],
+                    params![id, *line as i64, kind.as_str(), message, action, time_s],
                 )?;
             }
             Event::Orientation { line, reason, scale, rms_mm, time_s } => {
@@ -243,13 +269,13 @@ impl SqliteAudit {
 }
 
 impl AuditSink for SqliteAudit {
-    fn record(&mut self, event: &Event) -> Result<(), String> {
-        self.insert(event).map_err(|e| e.to_string())
+    fn record(&mut self, event: &Event) -> Result<(), SinkError> {
+        Ok(self.insert(event)?)
     }
 
-    fn commit(&mut self) -> Result<(), String> {
+    fn commit(&mut self) -> Result<(), SinkError> {
         if self.in_tx {
-            self.conn.execute_batch("COMMIT").map_err(|e| e.to_string())?;
+            self.conn.execute_batch("COMMIT")?;
             self.in_tx = false;
         }
         Ok(())
@@ -270,7 +296,7 @@ mod tests {
             a.record(&Event::Block { line: 1, text: "G0 X0".into(), time_s: 0.0 }).unwrap();
             a.record(&Event::Alarm {
                 line: 1,
-                kind: "k".into(),
+                kind: truepos_somac::run::AlarmKind::BeamBreak,
                 message: "m".into(),
                 action: "a".into(),
                 time_s: 0.1,

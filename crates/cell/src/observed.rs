@@ -10,11 +10,20 @@
 //! settle and drift on it); [`Observed::wait`] lets virtual time pass without holding the real
 //! machine. The real wall-clock time of every controller call is kept for reports.
 //!
-//! Entry point: [`Observed::new`]`(real, virtual_controller)`.
+//! Entry points: [`Observed::new`]`(real, virtual_controller)`; [`run_observed`]: the
+//! end-point control loop (`truepos somac run --controller …`) on a real controller with the
+//! virtual gantry cell's trackers, with the truth of every hole, the wall-clock time of every
+//! stop, and a controller failure recorded in the audit trail (alarm `controller_fault`, the
+//! stop in progress FAILURE) before it is returned.
 
+use crate::gantry::{CellConfig, VirtualCell};
+use std::collections::BTreeMap;
 use std::time::Instant;
 use truepos_device::{Controller, DeviceError, ProbingMachine};
 use truepos_math::{Point3, Vector3};
+use truepos_somac::audit::{AuditSink, Event, SinkError};
+use truepos_somac::run::{AlarmKind, RunError};
+use truepos_somac::{run_program, Params, RunReport};
 
 /// A real controller whose actual position the virtual cell follows.
 pub struct Observed<R, V> {
@@ -95,6 +104,131 @@ impl<R: Controller + ProbingMachine, V: Controller> Controller for Observed<R, V
     fn now_s(&self) -> f64 {
         self.virt.now_s()
     }
+}
+
+/// Forwards events and notes the wall-clock time of every stop result.
+struct Timing<'a> {
+    inner: &'a mut dyn AuditSink,
+    t0: Instant,
+    stops: Vec<(usize, f64)>,
+}
+
+impl AuditSink for Timing<'_> {
+    fn record(&mut self, event: &Event) -> Result<(), SinkError> {
+        if let Event::StopResult { line, .. } = event {
+            self.stops.push((*line, self.t0.elapsed().as_secs_f64()));
+        }
+        self.inner.record(event)
+    }
+    fn commit(&mut self) -> Result<(), SinkError> {
+        self.inner.commit()
+    }
+}
+
+/// A run of the loop on a real controller observed by the virtual cell.
+pub struct ObservedRun {
+    pub report: RunReport,
+    /// True hole errors (mm) per measurement line: where the real controller's actual position
+    /// put the drill point through the virtual structure, against the virtual part's hole.
+    pub true_errors: Vec<(usize, f64)>,
+    /// Wall-clock seconds of each stop (from the previous stop's end, or the start).
+    pub stop_wall_s: Vec<(usize, f64)>,
+    pub wall_s: f64,
+    /// Virtual-cell time of the run (s).
+    pub duration_s: f64,
+    pub diagonal_mm: f64,
+    pub moves: usize,
+}
+
+/// What [`run_observed`] returns when the controller failed: the error, after the audit trail
+/// has recorded it; the line it happened at and the stop marked FAILURE.
+#[derive(Debug)]
+pub struct Aborted {
+    pub error: RunError,
+    pub line: usize,
+    pub stop_line: Option<usize>,
+}
+
+/// Run `program_text` on `real` with the virtual gantry cell `cfg` (part `targets`) observing
+/// it. A controller failure aborts the run at once (no further motion): the audit trail gets an
+/// alarm `controller_fault` with the controller's message and a FAILURE for the stop in progress
+/// (the measurement line at or after the failing line), then the error is returned.
+pub fn run_observed<R: Controller + ProbingMachine>(
+    program_text: &str,
+    cfg: CellConfig,
+    targets: Vec<(String, Point3)>,
+    params: &Params,
+    real: R,
+    sink: &mut dyn AuditSink,
+) -> Result<ObservedRun, Aborted> {
+    let fail = |error: RunError| Aborted { error, line: 0, stop_line: None };
+    let program = truepos_gcode::Program::parse(program_text);
+    let cell = VirtualCell::new(cfg, targets);
+    let mut trackers = cell.align_trackers().map_err(|e| {
+        fail(RunError::Device(DeviceError::Tracker(
+            0,
+            format!("aligning the trackers on the machine targets: {e}"),
+        )))
+    })?;
+    let mut ctl = Observed::new(real, cell.controller());
+    let mut sensors = cell.sensors();
+    let holes: BTreeMap<usize, Point3> = program
+        .blocks()
+        .iter()
+        .filter(|b| b.target_mm.is_some() && b.has_keyword(&params.keyword))
+        .filter_map(|b| b.target_mm.map(|t| (b.line + 1, t)))
+        .collect();
+    let t0 = Instant::now();
+    let mut timing = Timing { inner: sink, t0, stops: vec![] };
+    let result = run_program(&program, &mut ctl, &mut trackers, &mut sensors, params, &mut timing);
+    let report = match result {
+        Ok(r) => r,
+        Err(error @ RunError::Device(_)) => {
+            let line = ctl.line;
+            let stop_line = holes.range(line..).next().map(|(l, _)| *l);
+            let message = error.to_string();
+            let now = ctl.now_s();
+            let sink = timing.inner;
+            let _ = sink.record(&Event::Alarm {
+                line,
+                kind: AlarmKind::ControllerFault,
+                message,
+                action: "run aborted: no further motion".into(),
+                time_s: now,
+            });
+            if let Some(l) = stop_line {
+                let _ = sink.record(&Event::StopResult {
+                    line: l,
+                    status: "FAILURE".into(),
+                    final_error_mm: f64::NAN,
+                    iterations: 0,
+                    time_s: now,
+                });
+            }
+            let _ = sink.commit();
+            return Err(Aborted { error, line, stop_line });
+        }
+        Err(e) => return Err(fail(e)),
+    };
+    let mut last = 0.0;
+    let stop_wall_s = timing
+        .stops
+        .iter()
+        .map(|(l, t)| {
+            let d = t - last;
+            last = *t;
+            (*l, d)
+        })
+        .collect();
+    Ok(ObservedRun {
+        report,
+        true_errors: cell.hole_errors(&holes),
+        stop_wall_s,
+        wall_s: t0.elapsed().as_secs_f64(),
+        duration_s: cell.time_s(),
+        diagonal_mm: cell.diagonal_mm(),
+        moves: ctl.moves,
+    })
 }
 
 #[cfg(test)]

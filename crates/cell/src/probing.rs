@@ -60,6 +60,27 @@ impl Default for MachineToolConfig {
     }
 }
 
+impl MachineToolConfig {
+    /// A machine whose one reference sphere is set up near a nominal one (centre, radius) as a
+    /// real setup would be: displaced by a seeded error of σ = 0.1 mm per axis, its radius a few
+    /// µm off nominal; the stylus ball has the nominal tip radius; the machine starts 50 mm above
+    /// the sphere with ±500 mm of travel around it.
+    pub fn near(seed: u64, centre: Point3, radius: f64, tip_radius: f64) -> MachineToolConfig {
+        let mut rng = noise::stream(seed, 77);
+        let d = noise::gaussian3(&mut rng, 0.1);
+        let dr = noise::gaussian(&mut rng, 0.002);
+        MachineToolConfig {
+            seed,
+            spheres: vec![(centre + d, radius + dr)],
+            tip_radius_mm: tip_radius,
+            travel_min_mm: centre - Vector3::repeat(radius + 500.0),
+            travel_max_mm: centre + Vector3::repeat(radius + 500.0),
+            start_mm: centre + Vector3::new(0.0, 0.0, radius + tip_radius + 50.0),
+            ..MachineToolConfig::default()
+        }
+    }
+}
+
 /// The virtual machine tool behind [`ProbingMachine`].
 #[derive(Debug)]
 pub struct VirtualMachineTool {

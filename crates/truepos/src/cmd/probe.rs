@@ -11,7 +11,7 @@ use serde_json::json;
 use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
 use truepos_device::ProbingMachine;
 use truepos_head::acquire::{probe_sphere, AcquireError, SphereProbing};
-use truepos_math::{Point3, Vector3};
+use truepos_math::Point3;
 
 #[derive(clap::Args, Debug)]
 #[command(
@@ -74,22 +74,14 @@ pub struct Opened {
 /// millimetre as a real setup would be.
 pub fn open_probing_machine(url: &str, nominal: Option<(Point3, f64, f64)>, seed: u64) -> Result<Opened> {
     if url == "virtual" {
-        let mut cfg = MachineToolConfig { seed, ..MachineToolConfig::default() };
-        let mut truth = None;
-        if let Some((c, r, tip)) = nominal {
-            // A setup error of a few tenths of a millimetre and a sphere a few µm off nominal.
-            let mut rng = truepos_sim::noise::stream(seed, 77);
-            let d = truepos_sim::noise::gaussian3(&mut rng, 0.1);
-            let dr = truepos_sim::noise::gaussian(&mut rng, 0.002);
-            cfg.spheres = vec![(c + d, r + dr)];
-            cfg.tip_radius_mm = tip;
-            let lo = c - Vector3::repeat(r + 500.0);
-            let hi = c + Vector3::repeat(r + 500.0);
-            cfg.travel_min_mm = lo;
-            cfg.travel_max_mm = hi;
-            cfg.start_mm = c + Vector3::new(0.0, 0.0, r + tip + 50.0);
-            truth = Some((c + d, r + dr));
-        }
+        let (cfg, truth) = match nominal {
+            Some((c, r, tip)) => {
+                let cfg = MachineToolConfig::near(seed, c, r, tip);
+                let truth = cfg.spheres.first().copied();
+                (cfg, truth)
+            }
+            None => (MachineToolConfig { seed, ..MachineToolConfig::default() }, None),
+        };
         let m = VirtualMachineTool::new(cfg).map_err(|e| UsageError(format!("virtual machine: {e}")))?;
         return Ok(Opened { machine: Box::new(m), virtual_truth: truth });
     }
