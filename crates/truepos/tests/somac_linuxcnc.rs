@@ -107,7 +107,7 @@ fn somac_on_linuxcnc_corrects_and_stops_on_estop() {
 
     // E-stop pressed during a run: exit 3 naming the address, no further motion, the audit
     // records the abort and the stop in progress as FAILURE.
-    let mut child = bin()
+    let child = bin()
         .args(["somac", "run", "--program"])
         .arg(dir.join("program.nc"))
         .arg("--cell")
