@@ -64,9 +64,9 @@ impl VirtualCmm {
         for (_, s) in &part.solids {
             match s {
                 Solid::Cylinder { side: CylinderSide::Inside, .. } => {
-                    if gap(s, c, r) < -TOUCH_EPS {
-                        // Strictly inside the bore's free cylinder: the bore removes all material
-                        // the ball could reach.
+                    if gap(s, c, r) <= TOUCH_EPS {
+                        // Inside the bore's free cylinder (touching its wall included): the bore
+                        // removes all material the ball could reach.
                         return false;
                     }
                 }
@@ -234,7 +234,13 @@ impl VirtualCmm {
         };
         let mut c = start;
         let mut dir = *toward;
-        let mut st = StopState { crossings: 0, inside: None, left_once: false, last_distance: f64::INFINITY, travelled: 0.0 };
+        let mut st = StopState {
+            crossings: 0,
+            inside: None,
+            left_once: false,
+            last_distance: f64::INFINITY,
+            travelled: 0.0,
+        };
         st.update(stop, &(c.tip_center_mm - c.normal * r), 0.0);
         self.counters.scan_points += 1;
         out.push(ScanPoint { tip_center_mm: c.tip_center_mm, normal: c.normal, quality: 0.0 });
@@ -242,7 +248,8 @@ impl VirtualCmm {
         let mut travelled = 0.0;
         while travelled < max_length_mm {
             let g = guide_normal(&c.tip_center_mm);
-            let t = tangent(&dir, &c.normal, &g).ok_or_else(|| MachineError::Unable("the scan direction is undefined".into()))?;
+            let t = tangent(&dir, &c.normal, &g)
+                .ok_or_else(|| MachineError::Unable("the scan direction is undefined".into()))?;
             let q = on_guide(c.tip_center_mm + t * step);
             if (0..3).any(|k| q[k] < lo[k] || q[k] > hi[k]) {
                 return Err(MachineError::OutOfVolume);
@@ -280,7 +287,9 @@ impl VirtualCmm {
                 return Ok(());
             }
         }
-        Err(MachineError::Unable(format!("the stop criterion was not met within {max_length_mm:.0} mm of scanning")))
+        Err(MachineError::Unable(format!(
+            "the stop criterion was not met within {max_length_mm:.0} mm of scanning"
+        )))
     }
 }
 
@@ -312,7 +321,8 @@ fn outward(s: &Solid, c: &Point3) -> Vector3 {
         Solid::HalfSpace { normal, .. } => *normal,
         Solid::Cylinder { point, axis, side, .. } => {
             let rel = c - point;
-            let radial = (rel - axis * rel.dot(axis)).try_normalize(1e-15).unwrap_or_else(|| perpendicular(axis));
+            let radial =
+                (rel - axis * rel.dot(axis)).try_normalize(1e-15).unwrap_or_else(|| perpendicular(axis));
             match side {
                 CylinderSide::Outside => radial,
                 CylinderSide::Inside => -radial,
@@ -437,7 +447,13 @@ impl Cmm for VirtualCmm {
         Ok(c)
     }
 
-    fn scan(&mut self, start: Contact, path: &ScanPath, tip_radius_mm: f64, out: &mut Vec<ScanPoint>) -> Result<(), MachineError> {
+    fn scan(
+        &mut self,
+        start: Contact,
+        path: &ScanPath,
+        tip_radius_mm: f64,
+        out: &mut Vec<ScanPoint>,
+    ) -> Result<(), MachineError> {
         let window = 2.0 + tip_radius_mm;
         let mut push = |me: &mut Self, q: Point3, n: Vector3| -> bool {
             let c = if me.part.is_none() {
@@ -457,7 +473,8 @@ impl Cmm for VirtualCmm {
         };
         match *path {
             ScanPath::Circle { center, axis, delta_rad, step_rad } => {
-                let axis = axis.try_normalize(1e-15).ok_or_else(|| MachineError::Unable("zero scan axis".into()))?;
+                let axis =
+                    axis.try_normalize(1e-15).ok_or_else(|| MachineError::Unable("zero scan axis".into()))?;
                 let n_steps = ((delta_rad.abs() / step_rad.max(1e-9)).round() as usize).max(1);
                 let arm = start.tip_center_mm - center;
                 for k in 0..=n_steps {
@@ -470,7 +487,16 @@ impl Cmm for VirtualCmm {
                 }
             }
             ScanPath::Contour { guide, toward, step_mm, stop, max_length_mm } => {
-                return self.follow(start, &guide, &toward, step_mm, &stop, max_length_mm, tip_radius_mm, out);
+                return self.follow(
+                    start,
+                    &guide,
+                    &toward,
+                    step_mm,
+                    &stop,
+                    max_length_mm,
+                    tip_radius_mm,
+                    out,
+                );
             }
             ScanPath::Line { direction, length_mm, step_mm } => {
                 let n_steps = ((length_mm / step_mm.max(1e-9)).round() as usize).max(1);
@@ -536,7 +562,11 @@ pub fn bind_virtual(opts: &ServeOptions) -> Result<truepos_ippdme::Server<Virtua
         ),
         None => None,
     };
-    let address = if opts.bind.contains(':') { format!("[{}]:{}", opts.bind, opts.port) } else { format!("{}:{}", opts.bind, opts.port) };
+    let address = if opts.bind.contains(':') {
+        format!("[{}]:{}", opts.bind, opts.port)
+    } else {
+        format!("{}:{}", opts.bind, opts.port)
+    };
     truepos_ippdme::Server::bind(&address, VirtualCmm::new(&config, part), &config, log)
         .map_err(|source| ServeError::Bind { address, source })
 }

@@ -2,7 +2,8 @@
 //! and scan accuracy against the part's truth, every malformed-input class, and the client
 //! (`truepos_ippdme::client`) probing a sphere that `truepos_fit` then fits.
 //!
-//! The NIST files are read from `../shared/data/ippdme` (or `$TRUEPOS_IPPDME_DATA`); without them
+//! The NIST files are read from `shared/data/ippdme` beside the repository (or
+//! `$TRUEPOS_IPPDME_DATA`); without them
 //! the conformance test prints `SKIPPED` and returns.
 
 use std::collections::BTreeMap;
@@ -79,17 +80,25 @@ fn data_items(lines: &[String]) -> Vec<(String, Vec<f64>)> {
 }
 
 fn item(items: &[(String, Vec<f64>)], k: &str) -> Vec<f64> {
-    items.iter().find(|(n, _)| n == k).map(|(_, v)| v.clone()).unwrap_or_else(|| panic!("{k} missing in {items:?}"))
+    items
+        .iter()
+        .find(|(n, _)| n == k)
+        .map(|(_, v)| v.clone())
+        .unwrap_or_else(|| panic!("{k} missing in {items:?}"))
 }
 
 // ---------------------------------------------------------------------------------------------
 // NIST conformance
 
 fn data_dir() -> Option<PathBuf> {
-    let d = std::env::var_os("TRUEPOS_IPPDME_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/ippdme"));
-    d.join("PtMeas.prg").exists().then_some(d)
+    // shared/ sits beside the repository (CI), or beside the worktrees' folder.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let candidates = [
+        std::env::var_os("TRUEPOS_IPPDME_DATA").map(PathBuf::from),
+        Some(root.join("../shared/data/ippdme")),
+        Some(root.join("../../shared/data/ippdme")),
+    ];
+    candidates.into_iter().flatten().find(|d| d.join("PtMeas.prg").exists())
 }
 
 /// Records of a NIST `.prg`/`.res` file: lines between `\\` separators, up to the `:` lines.
@@ -257,7 +266,7 @@ fn nist_conformance_files() {
     // shows its own server's quirks, and the rotary-table commands of a CartCMM). Anything
     // beyond them is a regression.
     assert!(names.len() >= 40, "only {} .prg/.res pairs found", names.len());
-    assert!(fails.len() <= 45, "{} transactions fail", fails.len());
+    assert!(pass >= 638, "{pass}/{judged} transactions pass");
 }
 
 #[test]
@@ -272,27 +281,23 @@ fn nist_parser_errors_all_get_an_error() {
     let (mut errs, mut total) = (0, 0);
     let mut missing = Vec::new();
     for cmd in &cmds {
-        if cmd.starts_with("09990 ClearAllErrors") || cmd.starts_with("00001 StartSession") || cmd.starts_with("09999") {
+        if cmd.starts_with("09990 ClearAllErrors")
+            || cmd.starts_with("00001 StartSession")
+            || cmd.starts_with("09999")
+        {
             c.cmd(cmd);
             continue;
         }
         total += 1;
-        // Malformed tags are answered only with E0000, so read just the error line then.
-        let tag_ok = cmd.len() > 6 && truepos_ippdme::protocol::Tag::parse(&cmd[..5]).is_some() && cmd.as_bytes()[5] == b' ';
-        let lines = if tag_ok && !cmd.starts_with("E0000") && !cmd.starts_with("00000") {
+        // Unreadable tags (including 00000 and E0000) are answered only with one E0000 line.
+        let tag_ok = cmd.len() > 6
+            && matches!(truepos_ippdme::protocol::Tag::parse(&cmd[..5]), Some(t) if t != truepos_ippdme::protocol::Tag::Command(0) && t != truepos_ippdme::protocol::Tag::Event(0))
+            && cmd.as_bytes()[5] == b' ';
+        let lines = if tag_ok {
             c.cmd(cmd)
         } else {
             c.send_raw(format!("{cmd}\r\n").as_bytes());
-            let mut v = vec![];
-            while let Some(l) = c.line() {
-                let end = l.contains(" ! ") && (l.starts_with("E0000") || !tag_ok);
-                let pct = l.ends_with(" %");
-                v.push(l);
-                if end && !tag_ok || pct {
-                    break;
-                }
-            }
-            v
+            vec![c.line().unwrap_or_default()]
         };
         if lines.iter().any(|l| l.contains(" ! Error(")) {
             errs += 1;
@@ -317,7 +322,12 @@ const SPHERE_PART: &str = "[[sphere]]\nid = \"ref\"\ncenter_mm = [100.0, 50.0, 2
 fn ptmeas_on_a_known_sphere_against_truth() {
     let h = start(Some(SPHERE_PART), None);
     let mut c = Raw::connect(&h);
-    for l in ["00001 StartSession()", "00002 Home()", "00003 ChangeTool(\"Probe1\")", "00004 OnPtMeasReport(X(), Y(), Z(), IJK(), ER())"] {
+    for l in [
+        "00001 StartSession()",
+        "00002 Home()",
+        "00003 ChangeTool(\"Probe1\")",
+        "00004 OnPtMeasReport(X(), Y(), Z(), IJK(), ER())",
+    ] {
         c.ok(l);
     }
     let centre = Vector3::new(100.0, 50.0, 20.0);
@@ -332,10 +342,19 @@ fn ptmeas_on_a_known_sphere_against_truth() {
         // Clear of the sphere: up, over the approach point, then PtMeas goes down to it.
         let s0 = centre + dir * (12.8 + 2.0 + 1.5);
         c.ok("00010 GoTo(Z(60))");
-        c.ok(&format!("00012 GoTo(X({}), Y({}))", s0.x, s0.y));
-        let out = c.ok(&format!("00011 PtMeas(X({}), Y({}), Z({}), IJK({}, {}, {}))", p.x, p.y, p.z, dir.x, dir.y, dir.z));
+        c.ok(&format!("00012 GoTo(X({:.9}), Y({:.9}))", s0.x, s0.y));
+        let out = c.ok(&format!(
+            "00011 PtMeas(X({:.9}), Y({:.9}), Z({:.9}), IJK({:.9}, {:.9}, {:.9}))",
+            p.x, p.y, p.z, dir.x, dir.y, dir.z
+        ));
         let items = data_items(&out);
-        let (x, y, z, ijk, er) = (item(&items, "X")[0], item(&items, "Y")[0], item(&items, "Z")[0], item(&items, "IJK"), item(&items, "ER")[0]);
+        let (x, y, z, ijk, er) = (
+            item(&items, "X")[0],
+            item(&items, "Y")[0],
+            item(&items, "Z")[0],
+            item(&items, "IJK"),
+            item(&items, "ER")[0],
+        );
         let tip = Vector3::new(x, y, z);
         let surface = tip - Vector3::new(ijk[0], ijk[1], ijk[2]) * er;
         // Truth: the tip centre is R + r from the centre, the surface point R.
@@ -354,7 +373,12 @@ fn ptmeas_on_a_known_sphere_against_truth() {
 fn scan_on_circle_in_a_bore_lies_on_the_true_circle() {
     let h = start(Some(SPHERE_PART), None);
     let mut c = Raw::connect(&h);
-    for l in ["00001 StartSession()", "00002 Home()", "00003 ChangeTool(\"Probe1\")", "00004 OnScanReport(X(), Y(), Z(), IJK())"] {
+    for l in [
+        "00001 StartSession()",
+        "00002 Home()",
+        "00003 ChangeTool(\"Probe1\")",
+        "00004 OnScanReport(X(), Y(), Z(), IJK())",
+    ] {
         c.ok(l);
     }
     c.ok("00005 GoTo(X(-100), Y(0), Z(50))");
@@ -380,7 +404,12 @@ fn scan_on_circle_in_a_bore_lies_on_the_true_circle() {
         // The normal points out of the material: towards the axis.
         assert!(n.dot(&radial.normalize()) < -0.999999);
     }
-    eprintln!("ippdme ScanOnCircle in a 30 mm bore: {} points in {:.1} ms, worst radial error {:.4} µm", pts.len(), dt.as_secs_f64() * 1e3, worst * 1e3);
+    eprintln!(
+        "ippdme ScanOnCircle in a 30 mm bore: {} points in {:.1} ms, worst radial error {:.4} µm",
+        pts.len(),
+        dt.as_secs_f64() * 1e3,
+        worst * 1e3
+    );
     assert!(worst < 1e-5, "{worst}");
     // And a line on the table plane.
     let out = c.ok("00008 GoTo(Z(50))");
@@ -391,7 +420,17 @@ fn scan_on_circle_in_a_bore_lies_on_the_true_circle() {
     let zs: Vec<f64> = out
         .iter()
         .filter(|l| l.contains(" # "))
-        .flat_map(|l| l.split(" # ").nth(1).unwrap().split(',').map(|s| s.trim().parse::<f64>().unwrap()).collect::<Vec<_>>().chunks(6).map(|c| c[2]).collect::<Vec<_>>())
+        .flat_map(|l| {
+            l.split(" # ")
+                .nth(1)
+                .unwrap()
+                .split(',')
+                .map(|s| s.trim().parse::<f64>().unwrap())
+                .collect::<Vec<_>>()
+                .chunks(6)
+                .map(|c| c[2])
+                .collect::<Vec<_>>()
+        })
         .collect();
     assert!((119..=123).contains(&n_line), "{n_line}");
     assert!(zs.iter().all(|z| (z - 1.5).abs() < 1e-6), "{zs:?}");
@@ -543,7 +582,9 @@ fn client_probes_a_sphere_that_fits_to_truth() {
     let mut m = loop {
         match truepos_ippdme::connect(&url) {
             Ok(m) => break m,
-            Err(e) if e.to_string().contains("refused the session") => std::thread::sleep(Duration::from_millis(20)),
+            Err(e) if e.to_string().contains("refused the session") => {
+                std::thread::sleep(Duration::from_millis(20))
+            }
             Err(e) => panic!("{e}"),
         }
     };
@@ -600,15 +641,14 @@ fn client_probes_a_sphere_that_fits_to_truth() {
     let p = m.position().unwrap();
     assert!((p - Point3::new(300.0, 300.0, 53.5)).norm() < 1e-6, "{p}");
     // A scan through the client.
-    let pts = m
-        .scan(&truepos_ippdme::command::Command::ScanOnCircle {
-            center: [100.0, 50.0, 20.0],
-            start: [112.5, 50.0, 20.0],
-            normal: [0.0, 0.0, 1.0],
-            delta_deg: 90.0,
-            sfa_deg: 0.0,
-            step_deg: 2.0,
-        });
+    let pts = m.scan(&truepos_ippdme::command::Command::ScanOnCircle {
+        center: [100.0, 50.0, 20.0],
+        start: [112.5, 50.0, 20.0],
+        normal: [0.0, 0.0, 1.0],
+        delta_deg: 90.0,
+        sfa_deg: 0.0,
+        step_deg: 2.0,
+    });
     let pts = pts.unwrap();
     assert_eq!(pts.len(), 46);
     for (p, _) in &pts {

@@ -34,11 +34,24 @@ impl Cmm for Plane {
         self.pos = t;
         Ok(())
     }
-    fn probe(&mut self, _: Point3, _: Point3, r: f64, p: Point3, n: Vector3) -> Result<Option<Contact>, MachineError> {
+    fn probe(
+        &mut self,
+        _: Point3,
+        _: Point3,
+        r: f64,
+        p: Point3,
+        n: Vector3,
+    ) -> Result<Option<Contact>, MachineError> {
         self.pos = p + n * r;
         Ok(Some(Contact { tip_center_mm: self.pos, normal: n }))
     }
-    fn scan(&mut self, start: Contact, path: &ScanPath, _: f64, out: &mut Vec<ScanPoint>) -> Result<(), MachineError> {
+    fn scan(
+        &mut self,
+        start: Contact,
+        path: &ScanPath,
+        _: f64,
+        out: &mut Vec<ScanPoint>,
+    ) -> Result<(), MachineError> {
         if let ScanPath::Circle { center, axis, delta_rad, step_rad } = *path {
             let n = ((delta_rad.abs() / step_rad).round() as usize).max(1);
             let arm = start.tip_center_mm - center;
@@ -83,11 +96,17 @@ impl Conn {
 
 fn bench(c: &mut Criterion) {
     let config = MachineConfig::default();
-    let h = Server::bind("127.0.0.1:0", Plane { pos: Point3::origin() }, &config, None).unwrap().spawn().unwrap();
+    let h =
+        Server::bind("127.0.0.1:0", Plane { pos: Point3::origin() }, &config, None).unwrap().spawn().unwrap();
     let s = TcpStream::connect(h.addr).unwrap();
     s.set_nodelay(true).unwrap();
     let mut conn = Conn { w: s.try_clone().unwrap(), r: BufReader::new(s), line: String::new() };
-    for l in ["00001 StartSession()\r\n", "00002 Home()\r\n", "00003 ChangeTool(\"Probe1\")\r\n", "00004 OnPtMeasReport(X(), Y(), Z(), IJK())\r\n"] {
+    for l in [
+        "00001 StartSession()\r\n",
+        "00002 Home()\r\n",
+        "00003 ChangeTool(\"Probe1\")\r\n",
+        "00004 OnPtMeasReport(X(), Y(), Z(), IJK())\r\n",
+    ] {
         conn.cmd(l);
     }
     let mut g = c.benchmark_group("ippdme_loopback");

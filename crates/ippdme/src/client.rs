@@ -32,7 +32,11 @@ pub struct Timeouts {
 
 impl Default for Timeouts {
     fn default() -> Self {
-        Timeouts { connect: Duration::from_secs(5), command: Duration::from_secs(10), motion: Duration::from_secs(120) }
+        Timeouts {
+            connect: Duration::from_secs(5),
+            command: Duration::from_secs(10),
+            motion: Duration::from_secs(120),
+        }
     }
 }
 
@@ -89,7 +93,10 @@ impl IppClient {
         let (host, port) = parse_url(url)?;
         let address = format!("ippdme://{host}:{port}");
         let conn = |m: String| DeviceError::Connect { address: address.clone(), message: m };
-        let addrs: Vec<_> = (host.as_str(), port).to_socket_addrs().map_err(|e| conn(format!("cannot resolve {host}: {e}")))?.collect();
+        let addrs: Vec<_> = (host.as_str(), port)
+            .to_socket_addrs()
+            .map_err(|e| conn(format!("cannot resolve {host}: {e}")))?
+            .collect();
         let mut last = None;
         let mut stream = None;
         for a in addrs {
@@ -101,7 +108,8 @@ impl IppClient {
                 Err(e) => last = Some(e),
             }
         }
-        let stream = stream.ok_or_else(|| conn(last.map(|e| e.to_string()).unwrap_or_else(|| "no address".into())))?;
+        let stream =
+            stream.ok_or_else(|| conn(last.map(|e| e.to_string()).unwrap_or_else(|| "no address".into())))?;
         let _ = stream.set_nodelay(true);
         stream.set_write_timeout(Some(timeouts.command)).map_err(|e| conn(e.to_string()))?;
         let writer = stream.try_clone().map_err(|e| conn(e.to_string()))?;
@@ -118,12 +126,16 @@ impl IppClient {
             ptmeas_set: None,
             in_session: false,
         };
-        c.transact_raw(&Command::StartSession.to_call_string(), "starting the session", false).map_err(|e| match e {
-            DeviceError::Controller { address, message, .. } | DeviceError::Protocol { address, message, .. } => {
-                DeviceError::NotReady { address, reason: format!("the server refused the session: {message}") }
-            }
-            other => other,
-        })?;
+        c.transact_raw(&Command::StartSession.to_call_string(), "starting the session", false).map_err(
+            |e| match e {
+                DeviceError::Controller { address, message, .. }
+                | DeviceError::Protocol { address, message, .. } => DeviceError::NotReady {
+                    address,
+                    reason: format!("the server refused the session: {message}"),
+                },
+                other => other,
+            },
+        )?;
         c.in_session = true;
         let v = c.transact_raw("GetDMEVersion()", "reading the DME version", false)?;
         c.version = v
@@ -138,7 +150,10 @@ impl IppClient {
                 reason: "the machine is not homed (truepos never homes a machine itself)".into(),
             });
         }
-        c.transact(&Command::SetCoordSystem(crate::command::Csy::MachineCsy).to_call_string(), "selecting MachineCsy")?;
+        c.transact(
+            &Command::SetCoordSystem(crate::command::Csy::MachineCsy).to_call_string(),
+            "selecting MachineCsy",
+        )?;
         c.transact(
             &Command::OnPtMeasReport(vec![Key::X, Key::Y, Key::Z, Key::Ijk, Key::Er]).to_call_string(),
             "setting the PtMeas report format",
@@ -164,7 +179,11 @@ impl IppClient {
     }
 
     fn lost(&self, what: &str, e: impl ToString) -> DeviceError {
-        DeviceError::ConnectionLost { address: self.address.clone(), what: what.to_string(), message: e.to_string() }
+        DeviceError::ConnectionLost {
+            address: self.address.clone(),
+            what: what.to_string(),
+            message: e.to_string(),
+        }
     }
 
     fn send(&mut self, tag: Tag, text: &str, what: &str) -> Result<(), DeviceError> {
@@ -180,14 +199,21 @@ impl IppClient {
         loop {
             let left = deadline.saturating_duration_since(Instant::now());
             if left.is_zero() {
-                return Err(DeviceError::Timeout { address: self.address.clone(), what: what.to_string(), seconds: timeout.as_secs_f64() });
+                return Err(DeviceError::Timeout {
+                    address: self.address.clone(),
+                    what: what.to_string(),
+                    seconds: timeout.as_secs_f64(),
+                });
             }
             self.reader.get_ref().set_read_timeout(Some(left)).map_err(|e| self.lost(what, e))?;
             line.clear();
             // Bounded: a line longer than 1 MiB from the server is a protocol error.
             let n = match (&mut self.reader).take(1 << 20).read_until(b'\n', &mut line) {
                 Ok(n) => n,
-                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock || e.kind() == std::io::ErrorKind::TimedOut => {
+                Err(e)
+                    if e.kind() == std::io::ErrorKind::WouldBlock
+                        || e.kind() == std::io::ErrorKind::TimedOut =>
+                {
                     return Err(DeviceError::Timeout {
                         address: self.address.clone(),
                         what: what.to_string(),
@@ -200,7 +226,11 @@ impl IppClient {
                 return Err(self.lost(what, "the server closed the connection"));
             }
             if line.last() != Some(&b'\n') {
-                return Err(DeviceError::Protocol { address: self.address.clone(), what: what.into(), message: "answer line too long".into() });
+                return Err(DeviceError::Protocol {
+                    address: self.address.clone(),
+                    what: what.into(),
+                    message: "answer line too long".into(),
+                });
             }
             let text = String::from_utf8_lossy(&line);
             let r = Response::parse(&text).map_err(|m| DeviceError::Protocol {
@@ -213,7 +243,11 @@ impl IppClient {
                     // The server speaks for the connection (refusal, buffer full): fatal.
                     let msg = text.trim().to_string();
                     if *number == 8 || *number == 0 {
-                        return Err(DeviceError::Controller { address: self.address.clone(), what: what.into(), message: msg });
+                        return Err(DeviceError::Controller {
+                            address: self.address.clone(),
+                            what: what.into(),
+                            message: msg,
+                        });
                     }
                 }
                 continue;
@@ -230,7 +264,10 @@ impl IppClient {
     }
 
     fn transact_raw(&mut self, text: &str, what: &str, motion: bool) -> Result<Vec<String>, DeviceError> {
-        let tag = if text.starts_with("AbortE") || text.starts_with("GetErrStatusE") || text.starts_with("GetPropE") {
+        let tag = if text.starts_with("AbortE")
+            || text.starts_with("GetErrStatusE")
+            || text.starts_with("GetPropE")
+        {
             let t = Tag::Event(self.next_event);
             self.next_event = self.next_event % 9999 + 1;
             t
@@ -257,7 +294,11 @@ impl IppClient {
             if number == 1006 {
                 return Err(DeviceError::NoContact { address: self.address.clone(), what: what.into() });
             }
-            return Err(DeviceError::Controller { address: self.address.clone(), what: what.into(), message: msg });
+            return Err(DeviceError::Controller {
+                address: self.address.clone(),
+                what: what.into(),
+                message: msg,
+            });
         }
         Ok(answers
             .into_iter()
@@ -278,7 +319,11 @@ impl IppClient {
     }
 
     fn xyz(&self, data: &[String], what: &str) -> Result<(Point3, Option<Vector3>), DeviceError> {
-        let bad = |m: String| DeviceError::Protocol { address: self.address.clone(), what: what.into(), message: m };
+        let bad = |m: String| DeviceError::Protocol {
+            address: self.address.clone(),
+            what: what.into(),
+            message: m,
+        };
         let d = data.first().ok_or_else(|| bad("no data in the answer".into()))?;
         let items = parse_data_items(d).map_err(bad)?;
         let get = |k: &str| items.iter().find(|(n, _)| n == k).map(|(_, v)| v.clone());
@@ -301,7 +346,11 @@ impl IppClient {
         let mut out = Vec::new();
         for d in data {
             let v: Result<Vec<f64>, _> = d.split(',').map(|s| s.trim().parse::<f64>()).collect();
-            let v = v.map_err(|e| DeviceError::Protocol { address: self.address.clone(), what: "scanning".into(), message: e.to_string() })?;
+            let v = v.map_err(|e| DeviceError::Protocol {
+                address: self.address.clone(),
+                what: "scanning".into(),
+                message: e.to_string(),
+            })?;
             if v.len() % 6 != 0 {
                 return Err(DeviceError::Protocol {
                     address: self.address.clone(),
@@ -321,7 +370,10 @@ impl IppClient {
         if self.ptmeas_set == Some(want) {
             return Ok(());
         }
-        let p = |param| PropPath { tool: ToolRef::Tool, item: PropItem::Value(ParBlock::PtMeasPar, param, Some(Field::Act)) };
+        let p = |param| PropPath {
+            tool: ToolRef::Tool,
+            item: PropItem::Value(ParBlock::PtMeasPar, param, Some(Field::Act)),
+        };
         let cmd = Command::SetProp(vec![
             (p(Param::Approach), req.approach_mm),
             (p(Param::Search), req.search_mm),
@@ -346,7 +398,11 @@ impl ProbingMachine for IppClient {
 
     fn move_to(&mut self, target_mm: Point3) -> Result<(), DeviceError> {
         if !(target_mm.x.is_finite() && target_mm.y.is_finite() && target_mm.z.is_finite()) {
-            return Err(DeviceError::Rejected { address: self.address.clone(), what: "GoTo".into(), message: "target not finite".into() });
+            return Err(DeviceError::Rejected {
+                address: self.address.clone(),
+                what: "GoTo".into(),
+                message: "target not finite".into(),
+            });
         }
         let cmd = Command::GoTo { x: Some(target_mm.x), y: Some(target_mm.y), z: Some(target_mm.z) };
         let what = format!("GoTo({:.4}, {:.4}, {:.4})", target_mm.x, target_mm.y, target_mm.z);
@@ -359,8 +415,14 @@ impl ProbingMachine for IppClient {
             "PtMeas at ({:.4}, {:.4}, {:.4}) along ({:.3}, {:.3}, {:.3})",
             req.nominal_mm.x, req.nominal_mm.y, req.nominal_mm.z, n.x, n.y, n.z
         );
-        if !(n.norm() > 1e-9) || ![req.approach_mm, req.search_mm, req.retract_mm, req.feed_mm_s].iter().all(|v| v.is_finite()) {
-            return Err(DeviceError::Rejected { address: self.address.clone(), what, message: "bad probe request".into() });
+        if !(n.norm() > 1e-9)
+            || ![req.approach_mm, req.search_mm, req.retract_mm, req.feed_mm_s].iter().all(|v| v.is_finite())
+        {
+            return Err(DeviceError::Rejected {
+                address: self.address.clone(),
+                what,
+                message: "bad probe request".into(),
+            });
         }
         if (req.tip_radius_mm - self.tip_radius_mm).abs() > 1e-6 {
             // The server probes with its own tool; the geometry then differs by the radius difference.

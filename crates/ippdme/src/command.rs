@@ -145,7 +145,9 @@ impl Param {
     pub fn of(block: ParBlock) -> &'static [Param] {
         match block {
             ParBlock::GoToPar => &[Param::Speed, Param::Accel],
-            ParBlock::PtMeasPar => &[Param::Speed, Param::Accel, Param::Approach, Param::Retract, Param::Search],
+            ParBlock::PtMeasPar => {
+                &[Param::Speed, Param::Accel, Param::Approach, Param::Retract, Param::Search]
+            }
         }
     }
 }
@@ -243,7 +245,11 @@ impl PropPath {
             3 | 4 => {
                 let b = block(parts[1])?;
                 let p = *Param::of(b).iter().find(|p| p.name() == parts[2])?;
-                let f = if parts.len() == 4 { Some(*Field::ALL.iter().find(|f| f.name() == parts[3])?) } else { None };
+                let f = if parts.len() == 4 {
+                    Some(*Field::ALL.iter().find(|f| f.name() == parts[3])?)
+                } else {
+                    None
+                };
                 PropItem::Value(b, p, f)
             }
             _ => return None,
@@ -282,11 +288,24 @@ pub enum Command {
     Get(Vec<Key>),
     /// Target coordinates in the active csy (missing axes: `None`); tool angles are accepted and
     /// ignored (fixed stylus).
-    GoTo { x: Option<f64>, y: Option<f64>, z: Option<f64> },
-    PtMeas { x: Option<f64>, y: Option<f64>, z: Option<f64>, ijk: Option<[f64; 3]> },
+    GoTo {
+        x: Option<f64>,
+        y: Option<f64>,
+        z: Option<f64>,
+    },
+    PtMeas {
+        x: Option<f64>,
+        y: Option<f64>,
+        z: Option<f64>,
+        ijk: Option<[f64; 3]>,
+    },
     OnPtMeasReport(Vec<Key>),
     OnScanReport(Vec<Key>),
-    OnMoveReportE { time_s: Option<f64>, dis_mm: Option<f64>, keys: Vec<Key> },
+    OnMoveReportE {
+        time_s: Option<f64>,
+        dis_mm: Option<f64>,
+        keys: Vec<Key>,
+    },
     StopDaemon(Tag),
     StopAllDaemons,
     ChangeTool(String),
@@ -303,17 +322,39 @@ pub enum Command {
     SetCoordSystem(Csy),
     GetCsyTransformation(CsyTransform),
     SetCsyTransformation(CsyTransform, [f64; 6]),
-    ScanOnCircleHint { displacement: f64, form: f64 },
+    ScanOnCircleHint {
+        displacement: f64,
+        form: f64,
+    },
     /// Centre, start point, plane normal, delta (deg), surface angle (deg), step (deg).
-    ScanOnCircle { center: [f64; 3], start: [f64; 3], normal: [f64; 3], delta_deg: f64, sfa_deg: f64, step_deg: f64 },
-    ScanOnLineHint { angle: f64, form: f64 },
+    ScanOnCircle {
+        center: [f64; 3],
+        start: [f64; 3],
+        normal: [f64; 3],
+        delta_deg: f64,
+        sfa_deg: f64,
+        step_deg: f64,
+    },
+    ScanOnLineHint {
+        angle: f64,
+        form: f64,
+    },
     /// Start, end, surface normal, step (mm).
-    ScanOnLine { start: [f64; 3], end: [f64; 3], normal: [f64; 3], step_mm: f64 },
+    ScanOnLine {
+        start: [f64; 3],
+        end: [f64; 3],
+        normal: [f64; 3],
+        step_mm: f64,
+    },
     ScanUnknownHint(f64),
     /// Lock axes (`X`, `Y`, `Z`, `R`, `A`, `B`, `C`, `Phi`): locked axes do not move.
     LockAxis(Vec<String>),
     /// Align the tool within `alpha` degrees of a direction (and the second axis within `beta`).
-    AlignTool { dir: [f64; 3], alpha_deg: f64, second: Option<([f64; 3], f64)> },
+    AlignTool {
+        dir: [f64; 3],
+        alpha_deg: f64,
+        second: Option<([f64; 3], f64)>,
+    },
     ReQualify,
     ScanUnknown(UnknownScan, Vec<f64>),
 }
@@ -374,9 +415,9 @@ fn keys(c: &Call, allowed: &[Key], min: usize) -> Result<Vec<Key>, CommandError>
     let mut out = Vec::new();
     for a in &c.args {
         let name = empty_call(a, &c.name)?;
-        let k = Key::from_name(&name)
-            .filter(|k| allowed.contains(k))
-            .ok_or_else(|| err(ErrorCode::BAD_PROPERTY, format!("{}: {name}() is not allowed here", c.name)))?;
+        let k = Key::from_name(&name).filter(|k| allowed.contains(k)).ok_or_else(|| {
+            err(ErrorCode::BAD_PROPERTY, format!("{}: {name}() is not allowed here", c.name))
+        })?;
         if out.contains(&k) {
             return Err(incorrect(format!("{}: {name}() twice", c.name)));
         }
@@ -398,11 +439,15 @@ impl Command {
     /// Check a parsed call and build the typed command. `tag` is the command's tag (commands
     /// whose name ends in `E` must use an event tag, all others a command tag).
     pub fn from_call(tag: Tag, c: &Call) -> Result<Command, CommandError> {
-        let fast = c.name.ends_with('E') && c.name != "Home";
+        let fast = c.name.ends_with('E');
         if KNOWN.contains(&c.name.as_str()) && fast != tag.is_event() {
             return Err(err(
                 ErrorCode::ILLEGAL_TAG,
-                if fast { format!("{} needs an event tag (E0001-E9999)", c.name) } else { format!("{} needs a command tag", c.name) },
+                if fast {
+                    format!("{} needs an event tag (E0001-E9999)", c.name)
+                } else {
+                    format!("{} needs a command tag", c.name)
+                },
             ));
         }
         if tag == Tag::Command(0) || tag == Tag::Event(0) {
@@ -448,7 +493,12 @@ impl Command {
             "StopDaemon" => match c.args.as_slice() {
                 [Arg::Ident(t)] => match Tag::parse(t) {
                     Some(tag @ Tag::Event(n)) if n > 0 => Command::StopDaemon(tag),
-                    _ => return Err(err(ErrorCode::BAD_ARGUMENT, format!("StopDaemon: {t} is not an event tag"))),
+                    _ => {
+                        return Err(err(
+                            ErrorCode::BAD_ARGUMENT,
+                            format!("StopDaemon: {t} is not an event tag"),
+                        ))
+                    }
                 },
                 [_] => return Err(err(ErrorCode::BAD_ARGUMENT, "StopDaemon takes an event tag")),
                 _ => return Err(incorrect("StopDaemon takes one event tag")),
@@ -466,7 +516,9 @@ impl Command {
                     let name = empty_call(a, &c.name)?;
                     let p = PropPath::parse(&name)
                         .filter(|p| !matches!(p.item, PropItem::Root | PropItem::Block(_)))
-                        .ok_or_else(|| err(ErrorCode::BAD_PROPERTY, format!("{}: unknown property {name}", c.name)))?;
+                        .ok_or_else(|| {
+                            err(ErrorCode::BAD_PROPERTY, format!("{}: unknown property {name}", c.name))
+                        })?;
                     paths.push(p);
                 }
                 if c.name == "GetProp" {
@@ -484,13 +536,20 @@ impl Command {
                     let Arg::Call(inner) = a else {
                         return Err(incorrect(format!("SetProp: expected Property(value), got {a}")));
                     };
-                    let p = PropPath::parse(&inner.name)
-                        .ok_or_else(|| err(ErrorCode::BAD_PROPERTY, format!("SetProp: unknown property {}", inner.name)))?;
+                    let p = PropPath::parse(&inner.name).ok_or_else(|| {
+                        err(ErrorCode::BAD_PROPERTY, format!("SetProp: unknown property {}", inner.name))
+                    })?;
                     let PropItem::Value(_, _, field) = p.item else {
-                        return Err(err(ErrorCode::BAD_PROPERTY, format!("SetProp: {} cannot be set", inner.name)));
+                        return Err(err(
+                            ErrorCode::BAD_PROPERTY,
+                            format!("SetProp: {} cannot be set", inner.name),
+                        ));
                     };
                     if matches!(field, Some(Field::Max) | Some(Field::Min) | Some(Field::Def)) {
-                        return Err(err(ErrorCode::BAD_PROPERTY, format!("SetProp: {} is read-only", inner.name)));
+                        return Err(err(
+                            ErrorCode::BAD_PROPERTY,
+                            format!("SetProp: {} is read-only", inner.name),
+                        ));
                     }
                     let v = numbers(inner, &[1])?[0];
                     out.push((p, v));
@@ -503,8 +562,12 @@ impl Command {
                 };
                 let name = empty_call(a, &c.name)?;
                 let p = PropPath::parse(&name)
-                    .filter(|p| matches!(p.item, PropItem::Root | PropItem::Block(_) | PropItem::Value(_, _, _)))
-                    .ok_or_else(|| err(ErrorCode::BAD_PROPERTY, format!("{}: {name} has no properties", c.name)))?;
+                    .filter(|p| {
+                        matches!(p.item, PropItem::Root | PropItem::Block(_) | PropItem::Value(_, _, _))
+                    })
+                    .ok_or_else(|| {
+                        err(ErrorCode::BAD_PROPERTY, format!("{}: {name} has no properties", c.name))
+                    })?;
                 if c.name == "EnumProp" {
                     Command::EnumProp(p)
                 } else {
@@ -517,7 +580,9 @@ impl Command {
                     "MoveableMachineCsy" => Csy::MoveableMachineCsy,
                     "MultipleArmCsy" => Csy::MultipleArmCsy,
                     "PartCsy" => Csy::PartCsy,
-                    _ => return Err(err(ErrorCode::BAD_ARGUMENT, format!("SetCoordSystem: unknown csy {s}"))),
+                    _ => {
+                        return Err(err(ErrorCode::BAD_ARGUMENT, format!("SetCoordSystem: unknown csy {s}")))
+                    }
                 }),
                 _ => return Err(incorrect("SetCoordSystem takes one coordinate system")),
             },
@@ -525,10 +590,9 @@ impl Command {
                 let Some(Arg::Ident(s)) = c.args.first() else {
                     return Err(incorrect(format!("{} needs a coordinate system first", c.name)));
                 };
-                let t = *CsyTransform::ALL
-                    .iter()
-                    .find(|t| t.name() == s)
-                    .ok_or_else(|| err(ErrorCode::BAD_ARGUMENT, format!("{}: unknown transformation {s}", c.name)))?;
+                let t = *CsyTransform::ALL.iter().find(|t| t.name() == s).ok_or_else(|| {
+                    err(ErrorCode::BAD_ARGUMENT, format!("{}: unknown transformation {s}", c.name))
+                })?;
                 if c.name == "GetCsyTransformation" {
                     if c.args.len() != 1 {
                         return Err(incorrect("GetCsyTransformation takes one argument"));
@@ -554,7 +618,10 @@ impl Command {
             "ScanUnknownHint" => {
                 let v = numbers(c, &[1])?[0];
                 if v <= 0.0 {
-                    return Err(err(ErrorCode::ARGUMENT_OUT_OF_RANGE, "ScanUnknownHint: the radius must be > 0"));
+                    return Err(err(
+                        ErrorCode::ARGUMENT_OUT_OF_RANGE,
+                        "ScanUnknownHint: the radius must be > 0",
+                    ));
                 }
                 Command::ScanUnknownHint(v)
             }
@@ -577,7 +644,12 @@ impl Command {
                 if v[9] <= 0.0 {
                     return Err(err(ErrorCode::ARGUMENT_OUT_OF_RANGE, "ScanOnLine: StepW must be > 0"));
                 }
-                Command::ScanOnLine { start: vec3(&v[0..3]), end: vec3(&v[3..6]), normal: vec3(&v[6..9]), step_mm: v[9] }
+                Command::ScanOnLine {
+                    start: vec3(&v[0..3]),
+                    end: vec3(&v[3..6]),
+                    normal: vec3(&v[6..9]),
+                    step_mm: v[9],
+                }
             }
             "ReQualify" => no_args(c).map(|_| Command::ReQualify)?,
             "LockAxis" => {
@@ -585,7 +657,10 @@ impl Command {
                 for a in &c.args {
                     let name = empty_call(a, "LockAxis")?;
                     if !["X", "Y", "Z", "R", "A", "B", "C", "Phi"].contains(&name.as_str()) {
-                        return Err(err(ErrorCode::BAD_PROPERTY, format!("LockAxis: {name}() is not an axis")));
+                        return Err(err(
+                            ErrorCode::BAD_PROPERTY,
+                            format!("LockAxis: {name}() is not an axis"),
+                        ));
                     }
                     if axes.contains(&name) {
                         return Err(incorrect(format!("LockAxis: {name}() twice")));
@@ -599,20 +674,34 @@ impl Command {
             }
             "AlignTool" => {
                 let v = numbers(c, &[4, 8])?;
-                let norm_ok = |k: usize| ((v[k] * v[k] + v[k + 1] * v[k + 1] + v[k + 2] * v[k + 2]).sqrt() - 1.0).abs() < 1e-6;
+                let norm_ok = |k: usize| {
+                    ((v[k] * v[k] + v[k + 1] * v[k + 1] + v[k + 2] * v[k + 2]).sqrt() - 1.0).abs() < 1e-6
+                };
                 if !norm_ok(0) || (v.len() == 8 && !norm_ok(3)) {
                     return Err(incorrect("AlignTool: the direction vectors must be normalized"));
                 }
                 if v.len() == 4 {
                     Command::AlignTool { dir: vec3(&v[0..3]), alpha_deg: v[3], second: None }
                 } else {
-                    Command::AlignTool { dir: vec3(&v[0..3]), alpha_deg: v[6], second: Some((vec3(&v[3..6]), v[7])) }
+                    Command::AlignTool {
+                        dir: vec3(&v[0..3]),
+                        alpha_deg: v[6],
+                        second: Some((vec3(&v[3..6]), v[7])),
+                    }
                 }
             }
-            "ScanInPlaneEndIsSphere" => Command::ScanUnknown(UnknownScan::InPlaneEndIsSphere, numbers(c, &[17, 21])?),
-            "ScanInPlaneEndIsPlane" => Command::ScanUnknown(UnknownScan::InPlaneEndIsPlane, numbers(c, &[20, 23])?),
-            "ScanInPlaneEndIsCyl" => Command::ScanUnknown(UnknownScan::InPlaneEndIsCyl, numbers(c, &[21, 24])?),
-            "ScanInCylEndIsSphere" => Command::ScanUnknown(UnknownScan::InCylEndIsSphere, numbers(c, &[23, 24])?),
+            "ScanInPlaneEndIsSphere" => {
+                Command::ScanUnknown(UnknownScan::InPlaneEndIsSphere, numbers(c, &[17, 21])?)
+            }
+            "ScanInPlaneEndIsPlane" => {
+                Command::ScanUnknown(UnknownScan::InPlaneEndIsPlane, numbers(c, &[20, 23])?)
+            }
+            "ScanInPlaneEndIsCyl" => {
+                Command::ScanUnknown(UnknownScan::InPlaneEndIsCyl, numbers(c, &[21, 24])?)
+            }
+            "ScanInCylEndIsSphere" => {
+                Command::ScanUnknown(UnknownScan::InCylEndIsSphere, numbers(c, &[23, 24])?)
+            }
             "ScanInCylEndIsPlane" => Command::ScanUnknown(UnknownScan::InCylEndIsPlane, numbers(c, &[26])?),
             other => return Err(err(ErrorCode::UNSUPPORTED_COMMAND, format!("unknown command {other}"))),
         };
@@ -627,13 +716,17 @@ impl Command {
             };
             match inner.name.as_str() {
                 "Time" | "Dis" => {
-                    let v = numbers(inner, &[1]).map_err(|e| incorrect(format!("OnMoveReportE: {}", e.message)))?[0];
+                    let v = numbers(inner, &[1])
+                        .map_err(|e| incorrect(format!("OnMoveReportE: {}", e.message)))?[0];
                     let slot = if inner.name == "Time" { &mut time_s } else { &mut dis_mm };
                     if slot.is_some() {
                         return Err(incorrect(format!("OnMoveReportE: {} twice", inner.name)));
                     }
                     if inner.name == "Time" && v < 0.1 {
-                        return Err(err(ErrorCode::BAD_PROPERTY, "OnMoveReportE: Time must be at least 0.1 s"));
+                        return Err(err(
+                            ErrorCode::BAD_PROPERTY,
+                            "OnMoveReportE: Time must be at least 0.1 s",
+                        ));
                     }
                     if inner.name == "Dis" && v <= 0.0 {
                         return Err(err(ErrorCode::BAD_PROPERTY, "OnMoveReportE: Dis must be positive"));
@@ -644,9 +737,9 @@ impl Command {
                     if !inner.args.is_empty() {
                         return Err(incorrect(format!("OnMoveReportE: {name}() takes no value")));
                     }
-                    let k = Key::from_name(name)
-                        .filter(|k| POS_KEYS.contains(k))
-                        .ok_or_else(|| err(ErrorCode::BAD_PROPERTY, format!("OnMoveReportE: {name}() not allowed")))?;
+                    let k = Key::from_name(name).filter(|k| POS_KEYS.contains(k)).ok_or_else(|| {
+                        err(ErrorCode::BAD_PROPERTY, format!("OnMoveReportE: {name}() not allowed"))
+                    })?;
                     if ks.contains(&k) {
                         return Err(incorrect(format!("OnMoveReportE: {name}() twice")));
                     }
@@ -738,11 +831,17 @@ impl Command {
             Command::FindTool(t) => format!("FindTool(\"{t}\")"),
             Command::SetCoordSystem(c) => format!("SetCoordSystem({})", c.name()),
             Command::GetProp(ps) => {
-                format!("GetProp({})", ps.iter().map(|p| format!("{}()", p.dotted())).collect::<Vec<_>>().join(", "))
+                format!(
+                    "GetProp({})",
+                    ps.iter().map(|p| format!("{}()", p.dotted())).collect::<Vec<_>>().join(", ")
+                )
             }
             Command::SetProp(ps) => format!(
                 "SetProp({})",
-                ps.iter().map(|(p, v)| format!("{}({})", p.dotted(), fmt_num(*v))).collect::<Vec<_>>().join(", ")
+                ps.iter()
+                    .map(|(p, v)| format!("{}({})", p.dotted(), fmt_num(*v)))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ),
             Command::ScanOnCircle { center, start, normal, delta_deg, sfa_deg, step_deg } => {
                 let mut v: Vec<f64> = center.iter().chain(start).chain(normal).copied().collect();
@@ -839,7 +938,10 @@ mod tests {
         assert_eq!(cmd("00010 Get(X(), Tool.A())").unwrap(), Command::Get(vec![Key::X, Key::ToolA]));
         let Command::GetProp(p) = cmd("00340 GetProp(Tool.PtMeasPar.Accel.Max())").unwrap() else { panic!() };
         assert_eq!(p[0].dotted(), "Tool.PtMeasPar.Accel.Max");
-        assert!(matches!(cmd("E0490 OnMoveReportE(Time(1), Dis(10), X(), Y())"), Ok(Command::OnMoveReportE { .. })));
+        assert!(matches!(
+            cmd("E0490 OnMoveReportE(Time(1), Dis(10), X(), Y())"),
+            Ok(Command::OnMoveReportE { .. })
+        ));
     }
 
     #[test]

@@ -106,7 +106,13 @@ pub trait Cmm: Send {
     /// Follow `path` in contact from `start` (a contact found by probing); the points are
     /// appended to `out` (the first is at the start contact). Stops early, without error, where
     /// the surface ends.
-    fn scan(&mut self, start: Contact, path: &ScanPath, tip_radius_mm: f64, out: &mut Vec<ScanPoint>) -> Result<(), MachineError>;
+    fn scan(
+        &mut self,
+        start: Contact,
+        path: &ScanPath,
+        tip_radius_mm: f64,
+        out: &mut Vec<ScanPoint>,
+    ) -> Result<(), MachineError>;
     /// Stop all motion now (client gone, AbortE). Moves are instant on the virtual machine, so
     /// this only has to leave it in a defined, stopped state.
     fn stop(&mut self);

@@ -91,12 +91,23 @@ pub enum CylinderSide {
 /// One solid of the part.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Solid {
-    Sphere { center: Point3, radius: f64 },
+    Sphere {
+        center: Point3,
+        radius: f64,
+    },
     /// Material where `(p − point)·normal ≤ 0`; `normal` is a unit vector.
-    HalfSpace { point: Point3, normal: Vector3 },
+    HalfSpace {
+        point: Point3,
+        normal: Vector3,
+    },
     /// Infinite cylinder; `axis` is a unit vector. `Outside`: a pin (material inside the
     /// cylinder); `Inside`: a bore (removes the material inside it from the other solids).
-    Cylinder { point: Point3, axis: Vector3, radius: f64, side: CylinderSide },
+    Cylinder {
+        point: Point3,
+        axis: Vector3,
+        radius: f64,
+        side: CylinderSide,
+    },
 }
 
 /// The part: the union of its spheres, half-spaces and pins, minus its bores.
@@ -130,7 +141,11 @@ fn unit(file: &str, key: &str, v: [f64; 3]) -> Result<Vector3, PartError> {
     let v = finite3(file, key, v)?;
     let n = v.norm();
     if n < 1e-12 {
-        return Err(PartError::Value { file: file.into(), key: key.into(), message: "zero-length vector".into() });
+        return Err(PartError::Value {
+            file: file.into(),
+            key: key.into(),
+            message: "zero-length vector".into(),
+        });
     }
     Ok(v / n)
 }
@@ -139,7 +154,11 @@ fn positive(file: &str, key: &str, v: f64) -> Result<f64, PartError> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
     } else {
-        Err(PartError::Value { file: file.into(), key: key.into(), message: format!("must be a positive number, got {v}") })
+        Err(PartError::Value {
+            file: file.into(),
+            key: key.into(),
+            message: format!("must be a positive number, got {v}"),
+        })
     }
 }
 
@@ -165,7 +184,10 @@ impl Part {
             let p = finite3(file, &format!("{key}.point_mm"), s.point_mm)?;
             let a = unit(file, &format!("{key}.axis"), s.axis)?;
             let d = positive(file, &format!("{key}.diameter_mm"), s.diameter_mm)?;
-            solids.push((s.id, Solid::Cylinder { point: Point3::from(p), axis: a, radius: d / 2.0, side: s.side }));
+            solids.push((
+                s.id,
+                Solid::Cylinder { point: Point3::from(p), axis: a, radius: d / 2.0, side: s.side },
+            ));
         }
         Ok(Part { solids })
     }
@@ -173,7 +195,8 @@ impl Part {
     /// Read and parse a part file.
     pub fn load(path: &Path) -> Result<Part, PartError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| PartError::Read { file: file.clone(), source })?;
+        let text =
+            std::fs::read_to_string(path).map_err(|source| PartError::Read { file: file.clone(), source })?;
         Part::from_toml(&file, &text)
     }
 }
@@ -250,10 +273,18 @@ impl MachineConfig {
         for (k, t) in ipp.tool.into_iter().enumerate() {
             let key = format!("ippdme.tool[{k}]");
             if t.name.is_empty() || !t.name.bytes().all(|b| b.is_ascii_graphic() && b != b'"') {
-                return Err(PartError::Value { file: file.into(), key: format!("{key}.name"), message: "must be printable ASCII without quotes or blanks".into() });
+                return Err(PartError::Value {
+                    file: file.into(),
+                    key: format!("{key}.name"),
+                    message: "must be printable ASCII without quotes or blanks".into(),
+                });
             }
             if RESERVED_TOOLS.contains(&t.name.as_str()) || cfg.tools.iter().any(|x| x.name == t.name) {
-                return Err(PartError::Value { file: file.into(), key: format!("{key}.name"), message: format!("{} is reserved or defined twice", t.name) });
+                return Err(PartError::Value {
+                    file: file.into(),
+                    key: format!("{key}.name"),
+                    message: format!("{} is reserved or defined twice", t.name),
+                });
             }
             let d = positive(file, &format!("{key}.tip_diameter_mm"), t.tip_diameter_mm)?;
             cfg.tools.push(ToolConfig { name: t.name, tip_diameter_mm: d });
@@ -263,7 +294,8 @@ impl MachineConfig {
 
     pub fn load(path: &Path) -> Result<MachineConfig, PartError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| PartError::Read { file: file.clone(), source })?;
+        let text =
+            std::fs::read_to_string(path).map_err(|source| PartError::Read { file: file.clone(), source })?;
         MachineConfig::from_toml(&file, &text)
     }
 }
@@ -286,15 +318,24 @@ mod tests {
 
     #[test]
     fn errors_name_file_line_and_key() {
-        let e = Part::from_toml("p.toml", "[[sphere]]\ncenter_mm = [0, 0, 10]\ndiameter_mm = 25\ncolour = 3\n").unwrap_err();
+        let e =
+            Part::from_toml("p.toml", "[[sphere]]\ncenter_mm = [0, 0, 10]\ndiameter_mm = 25\ncolour = 3\n")
+                .unwrap_err();
         let s = e.to_string();
         assert!(s.starts_with("p.toml:4:"), "{s}");
         assert!(s.contains("colour"), "{s}");
-        let e = Part::from_toml("p.toml", "[[sphere]]\ncenter_mm = [0, 0, 10]\ndiameter_mm = -2\n").unwrap_err();
+        let e =
+            Part::from_toml("p.toml", "[[sphere]]\ncenter_mm = [0, 0, 10]\ndiameter_mm = -2\n").unwrap_err();
         assert!(e.to_string().contains("sphere[0].diameter_mm"), "{e}");
-        let e = MachineConfig::from_toml("m.toml", "[ippdme]\nvolume_min_mm=[0,0,0]\nvolume_max_mm=[1,1,-1]\n").unwrap_err();
+        let e =
+            MachineConfig::from_toml("m.toml", "[ippdme]\nvolume_min_mm=[0,0,0]\nvolume_max_mm=[1,1,-1]\n")
+                .unwrap_err();
         assert!(e.to_string().contains("volume_max_mm"), "{e}");
-        let m = MachineConfig::from_toml("m.toml", "[machine]\nx=1\n[[ippdme.tool]]\nname=\"Star1\"\ntip_diameter_mm=2\n").unwrap();
+        let m = MachineConfig::from_toml(
+            "m.toml",
+            "[machine]\nx=1\n[[ippdme.tool]]\nname=\"Star1\"\ntip_diameter_mm=2\n",
+        )
+        .unwrap();
         assert_eq!(m.tools[0].name, "Star1");
     }
 }

@@ -169,7 +169,9 @@ impl LineError {
 
 /// Parse one received line (CR LF already removed) into its tag and call.
 pub fn parse_line(line: &[u8]) -> Result<(Tag, Call), LineError> {
-    let tag = if line.len() >= 5 { std::str::from_utf8(&line[..5]).ok().and_then(Tag::parse) } else { None };
+    // 00000 and E0000 are not valid client tags (E0000 is the server's own).
+    let tag = if line.len() >= 5 { std::str::from_utf8(&line[..5]).ok().and_then(Tag::parse) } else { None }
+        .filter(|t| *t != Tag::Command(0) && *t != Tag::Event(0));
     if let Some(position) = line.iter().position(|&b| !(0x20..=0x7e).contains(&b)) {
         return Err(LineError::IllegalChar { tag, position });
     }
@@ -178,7 +180,8 @@ pub fn parse_line(line: &[u8]) -> Result<(Tag, Call), LineError> {
         return Err(LineError::NoSpace);
     }
     // Printable ASCII only from here, so the bytes are valid UTF-8.
-    let text = std::str::from_utf8(&line[6..]).map_err(|_| LineError::IllegalChar { tag: Some(tag), position: 6 })?;
+    let text = std::str::from_utf8(&line[6..])
+        .map_err(|_| LineError::IllegalChar { tag: Some(tag), position: 6 })?;
     let mut p = Parser { s: text.as_bytes(), i: 0, tag };
     p.blanks();
     let call = p.call(0)?;
@@ -213,7 +216,9 @@ impl Parser<'_> {
             match self.peek() {
                 Some(c) if c.is_ascii_alphabetic() => self.i += 1,
                 Some(c) if (c.is_ascii_digit() || c == b'_') && self.i > start => self.i += 1,
-                Some(b'.') if self.i > start && self.s.get(self.i + 1).is_some_and(|c| c.is_ascii_alphabetic()) => {
+                Some(b'.')
+                    if self.i > start && self.s.get(self.i + 1).is_some_and(|c| c.is_ascii_alphabetic()) =>
+                {
                     self.i += 1
                 }
                 _ => break,
@@ -276,7 +281,9 @@ impl Parser<'_> {
                 }
                 Err(self.syntax("unterminated string".into()))
             }
-            Some(c) if c == b'+' || c == b'-' || c == b'.' || c.is_ascii_digit() => self.number().map(Arg::Number),
+            Some(c) if c == b'+' || c == b'-' || c == b'.' || c.is_ascii_digit() => {
+                self.number().map(Arg::Number)
+            }
             Some(c) if c.is_ascii_alphabetic() => {
                 let name = self.ident()?;
                 self.blanks();
@@ -459,9 +466,22 @@ impl Response {
     }
     pub fn error_with_severity(tag: Tag, code: ErrorCode, severity: u8, method: &str) -> Self {
         // The method field is a quoted string: keep it printable and free of quotes.
-        let method: String =
-            method.chars().map(|c| if c == '"' { '#' } else if c.is_ascii_graphic() || c == ' ' { c } else { '?' }).collect();
-        Response { tag, body: Body::Error { severity, number: code.number, method, text: code.text.to_string() } }
+        let method: String = method
+            .chars()
+            .map(|c| {
+                if c == '"' {
+                    '#'
+                } else if c.is_ascii_graphic() || c == ' ' {
+                    c
+                } else {
+                    '?'
+                }
+            })
+            .collect();
+        Response {
+            tag,
+            body: Body::Error { severity, number: code.number, method, text: code.text.to_string() },
+        }
     }
 
     /// The line without CR LF.
@@ -494,7 +514,8 @@ impl Response {
             Some(b'&') if rest.trim() == "&" => Body::Ack,
             Some(b'%') if rest.trim() == "%" => Body::Complete,
             Some(b'#') => Body::Data(rest[1..].trim().to_string()),
-            Some(b'!') => parse_error_body(rest[1..].trim()).ok_or_else(|| format!("malformed error response {line:?}"))?,
+            Some(b'!') => parse_error_body(rest[1..].trim())
+                .ok_or_else(|| format!("malformed error response {line:?}"))?,
             _ => return Err(format!("unknown response kind in {line:?}")),
         };
         Ok(Response { tag, body })
@@ -520,12 +541,17 @@ fn parse_error_body(s: &str) -> Option<Body> {
 /// Non-numeric items (strings, enumerators) are returned with no numbers.
 pub fn parse_data_items(data: &str) -> Result<Vec<(String, Vec<f64>)>, String> {
     let fake = format!("00001 D({data})");
-    let (_, call) = parse_line(fake.as_bytes()).map_err(|e| format!("cannot read data {data:?}: {}", e.describe()))?;
+    let (_, call) =
+        parse_line(fake.as_bytes()).map_err(|e| format!("cannot read data {data:?}: {}", e.describe()))?;
     call.args
         .into_iter()
         .map(|a| match a {
             Arg::Call(c) => {
-                let nums = c.args.iter().filter_map(|x| if let Arg::Number(v) = x { Some(*v) } else { None }).collect();
+                let nums = c
+                    .args
+                    .iter()
+                    .filter_map(|x| if let Arg::Number(v) = x { Some(*v) } else { None })
+                    .collect();
                 Ok((c.name, nums))
             }
             other => Err(format!("unexpected item {other} in data {data:?}")),
@@ -554,7 +580,8 @@ mod tests {
         assert_eq!(c.name, "PtMeas");
         assert_eq!(c.args.len(), 4);
         assert_eq!(c.args[1], Arg::Call(Call { name: "Y".into(), args: vec![Arg::Number(-26.0)] }));
-        let (_, c) = parse_line(b"00340 GetProp(Tool.PtMeasPar.Accel.Max(), Tool.PtMeasPar.Speed.Max())").unwrap();
+        let (_, c) =
+            parse_line(b"00340 GetProp(Tool.PtMeasPar.Accel.Max(), Tool.PtMeasPar.Speed.Max())").unwrap();
         assert_eq!(c.args[0], Arg::Call(Call { name: "Tool.PtMeasPar.Accel.Max".into(), args: vec![] }));
         let (_, c) = parse_line(b"00005 ChangeTool(\"Probe1\")").unwrap();
         assert_eq!(c.args, vec![Arg::Str("Probe1".into())]);
@@ -591,7 +618,10 @@ mod tests {
         let s = r.format();
         assert_eq!(s, "00010 ! Error(3, 1008, \"GoTo\", \"Target position out of machine volume\")");
         assert_eq!(Response::parse(&s).unwrap(), r);
-        assert_eq!(Response::parse("E0010 # X(1), Y(2)").unwrap(), Response::data(Tag::Event(10), "X(1), Y(2)"));
+        assert_eq!(
+            Response::parse("E0010 # X(1), Y(2)").unwrap(),
+            Response::data(Tag::Event(10), "X(1), Y(2)")
+        );
         assert_eq!(Response::parse("00010 %\r\n").unwrap(), Response::complete(Tag::Command(10)));
         let items = parse_data_items("X(1.5), IJK(0,0,1), ER(1.5)").unwrap();
         assert_eq!(items[1], ("IJK".to_string(), vec![0.0, 0.0, 1.0]));

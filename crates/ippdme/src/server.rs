@@ -397,13 +397,20 @@ impl<M: Cmm> Session<M> {
         }
     }
 
-    fn execute(&mut self, tag: Tag, cmd: &Command, out: &mut Vec<Response>, after: &mut Vec<Response>) -> Answer {
+    fn execute(
+        &mut self,
+        tag: Tag,
+        cmd: &Command,
+        out: &mut Vec<Response>,
+        after: &mut Vec<Response>,
+    ) -> Answer {
         if !self.in_session && *cmd != Command::StartSession {
             return fail(ErrorCode::BAD_CONTEXT, "no session: StartSession() first");
         }
         let allowed_in_error = matches!(
             cmd,
             Command::ClearAllErrors
+                | Command::StartSession
                 | Command::GetErrStatusE
                 | Command::GetXtdErrStatus
                 | Command::GetErrorInfo(_)
@@ -495,7 +502,10 @@ impl<M: Cmm> Session<M> {
                     }
                 }
                 if !in_volume(&st, &target_m) {
-                    return fail(ErrorCode::OUT_OF_VOLUME, format!("GoTo target {target_m:?} (machine) outside the volume"));
+                    return fail(
+                        ErrorCode::OUT_OF_VOLUME,
+                        format!("GoTo target {target_m:?} (machine) outside the volume"),
+                    );
                 }
                 self.user_enabled = false;
                 let r = st.tools[st.tool].radius_mm;
@@ -506,7 +516,10 @@ impl<M: Cmm> Session<M> {
             Command::PtMeas { x, y, z, ijk } => {
                 self.check_homed(&st)?;
                 if !st.tools[st.tool].can_measure {
-                    return fail(ErrorCode::BAD_CONTEXT, format!("{} cannot measure", st.tools[st.tool].name));
+                    return fail(
+                        ErrorCode::BAD_CONTEXT,
+                        format!("{} cannot measure", st.tools[st.tool].name),
+                    );
                 }
                 let cur = to_csy(&st, &st.machine.position());
                 let p = Point3::new(x.unwrap_or(cur.x), y.unwrap_or(cur.y), z.unwrap_or(cur.z));
@@ -533,7 +546,10 @@ impl<M: Cmm> Session<M> {
             Command::OnScanReport(keys) => self.scan_keys = keys.clone(),
             Command::OnMoveReportE { time_s, dis_mm, keys } => {
                 if self.daemon.is_some() {
-                    return fail(ErrorCode::DAEMON_ALREADY_EXISTS, "stop the running OnMoveReportE daemon first");
+                    return fail(
+                        ErrorCode::DAEMON_ALREADY_EXISTS,
+                        "stop the running OnMoveReportE daemon first",
+                    );
                 }
                 let pos = st.machine.position();
                 let d = MoveDaemon {
@@ -652,7 +668,8 @@ impl<M: Cmm> Session<M> {
                 v[5] = v[5].rem_euclid(360.0);
                 st.transforms[t.index()] = v;
             }
-            Command::ScanOnCircleHint { displacement, form } | Command::ScanOnLineHint { angle: displacement, form } => {
+            Command::ScanOnCircleHint { displacement, form }
+            | Command::ScanOnLineHint { angle: displacement, form } => {
                 if *displacement < 0.0 || *form < 0.0 {
                     return fail(ErrorCode::ARGUMENT_OUT_OF_RANGE, "hints must not be negative");
                 }
@@ -668,7 +685,10 @@ impl<M: Cmm> Session<M> {
             Command::ReQualify => {
                 self.check_homed(&st)?;
                 if !st.tools[st.tool].can_measure {
-                    return fail(ErrorCode::BAD_CONTEXT, format!("{} cannot be qualified", st.tools[st.tool].name));
+                    return fail(
+                        ErrorCode::BAD_CONTEXT,
+                        format!("{} cannot be qualified", st.tools[st.tool].name),
+                    );
                 }
                 // The virtual stylus is exact: its qualification is its nominal geometry.
             }
@@ -700,7 +720,8 @@ impl<M: Cmm> Session<M> {
                 if !tool.can_measure {
                     return fail(ErrorCode::BAD_CONTEXT, format!("{} cannot measure", tool.name));
                 }
-                let axis = unit(*normal).ok_or((ErrorCode::VECTOR_HAS_NO_NORM, "circle normal".to_string()))?;
+                let axis =
+                    unit(*normal).ok_or((ErrorCode::VECTOR_HAS_NO_NORM, "circle normal".to_string()))?;
                 let c = Point3::from(*center);
                 let s = Point3::from(*start);
                 let radial = s - c;
@@ -709,12 +730,16 @@ impl<M: Cmm> Session<M> {
                     return fail(ErrorCode::INCORRECT_ARGUMENTS, "start point on the centre");
                 }
                 if radial.dot(&axis).abs() > 1e-6 * radius.max(1.0) {
-                    return fail(ErrorCode::INCORRECT_ARGUMENTS, "the radius is not perpendicular to the normal");
+                    return fail(
+                        ErrorCode::INCORRECT_ARGUMENTS,
+                        "the radius is not perpendicular to the normal",
+                    );
                 }
                 if delta_deg.abs() < 1e-12 {
                     return fail(ErrorCode::INCORRECT_ARGUMENTS, "delta is zero");
                 }
-                let (c_m, s_m, axis_m) = (to_machine(&st, &c), to_machine(&st, &s), dir_to_machine(&st, &axis));
+                let (c_m, s_m, axis_m) =
+                    (to_machine(&st, &c), to_machine(&st, &s), dir_to_machine(&st, &axis));
                 if !in_volume(&st, &c_m) || !in_volume(&st, &s_m) {
                     return fail(ErrorCode::OUT_OF_VOLUME, "scan outside the machine volume");
                 }
@@ -742,7 +767,10 @@ impl<M: Cmm> Session<M> {
                     return fail(ErrorCode::INCORRECT_ARGUMENTS, "start and end point are the same");
                 }
                 if (e - s).dot(&n).abs() > 1e-6 * len.max(1.0) {
-                    return fail(ErrorCode::INCORRECT_ARGUMENTS, "the normal is not perpendicular to the line");
+                    return fail(
+                        ErrorCode::INCORRECT_ARGUMENTS,
+                        "the normal is not perpendicular to the line",
+                    );
                 }
                 let (s_m, e_m, n_m) = (to_machine(&st, &s), to_machine(&st, &e), dir_to_machine(&st, &n));
                 if !in_volume(&st, &s_m) || !in_volume(&st, &e_m) {
@@ -772,7 +800,9 @@ impl<M: Cmm> Session<M> {
                     Guide::Cylinder { point, axis } => Guide::Cylinder { point: pm(&point), axis: vm(&axis) },
                 };
                 let stop = match u.stop {
-                    Stop::Sphere { center, radius, count } => Stop::Sphere { center: pm(&center), radius, count },
+                    Stop::Sphere { center, radius, count } => {
+                        Stop::Sphere { center: pm(&center), radius, count }
+                    }
                     Stop::Plane { point, normal, count, arm_mm } => {
                         Stop::Plane { point: pm(&point), normal: vm(&normal), count, arm_mm }
                     }
@@ -807,7 +837,10 @@ impl<M: Cmm> Session<M> {
     ) -> Answer {
         self.user_enabled = false;
         if st.locked.iter().any(|l| *l) {
-            return fail(ErrorCode::UNABLE_TO_MOVE, "the virtual CMM cannot scan with a locked axis (ChangeTool unlocks)");
+            return fail(
+                ErrorCode::UNABLE_TO_MOVE,
+                "the virtual CMM cannot scan with a locked axis (ChangeTool unlocks)",
+            );
         }
         let first = ptmeas(st, tool, start_m, n_m, 0.0);
         let first = match first {
@@ -893,7 +926,8 @@ struct UnknownScanArgs {
 fn unknown_scan(kind: UnknownScan, a: &[f64]) -> Result<UnknownScanArgs, (ErrorCode, String)> {
     let p3 = |k: usize| Point3::new(a[k], a[k + 1], a[k + 2]);
     let v3 = |k: usize, what: &str| {
-        unit([a[k], a[k + 1], a[k + 2]]).ok_or((ErrorCode::VECTOR_HAS_NO_NORM, format!("{what} has no length")))
+        unit([a[k], a[k + 1], a[k + 2]])
+            .ok_or((ErrorCode::VECTOR_HAS_NO_NORM, format!("{what} has no length")))
     };
     let positive = |k: usize, what: &str| {
         if a[k] > 0.0 {
@@ -935,10 +969,10 @@ fn unknown_scan(kind: UnknownScan, a: &[f64]) -> Result<UnknownScanArgs, (ErrorC
         let d = p3(k);
         let normal = match n {
             Some(n) => n,
-            None => si
-                .cross(&(d - s))
-                .try_normalize(1e-12)
-                .ok_or((ErrorCode::INCORRECT_ARGUMENTS, "the direction point is along the start direction".to_string()))?,
+            None => si.cross(&(d - s)).try_normalize(1e-12).ok_or((
+                ErrorCode::INCORRECT_ARGUMENTS,
+                "the direction point is along the start direction".to_string(),
+            ))?,
         };
         (s, si, d, positive(k + 3, "StepW")?, Guide::Plane { normal }, k + 4)
     };
@@ -966,7 +1000,15 @@ fn unknown_scan(kind: UnknownScan, a: &[f64]) -> Result<UnknownScanArgs, (ErrorC
         }
     };
     v3(end_dir, "the end direction")?;
-    Ok(UnknownScanArgs { start, surface_normal: si, direction_point: d, step_mm: step, guide, stop, stop_point })
+    Ok(UnknownScanArgs {
+        start,
+        surface_normal: si,
+        direction_point: d,
+        step_mm: step,
+        guide,
+        stop,
+        stop_point,
+    })
 }
 
 /// The PtMeas cycle in machine coordinates (specification 6.3.2.13): approach point, search to
@@ -1024,10 +1066,13 @@ fn find_tool<M>(st: &MachineState<M>, name: &str) -> Result<usize, (ErrorCode, S
 fn resolve_tool<'a, M>(st: &'a MachineState<M>, p: &PropPath) -> Result<&'a Tool, (ErrorCode, String)> {
     let k = match p.tool {
         ToolRef::Tool => st.tool,
-        ToolRef::FoundTool => st.found_tool.ok_or((ErrorCode::BAD_CONTEXT, "no FindTool() yet".to_string()))?,
+        ToolRef::FoundTool => {
+            st.found_tool.ok_or((ErrorCode::BAD_CONTEXT, "no FindTool() yet".to_string()))?
+        }
     };
     let t = &st.tools[k];
-    let uses_ptmeas = matches!(p.item, PropItem::Block(ParBlock::PtMeasPar) | PropItem::Value(ParBlock::PtMeasPar, _, _));
+    let uses_ptmeas =
+        matches!(p.item, PropItem::Block(ParBlock::PtMeasPar) | PropItem::Value(ParBlock::PtMeasPar, _, _));
     if uses_ptmeas && !t.can_measure {
         return fail(ErrorCode::BAD_CONTEXT, format!("{} has no PtMeasPar", t.name));
     }
@@ -1046,10 +1091,14 @@ fn prop_value(t: &Tool, p: &PropPath) -> Result<String, (ErrorCode, String)> {
             format!("OBB, 0.000000, 0.000000, 25.000000, {w:.6}, {w:.6}, 50.000000, 1,0,0, 0,1,0, 0,0,1")
         }
         PropItem::Value(b, param, f) => {
-            let v = t.param(b, param).ok_or((ErrorCode::BAD_PROPERTY, format!("unknown property {}", p.dotted())))?;
+            let v = t
+                .param(b, param)
+                .ok_or((ErrorCode::BAD_PROPERTY, format!("unknown property {}", p.dotted())))?;
             fmt_num(v.field(f.unwrap_or(Field::Act)))
         }
-        PropItem::Root | PropItem::Block(_) => return fail(ErrorCode::BAD_PROPERTY, format!("{} is not a value", p.dotted())),
+        PropItem::Root | PropItem::Block(_) => {
+            return fail(ErrorCode::BAD_PROPERTY, format!("{} is not a value", p.dotted()))
+        }
     })
 }
 
@@ -1231,7 +1280,9 @@ impl<M: Cmm + 'static> Server<M> {
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock || e.kind() == io::ErrorKind::Interrupted => {
                     std::thread::sleep(Duration::from_millis(10));
                 }
-                Err(e) if e.kind() == io::ErrorKind::ConnectionAborted || e.kind() == io::ErrorKind::ConnectionReset => {}
+                Err(e)
+                    if e.kind() == io::ErrorKind::ConnectionAborted
+                        || e.kind() == io::ErrorKind::ConnectionReset => {}
                 Err(e) => return Err(e),
             }
         }
@@ -1307,6 +1358,7 @@ pub fn serve_connection<M: Cmm>(stream: TcpStream, shared: Arc<Shared<M>>, log: 
                 }
                 let _ = writer.write_all(format!("{r}\r\n").as_bytes());
                 let _ = writer.flush();
+                drain(reader.get_ref());
                 break "line over 64 KiB".to_string();
             }
             Err(e) => break format!("read error: {e}"),
@@ -1354,6 +1406,24 @@ pub fn serve_connection<M: Cmm>(stream: TcpStream, shared: Arc<Shared<M>>, log: 
     why
 }
 
+/// After refusing a line: stop sending, then read and discard what the client is still sending
+/// (at most 8 MiB or 2 s), so the close is a clean FIN and the client gets the error line
+/// instead of a reset.
+fn drain(stream: &TcpStream) {
+    let _ = stream.shutdown(Shutdown::Write);
+    let _ = stream.set_read_timeout(Some(Duration::from_millis(300)));
+    let t0 = Instant::now();
+    let mut buf = [0u8; 16384];
+    let mut total = 0usize;
+    let mut s = stream;
+    while total < 8 << 20 && t0.elapsed() < Duration::from_secs(2) {
+        match io::Read::read(&mut s, &mut buf) {
+            Ok(0) | Err(_) => break,
+            Ok(n) => total += n,
+        }
+    }
+}
+
 /// Whether an answer line is the end of its transaction.
 pub fn is_complete(r: &Response) -> bool {
     matches!(r.body, Body::Complete)
@@ -1377,4 +1447,138 @@ pub fn stop_on_signals() -> &'static AtomicBool {
         libc::signal(libc::SIGTERM, on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t);
     }
     &STOP
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A machine whose every probe touches the ideal plane (no part).
+    struct Flat(Point3);
+
+    impl Cmm for Flat {
+        fn describe(&self) -> String {
+            "flat".into()
+        }
+        fn volume(&self) -> (Point3, Point3) {
+            (Point3::new(-1000.0, -1000.0, -1000.0), Point3::new(1000.0, 1000.0, 1000.0))
+        }
+        fn home(&mut self) -> Result<Point3, MachineError> {
+            self.0 = Point3::new(0.0, 0.0, 500.0);
+            Ok(self.0)
+        }
+        fn position(&self) -> Point3 {
+            self.0
+        }
+        fn move_to(&mut self, t: Point3, _: f64) -> Result<(), MachineError> {
+            self.0 = t;
+            Ok(())
+        }
+        fn probe(
+            &mut self,
+            _: Point3,
+            _: Point3,
+            r: f64,
+            p: Point3,
+            n: Vector3,
+        ) -> Result<Option<Contact>, MachineError> {
+            self.0 = p + n * r;
+            Ok(Some(Contact { tip_center_mm: self.0, normal: n }))
+        }
+        fn scan(
+            &mut self,
+            start: Contact,
+            _: &ScanPath,
+            _: f64,
+            out: &mut Vec<ScanPoint>,
+        ) -> Result<(), MachineError> {
+            out.push(ScanPoint { tip_center_mm: start.tip_center_mm, normal: start.normal, quality: 0.0 });
+            Ok(())
+        }
+        fn stop(&mut self) {}
+    }
+
+    fn session() -> Session<Flat> {
+        Session::new(Arc::new(Shared::new(Flat(Point3::origin()), &MachineConfig::default())))
+    }
+
+    fn run(s: &mut Session<Flat>, line: &str) -> Vec<String> {
+        let mut out = Vec::new();
+        s.handle_line(line.as_bytes(), &mut out);
+        out.iter().map(Response::format).collect()
+    }
+
+    #[test]
+    fn ptmeas_reports_tip_centre_normal_and_radius_in_the_part_csy() {
+        let mut s = session();
+        for l in [
+            "00001 StartSession()",
+            "00002 Home()",
+            "00003 ChangeTool(\"Probe1\")",
+            "00004 OnPtMeasReport(X(), Y(), Z(), IJK(), ER())",
+        ] {
+            assert_eq!(run(&mut s, l).len(), 2, "{l}");
+        }
+        let out = run(&mut s, "00005 PtMeas(X(10), Y(0), Z(0), IJK(0, 0, 2))");
+        assert_eq!(
+            out[1],
+            "00005 # X(10.000000), Y(0.000000), Z(1.500000), IJK(0.000000, 0.000000, 1.000000), ER(1.500000)"
+        );
+        // Part csy shifted by (1, 2, 3) and turned by Phi = 90° about Z: p_csy = R p + t.
+        run(&mut s, "00006 SetCsyTransformation(PartCsy, 1, 2, 3, 0, 0, 90)");
+        run(&mut s, "00007 SetCoordSystem(PartCsy)");
+        let out = run(&mut s, "00008 Get(X(), Y(), Z())");
+        // Machine (10, 0, 3.5) after the retract: R·p = (0, -10, 3.5), + t = (1, -8, 6.5).
+        assert_eq!(out[1], "00008 # X(1.000000), Y(-8.000000), Z(6.500000)");
+        let out = run(&mut s, "00009 PtMeas(X(1), Y(-8), Z(3), IJK(0, 0, 1))");
+        assert!(
+            out[1].starts_with(
+                "00009 # X(1.000000), Y(-8.000000), Z(4.500000), IJK(0.000000, 0.000000, 1.000000)"
+            ),
+            "{out:?}"
+        );
+    }
+
+    #[test]
+    fn error_state_and_clear() {
+        let mut s = session();
+        assert!(run(&mut s, "00001 Home()")[1].contains("0508"));
+        run(&mut s, "00002 StartSession()");
+        let out = run(&mut s, "00003 GoTo(X(1))");
+        assert_eq!(out, vec!["00003 &", "00003 ! Error(3, 0508, \"GoTo\", \"Bad context\")", "00003 %"]);
+        assert!(run(&mut s, "00004 Home()")[1].contains("0514"));
+        assert_eq!(run(&mut s, "E0005 GetErrStatusE()")[1], "E0005 # ErrStatus(1)");
+        run(&mut s, "00006 ClearAllErrors()");
+        assert_eq!(run(&mut s, "00007 Home()"), vec!["00007 &", "00007 %"]);
+        // A warning (severity 1) does not need ClearAllErrors.
+        assert!(run(&mut s, "00008 SetProp(Tool.GoToPar.Speed(0.5))")[1].contains("Error(1, 0504"));
+        assert_eq!(run(&mut s, "00009 IsHomed()")[1], "00009 # IsHomed(1)");
+        assert_eq!(run(&mut s, "00010 GetDMEVersion()")[1], "00010 # DMEVersion(\"1.4.3\")");
+        assert_eq!(
+            run(&mut s, "00011 EnumTools()")[1..4],
+            ["00011 # \"RefTool\"", "00011 # \"NoTool\"", "00011 # \"Probe1\""]
+        );
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn every_readable_command_is_framed(line in "[0-9]{5} [A-Za-z]{2,12}\\([-+0-9., \"A-Za-z()]{0,30}\\)") {
+            let mut s = session();
+            run(&mut s, "00001 StartSession()");
+            let out = run(&mut s, &line);
+            let tag = &line[..5];
+            if tag != "00000" {
+                proptest::prop_assert_eq!(out.first().cloned(), Some(format!("{tag} &")));
+                proptest::prop_assert_eq!(out.last().cloned(), Some(format!("{tag} %")));
+            }
+        }
+        #[test]
+        fn garbage_never_panics(bytes in proptest::collection::vec(proptest::num::u8::ANY, 0..300)) {
+            let mut s = session();
+            run(&mut s, "00001 StartSession()");
+            let mut out = Vec::new();
+            s.handle_line(&bytes, &mut out);
+            proptest::prop_assert!(!out.is_empty());
+        }
+    }
 }

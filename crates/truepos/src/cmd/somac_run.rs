@@ -324,7 +324,10 @@ pub fn run_virtual(
     let program = truepos_gcode::Program::parse(program_text);
     let cell = VirtualCell::new(cfg, targets);
     let mut trackers = cell.align_trackers().map_err(|e| {
-        truepos_somac::device::DeviceError::Tracker(0, format!("aligning the trackers on the machine targets: {e}"))
+        truepos_somac::device::DeviceError::Tracker(
+            0,
+            format!("aligning the trackers on the machine targets: {e}"),
+        )
     })?;
     let mut ctl = cell.controller();
     let mut sensors = cell.sensors();
