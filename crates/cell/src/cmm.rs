@@ -115,7 +115,7 @@ impl VirtualCmm {
                 }
                 let n = outward(s, c);
                 let score = n.dot(d);
-                if best.map_or(true, |(b, _)| score < b) {
+                if best.is_none_or(|(b, _)| score < b) {
                     best = Some((score, n));
                 }
             }

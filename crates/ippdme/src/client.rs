@@ -415,7 +415,8 @@ impl ProbingMachine for IppClient {
             "PtMeas at ({:.4}, {:.4}, {:.4}) along ({:.3}, {:.3}, {:.3})",
             req.nominal_mm.x, req.nominal_mm.y, req.nominal_mm.z, n.x, n.y, n.z
         );
-        if !(n.norm() > 1e-9)
+        if n.norm().is_nan()
+            || n.norm() <= 1e-9
             || ![req.approach_mm, req.search_mm, req.retract_mm, req.feed_mm_s].iter().all(|v| v.is_finite())
         {
             return Err(DeviceError::Rejected {
