@@ -35,7 +35,7 @@ fn serve_runs_a_session_logs_it_and_ends_on_sigterm() {
     let mut r = BufReader::new(s);
     w.write_all(b"00001 StartSession()\r\n00002 Home()\r\n00003 ChangeTool(\"Probe1\")\r\n00004 PtMeas(X(0), Y(0), Z(10), IJK(0,0,1))\r\n00005 EndSession()\r\n").unwrap();
     let mut lines = Vec::new();
-    while !lines.last().is_some_and(|l: &String| l == "00005 %") {
+    while lines.last().is_none_or(|l: &String| l != "00005 %") {
         let mut l = String::new();
         assert!(r.read_line(&mut l).unwrap() > 0, "{lines:?}");
         lines.push(l.trim_end().to_string());
