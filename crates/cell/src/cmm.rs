@@ -45,8 +45,8 @@ pub struct Counters {
 }
 
 impl VirtualCmm {
-    /// A machine with the volume of `config` and optionally a part. It starts un-homed at the top
-    /// centre of its volume.
+    /// A machine with the volume of `config` and optionally a part. It starts un-homed at its
+    /// home position.
     pub fn new(config: &MachineConfig, part: Option<Part>) -> VirtualCmm {
         let (lo, hi) = (config.volume_min_mm, config.volume_max_mm);
         VirtualCmm { part, volume: (lo, hi), position: home_of(lo, hi), counters: Counters::default() }
@@ -293,8 +293,9 @@ impl VirtualCmm {
     }
 }
 
+/// The home position: centred in X and Y, a tenth of the Z travel below its top.
 fn home_of(lo: Point3, hi: Point3) -> Point3 {
-    Point3::new((lo.x + hi.x) / 2.0, (lo.y + hi.y) / 2.0, hi.z)
+    Point3::new((lo.x + hi.x) / 2.0, (lo.y + hi.y) / 2.0, hi.z - 0.1 * (hi.z - lo.z))
 }
 
 /// Signed gap of a ball of radius `r` at `c` to one solid's surface (negative: overlapping; for
