@@ -14,7 +14,7 @@
 use rusqlite::{params, Connection};
 use std::path::Path;
 use thiserror::Error;
-use truepos_somac::audit::{AuditSink, Event};
+use truepos_somac::audit::{AuditSink, Event, SinkError};
 
 #[derive(Debug, Error)]
 pub enum AuditError {
@@ -215,7 +215,7 @@ impl SqliteAudit {
             Event::Alarm { line, kind, message, action, time_s } => {
                 self.conn.execute(
                     "INSERT INTO alarms VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
-                    params![id, *line as i64, kind, message, action, time_s],
+                    params![id, *line as i64, kind.as_str(), message, action, time_s],
                 )?;
             }
             Event::Orientation { line, reason, scale, rms_mm, time_s } => {
@@ -243,13 +243,13 @@ impl SqliteAudit {
 }
 
 impl AuditSink for SqliteAudit {
-    fn record(&mut self, event: &Event) -> Result<(), String> {
-        self.insert(event).map_err(|e| e.to_string())
+    fn record(&mut self, event: &Event) -> Result<(), SinkError> {
+        Ok(self.insert(event)?)
     }
 
-    fn commit(&mut self) -> Result<(), String> {
+    fn commit(&mut self) -> Result<(), SinkError> {
         if self.in_tx {
-            self.conn.execute_batch("COMMIT").map_err(|e| e.to_string())?;
+            self.conn.execute_batch("COMMIT")?;
             self.in_tx = false;
         }
         Ok(())
@@ -270,7 +270,7 @@ mod tests {
             a.record(&Event::Block { line: 1, text: "G0 X0".into(), time_s: 0.0 }).unwrap();
             a.record(&Event::Alarm {
                 line: 1,
-                kind: "k".into(),
+                kind: truepos_somac::run::AlarmKind::BeamBreak,
                 message: "m".into(),
                 action: "a".into(),
                 time_s: 0.1,

@@ -16,7 +16,7 @@
 //! execution of `truepos-scan` (servo, stylus dynamics, blended stop-free paths in time) is not
 //! involved here; the geometric result is the same for an ideal machine.
 //!
-//! Entry point: [`VirtualCmm::new`]; it implements [`truepos_ippdme::Cmm`].
+//! Entry point: [`IppdmeCmm::new`]; it implements [`truepos_ippdme::Cmm`].
 
 use truepos_ippdme::part::{CylinderSide, Part, Solid};
 use truepos_ippdme::{Cmm, Contact, Guide, MachineConfig, MachineError, ScanPath, ScanPoint, Stop};
@@ -27,7 +27,7 @@ const TOUCH_EPS: f64 = 1e-9;
 
 /// The virtual CMM.
 #[derive(Debug, Clone)]
-pub struct VirtualCmm {
+pub struct IppdmeCmm {
     part: Option<Part>,
     volume: (Point3, Point3),
     position: Point3,
@@ -44,12 +44,12 @@ pub struct Counters {
     pub stops: u64,
 }
 
-impl VirtualCmm {
+impl IppdmeCmm {
     /// A machine with the volume of `config` and optionally a part. It starts un-homed at its
     /// home position.
-    pub fn new(config: &MachineConfig, part: Option<Part>) -> VirtualCmm {
+    pub fn new(config: &MachineConfig, part: Option<Part>) -> IppdmeCmm {
         let (lo, hi) = (config.volume_min_mm, config.volume_max_mm);
-        VirtualCmm { part, volume: (lo, hi), position: home_of(lo, hi), counters: Counters::default() }
+        IppdmeCmm { part, volume: (lo, hi), position: home_of(lo, hi), counters: Counters::default() }
     }
 
     pub fn part(&self) -> Option<&Part> {
@@ -179,7 +179,7 @@ impl StopState {
     }
 }
 
-impl VirtualCmm {
+impl IppdmeCmm {
     /// Unknown-contour following: step along the surface, tip centre on the guide, probing each
     /// point along the last surface normal (projected into the guide's tangent plane).
     fn follow(
@@ -382,7 +382,7 @@ fn rotate(v: &Vector3, axis: &Vector3, angle: f64) -> Vector3 {
     v * c + axis.cross(v) * s + axis * axis.dot(v) * (1.0 - c)
 }
 
-impl Cmm for VirtualCmm {
+impl Cmm for IppdmeCmm {
     fn describe(&self) -> String {
         let solids = self.part.as_ref().map(|p| p.solids.len()).unwrap_or(0);
         format!("truepos virtual CMM (exact contacts, instant moves, {solids} part solids)")
@@ -550,7 +550,7 @@ pub enum ServeError {
 }
 
 /// Build the virtual CMM from the files and bind the I++ DME server (not yet accepting).
-pub fn bind_virtual(opts: &ServeOptions) -> Result<truepos_ippdme::Server<VirtualCmm>, ServeError> {
+pub fn bind_virtual(opts: &ServeOptions) -> Result<truepos_ippdme::Server<IppdmeCmm>, ServeError> {
     let config = match &opts.machine {
         Some(p) => MachineConfig::load(p)?,
         None => MachineConfig::default(),
@@ -568,6 +568,6 @@ pub fn bind_virtual(opts: &ServeOptions) -> Result<truepos_ippdme::Server<Virtua
     } else {
         format!("{}:{}", opts.bind, opts.port)
     };
-    truepos_ippdme::Server::bind(&address, VirtualCmm::new(&config, part), &config, log)
+    truepos_ippdme::Server::bind(&address, IppdmeCmm::new(&config, part), &config, log)
         .map_err(|source| ServeError::Bind { address, source })
 }

@@ -11,18 +11,18 @@ use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
-use truepos_cell::cmm::VirtualCmm;
+use truepos_cell::cmm::IppdmeCmm;
 use truepos_device::{ProbeRequest, ProbingMachine};
 use truepos_ippdme::part::Part;
 use truepos_ippdme::protocol::{parse_data_items, Body, Response};
 use truepos_ippdme::{MachineConfig, Server, ServerHandle};
 use truepos_math::{Point3, Vector3};
 
-fn start(part: Option<&str>, log: Option<&Path>) -> ServerHandle<VirtualCmm> {
+fn start(part: Option<&str>, log: Option<&Path>) -> ServerHandle<IppdmeCmm> {
     let config = MachineConfig::default();
     let part = part.map(|t| Part::from_toml("test-part.toml", t).unwrap());
     let log = log.map(|p| truepos_ippdme::server::Log::open(p).unwrap());
-    Server::bind("127.0.0.1:0", VirtualCmm::new(&config, part), &config, log).unwrap().spawn().unwrap()
+    Server::bind("127.0.0.1:0", IppdmeCmm::new(&config, part), &config, log).unwrap().spawn().unwrap()
 }
 
 /// A raw line client for tests.
@@ -32,7 +32,7 @@ struct Raw {
 }
 
 impl Raw {
-    fn connect(h: &ServerHandle<VirtualCmm>) -> Raw {
+    fn connect(h: &ServerHandle<IppdmeCmm>) -> Raw {
         let s = TcpStream::connect(h.addr).unwrap();
         s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
         Raw { w: s.try_clone().unwrap(), r: BufReader::new(s) }
