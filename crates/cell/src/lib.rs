@@ -16,7 +16,10 @@
 //! - [`probing`]: the virtual machine tool with a spindle probe (a `ProbingMachine`);
 //!   [`observed`]: a real controller whose actual position the virtual cell follows.
 //! - [`scan_scenario`]: the simulator's `scan` scenario as `truepos-scan` features.
+//! - [`cmm`]: the touch-probe CMM behind `truepos ippdme serve` ([`cmm::IppdmeCmm`], a
+//!   `truepos_ippdme::Cmm`) and [`cmm::bind_virtual`].
 
+pub mod cmm;
 pub mod demo;
 pub mod gantry;
 pub mod observed;

@@ -10,6 +10,7 @@ pub mod comp;
 pub mod demo;
 pub mod fit;
 pub mod head;
+pub mod ippdme;
 pub mod latency;
 pub mod load;
 pub mod probe;
@@ -60,6 +61,8 @@ pub enum Command {
     Simulate(SimulateArgs),
     /// Run every capability end to end on the virtual cell and write a report.
     Demo(demo::Args),
+    /// I++ DME: the virtual CMM as an I++ DME server (`truepos ippdme serve`).
+    Ippdme(ippdme::Args),
 }
 
 #[derive(clap::Args, Debug)]
@@ -117,5 +120,6 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
             Scenario::Somac(a) => somac::simulate(a),
         },
         Command::Demo(a) => demo::run(a),
+        Command::Ippdme(a) => ippdme::run(a),
     }
 }
