@@ -315,7 +315,15 @@ mod tests {
         assert_eq!((blocks, alarms), (1, 1));
         // Migrations ran once; the second open started run 2.
         let migs: i64 = conn.query_row("SELECT COUNT(*) FROM schema_migrations", [], |r| r.get(0)).unwrap();
-        assert_eq!(migs, 1);
+        assert_eq!(migs, MIGRATIONS.len() as i64);
         assert_eq!(a.run_id(), 2);
+        // The controller of a run (migration 2).
+        let mut a = a;
+        assert_eq!(a.controller().unwrap(), (None, None));
+        a.set_controller("linuxcncrsh://127.0.0.1:5007", "LinuxCNC 2.9.0").unwrap();
+        assert_eq!(
+            a.controller().unwrap(),
+            (Some("linuxcncrsh://127.0.0.1:5007".to_string()), Some("LinuxCNC 2.9.0".to_string()))
+        );
     }
 }
