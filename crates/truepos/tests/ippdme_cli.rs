@@ -81,3 +81,68 @@ fn port_in_use_is_exit_3() {
     let out = truepos().args(["ippdme", "serve", "--port", &port]).output().unwrap();
     assert_eq!(out.status.code(), Some(3), "{}", String::from_utf8_lossy(&out.stderr));
 }
+
+/// `probe sphere --controller ippdme://…` against our own server: the client opens the session,
+/// probes the upper hemisphere with PtMeas and fits; the part file's sphere is the truth.
+#[test]
+fn probe_sphere_through_ippdme_finds_the_part_sphere() {
+    let dir = tempfile::tempdir().unwrap();
+    let part = dir.path().join("part.toml");
+    // Truth: centre (10, -5, 20), Ø25 mm; the probe's ball is Probe1's 3 mm.
+    std::fs::write(&part, "[[sphere]]\ncenter_mm = [10, -5, 20]\ndiameter_mm = 25\n").unwrap();
+    let mut child = truepos()
+        .args(["ippdme", "serve", "--port", "0", "--part"])
+        .arg(&part)
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let mut first = String::new();
+    err.read_line(&mut first).unwrap();
+    let addr =
+        first.trim().strip_prefix("ippdme: listening on ").unwrap_or_else(|| panic!("{first}")).to_string();
+    // The operator's side: home the machine and pick the probe (both persist across sessions;
+    // truepos itself never homes a machine).
+    {
+        let s = TcpStream::connect(&addr).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+        let mut w = s.try_clone().unwrap();
+        let mut r = BufReader::new(s);
+        w.write_all(
+            b"00001 StartSession()\r\n00002 Home()\r\n00003 ChangeTool(\"Probe1\")\r\n00004 EndSession()\r\n",
+        )
+        .unwrap();
+        let mut last = String::new();
+        while last.trim_end() != "00004 %" {
+            last.clear();
+            assert!(r.read_line(&mut last).unwrap() > 0);
+        }
+    }
+    let out = truepos()
+        .args(["probe", "sphere", "--controller", &format!("ippdme://{addr}")])
+        .args([
+            "--near=10.2,-5.1,20.1",
+            "--diameter-mm",
+            "25",
+            "--tip-diameter-mm",
+            "3",
+            "--points",
+            "12",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    unsafe_kill(child.id());
+    let _ = child.wait();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let c: Vec<f64> = j["center_mm"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    let r = j["radius_mm"].as_f64().unwrap();
+    // The virtual CMM's contacts are exact and the server prints 6 decimals (1 nm): the fit of
+    // 12 points must agree with the part file to far better than 0.1 µm.
+    for (k, t) in [10.0, -5.0, 20.0].iter().enumerate() {
+        assert!((c[k] - t).abs() < 1e-4, "centre {c:?}");
+    }
+    assert!((r - 12.5).abs() < 1e-4, "radius {r}");
+    assert_eq!(j["n_points"].as_u64(), Some(12));
+}

@@ -1,6 +1,6 @@
 //! `truepos probe sphere`: probe a reference sphere over its upper hemisphere on a machine with
 //! a touch probe and fit it — on the virtual machine tool (`--controller virtual`, the default)
-//! or a real controller (`linuxcncrsh://HOST:PORT`). The procedure is
+//! or a real controller (`linuxcncrsh://HOST:PORT`, `ippdme://HOST:PORT`). The procedure is
 //! `truepos_head::acquire::probe_sphere`; this module only parses options, opens the
 //! controller ([`open_probing_machine`]) and prints the result.
 
@@ -33,7 +33,8 @@ pub enum What {
     after_help = "Example:\n  truepos probe sphere --controller linuxcncrsh://127.0.0.1:5007 --near=120,45,30 --diameter-mm 25 --tip-diameter-mm 3 --points 25 --feed-mm-min 50 --json\n\nThe machine must be on, homed and idle (truepos never releases an e-stop or switches a machine\non). It first rises to the safe height (nominal top + tip radius + 2 × clearance), then visits\neach point from above. The nominal centre must be known to better than the clearance.\nExit code 3 (naming the address and the move) when the controller cannot be reached, reports\nan error, or a probing move ends without contact (the machine is left retracted)."
 )]
 pub struct SphereArgs {
-    /// `virtual` (the built-in virtual machine tool), `linuxcncrsh://HOST:PORT[?password=…]`.
+    /// `virtual` (the built-in virtual machine tool), `linuxcncrsh://HOST:PORT[?password=…]`,
+    /// `ippdme://HOST:PORT` (a CMM through its I++ DME server).
     #[arg(long, default_value = "virtual")]
     pub controller: String,
     /// Nominal centre X,Y,Z (mm, machine frame); negative values as `--near=-1,2,3`.
@@ -91,10 +92,13 @@ pub fn open_probing_machine(url: &str, nominal: Option<(Point3, f64, f64)>, seed
             .map_err(|e| DeviceError(e.to_string()))?;
         return Ok(Opened { machine: Box::new(m), virtual_truth: None });
     }
-    // Hook: `ippdme://HOST:PORT` (a CMM through its I++ DME server) is opened here once the
-    // I++ DME client lands.
+    if url.starts_with("ippdme://") {
+        // A CMM through its I++ DME server (`truepos ippdme serve` or a real controller).
+        let m = truepos_ippdme::client::connect(url).map_err(|e| DeviceError(e.to_string()))?;
+        return Ok(Opened { machine: Box::new(m), virtual_truth: None });
+    }
     Err(UsageError(format!(
-        "--controller `{url}`: expected `virtual` or `linuxcncrsh://HOST:PORT[?password=…]`"
+        "--controller `{url}`: expected `virtual`, `linuxcncrsh://HOST:PORT[?password=…]` or `ippdme://HOST:PORT`"
     ))
     .into())
 }
