@@ -170,6 +170,26 @@ impl Program {
                 old = blk.after;
                 continue;
             }
+            if moving && blk.after.pos.iter().any(|p| p.is_none()) {
+                // The machine's position on an axis the move does not give is unknown: the
+                // transformed move could not say where it goes (contract: a start position).
+                let given: String =
+                    (0..3).filter(|&k| blk.axes[k].is_some()).map(|k| AXES[k] as char).collect();
+                let missing: Vec<String> = (0..3)
+                    .filter(|&k| blk.after.pos[k].is_none())
+                    .map(|k| (AXES[k] as char).to_string())
+                    .collect();
+                let first = (0..3).find_map(|k| axis_token(AXES[k])).map(|x| &toks[x]);
+                return Err(err(
+                    first,
+                    format!(
+                        "this motion gives only {given} and the {} position before it is not known (give it \
+                         earlier in the program, or the start position: orient --start-mm X,Y,Z in the \
+                         program's coordinates)",
+                        missing.join(", ")
+                    ),
+                ));
+            }
             let is_arc = matches!(blk.after.motion, MotionMode::ArcCw | MotionMode::ArcCcw);
             if let (true, true, ArcPolicy::Linearize { tolerance_mm }) =
                 (is_arc && moving, has_centre, opts.arc_policy)
@@ -626,6 +646,23 @@ mod tests {
         let end = b.last().unwrap().after.pos;
         let expect = t.apply(&truepos_math::Point3::new(100.0, 0.0, 0.0));
         assert!((end[0].unwrap() - expect.x).abs() < 1e-4 && (end[1].unwrap() - expect.y).abs() < 1e-4);
+    }
+
+    /// A first motion that gives only Z is refused without a start position, whatever the
+    /// transform (even a pure translation), and transformed with one.
+    #[test]
+    fn partial_first_motion_needs_a_start_position() {
+        let p = "N10 G21 G90\nN20 G0 Z50.\nN30 G1 X10 Y20 F100\n";
+        let shift = Transform3::rigid(truepos_math::Matrix3::identity(), Vector3::new(1.0, 2.0, 3.0));
+        let e = tr(p, shift).unwrap_err();
+        assert_eq!((e.line(), e.column()), (2, 8), "{e}");
+        assert!(e.to_string().contains("start-mm"), "{e}");
+        let opts = TransformOptions { start_mm: Some([5.0, 6.0, 100.0]), ..Default::default() };
+        let out = Program::parse(p).transform(&shift, &opts).unwrap();
+        // The machine starts at (5, 6, 100) of the program's frame = (6, 8, 103) of the new one;
+        // a translation keeps X and Y where they are, so the Z move stays a Z move.
+        assert_eq!(out.lines().nth(1).unwrap(), "N20 G0 Z53.0000");
+        assert_eq!(out.lines().nth(2).unwrap(), "N30 G1 X11.0000 Y22.0000 F100");
     }
 
     #[test]

@@ -86,6 +86,15 @@ impl Default for Params {
     }
 }
 
+/// Largest accepted `samples` (tracker samples per reading).
+pub const MAX_SAMPLES: usize = 1000;
+/// Largest accepted `max_iterations` (correction moves per stop).
+pub const MAX_ITERATIONS: usize = 100;
+/// Largest accepted `stable_attempts`.
+pub const MAX_ATTEMPTS: usize = 1000;
+/// Largest accepted `orient_every` (measurement stops).
+pub const MAX_ORIENT_EVERY: usize = 1_000_000;
+
 impl Params {
     /// Check the parameters make sense; the message names the offending one.
     pub fn validate(&self) -> Result<(), String> {
@@ -109,6 +118,37 @@ impl Params {
         }
         if self.max_iterations == 0 || self.stable_attempts == 0 {
             return Err("max_iterations and stable_attempts must be at least 1".into());
+        }
+        // Documented limits of the counts: beyond them a value is a typo, and a run would
+        // never end (or allocate without bound).
+        for (n, v, max) in [
+            ("samples", self.samples, MAX_SAMPLES),
+            ("max_iterations", self.max_iterations, MAX_ITERATIONS),
+            ("stable_attempts", self.stable_attempts, MAX_ATTEMPTS),
+            ("orient_every", self.orient_every, MAX_ORIENT_EVERY),
+        ] {
+            if v > max {
+                return Err(format!("{n} must be at most {max}, got {v}"));
+            }
+        }
+        for (n, v) in [("dwell_s", self.dwell_s), ("settle_wait_s", self.settle_wait_s)] {
+            if !(v.is_finite() && (0.0..=3600.0).contains(&v)) {
+                return Err(format!("{n} must be between 0 and 3600 s, got {v}"));
+            }
+        }
+        if !self.part_cte_ppm_per_c.is_finite() || self.part_cte_ppm_per_c.abs() > 1000.0 {
+            return Err(format!(
+                "part_cte_ppm_per_c must be a finite number within ±1000, got {}",
+                self.part_cte_ppm_per_c
+            ));
+        }
+        if !(-50.0..=100.0).contains(&self.temperature_min_c)
+            || !(-50.0..=100.0).contains(&self.temperature_max_c)
+        {
+            return Err("temperature_min_c and temperature_max_c must lie within -50 to 100 °C".into());
+        }
+        if self.keyword.trim().is_empty() {
+            return Err("keyword must not be empty (it marks the measurement blocks)".into());
         }
         if self.temperature_min_c.is_nan()
             || self.temperature_max_c.is_nan()

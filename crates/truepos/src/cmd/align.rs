@@ -61,6 +61,14 @@ pub fn read_id_points(path: &PathBuf) -> Result<IdPoints, InputError> {
     let ids = table.str_column("id")?;
     let mut seen = HashMap::new();
     for (i, id) in ids.iter().enumerate() {
+        if id.trim().is_empty() {
+            return Err(InputError::at(
+                path,
+                table.line_number(i),
+                table.column("id").map(|c| c + 1),
+                "empty id: every point needs an id to be matched",
+            ));
+        }
         if let Some(prev) = seen.insert(id.clone(), i) {
             return Err(InputError::at(
                 path,

@@ -26,7 +26,7 @@ pub enum SomacCommand {
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos autoscale --reference balls_20C.csv --measured balls_now.csv --cte-ppm-per-c 23.6 --temperature-c 24.1 --json\n\nBoth files: id,x_mm,y_mm,z_mm, matched by id. The scale is the best-fit ratio of measured to\nreference size after removing rotation and translation (similarity fit)."
+    after_help = "Example:\n  truepos autoscale --reference balls_20C.csv --measured balls_now.csv --cte-ppm-per-c 23.6 --temperature-c 24.1 --json\n\nBoth files: id,x_mm,y_mm,z_mm, matched by id. The scale is the best-fit ratio of measured to\nreference size after removing rotation and translation (similarity fit); two features are\nenough (their distance ratio). Coincident reference or measured features are refused (exit 2)."
 )]
 pub struct AutoscaleArgs {
     /// Feature positions at the reference temperature (20 °C), e.g. from the drawing.
@@ -67,8 +67,16 @@ pub struct OrientArgs {
     #[arg(long)]
     pub scale: bool,
     /// Decimals of rewritten coordinates (default 4 in mm programs, 5 in inch programs).
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u8).range(0..=9))]
     pub decimals: Option<u8>,
+    /// Position before the program's first line, in the program's own (reference) coordinates
+    /// (mm). Needed when the first motion gives only some axes (e.g. `G0 Z50.`).
+    #[arg(long, value_name = "X,Y,Z", value_parser = crate::output::parse_triple, allow_hyphen_values = true)]
+    pub start_mm: Option<[f64; 3]>,
+    /// Replace arcs whose plane the transform tilts by G1 chords whose largest distance from the
+    /// exact transformed arc is at most this (mm). Without it such arcs are refused.
+    #[arg(long, value_name = "MM")]
+    pub arc_tolerance_mm: Option<f64>,
     #[arg(long)]
     pub json: bool,
 }
@@ -81,7 +89,7 @@ pub enum FormulaArg {
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos air --temperature-c 20 --pressure-pa 101325 --humidity-pct 50 --json\n\nEquations as in NIST's Refractive Index of Air Calculator (Stone & Zimmerman)."
+    after_help = "Example:\n  truepos air --temperature-c 20 --pressure-pa 101325 --humidity-pct 50 --json\n\nEquations as in NIST's Refractive Index of Air Calculator (Stone & Zimmerman). Inputs outside the\nrange where NIST states the equation valid are refused (exit 2): Ciddor 300-1700 nm, -40-100 °C,\n10000-140000 Pa, 0-100 % RH, 0-2000 ppm CO2; Edlén 300-1700 nm, 0-40 °C, 60000-140000 Pa,\n0-100 % RH, CO2 450 ppm only."
 )]
 pub struct AirArgs {
     #[arg(long)]
@@ -126,25 +134,27 @@ pub fn fit_scale(
     let r = read_id_points(reference)?;
     let m = read_id_points(measured)?;
     let mt = match_by_id(&r, &m);
-    if mt.ids.len() < 3 {
+    if mt.ids.len() < 2 {
         return Err(InputError::in_file(
             measured,
             format!(
-                "{} ids in common with {}; at least 3 features are needed",
+                "{} ids in common with {}; at least 2 features are needed (two give their distance ratio)",
                 mt.ids.len(),
                 reference.display()
             ),
         )
         .into());
     }
-    let t = bestfit::best_fit(&mt.from, &mt.to, None, BestFitOptions { with_scale: true })
+    let f = bestfit::scale_fit(&mt.from, &mt.to, None)
         .map_err(|e| InputError::in_file(measured, format!("cannot fit a scale: {e}")))?;
+    let t = f.transform;
     let res = bestfit::residuals(&t, &mt.from, &mt.to);
     let ssr: f64 = res.iter().map(|r| r.norm_squared()).sum();
     let n = mt.ids.len();
-    // 7 parameters (3 rotation, 3 translation, scale) from 3n coordinates.
-    let dof = (3 * n).saturating_sub(7).max(1) as f64;
-    let sigma = (ssr / dof).sqrt();
+    // Parameters: translation 3, scale 1, rotation 3 (2 when the features lie on a line: the
+    // turn about it is not determined). With no redundancy left the scatter is unknown: NaN.
+    let params = if f.rotation_determined { 7 } else { 6 };
+    let sigma = if 3 * n > params { (ssr / (3 * n - params) as f64).sqrt() } else { f64::NAN };
     let c = truepos_math::centroid(&mt.from);
     let spread: f64 = mt.from.iter().map(|p| (p - c).norm_squared()).sum();
     let u_scale = sigma / spread.sqrt();
@@ -168,7 +178,7 @@ pub fn autoscale(a: AutoscaleArgs) -> Result<Outcome> {
     if a.json {
         print_json(&json!({
             "scale": f.scale,
-            "scale_uncertainty": f.u_scale,
+            "scale_uncertainty": f.u_scale.is_finite().then_some(f.u_scale),
             "scale_ppm": (f.scale - 1.0) * 1e6,
             "expected_scale": expected,
             "discrepancy_ppm": discrepancy,
@@ -220,7 +230,14 @@ pub fn orient(a: OrientArgs) -> Result<Outcome> {
     let gerr =
         |e: truepos_gcode::GcodeError| InputError::at(&a.program, e.line(), Some(e.column()), e.detail());
     program.check().map_err(gerr)?;
-    let opts = truepos_gcode::TransformOptions { decimals: a.decimals, ..Default::default() };
+    let arc_policy = match a.arc_tolerance_mm {
+        None => truepos_gcode::ArcPolicy::Refuse,
+        Some(t) if t.is_finite() && t > 0.0 => truepos_gcode::ArcPolicy::Linearize { tolerance_mm: t },
+        Some(t) => {
+            return Err(UsageError(format!("--arc-tolerance-mm must be a positive number, got {t}")).into())
+        }
+    };
+    let opts = truepos_gcode::TransformOptions { decimals: a.decimals, arc_policy, start_mm: a.start_mm };
     let out = program.transform(&measured_from_reference, &opts).map_err(gerr)?;
     truepos_io::atomic::write_atomic(&a.output, out.as_bytes())?;
     let res = bestfit::residuals(&measured_from_reference, &mt.from, &mt.to);
@@ -262,18 +279,12 @@ pub fn air(a: AirArgs) -> Result<Outcome> {
         FormulaArg::Edlen => Formula::Edlen,
     };
     let n = air::refractive_index(&c, f).map_err(|e| UsageError(e.to_string()))?;
-    let warning = air::validity_warning(&c, f);
-    if let Some(w) = &warning {
-        eprintln!("warning: {w}");
-    }
     let name = match f {
         Formula::Ciddor => "ciddor",
         Formula::Edlen => "edlen",
     };
     if a.json {
-        print_json(
-            &json!({ "n": n, "formula": name, "n_minus_1_ppm": (n - 1.0) * 1e6, "warning": warning }),
-        )?;
+        print_json(&json!({ "n": n, "formula": name, "n_minus_1_ppm": (n - 1.0) * 1e6 }))?;
     } else {
         println!("n = {n:.15}  ({name}; n − 1 = {:.4} ppm)", (n - 1.0) * 1e6);
     }

@@ -51,8 +51,8 @@ pub struct RunArgs {
 pub struct SimArgs {
     #[command(flatten)]
     pub common: super::SimCommon,
-    /// Holes per row (two rows).
-    #[arg(long, default_value_t = 150)]
+    /// Holes per row (two rows), 1 to 2000.
+    #[arg(long, default_value_t = 150, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=2000))]
     pub holes_per_row: usize,
 }
 
@@ -324,7 +324,10 @@ pub fn run_virtual(
     let program = truepos_gcode::Program::parse(program_text);
     let cell = VirtualCell::new(cfg, targets);
     let mut trackers = cell.align_trackers().map_err(|e| {
-        truepos_somac::device::DeviceError::Tracker(0, format!("aligning the trackers on the machine targets: {e}"))
+        truepos_somac::device::DeviceError::Tracker(
+            0,
+            format!("aligning the trackers on the machine targets: {e}"),
+        )
     })?;
     let mut ctl = cell.controller();
     let mut sensors = cell.sensors();
@@ -363,20 +366,32 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         )
         .into());
     }
-    let started = format!("{:?}", std::time::SystemTime::now());
-    let mut audit = truepos_audit::SqliteAudit::open(&a.db, &a.program.display().to_string(), &started)
+    let mut audit =
+        truepos_audit::SqliteAudit::open(&a.db, &a.program.display().to_string(), &truepos_audit::now_utc())
+            .map_err(|e| match e {
+                truepos_audit::AuditError::Sql(_) => {
+                    anyhow::Error::from(e).context(format!("audit trail {}", a.db.display()))
+                }
+                other => InputError::in_file(&a.db, other.to_string()).into(),
+            })?;
+    let vr = run_virtual(&text, cfg, targets, &params, &mut audit);
+    // The run row records its end and final status, whatever happened.
+    let (status, message) = match &vr {
+        Ok(v) if failing(&v.report) => ("FAILURE", None),
+        Ok(_) => ("SUCCESS", None),
+        Err(e) => ("ERROR", Some(format!("{e:#}"))),
+    };
+    audit
+        .finish(status, message.as_deref(), &truepos_audit::now_utc())
         .with_context(|| format!("audit trail {}", a.db.display()))?;
-    let vr =
-        run_virtual(&text, cfg, targets, &params, &mut audit).map_err(|e| match e
-            .downcast::<truepos_somac::run::RunError>()
-        {
-            Ok(truepos_somac::run::RunError::Program { line, message }) => {
-                InputError::at(&a.program, line, None, message).into()
-            }
-            Ok(truepos_somac::run::RunError::Params(m)) => UsageError(m).into(),
-            Ok(other) => anyhow::Error::from(other),
-            Err(e) => e,
-        })?;
+    let vr = vr.map_err(|e| match e.downcast::<truepos_somac::run::RunError>() {
+        Ok(truepos_somac::run::RunError::Program { line, message }) => {
+            InputError::at(&a.program, line, None, message).into()
+        }
+        Ok(truepos_somac::run::RunError::Params(m)) => UsageError(m).into(),
+        Ok(other) => anyhow::Error::from(other),
+        Err(e) => e,
+    })?;
     let measured: Vec<f64> =
         vr.report.stops.iter().filter(|s| s.final_error_mm.is_finite()).map(|s| s.final_error_mm).collect();
     let hs = hole_stats(&measured);
