@@ -24,7 +24,7 @@ use rusqlite::{params, Connection, OpenFlags};
 use std::path::Path;
 use std::time::Duration;
 use thiserror::Error;
-use truepos_somac::audit::{AuditSink, Event};
+use truepos_somac::audit::{AuditSink, Event, SinkError};
 
 #[derive(Debug, Error)]
 pub enum AuditError {
@@ -420,13 +420,13 @@ impl SqliteAudit {
 }
 
 impl AuditSink for SqliteAudit {
-    fn record(&mut self, event: &Event) -> Result<(), String> {
+    fn record(&mut self, event: &Event) -> Result<(), SinkError> {
         self.pending.push(event.clone());
         Ok(())
     }
 
-    fn commit(&mut self) -> Result<(), String> {
-        self.flush().map_err(|e| e.to_string())
+    fn commit(&mut self) -> Result<(), SinkError> {
+        Ok(self.flush()?)
     }
 }
 

@@ -34,25 +34,8 @@
 //! ([`OutOfRange`]) or, with `clamp`, holds the end values.
 
 use crate::grid1::{Grid1, GridError};
+pub use truepos_math::types::Axis;
 use truepos_math::{Point3, Vector3};
-
-/// A machine axis.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Axis {
-    X,
-    Y,
-    Z,
-}
-
-impl Axis {
-    pub fn name(self) -> &'static str {
-        match self {
-            Axis::X => "x",
-            Axis::Y => "y",
-            Axis::Z => "z",
-        }
-    }
-}
 
 /// The six component errors of one axis at one position, in the axis's own naming (mm, rad).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]

@@ -1,7 +1,7 @@
 //! # truepos-comp — geometric error map and bed deformation under load
 //!
-//! Capability 3 of `shared/spec/product.md` (`truepos comp`, `truepos load`). Pure computation:
-//! the binary reads and writes the files.
+//! Capability 3 of `shared/spec/product.md` (`truepos comp`, `truepos load`). Computation, plus
+//! the typed definitions of its file formats ([`files`]).
 //!
 //! Entry points:
 //! - [`geometric`]: the 21-parameter ISO 230-1 map ([`GeometricMap`], [`AxisTable`]) and the
@@ -15,10 +15,12 @@
 //! - [`load`]: the portal, the physics and sign convention of its pitch/roll, and the
 //!   contract's correction `p − θ × (p − o)`.
 //! - [`fe_map`]: influence maps computed with the plate model of `truepos-fe`.
+//! - [`files`]: the influence map CSV (read and write).
 //! - [`grid1`]: O(1)/binary-search interval lookup shared by all tables.
 
 pub mod correct;
 pub mod fe_map;
+pub mod files;
 pub mod geometric;
 pub mod grid1;
 pub mod influence;

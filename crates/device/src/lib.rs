@@ -8,6 +8,12 @@
 //! - [`ProbingMachine`]: a machine with a touch probe — position, positioning moves, single-point
 //!   probing ([`ProbeRequest`] → [`ProbeHit`]), abort. Used by `probe sphere`, head-offset
 //!   acquisition and inspection.
+//! - [`ScanningMachine`]: a machine with an analogue scanning probe. Servo-rate path following
+//!   ([`ScanningMachine::follow`]: one tip-centre command per control period in, encoder position
+//!   and probe deflection out) is what truepos's own scanning control drives; whole scans run by
+//!   the machine's controller ([`ScanningMachine::scan_on_circle`], [`ScanningMachine::scan_on_line`],
+//!   as I++ DME's `ScanOnCircle` / `ScanOnLine`) are the other half, for backends whose
+//!   controller scans by itself.
 //! - [`Controller`], [`Tracker`], [`Cell`]: the end-point control loop's NC controller fed block by
 //!   block, its laser trackers and the rest of the cell's sensors.
 //! - [`DeviceError`]: every failure of a device, naming the device's address; the binary maps it
@@ -128,6 +134,119 @@ pub trait ProbingMachine {
     fn probe(&mut self, request: &ProbeRequest) -> Result<ProbeHit, DeviceError>;
     /// Stop all motion now (best effort; also used on the way out of a failure).
     fn abort(&mut self) -> Result<(), DeviceError>;
+}
+
+/// One position command of servo-rate scanning ([`ScanningMachine::follow`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScanCommand {
+    /// Where the tip centre is to be at the end of the control period (machine frame, mm).
+    pub tip_center_mm: Point3,
+    /// Index of the feature being measured, `None` on transfers (paths that are collision-free
+    /// by construction). A real machine ignores it; the virtual CMM, whose true part is a set of
+    /// unbounded feature surfaces, uses it to choose the surface the stylus can touch.
+    pub feature: Option<usize>,
+}
+
+/// What a scanning machine measured at the end of one control period.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScanSample {
+    /// Position of the probe's reference point as the axis scales read it (machine frame, mm).
+    pub scale_mm: Point3,
+    /// Stylus deflection as the scanning probe measures it (machine frame, mm).
+    pub deflection_mm: Vector3,
+}
+
+impl ScanSample {
+    /// The measured tip centre: scale position plus probe deflection.
+    pub fn tip_center_mm(&self) -> Point3 {
+        self.scale_mm + self.deflection_mm
+    }
+}
+
+/// A scan the machine's own controller carries out along a circle (I++ DME `ScanOnCircle`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CircleScanRequest {
+    /// Circle centre (machine frame, mm).
+    pub center_mm: Point3,
+    /// Nominal surface point where the scan starts (on the circle).
+    pub start_mm: Point3,
+    /// Unit normal of the circle's plane.
+    pub normal: Vector3,
+    /// Angle to scan (degrees, signed about `normal`).
+    pub delta_deg: f64,
+    /// Surface angle: 0 outside (boss), 180 inside (bore), 90/270 on a plane.
+    pub surface_angle_deg: f64,
+    /// Nominal distance between reported points (mm).
+    pub step_mm: f64,
+}
+
+/// A scan the machine's own controller carries out along a line (I++ DME `ScanOnLine`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LineScanRequest {
+    /// Nominal surface points where the scan starts and ends (machine frame, mm).
+    pub start_mm: Point3,
+    pub end_mm: Point3,
+    /// Unit surface normal, out of the material.
+    pub normal: Vector3,
+    /// Nominal distance between reported points (mm).
+    pub step_mm: f64,
+}
+
+/// A machine with an analogue scanning probe (a CMM, or a machine tool with a scanning spindle
+/// probe). Positions are tip-centre positions in the machine frame (mm).
+///
+/// Two ways to scan, and a backend offers what its controller can do:
+/// - servo-rate path following ([`ScanningMachine::begin`] then [`ScanningMachine::follow`] once
+///   per control period): truepos plans the path and closes the deflection loop itself (the
+///   blended scans of `truepos-scan`). The virtual CMM does this; a real controller needs a
+///   streaming position interface at its servo rate (LinuxCNC with a HAL streamer).
+/// - controller-run scans ([`ScanningMachine::scan_on_circle`], [`ScanningMachine::scan_on_line`]):
+///   the controller plans and scans and reports the points (I++ DME).
+///
+/// Every method a backend does not offer returns [`DeviceError::Rejected`] (the defaults do).
+pub trait ScanningMachine {
+    /// Address and version, for reports and the audit trail.
+    fn info(&self) -> DeviceInfo;
+    /// The control period of [`ScanningMachine::follow`] (s).
+    fn control_period_s(&self) -> f64;
+    /// Prepare servo-rate following with the tip centre at rest at `start_mm` and a stylus of
+    /// `tip_radius_mm` (a real machine checks that its stylus has that radius).
+    fn begin(&mut self, start_mm: Point3, tip_radius_mm: f64) -> Result<(), DeviceError> {
+        let _ = (start_mm, tip_radius_mm);
+        Err(self.unsupported("servo-rate scanning"))
+    }
+    /// Command the tip centre to `command.tip_center_mm` at the end of the next control period
+    /// (the command ramps linearly over the period) and return what the machine measured then.
+    fn follow(&mut self, command: &ScanCommand) -> Result<ScanSample, DeviceError> {
+        let _ = command;
+        Err(self.unsupported("servo-rate scanning"))
+    }
+    /// Scan along a circle with the controller's own path control; the measured tip centres
+    /// with their surface normals.
+    fn scan_on_circle(&mut self, request: &CircleScanRequest) -> Result<Vec<ProbeHit>, DeviceError> {
+        let _ = request;
+        Err(self.unsupported("ScanOnCircle"))
+    }
+    /// Scan along a line with the controller's own path control.
+    fn scan_on_line(&mut self, request: &LineScanRequest) -> Result<Vec<ProbeHit>, DeviceError> {
+        let _ = request;
+        Err(self.unsupported("ScanOnLine"))
+    }
+    /// The error every unsupported method returns.
+    fn unsupported(&self, what: &str) -> DeviceError {
+        DeviceError::Rejected {
+            address: self.info().address,
+            what: what.to_string(),
+            message: "this machine does not support it".to_string(),
+        }
+    }
+}
+
+/// A laser tracker with its alignment to the machine: readings in the tracker frame become
+/// machine-frame positions through `machine_from_tracker`.
+pub struct TrackerSetup<T> {
+    pub tracker: T,
+    pub machine_from_tracker: truepos_math::Transform3,
 }
 
 /// Why a tracker reading failed.

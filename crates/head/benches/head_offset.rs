@@ -4,11 +4,11 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use std::hint::black_box;
-use truepos_head::{solve, Reading, Reference, Setup};
+use truepos_head::{solve, Params, Reading, Reference};
 use truepos_math::{Point3, Vector3};
 use truepos_sim::scenario::head_offset::{simulate, HeadOffsetConfig, Variant};
 
-fn data(variant: Variant, per: Option<usize>) -> (Vec<Reading>, Setup) {
+fn data(variant: Variant, per: Option<usize>) -> (Vec<Reading>, Params) {
     let mut cfg = HeadOffsetConfig::preset(variant, 1);
     if let Some(n) = per {
         cfg.points_per_orientation = n;
@@ -31,7 +31,7 @@ fn data(variant: Variant, per: Option<usize>) -> (Vec<Reading>, Setup) {
     } else {
         Reference::Vertex { tip_radius: d.truth.tip_radius_mm.unwrap_or(0.0) }
     };
-    let setup = Setup {
+    let setup = Params {
         reference,
         table_center: Point3::from(d.truth.table_center_mm),
         tilt: [0.0, 0.0],

@@ -1,7 +1,8 @@
 //! # truepos-head
 //!
 //! Measuring-head 3D offset calibration (`truepos head-offset`, capability 2 of the product
-//! spec). Pure: plain data in, numbers with uncertainties and observability out.
+//! spec). Plain data in, numbers with uncertainties and observability out; the points file is
+//! read by [`file`].
 //!
 //! Model (contract, `shared/spec/interface.md`, "Head offset"): `R` is the offset in the head
 //! frame at `b = 0`; the measuring reference point is `Q = P + Ry(b)·R` (P: the NC's head
@@ -19,6 +20,7 @@
 //!   depend on where the reference is or how large the offset is. Components of `R` that the data
 //!   cannot determine (null space of the column-scaled normal matrix) are held at the prior and
 //!   reported as not observable.
+//! - [`file::read_input`]: the points file as [`Reading`]s.
 //! - [`surface_point`] / [`beam_direction`]: the contract's forward model, used by
 //!   `truepos head-offset apply`.
 //!
@@ -27,6 +29,7 @@
 //! and Y (the triangle of apparent centres about the known table centre; Z is not observable);
 //! any mix of both determines all three.
 
+pub mod file;
 pub mod init;
 
 use init::{algebraic_sphere, intersect_planes, linear_solve, plane_fit, Apparent};
@@ -61,7 +64,7 @@ pub enum Reference {
 
 /// Everything the adjustment needs besides the readings.
 #[derive(Clone, Debug)]
-pub struct Setup {
+pub struct Params {
     pub reference: Reference,
     /// A point on the table's rotation axis (parallel to Z).
     pub table_center: Point3,
@@ -77,7 +80,7 @@ pub struct Setup {
     pub beam_through_reference: bool,
 }
 
-impl Default for Setup {
+impl Default for Params {
     fn default() -> Self {
         Self {
             reference: Reference::Sphere { radius: None },
@@ -106,20 +109,20 @@ pub struct HeadOffset {
     /// The offset R (mm); components that are not observable hold the prior.
     pub offset: Vector3,
     pub observable: [bool; 3],
-    /// Components that come from the laser beam tilt (`Setup::beam_through_reference`), not
+    /// Components that come from the laser beam tilt (`Params::beam_through_reference`), not
     /// from the rotations.
     pub from_tilt: [bool; 3],
     /// Standard uncertainty of each observable component (mm); `None` if not observable.
-    pub uncertainty: [Option<f64>; 3],
+    pub u_offset: [Option<f64>; 3],
     /// Sphere centre or vertex, in table coordinates at `c = 0` (= machine coordinates there).
     pub reference_point: Point3,
-    pub reference_uncertainty: Vector3,
+    pub u_reference_point: Vector3,
     /// Components of the reference point the data gives only together with an unobservable
     /// offset component (they follow the prior).
     pub reference_depends_on_prior: [bool; 3],
     /// Fitted (or fixed) radius of the measured sphere surface.
     pub radius: Option<f64>,
-    pub radius_uncertainty: Option<f64>,
+    pub u_radius: Option<f64>,
     /// Face normals of a vertex reference (table frame at `c = 0`), by face id.
     pub face_normals: Vec<(i64, Vector3)>,
     /// Root mean square of the orthogonal distances (mm).
@@ -325,275 +328,62 @@ fn deg(x: f64) -> f64 {
 }
 
 /// Determine the head offset from readings of a reference object in several orientations.
-pub fn solve(readings: &[Reading], setup: &Setup) -> Result<HeadOffset, HeadError> {
-    if readings.is_empty() {
-        return Err(HeadError::NoData);
-    }
-    let beam = beam_direction(setup.tilt);
-    let o = setup.table_center;
-    for (i, r) in readings.iter().enumerate() {
-        let finite = r.b.is_finite() && r.c.is_finite() && r.p.coords.iter().all(|v| v.is_finite());
-        if !finite || r.dist.is_some_and(|d| !d.is_finite()) {
-            return Err(HeadError::NotFinite { index: i });
-        }
-        if r.dist.is_some()
-            && !(beam.iter().all(|v| v.is_finite())
-                && setup.tilt.iter().all(|t| t.abs() < 85f64.to_radians()))
-        {
-            return Err(HeadError::BadTilt { index: i });
-        }
-    }
-    if let Reference::Sphere { radius: Some(rad) } = setup.reference {
-        if !(rad > 0.0 && rad.is_finite()) {
-            return Err(HeadError::BadRadius(rad));
-        }
-    }
+///
+/// The steps: check the input ([`check_input`]); group the readings into orientations
+/// ([`orientations_of`]); the closed-form reference point of every orientation
+/// ([`closed_form`]); the model ([`model_of`]); which offset components the data determines
+/// ([`observability`]); the combined adjustment; for laser heads whose beam passes through the
+/// reference point, the components the rotations cannot reach ([`complete_from_beam`]); the
+/// result ([`HeadOffset`]).
+pub fn solve(readings: &[Reading], params: &Params) -> Result<HeadOffset, HeadError> {
+    let beam = beam_direction(params.tilt);
+    check_input(readings, params, &beam)?;
     // Raw points without the offset: P' = P + Ry(b)·dist·u (the offset enters as + Ry(b)·R).
     let raw: Vec<Point3> =
         readings.iter().map(|r| surface_point(&r.p, r.b, &Vector3::zeros(), r.dist, &beam)).collect();
-
-    // Orientations: same group id, B and C (angles compared to 1e-9 rad).
-    let key = |r: &Reading| (r.group, (r.b * 1e9).round() as i64, (r.c * 1e9).round() as i64);
-    let mut groups: BTreeMap<(Option<i64>, i64, i64), Vec<usize>> = BTreeMap::new();
-    for (i, r) in readings.iter().enumerate() {
-        groups.entry(key(r)).or_default().push(i);
-    }
-    let distinct_angles: std::collections::BTreeSet<(i64, i64)> = groups.keys().map(|k| (k.1, k.2)).collect();
-    if distinct_angles.len() < 2 {
-        let r = &readings[0];
-        return Err(HeadError::OneOrientation { n: readings.len(), b_deg: deg(r.b), c_deg: deg(r.c) });
-    }
-
-    let vertex_tip = match setup.reference {
+    let groups = orientations_of(readings)?;
+    let vertex_tip = match params.reference {
         Reference::Vertex { tip_radius } if tip_radius.is_finite() && tip_radius >= 0.0 => tip_radius,
         Reference::Vertex { tip_radius } => return Err(HeadError::BadRadius(tip_radius)),
         Reference::Sphere { .. } => 0.0,
     };
-    // Per-orientation closed-form reference points.
-    let mut apparent = Vec::new();
-    let mut orientations = Vec::new();
-    let mut radii = Vec::new();
-    let mut face_ids: Vec<i64> = Vec::new();
-    let mut face_normals_sum: Vec<Vector3> = Vec::new();
-    for idx in groups.values() {
-        let r0 = &readings[idx[0]];
-        let (bd, cd) = (deg(r0.b), deg(r0.c));
-        let pts: Vec<Point3> = idx.iter().map(|&i| raw[i]).collect();
-        let point = match setup.reference {
-            Reference::Sphere { .. } => {
-                if pts.len() < 4 {
-                    return Err(HeadError::OrientationTooFew {
-                        b_deg: bd,
-                        c_deg: cd,
-                        got: pts.len(),
-                        needed: 4,
-                        what: "a sphere fit needs at least 4 points, spread over the sphere",
-                    });
-                }
-                let (c, rad) = algebraic_sphere(&pts).ok_or_else(|| HeadError::Degenerate {
-                    b_deg: bd,
-                    c_deg: cd,
-                    what: "the points do not determine a sphere (coplanar or collinear): probe the sphere \
-                           from more directions"
-                        .into(),
-                })?;
-                radii.push(rad);
-                Some(c)
-            }
-            Reference::Vertex { .. } => {
-                let mut by_face: BTreeMap<i64, Vec<Point3>> = BTreeMap::new();
-                for &i in idx {
-                    let f = readings[i].face.ok_or(HeadError::MissingFace { index: i })?;
-                    by_face.entry(f).or_default().push(raw[i]);
-                }
-                let mut planes: Vec<(i64, Vector3, Point3)> = Vec::new();
-                for (f, fp) in &by_face {
-                    let Some((n, m)) = plane_fit(fp) else {
-                        return Err(HeadError::Degenerate {
-                            b_deg: bd,
-                            c_deg: cd,
-                            what: format!(
-                                "face {f} has {} points that do not span a plane: each face needs at least 3 \
-                                 points, not on one line",
-                                fp.len()
-                            ),
-                        });
-                    };
-                    planes.push((*f, n, m));
-                }
-                // Outward normals: at a convex vertex the other faces lie on the inner side.
-                for plane in planes.iter_mut() {
-                    let (f, n, m) = *plane;
-                    let mut side = 0.0;
-                    for (g, gp) in &by_face {
-                        if *g != f {
-                            side += gp.iter().map(|x| n.dot(&(x - m))).sum::<f64>();
-                        }
-                    }
-                    let nt = rz(-r0.c) * n;
-                    let known = face_ids.iter().position(|x| *x == f);
-                    let flip = if side != 0.0 {
-                        side > 0.0
-                    } else if let Some(k) = known {
-                        face_normals_sum[k].dot(&nt) < 0.0
-                    } else {
-                        // One face only: it faces the head.
-                        n.dot(&(ry(r0.b) * Vector3::z())) < 0.0
-                    };
-                    let (n, nt) = if flip { (-n, -nt) } else { (n, nt) };
-                    plane.1 = n;
-                    match known {
-                        Some(k) => face_normals_sum[k] += nt,
-                        None => {
-                            face_ids.push(f);
-                            face_normals_sum.push(nt);
-                        }
-                    }
-                }
-                if planes.len() < 3 {
-                    None
-                } else {
-                    // The stylus centre runs on the faces moved out by the tip radius.
-                    let moved: Vec<(Vector3, Point3)> =
-                        planes.iter().map(|(_, n, m)| (*n, m - n * vertex_tip)).collect();
-                    intersect_planes(&moved, 1e-3)
-                }
-            }
-        };
-        let Some(point) = point else {
-            continue;
-        };
-        apparent.push(Apparent { b: r0.b, c: r0.c, point });
-        orientations.push(Orientation {
-            b: r0.b,
-            c: r0.c,
-            group: r0.group,
-            n_points: idx.len(),
-            apparent: point,
-        });
-    }
-
-    if apparent.len() < 2 {
-        return Err(HeadError::TooFewVertexOrientations { got: apparent.len() });
-    }
-    // Kind and parameters.
-    let kind = match setup.reference {
-        Reference::Sphere { radius } => Kind::Sphere { fixed_radius: radius },
-        Reference::Vertex { .. } => {
-            let faces = face_normals_sum
-                .iter()
-                .map(|s| {
-                    let n0 = s.normalize();
-                    let e1 = any_perpendicular(&n0);
-                    let e2 = n0.cross(&e1);
-                    (n0, e1, e2)
-                })
-                .collect();
-            let face_of = readings
-                .iter()
-                .map(|r| r.face.and_then(|f| face_ids.iter().position(|x| *x == f)).unwrap_or(0))
-                .collect();
-            Kind::Vertex { faces, face_of, tip: vertex_tip }
-        }
-    };
-    let radius0 = match setup.reference {
-        Reference::Sphere { radius: Some(r) } => Some(r),
-        Reference::Sphere { radius: None } => Some(radii.iter().sum::<f64>() / radii.len() as f64),
-        Reference::Vertex { .. } => None,
-    };
-    let n_unknowns_all = 3
-        + 3
-        + match &kind {
-            Kind::Sphere { fixed_radius } => usize::from(fixed_radius.is_none()),
-            Kind::Vertex { faces, .. } => 2 * faces.len(),
-        };
-    if readings.len() < n_unknowns_all {
-        return Err(HeadError::TooFewPoints { got: readings.len(), needed: n_unknowns_all });
-    }
-
+    let cf = closed_form(readings, &raw, &groups, &params.reference, vertex_tip)?;
+    let (kind, radius0) = model_of(readings, params, &cf, vertex_tip)?;
+    let o = params.table_center;
     let pre: Vec<Pre> = readings
         .iter()
         .zip(&raw)
         .map(|(r, x)| Pre { x0: machine_to_table(x, r.c, &o), m: rz(-r.c) * ry(r.b) })
         .collect();
-    let params_for = |free: &[usize], r: &Vector3, a: &Point3| {
-        let mut p: Vec<f64> = free.iter().map(|&j| r[j]).collect();
-        p.extend_from_slice(a.coords.as_slice());
-        match &kind {
-            Kind::Sphere { fixed_radius: None } => p.push(radius0.unwrap_or(1.0)),
-            Kind::Sphere { .. } => {}
-            Kind::Vertex { faces, .. } => p.extend(std::iter::repeat_n(0.0, 2 * faces.len())),
-        }
-        p
-    };
+    let obs = observability(&pre, &cf.apparent, &kind, radius0, params)?;
 
-    // Observability: null space of the full adjustment's normal matrix at a closed-form start.
-    let all = [0usize, 1, 2];
-    let (a_min, r_min) = {
-        // Closed form with the components the linear model cannot see held at the prior (used
-        // only to have a point at which to linearise the full adjustment).
-        let un = unobservable(&init::linear_normal(&apparent), &[(0, 3), (1, 4), (2, 5)]);
-        linear_solve(&apparent, &o, [!un[0], !un[1], !un[2]], &setup.prior)
-            .ok_or(HeadError::NothingObservable)?
-    };
-    let probe = Problem { pre: &pre, free: all.to_vec(), prior: setup.prior, kind: &kind };
-    let ne = lsq::normal_equations(&probe, &params_for(&all, &r_min, &a_min), usize::MAX);
-    let un = unobservable(&ne.jtj, &[(0, 0), (1, 1), (2, 2)]);
-    let a_null = null_flags(&ne.jtj, &[3, 4, 5]);
-    let reference_depends_on_prior = [a_null[0], a_null[1], a_null[2]];
-    let observable = [!un[0], !un[1], !un[2]];
-    let free: Vec<usize> = (0..3).filter(|&j| observable[j]).collect();
-    if free.is_empty() {
-        return Err(HeadError::NothingObservable);
-    }
+    // The combined adjustment over the observable components.
+    let free: Vec<usize> = (0..3).filter(|&j| obs.observable[j]).collect();
     let (a0, r0) =
-        linear_solve(&apparent, &o, observable, &setup.prior).ok_or(HeadError::NothingObservable)?;
-
-    let problem = Problem { pre: &pre, free: free.clone(), prior: setup.prior, kind: &kind };
-    let x0 = params_for(&free, &r0, &a0);
+        linear_solve(&cf.apparent, &o, obs.observable, &params.prior).ok_or(HeadError::NothingObservable)?;
+    let problem = Problem { pre: &pre, free: free.clone(), prior: params.prior, kind: &kind };
+    let x0 = start_params(&free, &r0, &a0, &kind, radius0);
     let opt = LsqOptions { rank_tol: NULL_TOL, ..LsqOptions::default() };
     let res = lsq::solve(&problem, &x0, &opt)?;
     let nr = free.len();
-    let mut offset = problem.offset(&res.params);
-    let mut uncertainty = [None; 3];
+    let mut solution = Solution {
+        offset: problem.offset(&res.params),
+        u_offset: [None; 3],
+        reference_point: Point3::new(res.params[nr], res.params[nr + 1], res.params[nr + 2]),
+        observable: obs.observable,
+        reference_depends_on_prior: obs.reference_depends_on_prior,
+        from_tilt: [false; 3],
+    };
     for (k, &j) in free.iter().enumerate() {
-        uncertainty[j] = Some(res.std_dev(k));
+        solution.u_offset[j] = Some(res.std_dev(k));
     }
-    let mut reference_point = Point3::new(res.params[nr], res.params[nr + 1], res.params[nr + 2]);
-    let mut reference_depends_on_prior = reference_depends_on_prior;
-    let mut observable = observable;
-    let mut from_tilt = [false; 3];
     let laser = readings.iter().any(|r| r.dist.is_some());
-    if setup.beam_through_reference && laser && free.len() < 3 {
-        // R = s·u: s from the measured components, s = Σ u_k R_k / Σ u_k² (k measured).
-        let su2: f64 = free.iter().map(|&j| beam[j] * beam[j]).sum();
-        if su2 > 1e-6 {
-            let g: Vec<f64> = free.iter().map(|&j| beam[j] / su2).collect();
-            let s: f64 = free.iter().zip(&g).map(|(&j, gk)| gk * offset[j]).sum();
-            let mut var_s = 0.0;
-            for (k, gk) in g.iter().enumerate() {
-                for (l, gl) in g.iter().enumerate() {
-                    var_s += gk * gl * res.covariance[(k, l)];
-                }
-            }
-            for j in 0..3 {
-                if !observable[j] {
-                    let derived = s * beam[j];
-                    // What the data fixes along a rotation axis is A_j − R_j: move A with R.
-                    if reference_depends_on_prior[j] {
-                        reference_point[j] += derived - offset[j];
-                        reference_depends_on_prior[j] = false;
-                    }
-                    offset[j] = derived;
-                    uncertainty[j] = Some(beam[j].abs() * var_s.max(0.0).sqrt());
-                    observable[j] = true;
-                    from_tilt[j] = true;
-                }
-            }
-        }
+    if params.beam_through_reference && laser && free.len() < 3 {
+        complete_from_beam(&mut solution, &free, &beam, &res.covariance);
     }
-    let reference_uncertainty = Vector3::new(res.std_dev(nr), res.std_dev(nr + 1), res.std_dev(nr + 2));
-    let (radius, radius_uncertainty) = match &kind {
+
+    let u_reference_point = Vector3::new(res.std_dev(nr), res.std_dev(nr + 1), res.std_dev(nr + 2));
+    let (radius, u_radius) = match &kind {
         Kind::Sphere { fixed_radius: Some(r) } => (Some(*r), None),
         Kind::Sphere { fixed_radius: None } => (Some(res.params[nr + 3]), Some(res.std_dev(nr + 3))),
         Kind::Vertex { .. } => (None, None),
@@ -604,7 +394,7 @@ pub fn solve(readings: &[Reading], setup: &Setup) -> Result<HeadOffset, HeadErro
             .enumerate()
             .map(|(f, (n0, e1, e2))| {
                 (
-                    face_ids[f],
+                    cf.face_ids[f],
                     face_normal(n0, e1, e2, res.params[nr + 3 + 2 * f], res.params[nr + 4 + 2 * f]).0,
                 )
             })
@@ -617,26 +407,349 @@ pub fn solve(readings: &[Reading], setup: &Setup) -> Result<HeadOffset, HeadErro
     let rms = (residuals.iter().map(|r| r * r).sum::<f64>() / n).sqrt();
     let max_abs_residual = residuals.iter().fold(0.0f64, |m, r| m.max(r.abs()));
     Ok(HeadOffset {
-        offset,
-        observable,
-        from_tilt,
-        uncertainty,
-        reference_point,
-        reference_uncertainty,
-        reference_depends_on_prior,
+        offset: solution.offset,
+        observable: solution.observable,
+        from_tilt: solution.from_tilt,
+        u_offset: solution.u_offset,
+        reference_point: solution.reference_point,
+        u_reference_point,
+        reference_depends_on_prior: solution.reference_depends_on_prior,
         radius,
-        radius_uncertainty,
+        u_radius,
         face_normals,
         rms,
         max_abs_residual,
         n_points: readings.len(),
-        orientations,
+        orientations: cf.orientations,
         closed_form_offset: r0,
         condition: res.condition,
         iterations: res.iterations,
         converged: res.converged,
         residuals,
     })
+}
+
+/// Every reading finite, laser readings with a usable beam tilt, a fixed sphere radius positive.
+fn check_input(readings: &[Reading], params: &Params, beam: &Vector3) -> Result<(), HeadError> {
+    if readings.is_empty() {
+        return Err(HeadError::NoData);
+    }
+    for (i, r) in readings.iter().enumerate() {
+        let finite = r.b.is_finite() && r.c.is_finite() && r.p.coords.iter().all(|v| v.is_finite());
+        if !finite || r.dist.is_some_and(|d| !d.is_finite()) {
+            return Err(HeadError::NotFinite { index: i });
+        }
+        if r.dist.is_some()
+            && !(beam.iter().all(|v| v.is_finite())
+                && params.tilt.iter().all(|t| t.abs() < 85f64.to_radians()))
+        {
+            return Err(HeadError::BadTilt { index: i });
+        }
+    }
+    if let Reference::Sphere { radius: Some(rad) } = params.reference {
+        if !(rad > 0.0 && rad.is_finite()) {
+            return Err(HeadError::BadRadius(rad));
+        }
+    }
+    Ok(())
+}
+
+/// An orientation's key: group id, B and C (angles compared to 1e-9 rad).
+type OrientationKey = (Option<i64>, i64, i64);
+
+/// The readings grouped by orientation (same group id, B and C); at least two distinct angle
+/// pairs are needed.
+fn orientations_of(readings: &[Reading]) -> Result<BTreeMap<OrientationKey, Vec<usize>>, HeadError> {
+    let key = |r: &Reading| (r.group, (r.b * 1e9).round() as i64, (r.c * 1e9).round() as i64);
+    let mut groups: BTreeMap<OrientationKey, Vec<usize>> = BTreeMap::new();
+    for (i, r) in readings.iter().enumerate() {
+        groups.entry(key(r)).or_default().push(i);
+    }
+    let distinct_angles: std::collections::BTreeSet<(i64, i64)> = groups.keys().map(|k| (k.1, k.2)).collect();
+    if distinct_angles.len() < 2 {
+        let r = &readings[0];
+        return Err(HeadError::OneOrientation { n: readings.len(), b_deg: deg(r.b), c_deg: deg(r.c) });
+    }
+    Ok(groups)
+}
+
+/// The closed-form reference points of the orientations, and what the model needs from them.
+struct ClosedForm {
+    /// Apparent reference point per orientation that determines one.
+    apparent: Vec<Apparent>,
+    orientations: Vec<Orientation>,
+    /// Fitted sphere radius per orientation (sphere references).
+    radii: Vec<f64>,
+    /// Face ids in order of appearance, with the sum of their outward normals in table
+    /// coordinates (vertex references).
+    face_ids: Vec<i64>,
+    face_normals_sum: Vec<Vector3>,
+}
+
+/// The closed-form reference point of every orientation: the algebraic sphere centre, or the
+/// intersection of the fitted face planes moved out by the tip radius (orientations that see
+/// fewer than three faces give none).
+fn closed_form(
+    readings: &[Reading],
+    raw: &[Point3],
+    groups: &BTreeMap<OrientationKey, Vec<usize>>,
+    reference: &Reference,
+    vertex_tip: f64,
+) -> Result<ClosedForm, HeadError> {
+    let mut cf = ClosedForm {
+        apparent: Vec::new(),
+        orientations: Vec::new(),
+        radii: Vec::new(),
+        face_ids: Vec::new(),
+        face_normals_sum: Vec::new(),
+    };
+    for idx in groups.values() {
+        let r0 = &readings[idx[0]];
+        let point = match reference {
+            Reference::Sphere { .. } => {
+                let pts: Vec<Point3> = idx.iter().map(|&i| raw[i]).collect();
+                let (c, rad) = sphere_centre(&pts, r0)?;
+                cf.radii.push(rad);
+                Some(c)
+            }
+            Reference::Vertex { .. } => vertex_point(readings, raw, idx, vertex_tip, &mut cf)?,
+        };
+        let Some(point) = point else {
+            continue;
+        };
+        cf.apparent.push(Apparent { b: r0.b, c: r0.c, point });
+        cf.orientations.push(Orientation {
+            b: r0.b,
+            c: r0.c,
+            group: r0.group,
+            n_points: idx.len(),
+            apparent: point,
+        });
+    }
+    if cf.apparent.len() < 2 {
+        return Err(HeadError::TooFewVertexOrientations { got: cf.apparent.len() });
+    }
+    Ok(cf)
+}
+
+/// The algebraic sphere through one orientation's points: centre and radius.
+fn sphere_centre(pts: &[Point3], r0: &Reading) -> Result<(Point3, f64), HeadError> {
+    let (bd, cd) = (deg(r0.b), deg(r0.c));
+    if pts.len() < 4 {
+        return Err(HeadError::OrientationTooFew {
+            b_deg: bd,
+            c_deg: cd,
+            got: pts.len(),
+            needed: 4,
+            what: "a sphere fit needs at least 4 points, spread over the sphere",
+        });
+    }
+    algebraic_sphere(pts).ok_or_else(|| HeadError::Degenerate {
+        b_deg: bd,
+        c_deg: cd,
+        what: "the points do not determine a sphere (coplanar or collinear): probe the sphere from more directions"
+            .into(),
+    })
+}
+
+/// One orientation of a vertex reference: fit its face planes, orient their normals outwards
+/// (accumulating them per face in `cf`), and intersect the planes moved out by the tip radius
+/// when at least three faces are seen.
+fn vertex_point(
+    readings: &[Reading],
+    raw: &[Point3],
+    idx: &[usize],
+    vertex_tip: f64,
+    cf: &mut ClosedForm,
+) -> Result<Option<Point3>, HeadError> {
+    let r0 = &readings[idx[0]];
+    let (bd, cd) = (deg(r0.b), deg(r0.c));
+    let mut by_face: BTreeMap<i64, Vec<Point3>> = BTreeMap::new();
+    for &i in idx {
+        let f = readings[i].face.ok_or(HeadError::MissingFace { index: i })?;
+        by_face.entry(f).or_default().push(raw[i]);
+    }
+    let mut planes: Vec<(i64, Vector3, Point3)> = Vec::new();
+    for (f, fp) in &by_face {
+        let Some((n, m)) = plane_fit(fp) else {
+            return Err(HeadError::Degenerate {
+                b_deg: bd,
+                c_deg: cd,
+                what: format!(
+                    "face {f} has {} points that do not span a plane: each face needs at least 3 points, not on \
+                     one line",
+                    fp.len()
+                ),
+            });
+        };
+        planes.push((*f, n, m));
+    }
+    // Outward normals: at a convex vertex the other faces lie on the inner side.
+    for plane in planes.iter_mut() {
+        let (f, n, m) = *plane;
+        let mut side = 0.0;
+        for (g, gp) in &by_face {
+            if *g != f {
+                side += gp.iter().map(|x| n.dot(&(x - m))).sum::<f64>();
+            }
+        }
+        let nt = rz(-r0.c) * n;
+        let known = cf.face_ids.iter().position(|x| *x == f);
+        let flip = if side != 0.0 {
+            side > 0.0
+        } else if let Some(k) = known {
+            cf.face_normals_sum[k].dot(&nt) < 0.0
+        } else {
+            // One face only: it faces the head.
+            n.dot(&(ry(r0.b) * Vector3::z())) < 0.0
+        };
+        let (n, nt) = if flip { (-n, -nt) } else { (n, nt) };
+        plane.1 = n;
+        match known {
+            Some(k) => cf.face_normals_sum[k] += nt,
+            None => {
+                cf.face_ids.push(f);
+                cf.face_normals_sum.push(nt);
+            }
+        }
+    }
+    if planes.len() < 3 {
+        return Ok(None);
+    }
+    // The stylus centre runs on the faces moved out by the tip radius.
+    let moved: Vec<(Vector3, Point3)> = planes.iter().map(|(_, n, m)| (*n, m - n * vertex_tip)).collect();
+    Ok(intersect_planes(&moved, 1e-3))
+}
+
+/// The adjustment's model and the starting radius of a sphere (the mean of the orientations'
+/// radii when it is not fixed); enough readings for its unknowns.
+fn model_of(
+    readings: &[Reading],
+    params: &Params,
+    cf: &ClosedForm,
+    vertex_tip: f64,
+) -> Result<(Kind, Option<f64>), HeadError> {
+    let kind = match params.reference {
+        Reference::Sphere { radius } => Kind::Sphere { fixed_radius: radius },
+        Reference::Vertex { .. } => {
+            let faces = cf
+                .face_normals_sum
+                .iter()
+                .map(|s| {
+                    let n0 = s.normalize();
+                    let e1 = any_perpendicular(&n0);
+                    let e2 = n0.cross(&e1);
+                    (n0, e1, e2)
+                })
+                .collect();
+            let face_of = readings
+                .iter()
+                .map(|r| r.face.and_then(|f| cf.face_ids.iter().position(|x| *x == f)).unwrap_or(0))
+                .collect();
+            Kind::Vertex { faces, face_of, tip: vertex_tip }
+        }
+    };
+    let radius0 = match params.reference {
+        Reference::Sphere { radius: Some(r) } => Some(r),
+        Reference::Sphere { radius: None } => Some(cf.radii.iter().sum::<f64>() / cf.radii.len() as f64),
+        Reference::Vertex { .. } => None,
+    };
+    let n_unknowns_all = 3
+        + 3
+        + match &kind {
+            Kind::Sphere { fixed_radius } => usize::from(fixed_radius.is_none()),
+            Kind::Vertex { faces, .. } => 2 * faces.len(),
+        };
+    if readings.len() < n_unknowns_all {
+        return Err(HeadError::TooFewPoints { got: readings.len(), needed: n_unknowns_all });
+    }
+    Ok((kind, radius0))
+}
+
+/// The adjustment's start vector: the free offset components, the reference point, then the
+/// radius (free sphere) or the face-normal corrections (vertex, zero).
+fn start_params(free: &[usize], r: &Vector3, a: &Point3, kind: &Kind, radius0: Option<f64>) -> Vec<f64> {
+    let mut p: Vec<f64> = free.iter().map(|&j| r[j]).collect();
+    p.extend_from_slice(a.coords.as_slice());
+    match kind {
+        Kind::Sphere { fixed_radius: None } => p.push(radius0.unwrap_or(1.0)),
+        Kind::Sphere { .. } => {}
+        Kind::Vertex { faces, .. } => p.extend(std::iter::repeat_n(0.0, 2 * faces.len())),
+    }
+    p
+}
+
+/// Which offset components (and which reference-point components) the data determines.
+struct Observability {
+    observable: [bool; 3],
+    reference_depends_on_prior: [bool; 3],
+}
+
+/// Observability from the null space of the full adjustment's normal matrix, linearised at a
+/// closed-form start (with the components the linear model cannot see held at the prior).
+fn observability(
+    pre: &[Pre],
+    apparent: &[Apparent],
+    kind: &Kind,
+    radius0: Option<f64>,
+    params: &Params,
+) -> Result<Observability, HeadError> {
+    let all = [0usize, 1, 2];
+    let un = unobservable(&init::linear_normal(apparent), &[(0, 3), (1, 4), (2, 5)]);
+    let (a_min, r_min) =
+        linear_solve(apparent, &params.table_center, [!un[0], !un[1], !un[2]], &params.prior)
+            .ok_or(HeadError::NothingObservable)?;
+    let probe = Problem { pre, free: all.to_vec(), prior: params.prior, kind };
+    let ne = lsq::normal_equations(&probe, &start_params(&all, &r_min, &a_min, kind, radius0), usize::MAX);
+    let un = unobservable(&ne.jtj, &[(0, 0), (1, 1), (2, 2)]);
+    let a_null = null_flags(&ne.jtj, &[3, 4, 5]);
+    let observable = [!un[0], !un[1], !un[2]];
+    if !observable.iter().any(|o| *o) {
+        return Err(HeadError::NothingObservable);
+    }
+    Ok(Observability { observable, reference_depends_on_prior: [a_null[0], a_null[1], a_null[2]] })
+}
+
+/// The adjusted offset and reference point with their flags.
+struct Solution {
+    offset: Vector3,
+    u_offset: [Option<f64>; 3],
+    reference_point: Point3,
+    observable: [bool; 3],
+    reference_depends_on_prior: [bool; 3],
+    from_tilt: [bool; 3],
+}
+
+/// Laser heads whose beam passes through the reference point: `R = s·u`, with `s` from the
+/// measured components (`s = Σ u_k R_k / Σ u_k²`, k measured) and its variance from their
+/// covariance; the components no rotation reaches follow, flagged `from_tilt`.
+fn complete_from_beam(sol: &mut Solution, free: &[usize], beam: &Vector3, covariance: &DMatrix) {
+    let su2: f64 = free.iter().map(|&j| beam[j] * beam[j]).sum();
+    if su2 <= 1e-6 {
+        return;
+    }
+    let g: Vec<f64> = free.iter().map(|&j| beam[j] / su2).collect();
+    let s: f64 = free.iter().zip(&g).map(|(&j, gk)| gk * sol.offset[j]).sum();
+    let mut var_s = 0.0;
+    for (k, gk) in g.iter().enumerate() {
+        for (l, gl) in g.iter().enumerate() {
+            var_s += gk * gl * covariance[(k, l)];
+        }
+    }
+    for j in 0..3 {
+        if !sol.observable[j] {
+            let derived = s * beam[j];
+            // What the data fixes along a rotation axis is A_j − R_j: move A with R.
+            if sol.reference_depends_on_prior[j] {
+                sol.reference_point[j] += derived - sol.offset[j];
+                sol.reference_depends_on_prior[j] = false;
+            }
+            sol.offset[j] = derived;
+            sol.u_offset[j] = Some(beam[j].abs() * var_s.max(0.0).sqrt());
+            sol.observable[j] = true;
+            sol.from_tilt[j] = true;
+        }
+    }
 }
 
 #[cfg(test)]

@@ -94,8 +94,8 @@ impl Synth {
         out
     }
 
-    fn setup(&self, reference: Reference) -> Setup {
-        Setup {
+    fn setup(&self, reference: Reference) -> Params {
+        Params {
             reference,
             table_center: self.o,
             tilt: self.tilt,
@@ -137,13 +137,13 @@ fn swivel_only_leaves_y_unobservable() {
     assert_eq!(r.observable, [true, false, true]);
     assert_eq!(r.reference_depends_on_prior, [false, true, false]);
     assert_eq!(r.from_tilt, [false; 3]);
-    assert_eq!(r.uncertainty[1], None);
+    assert_eq!(r.u_offset[1], None);
     // The unobservable component is the prior, exactly, never a "measured" number.
     assert_eq!(r.offset.y, 7.0);
     // 0.5 µm noise, 75 points: the in-plane components come out at ~0.3 µm (1σ); 1 µm bound.
     assert!((r.offset.x - s.offset.x).abs() < 1e-3, "{}", r.offset);
     assert!((r.offset.z - s.offset.z).abs() < 1e-3, "{}", r.offset);
-    let u = r.uncertainty[0].unwrap();
+    let u = r.u_offset[0].unwrap();
     assert!(u > 1e-5 && u < 1e-3, "{u}");
 }
 
@@ -154,7 +154,7 @@ fn table_only_leaves_z_unobservable() {
     let r = solve(&s.sphere(), &s.setup(free_sphere())).unwrap();
     assert_eq!(r.observable, [true, true, false]);
     assert_eq!(r.offset.z, 0.0);
-    assert_eq!(r.uncertainty[2], None);
+    assert_eq!(r.u_offset[2], None);
     // Same 1 µm reasoning as above (noise 0.5 µm, 75 points, 90° and 225° table turns).
     assert!((r.offset.x - s.offset.x).abs() < 1e-3 && (r.offset.y - s.offset.y).abs() < 1e-3, "{}", r.offset);
 }
@@ -170,7 +170,7 @@ fn combined_noisy_data_within_one_micrometre_and_consistent_uncertainty() {
         assert_eq!(r.observable, [true; 3]);
         for j in 0..3 {
             let e = (r.offset[j] - s.offset[j]).abs();
-            let u = r.uncertainty[j].unwrap();
+            let u = r.u_offset[j].unwrap();
             // 1 µm is the product requirement; 5σ catches a covariance that is far too small.
             assert!(e < 1e-3, "seed {seed} comp {j}: error {e}");
             assert!(e < 5.0 * u, "seed {seed} comp {j}: error {e} vs u {u}");
@@ -202,7 +202,7 @@ fn touch_probe_with_fixed_radius() {
     s.radius = 12.7 + 1.5; // sphere 25.4 mm diameter, tip radius 1.5 mm: stylus-centre sphere
     let r = solve(&s.sphere(), &s.setup(Reference::Sphere { radius: Some(14.2) })).unwrap();
     assert_eq!(r.radius, Some(14.2));
-    assert_eq!(r.radius_uncertainty, None);
+    assert_eq!(r.u_radius, None);
     assert!((r.offset.x - s.offset.x).abs() < 1e-8 && (r.offset.z - s.offset.z).abs() < 1e-8);
     // A wrong fixed radius (0.1 mm too large) on 70° caps is partly absorbed by moving the
     // centre along each cap's axis; what is left is ~δr·(cos θ − mean cos θ), of order 10 µm.
@@ -229,7 +229,7 @@ fn laser_tilt_gives_the_component_no_rotation_reaches() {
         // Exact data: rounding only.
         assert!((r.offset - s.offset).norm() < 1e-8, "{} vs {}", r.offset, s.offset);
         assert!((r.reference_point - s.a).norm() < 1e-8, "{}", r.reference_point);
-        assert!(r.uncertainty[missing].is_some());
+        assert!(r.u_offset[missing].is_some());
     }
     // Without tilt the beam has no part along the measured components of a table-only set.
     let mut s = Synth::new(&TABLE);

@@ -1,7 +1,7 @@
 //! The head-offset adjustment on the virtual cell's data (`truepos-sim`, scenario
 //! `head-offset`): every variant, 0.5 µm probing noise, against the simulator's truth.
 
-use truepos_head::{solve, Reading, Reference, Setup};
+use truepos_head::{solve, Params, Reading, Reference};
 use truepos_math::{Point3, Vector3};
 use truepos_sim::scenario::head_offset::{simulate, Head, HeadOffsetConfig, HeadOffsetData, Variant};
 
@@ -19,7 +19,7 @@ fn readings(d: &HeadOffsetData) -> Vec<Reading> {
         .collect()
 }
 
-fn setup(cfg: &HeadOffsetConfig, d: &HeadOffsetData, fixed_radius: bool) -> Setup {
+fn setup(cfg: &HeadOffsetConfig, d: &HeadOffsetData, fixed_radius: bool) -> Params {
     let t = &d.truth;
     let tip = match cfg.head {
         Head::TouchProbe { tip_radius } => tip_radius,
@@ -31,7 +31,7 @@ fn setup(cfg: &HeadOffsetConfig, d: &HeadOffsetData, fixed_radius: bool) -> Setu
         Reference::Vertex { tip_radius: tip }
     };
     let tilt = t.tilt_deg.map_or([0.0, 0.0], |a| [a[0].to_radians(), a[1].to_radians()]);
-    Setup {
+    Params {
         reference,
         table_center: Point3::from(t.table_center_mm),
         tilt,
@@ -55,7 +55,7 @@ fn check_with(variant: Variant, seed: u64, fixed_radius: bool, bound: f64) -> f6
     for j in 0..3 {
         if r.observable[j] {
             let e = (r.offset[j] - truth[j]).abs();
-            let u = r.uncertainty[j].unwrap();
+            let u = r.u_offset[j].unwrap();
             // Product requirement: 1 µm with 0.5 µm noise. The uncertainty must be honest too:
             // an error beyond 5σ means the covariance is far too optimistic.
             assert!(e < bound, "{variant:?} seed {seed} comp {j}: error {:.3} µm", e * 1e3);
@@ -63,7 +63,7 @@ fn check_with(variant: Variant, seed: u64, fixed_radius: bool, bound: f64) -> f6
             worst = worst.max(e);
         } else {
             assert_eq!(r.offset[j], 0.0, "held at the prior");
-            assert!(r.uncertainty[j].is_none());
+            assert!(r.u_offset[j].is_none());
         }
     }
     // Reference point: the sphere centre / vertex at c = 0. Along unobservable offset directions
@@ -146,7 +146,7 @@ fn print_figures() {
             let d = simulate(&cfg).unwrap();
             let r = solve(&readings(&d), &setup(&cfg, &d, false)).unwrap();
             for j in 0..3 {
-                if let Some(u) = r.uncertainty[j] {
+                if let Some(u) = r.u_offset[j] {
                     z2 += ((r.offset[j] - d.truth.offset_mm[j]) / u).powi(2);
                     nz += 1;
                 }
@@ -164,7 +164,7 @@ fn print_figures() {
             r.n_points,
             r.observable,
             (0..3).map(|j| format!("{:+.3}", (r.offset[j] - truth[j]) * 1e3)).collect::<Vec<_>>().join(","),
-            (0..3).map(|j| r.uncertainty[j].map_or("-".into(), |u| format!("{:.3}", u * 1e3))).collect::<Vec<_>>().join(","),
+            (0..3).map(|j| r.u_offset[j].map_or("-".into(), |u| format!("{:.3}", u * 1e3))).collect::<Vec<_>>().join(","),
             r.rms * 1e3,
             r.iterations,
             dt,

@@ -1,8 +1,10 @@
 //! Point files: CSV with `x_mm,y_mm,z_mm` (optional `id`) or NIST `.ds` (a count, then
-//! `x y z` per line, whitespace separated).
+//! `x y z` per line, whitespace separated); points with required unique ids
+//! ([`read_id_points`]) and their matching by id ([`match_by_id`]).
 
 use crate::csv::Table;
 use crate::InputError;
+use std::collections::HashMap;
 use std::path::Path;
 use truepos_math::Point3;
 
@@ -82,6 +84,67 @@ pub fn parse_ds(path: &Path, bytes: &[u8]) -> Result<Vec<Point3>, InputError> {
         ));
     }
     Ok(pts)
+}
+
+/// Points of a file with their ids (ids required, unique).
+pub struct IdPoints {
+    pub ids: Vec<String>,
+    pub points: Vec<Point3>,
+    pub table: Table,
+}
+
+/// Read a CSV of points with ids (`id,x_mm,y_mm,z_mm`); an empty id, or a duplicate id (naming
+/// both lines), is an error.
+pub fn read_id_points(path: &Path) -> Result<IdPoints, InputError> {
+    let table = Table::read(path)?;
+    let xyz = table.f64_columns(&["x_mm", "y_mm", "z_mm"])?;
+    let ids = table.str_column("id")?;
+    let mut seen = HashMap::new();
+    for (i, id) in ids.iter().enumerate() {
+        if id.trim().is_empty() {
+            return Err(InputError::at(
+                path,
+                table.line_number(i),
+                table.column("id").map(|c| c + 1),
+                "empty id: every point needs an id to be matched",
+            ));
+        }
+        if let Some(prev) = seen.insert(id.clone(), i) {
+            return Err(InputError::at(
+                path,
+                table.line_number(i),
+                table.column("id").map(|c| c + 1),
+                format!("duplicate id '{id}' (also on line {})", table.line_number(prev)),
+            ));
+        }
+    }
+    let points = xyz.chunks_exact(3).map(|c| Point3::new(c[0], c[1], c[2])).collect();
+    Ok(IdPoints { ids, points, table })
+}
+
+/// Pairs of points matched by id, in the order of `from`.
+pub struct Matched {
+    pub ids: Vec<String>,
+    pub from: Vec<Point3>,
+    pub to: Vec<Point3>,
+    pub from_rows: Vec<usize>,
+    pub to_rows: Vec<usize>,
+}
+
+/// The points of `from` whose id is also in `to`, paired.
+pub fn match_by_id(from: &IdPoints, to: &IdPoints) -> Matched {
+    let index: HashMap<&str, usize> = to.ids.iter().enumerate().map(|(i, s)| (s.as_str(), i)).collect();
+    let mut m = Matched { ids: vec![], from: vec![], to: vec![], from_rows: vec![], to_rows: vec![] };
+    for (i, id) in from.ids.iter().enumerate() {
+        if let Some(&j) = index.get(id.as_str()) {
+            m.ids.push(id.clone());
+            m.from.push(from.points[i]);
+            m.to.push(to.points[j]);
+            m.from_rows.push(i);
+            m.to_rows.push(j);
+        }
+    }
+    m
 }
 
 #[cfg(test)]

@@ -33,7 +33,7 @@ fn benches(c: &mut Criterion) {
     eprintln!("streams: {} machine, {} probe samples", d.mt.len(), d.pt.len());
     let opt = Options { known_size: Some(KnownSize::SphereDiameter(25.0)), ..Options::default() };
     let e = estimate(&d.streams(), &opt).expect("estimate");
-    eprintln!("{} contacts, delay {:.3} µs ± {:.3} µs", e.n_contacts, e.delay * 1e6, e.uncertainty * 1e6);
+    eprintln!("{} contacts, delay {:.3} µs ± {:.3} µs", e.n_contacts, e.delay * 1e6, e.u_delay * 1e6);
     let mut g = c.benchmark_group("latency");
     g.sample_size(10);
     g.bench_function("artefact_1M_pair", |b| {

@@ -5,13 +5,16 @@
 //! `D` is how much later the machine data is stamped than the probe data for the same instant:
 //! the stylus centre at probe stamp `t` is `machine(t + D) + deflection(t)` (interface contract).
 //!
-//! Pure: the functions take time-stamped streams as slices and do no I/O.
+//! The estimation functions take time-stamped streams as slices and do no I/O; [`file`] reads
+//! the stream CSVs.
 //!
 //! Entry points:
-//! - [`estimate`] with [`Options`] → [`Estimate`]: checks the streams, segments the contacts,
+//! - [`estimate`] with [`Options`] → [`Estimate`] (its [`Evidence`] has one variant per method):
+//!   checks the streams, segments the contacts,
 //!   extrapolates each to zero deflection and runs one of the four methods
 //!   ([`Method::Artefact`], [`Method::Speeds`], [`Method::Scan`], [`Method::Inout`]), or picks
 //!   one ([`Method::Auto`]).
+//! - [`file::read_stream`]: a stream CSV; [`file::input_error`]: stream errors with file and line.
 //! - [`apply`]: stylus-centre positions at the probe stamps for a known delay.
 //! - modules: [`stream`] (checks, interpolation), [`contact`] (segmentation, extrapolation),
 //!   [`geom`] (feature fits with the delay), [`touch`] (touch methods), [`scan`] (scan method).
@@ -20,6 +23,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod contact;
+pub mod file;
 pub mod geom;
 pub mod scan;
 pub mod stream;
@@ -131,22 +135,13 @@ impl Default for Options {
 /// The calibrated delay and what supports it.
 #[derive(Clone, Debug)]
 pub struct Estimate {
-    /// The method used (never `Auto`).
-    pub method: Method,
     /// Total delay (s): `already_corrected + residual_delay`.
     pub delay: f64,
     /// Delay measured in the data as given (s).
     pub residual_delay: f64,
-    pub uncertainty: f64,
+    /// Standard uncertainty of the delay (s).
+    pub u_delay: f64,
     pub n_contacts: usize,
-    /// Feature the contacts describe (touch methods).
-    pub feature: Option<&'static str>,
-    /// Artefact size at zero speed (speeds) or the known size (artefact), mm.
-    pub static_size: Option<f64>,
-    pub u_static_size: Option<f64>,
-    /// (speed mm/s, artefact size mm) per speed group (speeds method).
-    pub per_speed: Vec<(f64, f64)>,
-    pub per_axis: Option<PerAxis>,
     /// RMS residual of the fit (mm).
     pub rms: f64,
     pub warnings: Vec<String>,
@@ -154,9 +149,102 @@ pub struct Estimate {
     /// were moved by a first estimate of the delay before they were extracted, so their points
     /// hold the data corrected by that estimate (see [`estimate`]).
     pub contacts: Vec<Contact>,
-    /// Per-contact delays of the in-out method (s, u).
-    pub inout_each: Vec<(f64, f64)>,
-    pub scan: Option<scan::ScanResult>,
+    /// What the method found besides the delay; its variant is the method used.
+    pub evidence: Evidence,
+}
+
+/// What each method found besides the delay (one variant per method).
+#[derive(Clone, Debug)]
+pub enum Evidence {
+    /// A known artefact: the feature the contacts describe and its known size (mm).
+    Artefact { feature: &'static str, size_mm: f64, per_axis: Option<PerAxis> },
+    /// Several speeds: the artefact size at zero speed with its standard uncertainty (mm), and
+    /// (speed mm/s, size mm) per speed group.
+    Speeds {
+        feature: &'static str,
+        static_size_mm: f64,
+        u_static_size_mm: f64,
+        per_speed: Vec<(f64, f64)>,
+        per_axis: Option<PerAxis>,
+    },
+    /// A scan with direction changes.
+    Scan(scan::ScanResult),
+    /// In-out touches: the delay of every contact (s) with its uncertainty.
+    Inout { per_contact: Vec<(f64, f64)>, per_axis: Option<PerAxis> },
+}
+
+impl Estimate {
+    /// The method used (never `Auto`).
+    pub fn method(&self) -> Method {
+        match self.evidence {
+            Evidence::Artefact { .. } => Method::Artefact,
+            Evidence::Speeds { .. } => Method::Speeds,
+            Evidence::Scan(_) => Method::Scan,
+            Evidence::Inout { .. } => Method::Inout,
+        }
+    }
+    /// The feature the contacts describe (touch methods with a feature fit).
+    pub fn feature(&self) -> Option<&'static str> {
+        match self.evidence {
+            Evidence::Artefact { feature, .. } | Evidence::Speeds { feature, .. } => Some(feature),
+            _ => None,
+        }
+    }
+    /// Artefact size (mm): the known size (artefact), at zero speed (speeds), the scanned
+    /// circle's diameter (scan).
+    pub fn static_size(&self) -> Option<f64> {
+        match &self.evidence {
+            Evidence::Artefact { size_mm, .. } => Some(*size_mm),
+            Evidence::Speeds { static_size_mm, .. } => Some(*static_size_mm),
+            Evidence::Scan(r) => Some(2.0 * r.radius),
+            Evidence::Inout { .. } => None,
+        }
+    }
+    /// Standard uncertainty of the size at zero speed (speeds).
+    pub fn u_static_size(&self) -> Option<f64> {
+        match &self.evidence {
+            Evidence::Speeds { u_static_size_mm, .. } => Some(*u_static_size_mm),
+            _ => None,
+        }
+    }
+    /// (speed mm/s, size mm) per speed group (speeds; empty otherwise).
+    pub fn per_speed(&self) -> &[(f64, f64)] {
+        match &self.evidence {
+            Evidence::Speeds { per_speed, .. } => per_speed,
+            _ => &[],
+        }
+    }
+    /// Separate delays for X, Y, Z when asked for (touch methods).
+    pub fn per_axis(&self) -> Option<&PerAxis> {
+        match &self.evidence {
+            Evidence::Artefact { per_axis, .. }
+            | Evidence::Speeds { per_axis, .. }
+            | Evidence::Inout { per_axis, .. } => per_axis.as_ref(),
+            Evidence::Scan(_) => None,
+        }
+    }
+    fn per_axis_mut(&mut self) -> Option<&mut PerAxis> {
+        match &mut self.evidence {
+            Evidence::Artefact { per_axis, .. }
+            | Evidence::Speeds { per_axis, .. }
+            | Evidence::Inout { per_axis, .. } => per_axis.as_mut(),
+            Evidence::Scan(_) => None,
+        }
+    }
+    /// The scan method's result.
+    pub fn scan(&self) -> Option<&scan::ScanResult> {
+        match &self.evidence {
+            Evidence::Scan(r) => Some(r),
+            _ => None,
+        }
+    }
+    /// Per-contact delays of the in-out method (s, u; empty otherwise).
+    pub fn inout_each(&self) -> &[(f64, f64)] {
+        match &self.evidence {
+            Evidence::Inout { per_contact, .. } => per_contact,
+            _ => &[],
+        }
+    }
 }
 
 /// Artefact size from a signed stylus-centre size (+ outer, − inner).
@@ -216,61 +304,43 @@ pub fn estimate(s: &Streams, opt: &Options) -> Result<Estimate, LatencyError> {
         }
         m => m,
     };
-    let mut est = Estimate {
-        method,
-        delay: 0.0,
-        residual_delay: 0.0,
-        uncertainty: 0.0,
-        n_contacts: contacts.len(),
-        feature: None,
-        static_size: None,
-        u_static_size: None,
-        per_speed: vec![],
-        per_axis: None,
-        rms: 0.0,
-        warnings: vec![],
-        contacts: vec![],
-        inout_each: vec![],
-        scan: None,
-    };
-    if method == Method::Scan {
+    let mut warnings = Vec::new();
+    let (residual_delay, u_delay, rms, n_contacts, evidence) = if method == Method::Scan {
         let r = scan::scan_delay(s, opt.threshold, opt.max_delay)?;
-        est.residual_delay = r.delay;
-        est.uncertainty = r.u_delay;
-        est.rms = r.rms_after;
-        est.n_contacts = 1;
-        est.static_size = Some(2.0 * r.radius);
         if opt.per_axis {
-            est.warnings
+            warnings
                 .push("--per-axis is not available with the scan method; use touches along each axis".into());
         }
-        est.scan = Some(r);
+        (r.delay, r.u_delay, r.rms_after, 1, Evidence::Scan(r))
     } else {
         if contacts.is_empty() {
             return Err(no_contact(s, opt.threshold));
         }
+        let mut n_contacts = contacts.len();
         let runs = contact::find_runs(s.probe, opt.threshold, copt.min_band).len();
         if runs > contacts.len() {
-            est.warnings.push(format!(
+            warnings.push(format!(
                 "{} of {runs} deflection runs gave no surface point (stylus ringing after a contact, too few samples at constant speed, or a scan)",
                 runs - contacts.len()
             ));
         }
         let approach = contacts.iter().filter(|c| c.phase == Phase::Approach).count();
         if approach > 0 {
-            est.warnings.push(format!(
+            warnings.push(format!(
                 "{approach} contact(s) without usable retract data: extrapolated on approach data"
             ));
         }
+        let mut feature = "";
+        let mut per_contact = Vec::new();
         let r = match method {
             Method::Inout => {
                 let (r, each) = touch::inout(s, &contacts, opt.per_axis)?;
-                est.inout_each = each;
+                per_contact = each;
                 r
             }
             Method::Artefact | Method::Speeds => {
-                let (r0, feature) = feature_fit(method, &contacts, opt)?;
-                est.feature = Some(feature);
+                let (r0, f0) = feature_fit(method, &contacts, opt)?;
+                feature = f0;
                 // The fits correct each point with its velocity at the zero-deflection instant,
                 // a linearisation: where the servo is still settling as the tip leaves (fast
                 // retracts), the velocity a whole delay away differs and the size-speed line
@@ -295,8 +365,8 @@ pub fn estimate(s: &Streams, opt: &Options) -> Result<Estimate, LatencyError> {
                                     *d += shift;
                                 }
                             }
-                            est.feature = Some(f);
-                            est.n_contacts = contacts2.len();
+                            feature = f;
+                            n_contacts = contacts2.len();
                             contacts = contacts2;
                             r
                         }
@@ -315,25 +385,42 @@ pub fn estimate(s: &Streams, opt: &Options) -> Result<Estimate, LatencyError> {
             }
             Method::Scan | Method::Auto => unreachable_method(),
         };
-        est.residual_delay = r.delay;
-        est.uncertainty = r.u_delay;
-        est.rms = r.rms;
-        est.static_size = r.static_size;
-        est.u_static_size = r.u_static_size;
-        est.per_speed = r.per_speed;
-        est.per_axis = r.per_axis;
-        est.warnings.extend(r.warnings);
-    }
-    if !(est.uncertainty.is_finite()) || !(est.residual_delay.is_finite()) {
+        warnings.extend(r.warnings);
+        let evidence = match method {
+            Method::Artefact => Evidence::Artefact {
+                feature,
+                size_mm: r.static_size.unwrap_or(f64::NAN),
+                per_axis: r.per_axis,
+            },
+            Method::Speeds => Evidence::Speeds {
+                feature,
+                static_size_mm: r.static_size.unwrap_or(f64::NAN),
+                u_static_size_mm: r.u_static_size.unwrap_or(f64::NAN),
+                per_speed: r.per_speed,
+                per_axis: r.per_axis,
+            },
+            _ => Evidence::Inout { per_contact, per_axis: r.per_axis },
+        };
+        (r.delay, r.u_delay, r.rms, n_contacts, evidence)
+    };
+    if !(u_delay.is_finite()) || !(residual_delay.is_finite()) {
         return Err(LatencyError::Underdetermined("the fit gives no finite delay".into()));
     }
-    est.delay = opt.already_corrected + est.residual_delay;
-    if let Some(pa) = &mut est.per_axis {
+    let mut est = Estimate {
+        delay: opt.already_corrected + residual_delay,
+        residual_delay,
+        u_delay,
+        n_contacts,
+        rms,
+        warnings,
+        contacts,
+        evidence,
+    };
+    if let Some(pa) = est.per_axis_mut() {
         for d in pa.delay.iter_mut().flatten() {
             *d += opt.already_corrected;
         }
     }
-    est.contacts = contacts;
     if est.residual_delay.abs() > opt.max_delay {
         // A capture delay is milliseconds; a result this large means the inputs disagree (most
         // often a size given for the artefact rather than for the stylus-centre surface).

@@ -36,7 +36,7 @@ proptest! {
         };
         if let Ok(e) = estimate(&s, &opt) {
             prop_assert!(e.delay.is_finite());
-            prop_assert!(e.uncertainty.is_finite() && e.uncertainty >= 0.0);
+            prop_assert!(e.u_delay.is_finite() && e.u_delay >= 0.0);
         }
         let mut out = Vec::new();
         apply(&s, 0.001, &mut out);

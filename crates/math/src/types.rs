@@ -61,6 +61,44 @@ pub fn any_perpendicular(n: &Vector3) -> Vector3 {
     n.cross(&a).normalize()
 }
 
+/// A linear machine axis (the one definition; `truepos-sim` and `truepos-comp` re-export it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Axis {
+    X = 0,
+    Y = 1,
+    Z = 2,
+}
+
+impl Axis {
+    /// X, Y, Z.
+    pub const ALL: [Axis; 3] = [Axis::X, Axis::Y, Axis::Z];
+
+    /// 0, 1, 2.
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
+    /// Lower-case name as in the map file's `axis` column.
+    pub fn name(self) -> &'static str {
+        ["x", "y", "z"][self.index()]
+    }
+
+    /// Machine-axis index of the angular components `[pitch, yaw, roll]` of this axis.
+    pub fn angular_axes(self) -> [usize; 3] {
+        match self {
+            Axis::X => [1, 2, 0],
+            Axis::Y => [0, 2, 1],
+            Axis::Z => [0, 1, 2],
+        }
+    }
+
+    /// Machine-axis index of the linear components `[pos, str1, str2]` of this axis.
+    pub fn linear_axes(self) -> [usize; 3] {
+        let a = self.index();
+        [a, (a + 1) % 3, (a + 2) % 3]
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

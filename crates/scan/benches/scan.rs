@@ -2,21 +2,22 @@
 //! Run: `cargo bench -p truepos-scan --bench scan`. Figures: docs/performance-scan.md.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use truepos_scan::execute::{execute, Machine};
+use truepos_cell::scanning_cmm::{run_scan, CmmConfig};
+use truepos_scan::execute::ControlParams;
 use truepos_scan::{plan, validate, Style};
 
 fn bench(c: &mut Criterion) {
     let scenario = truepos_sim::scenario::scan::scenario(7, 100);
-    let (features, truth, params) = truepos_scan::scenario::program(&scenario);
+    let (features, truth, params) = truepos_cell::scan_scenario::program(&scenario);
     validate(&features, &params).expect("valid program");
-    let machine = Machine::default();
+    let machine = CmmConfig::default();
     let mut g = c.benchmark_group("scan");
     g.sample_size(10);
     g.bench_function("plan_100_features", |b| b.iter(|| plan(&features, &params, Style::Blended)));
     g.bench_function("plan_and_simulate_100_features", |b| {
         b.iter(|| {
             let p = plan(&features, &params, Style::Blended);
-            execute(&p, &truth, &machine, 1).expect("runs")
+            run_scan(&p, &truth, &machine, &ControlParams::default(), 1).expect("runs")
         })
     });
     g.finish();

@@ -1,17 +1,13 @@
-//! Execution of a [`Plan`] on the virtual CMM: servo dynamics of the machine axes, a 3D
-//! spring-mass-damper stylus with contact and friction on the true (displaced) part, the probe
-//! feedback (observer) that holds the target deflection, and the missed-surface behaviour.
+//! Execution of a [`Plan`] on a scanning machine (`truepos_device::ScanningMachine`, driven at
+//! its control rate): the command along the plan, the probe feedback (observer) that holds the
+//! target deflection, contact detection and the missed-surface behaviour, quality marks and the
+//! per-feature evaluation.
 //!
-//! Entry points: [`execute`] with a [`Machine`] and the true features; it returns a [`Run`]:
+//! Entry points: [`execute`] with a machine and the [`ControlParams`]; it returns a [`Run`]:
 //! measured points tagged by segment and feature with deflection and quality mark, per-feature
 //! results (time, form error, contact shift, vibration at scan start) and the summary (cycle
-//! time, stops).
-//!
-//! The controller runs at `control_dt` (1 kHz); the physics is integrated at `physics_dt`. The
-//! stylus is `truepos_sim::stylus::Stylus` (spring-mass-damper per axis, contact with
-//! restitution and Coulomb friction) against the true feature's surface. The servo is the error model of `truepos_sim::motion::Servo`
-//! (`ë + 2ζωė + ω²e = (1 − k_a)c̈`), integrated on line here because the command is not known in
-//! advance (it depends on the probe feedback and on where contact is made).
+//! time, stops). The virtual CMM (servo and stylus dynamics on the true part) is
+//! `truepos_cell::scanning_cmm`.
 //!
 //! Missed surfaces: contact is detected on the approach when the measured deflection exceeds
 //! `contact_threshold`. Early contact (surface before the nominal point) moves the plan on to its
@@ -21,51 +17,20 @@
 //! contact, the path bends along a logarithmic blend (direction `w + (−N − w)(1 − e^{−τ/τ_b})`)
 //! towards the nominal surface normal at the same speed until contact (or `search_limit`).
 
-use crate::feature::{Feature, Params};
+use crate::feature::Params;
 use crate::plan::{Geom, Plan, SegmentKind, Style};
 use crate::ScanError;
+use truepos_device::{ScanCommand, ScanningMachine};
 use truepos_math::{Point3, Vector3};
-use truepos_sim::artefact::{Artefact, SurfacePoint};
-use truepos_sim::motion::{Servo, State};
-use truepos_sim::noise;
-use truepos_sim::stylus::{Stylus, StylusParams};
 
-/// A true feature as an artefact for the stylus model: its unbounded surface (exact nearest
-/// point for planes and cylinders).
-#[derive(Debug)]
-struct Surface<'a>(&'a Feature);
-
-impl Artefact for Surface<'_> {
-    fn closest(&self, p: &Point3) -> SurfacePoint {
-        let (distance, normal) = self.0.signed_distance(p);
-        SurfacePoint { distance, point: p - normal * distance, normal }
-    }
-}
-
-/// Nothing to touch (transfers are collision-free by assumption).
-#[derive(Debug)]
-struct Clear;
-
-impl Artefact for Clear {
-    fn closest(&self, p: &Point3) -> SurfacePoint {
-        SurfacePoint { distance: 1e9, point: p - Vector3::z() * 1e9, normal: Vector3::z() }
-    }
-}
-
-/// The virtual CMM.
+/// The scanning control's own settings (the machine's are its backend's).
 #[derive(Clone, Debug, PartialEq)]
-pub struct Machine {
-    pub servo: Servo,
-    /// Stylus dynamics and contact (`truepos_sim::stylus`); its tip radius is replaced by the
-    /// plan's `tip_radius` at execution.
-    pub stylus: StylusParams,
-    pub encoder_noise: f64,
-    pub probe_noise: f64,
-    pub control_dt: f64,
-    pub physics_dt: f64,
+pub struct ControlParams {
     /// Observer gain (1/s): normal path correction rate per mm of deflection error.
     pub feedback_gain: f64,
+    /// Deflection (mm) that counts as contact on an approach.
     pub contact_threshold: f64,
+    /// How far beyond the nominal contact point a late contact is searched (mm).
     pub search_limit: f64,
     /// Classic settle: time the deflection must stay inside half the first band.
     pub settle_dwell: f64,
@@ -75,16 +40,9 @@ pub struct Machine {
     pub bend_time: f64,
 }
 
-impl Default for Machine {
-    /// A bridge CMM position loop of 15 Hz, ζ = 0.6, 50 % acceleration feed-forward.
+impl Default for ControlParams {
     fn default() -> Self {
-        Machine {
-            servo: Servo { bandwidth_hz: 15.0, damping: 0.6, accel_feedforward: 0.5 },
-            stylus: StylusParams::default(),
-            encoder_noise: 0.1e-3,
-            probe_noise: 0.2e-3,
-            control_dt: 1e-3,
-            physics_dt: 1e-4,
+        ControlParams {
             feedback_gain: 60.0,
             contact_threshold: 0.01,
             search_limit: 8.0,
@@ -96,14 +54,10 @@ impl Default for Machine {
     }
 }
 
-impl Machine {
+impl ControlParams {
+    /// Every setting finite and in range; the error names the file key.
     pub fn check(&self) -> Result<(), ScanError> {
-        self.stylus.validate().map_err(|e| ScanError::Invalid(format!("stylus: {e}")))?;
         let pos = [
-            ("servo.bandwidth_hz", self.servo.bandwidth_hz),
-            ("servo.damping", self.servo.damping),
-            ("control_dt_s", self.control_dt),
-            ("physics_dt_s", self.physics_dt),
             ("contact_threshold_mm", self.contact_threshold),
             ("search_limit_mm", self.search_limit),
             ("blend_time_s", self.blend_time),
@@ -115,8 +69,6 @@ impl Machine {
             }
         }
         let nonneg = [
-            ("encoder_noise_mm", self.encoder_noise),
-            ("probe_noise_mm", self.probe_noise),
             ("feedback_gain", self.feedback_gain),
             ("settle_dwell_s", self.settle_dwell),
             ("max_settle_wait_s", self.max_settle_wait),
@@ -125,12 +77,6 @@ impl Machine {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(ScanError::Parameter(n, v));
             }
-        }
-        if !(0.0..=1.0).contains(&self.servo.accel_feedforward) {
-            return Err(ScanError::Parameter("servo.accel_feedforward", self.servo.accel_feedforward));
-        }
-        if self.physics_dt > self.control_dt {
-            return Err(ScanError::Invalid("physics_dt_s must not exceed control_dt_s".into()));
         }
         Ok(())
     }
@@ -230,34 +176,25 @@ impl Blend {
     }
 }
 
-/// Run `plan` on the virtual CMM against the true surfaces `truth` (one per planned feature,
-/// same order). Deterministic for a seed.
-pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> Result<Run, ScanError> {
-    machine.check()?;
+/// Run `plan` on `machine` at its control rate. Deterministic when the machine is.
+pub fn execute<M: ScanningMachine + ?Sized>(
+    plan: &Plan,
+    machine: &mut M,
+    control: &ControlParams,
+) -> Result<Run, ScanError> {
+    control.check()?;
     let dur = plan.duration();
     if !(dur.is_finite() && dur <= MAX_MACHINE_TIME) {
         return Err(ScanError::Invalid(format!(
             "the program takes {dur:.3e} s of machine time; at most {MAX_MACHINE_TIME} s can be simulated"
         )));
     }
-    if truth.len() != plan.features.len() {
-        return Err(ScanError::Invalid(format!(
-            "{} true features for {} planned",
-            truth.len(),
-            plan.features.len()
-        )));
-    }
     let p: &Params = &plan.params;
     let tip = p.tip_radius;
-    let dt = machine.control_dt;
-    let nsub = (dt / machine.physics_dt).ceil().max(1.0) as usize;
-    let h = dt / nsub as f64;
-    let mut stylus = Stylus::new(StylusParams { tip_radius_mm: tip, ..machine.stylus }, h)
-        .map_err(|e| ScanError::Invalid(format!("stylus: {e}")))?;
-    let w = 2.0 * std::f64::consts::PI * machine.servo.bandwidth_hz;
-    let (w2, two_zw, gain) = (w * w, 2.0 * machine.servo.damping * w, 1.0 - machine.servo.accel_feedforward);
-    let mut rng_e = noise::stream(seed, 1);
-    let mut rng_p = noise::stream(seed, 2);
+    let dt = machine.control_period_s();
+    if !(dt.is_finite() && dt > 0.0) {
+        return Err(ScanError::Parameter("control_dt_s", dt));
+    }
 
     let nseg = plan.segments.len();
     let nf = plan.features.len();
@@ -274,14 +211,11 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
     let mut last_n = Vector3::z();
     let mut settled_for = 0.0;
     let first = plan.segments[0].eval(0.0, &plan.features[plan.segments[0].feature], tip);
-    let (mut c_prev, mut c_prev2) = (first.position, first.position);
-    // machine: following error e (per axis) and its rate; stylus deflection q and rate
-    let (mut e, mut ed) = (Vector3::zeros(), Vector3::zeros());
-    let mut body_prev = State::rest(first.position);
+    machine.begin(first.position, tip)?;
     let mut t = 0.0;
     let max_ticks = ((plan.duration()
         + nf as f64
-            * (machine.max_settle_wait + 2.0 * machine.search_limit / p.touch_speed.min(p.scan_speed))
+            * (control.max_settle_wait + 2.0 * control.search_limit / p.touch_speed.min(p.scan_speed))
         + 10.0)
         / dt) as usize;
     let mut entered = usize::MAX;
@@ -291,7 +225,6 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
         let seg = &plan.segments[i];
         let fi = seg.feature;
         let f = &plan.features[fi];
-        let tf = &truth[fi];
         if entered != i {
             entered = i;
             if seg.kind == SegmentKind::Transfer && (e_n != 0.0 || blend.o0.norm() > 0.0) {
@@ -312,29 +245,12 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
         };
         last_n = n;
         let c = base + n * e_n + blend.at(t);
-        // 2. physics over the tick: command ramps from c_prev to c
+        // 2. the machine follows the command over the tick and measures
         let touchable = seg.kind != SegmentKind::Transfer;
-        let cv = (c - c_prev) / dt;
-        let ca = (c - c_prev * 2.0 + c_prev2.coords) / (dt * dt);
-        let surface = Surface(tf);
-        let art: &dyn Artefact = if touchable { &surface } else { &Clear };
-        for k in 0..nsub {
-            let ck = c_prev + (c - c_prev) * ((k + 1) as f64 / nsub as f64);
-            let edd = ca * gain - ed * two_zw - e * w2;
-            ed += edd * h;
-            e += ed * h;
-            let body = State { p: ck - e, v: cv - ed, a: ca - edd };
-            stylus.step(&body_prev, &body, art);
-            body_prev = body;
-        }
-        let q = stylus.deflection();
-        c_prev2 = c_prev;
-        c_prev = c;
+        let sample = machine.follow(&ScanCommand { tip_center_mm: c, feature: touchable.then_some(fi) })?;
         t += dt;
         // 3. measure
-        let x = c - e;
-        let qm = q + noise::gaussian3(&mut rng_p, machine.probe_noise);
-        let xm = x + noise::gaussian3(&mut rng_e, machine.encoder_noise);
+        let (xm, qm) = (sample.scale_mm, sample.deflection_mm);
         let defl = qm.norm();
         points.push(Point {
             t,
@@ -351,7 +267,7 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
         halt_pending = false;
         // 4. logic
         let in_approach = seg.kind == SegmentKind::Approach && seg.contact_time.is_some() && !contacted[fi];
-        if in_approach && defl > machine.contact_threshold {
+        if in_approach && defl > control.contact_threshold {
             contacted[fi] = true;
             contact_t[fi] = t;
             let tc = seg.contact_time.unwrap_or(0.0);
@@ -372,9 +288,9 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
             let ahead = nseg_.eval(nt + 1e-3, f, tip).position - b.position;
             let v = b.speed.max(p.touch_speed.min(p.scan_speed));
             let dur = if o0.dot(&ahead) > 0.0 {
-                machine.blend_time.max(4.0 * o0.norm() / v)
+                control.blend_time.max(4.0 * o0.norm() / v)
             } else {
-                machine.blend_time
+                control.blend_time
             };
             blend = Blend { o0, tb: t, dur };
             mode = Mode::Plan;
@@ -385,17 +301,17 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
             continue;
         }
         if seg.feedback && tau >= seg.feedback_after && matches!(mode, Mode::Plan) {
-            e_n += machine.feedback_gain * (defl - target) * dt;
+            e_n += control.feedback_gain * (defl - target) * dt;
         }
         match &mut mode {
             Mode::Bend { p: bp, dir0, n0, tb, travel, speed } => {
                 *tb += dt;
-                let d = *dir0 + (-*n0 - *dir0) * (1.0 - (-*tb / machine.bend_time).exp());
+                let d = *dir0 + (-*n0 - *dir0) * (1.0 - (-*tb / control.bend_time).exp());
                 let d = if d.norm() > 1e-12 { d.normalize() } else { -*n0 };
                 *bp += d * (*speed * dt);
                 *travel += *speed * dt;
-                if *travel > machine.search_limit {
-                    return Err(ScanError::NoContact { id: f.id.clone(), limit: machine.search_limit });
+                if *travel > control.search_limit {
+                    return Err(ScanError::NoContact { id: f.id.clone(), limit: control.search_limit });
                 }
             }
             Mode::Plan => {
@@ -406,7 +322,7 @@ pub fn execute(plan: &Plan, truth: &[Feature], machine: &Machine, seed: u64) -> 
                     } else {
                         settled_for = 0.0;
                     }
-                    if settled_for >= machine.settle_dwell || tau >= machine.max_settle_wait {
+                    if settled_for >= control.settle_dwell || tau >= control.max_settle_wait {
                         tau = 0.0;
                         i += 1;
                         halt_pending = true;

@@ -7,23 +7,23 @@
 //! release, and straight on to the next approach: the commanded speed never reaches zero between
 //! the first approach and the last release) and **classic** (pre-hit point on the normal, stop,
 //! normal approach, search to the deflection, scan, stop, retract), and executes them on the
-//! virtual CMM with servo and stylus dynamics, missed surfaces handled both ways.
+//! scanning machine (`truepos_device::ScanningMachine`; the virtual CMM with servo and stylus
+//! dynamics is `truepos_cell::scanning_cmm`), missed surfaces handled both ways.
 //!
 //! Entry points:
 //! - [`feature`]: [`Feature`], [`Params`], [`validate`].
 //! - [`plan`]: [`plan::plan`] with [`Style`] → [`Plan`] (segments, sampling, stops).
-//! - [`execute`]: [`execute::execute`] on a [`execute::Machine`] against the true part → points
-//!   tagged by segment/feature with deflection and quality, per-feature form error, cycle time.
-//!   The stylus is `truepos_sim::stylus`; the servo error model is `truepos_sim::motion::Servo`'s,
-//!   integrated on line (the command depends on the probe feedback).
+//! - [`execute`]: [`execute::execute`] on a scanning machine with [`execute::ControlParams`] →
+//!   points tagged by segment/feature with deflection and quality, per-feature form error, cycle
+//!   time.
+//! - [`file`]: the features file ([`file::read_features`]).
 //! - [`form`]: form error (peak-to-valley of least-squares residuals, via `truepos-fit`).
-//! - [`scenario`]: the virtual cell's `scan` scenario as features, true features and parameters.
 
 pub mod execute;
 pub mod feature;
+pub mod file;
 pub mod form;
 pub mod plan;
-pub mod scenario;
 
 pub use feature::{validate, Feature, Geometry, Params, Side};
 pub use plan::{plan, Plan, SegmentKind, Style};
@@ -47,4 +47,7 @@ pub enum ScanError {
     Fit { id: String, why: String },
     #[error("{0}")]
     Invalid(String),
+    /// The scanning machine failed or refused a command.
+    #[error(transparent)]
+    Device(#[from] truepos_device::DeviceError),
 }

@@ -1,11 +1,18 @@
 //! Execution on the virtual CMM against the simulator's true part.
 
+use truepos_cell::scanning_cmm::{run_scan, CmmConfig as Machine};
 use truepos_math::Vector3;
-use truepos_scan::execute::{execute, quality, Machine, Run};
+use truepos_scan::execute::{quality, ControlParams, Run};
+use truepos_scan::ScanError;
 use truepos_scan::{plan, Feature, Geometry, Params, SegmentKind, Side, Style};
 
 fn scenario(n: usize) -> (Vec<Feature>, Vec<Feature>, Params) {
-    truepos_scan::scenario::program(&truepos_sim::scenario::scan::scenario(11, n))
+    truepos_cell::scan_scenario::program(&truepos_sim::scenario::scan::scenario(11, n))
+}
+
+/// The plan on the virtual CMM with the default scanning control.
+fn execute(pl: &truepos_scan::Plan, truth: &[Feature], m: &Machine, seed: u64) -> Result<Run, ScanError> {
+    run_scan(pl, truth, m, &ControlParams::default(), seed)
 }
 
 fn mean(v: impl Iterator<Item = f64>) -> f64 {
@@ -195,7 +202,8 @@ fn quality_marks_follow_the_bands() {
 #[test]
 #[ignore = "timing; run in release: cargo test --release -p truepos-scan -- --ignored"]
 fn hundred_features_plan_and_simulate_under_a_second() {
-    let (nom, truth, p) = truepos_scan::scenario::program(&truepos_sim::scenario::scan::scenario(7, 100));
+    let (nom, truth, p) =
+        truepos_cell::scan_scenario::program(&truepos_sim::scenario::scan::scenario(7, 100));
     let t0 = std::time::Instant::now();
     let pl = plan(&nom, &p, Style::Blended);
     let r = execute(&pl, &truth, &Machine::default(), 1).unwrap();

@@ -20,45 +20,8 @@
 //! first-order kinematic chains that use it live in [`crate::machine`].
 
 use rand::Rng;
+pub use truepos_math::types::Axis;
 use truepos_math::types::{Matrix3, Vector3};
-
-/// A machine axis.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Axis {
-    X = 0,
-    Y = 1,
-    Z = 2,
-}
-
-impl Axis {
-    /// X, Y, Z.
-    pub const ALL: [Axis; 3] = [Axis::X, Axis::Y, Axis::Z];
-
-    /// 0, 1, 2.
-    pub fn index(self) -> usize {
-        self as usize
-    }
-
-    /// Lower-case name as in the map file's `axis` column.
-    pub fn name(self) -> &'static str {
-        ["x", "y", "z"][self.index()]
-    }
-
-    /// Machine-axis index of the angular components `[pitch, yaw, roll]` of this axis.
-    pub fn angular_axes(self) -> [usize; 3] {
-        match self {
-            Axis::X => [1, 2, 0],
-            Axis::Y => [0, 2, 1],
-            Axis::Z => [0, 1, 2],
-        }
-    }
-
-    /// Machine-axis index of the linear components `[pos, str1, str2]` of this axis.
-    pub fn linear_axes(self) -> [usize; 3] {
-        let a = self.index();
-        [a, (a + 1) % 3, (a + 2) % 3]
-    }
-}
 
 /// One sinusoid: `amplitude · sin(2π·a/period + phase)`.
 #[derive(Debug, Clone, Copy, PartialEq)]

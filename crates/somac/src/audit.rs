@@ -31,7 +31,7 @@ pub enum Event {
     },
     Alarm {
         line: usize,
-        kind: String,
+        kind: crate::run::AlarmKind,
         message: String,
         action: String,
         time_s: f64,
@@ -58,10 +58,13 @@ pub enum Event {
     },
 }
 
+/// Why an audit sink could not store an event (the storage's own error, kept as the cause).
+pub type SinkError = Box<dyn std::error::Error + Send + Sync>;
+
 /// Receives events as they happen. `commit` marks the end of a unit of work (a stop).
 pub trait AuditSink {
-    fn record(&mut self, event: &Event) -> Result<(), String>;
-    fn commit(&mut self) -> Result<(), String> {
+    fn record(&mut self, event: &Event) -> Result<(), SinkError>;
+    fn commit(&mut self) -> Result<(), SinkError> {
         Ok(())
     }
 }
@@ -73,7 +76,7 @@ pub struct MemoryAudit {
 }
 
 impl AuditSink for MemoryAudit {
-    fn record(&mut self, event: &Event) -> Result<(), String> {
+    fn record(&mut self, event: &Event) -> Result<(), SinkError> {
         self.events.push(event.clone());
         Ok(())
     }

@@ -14,17 +14,20 @@
 //! - [`run::run_program`]: the measure / compare / correct loop with alarms, real-time
 //!   orientation, auto-scaling, refractive-index updates, multi-tracker fusion and beam-break
 //!   recovery; it reports every event to an [`audit::AuditSink`].
+//! - [`scale`]: the part's scale factor from its targets, with its uncertainty.
 //! - [`fusion`]: weighted fusion of several trackers' readings.
 //! - [`stats`]: hole true-position statistics and capability in ppm of the diagonal.
-//! - [`virtual_cell`]: the virtual large gantry with trackers behind the same traits.
+//!
+//! The virtual large gantry with trackers that implements these traits on the simulator lives
+//! in `truepos-cell` (`truepos_cell::gantry`); this crate never depends on the simulator.
 
 pub mod audit;
 pub mod device;
 pub mod fusion;
 pub mod params;
 pub mod run;
+pub mod scale;
 pub mod stats;
-pub mod virtual_cell;
 
 pub use params::Params;
-pub use run::{run_program, RunReport, StopReport, StopStatus};
+pub use run::{run_program, Alarm, AlarmKind, RunReport, StopReport, StopStatus};

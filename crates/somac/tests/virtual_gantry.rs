@@ -2,13 +2,13 @@
 //! within 50 µm and the mean within 20 µm with correction; alarms fire at their set points.
 
 use std::collections::BTreeMap;
+use truepos_cell::gantry::{CellConfig, VirtualCell};
 use truepos_gcode::Program;
 use truepos_math::Point3;
 use truepos_sim::scenario::somac::{spar, SparConfig};
 use truepos_somac::audit::{Event, MemoryAudit};
-use truepos_somac::run::StopStatus;
+use truepos_somac::run::{AlarmKind, StopStatus};
 use truepos_somac::stats::hole_stats;
-use truepos_somac::virtual_cell::{CellConfig, VirtualCell};
 use truepos_somac::{run_program, Params, RunReport};
 
 fn run(cfg: CellConfig, params: &Params, holes_per_row: usize) -> (RunReport, Vec<f64>, MemoryAudit) {
@@ -87,7 +87,7 @@ fn corrected_holes_within_50_um_native_above_half_a_millimetre() {
         s1.std_error_mm,
         s1.max_error_mm
     );
-    eprintln!("alarms: {:?}", report.alarms.iter().map(|a| (a.line, a.kind.clone())).collect::<Vec<_>>());
+    eprintln!("alarms: {:?}", report.alarms.iter().map(|a| (a.line, a.kind)).collect::<Vec<_>>());
     eprintln!("orientations: {}, refractive updates: {}", report.orientations, report.refractive_updates);
     assert_eq!(e1.len(), 120);
     // The tracker's own uncertainty is ~10–25 µm (2σ) over these distances; the threshold is 25 µm.
@@ -99,7 +99,7 @@ fn corrected_holes_within_50_um_native_above_half_a_millimetre() {
         report.stops.iter().filter(|s| s.status == StopStatus::Failure).collect::<Vec<_>>()
     );
     // The bumped tracker raises the inclination alarm and forces a re-alignment.
-    assert!(report.alarms.iter().any(|a| a.kind == "inclination"), "{:?}", report.alarms);
+    assert!(report.alarms.iter().any(|a| a.kind == AlarmKind::Inclination), "{:?}", report.alarms);
     assert!(audit.events.iter().any(|e| matches!(e, Event::RefractiveIndex { .. })));
     // The 1.5 °C step moves the part temperature past the auto-scale step: re-scaled.
     assert!(audit.events.iter().any(|e| matches!(e, Event::Orientation { reason, .. } if reason.contains("auto-scale") || reason.contains("temperature"))));
@@ -121,7 +121,7 @@ fn unstable_readings_fail_the_stop() {
     let params = Params { stable_attempts: 3, ..Default::default() };
     let (report, _, _) = run(cfg, &params, 3);
     assert!(report.stops.iter().all(|s| s.status == StopStatus::Failure));
-    assert!(report.alarms.iter().any(|a| a.kind == "no_reading"));
+    assert!(report.alarms.iter().any(|a| a.kind == AlarmKind::NoReading));
 }
 
 #[test]
@@ -244,8 +244,12 @@ fn beam_break_recovery_strategies() {
         let params = Params { beam_recovery: strategy, ..spar_params() };
         let (report, e, _) = run(cfg, &params, 20);
         let s = hole_stats(&e);
-        let breaks: Vec<&str> =
-            report.alarms.iter().filter(|a| a.kind == "beam_break").map(|a| a.action.as_str()).collect();
+        let breaks: Vec<&str> = report
+            .alarms
+            .iter()
+            .filter(|a| a.kind == AlarmKind::BeamBreak)
+            .map(|a| a.action.as_str())
+            .collect();
         eprintln!(
             "{strategy:?} adm {adm}: {} beam-break alarms, mean {:.4} max {:.4} mm",
             breaks.len(),

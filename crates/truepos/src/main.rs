@@ -5,13 +5,11 @@
 //! usage or input, `3` device or internal failure), and prints errors once, on stderr.
 //!
 //! Entry points: [`cmd`] (one module per command, each with `Args` and `run`), [`output`] (JSON on
-//! stdout, progress bars on a terminal stderr), [`report`] (the demo report and its SVG plots).
+//! stdout, progress bars on a terminal stderr).
 
 mod cmd;
 #[allow(dead_code)] // helpers used as capabilities land
 mod output;
-#[allow(dead_code)]
-mod report;
 
 use clap::Parser;
 use std::process::ExitCode;
@@ -35,14 +33,30 @@ pub struct UsageError(pub String);
 #[error("{0}")]
 pub struct DeviceError(pub String);
 
-/// Exit code for an error: 2 when any cause is bad input or usage, otherwise 3.
+/// Exit code for an error: the one place where errors become exit codes. The first cause in the
+/// chain that says what kind of failure it is decides: bad input or usage → 2; a device, the
+/// audit trail or anything internal → 3.
 fn exit_code(err: &anyhow::Error) -> u8 {
+    use truepos_scan::ScanError;
+    use truepos_somac::run::RunError;
     for cause in err.chain() {
         if cause.is::<truepos_io::InputError>() || cause.is::<UsageError>() {
             return 2;
         }
-        if cause.is::<DeviceError>() {
+        if cause.is::<DeviceError>() || cause.is::<truepos_device::DeviceError>() {
             return 3;
+        }
+        if let Some(e) = cause.downcast_ref::<RunError>() {
+            return match e {
+                RunError::Params(_) | RunError::Program { .. } => 2,
+                RunError::Device(_) | RunError::Audit(_) => 3,
+            };
+        }
+        if let Some(e) = cause.downcast_ref::<ScanError>() {
+            return match e {
+                ScanError::Device(_) | ScanError::NoContact { .. } => 3,
+                _ => 2,
+            };
         }
     }
     3

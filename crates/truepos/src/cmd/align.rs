@@ -5,16 +5,14 @@
 //! machine frame (`--from tracker.csv --to machine.csv` gives `machine_from_tracker`).
 
 use crate::output::{print_json, v3};
-use crate::report::{self, Report};
 use crate::{Outcome, UsageError};
 use anyhow::Result;
 use serde_json::json;
-use std::collections::HashMap;
 use std::path::PathBuf;
-use truepos_io::csv::Table;
+use truepos_io::points::{match_by_id, read_id_points, Matched};
 use truepos_io::InputError;
 use truepos_math::bestfit::{self, BestFitOptions};
-use truepos_math::{Point3, Transform3};
+use truepos_math::Transform3;
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Method {
@@ -46,64 +44,6 @@ pub struct Args {
     /// Print one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
-}
-
-/// Points of a file with their ids (ids required, unique).
-pub struct IdPoints {
-    pub ids: Vec<String>,
-    pub points: Vec<Point3>,
-    pub table: Table,
-}
-
-pub fn read_id_points(path: &PathBuf) -> Result<IdPoints, InputError> {
-    let table = Table::read(path)?;
-    let xyz = table.f64_columns(&["x_mm", "y_mm", "z_mm"])?;
-    let ids = table.str_column("id")?;
-    let mut seen = HashMap::new();
-    for (i, id) in ids.iter().enumerate() {
-        if id.trim().is_empty() {
-            return Err(InputError::at(
-                path,
-                table.line_number(i),
-                table.column("id").map(|c| c + 1),
-                "empty id: every point needs an id to be matched",
-            ));
-        }
-        if let Some(prev) = seen.insert(id.clone(), i) {
-            return Err(InputError::at(
-                path,
-                table.line_number(i),
-                table.column("id").map(|c| c + 1),
-                format!("duplicate id '{id}' (also on line {})", table.line_number(prev)),
-            ));
-        }
-    }
-    let points = xyz.chunks_exact(3).map(|c| Point3::new(c[0], c[1], c[2])).collect();
-    Ok(IdPoints { ids, points, table })
-}
-
-/// Pairs of points matched by id, in the order of `from`.
-pub struct Matched {
-    pub ids: Vec<String>,
-    pub from: Vec<Point3>,
-    pub to: Vec<Point3>,
-    pub from_rows: Vec<usize>,
-    pub to_rows: Vec<usize>,
-}
-
-pub fn match_by_id(from: &IdPoints, to: &IdPoints) -> Matched {
-    let index: HashMap<&str, usize> = to.ids.iter().enumerate().map(|(i, s)| (s.as_str(), i)).collect();
-    let mut m = Matched { ids: vec![], from: vec![], to: vec![], from_rows: vec![], to_rows: vec![] };
-    for (i, id) in from.ids.iter().enumerate() {
-        if let Some(&j) = index.get(id.as_str()) {
-            m.ids.push(id.clone());
-            m.from.push(from.points[i]);
-            m.to.push(to.points[j]);
-            m.from_rows.push(i);
-            m.to_rows.push(j);
-        }
-    }
-    m
 }
 
 /// Fit `to_from_from` with the options of the command line.
@@ -204,65 +144,4 @@ pub fn run(a: Args) -> Result<Outcome> {
         }
     }
     Ok(Outcome::Done)
-}
-
-/// Demo: align a simulated tracker frame to the machine frame.
-pub fn demo_section(report: &mut Report) -> Result<()> {
-    use truepos_math::types::{rx, ry, rz};
-    use truepos_math::Vector3;
-    // A tracker 3 m from the machine origin, rotated; 8 reflector positions; 10 µm noise.
-    let truth = Transform3::rigid(rz(0.7) * ry(0.01) * rx(-0.02), Vector3::new(3000.0, -1200.0, 150.0));
-    let machine: Vec<Point3> = (0..8)
-        .map(|i| {
-            Point3::new(
-                if i & 1 == 0 { 0.0 } else { 4000.0 },
-                if i & 2 == 0 { 0.0 } else { 2000.0 },
-                if i & 4 == 0 { 0.0 } else { 800.0 },
-            )
-        })
-        .collect();
-    let tracker_from_machine = truth.inverse();
-    // Deterministic "noise" with ~10 µm amplitude.
-    let tracker: Vec<Point3> = machine
-        .iter()
-        .enumerate()
-        .map(|(i, p)| {
-            tracker_from_machine.apply(p)
-                + Vector3::new(
-                    ((i * 7) % 5) as f64 - 2.0,
-                    ((i * 3) % 5) as f64 - 2.0,
-                    ((i * 11) % 5) as f64 - 2.0,
-                ) * 0.005
-        })
-        .collect();
-    let est = bestfit::best_fit(&tracker, &machine, None, BestFitOptions::default())?;
-    let rows: Vec<Vec<String>> = machine
-        .iter()
-        .zip(&tracker)
-        .enumerate()
-        .map(|(i, (m, t))| {
-            vec![
-                format!("P{i}"),
-                format!("{:.1}, {:.1}, {:.1}", m.x, m.y, m.z),
-                format!("{:.4}", (est.apply(t) - m).norm() * 1000.0),
-            ]
-        })
-        .collect();
-    let html = format!(
-        "<p>Machine from tracker by weighted least squares (SVD, reflection guard) over 8 reflector positions with ±10 µm noise. Rotation error {:.2} µrad, translation error {:.2} µm.</p>{}",
-        (est.rotation.transpose() * truth.rotation).rotation_angle_from_matrix() * 1e6,
-        (est.translation - truth.translation).norm() * 1000.0,
-        report::table(&["point", "machine (mm)", "residual (µm)"], &rows)
-    );
-    report.add("align", "Tracker-to-machine alignment", html);
-    Ok(())
-}
-
-trait AngleOf {
-    fn rotation_angle_from_matrix(&self) -> f64;
-}
-impl AngleOf for truepos_math::Matrix3 {
-    fn rotation_angle_from_matrix(&self) -> f64 {
-        ((self.trace() - 1.0) * 0.5).clamp(-1.0, 1.0).acos()
-    }
 }

@@ -10,12 +10,11 @@
 use crate::output::{parse_triple, print_json};
 use crate::Outcome;
 use anyhow::{Context, Result};
-use serde::Deserialize;
 use serde_json::json;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use truepos_comp::correct::CompError;
-use truepos_comp::{Axis, AxisErrors, AxisTable, Chain, Corrector, GeometricMap, Squareness};
+use truepos_comp::{Chain, Corrector, GeometricMap};
 use truepos_io::atomic::AtomicFile;
 use truepos_io::csv::{CsvWriter, Table};
 use truepos_io::InputError;
@@ -120,115 +119,7 @@ pub struct ErrorArgs {
     pub json: bool,
 }
 
-/// Read a geometric map CSV (errors with file, line, column).
-pub fn read_map(path: &Path) -> Result<GeometricMap, InputError> {
-    let t = Table::read(path)?;
-    let cols = ["position_mm", "pos_um", "str1_um", "str2_um", "pitch_urad", "yaw_urad", "roll_urad"];
-    let v = t.f64_columns(&cols)?;
-    let axes = t.str_column("axis")?;
-    let acol = t.column("axis").map(|c| c + 1);
-    let mut rows: [Vec<(f64, AxisErrors, usize)>; 3] = [vec![], vec![], vec![]];
-    for (i, a) in axes.iter().enumerate() {
-        let k = match a.trim().to_ascii_lowercase().as_str() {
-            "x" => 0,
-            "y" => 1,
-            "z" => 2,
-            other => {
-                return Err(InputError::at(
-                    path,
-                    t.line_number(i),
-                    acol,
-                    format!("axis must be x, y or z (got '{other}')"),
-                )
-                .with_column_name("axis"))
-            }
-        };
-        let r = &v[i * 7..i * 7 + 7];
-        let e = AxisErrors {
-            pos: r[1] * 1e-3,
-            str1: r[2] * 1e-3,
-            str2: r[3] * 1e-3,
-            pitch: r[4] * 1e-6,
-            yaw: r[5] * 1e-6,
-            roll: r[6] * 1e-6,
-        };
-        rows[k].push((r[0], e, i));
-    }
-    let mut map = GeometricMap::default();
-    for (k, axis) in [Axis::X, Axis::Y, Axis::Z].into_iter().enumerate() {
-        let r = &mut rows[k];
-        if r.is_empty() {
-            continue;
-        }
-        r.sort_by(|a, b| a.0.total_cmp(&b.0));
-        for w in r.windows(2) {
-            if w[0].0 == w[1].0 {
-                return Err(InputError::at(
-                    path,
-                    t.line_number(w[1].2.max(w[0].2)),
-                    t.column("position_mm").map(|c| c + 1),
-                    format!(
-                        "axis {}: position {} mm appears twice (also line {})",
-                        axis.name(),
-                        w[0].0,
-                        t.line_number(w[1].2.min(w[0].2))
-                    ),
-                ));
-            }
-        }
-        let pos: Vec<f64> = r.iter().map(|x| x.0).collect();
-        let e: Vec<AxisErrors> = r.iter().map(|x| x.1).collect();
-        let table = AxisTable::new(axis, pos, &e).map_err(|e| InputError::in_file(path, e.to_string()))?;
-        match axis {
-            Axis::X => map.x = Some(table),
-            Axis::Y => map.y = Some(table),
-            Axis::Z => map.z = Some(table),
-        }
-    }
-    if map.x.is_none() && map.y.is_none() && map.z.is_none() {
-        return Err(InputError::in_file(path, "the map has no rows"));
-    }
-    Ok(map)
-}
-
-#[derive(Deserialize)]
-struct SqFile {
-    squareness: SqToml,
-}
-#[derive(Deserialize)]
-struct SqToml {
-    #[serde(default)]
-    xy_urad: f64,
-    #[serde(default)]
-    xz_urad: f64,
-    #[serde(default)]
-    yz_urad: f64,
-}
-
-/// Read squareness from TOML or CSV (µrad in the file, rad returned).
-pub fn read_squareness(path: &Path) -> Result<Squareness, InputError> {
-    let is_toml = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml"));
-    let (xy, xz, yz) = if is_toml {
-        let f: SqFile = truepos_io::config::read_toml(path)?;
-        (f.squareness.xy_urad, f.squareness.xz_urad, f.squareness.yz_urad)
-    } else {
-        let t = Table::read(path)?;
-        let v = t.f64_columns(&["xy_urad", "xz_urad", "yz_urad"])?;
-        if t.n_rows() != 1 {
-            return Err(InputError::in_file(
-                path,
-                format!("a squareness CSV has exactly one data row (got {})", t.n_rows()),
-            ));
-        }
-        (v[0], v[1], v[2])
-    };
-    for (n, v) in [("xy_urad", xy), ("xz_urad", xz), ("yz_urad", yz)] {
-        if !v.is_finite() {
-            return Err(InputError::in_file(path, format!("{n} is not finite")));
-        }
-    }
-    Ok(Squareness { xy: xy * 1e-6, xz: xz * 1e-6, yz: yz * 1e-6 })
-}
+use truepos_comp::files::{read_map, read_squareness};
 
 /// The full map from the command-line options.
 pub fn load_map(a: &MapArgs) -> Result<GeometricMap, InputError> {
@@ -294,15 +185,6 @@ pub fn write_corrected(t: &Table, points: &[Point3], d: &[Vector3], out: &Path) 
     Ok(())
 }
 
-/// RMS and maximum norm (µm) of displacements.
-pub fn rms_max_um(d: &[Vector3]) -> (f64, f64) {
-    if d.is_empty() {
-        return (0.0, 0.0);
-    }
-    let rms = (d.iter().map(|v| v.norm_squared()).sum::<f64>() / d.len() as f64).sqrt();
-    (rms * 1e3, d.iter().map(|v| v.norm()).fold(0.0, f64::max) * 1e3)
-}
-
 pub fn run(a: Args) -> Result<Outcome> {
     match a.command {
         Sub::Correct(c) => correct(c),
@@ -328,7 +210,7 @@ fn correct(a: CorrectArgs) -> Result<Outcome> {
         corr.correct_measured(&mut pts, Some(&mut d)).map_err(|e| batch_error(&t, e))?;
     }
     write_corrected(&t, &pts, &d, &a.output)?;
-    let (rms, max) = rms_max_um(&d);
+    let (rms, max) = truepos_comp::files::rms_max_um(&d);
     if a.json {
         let mut j = json!({
             "n_points": pts.len(),

@@ -1,9 +1,10 @@
 //! `truepos demo`: every capability end to end on the virtual cell, written as a report
 //! (`index.html` with tables and SVG plots) that a person reads.
 
-use crate::report::Report;
 use crate::Outcome;
 use std::path::PathBuf;
+use truepos_cell::demo::SectionFn;
+use truepos_cell::report::Report;
 
 #[derive(clap::Args, Debug)]
 #[command(after_help = "Example:\n  truepos demo --out demo   # then open demo/index.html")]
@@ -13,25 +14,12 @@ pub struct Args {
     pub out: PathBuf,
 }
 
-type SectionFn = fn(&mut Report) -> anyhow::Result<()>;
-
 pub fn run(a: Args) -> anyhow::Result<Outcome> {
     let mut report = Report::new(&a.out);
-    let sections: [(&str, SectionFn); 8] = [
-        ("fitting", super::fit::demo_section),
-        ("alignment", super::align::demo_section),
-        ("system delay", super::latency::demo_section),
-        ("head offset", super::head::demo_section),
-        ("bed load", super::load::demo_section),
-        ("scanning", super::scan::demo_section),
-        ("end-point control", super::somac::demo_section),
-        ("", |_| Ok(())),
-    ];
+    let mut sections: Vec<(&str, SectionFn)> = vec![("fitting", super::fit::demo_section)];
+    sections.extend(truepos_cell::demo::sections());
     let pb = crate::output::progress(sections.len() as u64, "demo");
     for (name, f) in sections {
-        if name.is_empty() {
-            continue;
-        }
         pb.set_message(name.to_string());
         let t0 = std::time::Instant::now();
         f(&mut report).map_err(|e| e.context(format!("demo section '{name}'")))?;

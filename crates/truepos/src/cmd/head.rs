@@ -7,20 +7,18 @@
 //! numerics are in `truepos-head`; this module reads and writes the contract's files.
 
 use crate::output::{parse_pair, parse_triple, print_json, v3};
-use crate::report::{self, Report};
 use crate::{Outcome, UsageError};
 use anyhow::{Context, Result};
 use serde_json::json;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use truepos_head::{
-    beam_direction, machine_to_table, solve, surface_point, HeadError, HeadOffset, Reading, Reference, Setup,
-};
+use truepos_head::file::{head_error, read_input, Input};
+use truepos_head::{beam_direction, machine_to_table, solve, surface_point, HeadOffset, Params, Reference};
 use truepos_io::atomic::AtomicFile;
-use truepos_io::csv::{CsvWriter, Table};
+use truepos_io::csv::CsvWriter;
 use truepos_io::InputError;
 use truepos_math::{Point3, Vector3};
-use truepos_sim::scenario::head_offset::{self as sim, HeadOffsetConfig, HeadOffsetData, Variant};
+use truepos_sim::scenario::head_offset::{self as sim, HeadOffsetConfig, Variant};
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RefKind {
@@ -160,104 +158,11 @@ pub struct SimArgs {
     pub variant: SimVariant,
 }
 
-/// The readings of a points file.
-struct Input {
-    readings: Vec<Reading>,
-    table: Table,
-    /// The `face` / `group` ids as written (Reading::face / group index these).
-    face_names: Vec<String>,
-    group_names: Vec<String>,
-}
-
-fn missing_angles(table: &Table, name: &str) -> InputError {
-    InputError::in_file(
-        &table.path,
-        format!(
-            "missing column '{name}': head-offset needs the head swivel angle B and the table angle C of every \
-             reading (columns b_deg,c_deg in degrees; write 0 for an axis the machine does not have) \
-             (columns: {})",
-            table.header.join(",")
-        ),
-    )
-}
-
-/// Row ids (index into the names) and the distinct names in order of appearance.
-type IdColumn = (Vec<Option<i64>>, Vec<String>);
-
-/// An id column (`face`, `group`) if present: any text, interned; empty fields have no id.
-/// Returns the index of each row's id and the distinct ids in order of appearance.
-fn id_column(table: &Table, name: &str) -> Result<Option<IdColumn>, InputError> {
-    if table.column(name).is_none() {
-        return Ok(None);
-    }
-    let values = table.str_column(name)?;
-    let mut names: Vec<String> = Vec::new();
-    let mut index = std::collections::HashMap::new();
-    let ids = values
-        .iter()
-        .map(|v| {
-            let v = v.trim();
-            if v.is_empty() {
-                return None;
-            }
-            let k = *index.entry(v.to_string()).or_insert_with(|| {
-                names.push(v.to_string());
-                names.len() - 1
-            });
-            Some(k as i64)
-        })
-        .collect();
-    Ok(Some((ids, names)))
-}
-
-fn read_input(path: &Path, need_c: bool) -> Result<Input, InputError> {
-    let table = Table::read(path)?;
-    for name in ["b_deg", "c_deg"] {
-        if table.column(name).is_none() && (name == "b_deg" || need_c) {
-            return Err(missing_angles(&table, name));
-        }
-    }
-    let xyz = table.f64_columns(&["x_mm", "y_mm", "z_mm"])?;
-    let b = table.f64_column("b_deg")?;
-    let c =
-        if table.column("c_deg").is_some() { table.f64_column("c_deg")? } else { vec![0.0; table.n_rows()] };
-    let dist = if table.column("dist_mm").is_some() { Some(table.f64_column("dist_mm")?) } else { None };
-    let face = id_column(&table, "face")?;
-    let group = id_column(&table, "group")?;
-    let readings = (0..table.n_rows())
-        .map(|i| Reading {
-            b: b[i].to_radians(),
-            c: c[i].to_radians(),
-            p: Point3::new(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]),
-            dist: dist.as_ref().map(|d| d[i]),
-            face: face.as_ref().and_then(|f| f.0[i]),
-            group: group.as_ref().and_then(|g| g.0[i]),
-        })
-        .collect();
-    Ok(Input {
-        readings,
-        table,
-        face_names: face.map(|f| f.1).unwrap_or_default(),
-        group_names: group.map(|g| g.1).unwrap_or_default(),
-    })
-}
-
 fn tilt_rad(t: [f64; 2], name: &str) -> Result<[f64; 2], UsageError> {
     if t.iter().any(|a| a.abs() >= 80.0) {
         return Err(UsageError(format!("{name} {},{}: tilt angles must be below 80°", t[0], t[1])));
     }
     Ok([t[0].to_radians(), t[1].to_radians()])
-}
-
-fn head_error(table: &Table, e: HeadError) -> InputError {
-    match e {
-        HeadError::MissingFace { index } | HeadError::NotFinite { index } | HeadError::BadTilt { index }
-            if index < table.n_rows() =>
-        {
-            InputError::at(&table.path, table.line_number(index), None, e.to_string())
-        }
-        _ => InputError::in_file(&table.path, e.to_string()),
-    }
 }
 
 const AXES: [&str; 3] = ["X", "Y", "Z"];
@@ -317,7 +222,7 @@ pub fn run(args: Args) -> Result<Outcome> {
         }
         RefKind::Vertex => Reference::Vertex { tip_radius: a.tip_radius_mm },
     };
-    let setup = Setup {
+    let setup = Params {
         reference,
         table_center,
         tilt,
@@ -360,14 +265,14 @@ fn why_unobservable(j: usize) -> &'static str {
 
 fn to_json(
     r: &HeadOffset,
-    setup: &Setup,
+    setup: &Params,
     tip: f64,
     diameter: Option<f64>,
     input: &Input,
 ) -> serde_json::Value {
     let name = |names: &[String], id: i64| names.get(id as usize).cloned().unwrap_or_default();
     let unc: Vec<serde_json::Value> =
-        r.uncertainty.iter().map(|u| u.map_or(serde_json::Value::Null, |v| json!(v))).collect();
+        r.u_offset.iter().map(|u| u.map_or(serde_json::Value::Null, |v| json!(v))).collect();
     let sphere_diameter = match (setup.reference, r.radius) {
         (Reference::Sphere { .. }, Some(rad)) => Some(diameter.unwrap_or(2.0 * (rad - tip))),
         _ => None,
@@ -380,9 +285,9 @@ fn to_json(
         "uncertainty_mm": unc,
         "reference": match setup.reference { Reference::Sphere { .. } => "sphere", Reference::Vertex { .. } => "vertex" },
         "reference_point_mm": v3(r.reference_point),
-        "reference_point_uncertainty_mm": v3(r.reference_uncertainty),
+        "reference_point_uncertainty_mm": v3(r.u_reference_point),
         "radius_mm": r.radius,
-        "radius_uncertainty_mm": r.radius_uncertainty,
+        "radius_uncertainty_mm": r.u_radius,
         "sphere_diameter_mm": sphere_diameter,
         "tip_radius_mm": tip,
         "rms_mm": r.rms,
@@ -407,7 +312,7 @@ fn to_json(
 fn print_human(r: &HeadOffset, tip: f64) {
     println!("head offset R ({} points, {} orientations)", r.n_points, r.orientations.len());
     for j in 0..3 {
-        match r.uncertainty[j] {
+        match r.u_offset[j] {
             Some(u) => {
                 println!("  R{} = {:+.6} mm  ± {:.4} µm (1σ)", AXES[j].to_lowercase(), r.offset[j], u * 1e3)
             }
@@ -431,7 +336,7 @@ fn print_human(r: &HeadOffset, tip: f64) {
         }
     }
     if let Some(rad) = r.radius {
-        match r.radius_uncertainty {
+        match r.u_radius {
             Some(u) => println!("radius {rad:.6} mm ± {:.4} µm", u * 1e3),
             None => println!("radius {rad:.6} mm (fixed)"),
         }
@@ -504,168 +409,13 @@ fn apply(a: ApplyArgs) -> Result<Outcome> {
     Ok(Outcome::Done)
 }
 
-/// Write `points.csv` (contract columns) for a simulated data set.
-fn write_points(path: &Path, d: &HeadOffsetData, command: &str) -> Result<()> {
-    let laser = d.rows.iter().any(|r| r.dist_mm.is_some());
-    let vertex = d.rows.iter().any(|r| r.face.is_some());
-    let mut file = create_output(path)?;
-    {
-        let mut w = CsvWriter::new(&mut file);
-        w.comment("truepos simulate head-offset: raw head reference points P reported by the NC")?;
-        w.comment(&format!("calibrate with: {command}"))?;
-        let mut header = vec!["b_deg", "c_deg", "x_mm", "y_mm", "z_mm"];
-        if laser {
-            header.push("dist_mm");
-        }
-        if vertex {
-            header.push("face");
-        }
-        header.push("group");
-        w.header(&header)?;
-        for r in &d.rows {
-            w.field_f64(r.b_deg)?;
-            w.field_f64(r.c_deg)?;
-            w.field_f64(r.x_mm)?;
-            w.field_f64(r.y_mm)?;
-            w.field_f64(r.z_mm)?;
-            if laser {
-                w.field_f64(r.dist_mm.unwrap_or(0.0))?;
-            }
-            if vertex {
-                w.field_str(&r.face.map_or(String::new(), |f| f.to_string()))?;
-            }
-            w.field_str(&r.group.to_string())?;
-            w.end_row()?;
-        }
-    }
-    file.commit()?;
-    Ok(())
-}
-
-/// The `truepos head-offset` command line that calibrates a simulated data set.
-fn suggested_command(d: &HeadOffsetData, points: &Path) -> String {
-    let t = &d.truth;
-    let c = t.table_center_mm;
-    let mut cmd = format!(
-        "truepos head-offset --points {} --table-center-mm {},{},{}",
-        points.display(),
-        c[0],
-        c[1],
-        c[2]
-    );
-    if t.variant_reference == "vertex" {
-        cmd.push_str(" --reference vertex");
-    }
-    if let Some(tip) = t.tip_radius_mm {
-        cmd.push_str(&format!(" --tip-radius-mm {tip}"));
-    }
-    if let Some(a) = t.tilt_deg {
-        cmd.push_str(&format!(" --tilt-deg {},{}", a[0], a[1]));
-    }
-    cmd
-}
-
 pub fn simulate(args: SimArgs) -> Result<Outcome> {
     let cfg = HeadOffsetConfig::preset(args.variant.sim(), args.common.seed);
     let d = sim::simulate(&cfg).map_err(|e| UsageError(e.to_string()))?;
-    std::fs::create_dir_all(&args.common.out).map_err(|e| {
-        InputError::in_file(&args.common.out, format!("cannot create the output directory: {e}"))
-    })?;
-    let points = args.common.out.join("points.csv");
-    let command = suggested_command(&d, &points);
-    write_points(&points, &d, &command)?;
-    let truth = args.common.out.join("truth.json");
-    let mut text = serde_json::to_string_pretty(&d.truth)?;
-    text.push('\n');
-    truepos_io::atomic::write_atomic(&truth, text.as_bytes())?;
-    eprintln!("wrote {} and {} ({} readings)", points.display(), truth.display(), d.rows.len());
-    eprintln!("calibrate with: {command}");
+    // Where the data set cannot be written is the user's choice of --out: an input error.
+    let w = truepos_cell::scenarios::head::write_dataset(&args.common.out, &d)
+        .map_err(|e| InputError::in_file(&args.common.out, format!("{e:#}")))?;
+    eprintln!("wrote {} and {} ({} readings)", w.points.display(), w.truth.display(), d.rows.len());
+    eprintln!("calibrate with: {}", w.command);
     Ok(Outcome::Done)
-}
-
-/// Readings of a simulated data set (as the CLI would read them from points.csv).
-fn sim_readings(d: &HeadOffsetData) -> Vec<Reading> {
-    d.rows
-        .iter()
-        .map(|r| Reading {
-            b: r.b_deg.to_radians(),
-            c: r.c_deg.to_radians(),
-            p: Point3::new(r.x_mm, r.y_mm, r.z_mm),
-            dist: r.dist_mm,
-            face: r.face.map(|f| f as i64),
-            group: Some(r.group as i64),
-        })
-        .collect()
-}
-
-/// This capability's section of the demo report: every variant, true vs recovered offset.
-pub fn demo_section(report: &mut Report) -> Result<()> {
-    let mut rows = Vec::new();
-    for v in Variant::ALL {
-        let cfg = HeadOffsetConfig::preset(v, 1);
-        let d = sim::simulate(&cfg)?;
-        let t = &d.truth;
-        let reference = if t.variant_reference == "sphere" {
-            Reference::Sphere { radius: None }
-        } else {
-            Reference::Vertex { tip_radius: t.tip_radius_mm.unwrap_or(0.0) }
-        };
-        let tilt = t.tilt_deg.map_or([0.0, 0.0], |a| [a[0].to_radians(), a[1].to_radians()]);
-        let setup = Setup {
-            reference,
-            table_center: Point3::from(t.table_center_mm),
-            tilt,
-            prior: Vector3::zeros(),
-            beam_through_reference: false,
-        };
-        let r = solve(&sim_readings(&d), &setup)?;
-        let mut max_err = 0.0f64;
-        for j in 0..3 {
-            if r.observable[j] {
-                max_err = max_err.max((r.offset[j] - t.offset_mm[j]).abs());
-            }
-        }
-        let fmt3 = |f: &dyn Fn(usize) -> String| (0..3).map(f).collect::<Vec<_>>().join(", ");
-        rows.push(vec![
-            v.name().to_string(),
-            format!("{}", t.n_points),
-            fmt3(&|j| format!("{:.4}", t.offset_mm[j])),
-            fmt3(&|j| if r.observable[j] { format!("{:.4}", r.offset[j]) } else { "—".into() }),
-            fmt3(&|j| r.uncertainty[j].map_or("not obs.".into(), |u| format!("{:.3}", u * 1e3))),
-            fmt3(&|j| {
-                if r.observable[j] {
-                    format!("{:+.3}", (r.offset[j] - t.offset_mm[j]) * 1e3)
-                } else {
-                    "—".into()
-                }
-            }),
-            format!("{:?} / {:?}", r.observable.map(u8::from), t.observable.map(u8::from)),
-            format!("{:.3}", r.rms * 1e3),
-            if max_err < 1e-3 && r.observable == t.observable { "pass".into() } else { "FAIL".into() },
-        ]);
-    }
-    let html = format!(
-        "<p>A reference object measured from several head (B) and table (C) orientations on the virtual VMC, \
-         0.5 µm probing noise; the offset R recovered by one least-squares adjustment over all orientations \
-         (orthogonal distances to the sphere or the faces), started from the closed-form apparent-centre \
-         solution. Components the orientations cannot determine are reported as not observable (held at the \
-         prior 0, no uncertainty). Requirement: observable components within 1 µm, flags as the geometry \
-         dictates.</p>{}",
-        report::table(
-            &[
-                "variant",
-                "points",
-                "true R (mm)",
-                "recovered R (mm)",
-                "u (µm, 1σ)",
-                "error (µm)",
-                "observable (found / truth)",
-                "rms (µm)",
-                "check",
-            ],
-            &rows
-        )
-    );
-    report.add("head-offset", "Measuring-head 3D offset", html);
-    Ok(())
 }

@@ -10,16 +10,13 @@
 //! writes JSON, CSV and the report.
 
 use crate::output::print_json;
-use crate::report::{self, Report, Series};
 use crate::{Outcome, UsageError};
 use anyhow::{Context, Result};
 use serde_json::json;
-use std::io::Write;
-use std::path::{Path, PathBuf};
-use truepos_io::atomic::AtomicFile;
-use truepos_io::csv::Table;
+use std::path::PathBuf;
 use truepos_io::InputError;
-use truepos_latency::{self as lat, KnownSize, LatencyError, Method, Options, Streams, Which};
+use truepos_latency::file::{input_error, read_stream};
+use truepos_latency::{self as lat, KnownSize, Method, Options, Streams};
 use truepos_sim::scenario::latency as scen;
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -118,57 +115,6 @@ pub struct ApplyArgs {
     pub json: bool,
 }
 
-/// A stream read from a CSV file.
-pub struct StreamFile {
-    pub table: Table,
-    pub t: Vec<f64>,
-    pub v: Vec<[f64; 3]>,
-}
-
-/// Read `t_s` and three value columns.
-pub fn read_stream(path: &Path, cols: [&str; 3]) -> Result<StreamFile, InputError> {
-    let table = Table::read(path)?;
-    let all = table.f64_columns(&["t_s", cols[0], cols[1], cols[2]])?;
-    let mut t = Vec::with_capacity(all.len() / 4);
-    let mut v = Vec::with_capacity(all.len() / 4);
-    for c in all.chunks_exact(4) {
-        t.push(c[0]);
-        v.push([c[1], c[2], c[3]]);
-    }
-    Ok(StreamFile { table, t, v })
-}
-
-/// Turn a library error into an input error naming the file and line where there is one.
-fn input_error(e: LatencyError, machine: &StreamFile, probe: &StreamFile) -> anyhow::Error {
-    let pick = |w: Which| if w == Which::Machine { machine } else { probe };
-    let at = |w: Which, index: usize, msg: String| {
-        let f = pick(w);
-        let line = if index < f.table.n_rows() { f.table.line_number(index) } else { 0 };
-        let col = f.table.column("t_s").map(|c| c + 1);
-        InputError::at(&f.table.path, line, col, msg).with_column_name("t_s")
-    };
-    let err = match &e {
-        LatencyError::DuplicateStamp { which, index, t } => {
-            at(*which, *index, format!("duplicate time stamp {t} s (same as the previous row)"))
-        }
-        LatencyError::NotIncreasing { which, index, t, previous } => at(
-            *which,
-            *index,
-            format!("time stamps must increase: {t} s follows {previous} s (sort the file by t_s)"),
-        ),
-        LatencyError::NotFinite { which, index } => at(*which, *index, "value is not finite".into()),
-        LatencyError::TooShort { which, n } => {
-            InputError::in_file(&pick(*which).table.path, format!("{n} data row(s); at least two are needed"))
-        }
-        LatencyError::NoOverlap { .. } => {
-            InputError::in_file(&probe.table.path, format!("{e} (with {})", machine.table.path.display()))
-        }
-        LatencyError::NoContact(_) => InputError::in_file(&probe.table.path, e.to_string()),
-        _ => InputError::new(e.to_string()),
-    };
-    err.into()
-}
-
 fn method_of(m: MethodArg) -> Method {
     match m {
         MethodArg::Auto => Method::Auto,
@@ -225,9 +171,9 @@ fn options(a: &Args) -> Result<Options, UsageError> {
 /// The JSON object of an estimate (contract fields plus details).
 pub fn estimate_json(e: &lat::Estimate, opt: &Options) -> serde_json::Value {
     let mut v = json!({
-        "method": e.method.name(),
+        "method": e.method().name(),
         "delay_s": e.delay,
-        "uncertainty_s": e.uncertainty,
+        "uncertainty_s": e.u_delay,
         "n_contacts": e.n_contacts,
         "rms_mm": e.rms,
         "residual_delay_s": e.residual_delay,
@@ -237,37 +183,37 @@ pub fn estimate_json(e: &lat::Estimate, opt: &Options) -> serde_json::Value {
         "warnings": e.warnings,
     });
     let o = v.as_object_mut().expect("json object");
-    if let Some(f) = e.feature {
+    if let Some(f) = e.feature() {
         o.insert("feature".into(), json!(f));
     }
-    if let Some(s) = e.static_size {
+    if let Some(s) = e.static_size() {
         o.insert("static_size_mm".into(), json!(s));
     }
-    if let Some(u) = e.u_static_size {
+    if let Some(u) = e.u_static_size() {
         o.insert("static_size_uncertainty_mm".into(), json!(u));
     }
-    if !e.per_speed.is_empty() {
+    if !e.per_speed().is_empty() {
         o.insert(
             "per_speed".into(),
             json!(e
-                .per_speed
+                .per_speed()
                 .iter()
                 .map(|(s, z)| json!({"speed_mm_s": s, "size_mm": z}))
                 .collect::<Vec<_>>()),
         );
     }
-    if let Some(pa) = &e.per_axis {
+    if let Some(pa) = e.per_axis() {
         o.insert("per_axis_delay_s".into(), json!(pa.delay));
         o.insert("per_axis_uncertainty_s".into(), json!(pa.u_delay));
     }
-    if let Some(sc) = &e.scan {
+    if let Some(sc) = e.scan() {
         o.insert("scan_rms_before_mm".into(), json!(sc.rms_before));
         o.insert("scan_rms_after_mm".into(), json!(sc.rms_after));
         o.insert("scan_steps".into(), json!(sc.n_steps));
         o.insert("scan_radius_mm".into(), json!(sc.radius));
     }
-    if !e.inout_each.is_empty() {
-        o.insert("per_contact_delay_s".into(), json!(e.inout_each.iter().map(|p| p.0).collect::<Vec<_>>()));
+    if !e.inout_each().is_empty() {
+        o.insert("per_contact_delay_s".into(), json!(e.inout_each().iter().map(|p| p.0).collect::<Vec<_>>()));
     }
     v
 }
@@ -293,12 +239,8 @@ pub fn run(a: Args) -> Result<Outcome> {
     if a.json {
         print_json(&estimate_json(&e, &opt))?;
     } else {
-        println!("method        {}", e.method.name());
-        println!(
-            "delay         {:+.3} µs ± {:.3} µs (standard uncertainty)",
-            e.delay * 1e6,
-            e.uncertainty * 1e6
-        );
+        println!("method        {}", e.method().name());
+        println!("delay         {:+.3} µs ± {:.3} µs (standard uncertainty)", e.delay * 1e6, e.u_delay * 1e6);
         if opt.already_corrected != 0.0 {
             println!(
                 "residual      {:+.3} µs (data already corrected by {:+.3} µs)",
@@ -307,13 +249,13 @@ pub fn run(a: Args) -> Result<Outcome> {
             );
         }
         println!("contacts      {}", e.n_contacts);
-        if let Some(s) = e.static_size {
+        if let Some(s) = e.static_size() {
             println!("static size   {s:.6} mm");
         }
-        for (sp, sz) in &e.per_speed {
+        for (sp, sz) in e.per_speed() {
             println!("  {sp:8.3} mm/s  size {sz:.6} mm");
         }
-        if let Some(pa) = &e.per_axis {
+        if let Some(pa) = e.per_axis() {
             for (k, name) in ["X", "Y", "Z"].iter().enumerate() {
                 match (pa.delay[k], pa.u_delay[k]) {
                     (Some(d), Some(u)) => {
@@ -350,38 +292,8 @@ fn apply(a: ApplyArgs) -> Result<Outcome> {
         )
         .into());
     }
-    // Pass through the probe file's other columns.
-    let used = ["t_s", "a_mm", "b_mm", "c_mm", "x_mm", "y_mm", "z_mm"];
-    let extra: Vec<usize> =
-        (0..probe.table.header.len()).filter(|&i| !used.contains(&probe.table.header[i].as_str())).collect();
-    let mut f =
-        AtomicFile::create(&a.output).with_context(|| format!("cannot create {}", a.output.display()))?;
-    {
-        let mut w = truepos_io::csv::CsvWriter::new(std::io::BufWriter::new(&mut f));
-        w.comment(&format!("stylus centre = machine(t + {} s) + deflection(t)", a.delay_s))?;
-        let mut names: Vec<&str> = vec!["t_s", "x_mm", "y_mm", "z_mm"];
-        names.extend(extra.iter().map(|&i| probe.table.header[i].as_str()));
-        w.header(&names)?;
-        let mut buf = Vec::new();
-        for (i, p) in out.iter().enumerate() {
-            if p[0].is_nan() {
-                continue;
-            }
-            w.field_f64(probe.t[i])?;
-            for x in p {
-                w.field_f64(*x)?;
-            }
-            if !extra.is_empty() {
-                let fields = probe.table.fields(i, &mut buf)?;
-                for &c in &extra {
-                    w.field_str(fields[c])?;
-                }
-            }
-            w.end_row()?;
-        }
-        w.into_inner().flush()?;
-    }
-    f.commit().with_context(|| format!("cannot write {}", a.output.display()))?;
+    truepos_latency::file::write_centres(&a.output, a.delay_s, &probe, &out)
+        .with_context(|| format!("cannot write {}", a.output.display()))?;
     let skipped = out.len() - n_ok;
     if skipped > 0 {
         eprintln!("warning: {skipped} probe row(s) skipped: the machine data does not cover t + delay there");
@@ -461,44 +373,10 @@ fn sim_config(a: &SimArgs) -> Result<scen::Config> {
     Ok(c)
 }
 
-/// Write a data set as the contract's files.
-pub fn write_dataset(dir: &Path, d: &scen::Dataset) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let write = |name: &str, header: [&str; 4], rows: &mut dyn Iterator<Item = [f64; 4]>| -> Result<()> {
-        let path = dir.join(name);
-        let mut f = AtomicFile::create(&path)?;
-        {
-            let mut w = truepos_io::csv::CsvWriter::new(std::io::BufWriter::new(&mut f));
-            w.header(&header)?;
-            for r in rows {
-                w.row_f64(&r)?;
-            }
-            w.into_inner().flush()?;
-        }
-        f.commit()?;
-        Ok(())
-    };
-    write(
-        "machine.csv",
-        ["t_s", "x_mm", "y_mm", "z_mm"],
-        &mut d.machine.iter().map(|(t, p)| [*t, p.x, p.y, p.z]),
-    )?;
-    write(
-        "probe.csv",
-        ["t_s", "a_mm", "b_mm", "c_mm"],
-        &mut d.probe.iter().map(|(t, p)| [*t, p.x, p.y, p.z]),
-    )?;
-    truepos_io::atomic::write_atomic(
-        dir.join("truth.json"),
-        serde_json::to_string_pretty(&d.truth)?.as_bytes(),
-    )?;
-    Ok(())
-}
-
 pub fn simulate(a: SimArgs) -> Result<Outcome> {
     let c = sim_config(&a)?;
     let d = scen::simulate(&c).map_err(|e| UsageError(e.to_string()))?;
-    write_dataset(&a.common.out, &d)?;
+    truepos_cell::scenarios::latency::write_dataset(&a.common.out, &d)?;
     eprintln!(
         "latency scenario '{}': {} machine and {} probe samples, delay {} s → {}",
         a.variant,
@@ -508,165 +386,4 @@ pub fn simulate(a: SimArgs) -> Result<Outcome> {
         a.common.out.display()
     );
     Ok(Outcome::Done)
-}
-
-/// Streams of a data set, as the library takes them.
-pub struct OwnedStreams {
-    pub mt: Vec<f64>,
-    pub m: Vec<[f64; 3]>,
-    pub pt: Vec<f64>,
-    pub p: Vec<[f64; 3]>,
-}
-
-impl OwnedStreams {
-    pub fn of(d: &scen::Dataset) -> Self {
-        OwnedStreams {
-            mt: d.machine.iter().map(|x| x.0).collect(),
-            m: d.machine.iter().map(|x| [x.1.x, x.1.y, x.1.z]).collect(),
-            pt: d.probe.iter().map(|x| x.0).collect(),
-            p: d.probe.iter().map(|x| [x.1.x, x.1.y, x.1.z]).collect(),
-        }
-    }
-    pub fn streams(&self) -> Streams<'_> {
-        Streams { machine_t: &self.mt, machine: &self.m, probe_t: &self.pt, probe: &self.p }
-    }
-}
-
-/// Demo: every method on the virtual cell against the truth; size against speed; the scan's
-/// radial error before and after the shift.
-pub fn demo_section(report: &mut Report) -> Result<()> {
-    let mut rows = Vec::new();
-    let mut html = String::new();
-    let runs: [(scen::Variant, Method, usize); 8] = [
-        (scen::Variant::Sphere, Method::Artefact, 48),
-        (scen::Variant::Plates, Method::Artefact, 48),
-        (scen::Variant::Speeds, Method::Speeds, 16),
-        (scen::Variant::Scan, Method::Scan, 6),
-        (scen::Variant::InOut, Method::Inout, 48),
-        (scen::Variant::PerAxis, Method::Artefact, 48),
-        (scen::Variant::MultiRate, Method::Artefact, 48),
-        (scen::Variant::Oblique, Method::Artefact, 48),
-    ];
-    for (variant, method, repeats) in runs {
-        let mut c = scen::Config::preset(variant);
-        c.repeats = repeats;
-        c.seed = 7;
-        let per_axis = variant == scen::Variant::PerAxis;
-        let d = scen::simulate(&c)?;
-        let st = OwnedStreams::of(&d);
-        let known = match (method, d.truth.artefact) {
-            (Method::Artefact, scen::ArtefactTruth::Sphere { diameter_mm, .. }) => {
-                Some(KnownSize::SphereDiameter(diameter_mm))
-            }
-            (Method::Artefact, scen::ArtefactTruth::Plates { gap_mm, .. }) => Some(KnownSize::Gap(gap_mm)),
-            _ => None,
-        };
-        let opt = Options {
-            method,
-            known_size: known,
-            tip_radius: d.truth.tip_radius_mm,
-            per_axis,
-            ..Options::default()
-        };
-        let name = variant.name();
-        match lat::estimate(&st.streams(), &opt) {
-            Ok(e) => {
-                let err = e.delay - d.truth.delay_s;
-                rows.push(vec![
-                    name.to_string(),
-                    if per_axis {
-                        format!("{} (one delay for axes that differ: not meaningful)", e.method.name())
-                    } else {
-                        e.method.name().to_string()
-                    },
-                    format!("{:.2}", d.truth.delay_s * 1e6),
-                    format!("{:.2}", e.delay * 1e6),
-                    format!("{:.2}", e.uncertainty * 1e6),
-                    format!("{:+.2}", err * 1e6),
-                    format!("{:.2}", err.abs() / e.uncertainty),
-                ]);
-                if let Some(pa) = &e.per_axis {
-                    for k in 0..3 {
-                        if let (Some(dk), Some(uk)) = (pa.delay[k], pa.u_delay[k]) {
-                            let ek = dk - d.truth.per_axis_delay_s[k];
-                            rows.push(vec![
-                                format!("{name} {}", ["X", "Y", "Z"][k]),
-                                format!("{} (per axis)", e.method.name()),
-                                format!("{:.2}", d.truth.per_axis_delay_s[k] * 1e6),
-                                format!("{:.2}", dk * 1e6),
-                                format!("{:.2}", uk * 1e6),
-                                format!("{:+.2}", ek * 1e6),
-                                format!("{:.2}", ek.abs() / uk),
-                            ]);
-                        }
-                    }
-                }
-                if variant == scen::Variant::Speeds {
-                    let pts: Vec<(f64, f64)> = e.per_speed.clone();
-                    let s0 = e.static_size.unwrap_or(f64::NAN);
-                    let vmax = pts.iter().map(|p| p.0).fold(0.0, f64::max);
-                    // Retract on an outer feature: size = static − 2·v·D.
-                    let line: Vec<(f64, f64)> = (0..=20)
-                        .map(|i| {
-                            let v = vmax * 1.05 * i as f64 / 20.0;
-                            (v, s0 - 2.0 * v * e.delay)
-                        })
-                        .collect();
-                    let svg = report::xy_plot(
-                        "Measured sphere size against speed (speeds method)",
-                        "speed (mm/s)",
-                        "size (mm)",
-                        &[Series::points("measured", pts), Series::line("fit: static − 2·v·delay", line)],
-                    )?;
-                    html.push_str(&format!(
-                        "<p>Speeds method: static size {:.5} mm (true {:.5} mm); the gradient of size against speed gives the delay.</p>{svg}",
-                        s0, d.truth.static_size_mm
-                    ));
-                }
-                if let Some(sc) = &e.scan {
-                    let before = lat::scan::radial_errors(&st.streams(), sc, 0.0);
-                    let after = lat::scan::radial_errors(&st.streams(), sc, sc.delay);
-                    let t0 = before.first().map_or(0.0, |p| p.0);
-                    let step = (before.len() / 3000).max(1);
-                    let to_um = |v: &[(f64, f64)]| {
-                        v.iter().step_by(step).map(|p| (p.0 - t0, p.1 * 1e3)).collect::<Vec<_>>()
-                    };
-                    let svg = report::xy_plot(
-                        "Scan: radial error of the combined points",
-                        "time (s)",
-                        "radial error (µm)",
-                        &[
-                            Series::line("without shift", to_um(&before)),
-                            Series::line(&format!("shifted by {:.1} µs", sc.delay * 1e6), to_um(&after)),
-                        ],
-                    )?;
-                    html.push_str(&format!(
-                        "<p>Scan method: RMS radial error {:.3} µm without the shift, {:.3} µm with it ({} deflection steps).</p>{svg}",
-                        sc.rms_before * 1e3,
-                        sc.rms_after * 1e3,
-                        sc.n_steps
-                    ));
-                }
-            }
-            Err(err) => rows.push(vec![
-                name.to_string(),
-                method.name().to_string(),
-                format!("{:.2}", d.truth.delay_s * 1e6),
-                format!("failed: {err}"),
-                String::new(),
-                String::new(),
-                String::new(),
-            ]),
-        }
-    }
-    let table = report::table(
-        &["data set", "method", "true delay (µs)", "recovered (µs)", "u (µs)", "error (µs)", "|error|/u"],
-        &rows,
-    );
-    report.add(
-        "latency",
-        "System delay between probe and machine data",
-        format!("<p>Virtual cell: encoders 1 µm, probe 0.3 µm, 1 kHz streams (probe 4 kHz for multi-rate), stylus dynamics and servo following error on. The delay is recovered from the raw streams by every method.</p>{table}{html}"),
-    );
-    Ok(())
 }

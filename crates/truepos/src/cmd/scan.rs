@@ -7,21 +7,15 @@
 //! machine TOML, and the scenario's `truth.json` (the true, displaced part) for `--part`.
 
 use crate::output::{parse_pair, print_json};
-use crate::report::{self, Report, Series};
 use crate::{DeviceError, Outcome, UsageError};
 use anyhow::{Context, Result};
-use serde::Deserialize;
 use serde_json::json;
-use std::io::Write;
-use std::path::{Path, PathBuf};
-use truepos_io::atomic::AtomicFile;
-use truepos_io::csv::CsvWriter;
+use std::path::PathBuf;
+use truepos_cell::scanning_cmm::{read_machine_file, run_scan, CmmConfig};
 use truepos_io::InputError;
-use truepos_math::{Point3, Vector3};
-use truepos_scan::execute::{execute, Machine, Run as ScanRun};
-use truepos_scan::{plan, validate, Feature, Geometry, Params, Plan, ScanError, SegmentKind, Side, Style};
-use truepos_sim::motion::Servo;
-use truepos_sim::stylus::StylusParams;
+use truepos_scan::execute::{ControlParams, Run as ScanRun};
+use truepos_scan::file::{read_features, FeaturesError, ParamOverrides};
+use truepos_scan::{plan, Feature, Params, Plan, ScanError, SegmentKind, Style};
 
 #[derive(clap::Args, Debug)]
 #[command(
@@ -143,296 +137,35 @@ pub struct RunArgs {
 }
 
 // ------------------------------------------------------------------------------------------
-// features file
+// features file: `truepos_scan::file`
 
-#[derive(Deserialize, Debug)]
-#[serde(deny_unknown_fields)]
-struct FeaturesFile {
-    approach_angle_deg: Option<f64>,
-    scan_speed_mm_s: Option<f64>,
-    move_speed_mm_s: Option<f64>,
-    deflection_mm: Option<f64>,
-    overshoot_mm: Option<f64>,
-    quality_bands_mm: Option<[f64; 2]>,
-    tip_radius_mm: Option<f64>,
-    clearance_mm: Option<f64>,
-    accel_mm_s2: Option<f64>,
-    touch_speed_mm_s: Option<f64>,
-    #[serde(default)]
-    feature: Vec<FeatureToml>,
-}
-
-#[derive(Deserialize, Debug)]
-#[serde(deny_unknown_fields)]
-struct FeatureToml {
-    id: String,
-    kind: String,
-    center_mm: Option<[f64; 3]>,
-    axis: Option<[f64; 3]>,
-    radius_mm: Option<f64>,
-    side: Option<String>,
-    start_deg: Option<f64>,
-    sweep_deg: Option<f64>,
-    start_mm: Option<[f64; 3]>,
-    end_mm: Option<[f64; 3]>,
-    normal: Option<[f64; 3]>,
-}
-
-/// Line of `id = "<id>"` in the file (for messages), 1-based.
-fn id_line(text: &str, id: &str) -> Option<usize> {
-    let quoted = [format!("\"{id}\""), format!("'{id}'")];
-    text.lines()
-        .position(|l| {
-            let t = l.trim_start();
-            t.starts_with("id") && quoted.iter().any(|q| t.contains(q.as_str()))
-        })
-        .map(|i| i + 1)
-}
-
-fn feature_error(path: &Path, text: &str, id: &str, msg: String) -> InputError {
-    match id_line(text, id) {
-        Some(line) => InputError::at(path, line, None, msg),
-        None => InputError::in_file(path, msg),
-    }
-}
-
-fn v3(a: [f64; 3]) -> Vector3 {
-    Vector3::new(a[0], a[1], a[2])
-}
-fn p3(a: [f64; 3]) -> Point3 {
-    Point3::new(a[0], a[1], a[2])
-}
-
-/// Read the features file, apply the command-line overrides, validate.
+/// Read the features file with the command-line overrides; a bad approach angle is a usage error.
 fn load(c: &Common) -> Result<(Vec<Feature>, Params)> {
-    let text = std::fs::read_to_string(&c.features)
-        .map_err(|e| InputError::in_file(&c.features, format!("cannot read: {e}")))?;
-    let file: FeaturesFile = truepos_io::config::parse_toml(&c.features, &text)?;
-    let path = &c.features;
-    let mut features = Vec::with_capacity(file.feature.len());
-    let mut seen = std::collections::HashSet::new();
-    for f in &file.feature {
-        let err = |m: String| feature_error(path, &text, &f.id, format!("feature '{}': {m}", f.id));
-        if !seen.insert(f.id.clone()) {
-            return Err(err("duplicate id".into()).into());
-        }
-        let need3 = |v: Option<[f64; 3]>, name: &str| v.ok_or_else(|| err(format!("missing {name}")));
-        let geometry = match f.kind.as_str() {
-            "circle" => {
-                let side = match f.side.as_deref() {
-                    Some("inside") => Side::Inside,
-                    Some("outside") => Side::Outside,
-                    Some("plane") => Side::Plane,
-                    Some(s) => {
-                        return Err(err(format!("side '{s}' is not one of inside, outside, plane")).into())
-                    }
-                    None => return Err(err("missing side (inside, outside or plane)".into()).into()),
-                };
-                Geometry::Circle {
-                    center: p3(need3(f.center_mm, "center_mm")?),
-                    axis: v3(need3(f.axis, "axis")?),
-                    radius: f.radius_mm.ok_or_else(|| err("missing radius_mm".into()))?,
-                    side,
-                    start: f.start_deg.unwrap_or(0.0).to_radians(),
-                    sweep: f.sweep_deg.unwrap_or(360.0).to_radians(),
-                }
-            }
-            "line" => Geometry::Line {
-                start: p3(need3(f.start_mm, "start_mm")?),
-                end: p3(need3(f.end_mm, "end_mm")?),
-                normal: v3(need3(f.normal, "normal")?),
-            },
-            k => return Err(err(format!("kind '{k}' is not one of circle, line")).into()),
-        };
-        features.push(Feature { id: f.id.clone(), geometry });
-    }
-    let d = Params::default();
-    let pick = |cli: Option<f64>, file: Option<f64>, def: f64| cli.or(file).unwrap_or(def);
-    let angle_deg = pick(c.approach_angle_deg, file.approach_angle_deg, 45.0);
-    let params = Params {
-        approach_angle: angle_deg.to_radians(),
-        scan_speed: pick(c.scan_speed_mm_s, file.scan_speed_mm_s, d.scan_speed),
-        move_speed: pick(c.move_speed_mm_s, file.move_speed_mm_s, d.move_speed),
-        deflection: pick(c.deflection_mm, file.deflection_mm, d.deflection),
-        overshoot: pick(c.overshoot_mm, file.overshoot_mm, d.overshoot),
-        quality_bands: c.quality_bands_mm.or(file.quality_bands_mm).unwrap_or(d.quality_bands),
-        tip_radius: pick(c.tip_radius_mm, file.tip_radius_mm, d.tip_radius),
-        clearance: pick(c.clearance_mm, file.clearance_mm, d.clearance),
-        accel: pick(c.accel_mm_s2, file.accel_mm_s2, d.accel),
-        touch_speed: pick(c.touch_speed_mm_s, file.touch_speed_mm_s, d.touch_speed),
-        ..d
+    let overrides = ParamOverrides {
+        approach_angle_deg: c.approach_angle_deg,
+        scan_speed_mm_s: c.scan_speed_mm_s,
+        move_speed_mm_s: c.move_speed_mm_s,
+        deflection_mm: c.deflection_mm,
+        overshoot_mm: c.overshoot_mm,
+        quality_bands_mm: c.quality_bands_mm,
+        tip_radius_mm: c.tip_radius_mm,
+        clearance_mm: c.clearance_mm,
+        accel_mm_s2: c.accel_mm_s2,
+        touch_speed_mm_s: c.touch_speed_mm_s,
     };
-    match validate(&features, &params) {
-        Ok(()) => Ok((features, params)),
-        Err(ScanError::Feature { id, why }) => {
-            Err(feature_error(path, &text, &id, format!("feature '{id}': {why}")).into())
-        }
-        Err(e @ ScanError::ApproachAngle(_)) => Err(UsageError(e.to_string()).into()),
-        Err(e) => Err(InputError::in_file(path, e.to_string()).into()),
-    }
+    read_features(&c.features, &overrides).map_err(|e| match e {
+        FeaturesError::Input(e) => anyhow::Error::new(e),
+        FeaturesError::Usage(e) => UsageError(e.to_string()).into(),
+    })
 }
 
 // ------------------------------------------------------------------------------------------
 // machine file
 
-#[derive(Deserialize, Debug, Default)]
-#[serde(deny_unknown_fields)]
-struct MachineToml {
-    servo: Option<ServoToml>,
-    stylus: Option<StylusToml>,
-    encoder_noise_um: Option<f64>,
-    probe_noise_um: Option<f64>,
-    feedback_gain_per_s: Option<f64>,
-    contact_threshold_mm: Option<f64>,
-}
-
-#[derive(Deserialize, Debug)]
-#[serde(deny_unknown_fields)]
-struct ServoToml {
-    bandwidth_hz: Option<f64>,
-    damping: Option<f64>,
-    accel_feedforward: Option<f64>,
-}
-
-#[derive(Deserialize, Debug)]
-#[serde(deny_unknown_fields)]
-struct StylusToml {
-    natural_freq_hz: Option<[f64; 3]>,
-    damping_ratio: Option<[f64; 3]>,
-    restitution: Option<f64>,
-    friction: Option<f64>,
-}
-
-fn load_machine(path: Option<&PathBuf>) -> Result<Machine> {
-    let mut m = Machine::default();
-    let Some(path) = path else { return Ok(m) };
-    let t: MachineToml = truepos_io::config::read_toml(path)?;
-    if let Some(s) = t.servo {
-        let d = m.servo;
-        m.servo = Servo {
-            bandwidth_hz: s.bandwidth_hz.unwrap_or(d.bandwidth_hz),
-            damping: s.damping.unwrap_or(d.damping),
-            accel_feedforward: s.accel_feedforward.unwrap_or(d.accel_feedforward),
-        };
-    }
-    if let Some(s) = t.stylus {
-        let d = m.stylus;
-        m.stylus = StylusParams {
-            natural_freq_hz: s.natural_freq_hz.unwrap_or(d.natural_freq_hz),
-            damping_ratio: s.damping_ratio.unwrap_or(d.damping_ratio),
-            restitution: s.restitution.unwrap_or(d.restitution),
-            friction: s.friction.unwrap_or(d.friction),
-            ..d
-        };
-    }
-    if let Some(v) = t.encoder_noise_um {
-        m.encoder_noise = v * 1e-3;
-    }
-    if let Some(v) = t.probe_noise_um {
-        m.probe_noise = v * 1e-3;
-    }
-    if let Some(v) = t.feedback_gain_per_s {
-        m.feedback_gain = v;
-    }
-    if let Some(v) = t.contact_threshold_mm {
-        m.contact_threshold = v;
-    }
-    m.check().map_err(|e| InputError::in_file(path, e.to_string()))?;
-    Ok(m)
-}
+// (the machine file is `truepos_cell::scanning_cmm::read_machine_file`)
 
 // ------------------------------------------------------------------------------------------
-// the true part (truth.json of the scenario)
-
-fn geometry_json(g: &Geometry) -> serde_json::Value {
-    match g {
-        Geometry::Circle { center, axis, radius, side, start, sweep } => json!({
-            "kind": "circle",
-            "center_mm": [center.x, center.y, center.z],
-            "axis": [axis.x, axis.y, axis.z],
-            "radius_mm": radius,
-            "side": match side { Side::Inside => "inside", Side::Outside => "outside", Side::Plane => "plane" },
-            "start_deg": start.to_degrees(),
-            "sweep_deg": sweep.to_degrees(),
-        }),
-        Geometry::Line { start, end, normal } => json!({
-            "kind": "line",
-            "start_mm": [start.x, start.y, start.z],
-            "end_mm": [end.x, end.y, end.z],
-            "normal": [normal.x, normal.y, normal.z],
-        }),
-    }
-}
-
-#[derive(Deserialize)]
-struct TruthFile {
-    features: Vec<TruthFeature>,
-}
-#[derive(Deserialize)]
-struct TruthFeature {
-    id: String,
-    actual: FeatureGeomJson,
-}
-#[derive(Deserialize)]
-struct FeatureGeomJson {
-    kind: String,
-    center_mm: Option<[f64; 3]>,
-    axis: Option<[f64; 3]>,
-    radius_mm: Option<f64>,
-    side: Option<String>,
-    start_deg: Option<f64>,
-    sweep_deg: Option<f64>,
-    start_mm: Option<[f64; 3]>,
-    end_mm: Option<[f64; 3]>,
-    normal: Option<[f64; 3]>,
-}
-
-fn load_part(path: &Path, nominal: &[Feature], params: &Params) -> Result<Vec<Feature>> {
-    let bytes = std::fs::read(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
-    let t: TruthFile = serde_json::from_slice(&bytes).map_err(|e| {
-        InputError::at(path, e.line(), Some(e.column()), format!("not a scan truth.json: {e}"))
-    })?;
-    let mut out = Vec::with_capacity(nominal.len());
-    for f in nominal {
-        let Some(tf) = t.features.iter().find(|x| x.id == f.id) else {
-            return Err(InputError::in_file(path, format!("no true geometry for feature '{}'", f.id)).into());
-        };
-        let g = &tf.actual;
-        let bad = || InputError::in_file(path, format!("feature '{}': incomplete true geometry", f.id));
-        let geometry = match g.kind.as_str() {
-            "circle" => Geometry::Circle {
-                center: p3(g.center_mm.ok_or_else(bad)?),
-                axis: v3(g.axis.ok_or_else(bad)?),
-                radius: g.radius_mm.ok_or_else(bad)?,
-                side: match g.side.as_deref() {
-                    Some("inside") => Side::Inside,
-                    Some("outside") => Side::Outside,
-                    Some("plane") => Side::Plane,
-                    _ => return Err(bad().into()),
-                },
-                start: g.start_deg.unwrap_or(0.0).to_radians(),
-                sweep: g.sweep_deg.unwrap_or(360.0).to_radians(),
-            },
-            "line" => Geometry::Line {
-                start: p3(g.start_mm.ok_or_else(bad)?),
-                end: p3(g.end_mm.ok_or_else(bad)?),
-                normal: v3(g.normal.ok_or_else(bad)?),
-            },
-            _ => return Err(bad().into()),
-        };
-        let tf = Feature { id: f.id.clone(), geometry };
-        tf.check(params).map_err(|e| InputError::in_file(path, format!("true geometry: {e}")))?;
-        if std::mem::discriminant(&tf.geometry) != std::mem::discriminant(&f.geometry) {
-            return Err(InputError::in_file(
-                path,
-                format!("feature '{}': true and nominal kinds differ", f.id),
-            )
-            .into());
-        }
-        out.push(tf);
-    }
-    Ok(out)
-}
+// the true part: `truepos_cell::scan_scenario::read_truth`
 
 // ------------------------------------------------------------------------------------------
 // commands
@@ -468,29 +201,8 @@ fn run_plan(a: PlanArgs) -> Result<Outcome> {
         .into());
     }
     let samples = pl.sample(a.dt_s);
-    let mut f =
-        AtomicFile::create(&a.output).with_context(|| format!("cannot create {}", a.output.display()))?;
-    {
-        let mut w = CsvWriter::new(std::io::BufWriter::new(&mut f));
-        w.comment(&format!(
-            "truepos scan plan, style {}: commanded probe (tip centre) path",
-            style_name(style)
-        ))?;
-        w.header(&["t_s", "x_mm", "y_mm", "z_mm", "segment", "feature", "speed_mm_s"])?;
-        for s in &samples {
-            let seg = &pl.segments[s.segment];
-            w.field_f64(s.t)?;
-            w.field_f64(s.position.x)?;
-            w.field_f64(s.position.y)?;
-            w.field_f64(s.position.z)?;
-            w.field_str(seg.kind.as_str())?;
-            w.field_str(&features[seg.feature].id)?;
-            w.field_f64(s.speed)?;
-            w.end_row()?;
-        }
-        w.into_inner().flush()?;
-    }
-    f.commit().with_context(|| format!("cannot write {}", a.output.display()))?;
+    truepos_scan::file::write_path(&a.output, &pl, &samples, style_name(style))
+        .with_context(|| format!("cannot write {}", a.output.display()))?;
     let per = plan_feature_times(&pl);
     if a.common.json {
         print_json(&json!({
@@ -534,56 +246,25 @@ fn plan_feature_times(pl: &Plan) -> Vec<(String, f64)> {
 
 fn run_run(a: RunArgs) -> Result<Outcome> {
     let (features, params) = load(&a.common)?;
-    let machine = load_machine(a.machine.as_ref())?;
+    let (machine, control) = match &a.machine {
+        Some(path) => read_machine_file(path)?,
+        None => (CmmConfig::default(), ControlParams::default()),
+    };
     let truth = match &a.part {
-        Some(p) => load_part(p, &features, &params)?,
+        Some(p) => truepos_cell::scan_scenario::read_truth(p, &features, &params)?,
         None => features.clone(),
     };
     let style: Style = a.common.style.into();
     let pl = plan(&features, &params, style);
-    let r = execute(&pl, &truth, &machine, a.seed).map_err(|e| match e {
+    let r = run_scan(&pl, &truth, &machine, &control, a.seed).map_err(|e| match e {
         // the surface was not found: a measurement failure
         ScanError::NoContact { .. } => anyhow::Error::new(DeviceError(e.to_string())),
         // a program the virtual CMM refuses (too long, bad machine): the user's input
         ScanError::Invalid(m) => anyhow::Error::new(InputError::in_file(&a.common.features, m)),
         other => anyhow::Error::new(DeviceError(format!("execution failed: {other}"))),
     })?;
-    let mut f =
-        AtomicFile::create(&a.output).with_context(|| format!("cannot create {}", a.output.display()))?;
-    {
-        let mut w = CsvWriter::new(std::io::BufWriter::new(&mut f));
-        w.comment(&format!(
-            "truepos scan run, style {}: measured tip centre (scale + probe deflection); quality 0/5/9 from |deflection - target| in bands {} / {} mm",
-            style_name(style),
-            params.quality_bands[0],
-            params.quality_bands[1]
-        ))?;
-        w.header(&[
-            "t_s",
-            "x_mm",
-            "y_mm",
-            "z_mm",
-            "segment",
-            "feature",
-            "deflection_mm",
-            "quality",
-            "target_deflection_mm",
-        ])?;
-        for q in &r.points {
-            w.field_f64(q.t)?;
-            w.field_f64(q.position.x)?;
-            w.field_f64(q.position.y)?;
-            w.field_f64(q.position.z)?;
-            w.field_str(q.segment.as_str())?;
-            w.field_str(&features[q.feature].id)?;
-            w.field_f64(q.deflection)?;
-            w.field_str(&q.quality.to_string())?;
-            w.field_f64(q.target)?;
-            w.end_row()?;
-        }
-        w.into_inner().flush()?;
-    }
-    f.commit().with_context(|| format!("cannot write {}", a.output.display()))?;
+    truepos_scan::file::write_points(&a.output, &r, &features, &params, style_name(style))
+        .with_context(|| format!("cannot write {}", a.output.display()))?;
     if a.common.json {
         print_json(&run_json(&r, style))?;
     } else {
@@ -650,227 +331,16 @@ pub struct SimArgs {
     pub features: usize,
 }
 
-fn toml_features(s: &truepos_sim::scenario::scan::ScanScenario) -> String {
-    use truepos_sim::scenario::scan::ScanGeometry;
-    let f3 = |v: [f64; 3]| format!("[{}, {}, {}]", v[0], v[1], v[2]);
-    let mut t = String::new();
-    t.push_str("# truepos simulate scan: nominal features and scan parameters\n");
-    t.push_str(&format!("approach_angle_deg = {}\n", s.approach_angle_deg));
-    t.push_str(&format!("scan_speed_mm_s = {}\n", s.scan_speed_mm_s));
-    t.push_str(&format!("move_speed_mm_s = {}\n", s.move_speed_mm_s));
-    t.push_str(&format!("deflection_mm = {}\n", s.deflection_mm));
-    t.push_str(&format!("overshoot_mm = {}\n", s.overshoot_mm));
-    t.push_str(&format!("quality_bands_mm = [{}, {}]\n", s.quality_bands_mm[0], s.quality_bands_mm[1]));
-    for f in &s.features {
-        t.push_str("\n[[feature]]\n");
-        t.push_str(&format!("id = \"{}\"\n", f.id));
-        match &f.nominal {
-            ScanGeometry::Circle { center, axis, radius, side, start_deg, sweep_deg } => {
-                t.push_str("kind = \"circle\"\n");
-                t.push_str(&format!("center_mm = {}\n", f3((*center).into())));
-                t.push_str(&format!("axis = {}\n", f3((*axis).into())));
-                t.push_str(&format!("radius_mm = {radius}\n"));
-                t.push_str(&format!("side = \"{}\"\n", side.as_str()));
-                t.push_str(&format!("start_deg = {start_deg}\n"));
-                t.push_str(&format!("sweep_deg = {sweep_deg}\n"));
-            }
-            ScanGeometry::Line { start, end, normal } => {
-                t.push_str("kind = \"line\"\n");
-                t.push_str(&format!("start_mm = {}\n", f3((*start).into())));
-                t.push_str(&format!("end_mm = {}\n", f3((*end).into())));
-                t.push_str(&format!("normal = {}\n", f3((*normal).into())));
-            }
-        }
-    }
-    t
-}
-
 pub fn simulate(a: SimArgs) -> Result<Outcome> {
     if a.features == 0 || a.features > 10_000 {
         return Err(UsageError(format!("--features {} must be between 1 and 10000", a.features)).into());
     }
-    let s = truepos_sim::scenario::scan::scenario(a.common.seed, a.features);
-    let dir = &a.common.out;
-    std::fs::create_dir_all(dir)
-        .map_err(|e| InputError::in_file(dir, format!("cannot create the output directory: {e}")))?;
-    let features_path = dir.join("features.toml");
-    truepos_io::atomic::write_atomic(&features_path, toml_features(&s).as_bytes())?;
-    let truth = json!({
-        "scenario": "scan",
-        "seed": a.common.seed,
-        "note": "actual: the true geometry the probe meets; normal_offset_mm: displacement of the true surface along the outward normal at the scan start (+: before the nominal contact point)",
-        "features": s.features.iter().map(|f| {
-            let nominal = truepos_scan::scenario::feature(&f.id, &f.nominal);
-            let actual = truepos_scan::scenario::feature(&f.id, &f.actual);
-            json!({
-                "id": f.id,
-                "nominal": geometry_json(&nominal.geometry),
-                "actual": geometry_json(&actual.geometry),
-                "normal_offset_mm": f.normal_offset_mm,
-            })
-        }).collect::<Vec<_>>(),
-    });
-    let mut text = serde_json::to_string_pretty(&truth)?;
-    text.push('\n');
-    let truth_path = dir.join("truth.json");
-    truepos_io::atomic::write_atomic(&truth_path, text.as_bytes())?;
-    eprintln!(
-        "wrote {} and {} ({} features)",
-        features_path.display(),
-        truth_path.display(),
-        s.features.len()
-    );
+    let w = truepos_cell::scan_scenario::write_scenario(&a.common.out, a.common.seed, a.features)?;
+    eprintln!("wrote {} and {} ({} features)", w.features.display(), w.truth.display(), w.n_features);
     eprintln!(
         "scan with: truepos scan run --features {} --part {} --output points.csv --json",
-        features_path.display(),
-        truth_path.display()
+        w.features.display(),
+        w.truth.display()
     );
     Ok(Outcome::Done)
-}
-
-// ------------------------------------------------------------------------------------------
-// demo
-
-/// This capability's section of the demo report: the same features scanned the blended and the
-/// classic way on the virtual CMM, side by side.
-pub fn demo_section(report: &mut Report) -> Result<()> {
-    let s = truepos_sim::scenario::scan::scenario(1, 12);
-    let (nominal, truth, params) = truepos_scan::scenario::program(&s);
-    validate(&nominal, &params).map_err(|e| anyhow::anyhow!("demo features: {e}"))?;
-    let machine = Machine::default();
-    let pb = plan(&nominal, &params, Style::Blended);
-    let pc = plan(&nominal, &params, Style::Classic);
-    let rb = execute(&pb, &truth, &machine, 1).map_err(|e| anyhow::anyhow!("blended run: {e}"))?;
-    let rc = execute(&pc, &truth, &machine, 1).map_err(|e| anyhow::anyhow!("classic run: {e}"))?;
-
-    // path plots (XY of the boss `boss1` with its incoming transfer), coloured by segment
-    let kinds = [
-        SegmentKind::Transfer,
-        SegmentKind::Approach,
-        SegmentKind::Settle,
-        SegmentKind::Scan,
-        SegmentKind::Release,
-    ];
-    let path_plot = |pl: &Plan, title: &str| -> Result<String> {
-        let samples = pl.sample(0.002);
-        let series: Vec<Series> = kinds
-            .iter()
-            .map(|k| {
-                let pts = samples
-                    .iter()
-                    .filter(|q| pl.segments[q.segment].kind == *k && pl.segments[q.segment].feature == 1)
-                    .map(|q| (q.position.x, q.position.y))
-                    .collect();
-                Series::points(k.as_str(), pts)
-            })
-            .collect();
-        report::xy_plot(title, "x (mm)", "y (mm)", &series)
-    };
-    let plot_b = path_plot(&pb, "Blended path around boss1 (XY), by segment")?;
-    let plot_c = path_plot(&pc, "Classic path around boss1 (XY), by segment")?;
-
-    // deflection against time around the first contact on feature 1 (a boss), both styles
-    let defl = |r: &ScanRun, label: &str| -> Series {
-        let f = &r.features[1];
-        let pts = r
-            .points
-            .iter()
-            .filter(|q| q.feature == 1 && q.t >= f.contact_t - 0.02 && q.t <= f.scan_start_t + 0.15)
-            .map(|q| (q.t - f.contact_t, q.deflection))
-            .collect();
-        Series::line(label, pts)
-    };
-    let plot_d = report::xy_plot(
-        "Deflection from first contact into the scan (boss1)",
-        "time from contact (s)",
-        "deflection (mm)",
-        &[defl(&rb, "blended"), defl(&rc, "classic")],
-    )?;
-
-    let mean = |r: &ScanRun, g: fn(&truepos_scan::execute::FeatureRun) -> f64| {
-        r.features.iter().map(g).sum::<f64>() / r.features.len() as f64
-    };
-    let maxf = |r: &ScanRun| r.features.iter().map(|f| f.form_error).fold(0.0, f64::max);
-    let row = |name: &str, r: &ScanRun| {
-        vec![
-            name.to_string(),
-            format!("{:.2}", r.cycle_time),
-            r.stops.to_string(),
-            format!("{:.2}", mean(r, |f| f.vibration_rms) * 1e3),
-            format!("{:.2}", mean(r, |f| f.vibration_peak) * 1e3),
-            format!("{:.3}", mean(r, |f| f.ready_time)),
-            format!("{:.2}", mean(r, |f| f.form_error) * 1e3),
-            format!("{:.2}", maxf(r) * 1e3),
-        ]
-    };
-    let table = report::table(
-        &[
-            "style",
-            "cycle time (s)",
-            "stops",
-            "scan-start vibration, rms (µm)",
-            "scan-start vibration, peak (µm)",
-            "contact → scan (s)",
-            "form error, mean (µm)",
-            "form error, max (µm)",
-        ],
-        &[row("blended", &rb), row("classic", &rc)],
-    );
-    let shifts: Vec<Vec<String>> = rb
-        .features
-        .iter()
-        .zip(&s.features)
-        .filter(|(_, t)| t.normal_offset_mm.abs() > 1.0)
-        .map(|(f, t)| {
-            vec![
-                f.id.clone(),
-                format!("{:+.3}", t.normal_offset_mm),
-                format!("{:+.3}", f.contact_shift),
-                format!("{:.2}", f.form_error * 1e3),
-            ]
-        })
-        .collect();
-    let shift_table = report::table(
-        &["feature", "true offset (mm)", "path shift at contact (mm)", "form error (µm)"],
-        &shifts,
-    );
-    let html = format!(
-        "<p>{} features (bores, bosses, circles on the top plane, lines) of a part whose every fifth feature is 1.2–1.8 mm off nominal, scanned at {} mm/s with {} mm deflection on the virtual CMM (15 Hz servo; 150 Hz stylus with restitution and Coulomb friction), the blended and the classic way. Cycle time saving of the blended style: <b>{:.1} %</b>. Vibration at scan start: deviation of the deflection from its target over the first 50 ms of the scan. Form error: peak-to-valley of the residuals of the least-squares element fitted to the scan segment (the true features are perfect, so this is what noise and dynamics leave).</p>\n{}\n{}\n{}\n{}\n<p>Missed surfaces (blended): the path shift where contact was made against the true offset.</p>\n{}",
-        nominal.len(),
-        params.scan_speed,
-        params.deflection,
-        100.0 * (1.0 - rb.cycle_time / rc.cycle_time),
-        table,
-        plot_b,
-        plot_c,
-        plot_d,
-        shift_table
-    );
-    report.add("scan", "Scanning without stops: blended vs classic", html);
-    Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn demo_section_compares_both_styles() {
-        let dir = tempfile::tempdir().unwrap();
-        let mut r = Report::new(dir.path());
-        demo_section(&mut r).unwrap();
-        let html = std::fs::read_to_string(r.write().unwrap()).unwrap();
-
-        assert!(html.contains("Scanning without stops"));
-        assert!(html.contains("blended") && html.contains("classic"));
-        assert!(html.matches("<svg").count() >= 3, "path plots and deflection plot");
-    }
-
-    #[test]
-    fn id_line_finds_the_feature() {
-        let t = "a = 1\n[[feature]]\nid = \"x1\"\n[[feature]]\n  id = 'y'\n";
-        assert_eq!(id_line(t, "x1"), Some(3));
-        assert_eq!(id_line(t, "y"), Some(5));
-        assert_eq!(id_line(t, "z"), None);
-    }
 }

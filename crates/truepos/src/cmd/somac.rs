@@ -5,12 +5,13 @@ use crate::output::print_json;
 use crate::{Outcome, UsageError};
 use anyhow::Result;
 use serde_json::json;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use truepos_io::InputError;
 use truepos_math::air::{self, AirConditions, Formula};
 use truepos_math::bestfit::{self, BestFitOptions};
 
-use super::align::{match_by_id, read_id_points};
+use truepos_io::points::{match_by_id, read_id_points, Matched};
+use truepos_somac::scale::ScaleFit;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -110,7 +111,7 @@ pub struct AirArgs {
     pub json: bool,
 }
 
-pub use super::somac_run::{demo_section, simulate, SimArgs};
+pub use super::somac_run::{simulate, SimArgs};
 
 pub fn run(a: Args) -> Result<Outcome> {
     match a.command {
@@ -118,19 +119,9 @@ pub fn run(a: Args) -> Result<Outcome> {
     }
 }
 
-/// Scale factor of `measured` relative to `reference` (similarity best fit), with its standard
-/// uncertainty from the residual scatter.
-pub struct ScaleFit {
-    pub scale: f64,
-    pub u_scale: f64,
-    pub rms_mm: f64,
-    pub n: usize,
-}
-
-pub fn fit_scale(
-    reference: &PathBuf,
-    measured: &PathBuf,
-) -> Result<(ScaleFit, truepos_math::Transform3, super::align::Matched)> {
+/// Read the two id-point files, match them by id and fit the scale
+/// (`truepos_somac::scale::fit_scale`).
+pub fn fit_scale(reference: &Path, measured: &Path) -> Result<(ScaleFit, truepos_math::Transform3, Matched)> {
     let r = read_id_points(reference)?;
     let m = read_id_points(measured)?;
     let mt = match_by_id(&r, &m);
@@ -145,20 +136,9 @@ pub fn fit_scale(
         )
         .into());
     }
-    let f = bestfit::scale_fit(&mt.from, &mt.to, None)
+    let (f, t) = truepos_somac::scale::fit_scale(&mt.from, &mt.to)
         .map_err(|e| InputError::in_file(measured, format!("cannot fit a scale: {e}")))?;
-    let t = f.transform;
-    let res = bestfit::residuals(&t, &mt.from, &mt.to);
-    let ssr: f64 = res.iter().map(|r| r.norm_squared()).sum();
-    let n = mt.ids.len();
-    // Parameters: translation 3, scale 1, rotation 3 (2 when the features lie on a line: the
-    // turn about it is not determined). With no redundancy left the scatter is unknown: NaN.
-    let params = if f.rotation_determined { 7 } else { 6 };
-    let sigma = if 3 * n > params { (ssr / (3 * n - params) as f64).sqrt() } else { f64::NAN };
-    let c = truepos_math::centroid(&mt.from);
-    let spread: f64 = mt.from.iter().map(|p| (p - c).norm_squared()).sum();
-    let u_scale = sigma / spread.sqrt();
-    Ok((ScaleFit { scale: t.scale, u_scale, rms_mm: (ssr / n as f64).sqrt(), n }, t, mt))
+    Ok((f, t, mt))
 }
 
 pub fn autoscale(a: AutoscaleArgs) -> Result<Outcome> {

@@ -6,23 +6,16 @@
 //! in behind the same traits (`truepos_somac::device`).
 
 use crate::output::{print_json, v3};
-use crate::report::{self, Report, Series};
 use crate::{Outcome, UsageError};
 use anyhow::{Context, Result};
-use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
+use truepos_cell::scenarios::somac::{read_cell_file, run_virtual, write_scenario};
 use truepos_io::InputError;
-use truepos_math::Point3;
-use truepos_sim::scenario::somac::{spar, SparConfig};
-use truepos_sim::thermal::{Step, TemperatureHistory};
-use truepos_somac::audit::{AuditSink, MemoryAudit};
-use truepos_somac::params::BeamRecovery;
 use truepos_somac::run::StopStatus;
 use truepos_somac::stats::{capability_ppm, hole_stats};
-use truepos_somac::virtual_cell::{CellConfig, Obstruction, TrackerConfig, VirtualCell};
-use truepos_somac::{run_program, Params, RunReport};
+use truepos_somac::RunReport;
 
 #[derive(clap::Args, Debug)]
 #[command(
@@ -56,302 +49,14 @@ pub struct SimArgs {
     pub holes_per_row: usize,
 }
 
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct AirFile {
-    pub temperature_c: f64,
-    #[serde(default)]
-    pub drift_c_per_h: f64,
-    #[serde(default)]
-    pub steps: Vec<[f64; 2]>,
-    #[serde(default)]
-    pub cycle_amplitude_c: f64,
-    #[serde(default = "default_period")]
-    pub cycle_period_s: f64,
-    pub pressure_pa: f64,
-    #[serde(default)]
-    pub pressure_drift_pa_per_h: f64,
-    pub humidity_pct: f64,
-}
-
-fn default_period() -> f64 {
-    3600.0
-}
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TargetFile {
-    pub id: String,
-    pub x_mm: f64,
-    pub y_mm: f64,
-    pub z_mm: f64,
-}
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PartFile {
-    pub cte_ppm_per_c: f64,
-    pub tau_s: f64,
-    pub placement_rz_urad: f64,
-    pub placement_mm: [f64; 3],
-    pub target: Vec<TargetFile>,
-}
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TrackerFile {
-    pub position_mm: [f64; 3],
-    pub yaw_deg: f64,
-    pub adm: bool,
-    #[serde(default)]
-    pub obstructions: Vec<[[f64; 3]; 2]>,
-}
-
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct LoopFile {
-    pub keyword: Option<String>,
-    pub threshold_mm: Option<f64>,
-    pub max_iterations: Option<usize>,
-    pub max_single_correction_mm: Option<f64>,
-    pub max_total_correction_mm: Option<f64>,
-    pub samples: Option<usize>,
-    pub stable_std_mm: Option<f64>,
-    pub stable_attempts: Option<usize>,
-    pub dwell_s: Option<f64>,
-    pub temperature_min_c: Option<f64>,
-    pub temperature_max_c: Option<f64>,
-    pub temperature_change_max_c: Option<f64>,
-    pub inclination_limit_urad: Option<f64>,
-    pub autoscale_step_c: Option<f64>,
-    pub refractive_update_ppm: Option<f64>,
-    pub orient_every: Option<usize>,
-    /// "manual", "look-ahead" or "look-back".
-    pub beam_recovery: Option<String>,
-}
-
-/// Named target positions.
-type Targets = Vec<(String, Point3)>;
-
-/// The cell file.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CellFile {
-    pub seed: u64,
-    pub error_scale: f64,
-    pub tool_offset_mm: [f64; 3],
-    pub vibration_mm: f64,
-    pub beam_interrupt_probability: f64,
-    /// [time_s, tracker index, tilt_urad]
-    pub tracker_bump: Option<[f64; 3]>,
-    pub air: AirFile,
-    pub part: PartFile,
-    pub tracker: Vec<TrackerFile>,
-    #[serde(default, rename = "loop")]
-    pub loop_: LoopFile,
-}
-
-impl CellFile {
-    fn from_config(c: &CellConfig, targets: &[(String, Point3)], params: &Params) -> CellFile {
-        CellFile {
-            seed: c.seed,
-            error_scale: c.error_scale,
-            tool_offset_mm: c.tool_offset_mm,
-            vibration_mm: c.vibration_mm,
-            beam_interrupt_probability: c.beam_interrupt_probability,
-            tracker_bump: c.tracker_bump.map(|(t, k, a)| [t, k as f64, a]),
-            air: AirFile {
-                temperature_c: c.air_temperature.base,
-                drift_c_per_h: c.air_temperature.drift * 3600.0,
-                steps: c.air_temperature.steps.iter().map(|s| [s.time, s.delta]).collect(),
-                cycle_amplitude_c: c.air_temperature.cycle_amplitude,
-                cycle_period_s: c.air_temperature.cycle_period,
-                pressure_pa: c.pressure_pa,
-                pressure_drift_pa_per_h: c.pressure_drift_pa_per_h,
-                humidity_pct: c.humidity_pct,
-            },
-            part: PartFile {
-                cte_ppm_per_c: c.part_cte * 1e6,
-                tau_s: c.part_tau_s,
-                placement_rz_urad: c.placement_rz_urad,
-                placement_mm: c.placement_mm,
-                target: targets
-                    .iter()
-                    .map(|(id, p)| TargetFile { id: id.clone(), x_mm: p.x, y_mm: p.y, z_mm: p.z })
-                    .collect(),
-            },
-            tracker: c
-                .trackers
-                .iter()
-                .map(|t| TrackerFile {
-                    position_mm: t.position_mm,
-                    yaw_deg: t.yaw_deg,
-                    adm: t.adm,
-                    obstructions: t.obstructions.iter().map(|o| [o.min, o.max]).collect(),
-                })
-                .collect(),
-            loop_: LoopFile {
-                autoscale_step_c: Some(params.autoscale_step_c),
-                threshold_mm: Some(params.threshold_mm),
-                max_iterations: Some(params.max_iterations),
-                samples: Some(params.samples),
-                ..Default::default()
-            },
-        }
-    }
-
-    fn to_config(&self, path: &Path) -> Result<(CellConfig, Targets, Params), InputError> {
-        let bad = |m: String| InputError::in_file(path, m);
-        if self.tracker.is_empty() {
-            return Err(bad("the cell needs at least one [[tracker]]".into()));
-        }
-        if self.part.target.len() < 3 {
-            return Err(bad(format!(
-                "real-time orientation needs at least 3 part targets, the cell has {}",
-                self.part.target.len()
-            )));
-        }
-        let d = CellConfig::default();
-        let c = CellConfig {
-            seed: self.seed,
-            error_scale: self.error_scale,
-            air_temperature: TemperatureHistory {
-                base: self.air.temperature_c,
-                drift: self.air.drift_c_per_h / 3600.0,
-                steps: self.air.steps.iter().map(|s| Step { time: s[0], delta: s[1] }).collect(),
-                cycle_amplitude: self.air.cycle_amplitude_c,
-                cycle_period: self.air.cycle_period_s,
-                cycle_phase: 0.0,
-            },
-            pressure_pa: self.air.pressure_pa,
-            pressure_drift_pa_per_h: self.air.pressure_drift_pa_per_h,
-            humidity_pct: self.air.humidity_pct,
-            part_cte: self.part.cte_ppm_per_c * 1e-6,
-            part_tau_s: self.part.tau_s,
-            placement_rz_urad: self.part.placement_rz_urad,
-            placement_mm: self.part.placement_mm,
-            tool_offset_mm: self.tool_offset_mm,
-            vibration_mm: self.vibration_mm,
-            beam_interrupt_probability: self.beam_interrupt_probability,
-            tracker_bump: self.tracker_bump.map(|b| (b[0], b[1] as usize, b[2])),
-            trackers: self
-                .tracker
-                .iter()
-                .map(|t| TrackerConfig {
-                    position_mm: t.position_mm,
-                    yaw_deg: t.yaw_deg,
-                    adm: t.adm,
-                    obstructions: t
-                        .obstructions
-                        .iter()
-                        .map(|o| Obstruction { min: o[0], max: o[1] })
-                        .collect(),
-                })
-                .collect(),
-            ..d
-        };
-        let targets =
-            self.part.target.iter().map(|t| (t.id.clone(), Point3::new(t.x_mm, t.y_mm, t.z_mm))).collect();
-        let l = &self.loop_;
-        let p0 = Params::default();
-        let params = Params {
-            keyword: l.keyword.clone().unwrap_or(p0.keyword.clone()),
-            threshold_mm: l.threshold_mm.unwrap_or(p0.threshold_mm),
-            max_iterations: l.max_iterations.unwrap_or(p0.max_iterations),
-            max_single_correction_mm: l.max_single_correction_mm.unwrap_or(p0.max_single_correction_mm),
-            max_total_correction_mm: l.max_total_correction_mm.unwrap_or(p0.max_total_correction_mm),
-            samples: l.samples.unwrap_or(p0.samples),
-            stable_std_mm: l.stable_std_mm.unwrap_or(p0.stable_std_mm),
-            stable_attempts: l.stable_attempts.unwrap_or(p0.stable_attempts),
-            dwell_s: l.dwell_s.unwrap_or(p0.dwell_s),
-            temperature_min_c: l.temperature_min_c.unwrap_or(p0.temperature_min_c),
-            temperature_max_c: l.temperature_max_c.unwrap_or(p0.temperature_max_c),
-            temperature_change_max_c: l.temperature_change_max_c.unwrap_or(p0.temperature_change_max_c),
-            inclination_limit_urad: l.inclination_limit_urad.unwrap_or(p0.inclination_limit_urad),
-            autoscale_step_c: l.autoscale_step_c.unwrap_or(p0.autoscale_step_c),
-            refractive_update_ppm: l.refractive_update_ppm.unwrap_or(p0.refractive_update_ppm),
-            part_cte_ppm_per_c: self.part.cte_ppm_per_c,
-            orient_every: l.orient_every.unwrap_or(p0.orient_every),
-            beam_recovery: match l.beam_recovery.as_deref() {
-                None => p0.beam_recovery,
-                Some("manual") => BeamRecovery::Manual,
-                Some("look-ahead") => BeamRecovery::LookAhead,
-                Some("look-back") => BeamRecovery::LookBack,
-                Some(o) => {
-                    return Err(bad(format!(
-                        "[loop] beam_recovery must be manual, look-ahead or look-back, got '{o}'"
-                    )))
-                }
-            },
-            ..p0
-        };
-        params.validate().map_err(|m| bad(format!("[loop] {m}")))?;
-        Ok((c, targets, params))
-    }
-}
-
-/// The demo/scenario cell: the default virtual cell, with the loop tuned for an aluminium spar.
-fn scenario(seed: u64, holes_per_row: usize) -> (CellConfig, truepos_sim::scenario::somac::Spar, Params) {
-    let sp = spar(&SparConfig { holes_per_row, ..Default::default() });
-    let cfg = CellConfig { seed, ..CellConfig::default() };
-    // Aluminium (23 ppm/°C): re-scale every 0.1 °C so the stale scale stays below ~12 µm at 5 m.
-    let params = Params {
-        autoscale_step_c: 0.1,
-        threshold_mm: 0.015,
-        max_iterations: 6,
-        samples: 10,
-        ..Params::default()
-    };
-    (cfg, sp, params)
-}
-
-/// Result of one run on the virtual cell.
-pub struct VirtualRun {
-    pub report: RunReport,
-    /// True hole errors (mm) per measurement line.
-    pub true_errors: Vec<(usize, f64)>,
-    pub diagonal_mm: f64,
-    pub duration_s: f64,
-}
-
-pub fn run_virtual(
-    program_text: &str,
-    cfg: CellConfig,
-    targets: Vec<(String, Point3)>,
-    params: &Params,
-    sink: &mut dyn AuditSink,
-) -> Result<VirtualRun> {
-    let program = truepos_gcode::Program::parse(program_text);
-    let cell = VirtualCell::new(cfg, targets);
-    let mut trackers = cell.align_trackers().map_err(|e| {
-        truepos_somac::device::DeviceError::Tracker(
-            0,
-            format!("aligning the trackers on the machine targets: {e}"),
-        )
-    })?;
-    let mut ctl = cell.controller();
-    let mut sensors = cell.sensors();
-    let report = run_program(&program, &mut ctl, &mut trackers, &mut sensors, params, sink)?;
-    // Holes: the nominal (program-frame) positions of the measurement blocks.
-    let holes: BTreeMap<usize, Point3> = program
-        .blocks()
-        .iter()
-        .filter(|b| b.target_mm.is_some() && b.has_keyword(&params.keyword))
-        .filter_map(|b| b.target_mm.map(|t| (b.line + 1, t)))
-        .collect();
-    let true_errors = cell.hole_errors(&holes);
-    Ok(VirtualRun { report, true_errors, diagonal_mm: cell.diagonal_mm(), duration_s: cell.time_s() })
-}
-
 fn failing(report: &RunReport) -> bool {
     report.halted
         || report.stops.iter().any(|s| s.status != StopStatus::Success)
-        || report.alarms.iter().any(|a| a.kind != "beam_break")
+        || report.alarms.iter().any(|a| a.kind.fails_run())
 }
 
 pub fn run(a: RunArgs) -> Result<Outcome> {
-    let cell_file: CellFile = truepos_io::config::read_toml(&a.cell)?;
-    let (cfg, targets, mut params) = cell_file.to_config(&a.cell)?;
+    let (cfg, targets, mut params) = read_cell_file(&a.cell)?;
     if a.no_correct {
         params.correct = false;
     }
@@ -410,7 +115,7 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
             "status": s.status.as_str(),
             "message": s.message,
         })).collect::<Vec<_>>(),
-        "alarms": vr.report.alarms.iter().map(|al| json!({"line": al.line, "kind": al.kind, "message": al.message, "action": al.action})).collect::<Vec<_>>(),
+        "alarms": vr.report.alarms.iter().map(|al| json!({"line": al.line, "kind": al.kind.as_str(), "message": al.message, "action": al.action})).collect::<Vec<_>>(),
         "halted": vr.report.halted,
         "mean_error_mm": hs.mean_error_mm,
         "std_error_mm": hs.std_error_mm,
@@ -455,106 +160,12 @@ pub fn simulate(a: SimArgs) -> Result<Outcome> {
     if a.holes_per_row == 0 {
         return Err(UsageError("--holes-per-row must be at least 1".into()).into());
     }
-    let (cfg, sp, params) = scenario(a.common.seed, a.holes_per_row);
-    std::fs::create_dir_all(&a.common.out)
-        .with_context(|| format!("cannot create {}", a.common.out.display()))?;
-    let cell = CellFile::from_config(&cfg, &sp.targets, &params);
-    let toml = toml::to_string_pretty(&cell)?;
-    truepos_io::atomic::write_atomic(a.common.out.join("program.nc"), sp.program.as_bytes())?;
-    truepos_io::atomic::write_atomic(a.common.out.join("cell.toml"), toml.as_bytes())?;
-    // Truth: the native error of this cell (the same run without corrections) and the holes.
-    let native = Params { correct: false, orient: false, ..params.clone() };
-    let vr = run_virtual(&sp.program, cfg.clone(), sp.targets.clone(), &native, &mut MemoryAudit::default())?;
-    let e: Vec<f64> = vr.true_errors.iter().map(|x| x.1).collect();
-    let ns = hole_stats(&e);
-    let truth = json!({
-        "holes": sp.holes.iter().map(|(l, p)| json!({"line": l, "nominal_mm": v3(p.coords)})).collect::<Vec<_>>(),
-        "part_targets": sp.targets.iter().map(|(id, p)| json!({"id": id, "nominal_mm": v3(p.coords)})).collect::<Vec<_>>(),
-        "placement_rz_urad": cfg.placement_rz_urad,
-        "placement_mm": cfg.placement_mm,
-        "part_cte_ppm_per_c": cfg.part_cte * 1e6,
-        "native_mean_error_mm": ns.mean_error_mm,
-        "native_max_error_mm": ns.max_error_mm,
-    });
-    truepos_io::atomic::write_atomic(
-        a.common.out.join("truth.json"),
-        serde_json::to_string_pretty(&truth)?.as_bytes(),
-    )?;
+    let w = write_scenario(&a.common.out, a.common.seed, a.holes_per_row)?;
     eprintln!(
         "wrote {}/program.nc ({} holes), cell.toml, truth.json; native error mean {:.3} mm",
         a.common.out.display(),
-        sp.holes.len(),
-        ns.mean_error_mm
+        w.holes,
+        w.native_mean_error_mm
     );
     Ok(Outcome::Done)
-}
-
-/// Demo: the spar with and without correction.
-pub fn demo_section(report: &mut Report) -> Result<()> {
-    let (cfg, sp, params) = scenario(1, 150);
-    let native = Params { correct: false, orient: false, ..params.clone() };
-    let r0 = run_virtual(&sp.program, cfg.clone(), sp.targets.clone(), &native, &mut MemoryAudit::default())?;
-    let mut audit = MemoryAudit::default();
-    let r1 = run_virtual(&sp.program, cfg, sp.targets.clone(), &params, &mut audit)?;
-    let e0: Vec<f64> = r0.true_errors.iter().map(|e| e.1 * 1000.0).collect();
-    let e1: Vec<f64> = r1.true_errors.iter().map(|e| e.1 * 1000.0).collect();
-    let (s0, s1) = (hole_stats(&e0), hole_stats(&e1));
-    let rows = vec![
-        vec![
-            "without correction".into(),
-            format!("{:.1}", s0.mean_error_mm),
-            format!("{:.1}", s0.std_error_mm),
-            format!("{:.1}", s0.max_error_mm),
-            format!("{:.1}", capability_ppm(s0.max_error_mm / 1000.0, r0.diagonal_mm)),
-        ],
-        vec![
-            "with truepos end-point control".into(),
-            format!("{:.1}", s1.mean_error_mm),
-            format!("{:.1}", s1.std_error_mm),
-            format!("{:.1}", s1.max_error_mm),
-            format!("{:.1}", capability_ppm(s1.max_error_mm / 1000.0, r1.diagonal_mm)),
-        ],
-    ];
-    let hist0 = report::histogram(
-        "True hole position error without correction",
-        "error (µm)",
-        &[("without", &e0)],
-        30,
-    )?;
-    let hist1 =
-        report::histogram("True hole position error with correction", "error (µm)", &[("with", &e1)], 30)?;
-    // Corrections over time: the offset in force (what the machine's own error amounts to at
-    // that place and time) and each correction move sent.
-    let (mut offset, mut moves) = (vec![], vec![]);
-    for e in &audit.events {
-        if let truepos_somac::audit::Event::Correction { delta_mm, offset_mm, time_s, .. } = e {
-            offset.push((time_s / 60.0, offset_mm.norm() * 1000.0));
-            moves.push((time_s / 60.0, delta_mm.norm() * 1000.0));
-        }
-    }
-    let plot = report::xy_plot(
-        "Corrections over time",
-        "time (min)",
-        "µm",
-        &[Series::points("|offset in force|", offset), Series::points("|correction move|", moves)],
-    )?;
-    let alarms: Vec<Vec<String>> = r1
-        .report
-        .alarms
-        .iter()
-        .map(|a| vec![a.line.to_string(), a.kind.clone(), a.message.clone(), a.action.clone()])
-        .collect();
-    let html = format!(
-        "<p>A {}-hole wing-spar drilling program on the virtual 12 m × 4 m × 2 m gantry (geometric errors, thermal growth of the scales, part misplaced by ~1.4 mm and 150 µrad, aluminium part warming during the run), two laser trackers with MPE ±(15 µm + 6 µm/m), beam breaks and a tracker bumped mid-run. Errors are true 3D distances between the drilled position and the hole on the warm part.</p>{}{}{}{}<h3>Alarms</h3>{}<p>{} orientations, {} refractive-index updates.</p>",
-        sp.holes.len(),
-        report::table(&["run", "mean (µm)", "σ (µm)", "max (µm)", "capability (ppm of diagonal)"], &rows),
-        hist0,
-        hist1,
-        plot,
-        report::table(&["line", "kind", "message", "action"], &alarms),
-        r1.report.orientations,
-        r1.report.refractive_updates,
-    );
-    report.add("somac", "Laser-tracker end-point control of a large gantry", html);
-    Ok(())
 }

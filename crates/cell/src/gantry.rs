@@ -1,4 +1,4 @@
-//! The virtual large gantry cell behind the [`crate::device`] traits: a 12 m × 4 m × 2 m gantry
+//! The virtual large gantry cell behind the `truepos-device` traits: a 12 m × 4 m × 2 m gantry
 //! (the simulator's exact kinematic chain with geometric errors and thermal growth of its
 //! scales), a part (a wing spar) placed with a misalignment and expanding with its temperature,
 //! end-effector vibration after every move (so a reading taken too early is unstable), laser
@@ -12,12 +12,11 @@
 //! [`VirtualCell::trackers`], [`VirtualCell::sensors`], [`VirtualCell::align_trackers`],
 //! [`VirtualCell::hole_errors`] (truth: drilled position against the warm part's true hole).
 
-use crate::device::{Cell, Controller, DeviceError, Inclinations, Tracker, TrackerFault};
-use crate::run::TrackerSetup;
 use rand::Rng;
 use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::rc::Rc;
+use truepos_device::{Cell, Controller, DeviceError, Inclinations, Tracker, TrackerFault};
 use truepos_math::air::{refractive_index, AirConditions, Formula};
 use truepos_math::types::{rx, rz};
 use truepos_math::{Point3, Transform3, Vector3};
@@ -26,6 +25,7 @@ use truepos_sim::machine::Machine;
 use truepos_sim::noise::{self, SimRng};
 use truepos_sim::thermal::{Part, Step, TemperatureHistory, ThermalModel};
 use truepos_sim::tracker::BeamBreak;
+use truepos_somac::run::TrackerSetup;
 
 /// An axis-aligned box (machine frame) that blocks a tracker's line of sight.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -363,7 +363,7 @@ impl VirtualCell {
             .map(|k| {
                 let seen = sensors.measure_machine_targets(k);
                 let refs = sensors.machine_targets();
-                let m = crate::run::machine_from_tracker(&seen, &refs)?;
+                let m = truepos_somac::run::machine_from_tracker(&seen, &refs)?;
                 Ok(TrackerSetup {
                     tracker: VirtualTracker { world: self.world.clone(), k },
                     machine_from_tracker: m,

@@ -50,8 +50,60 @@ impl Report {
         html.push_str("</body></html>\n");
         let path = self.dir.join("index.html");
         truepos_io::atomic::write_atomic(&path, html.as_bytes())?;
+        let summary = serde_json::to_vec_pretty(&self.summary())?;
+        truepos_io::atomic::write_atomic(self.dir.join("summary.json"), &summary)?;
         Ok(path)
     }
+
+    /// Every table of the report as data (`summary.json`): one entry per section with its
+    /// tables, each a header and rows of the cells exactly as the report prints them. Two runs
+    /// of the demo are compared by diffing this file.
+    pub fn summary(&self) -> serde_json::Value {
+        let sections: Vec<serde_json::Value> = self
+            .sections
+            .iter()
+            .map(|s| {
+                let tables: Vec<serde_json::Value> = parse_tables(&s.html)
+                    .into_iter()
+                    .map(|(header, rows)| serde_json::json!({ "header": header, "rows": rows }))
+                    .collect();
+                serde_json::json!({ "id": s.id, "title": s.title, "tables": tables })
+            })
+            .collect();
+        serde_json::json!({ "sections": sections })
+    }
+}
+
+/// The tables [`table`] wrote into a section's HTML, back as (header, rows) of unescaped cells.
+fn parse_tables(html: &str) -> Vec<(Vec<String>, Vec<Vec<String>>)> {
+    let mut out = Vec::new();
+    for chunk in html.split("<table>").skip(1) {
+        let body = chunk.split("</table>").next().unwrap_or("");
+        let mut header = Vec::new();
+        let mut rows = Vec::new();
+        for row in body.split("<tr>").skip(1) {
+            let row = row.split("</tr>").next().unwrap_or("");
+            let mut cells = Vec::new();
+            let mut is_header = false;
+            for cell in row.split("<t").skip(1) {
+                is_header |= cell.starts_with('h');
+                let text = cell.split_once('>').map_or("", |(_, rest)| rest);
+                let text = text.split("</t").next().unwrap_or("");
+                cells.push(unescape(text));
+            }
+            if is_header {
+                header = cells;
+            } else {
+                rows.push(cells);
+            }
+        }
+        out.push((header, rows));
+    }
+    out
+}
+
+fn unescape(s: &str) -> String {
+    s.replace("&quot;", "\"").replace("&gt;", ">").replace("&lt;", "<").replace("&amp;", "&")
 }
 
 /// HTML-escape text.
@@ -289,4 +341,28 @@ pub fn heatmap(title: &str, x: &[f64], y: &[f64], values: &[Vec<f64>], unit: &st
         root.present().map_err(plot_err)?;
     }
     Ok(svg)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `summary.json` gives back every table exactly as [`table`] wrote it, escaped cells
+    /// included, section by section.
+    #[test]
+    fn summary_round_trips_the_tables() {
+        let mut r = Report::new("unused");
+        let rows = vec![vec!["a <b> & \"c\"".to_string(), "1.25".into()], vec!["pass".into(), "FAIL".into()]];
+        let html = format!("<p>text</p>{}<p>more</p>{}", table(&["name", "µm"], &rows), table(&["x"], &[]));
+        r.add("s1", "Section", html);
+        r.add("s2", "Empty", "<p>no tables</p>".into());
+        let s = r.summary();
+        let t = &s["sections"][0]["tables"];
+        assert_eq!(t[0]["header"], serde_json::json!(["name", "µm"]));
+        assert_eq!(t[0]["rows"], serde_json::json!([["a <b> & \"c\"", "1.25"], ["pass", "FAIL"]]));
+        assert_eq!(t[1]["header"], serde_json::json!(["x"]));
+        assert_eq!(t[1]["rows"], serde_json::json!([]));
+        assert_eq!(s["sections"][1]["tables"], serde_json::json!([]));
+        assert_eq!(s["sections"][1]["id"], "s2");
+    }
 }

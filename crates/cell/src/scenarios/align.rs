@@ -1,0 +1,69 @@
+//! The alignment section of the demo: a simulated tracker frame aligned to the machine frame
+//! by best fit, against the known transform.
+
+use crate::report::{self, Report};
+use anyhow::Result;
+use truepos_math::bestfit::{self, BestFitOptions};
+use truepos_math::{Point3, Transform3};
+
+/// Demo: align a simulated tracker frame to the machine frame.
+pub fn demo_section(report: &mut Report) -> Result<()> {
+    use truepos_math::types::{rx, ry, rz};
+    use truepos_math::Vector3;
+    // A tracker 3 m from the machine origin, rotated; 8 reflector positions; 10 µm noise.
+    let truth = Transform3::rigid(rz(0.7) * ry(0.01) * rx(-0.02), Vector3::new(3000.0, -1200.0, 150.0));
+    let machine: Vec<Point3> = (0..8)
+        .map(|i| {
+            Point3::new(
+                if i & 1 == 0 { 0.0 } else { 4000.0 },
+                if i & 2 == 0 { 0.0 } else { 2000.0 },
+                if i & 4 == 0 { 0.0 } else { 800.0 },
+            )
+        })
+        .collect();
+    let tracker_from_machine = truth.inverse();
+    // Deterministic "noise" with ~10 µm amplitude.
+    let tracker: Vec<Point3> = machine
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            tracker_from_machine.apply(p)
+                + Vector3::new(
+                    ((i * 7) % 5) as f64 - 2.0,
+                    ((i * 3) % 5) as f64 - 2.0,
+                    ((i * 11) % 5) as f64 - 2.0,
+                ) * 0.005
+        })
+        .collect();
+    let est = bestfit::best_fit(&tracker, &machine, None, BestFitOptions::default())?;
+    let rows: Vec<Vec<String>> = machine
+        .iter()
+        .zip(&tracker)
+        .enumerate()
+        .map(|(i, (m, t))| {
+            vec![
+                format!("P{i}"),
+                format!("{:.1}, {:.1}, {:.1}", m.x, m.y, m.z),
+                format!("{:.4}", (est.apply(t) - m).norm() * 1000.0),
+            ]
+        })
+        .collect();
+    let html = format!(
+        "<p>Machine from tracker by weighted least squares (SVD, reflection guard) over 8 reflector positions with ±10 µm noise. Rotation error {:.2} µrad, translation error {:.2} µm.</p>{}",
+        (est.rotation.transpose() * truth.rotation).rotation_angle_from_matrix() * 1e6,
+        (est.translation - truth.translation).norm() * 1000.0,
+        report::table(&["point", "machine (mm)", "residual (µm)"], &rows)
+    );
+    report.add("align", "Tracker-to-machine alignment", html);
+    Ok(())
+}
+
+trait AngleOf {
+    fn rotation_angle_from_matrix(&self) -> f64;
+}
+
+impl AngleOf for truepos_math::Matrix3 {
+    fn rotation_angle_from_matrix(&self) -> f64 {
+        ((self.trace() - 1.0) * 0.5).clamp(-1.0, 1.0).acos()
+    }
+}

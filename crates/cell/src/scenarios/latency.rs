@@ -1,0 +1,209 @@
+//! The `latency` scenario: the simulator's probe and machine streams written as the contract's
+//! files with their `truth.json`, and the demo section (every method against the true delay).
+//!
+//! Entry points: [`write_dataset`], [`OwnedStreams`] (a data set as the library's streams),
+//! [`demo_section`].
+
+use crate::report::{self, Report, Series};
+use anyhow::{Context, Result};
+use std::io::Write;
+use std::path::Path;
+use truepos_io::atomic::AtomicFile;
+use truepos_latency::{self as lat, KnownSize, Method, Options, Streams};
+use truepos_sim::scenario::latency as scen;
+
+/// Write a data set as the contract's files: `machine.csv` (t_s,x_mm,y_mm,z_mm), `probe.csv`
+/// (t_s,a_mm,b_mm,c_mm) and `truth.json`.
+pub fn write_dataset(dir: &Path, d: &scen::Dataset) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let write = |name: &str, header: [&str; 4], rows: &mut dyn Iterator<Item = [f64; 4]>| -> Result<()> {
+        let path = dir.join(name);
+        let mut f = AtomicFile::create(&path)?;
+        {
+            let mut w = truepos_io::csv::CsvWriter::new(std::io::BufWriter::new(&mut f));
+            w.header(&header)?;
+            for r in rows {
+                w.row_f64(&r)?;
+            }
+            w.into_inner().flush()?;
+        }
+        f.commit()?;
+        Ok(())
+    };
+    write(
+        "machine.csv",
+        ["t_s", "x_mm", "y_mm", "z_mm"],
+        &mut d.machine.iter().map(|(t, p)| [*t, p.x, p.y, p.z]),
+    )?;
+    write(
+        "probe.csv",
+        ["t_s", "a_mm", "b_mm", "c_mm"],
+        &mut d.probe.iter().map(|(t, p)| [*t, p.x, p.y, p.z]),
+    )?;
+    truepos_io::atomic::write_atomic(
+        dir.join("truth.json"),
+        serde_json::to_string_pretty(&d.truth)?.as_bytes(),
+    )?;
+    Ok(())
+}
+
+/// Streams of a data set, as the library takes them.
+pub struct OwnedStreams {
+    pub mt: Vec<f64>,
+    pub m: Vec<[f64; 3]>,
+    pub pt: Vec<f64>,
+    pub p: Vec<[f64; 3]>,
+}
+
+impl OwnedStreams {
+    pub fn of(d: &scen::Dataset) -> Self {
+        OwnedStreams {
+            mt: d.machine.iter().map(|x| x.0).collect(),
+            m: d.machine.iter().map(|x| [x.1.x, x.1.y, x.1.z]).collect(),
+            pt: d.probe.iter().map(|x| x.0).collect(),
+            p: d.probe.iter().map(|x| [x.1.x, x.1.y, x.1.z]).collect(),
+        }
+    }
+    pub fn streams(&self) -> Streams<'_> {
+        Streams { machine_t: &self.mt, machine: &self.m, probe_t: &self.pt, probe: &self.p }
+    }
+}
+
+/// Demo: every method on the virtual cell against the truth; size against speed; the scan's
+/// radial error before and after the shift.
+pub fn demo_section(report: &mut Report) -> Result<()> {
+    let mut rows = Vec::new();
+    let mut html = String::new();
+    let runs: [(scen::Variant, Method, usize); 8] = [
+        (scen::Variant::Sphere, Method::Artefact, 48),
+        (scen::Variant::Plates, Method::Artefact, 48),
+        (scen::Variant::Speeds, Method::Speeds, 16),
+        (scen::Variant::Scan, Method::Scan, 6),
+        (scen::Variant::InOut, Method::Inout, 48),
+        (scen::Variant::PerAxis, Method::Artefact, 48),
+        (scen::Variant::MultiRate, Method::Artefact, 48),
+        (scen::Variant::Oblique, Method::Artefact, 48),
+    ];
+    for (variant, method, repeats) in runs {
+        let mut c = scen::Config::preset(variant);
+        c.repeats = repeats;
+        c.seed = 7;
+        let per_axis = variant == scen::Variant::PerAxis;
+        let d = scen::simulate(&c)?;
+        let st = OwnedStreams::of(&d);
+        let known = match (method, d.truth.artefact) {
+            (Method::Artefact, scen::ArtefactTruth::Sphere { diameter_mm, .. }) => {
+                Some(KnownSize::SphereDiameter(diameter_mm))
+            }
+            (Method::Artefact, scen::ArtefactTruth::Plates { gap_mm, .. }) => Some(KnownSize::Gap(gap_mm)),
+            _ => None,
+        };
+        let opt = Options {
+            method,
+            known_size: known,
+            tip_radius: d.truth.tip_radius_mm,
+            per_axis,
+            ..Options::default()
+        };
+        let name = variant.name();
+        match lat::estimate(&st.streams(), &opt) {
+            Ok(e) => {
+                let err = e.delay - d.truth.delay_s;
+                rows.push(vec![
+                    name.to_string(),
+                    if per_axis {
+                        format!("{} (one delay for axes that differ: not meaningful)", e.method().name())
+                    } else {
+                        e.method().name().to_string()
+                    },
+                    format!("{:.2}", d.truth.delay_s * 1e6),
+                    format!("{:.2}", e.delay * 1e6),
+                    format!("{:.2}", e.u_delay * 1e6),
+                    format!("{:+.2}", err * 1e6),
+                    format!("{:.2}", err.abs() / e.u_delay),
+                ]);
+                if let Some(pa) = e.per_axis() {
+                    for k in 0..3 {
+                        if let (Some(dk), Some(uk)) = (pa.delay[k], pa.u_delay[k]) {
+                            let ek = dk - d.truth.per_axis_delay_s[k];
+                            rows.push(vec![
+                                format!("{name} {}", ["X", "Y", "Z"][k]),
+                                format!("{} (per axis)", e.method().name()),
+                                format!("{:.2}", d.truth.per_axis_delay_s[k] * 1e6),
+                                format!("{:.2}", dk * 1e6),
+                                format!("{:.2}", uk * 1e6),
+                                format!("{:+.2}", ek * 1e6),
+                                format!("{:.2}", ek.abs() / uk),
+                            ]);
+                        }
+                    }
+                }
+                if variant == scen::Variant::Speeds {
+                    let pts: Vec<(f64, f64)> = e.per_speed().to_vec();
+                    let s0 = e.static_size().unwrap_or(f64::NAN);
+                    let vmax = pts.iter().map(|p| p.0).fold(0.0, f64::max);
+                    // Retract on an outer feature: size = static − 2·v·D.
+                    let line: Vec<(f64, f64)> = (0..=20)
+                        .map(|i| {
+                            let v = vmax * 1.05 * i as f64 / 20.0;
+                            (v, s0 - 2.0 * v * e.delay)
+                        })
+                        .collect();
+                    let svg = report::xy_plot(
+                        "Measured sphere size against speed (speeds method)",
+                        "speed (mm/s)",
+                        "size (mm)",
+                        &[Series::points("measured", pts), Series::line("fit: static − 2·v·delay", line)],
+                    )?;
+                    html.push_str(&format!(
+                        "<p>Speeds method: static size {:.5} mm (true {:.5} mm); the gradient of size against speed gives the delay.</p>{svg}",
+                        s0, d.truth.static_size_mm
+                    ));
+                }
+                if let Some(sc) = e.scan() {
+                    let before = lat::scan::radial_errors(&st.streams(), sc, 0.0);
+                    let after = lat::scan::radial_errors(&st.streams(), sc, sc.delay);
+                    let t0 = before.first().map_or(0.0, |p| p.0);
+                    let step = (before.len() / 3000).max(1);
+                    let to_um = |v: &[(f64, f64)]| {
+                        v.iter().step_by(step).map(|p| (p.0 - t0, p.1 * 1e3)).collect::<Vec<_>>()
+                    };
+                    let svg = report::xy_plot(
+                        "Scan: radial error of the combined points",
+                        "time (s)",
+                        "radial error (µm)",
+                        &[
+                            Series::line("without shift", to_um(&before)),
+                            Series::line(&format!("shifted by {:.1} µs", sc.delay * 1e6), to_um(&after)),
+                        ],
+                    )?;
+                    html.push_str(&format!(
+                        "<p>Scan method: RMS radial error {:.3} µm without the shift, {:.3} µm with it ({} deflection steps).</p>{svg}",
+                        sc.rms_before * 1e3,
+                        sc.rms_after * 1e3,
+                        sc.n_steps
+                    ));
+                }
+            }
+            Err(err) => rows.push(vec![
+                name.to_string(),
+                method.name().to_string(),
+                format!("{:.2}", d.truth.delay_s * 1e6),
+                format!("failed: {err}"),
+                String::new(),
+                String::new(),
+                String::new(),
+            ]),
+        }
+    }
+    let table = report::table(
+        &["data set", "method", "true delay (µs)", "recovered (µs)", "u (µs)", "error (µs)", "|error|/u"],
+        &rows,
+    );
+    report.add(
+        "latency",
+        "System delay between probe and machine data",
+        format!("<p>Virtual cell: encoders 1 µm, probe 0.3 µm, 1 kHz streams (probe 4 kHz for multi-rate), stylus dynamics and servo following error on. The delay is recovered from the raw streams by every method.</p>{table}{html}"),
+    );
+    Ok(())
+}

@@ -1,0 +1,383 @@
+//! The file formats of compensation, each defined once: the geometric map CSV ([`read_map`]),
+//! squareness in TOML or CSV ([`read_squareness`]), the bed TOML ([`read_bed`]),
+//! the load case TOML ([`read_load`]) and the influence map CSV ([`read_influence`],
+//! [`write_influence`]). Unknown keys are errors; every error names the file (and the line and
+//! column where there is one) through `truepos_io::InputError`.
+
+use crate::fe_map::{BedModel, LoadGrid};
+use crate::geometric::{Axis, AxisErrors, AxisTable, GeometricMap, Squareness};
+use crate::influence::{InfluenceError, InfluenceMap, InfluenceRow};
+use crate::load::Portal;
+use crate::statics;
+use serde::Deserialize;
+use std::path::Path;
+use truepos_fe::{Bed, Supports};
+use truepos_io::atomic::AtomicFile;
+use truepos_io::csv::{CsvWriter, Table};
+use truepos_io::InputError;
+use truepos_math::Vector3;
+
+/// Read an influence map CSV (errors with file, line, column).
+pub fn read_influence(path: &Path) -> Result<InfluenceMap, InputError> {
+    let t = Table::read(path)?;
+    let unit = t
+        .comments
+        .iter()
+        .find_map(|c| {
+            let (k, v) = c.split_once('=')?;
+            (k.trim() == "unit_load_n").then(|| v.trim().to_string())
+        })
+        .ok_or_else(|| {
+            InputError::in_file(path, "missing the comment line '# unit_load_n = <N>' before the header")
+        })?;
+    let unit: f64 = unit.parse().ok().filter(|v: &f64| v.is_finite() && *v > 0.0).ok_or_else(|| {
+        InputError::in_file(path, format!("unit_load_n = '{unit}' is not a positive number"))
+    })?;
+    let v = t.f64_columns(&["load_x_mm", "load_y_mm", "portal_y_mm", "pitch_urad", "roll_urad"])?;
+    let rows: Vec<InfluenceRow> = v
+        .chunks_exact(5)
+        .map(|r| InfluenceRow {
+            load_x: r[0],
+            load_y: r[1],
+            portal_y: r[2],
+            pitch: r[3] * 1e-6,
+            roll: r[4] * 1e-6,
+        })
+        .collect();
+    InfluenceMap::from_rows(unit, &rows).map_err(|e| match e {
+        InfluenceError::Duplicate { row, .. } | InfluenceError::NotFinite { row } => {
+            InputError::at(path, t.line_number(row), None, e.to_string())
+        }
+        _ => InputError::in_file(path, e.to_string()),
+    })
+}
+
+/// Write an influence map CSV (atomically): the `unit_load_n` comment, a note, the header and
+/// one row per (load, portal position), µrad per unit load.
+pub fn write_influence(map: &InfluenceMap, out: &Path, note: &str) -> Result<(), std::io::Error> {
+    let mut f = AtomicFile::create(out)?;
+    let mut w = CsvWriter::new(&mut f);
+    w.comment(&format!("unit_load_n = {}", map.unit_load_n))?;
+    w.comment(note)?;
+    w.comment("pitch about +X, roll about +Y, µrad per unit load; sign: see `truepos load --help`")?;
+    w.header(&["load_x_mm", "load_y_mm", "portal_y_mm", "pitch_urad", "roll_urad"])?;
+    for r in map.rows() {
+        w.row_f64(&[r.load_x, r.load_y, r.portal_y, r.pitch * 1e6, r.roll * 1e6])?;
+    }
+    f.commit()?;
+    Ok(())
+}
+
+/// RMS and maximum norm (µm) of displacements.
+pub fn rms_max_um(d: &[Vector3]) -> (f64, f64) {
+    if d.is_empty() {
+        return (0.0, 0.0);
+    }
+    let rms = (d.iter().map(|v| v.norm_squared()).sum::<f64>() / d.len() as f64).sqrt();
+    (rms * 1e3, d.iter().map(|v| v.norm()).fold(0.0, f64::max) * 1e3)
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+pub struct BedFile {
+    pub bed: Option<BedToml>,
+    pub portal: Option<PortalToml>,
+    #[serde(default)]
+    pub grid: GridToml,
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+pub struct BedToml {
+    pub size_x_mm: f64,
+    pub size_y_mm: f64,
+    pub thickness_mm: f64,
+    pub youngs_modulus_mpa: f64,
+    pub poisson: f64,
+    pub supports_mm: Option<Vec<[f64; 2]>>,
+    pub supports: Option<String>,
+    pub support_stiffness_n_per_mm: Option<f64>,
+    pub element_size_mm: Option<f64>,
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+pub struct PortalToml {
+    pub rail_x_mm: [f64; 2],
+    pub rail_height_mm: f64,
+    pub bearing_span_mm: f64,
+    pub y_range_mm: [f64; 2],
+    pub y_step_mm: f64,
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+pub struct GridToml {
+    #[serde(default = "d_spacing")]
+    pub spacing_mm: f64,
+    #[serde(default = "d_unit")]
+    pub unit_load_n: f64,
+}
+
+fn d_spacing() -> f64 {
+    100.0
+}
+
+fn d_unit() -> f64 {
+    1000.0
+}
+
+impl Default for GridToml {
+    fn default() -> Self {
+        Self { spacing_mm: d_spacing(), unit_load_n: d_unit() }
+    }
+}
+
+pub struct BedInfo {
+    /// The plate and the file's FE element size, if `[bed]` is given.
+    pub bed: Option<(Bed, Option<f64>)>,
+    pub portal: Option<Portal>,
+    pub grid: LoadGrid,
+}
+
+/// Read the bed TOML (`[bed]`, `[portal]`, `[grid]`): the one reader of this format.
+pub fn read_bed(path: &Path) -> Result<BedInfo, InputError> {
+    let f: BedFile = truepos_io::config::read_toml(path)?;
+    let bed = match f.bed {
+        None => None,
+        Some(b) => {
+            let supports = match (&b.supports_mm, b.supports.as_deref()) {
+                (Some(_), Some(_)) => return Err(InputError::in_file(path, "[bed]: give either supports_mm or supports, not both")),
+                (Some(xy), None) => Supports::Points { xy: xy.clone(), stiffness_n_per_mm: b.support_stiffness_n_per_mm },
+                (None, Some("simply-supported-edges")) => Supports::SimplySupportedEdges,
+                (None, Some(other)) => return Err(InputError::in_file(path, format!("[bed] supports = \"{other}\": the only keyword is \"simply-supported-edges\" (or give supports_mm)"))),
+                (None, None) => return Err(InputError::in_file(path, "[bed]: supports_mm = [[x, y], ...] (or supports = \"simply-supported-edges\") is required")),
+            };
+            Some((
+                Bed {
+                    size_x: b.size_x_mm,
+                    size_y: b.size_y_mm,
+                    thickness: b.thickness_mm,
+                    youngs_modulus: b.youngs_modulus_mpa,
+                    poisson: b.poisson,
+                    supports,
+                },
+                b.element_size_mm,
+            ))
+        }
+    };
+    let portal = f.portal.map(|p| Portal {
+        rail_x: p.rail_x_mm,
+        rail_height: p.rail_height_mm,
+        bearing_span: p.bearing_span_mm,
+        y_range: p.y_range_mm,
+        y_step: p.y_step_mm,
+    });
+    if let Some(p) = &portal {
+        p.validate().map_err(|e| InputError::in_file(path, format!("[portal]: {e}")))?;
+    }
+    Ok(BedInfo {
+        bed,
+        portal,
+        grid: LoadGrid { spacing: f.grid.spacing_mm, unit_load_n: f.grid.unit_load_n },
+    })
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+pub struct LoadToml {
+    pub mass_kg: Option<f64>,
+    pub weight_n: Option<f64>,
+    pub cog_mm: Option<[f64; 2]>,
+    pub rest_points_mm: Option<Vec<[f64; 2]>>,
+    pub rest: Option<Vec<RestToml>>,
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+pub struct RestToml {
+    pub x_mm: f64,
+    pub y_mm: f64,
+    pub force_n: f64,
+}
+
+/// A resolved load case: point loads `(x, y, F)` (F downwards, N), weight and CoG.
+pub struct LoadCase {
+    pub loads: Vec<(f64, f64, f64)>,
+    pub weight_n: f64,
+    pub cog: [f64; 2],
+    pub explicit: bool,
+}
+
+/// Standard gravity for `mass_kg`.
+pub const G: f64 = 9.80665;
+
+/// Read a load case TOML (`mass_kg`/`weight_n`, `cog_mm`, `rest_points_mm` or `[[rest]]`) and
+/// resolve it to point loads.
+pub fn read_load(path: &Path) -> Result<LoadCase, InputError> {
+    let f: LoadToml = truepos_io::config::read_toml(path)?;
+    let err = |m: String| InputError::in_file(path, m);
+    let weight = match (f.mass_kg, f.weight_n) {
+        (Some(m), None) => Some(m * G),
+        (None, Some(w)) => Some(w),
+        (Some(m), Some(w)) => {
+            if (m * G - w).abs() > 1e-3 * w.abs() {
+                return Err(err(format!(
+                    "mass_kg = {m} (weight {:.3} N) and weight_n = {w} disagree; give one",
+                    m * G
+                )));
+            }
+            Some(w)
+        }
+        (None, None) => None,
+    };
+    match (f.rest_points_mm, f.rest) {
+        (Some(_), Some(_)) => {
+            Err(err("give either rest_points_mm or [[rest]] entries with forces, not both".into()))
+        }
+        (None, None) => {
+            Err(err("no resting points: give rest_points_mm = [[x, y], ...] or [[rest]] x_mm, y_mm, force_n"
+                .into()))
+        }
+        (Some(r), None) => {
+            let w =
+                weight.ok_or_else(|| err("mass_kg or weight_n is required with rest_points_mm".into()))?;
+            let c = f.cog_mm.ok_or_else(|| err("cog_mm = [x, y] is required with rest_points_mm".into()))?;
+            let forces = statics::distribute(w, c, &r).map_err(|e| err(e.to_string()))?;
+            Ok(LoadCase {
+                loads: r.iter().zip(&forces).map(|(p, f)| (p[0], p[1], *f)).collect(),
+                weight_n: w,
+                cog: c,
+                explicit: false,
+            })
+        }
+        (None, Some(rest)) => {
+            let loads: Vec<(f64, f64, f64)> = rest.iter().map(|r| (r.x_mm, r.y_mm, r.force_n)).collect();
+            let (w, c) = statics::check_explicit(&loads, weight, f.cog_mm).map_err(|e| err(e.to_string()))?;
+            Ok(LoadCase { loads, weight_n: w, cog: c, explicit: true })
+        }
+    }
+}
+
+impl BedInfo {
+    /// The FE model of a bed file that has both `[bed]` and `[portal]`, and the file's element size.
+    pub fn into_model(self, path: &Path) -> Result<(BedModel, Option<f64>), InputError> {
+        let info = self;
+        let (bed, es) = info.bed.ok_or_else(|| InputError::in_file(path, "[bed] section is required"))?;
+        let portal = info.portal.ok_or_else(|| InputError::in_file(path, "[portal] section is required"))?;
+        Ok((BedModel { bed, portal, grid: info.grid }, es))
+    }
+}
+
+/// Read a geometric map CSV (errors with file, line, column).
+pub fn read_map(path: &Path) -> Result<GeometricMap, InputError> {
+    let t = Table::read(path)?;
+    let cols = ["position_mm", "pos_um", "str1_um", "str2_um", "pitch_urad", "yaw_urad", "roll_urad"];
+    let v = t.f64_columns(&cols)?;
+    let axes = t.str_column("axis")?;
+    let acol = t.column("axis").map(|c| c + 1);
+    let mut rows: [Vec<(f64, AxisErrors, usize)>; 3] = [vec![], vec![], vec![]];
+    for (i, a) in axes.iter().enumerate() {
+        let k = match a.trim().to_ascii_lowercase().as_str() {
+            "x" => 0,
+            "y" => 1,
+            "z" => 2,
+            other => {
+                return Err(InputError::at(
+                    path,
+                    t.line_number(i),
+                    acol,
+                    format!("axis must be x, y or z (got '{other}')"),
+                )
+                .with_column_name("axis"))
+            }
+        };
+        let r = &v[i * 7..i * 7 + 7];
+        let e = AxisErrors {
+            pos: r[1] * 1e-3,
+            str1: r[2] * 1e-3,
+            str2: r[3] * 1e-3,
+            pitch: r[4] * 1e-6,
+            yaw: r[5] * 1e-6,
+            roll: r[6] * 1e-6,
+        };
+        rows[k].push((r[0], e, i));
+    }
+    let mut map = GeometricMap::default();
+    for (k, axis) in [Axis::X, Axis::Y, Axis::Z].into_iter().enumerate() {
+        let r = &mut rows[k];
+        if r.is_empty() {
+            continue;
+        }
+        r.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for w in r.windows(2) {
+            if w[0].0 == w[1].0 {
+                return Err(InputError::at(
+                    path,
+                    t.line_number(w[1].2.max(w[0].2)),
+                    t.column("position_mm").map(|c| c + 1),
+                    format!(
+                        "axis {}: position {} mm appears twice (also line {})",
+                        axis.name(),
+                        w[0].0,
+                        t.line_number(w[1].2.min(w[0].2))
+                    ),
+                ));
+            }
+        }
+        let pos: Vec<f64> = r.iter().map(|x| x.0).collect();
+        let e: Vec<AxisErrors> = r.iter().map(|x| x.1).collect();
+        let table = AxisTable::new(axis, pos, &e).map_err(|e| InputError::in_file(path, e.to_string()))?;
+        match axis {
+            Axis::X => map.x = Some(table),
+            Axis::Y => map.y = Some(table),
+            Axis::Z => map.z = Some(table),
+        }
+    }
+    if map.x.is_none() && map.y.is_none() && map.z.is_none() {
+        return Err(InputError::in_file(path, "the map has no rows"));
+    }
+    Ok(map)
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SqFile {
+    squareness: SqToml,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SqToml {
+    #[serde(default)]
+    xy_urad: f64,
+    #[serde(default)]
+    xz_urad: f64,
+    #[serde(default)]
+    yz_urad: f64,
+}
+
+/// Read squareness from TOML or CSV (µrad in the file, rad returned).
+pub fn read_squareness(path: &Path) -> Result<Squareness, InputError> {
+    let is_toml = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml"));
+    let (xy, xz, yz) = if is_toml {
+        let f: SqFile = truepos_io::config::read_toml(path)?;
+        (f.squareness.xy_urad, f.squareness.xz_urad, f.squareness.yz_urad)
+    } else {
+        let t = Table::read(path)?;
+        let v = t.f64_columns(&["xy_urad", "xz_urad", "yz_urad"])?;
+        if t.n_rows() != 1 {
+            return Err(InputError::in_file(
+                path,
+                format!("a squareness CSV has exactly one data row (got {})", t.n_rows()),
+            ));
+        }
+        (v[0], v[1], v[2])
+    };
+    for (n, v) in [("xy_urad", xy), ("xz_urad", xz), ("yz_urad", yz)] {
+        if !v.is_finite() {
+            return Err(InputError::in_file(path, format!("{n} is not finite")));
+        }
+    }
+    Ok(Squareness { xy: xy * 1e-6, xz: xz * 1e-6, yz: yz * 1e-6 })
+}

@@ -1,0 +1,98 @@
+//! The stream files of delay calibration, defined once: [`read_stream`] reads `t_s` and three
+//! value columns of a CSV; [`input_error`] turns a [`LatencyError`] about a stream into an input
+//! error naming the file and line; [`write_centres`] writes the stylus centres of
+//! `truepos latency apply`.
+
+use crate::{LatencyError, Which};
+use std::io::Write;
+use std::path::Path;
+use truepos_io::atomic::AtomicFile;
+use truepos_io::csv::Table;
+use truepos_io::InputError;
+
+/// A stream read from a CSV file.
+pub struct StreamFile {
+    pub table: Table,
+    pub t: Vec<f64>,
+    pub v: Vec<[f64; 3]>,
+}
+
+/// Read `t_s` and three value columns.
+pub fn read_stream(path: &Path, cols: [&str; 3]) -> Result<StreamFile, InputError> {
+    let table = Table::read(path)?;
+    let all = table.f64_columns(&["t_s", cols[0], cols[1], cols[2]])?;
+    let mut t = Vec::with_capacity(all.len() / 4);
+    let mut v = Vec::with_capacity(all.len() / 4);
+    for c in all.chunks_exact(4) {
+        t.push(c[0]);
+        v.push([c[1], c[2], c[3]]);
+    }
+    Ok(StreamFile { table, t, v })
+}
+
+/// Turn a library error into an input error naming the file and line where there is one.
+pub fn input_error(e: LatencyError, machine: &StreamFile, probe: &StreamFile) -> InputError {
+    let pick = |w: Which| if w == Which::Machine { machine } else { probe };
+    let at = |w: Which, index: usize, msg: String| {
+        let f = pick(w);
+        let line = if index < f.table.n_rows() { f.table.line_number(index) } else { 0 };
+        let col = f.table.column("t_s").map(|c| c + 1);
+        InputError::at(&f.table.path, line, col, msg).with_column_name("t_s")
+    };
+    match &e {
+        LatencyError::DuplicateStamp { which, index, t } => {
+            at(*which, *index, format!("duplicate time stamp {t} s (same as the previous row)"))
+        }
+        LatencyError::NotIncreasing { which, index, t, previous } => at(
+            *which,
+            *index,
+            format!("time stamps must increase: {t} s follows {previous} s (sort the file by t_s)"),
+        ),
+        LatencyError::NotFinite { which, index } => at(*which, *index, "value is not finite".into()),
+        LatencyError::TooShort { which, n } => {
+            InputError::in_file(&pick(*which).table.path, format!("{n} data row(s); at least two are needed"))
+        }
+        LatencyError::NoOverlap { .. } => {
+            InputError::in_file(&probe.table.path, format!("{e} (with {})", machine.table.path.display()))
+        }
+        LatencyError::NoContact(_) => InputError::in_file(&probe.table.path, e.to_string()),
+        _ => InputError::new(e.to_string()),
+    }
+}
+
+/// Write stylus-centre positions at the probe stamps (`t_s,x_mm,y_mm,z_mm`, then the probe file's
+/// other columns unchanged), atomically; rows whose centre is NaN (machine data not covering
+/// `t + delay`) are left out.
+pub fn write_centres(path: &Path, delay_s: f64, probe: &StreamFile, out: &[[f64; 3]]) -> std::io::Result<()> {
+    // Pass through the probe file's other columns.
+    let used = ["t_s", "a_mm", "b_mm", "c_mm", "x_mm", "y_mm", "z_mm"];
+    let extra: Vec<usize> =
+        (0..probe.table.header.len()).filter(|&i| !used.contains(&probe.table.header[i].as_str())).collect();
+    let mut f = AtomicFile::create(path)?;
+    {
+        let mut w = truepos_io::csv::CsvWriter::new(std::io::BufWriter::new(&mut f));
+        w.comment(&format!("stylus centre = machine(t + {} s) + deflection(t)", delay_s))?;
+        let mut names: Vec<&str> = vec!["t_s", "x_mm", "y_mm", "z_mm"];
+        names.extend(extra.iter().map(|&i| probe.table.header[i].as_str()));
+        w.header(&names)?;
+        let mut buf = Vec::new();
+        for (i, p) in out.iter().enumerate() {
+            if p[0].is_nan() {
+                continue;
+            }
+            w.field_f64(probe.t[i])?;
+            for x in p {
+                w.field_f64(*x)?;
+            }
+            if !extra.is_empty() {
+                let fields = probe.table.fields(i, &mut buf).map_err(std::io::Error::other)?;
+                for &c in &extra {
+                    w.field_str(fields[c])?;
+                }
+            }
+            w.end_row()?;
+        }
+        w.into_inner().flush()?;
+    }
+    f.commit()
+}
