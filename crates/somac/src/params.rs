@@ -44,6 +44,10 @@ pub struct Params {
     pub correct: bool,
     /// Orient the program on the part targets (initially, on alarms, on temperature steps).
     pub orient: bool,
+    /// The machine's travel (mm, machine frame): `(min, max)` per axis. No commanded position and
+    /// no corrected position may leave it: a block outside stops the run, a correction that
+    /// would leave it is refused (alarm `travel_limit`). `None`: not checked.
+    pub travel_mm: Option<([f64; 3], [f64; 3])>,
 }
 
 /// What to do when the beam is broken at a measurement.
@@ -82,6 +86,7 @@ impl Default for Params {
             beam_recovery: BeamRecovery::LookAhead,
             correct: true,
             orient: true,
+            travel_mm: None,
         }
     }
 }
@@ -96,6 +101,14 @@ pub const MAX_ATTEMPTS: usize = 1000;
 pub const MAX_ORIENT_EVERY: usize = 1_000_000;
 
 impl Params {
+    /// Whether `p` (mm, machine frame) is within the travel (always, when none is given).
+    pub fn within_travel(&self, p: &truepos_math::Point3) -> bool {
+        match self.travel_mm {
+            None => true,
+            Some((lo, hi)) => (0..3).all(|k| p[k] >= lo[k] && p[k] <= hi[k]),
+        }
+    }
+
     /// Check the parameters make sense; the message names the offending one.
     pub fn validate(&self) -> Result<(), String> {
         let pos = [
@@ -146,6 +159,11 @@ impl Params {
             || !(-50.0..=100.0).contains(&self.temperature_max_c)
         {
             return Err("temperature_min_c and temperature_max_c must lie within -50 to 100 °C".into());
+        }
+        if let Some((lo, hi)) = self.travel_mm {
+            if !(0..3).all(|k| lo[k].is_finite() && hi[k].is_finite() && lo[k] < hi[k]) {
+                return Err(format!("travel must have finite min < max on every axis, got {lo:?} .. {hi:?}"));
+            }
         }
         if self.keyword.trim().is_empty() {
             return Err("keyword must not be empty (it marks the measurement blocks)".into());

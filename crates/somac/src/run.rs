@@ -82,11 +82,13 @@ pub enum AlarmKind {
     MaxSingleCorrection,
     /// The accumulated correction reached the total limit.
     MaxTotalCorrection,
+    /// A commanded or corrected position would leave the machine's travel.
+    TravelLimit,
 }
 
 impl AlarmKind {
     /// Every kind.
-    pub const ALL: [AlarmKind; 10] = [
+    pub const ALL: [AlarmKind; 11] = [
         AlarmKind::TemperatureRange,
         AlarmKind::TemperatureChange,
         AlarmKind::Inclination,
@@ -97,6 +99,7 @@ impl AlarmKind {
         AlarmKind::NoReading,
         AlarmKind::MaxSingleCorrection,
         AlarmKind::MaxTotalCorrection,
+        AlarmKind::TravelLimit,
     ];
 
     /// The name in the JSON output and the audit trail (`temperature_range`, `beam_break`, …).
@@ -112,6 +115,7 @@ impl AlarmKind {
             AlarmKind::NoReading => "no_reading",
             AlarmKind::MaxSingleCorrection => "max_single_correction",
             AlarmKind::MaxTotalCorrection => "max_total_correction",
+            AlarmKind::TravelLimit => "travel_limit",
         }
     }
 
@@ -304,6 +308,19 @@ impl<C: Controller, T: Tracker, E: Cell> Loop<'_, C, T, E> {
             }
             // The program may have been re-transformed: take the block again.
             let target = self.st.targets[i].0;
+            if let Some(t) = target.filter(|t| !self.params.within_travel(&(t + self.ctl.offset()))) {
+                self.alarm(
+                    line,
+                    AlarmKind::TravelLimit,
+                    format!(
+                        "the block commands ({:.3}, {:.3}, {:.3}) mm, outside the machine's travel",
+                        t.x, t.y, t.z
+                    ),
+                    "stop",
+                )?;
+                self.st.report.halted = true;
+                break;
+            }
             self.ctl.send_block(line, self.st.program.line_text(i), target)?;
             self.st.report.blocks_sent += 1;
             self.audit(Event::Block {
@@ -706,6 +723,21 @@ impl<C: Controller, T: Tracker, E: Cell> Loop<'_, C, T, E> {
             if delta.norm() == 0.0 {
                 stop.status = StopStatus::Partial;
                 stop.message = Some("no correction possible within the total limit".into());
+                return Ok(stop);
+            }
+            let corrected = commanded + self.ctl.offset() + delta;
+            if !self.params.within_travel(&corrected) {
+                self.alarm(
+                    line,
+                    AlarmKind::TravelLimit,
+                    format!(
+                        "the corrected position ({:.3}, {:.3}, {:.3}) mm would leave the machine's travel",
+                        corrected.x, corrected.y, corrected.z
+                    ),
+                    "refuse the correction and mark PARTIAL",
+                )?;
+                stop.status = StopStatus::Partial;
+                stop.message = Some("correction would leave the machine's travel".into());
                 return Ok(stop);
             }
             self.ctl.correct(delta)?;
