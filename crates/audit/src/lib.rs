@@ -392,7 +392,7 @@ impl SqliteAudit {
             Event::Alarm { line, kind, message, action, time_s } => {
                 self.conn.execute(
                     "INSERT INTO alarms VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
-                    params![id, *line as i64, kind, message, action, time_s],
+                    params![id, *line as i64, kind.as_str(), message, action, time_s],
                 )?;
             }
             Event::Orientation { line, reason, scale, rms_mm, time_s } => {
@@ -499,7 +499,7 @@ mod tests {
             a.record(&Event::Block { line: 1, text: "G0 X0".into(), time_s: 0.0 }).unwrap();
             a.record(&Event::Alarm {
                 line: 1,
-                kind: "k".into(),
+                kind: truepos_somac::run::AlarmKind::BeamBreak,
                 message: "m".into(),
                 action: "a".into(),
                 time_s: 0.1,

@@ -518,17 +518,6 @@ impl Segment {
         let speed = if matches!(self.geom, Geom::Hold { .. }) { 0.0 } else { v };
         Command { position, speed, normal, deflection }
     }
-
-    /// Unit direction of motion at the end (or start) of the carrier.
-    fn direction(&self, at_end: bool, f: &Feature, tip: f64) -> Vector3 {
-        let (a, b) = if at_end { (1.0 - 1e-4, 1.0) } else { (0.0, 1e-4) };
-        let d = self.carrier(b, f, tip) - self.carrier(a, f, tip);
-        if d.norm() > 1e-12 {
-            d.normalize()
-        } else {
-            Vector3::zeros()
-        }
-    }
 }
 
 /// A planned program.
