@@ -187,6 +187,13 @@ pub const MIGRATIONS: &[(i64, &str)] = &[
     ),
     (
         2,
+        // The controller a run drove (address and version as it reports them).
+        "ALTER TABLE runs ADD COLUMN controller TEXT;
+         ALTER TABLE runs ADD COLUMN controller_version TEXT;",
+    ),
+    (
+        3,
+        // How each run ended: its end time, final status and message.
         "ALTER TABLE runs ADD COLUMN ended_at TEXT;
     ALTER TABLE runs ADD COLUMN status TEXT;
     ALTER TABLE runs ADD COLUMN message TEXT;",
@@ -288,6 +295,24 @@ impl SqliteAudit {
         )?;
         self.finished = true;
         Ok(())
+    }
+
+    /// Record the controller this run drives: its address and version.
+    pub fn set_controller(&mut self, address: &str, version: &str) -> Result<(), AuditError> {
+        self.conn.execute(
+            "UPDATE runs SET controller = ?1, controller_version = ?2 WHERE id = ?3",
+            params![address, version, self.run_id],
+        )?;
+        Ok(())
+    }
+
+    /// The controller recorded for this run (address, version).
+    pub fn controller(&self) -> Result<(Option<String>, Option<String>), AuditError> {
+        Ok(self.conn.query_row(
+            "SELECT controller, controller_version FROM runs WHERE id = ?1",
+            params![self.run_id],
+            |r| Ok((r.get(0)?, r.get(1)?)),
+        )?)
     }
 
     /// Whether [`SqliteAudit::finish`] has been called.

@@ -84,11 +84,14 @@ pub enum AlarmKind {
     MaxTotalCorrection,
     /// A commanded or corrected position would leave the machine's travel.
     TravelLimit,
+    /// The controller failed (e-stop, lost connection, an error it reports): the run is aborted
+    /// and the stop in progress marked FAILURE.
+    ControllerFault,
 }
 
 impl AlarmKind {
     /// Every kind.
-    pub const ALL: [AlarmKind; 11] = [
+    pub const ALL: [AlarmKind; 12] = [
         AlarmKind::TemperatureRange,
         AlarmKind::TemperatureChange,
         AlarmKind::Inclination,
@@ -100,6 +103,7 @@ impl AlarmKind {
         AlarmKind::MaxSingleCorrection,
         AlarmKind::MaxTotalCorrection,
         AlarmKind::TravelLimit,
+        AlarmKind::ControllerFault,
     ];
 
     /// The name in the JSON output and the audit trail (`temperature_range`, `beam_break`, …).
@@ -116,6 +120,7 @@ impl AlarmKind {
             AlarmKind::MaxSingleCorrection => "max_single_correction",
             AlarmKind::MaxTotalCorrection => "max_total_correction",
             AlarmKind::TravelLimit => "travel_limit",
+            AlarmKind::ControllerFault => "controller_fault",
         }
     }
 

@@ -12,6 +12,7 @@ pub mod fit;
 pub mod head;
 pub mod latency;
 pub mod load;
+pub mod probe;
 pub mod scan;
 pub mod somac;
 pub mod somac_run;
@@ -53,6 +54,8 @@ pub enum Command {
     Air(somac::AirArgs),
     /// Laser-tracker end-point control of a large NC machine.
     Somac(somac::Args),
+    /// Probe on a machine with a touch probe (virtual, LinuxCNC): `truepos probe sphere`.
+    Probe(probe::Args),
     /// Write a virtual-cell data set (and its truth.json) for one capability.
     Simulate(SimulateArgs),
     /// Run every capability end to end on the virtual cell and write a report.
@@ -105,6 +108,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Command::Orient(a) => somac::orient(a),
         Command::Air(a) => somac::air(a),
         Command::Somac(a) => somac::run(a),
+        Command::Probe(a) => probe::run(a),
         Command::Simulate(s) => match s.scenario {
             Scenario::Latency(a) => latency::simulate(a),
             Scenario::HeadOffset(a) => head::simulate(a),
