@@ -542,7 +542,8 @@ mod tests {
     fn cell_file_values_are_checked() {
         let p = Path::new("cell.toml");
         file().to_config(p).unwrap();
-        let cases: Vec<(Box<dyn Fn(&mut CellFile)>, &str)> = vec![
+        type Mutation = Box<dyn Fn(&mut CellFile)>;
+        let cases: Vec<(Mutation, &str)> = vec![
             (Box::new(|f| f.part.target[1].id = f.part.target[0].id.clone()), "appears twice"),
             (Box::new(|f| f.beam_interrupt_probability = 2.0), "beam_interrupt_probability"),
             (Box::new(|f| f.vibration_mm = -0.1), "vibration_mm"),
