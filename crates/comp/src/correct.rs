@@ -55,7 +55,7 @@ pub struct Corrector<'a> {
 const CHUNK: usize = 4096;
 
 impl<'a> Corrector<'a> {
-    /// `corrected − p` at indicated tip point `p`: `E(p − t; t) − e(p)`.
+    /// `corrected − p` at indicated tip point `p`: `E(p − t; t) + e(p)`.
     #[inline]
     pub fn displacement(&self, p: &Point3) -> Result<Vector3, OutOfRange> {
         let mut d = Vector3::zeros();
@@ -63,7 +63,7 @@ impl<'a> Corrector<'a> {
             d += g.error(&(p - self.probe_offset), &self.probe_offset)?;
         }
         if let Some(l) = self.load {
-            d -= l.error(p)?;
+            d += l.error(p)?;
         }
         Ok(d)
     }

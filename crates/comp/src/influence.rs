@@ -224,8 +224,9 @@ impl InfluenceMap {
     }
 }
 
-/// The portal's pitch (about +X) and roll (about +Y), rad, against portal Y (mm), in the sign
-/// convention of [`crate::load`] (the rotation the correction `p − θ × (p − o)` removes).
+/// The portal's pitch (about +X) and roll (about +Y), rad, against portal Y (mm): its physical
+/// rotations by the right-hand rule, as [`crate::load`] defines them (the correction is
+/// `p + θ × (p − o)`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct PortalCurves {
     y: Grid1,

@@ -18,13 +18,14 @@
 //!
 //! The scales on the portal read the same values as before, so the probe tip really is at
 //! `p_true ≈ p + (α, β, 0) × (p − o)` when the machine indicates `p`, with the pivot
-//! `o = ((x1 + x2)/2, y, rail_height)`. The contract corrects with `p − e`, `e = θ × (p − o)`, so
-//! the **reported** pitch and roll are `θ = −(α, β)`: the rotation of the bed (and of the part on
-//! it) as seen from the tilted portal — equivalently, the rotation that takes true coordinates
-//! to indicated ones. A load ahead of the portal (larger Y) sinks its front bearings: the portal
-//! tips forward (α < 0) and the reported pitch is positive. Maps imported from an outside FE
-//! package must use this sign (pitch_urad = (uz_back − uz_front)/span, roll_urad =
-//! (uz_rail2 − uz_rail1)/(x2 − x1), both ×10⁶).
+//! `o = ((x1 + x2)/2, y, rail_height)`. The contract (interface.md, "Geometric map and load")
+//! states pitch and roll as these **physical** rotations, `θ = (α, β)` by the right-hand rule
+//! about +X and +Y, and corrects with `p + e`, `e = (θx, θy, 0) × (p − o)`: exactly the true
+//! point above. A load ahead of the portal (larger Y) sinks its front bearings: the portal tips
+//! forward and the pitch is negative; a load near rail 2 (larger X) lowers that rail and the roll
+//! is positive. Maps from an outside FE package that reports the physical rotations are used as
+//! they come (pitch_urad = 10⁶·(uz_front − uz_back)/span, roll_urad = 10⁶·(uz_rail1 −
+//! uz_rail2)/(x2 − x1)).
 //!
 //! The common vertical sink of the four bearings (`ū`) moves the portal without rotating it; the
 //! contract's model has no term for it, and it is not corrected here.
@@ -104,15 +105,15 @@ impl Portal {
     }
 }
 
-/// Reported `(pitch, roll)` (rad, convention of this module) of the portal at position `y` on a
-/// bed deflected by `uz` (mm, positive up).
+/// The portal's physical `(pitch, roll)` (rad, right-hand rule about +X and +Y) at position `y`
+/// on a bed deflected by `uz` (mm, positive up).
 pub fn portal_rotation(uz: impl Fn(f64, f64) -> f64, portal: &Portal, y: f64) -> (f64, f64) {
     let h = 0.5 * portal.bearing_span;
     let [x1, x2] = portal.rail_x;
     let (b1, f1) = (uz(x1, y - h), uz(x1, y + h));
     let (b2, f2) = (uz(x2, y - h), uz(x2, y + h));
-    let pitch = 0.5 * ((b1 - f1) + (b2 - f2)) / portal.bearing_span;
-    let roll = (0.5 * (b2 + f2) - 0.5 * (b1 + f1)) / (x2 - x1);
+    let pitch = 0.5 * ((f1 - b1) + (f2 - b2)) / portal.bearing_span;
+    let roll = (0.5 * (b1 + f1) - 0.5 * (b2 + f2)) / (x2 - x1);
     (pitch, roll)
 }
 
@@ -143,9 +144,9 @@ impl LoadCorrection {
         Ok(Vector3::new(ty * dz, -tx * dz, -ty * dx))
     }
 
-    /// The corrected point `p − e`.
+    /// The corrected point `p + e` (the true position of the tip of the tilted portal).
     pub fn correct(&self, p: &Point3) -> Result<Point3, OutOfRange> {
-        Ok(p - self.error(p)?)
+        Ok(p + self.error(p)?)
     }
 }
 
@@ -174,10 +175,11 @@ mod tests {
     #[test]
     fn tilted_bed_gives_exact_rotation_and_correction_undoes_it() {
         // A bed that tilts rigidly: uz = a·x + b·y. The portal follows: physical tilt about +X is
-        // α = b (front higher), about +Y is β = −a. Reported θ = (−b, a).
+        // α = b (front higher), about +Y is β = −a (+X side higher turns +X towards +Z, a
+        // negative rotation about +Y by the right-hand rule). Pitch, roll = (b, −a).
         let (a, b) = (3e-6, -5e-6);
         let (pitch, roll) = portal_rotation(|x, y| a * x + b * y, &portal(), 900.0);
-        assert!((pitch + b).abs() < 1e-18 && (roll - a).abs() < 1e-18, "{pitch} {roll}");
+        assert!((pitch - b).abs() < 1e-18 && (roll + a).abs() < 1e-18, "{pitch} {roll}");
         // The tip of the physically tilted portal: p_true = o + R(α, β)(p − o) (exact rotation).
         let pr = portal();
         let curves = PortalCurves::new(vec![0.0, 2000.0], vec![pitch; 2], vec![roll; 2]).unwrap();
@@ -190,5 +192,21 @@ mod tests {
         // Residual is second order: |θ|²·|p − o| ≈ 3.4e-11·1000 mm ≈ 3e-8 mm.
         assert!((corrected - truth).norm() < 1e-7, "{}", (corrected - truth).norm());
         assert!((p - truth).norm() > 1e-3, "the test must have a visible error");
+    }
+
+    /// An independent hand calculation of the contract: rails at x = 0 and 2000, height 100,
+    /// portal at y = 900, so o = (1000, 900, 100). Pitch −5 µrad, roll −3 µrad (physical).
+    /// p = (1700, 900, 650): p − o = (700, 0, 550).
+    /// e = (θx, θy, 0) × (dx, dy, dz) = (θy·dz − 0·dy, 0·dx − θx·dz, θx·dy − θy·dx)
+    ///   = (−3e-6·550, 5e-6·550, 0 + 3e-6·700) = (−0.00165, 0.00275, 0.0021) mm,
+    /// corrected = p + e = (1699.99835, 900.00275, 650.0021).
+    #[test]
+    fn correction_matches_a_hand_calculation() {
+        let curves = PortalCurves::new(vec![0.0, 2000.0], vec![-5e-6; 2], vec![-3e-6; 2]).unwrap();
+        let lc = LoadCorrection::new(curves, &portal());
+        let c = lc.correct(&Point3::new(1700.0, 900.0, 650.0)).unwrap();
+        let want = Point3::new(1699.99835, 900.00275, 650.0021);
+        // Decimal inputs, a few operations: agreement to 1e-9 mm.
+        assert!((c - want).norm() < 1e-9, "{c} vs {want}");
     }
 }

@@ -62,12 +62,13 @@ fn superposed_map_equals_direct_solve_at_grid_nodes() {
     }
     assert!(peak > 1e-7, "the case must tilt the portal visibly ({peak} rad)");
     // Physics of the sign: a load ahead of the portal (larger y) sinks its front bearings; the
-    // reported pitch (the bed seen from the portal) is then positive. Load at y = 800, portal at
-    // y = 250; and a load near rail 2 (x = 1000) lowers rail 2: reported roll negative.
+    // portal tips forward, a negative rotation about +X: pitch negative. Load at y = 800, portal
+    // at y = 250; and a load near rail 2 (x = 1000) lowers rail 2, turning +Z towards +X: a
+    // positive rotation about +Y, roll positive.
     let ahead = map.superpose(&[(600.0, 800.0, 1000.0)]).unwrap();
-    assert!(ahead.at(250.0).unwrap().0 > 0.0);
+    assert!(ahead.at(250.0).unwrap().0 < 0.0);
     let right = map.superpose(&[(1000.0, 500.0, 1000.0)]).unwrap();
-    assert!(right.at(500.0).unwrap().1 < 0.0);
+    assert!(right.at(500.0).unwrap().1 > 0.0);
 }
 
 #[test]

@@ -152,9 +152,11 @@ impl Program {
         let mut special = None;
         let mut comments = Vec::new();
         for t in self.line_tokens(i) {
-            match t.kind {
-                TokenKind::ParenComment { .. } | TokenKind::SemicolonComment => comments.push(self.text(t)),
-                TokenKind::Word { letter, value, .. } => match letter {
+            if matches!(t.kind, TokenKind::ParenComment { .. } | TokenKind::SemicolonComment) {
+                comments.push(self.text(t));
+            }
+            if let Some((letter, value)) = t.word() {
+                match letter {
                     b'G' => {
                         let g = value;
                         if is_code(g, 0.0) {
@@ -205,8 +207,7 @@ impl Program {
                     b'K' => ijk[2] = Some(value),
                     b'R' => r = Some(value),
                     _ => {}
-                },
-                _ => {}
+                }
             }
         }
         if m.units != before.units {

@@ -27,6 +27,14 @@ pub enum TokenKind {
     Malformed {
         letter: u8,
     },
+    /// A letter whose value is an expression or parameter (`X[#1+2]`, `X#100`, `XSIN[30]`);
+    /// `value` is filled in when the program's parameters determine it.
+    Expr {
+        letter: u8,
+        value: Option<f64>,
+    },
+    /// A parameter setting, `#1=2` or `#<name> = [expr]`.
+    Assign,
     Percent,
     /// Anything else, verbatim.
     Other,
@@ -41,9 +49,11 @@ pub struct Token {
 
 impl Token {
     /// The word's letter and value, if this is a word.
+    /// An expression word counts once its value is known.
     pub fn word(&self) -> Option<(u8, f64)> {
         match self.kind {
             TokenKind::Word { letter, value, .. } => Some((letter, value)),
+            TokenKind::Expr { letter, value: Some(value) } => Some((letter, value)),
             _ => None,
         }
     }
@@ -129,12 +139,22 @@ fn lex_line(src: &str, start: usize, end: usize, out: &mut Vec<Token>) {
                 TokenKind::Whitespace
             }
             b'(' => {
-                i += 1;
-                while i < end && b[i] != b')' {
-                    i += 1;
-                }
-                let closed = i < end;
-                if closed {
+                // Nested parentheses stay inside the comment: `(a (b) X99)` is one comment.
+                let mut depth = 0usize;
+                let mut closed = false;
+                while i < end {
+                    match b[i] {
+                        b'(' => depth += 1,
+                        b')' => {
+                            depth -= 1;
+                            if depth == 0 {
+                                i += 1;
+                                closed = true;
+                                break;
+                            }
+                        }
+                        _ => {}
+                    }
                     i += 1;
                 }
                 TokenKind::ParenComment { closed }
@@ -149,40 +169,50 @@ fn lex_line(src: &str, start: usize, end: usize, out: &mut Vec<Token>) {
             }
             c if c.is_ascii_alphabetic() => {
                 i += 1;
-                match lex_number(b, i, end) {
-                    Some((n_end, value, decimals, clean)) => {
-                        i = n_end;
-                        if clean {
-                            TokenKind::Word { letter: c.to_ascii_uppercase(), value, decimals }
-                        } else {
-                            TokenKind::Malformed { letter: c.to_ascii_uppercase() }
+                let letter = c.to_ascii_uppercase();
+                let num_start = if i < end && (b[i] == b'+' || b[i] == b'-') { i + 1 } else { i };
+                let numeric = num_start < end && (b[num_start].is_ascii_digit() || b[num_start] == b'.');
+                if numeric {
+                    match lex_number(b, i, end) {
+                        Some((n_end, value, decimals, true))
+                            if value.is_finite() && ends_value(b, n_end, end) =>
+                        {
+                            i = n_end;
+                            TokenKind::Word { letter, value, decimals }
+                        }
+                        _ => {
+                            i = skip_malformed(b, i, end);
+                            TokenKind::Malformed { letter }
                         }
                     }
-                    None => {
-                        // A letter without a number: keep the letter with what follows up to the
-                        // next space, comment or letter (e.g. `X#1`, `X[1+2]`), verbatim.
-                        let mut depth = 0i32;
-                        while i < end {
-                            let d = b[i];
-                            if d == b'[' {
-                                depth += 1;
-                            } else if d == b']' {
-                                depth -= 1;
-                            } else if depth <= 0
-                                && (d == b' '
-                                    || d == b'\t'
-                                    || d == b'('
-                                    || d == b';'
-                                    || d.is_ascii_alphabetic())
-                            {
-                                break;
-                            }
-                            i += 1;
+                } else if i < end && starts_expression(b, i, end) {
+                    match crate::expr::parse_value(&b[i..end]) {
+                        Ok((_, n)) if ends_value(b, i + n, end) => {
+                            i += n;
+                            TokenKind::Expr { letter, value: None }
                         }
-                        TokenKind::Other
+                        _ => {
+                            i = skip_malformed(b, i, end);
+                            TokenKind::Malformed { letter }
+                        }
                     }
+                } else {
+                    // A letter without a value (`X`, `Xabc`, `XNaN`): malformed up to the next
+                    // space or comment.
+                    i = skip_malformed(b, i, end);
+                    TokenKind::Malformed { letter }
                 }
             }
+            b'#' => match crate::expr::parse_assignment(&b[i..end]) {
+                Ok((_, _, n)) if ends_value(b, i + n, end) => {
+                    i += n;
+                    TokenKind::Assign
+                }
+                _ => {
+                    i = skip_malformed(b, i + 1, end);
+                    TokenKind::Other
+                }
+            },
             _ => {
                 // Verbatim run up to the next space, comment or letter. Multi-byte UTF-8
                 // characters are consumed whole.
@@ -211,6 +241,61 @@ fn lex_line(src: &str, start: usize, end: usize, out: &mut Vec<Token>) {
         };
         out.push(Token { kind, start: s, end: i });
     }
+}
+
+/// Whether a word's value may end at `at`: end of line, a space, a comment or the next word.
+/// `X1,5`, `X1e5`, `X1=2` are not values that end cleanly.
+fn ends_value(b: &[u8], at: usize, end: usize) -> bool {
+    if at >= end {
+        return true;
+    }
+    match b[at] {
+        b' ' | b'\t' | b'\r' | b'(' | b';' => true,
+        b'e' | b'E' => {
+            !b.get(at + 1).is_some_and(|c| c.is_ascii_digit() || *c == b'+' || *c == b'-' || *c == b'.')
+        }
+        c => c.is_ascii_alphabetic(),
+    }
+}
+
+/// Skip a malformed value up to the next space or comment (or the line end).
+fn skip_malformed(b: &[u8], from: usize, end: usize) -> usize {
+    let mut i = from;
+    let mut depth = 0i32;
+    while i < end {
+        match b[i] {
+            b'[' => depth += 1,
+            b']' => depth -= 1,
+            b' ' | b'\t' | b'(' | b';' if depth <= 0 => break,
+            _ => {}
+        }
+        i += 1;
+    }
+    // Never split a multi-byte character.
+    while i < end && (b[i] & 0xC0) == 0x80 {
+        i += 1;
+    }
+    i
+}
+
+/// Whether the text after a word letter starts an expression value: `[`, `#`, a sign before
+/// one of those, or a function name followed by `[`.
+fn starts_expression(b: &[u8], i: usize, end: usize) -> bool {
+    let mut j = i;
+    while j < end && (b[j] == b'+' || b[j] == b'-') {
+        j += 1;
+    }
+    if j >= end {
+        return false;
+    }
+    if b[j] == b'[' || b[j] == b'#' {
+        return true;
+    }
+    let k0 = j;
+    while j < end && b[j].is_ascii_alphabetic() {
+        j += 1;
+    }
+    j > k0 && j < end && b[j] == b'['
 }
 
 /// A number after a word letter: `[+-]? (digits [. digits*] | . digits)`. Returns the end, the
@@ -308,10 +393,44 @@ mod tests {
         assert!(matches!(k[0].0, TokenKind::Malformed { letter: b'X' }));
         assert_eq!(k[0].1, "X1.2.3");
         assert!(matches!(k[2].0, TokenKind::Malformed { letter: b'Y' }));
-        assert_eq!(k[4].0, TokenKind::Other);
+        assert_eq!(k[4].0, TokenKind::Assign);
         assert_eq!(k[4].1, "#1=2");
         assert_eq!(k[6].1, "X[#1+2]");
-        assert_eq!(k[6].0, TokenKind::Other);
+        assert_eq!(k[6].0, TokenKind::Expr { letter: b'X', value: None });
         assert!(matches!(k[8].0, TokenKind::Malformed { letter: b'Z' }));
+    }
+
+    /// Words without a valid number are malformed tokens that keep their whole text.
+    #[test]
+    fn words_without_a_valid_number() {
+        for (s, tok) in [
+            ("G1 Xabc Y1", "Xabc"),
+            ("G1 X Y1", "X"),
+            ("G1 XNaN Y1", "XNaN"),
+            ("G1 X1,5 Y1", "X1,5"),
+            ("G1 X1e999 Y1", "X1e999"),
+            ("G1 X1E5", "X1E5"),
+            ("G1 X-inf", "X-inf"),
+            ("G1 X[1+ Y1", "X[1+ Y1"),
+            ("G1 X1=2", "X1=2"),
+        ] {
+            let k = kinds(s);
+            let m: Vec<_> = k.iter().filter(|t| matches!(t.0, TokenKind::Malformed { .. })).collect();
+            assert_eq!(m.len(), 1, "{s}: {k:?}");
+            assert_eq!(m[0].1, tok, "{s}");
+        }
+        let big = format!("X1{}", "0".repeat(400));
+        assert!(matches!(kinds(&big)[0].0, TokenKind::Malformed { .. }));
+        // Words packed without spaces are still words.
+        let k = kinds("G1X1.5Y-2F100");
+        assert_eq!(k.len(), 4);
+        assert!(k.iter().all(|t| matches!(t.0, TokenKind::Word { .. })));
+    }
+
+    #[test]
+    fn nested_comments_are_one_token() {
+        let k = kinds("G1 (a (b) X99) X1 ; c (d) X2");
+        let texts: Vec<&str> = k.iter().map(|k| k.1.as_str()).collect();
+        assert_eq!(texts, vec!["G1", " ", "(a (b) X99)", " ", "X1", " ", "; c (d) X2"]);
     }
 }

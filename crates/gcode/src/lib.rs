@@ -14,6 +14,7 @@
 //!   controller would execute them — used for trickle feeding.
 //! - [`Program::transform`]: rewrite the program through `new_from_old` (mm).
 
+mod expr;
 mod interp;
 mod lex;
 mod rewrite;
@@ -27,7 +28,7 @@ use thiserror::Error;
 /// Errors with the 1-based line and column of the offending token.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum GcodeError {
-    #[error("line {line}, column {column}: malformed number '{text}'")]
+    #[error("line {line}, column {column}: malformed number '{text}' (a word needs a finite decimal number or a [expression])")]
     MalformedNumber { line: usize, column: usize, text: String },
     #[error("line {line}, column {column}: {message}")]
     Unsupported { line: usize, column: usize, message: String },
@@ -42,7 +43,9 @@ impl GcodeError {
     /// The message without the location (for callers that add file, line and column).
     pub fn detail(&self) -> String {
         match self {
-            GcodeError::MalformedNumber { text, .. } => format!("malformed number '{text}'"),
+            GcodeError::MalformedNumber { text, .. } => {
+                format!("malformed number '{text}' (a word needs a finite decimal number or a [expression])")
+            }
             GcodeError::Unsupported { message, .. } => message.clone(),
         }
     }
@@ -77,7 +80,16 @@ impl Program {
     /// Tokenise `source`. Never fails: unknown or malformed text becomes tokens that are kept
     /// verbatim (see [`Program::check`] for malformed numbers).
     pub fn parse(source: &str) -> Program {
-        lex::parse(source)
+        let mut p = lex::parse(source);
+        if p.tokens.iter().any(|t| matches!(t.kind, TokenKind::Expr { .. })) {
+            let (values, _) = p.evaluate();
+            for (ti, v) in values {
+                if let TokenKind::Expr { letter, .. } = p.tokens[ti].kind {
+                    p.tokens[ti].kind = TokenKind::Expr { letter, value: Some(v) };
+                }
+            }
+        }
+        p
     }
 
     /// The text of a token.
@@ -96,20 +108,114 @@ impl Program {
         &self.source[l.start..l.end]
     }
 
-    /// First malformed number, with its line and column.
+    /// The first thing in the program that truepos cannot execute exactly, with its line and
+    /// column: a malformed number (`X`, `Xabc`, `XNaN`, `X1,5`, `X1e999`), an expression that
+    /// cannot be evaluated (a parameter not set earlier in the program, a domain error), O-word
+    /// control flow, an unclosed comment, or text that is not G-code. Passing this check means
+    /// every word's value is known.
     pub fn check(&self) -> Result<(), GcodeError> {
+        self.evaluate().1
+    }
+
+    /// Evaluate parameters and expressions in program order (see the `expr` module): the
+    /// values of expression words (token index, value) up to the first error, and that error.
+    fn evaluate(&self) -> (Vec<(usize, f64)>, Result<(), GcodeError>) {
+        const FLOW: [&str; 15] = [
+            "sub",
+            "endsub",
+            "call",
+            "do",
+            "while",
+            "endwhile",
+            "if",
+            "elseif",
+            "else",
+            "endif",
+            "break",
+            "continue",
+            "repeat",
+            "endrepeat",
+            "return",
+        ];
+        let mut params = expr::Params::default();
+        let mut values = Vec::new();
         for (i, l) in self.lines.iter().enumerate() {
-            for t in &self.tokens[l.tokens.clone()] {
-                if let TokenKind::Malformed { .. } = t.kind {
-                    return Err(GcodeError::MalformedNumber {
-                        line: i + 1,
-                        column: self.source[l.start..t.start].chars().count() + 1,
-                        text: self.text(t).to_string(),
-                    });
+            let mut pending: Vec<(expr::Key, f64)> = Vec::new();
+            let mut has_o = false;
+            for ti in l.tokens.clone() {
+                let t = &self.tokens[ti];
+                let text = self.text(t);
+                let column = self.source[l.start..t.start].chars().count() + 1;
+                let unsupported = |message: String| -> GcodeError {
+                    GcodeError::Unsupported { line: i + 1, column, message }
+                };
+                let res: Result<(), GcodeError> = match t.kind {
+                    TokenKind::Word { letter: b'O', .. } => {
+                        has_o = true;
+                        Ok(())
+                    }
+                    TokenKind::Malformed { letter } => {
+                        let lower = text.to_ascii_lowercase();
+                        if (letter == b'O' && text[1..].starts_with('<'))
+                            || (has_o && FLOW.contains(&lower.as_str()))
+                        {
+                            Err(unsupported(format!(
+                                "O-word subroutines and control flow ('{text}') are not supported: truepos \
+                                 follows a program line by line and cannot know which lines run how often"
+                            )))
+                        } else {
+                            Err(GcodeError::MalformedNumber { line: i + 1, column, text: text.to_string() })
+                        }
+                    }
+                    TokenKind::ParenComment { closed: false } => {
+                        Err(unsupported("comment '(' is not closed on this line".into()))
+                    }
+                    TokenKind::Other => {
+                        let block_delete = text == "/"
+                            && self.tokens[l.tokens.start..ti]
+                                .iter()
+                                .all(|x| x.kind == TokenKind::Whitespace);
+                        let bom = t.start == 0 && text == "\u{feff}";
+                        if block_delete || bom {
+                            Ok(())
+                        } else {
+                            Err(unsupported(format!(
+                                "'{text}' is not G-code (expected words such as G1 or X10.5)"
+                            )))
+                        }
+                    }
+                    TokenKind::Expr { .. } => match expr::parse_value(&text.as_bytes()[1..]) {
+                        Ok((e, _)) => match params.eval(&e) {
+                            Ok(v) => {
+                                values.push((ti, v));
+                                Ok(())
+                            }
+                            Err(m) => Err(unsupported(format!("cannot evaluate '{text}': {m}"))),
+                        },
+                        Err(e) => Err(unsupported(format!("'{text}': {}", e.message))),
+                    },
+                    TokenKind::Assign => match expr::parse_assignment(text.as_bytes()) {
+                        Ok((r, e, _)) => match params.key(&r).and_then(|k| params.eval(&e).map(|v| (k, v))) {
+                            Ok(kv) => {
+                                pending.push(kv);
+                                Ok(())
+                            }
+                            Err(m) => Err(unsupported(format!("cannot evaluate '{text}': {m}"))),
+                        },
+                        Err(e) => Err(unsupported(format!("'{text}': {}", e.message))),
+                    },
+                    _ => Ok(()),
+                };
+                if let Err(e) = res {
+                    return (values, Err(e));
                 }
             }
+            // Settings take effect after every value on the line has been read.
+            for (k, v) in pending {
+                params.set(k, v);
+            }
         }
-        Ok(())
+        (values, Ok(()))
     }
 
     /// 1-based column of a token on line `i`.

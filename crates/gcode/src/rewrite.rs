@@ -11,7 +11,9 @@
 //!   increments taken as differences of rounded absolute values so no rounding drift accumulates.
 //! - Arcs: I/J/K (incremental) rotate as vectors and R scales when the transform keeps the arc
 //!   plane (a plane turned over swaps G2/G3, which must then be on the line); a transform that
-//!   tilts the arc plane is refused with the line and column.
+//!   tilts the arc plane is refused with the line and column, or, with
+//!   [`ArcPolicy::Linearize`], the arc is replaced by G1 chords of the exactly transformed arc
+//!   whose chord error (sagitta) stays within the tolerance, output rounding included.
 //! - Canned cycles (G81–G89) are transformed when the rotation keeps the Z axis; G92 is refused;
 //!   G53 (machine coordinates) and G10 lines are copied unchanged.
 
@@ -21,10 +23,13 @@ use crate::{GcodeError, Program};
 use truepos_math::Transform3;
 
 /// What to do with an arc whose plane the transform tilts.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum ArcPolicy {
     #[default]
     Refuse,
+    /// Replace an arc whose plane the transform tilts by straight G1 moves whose largest
+    /// distance from the exact (transformed) arc is at most `tolerance_mm`.
+    Linearize { tolerance_mm: f64 },
 }
 
 #[derive(Debug, Clone)]
@@ -90,6 +95,8 @@ impl Program {
         new_from_old: &Transform3,
         opts: &TransformOptions,
     ) -> Result<String, GcodeError> {
+        // Every word's value must be known (no malformed numbers, expressions evaluated).
+        self.check()?;
         let s = new_from_old.scale;
         let r = new_from_old.rotation;
         let t = new_from_old.translation;
@@ -131,9 +138,7 @@ impl Program {
                 column: tok.map_or(1, |tk| self.column_of(i, tk)),
                 message,
             };
-            let axis_token = |letter: u8| {
-                toks.iter().position(|tk| matches!(tk.kind, TokenKind::Word { letter: l, .. } if l == letter))
-            };
+            let axis_token = |letter: u8| toks.iter().position(|tk| tk.word().is_some_and(|w| w.0 == letter));
             match blk.special {
                 Some(Special::SetPosition) => {
                     return Err(err(
@@ -164,6 +169,46 @@ impl Program {
                 copy(&mut out);
                 old = blk.after;
                 continue;
+            }
+            if moving && blk.after.pos.iter().any(|p| p.is_none()) {
+                // The machine's position on an axis the move does not give is unknown: the
+                // transformed move could not say where it goes (contract: a start position).
+                let given: String =
+                    (0..3).filter(|&k| blk.axes[k].is_some()).map(|k| AXES[k] as char).collect();
+                let missing: Vec<String> = (0..3)
+                    .filter(|&k| blk.after.pos[k].is_none())
+                    .map(|k| (AXES[k] as char).to_string())
+                    .collect();
+                let first = (0..3).find_map(|k| axis_token(AXES[k])).map(|x| &toks[x]);
+                return Err(err(
+                    first,
+                    format!(
+                        "this motion gives only {given} and the {} position before it is not known (give it \
+                         earlier in the program, or the start position: orient --start-mm X,Y,Z in the \
+                         program's coordinates)",
+                        missing.join(", ")
+                    ),
+                ));
+            }
+            let is_arc = matches!(blk.after.motion, MotionMode::ArcCw | MotionMode::ArcCcw);
+            if let (true, true, ArcPolicy::Linearize { tolerance_mm }) =
+                (is_arc && moving, has_centre, opts.arc_policy)
+            {
+                let n = blk.after.plane.normal_axis();
+                if (r[(n, n)].abs() - 1.0).abs() > MIX_EPS {
+                    self.linearize_arc(
+                        i,
+                        &blk,
+                        &old,
+                        new_from_old,
+                        tolerance_mm,
+                        dec,
+                        &mut written,
+                        &mut out,
+                    )?;
+                    old = blk.after;
+                    continue;
+                }
             }
             let mut edits = Edits::default();
             if let MotionMode::Cycle(_) = blk.after.motion {
@@ -322,12 +367,178 @@ impl Program {
         Ok(out)
     }
 
+    /// Replace arc block `blk` (line `i`) by G1 chords of the transformed arc (see
+    /// [`ArcPolicy::Linearize`]): the intermediate points on lines of their own before the
+    /// block, the end point on the block's own line (G2/G3 becomes G1, I/J/K/R are removed, a
+    /// feed word moves to the first chord so the whole arc runs at it).
+    #[allow(clippy::too_many_arguments)]
+    fn linearize_arc(
+        &self,
+        i: usize,
+        blk: &crate::Block<'_>,
+        old: &Modal,
+        new_from_old: &Transform3,
+        tolerance_mm: f64,
+        dec: u8,
+        written: &mut [Option<f64>; 3],
+        out: &mut String,
+    ) -> Result<(), GcodeError> {
+        let line = &self.lines[i];
+        let toks = &self.tokens[line.tokens.clone()];
+        let find = |letter: u8| toks.iter().position(|tk| tk.word().is_some_and(|w| w.0 == letter));
+        let err = |letter: Option<u8>, message: String| GcodeError::Unsupported {
+            line: i + 1,
+            column: letter.and_then(&find).map_or(1, |k| self.column_of(i, &toks[k])),
+            message,
+        };
+        if !(tolerance_mm.is_finite() && tolerance_mm > 0.0) {
+            return Err(err(
+                None,
+                format!("arc tolerance must be a positive number of mm, got {tolerance_mm}"),
+            ));
+        }
+        if !blk.after.absolute {
+            return Err(err(
+                Some(b'G'),
+                "linearising an arc in incremental mode (G91) is not supported".into(),
+            ));
+        }
+        let u = blk.after.units.mm();
+        let (Some(start), Some(end)) = (
+            old.pos.iter().map(|v| v.map(|x| x * u)).collect::<Option<Vec<f64>>>(),
+            blk.after.pos.iter().map(|v| v.map(|x| x * u)).collect::<Option<Vec<f64>>>(),
+        ) else {
+            return Err(err(
+                None,
+                "the arc's start position is not known (give it earlier, or a start position)".into(),
+            ));
+        };
+        // Plane axes (a, b) with a × b = +normal: G17 (X, Y), G18 (Z, X), G19 (Y, Z).
+        let n = blk.after.plane.normal_axis();
+        let (ia, ib) = ((n + 1) % 3, (n + 2) % 3);
+        let ccw = blk.after.motion == MotionMode::ArcCcw;
+        let (sa, sb, ea, eb) = (start[ia], start[ib], end[ia], end[ib]);
+        let (ca, cb) = if blk.ijk.iter().any(|v| v.is_some()) {
+            let off = |k: usize| blk.ijk[k].unwrap_or(0.0) * u;
+            if blk.after.arc_absolute {
+                (off(ia), off(ib))
+            } else {
+                (sa + off(ia), sb + off(ib))
+            }
+        } else if let Some(rr) = blk.r {
+            // Radius form: the centre on the perpendicular bisector; R < 0 takes the long way.
+            let rr = rr * u;
+            let (dx, dy) = (ea - sa, eb - sb);
+            let d = dx.hypot(dy);
+            if d <= 0.0 || d > 2.0 * rr.abs() * (1.0 + 1e-9) {
+                return Err(err(
+                    Some(b'R'),
+                    format!("no arc of radius {} joins the start and the end", rr / u),
+                ));
+            }
+            let h = (rr * rr - 0.25 * d * d).max(0.0).sqrt();
+            // Left of the chord for a counter-clockwise short arc.
+            let side = if ccw == (rr > 0.0) { 1.0 } else { -1.0 };
+            (0.5 * (sa + ea) - side * h * dy / d, 0.5 * (sb + eb) + side * h * dx / d)
+        } else {
+            return Err(err(None, "an arc needs I/J/K or R".into()));
+        };
+        let r0 = (sa - ca).hypot(sb - cb);
+        let r1 = (ea - ca).hypot(eb - cb);
+        if r0 <= 0.0 || r1 <= 0.0 {
+            return Err(err(None, "the arc has zero radius".into()));
+        }
+        let th0 = (sb - cb).atan2(sa - ca);
+        let mut sweep = (eb - cb).atan2(ea - ca) - th0;
+        let tau = std::f64::consts::TAU;
+        if ccw {
+            while sweep <= 1e-12 {
+                sweep += tau;
+            }
+        } else {
+            while sweep >= -1e-12 {
+                sweep -= tau;
+            }
+        }
+        // Chord error of a step φ on radius ρ: ρ(1 − cos(φ/2)). Output rounding moves each point
+        // by at most half a unit of the last decimal per axis (√3/2 of it in space).
+        let round_err = 0.5 * 3f64.sqrt() * 10f64.powi(-(dec as i32)) * u;
+        let budget = tolerance_mm - round_err;
+        if budget <= 0.0 {
+            return Err(err(None, format!("an arc tolerance of {tolerance_mm} mm is below the output resolution; write more decimals")));
+        }
+        let rho = r0.max(r1);
+        let phi = if budget >= rho { std::f64::consts::PI } else { 2.0 * (1.0 - budget / rho).acos() };
+        let steps = ((sweep.abs() / phi).ceil() as usize).max(1);
+        if steps > 1_000_000 {
+            return Err(err(
+                None,
+                format!("linearising this arc within {tolerance_mm} mm would take {steps} moves"),
+            ));
+        }
+        let point = |k: usize| -> truepos_math::Point3 {
+            let f = k as f64 / steps as f64;
+            let th = th0 + sweep * f;
+            let rad = r0 + (r1 - r0) * f;
+            let mut p = [0.0; 3];
+            p[ia] = ca + rad * th.cos();
+            p[ib] = cb + rad * th.sin();
+            p[n] = start[n] + (end[n] - start[n]) * f;
+            new_from_old.apply(&truepos_math::Point3::new(p[0], p[1], p[2]))
+        };
+        let eol = &self.source[line.end..line.next];
+        let eol = if eol.is_empty() { "\n" } else { eol };
+        let feed = find(b'F').map(|k| self.text(&toks[k]).to_string());
+        let fmt_point = |q: &truepos_math::Point3| {
+            format!("X{} Y{} Z{}", fmt_num(q.x / u, dec), fmt_num(q.y / u, dec), fmt_num(q.z / u, dec))
+        };
+        for k in 1..steps {
+            let q = point(k);
+            out.push_str("G1 ");
+            out.push_str(&fmt_point(&q));
+            if k == 1 {
+                if let Some(fw) = &feed {
+                    out.push(' ');
+                    out.push_str(fw);
+                }
+            }
+            out.push_str(eol);
+        }
+        // The block's own line: G2/G3 → G1, centre words removed, the end point written.
+        let q = point(steps);
+        let mut edits = Edits::default();
+        let g = toks.iter().position(|tk| {
+            tk.word().is_some_and(|w| w.0 == b'G' && ((w.1 - 2.0).abs() < 1e-6 || (w.1 - 3.0).abs() < 1e-6))
+        });
+        for letter in [b'I', b'J', b'K', b'R'] {
+            if let Some(k) = find(letter) {
+                edits.replace.push((k, String::new()));
+            }
+        }
+        let axis_pos: Vec<usize> = (0..3).filter_map(|k| find(AXES[k])).collect();
+        for (k, letter) in AXES.iter().enumerate() {
+            let v = [q.x, q.y, q.z][k] / u;
+            match find(*letter) {
+                Some(ti) => edits.replace.push((ti, fmt_num(v, dec))),
+                None => self.plan_insert(toks, &mut edits, k, &AXES, &fmt_num(v, dec)),
+            }
+            written[k] = Some(round_to(v, dec));
+        }
+        match g {
+            Some(gi) => edits.replace.push((gi, "1".into())),
+            None => {
+                let first = axis_pos.first().copied().unwrap_or(0);
+                edits.insert_before.push((first, "G1 ".into()));
+            }
+        }
+        self.emit_line(i, &edits, out);
+        Ok(())
+    }
+
     /// Plan the insertion of word `letters[k]` with value text `v` next to the other words of its group.
     fn plan_insert(&self, toks: &[crate::Token], edits: &mut Edits, k: usize, letters: &[u8; 3], v: &str) {
         let spaced = toks.iter().any(|tk| tk.kind == TokenKind::Whitespace);
-        let find = |letter: u8| {
-            toks.iter().position(|tk| matches!(tk.kind, TokenKind::Word { letter: l, .. } if l == letter))
-        };
+        let find = |letter: u8| toks.iter().position(|tk| tk.word().is_some_and(|w| w.0 == letter));
         let word = format!("{}{}", letters[k] as char, v);
         if let Some(ti) = (0..k).rev().find_map(|j| find(letters[j])) {
             edits.insert_after.push((ti, if spaced { format!(" {word}") } else { word }));
@@ -351,6 +562,7 @@ impl Program {
                 out.push_str(s);
             }
             match edits.replace.iter().find(|(j, _)| *j == ti) {
+                Some((_, v)) if v.is_empty() => {}
                 Some((_, v)) => {
                     // Keep the letter as written (its case), replace the number.
                     out.push_str(&self.source[tk.start..tk.start + 1]);
@@ -416,7 +628,7 @@ mod tests {
     fn huge_values_are_not_rewritten_by_the_identity() {
         for p in [
             "G3 X0 Y0 Z0 r22222222222222222222222222222222222222222222222222g3g3\n",
-            "G90 G0 X1e300 Y2 Z3\nG1 X123456789012345678.25\n",
+            "G90 G0 X100000000000000000000000000000000000000000000000000000000000 Y2 Z3\nG1 X123456789012345678.25\n",
         ] {
             assert_eq!(tr(p, Transform3::identity()).unwrap(), p);
         }
@@ -434,6 +646,23 @@ mod tests {
         let end = b.last().unwrap().after.pos;
         let expect = t.apply(&truepos_math::Point3::new(100.0, 0.0, 0.0));
         assert!((end[0].unwrap() - expect.x).abs() < 1e-4 && (end[1].unwrap() - expect.y).abs() < 1e-4);
+    }
+
+    /// A first motion that gives only Z is refused without a start position, whatever the
+    /// transform (even a pure translation), and transformed with one.
+    #[test]
+    fn partial_first_motion_needs_a_start_position() {
+        let p = "N10 G21 G90\nN20 G0 Z50.\nN30 G1 X10 Y20 F100\n";
+        let shift = Transform3::rigid(truepos_math::Matrix3::identity(), Vector3::new(1.0, 2.0, 3.0));
+        let e = tr(p, shift).unwrap_err();
+        assert_eq!((e.line(), e.column()), (2, 8), "{e}");
+        assert!(e.to_string().contains("start-mm"), "{e}");
+        let opts = TransformOptions { start_mm: Some([5.0, 6.0, 100.0]), ..Default::default() };
+        let out = Program::parse(p).transform(&shift, &opts).unwrap();
+        // The machine starts at (5, 6, 100) of the program's frame = (6, 8, 103) of the new one;
+        // a translation keeps X and Y where they are, so the Z move stays a Z move.
+        assert_eq!(out.lines().nth(1).unwrap(), "N20 G0 Z53.0000");
+        assert_eq!(out.lines().nth(2).unwrap(), "N30 G1 X11.0000 Y22.0000 F100");
     }
 
     #[test]

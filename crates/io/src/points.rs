@@ -99,14 +99,22 @@ pub struct IdPoints {
     pub table: Table,
 }
 
-/// Read a CSV of points with ids (`id,x_mm,y_mm,z_mm`); a duplicate id is an error naming both
-/// lines.
+/// Read a CSV of points with ids (`id,x_mm,y_mm,z_mm`); an empty id, or a duplicate id (naming
+/// both lines), is an error.
 pub fn read_id_points(path: &Path) -> Result<IdPoints, InputError> {
     let table = Table::read(path)?;
     let xyz = table.f64_columns(&["x_mm", "y_mm", "z_mm"])?;
     let ids = table.str_column("id")?;
     let mut seen = HashMap::new();
     for (i, id) in ids.iter().enumerate() {
+        if id.trim().is_empty() {
+            return Err(InputError::at(
+                path,
+                table.line_number(i),
+                table.column("id").map(|c| c + 1),
+                "empty id: every point needs an id to be matched",
+            ));
+        }
         if let Some(prev) = seen.insert(id.clone(), i) {
             return Err(InputError::at(
                 path,

@@ -6,8 +6,12 @@
 //! R = 8.314472 J/(mol·K), and the Birch & Downs Edlén equation with NIST's modified water-vapour
 //! term. A laser tracker or interferometer measures `distance = optical path / n`.
 //!
-//! Entry points: [`refractive_index`], [`AirConditions`], [`Formula`], [`validity_warning`],
+//! Entry points: [`refractive_index`], [`AirConditions`], [`Formula`], [`validity_range`],
 //! [`saturation_vapour_pressure_pa`].
+//!
+//! Outside the range where NIST states the equations' uncertainty (section VI of the calculator's
+//! documentation) the result is refused, naming the quantity and the range: an index computed
+//! there is a number nobody can vouch for.
 
 use thiserror::Error;
 
@@ -56,6 +60,40 @@ pub enum AirError {
     Co2(f64),
     #[error("temperature must be above absolute zero, got {0} °C")]
     Temperature(f64),
+    #[error(
+        "{quantity} {value} {unit} is outside the range of the {formula} equation ({lo} to {hi} {unit}, \
+         as NIST states it)"
+    )]
+    OutOfRange {
+        quantity: &'static str,
+        value: f64,
+        unit: &'static str,
+        lo: f64,
+        hi: f64,
+        formula: &'static str,
+    },
+    #[error("the modified Edlén equation is for 450 ppm CO2 only (got {0} ppm); use the Ciddor equation")]
+    EdlenCo2(f64),
+}
+
+/// The range of one input where an equation is valid: (quantity, unit, low, high).
+pub type Range = (&'static str, &'static str, f64, f64);
+
+/// Where NIST states each equation valid (Stone & Zimmerman, section VI): Ciddor 300–1700 nm,
+/// −40–100 °C, 10–140 kPa, 0–100 % RH, 0–2000 µmol/mol CO2; modified Edlén 300–1700 nm,
+/// 0–40 °C, 60–140 kPa, 0–100 % RH, CO2 fixed at 450 µmol/mol.
+pub fn validity_range(formula: Formula) -> [Range; 5] {
+    let (lo_t, hi_t, lo_p, hi_co2) = match formula {
+        Formula::Ciddor => (-40.0, 100.0, 10_000.0, 2000.0),
+        Formula::Edlen => (0.0, 40.0, 60_000.0, 450.0),
+    };
+    [
+        ("wavelength", "nm", 300.0, 1700.0),
+        ("temperature", "°C", lo_t, hi_t),
+        ("pressure", "Pa", lo_p, 140_000.0),
+        ("humidity", "%", 0.0, 100.0),
+        ("CO2", "ppm", if formula == Formula::Edlen { 450.0 } else { 0.0 }, hi_co2),
+    ]
 }
 
 /// Saturation vapour pressure (Pa): over water for t ≥ 0 °C (IAPWS 1997), over ice below.
@@ -128,9 +166,26 @@ fn check(c: &AirConditions) -> Result<(), AirError> {
     Ok(())
 }
 
-/// The refractive index of air (phase index) for the given conditions.
+/// The refractive index of air (phase index) for the given conditions; conditions outside the
+/// equation's validity range ([`validity_range`]) are an error naming the quantity and the range.
 pub fn refractive_index(c: &AirConditions, formula: Formula) -> Result<f64, AirError> {
     check(c)?;
+    let name = match formula {
+        Formula::Ciddor => "Ciddor",
+        Formula::Edlen => "modified Edlén",
+    };
+    let values = [c.wavelength_nm, c.temperature_c, c.pressure_pa, c.humidity_pct, c.co2_ppm];
+    for ((quantity, unit, lo, hi), value) in validity_range(formula).into_iter().zip(values) {
+        if formula == Formula::Edlen && quantity == "CO2" {
+            if (value - 450.0).abs() > 1e-9 {
+                return Err(AirError::EdlenCo2(value));
+            }
+            continue;
+        }
+        if !(lo..=hi).contains(&value) {
+            return Err(AirError::OutOfRange { quantity, value, unit, lo, hi, formula: name });
+        }
+    }
     Ok(match formula {
         Formula::Ciddor => ciddor(c),
         Formula::Edlen => edlen(c),
@@ -170,32 +225,6 @@ fn edlen(c: &AirConditions) -> f64 {
     let x = (1.0 + 1e-8 * (0.601 - 0.00972 * t) * p) / (1.0 + 0.003661 * t);
     let ntp = 1.0 + p * (ns - 1.0) * x / 96095.43;
     ntp - 1e-10 * (292.75 / (t + 273.15)) * (3.7345 - 0.0401 * s) * pv
-}
-
-/// A warning when the conditions are outside the range where NIST states the equation's
-/// uncertainty (Ciddor: 300–1700 nm, −40–100 °C, 10–140 kPa; Edlén: 300–1700 nm, 0–40 °C,
-/// 60–140 kPa, CO2 near 450 ppm).
-pub fn validity_warning(c: &AirConditions, formula: Formula) -> Option<String> {
-    let (lo_t, hi_t, lo_p) = match formula {
-        Formula::Ciddor => (-40.0, 100.0, 10_000.0),
-        Formula::Edlen => (0.0, 40.0, 60_000.0),
-    };
-    let mut w = Vec::new();
-    if !(300.0..=1700.0).contains(&c.wavelength_nm) {
-        w.push(format!("wavelength {} nm outside 300–1700 nm", c.wavelength_nm));
-    }
-    if !(lo_t..=hi_t).contains(&c.temperature_c) {
-        w.push(format!("temperature {} °C outside {lo_t}–{hi_t} °C", c.temperature_c));
-    }
-    if !(lo_p..=140_000.0).contains(&c.pressure_pa) {
-        w.push(format!("pressure {} Pa outside {lo_p}–140000 Pa", c.pressure_pa));
-    }
-    if formula == Formula::Edlen && (c.co2_ppm - 450.0).abs() > 1e-9 {
-        w.push(
-            "the modified Edlén equation assumes 450 ppm CO2 (use --formula ciddor for other values)".into(),
-        );
-    }
-    (!w.is_empty()).then(|| w.join("; "))
 }
 
 #[cfg(test)]
@@ -248,7 +277,13 @@ mod tests {
             (Formula::Ciddor, 60.0, 80.0, 1.0002340241754055),
         ];
         for (f, t, rh, n) in cases {
-            let v = refractive_index(&at(t, 101_325.0, rh, 633.0), f).unwrap();
+            // 60 °C is outside the range NIST states for the Edlén equation, which the public
+            // function refuses; the equation itself is checked here.
+            let c = at(t, 101_325.0, rh, 633.0);
+            let v = match f {
+                Formula::Ciddor => refractive_index(&c, f).unwrap(),
+                Formula::Edlen => edlen(&c),
+            };
             assert!((v - n).abs() < 1e-11, "{f:?} t {t} rh {rh}: {v} vs {n} (Δ {:e})", v - n);
         }
     }
@@ -277,6 +312,35 @@ mod tests {
             Formula::Edlen
         )
         .is_err());
+        // Outside the validity range: refused, naming the quantity and the range.
+        for (c, f, what) in [
+            (AirConditions { wavelength_nm: 0.633, ..Default::default() }, Formula::Ciddor, "wavelength"),
+            (AirConditions { pressure_pa: 1e12, ..Default::default() }, Formula::Ciddor, "pressure"),
+            (AirConditions { pressure_pa: 9_999.0, ..Default::default() }, Formula::Ciddor, "pressure"),
+            (AirConditions { humidity_pct: 150.0, ..Default::default() }, Formula::Ciddor, "humidity"),
+            (AirConditions { temperature_c: -300.0, ..Default::default() }, Formula::Ciddor, "temperature"),
+            (AirConditions { temperature_c: -41.0, ..Default::default() }, Formula::Ciddor, "temperature"),
+            (AirConditions { temperature_c: 41.0, ..Default::default() }, Formula::Edlen, "temperature"),
+            (AirConditions { co2_ppm: 2500.0, ..Default::default() }, Formula::Ciddor, "CO2"),
+            (AirConditions { co2_ppm: 400.0, ..Default::default() }, Formula::Edlen, "CO2"),
+            (AirConditions { wavelength_nm: 1701.0, ..Default::default() }, Formula::Edlen, "wavelength"),
+        ] {
+            let e = refractive_index(&c, f).expect_err(what).to_string();
+            assert!(e.contains(what), "{e}");
+        }
+        // The edges of the ranges are inside.
+        for c in [
+            AirConditions { temperature_c: -40.0, pressure_pa: 10_000.0, ..Default::default() },
+            AirConditions {
+                temperature_c: 100.0,
+                pressure_pa: 140_000.0,
+                humidity_pct: 0.0,
+                ..Default::default()
+            },
+            AirConditions { wavelength_nm: 300.0, co2_ppm: 2000.0, ..Default::default() },
+        ] {
+            refractive_index(&c, Formula::Ciddor).unwrap();
+        }
         // Frost point branch is continuous at 0 °C to within the difference of the two curves (~0.1 %).
         assert!(
             (saturation_vapour_pressure_pa(-1e-9) / saturation_vapour_pressure_pa(0.0) - 1.0).abs() < 2e-3

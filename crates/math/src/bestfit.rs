@@ -3,7 +3,8 @@
 //! Entry points: [`best_fit`] (weighted least squares, rigid or similarity, by the SVD of the
 //! 3×3 cross-covariance with the reflection guard — Kabsch/Umeyama), [`three_point`] (the classic
 //! 3-2-1 construction: first point is the origin, first→second the primary direction, the third
-//! fixes the plane), and [`residuals`].
+//! fixes the plane), [`scale_fit`] (the similarity scale alone, which two points determine), and
+//! [`residuals`].
 //!
 //! Only nalgebra's fixed-size 3×3 SVD is used (its dynamic SVD is wrong on some inputs).
 
@@ -19,8 +20,12 @@ pub enum BestFitError {
     TooFewPoints { needed: usize, got: usize },
     #[error("weights must be finite and non-negative, with a positive sum")]
     BadWeights,
-    #[error("the points are collinear (or coincide): the rotation about their line is undetermined")]
+    #[error("the points are collinear: the rotation about their line is undetermined")]
     Collinear,
+    #[error("all {which} points coincide (with non-zero weight): nothing to fit a {what} to")]
+    Coincident { which: &'static str, what: &'static str },
+    #[error("a coordinate is not a finite number")]
+    NotFinite,
     #[error("the singular value decomposition did not converge")]
     SvdFailed,
 }
@@ -34,7 +39,8 @@ pub struct BestFitOptions {
 
 /// Weighted least-squares transform `to_from_from` minimising `Σ wᵢ |to_i − T(from_i)|²`.
 ///
-/// `weights`: `None` for equal weights. Needs at least three non-collinear points.
+/// `weights`: `None` for equal weights. Needs at least three non-collinear points (with
+/// non-zero weight).
 pub fn best_fit(
     from: &[Point3],
     to: &[Point3],
@@ -47,6 +53,60 @@ pub fn best_fit(
     if from.len() < 3 {
         return Err(BestFitError::TooFewPoints { needed: 3, got: from.len() });
     }
+    let core = fit_core(from, to, weights, options.with_scale, "transform")?;
+    if core.rank_from < 2 {
+        return Err(BestFitError::Collinear);
+    }
+    Ok(core.transform)
+}
+
+/// The similarity scale of [`scale_fit`], with what the data determine.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScaleFit {
+    /// Best-fit ratio of `to` size to `from` size.
+    pub scale: f64,
+    /// A best-fit similarity transform with that scale. When the points are collinear (two
+    /// points, or a row of features) the rotation about their line is arbitrary.
+    pub transform: Transform3,
+    /// Whether the `from` points span more than a line (so the rotation is determined).
+    pub rotation_determined: bool,
+}
+
+/// The best-fit uniform scale between matched point sets (similarity fit, rotation and
+/// translation removed). Two points are enough: their distance ratio. Refuses coincident `from`
+/// or `to` points (no size to compare).
+pub fn scale_fit(from: &[Point3], to: &[Point3], weights: Option<&[f64]>) -> Result<ScaleFit, BestFitError> {
+    if from.len() != to.len() {
+        return Err(BestFitError::LengthMismatch(from.len(), to.len()));
+    }
+    if from.len() < 2 {
+        return Err(BestFitError::TooFewPoints { needed: 2, got: from.len() });
+    }
+    let core = fit_core(from, to, weights, true, "scale")?;
+    if core.var_to <= 0.0 || core.transform.scale <= 0.0 || !core.transform.scale.is_finite() {
+        return Err(BestFitError::Coincident { which: "measured (to)", what: "scale" });
+    }
+    Ok(ScaleFit {
+        scale: core.transform.scale,
+        transform: core.transform,
+        rotation_determined: core.rank_from >= 2,
+    })
+}
+
+struct Core {
+    transform: Transform3,
+    /// Rank of the weighted spread of `from` (0, 1 collinear, 2 planar, 3).
+    rank_from: usize,
+    var_to: f64,
+}
+
+fn fit_core(
+    from: &[Point3],
+    to: &[Point3],
+    weights: Option<&[f64]>,
+    with_scale: bool,
+    what: &'static str,
+) -> Result<Core, BestFitError> {
     if let Some(w) = weights {
         if w.len() != from.len() {
             return Err(BestFitError::LengthMismatch(from.len(), w.len()));
@@ -54,6 +114,9 @@ pub fn best_fit(
         if w.iter().any(|x| !x.is_finite() || *x < 0.0) {
             return Err(BestFitError::BadWeights);
         }
+    }
+    if from.iter().chain(to).any(|p| !p.coords.iter().all(|c| c.is_finite())) {
+        return Err(BestFitError::NotFinite);
     }
     let w = |i: usize| weights.map_or(1.0, |w| w[i]);
     let wsum: f64 = (0..from.len()).map(w).sum();
@@ -70,27 +133,26 @@ pub fn best_fit(
     ct /= wsum;
     let mut h = Matrix3::zeros();
     let mut var_from = 0.0;
+    let mut var_to = 0.0;
+    let mut spread = Matrix3::zeros();
     for i in 0..from.len() {
         let a = from[i].coords - cf;
         let b = to[i].coords - ct;
         h += w(i) * b * a.transpose();
         var_from += w(i) * a.norm_squared();
+        var_to += w(i) * b.norm_squared();
+        spread += w(i) * a * a.transpose();
     }
-    // Collinearity: the spread of `from` must have rank >= 2.
-    let spread = {
-        let mut c = Matrix3::zeros();
-        for (i, p) in from.iter().enumerate() {
-            let a = p.coords - cf;
-            c += w(i) * a * a.transpose();
-        }
-        c
-    };
+    // Rank of the spread of `from`: coincident (0), collinear (1), or more.
     let eig = spread.symmetric_eigen();
     let mut ev = [eig.eigenvalues[0], eig.eigenvalues[1], eig.eigenvalues[2]];
     ev.sort_by(|a, b| b.total_cmp(a));
-    if ev[0] <= 0.0 || ev[1] <= ev[0] * 1e-20 {
-        return Err(BestFitError::Collinear);
+    // Relative to the coordinates' magnitude: points equal to ~1e-13 of their size coincide.
+    let size2 = from.iter().map(|p| p.coords.norm_squared()).fold(0.0, f64::max) * wsum;
+    if ev[0] <= size2 * 1e-26 || var_from <= 0.0 {
+        return Err(BestFitError::Coincident { which: "reference (from)", what });
     }
+    let rank_from = if ev[1] <= ev[0] * 1e-20 { 1 } else { 2 };
     let svd = h.svd(true, true);
     let (u, vt) = match (svd.u, svd.v_t) {
         (Some(u), Some(vt)) => (u, vt),
@@ -99,14 +161,14 @@ pub fn best_fit(
     let d = (u * vt).determinant().signum();
     let dm = Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d));
     let rotation = u * dm * vt;
-    let scale = if options.with_scale {
+    let scale = if with_scale {
         let sv = svd.singular_values;
         (sv[0] + sv[1] + d * sv[2]) / var_from
     } else {
         1.0
     };
     let translation = ct - scale * (rotation * cf);
-    Ok(Transform3 { scale, rotation, translation })
+    Ok(Core { transform: Transform3 { scale, rotation, translation }, rank_from, var_to })
 }
 
 /// The three-point (3-2-1) transform: `to[0]` is matched exactly, the direction `from[0]→from[1]`
@@ -210,6 +272,57 @@ mod tests {
         let to: Vec<Point3> = from.iter().map(|p| Point3::new(-p.x, p.y, p.z)).collect();
         let t = best_fit(&from, &to, None, BestFitOptions::default()).unwrap();
         assert!((t.rotation.determinant() - 1.0).abs() < 1e-12);
+    }
+
+    /// Two features: the scale is their distance ratio (100.0 mm apart, measured 100.1 mm →
+    /// 1.001), whatever the rotation and translation; more collinear points give the least-squares
+    /// ratio Σ|b|·|a| / Σ|a|² about the centroids (worked by hand below).
+    #[test]
+    fn scale_from_two_and_collinear_points() {
+        let from = cloud(&[[0.0, 0.0, 0.0], [100.0, 0.0, 0.0]]);
+        let t = Transform3::new(1.001, rz(0.4) * rx(0.2), Vector3::new(5.0, -3.0, 2.0));
+        let to: Vec<Point3> = from.iter().map(|p| t.apply(p)).collect();
+        let f = scale_fit(&from, &to, None).unwrap();
+        assert!((f.scale - 1.001).abs() < 1e-14, "{}", f.scale);
+        assert!(!f.rotation_determined);
+        for (a, b) in from.iter().zip(&to) {
+            assert!((f.transform.apply(a) - b).norm() < 1e-9);
+        }
+        // Three collinear points at 0, 100, 300 measured at 0, 100.1, 300.2 (not a pure scale):
+        // about the centroids a = (-133.33, -33.33, 166.67), b = (-133.43, -33.33, 166.77);
+        // s = Σ a·b / Σ a² (signs agree along the line).
+        let from = cloud(&[[0.0, 0.0, 0.0], [0.0, 100.0, 0.0], [0.0, 300.0, 0.0]]);
+        let to = cloud(&[[1.0, 0.0, 0.0], [1.0, 100.1, 0.0], [1.0, 300.2, 0.0]]);
+        let a = [-400.0 / 3.0, -100.0 / 3.0, 500.0 / 3.0];
+        let cb = 400.3 / 3.0;
+        let b = [-cb, 100.1 - cb, 300.2 - cb];
+        let s: f64 = a.iter().zip(&b).map(|(x, y)| x * y).sum::<f64>() / a.iter().map(|x| x * x).sum::<f64>();
+        let f = scale_fit(&from, &to, None).unwrap();
+        assert!((f.scale - s).abs() < 1e-13, "{} vs {s}", f.scale);
+    }
+
+    #[test]
+    fn degenerate_inputs_are_named() {
+        let same = cloud(&[[10.0, 20.0, 30.0], [10.0, 20.0, 30.0], [10.0, 20.0, 30.0]]);
+        let good = cloud(&[[0.0, 0.0, 0.0], [100.0, 0.0, 0.0], [0.0, 100.0, 0.0]]);
+        let e = scale_fit(&same, &good, None).unwrap_err();
+        assert!(matches!(e, BestFitError::Coincident { .. }), "{e}");
+        assert!(e.to_string().contains("reference"), "{e}");
+        let e = scale_fit(&good, &same, None).unwrap_err();
+        assert!(e.to_string().contains("measured"), "{e}");
+        let e = best_fit(&same, &good, None, Default::default()).unwrap_err();
+        assert!(matches!(e, BestFitError::Coincident { .. }), "{e}");
+        assert_eq!(
+            best_fit(&good, &good, Some(&[0.0, 0.0, 0.0]), Default::default()),
+            Err(BestFitError::BadWeights)
+        );
+        // Only one point with weight: all weighted points coincide.
+        assert!(matches!(
+            best_fit(&good, &good, Some(&[1.0, 0.0, 0.0]), Default::default()),
+            Err(BestFitError::Coincident { .. })
+        ));
+        let nan = cloud(&[[f64::NAN, 0.0, 0.0], [100.0, 0.0, 0.0], [0.0, 100.0, 0.0]]);
+        assert_eq!(best_fit(&nan, &good, None, Default::default()), Err(BestFitError::NotFinite));
     }
 
     #[test]

@@ -44,6 +44,10 @@ pub struct Params {
     pub correct: bool,
     /// Orient the program on the part targets (initially, on alarms, on temperature steps).
     pub orient: bool,
+    /// The machine's travel (mm, machine frame): `(min, max)` per axis. No commanded position and
+    /// no corrected position may leave it: a block outside stops the run, a correction that
+    /// would leave it is refused (alarm `travel_limit`). `None`: not checked.
+    pub travel_mm: Option<([f64; 3], [f64; 3])>,
 }
 
 /// What to do when the beam is broken at a measurement.
@@ -82,11 +86,29 @@ impl Default for Params {
             beam_recovery: BeamRecovery::LookAhead,
             correct: true,
             orient: true,
+            travel_mm: None,
         }
     }
 }
 
+/// Largest accepted `samples` (tracker samples per reading).
+pub const MAX_SAMPLES: usize = 1000;
+/// Largest accepted `max_iterations` (correction moves per stop).
+pub const MAX_ITERATIONS: usize = 100;
+/// Largest accepted `stable_attempts`.
+pub const MAX_ATTEMPTS: usize = 1000;
+/// Largest accepted `orient_every` (measurement stops).
+pub const MAX_ORIENT_EVERY: usize = 1_000_000;
+
 impl Params {
+    /// Whether `p` (mm, machine frame) is within the travel (always, when none is given).
+    pub fn within_travel(&self, p: &truepos_math::Point3) -> bool {
+        match self.travel_mm {
+            None => true,
+            Some((lo, hi)) => (0..3).all(|k| p[k] >= lo[k] && p[k] <= hi[k]),
+        }
+    }
+
     /// Check the parameters make sense; the message names the offending one.
     pub fn validate(&self) -> Result<(), String> {
         let pos = [
@@ -109,6 +131,42 @@ impl Params {
         }
         if self.max_iterations == 0 || self.stable_attempts == 0 {
             return Err("max_iterations and stable_attempts must be at least 1".into());
+        }
+        // Documented limits of the counts: beyond them a value is a typo, and a run would
+        // never end (or allocate without bound).
+        for (n, v, max) in [
+            ("samples", self.samples, MAX_SAMPLES),
+            ("max_iterations", self.max_iterations, MAX_ITERATIONS),
+            ("stable_attempts", self.stable_attempts, MAX_ATTEMPTS),
+            ("orient_every", self.orient_every, MAX_ORIENT_EVERY),
+        ] {
+            if v > max {
+                return Err(format!("{n} must be at most {max}, got {v}"));
+            }
+        }
+        for (n, v) in [("dwell_s", self.dwell_s), ("settle_wait_s", self.settle_wait_s)] {
+            if !(v.is_finite() && (0.0..=3600.0).contains(&v)) {
+                return Err(format!("{n} must be between 0 and 3600 s, got {v}"));
+            }
+        }
+        if !self.part_cte_ppm_per_c.is_finite() || self.part_cte_ppm_per_c.abs() > 1000.0 {
+            return Err(format!(
+                "part_cte_ppm_per_c must be a finite number within ±1000, got {}",
+                self.part_cte_ppm_per_c
+            ));
+        }
+        if !(-50.0..=100.0).contains(&self.temperature_min_c)
+            || !(-50.0..=100.0).contains(&self.temperature_max_c)
+        {
+            return Err("temperature_min_c and temperature_max_c must lie within -50 to 100 °C".into());
+        }
+        if let Some((lo, hi)) = self.travel_mm {
+            if !(0..3).all(|k| lo[k].is_finite() && hi[k].is_finite() && lo[k] < hi[k]) {
+                return Err(format!("travel must have finite min < max on every axis, got {lo:?} .. {hi:?}"));
+            }
+        }
+        if self.keyword.trim().is_empty() {
+            return Err("keyword must not be empty (it marks the measurement blocks)".into());
         }
         if self.temperature_min_c.is_nan()
             || self.temperature_max_c.is_nan()

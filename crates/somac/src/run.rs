@@ -82,6 +82,8 @@ pub enum AlarmKind {
     MaxSingleCorrection,
     /// The accumulated correction reached the total limit.
     MaxTotalCorrection,
+    /// A commanded or corrected position would leave the machine's travel.
+    TravelLimit,
     /// The controller failed (e-stop, lost connection, an error it reports): the run is aborted
     /// and the stop in progress marked FAILURE.
     ControllerFault,
@@ -89,7 +91,7 @@ pub enum AlarmKind {
 
 impl AlarmKind {
     /// Every kind.
-    pub const ALL: [AlarmKind; 11] = [
+    pub const ALL: [AlarmKind; 12] = [
         AlarmKind::TemperatureRange,
         AlarmKind::TemperatureChange,
         AlarmKind::Inclination,
@@ -100,6 +102,7 @@ impl AlarmKind {
         AlarmKind::NoReading,
         AlarmKind::MaxSingleCorrection,
         AlarmKind::MaxTotalCorrection,
+        AlarmKind::TravelLimit,
         AlarmKind::ControllerFault,
     ];
 
@@ -116,6 +119,7 @@ impl AlarmKind {
             AlarmKind::NoReading => "no_reading",
             AlarmKind::MaxSingleCorrection => "max_single_correction",
             AlarmKind::MaxTotalCorrection => "max_total_correction",
+            AlarmKind::TravelLimit => "travel_limit",
             AlarmKind::ControllerFault => "controller_fault",
         }
     }
@@ -309,6 +313,19 @@ impl<C: Controller, T: Tracker, E: Cell> Loop<'_, C, T, E> {
             }
             // The program may have been re-transformed: take the block again.
             let target = self.st.targets[i].0;
+            if let Some(t) = target.filter(|t| !self.params.within_travel(&(t + self.ctl.offset()))) {
+                self.alarm(
+                    line,
+                    AlarmKind::TravelLimit,
+                    format!(
+                        "the block commands ({:.3}, {:.3}, {:.3}) mm, outside the machine's travel",
+                        t.x, t.y, t.z
+                    ),
+                    "stop",
+                )?;
+                self.st.report.halted = true;
+                break;
+            }
             self.ctl.send_block(line, self.st.program.line_text(i), target)?;
             self.st.report.blocks_sent += 1;
             self.audit(Event::Block {
@@ -711,6 +728,21 @@ impl<C: Controller, T: Tracker, E: Cell> Loop<'_, C, T, E> {
             if delta.norm() == 0.0 {
                 stop.status = StopStatus::Partial;
                 stop.message = Some("no correction possible within the total limit".into());
+                return Ok(stop);
+            }
+            let corrected = commanded + self.ctl.offset() + delta;
+            if !self.params.within_travel(&corrected) {
+                self.alarm(
+                    line,
+                    AlarmKind::TravelLimit,
+                    format!(
+                        "the corrected position ({:.3}, {:.3}, {:.3}) mm would leave the machine's travel",
+                        corrected.x, corrected.y, corrected.z
+                    ),
+                    "refuse the correction and mark PARTIAL",
+                )?;
+                stop.status = StopStatus::Partial;
+                stop.message = Some("correction would leave the machine's travel".into());
                 return Ok(stop);
             }
             self.ctl.correct(delta)?;

@@ -2,7 +2,7 @@
 //! ones, by a similarity best fit, with the standard uncertainty of the scale from the residual
 //! scatter ([`fit_scale`]). Used by `truepos autoscale` and the loop's auto-scaling.
 
-use truepos_math::bestfit::{self, BestFitError, BestFitOptions};
+use truepos_math::bestfit::{self, BestFitError};
 use truepos_math::{Point3, Transform3};
 
 /// Scale factor of the measured points relative to the reference ones, with its standard
@@ -18,18 +18,22 @@ pub struct ScaleFit {
     pub n: usize,
 }
 
-/// Fit `measured = s·R·reference + t` and the scale's uncertainty.
+/// Fit `measured = s·R·reference + t` and the scale's uncertainty. Two points are enough (the
+/// scale is then their distance ratio); coincident reference or measured points are refused.
 ///
-/// The residual standard deviation per coordinate is `σ = sqrt(SSR / (3n − 7))` (7 parameters:
-/// 3 rotation, 3 translation, scale); the scale multiplies every reference vector from the
-/// centroid, so its least-squares standard uncertainty is `σ / sqrt(Σ |p_i − c|²)`.
+/// The residual standard deviation per coordinate is `σ = sqrt(SSR / (3n − p))` with p = 7
+/// parameters (3 rotation, 3 translation, scale), or 6 when the points lie on a line (the turn
+/// about it is not determined); the scale multiplies every reference vector from the centroid,
+/// so its least-squares standard uncertainty is `σ / sqrt(Σ |p_i − c|²)`. With no redundancy
+/// (two points) the scatter is unknown and `u_scale` is NaN.
 pub fn fit_scale(reference: &[Point3], measured: &[Point3]) -> Result<(ScaleFit, Transform3), BestFitError> {
-    let t = bestfit::best_fit(reference, measured, None, BestFitOptions { with_scale: true })?;
+    let f = bestfit::scale_fit(reference, measured, None)?;
+    let t = f.transform;
     let res = bestfit::residuals(&t, reference, measured);
     let ssr: f64 = res.iter().map(|r| r.norm_squared()).sum();
     let n = reference.len();
-    let dof = (3 * n).saturating_sub(7).max(1) as f64;
-    let sigma = (ssr / dof).sqrt();
+    let params = if f.rotation_determined { 7 } else { 6 };
+    let sigma = if 3 * n > params { (ssr / (3 * n - params) as f64).sqrt() } else { f64::NAN };
     let c = truepos_math::centroid(reference);
     let spread: f64 = reference.iter().map(|p| (p - c).norm_squared()).sum();
     let u_scale = sigma / spread.sqrt();
@@ -61,5 +65,20 @@ mod tests {
         assert!((f.scale - s).abs() < 1e-12, "{}", f.scale);
         assert!(f.u_scale < 1e-12 && f.rms_mm < 1e-9);
         assert_eq!(f.n, 8);
+    }
+
+    /// The example: two features 100.0 mm apart measured 100.1 mm apart (and turned,
+    /// and moved) give the scale 1.001; identical measured points are refused.
+    #[test]
+    fn two_features_give_their_distance_ratio() {
+        let reference = [Point3::new(0.0, 0.0, 0.0), Point3::new(100.0, 0.0, 0.0)];
+        let measured = [Point3::new(10.0, 20.0, 5.0), Point3::new(10.0, 120.1, 5.0)];
+        let (f, _) = fit_scale(&reference, &measured).unwrap();
+        assert!((f.scale - 1.001).abs() < 1e-12, "{}", f.scale);
+        assert!(f.u_scale.is_nan(), "no redundancy: no uncertainty from the scatter");
+        let same = [Point3::new(1.0, 1.0, 1.0); 3];
+        let three = [Point3::new(0.0, 0.0, 0.0), Point3::new(100.0, 0.0, 0.0), Point3::new(0.0, 50.0, 0.0)];
+        assert!(matches!(fit_scale(&three, &same), Err(BestFitError::Coincident { .. })));
+        assert!(matches!(fit_scale(&same, &three), Err(BestFitError::Coincident { .. })));
     }
 }

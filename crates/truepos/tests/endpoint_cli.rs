@@ -86,10 +86,16 @@ fn autoscale_gives_1_001_for_the_product_example() {
     assert!((v["scale"].as_f64().unwrap() - 1.001).abs() < 1e-12, "{v}");
     // expected 1 + 23e-6 · 43.4783 = 1.00100000: discrepancy below 0.01 ppm.
     assert!(v["discrepancy_ppm"].as_f64().unwrap().abs() < 0.01, "{v}");
+    // Two features are enough: their distance ratio (1 mm measured for 100 mm: 0.01).
     std::fs::write(d.path().join("two.csv"), "id,x_mm,y_mm,z_mm\nA,0,0,0\nB,1,0,0\n").unwrap();
-    let (code, _, err) = truepos(&["autoscale", "--reference", "ref.csv", "--measured", "two.csv"], d.path());
+    let (code, out, err) =
+        truepos(&["autoscale", "--reference", "ref.csv", "--measured", "two.csv", "--json"], d.path());
+    assert_eq!(code, 0, "{err}");
+    assert!((json(&out)["scale"].as_f64().unwrap() - 0.01).abs() < 1e-12);
+    std::fs::write(d.path().join("one.csv"), "id,x_mm,y_mm,z_mm\nA,0,0,0\n").unwrap();
+    let (code, _, err) = truepos(&["autoscale", "--reference", "ref.csv", "--measured", "one.csv"], d.path());
     assert_eq!(code, 2);
-    assert!(err.contains("two.csv") && err.contains("at least 3"), "{err}");
+    assert!(err.contains("one.csv") && err.contains("at least 2"), "{err}");
 }
 
 const PROGRAM: &str = "%\r\nO1000 (SPAR)\r\nN10 G21 G90 G17\r\n\r\nN20 G0 X0 Y0 Z50 ; start\r\nN30 G1 X100.5 Y20 Z5 F1500 (MSG,Measure SOMaC)\r\nN40 M98 P9001 (DRILL)\r\nN50 G0 Z50\r\nM30\r\n%";

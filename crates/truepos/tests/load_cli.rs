@@ -141,7 +141,8 @@ fn imported_map_superposition_and_correction_match_hand_calculation() {
     assert_eq!(f64s(&j["forces_n"]), vec![2000.0, 500.0]);
     // Correction of p = (800, 250, 400) with o = (500, 250, 100): θ at y = 250 (halfway between
     // nodes 0 and 1): pitch 1412.5, roll 325 µrad; e = (θy·dz, −θx·dz, −θy·dx) with dx = dz = 300
-    // → (97.5, −423.75, −97.5) µm; the applied correction is −e.
+    // → (97.5, −423.75, −97.5) µm; the applied correction is +e (contract: physical rotations,
+    // corrected point p + e).
     let bed = write(d.path(), "bed.toml", BED);
     let pts = write(d.path(), "pts.csv", "id,z_mm,x_mm,y_mm,note\nA,400,800,250,\"keep, me\"\n");
     let outp = d.path().join("out.csv");
@@ -168,7 +169,7 @@ fn imported_map_superposition_and_correction_match_hand_calculation() {
     assert_eq!(&row[4..6], &["\"keep", " me\""], "quoted pass-through column kept");
     let v: Vec<f64> =
         [row[1], row[2], row[3], row[6], row[7], row[8]].iter().map(|x| x.parse().unwrap()).collect();
-    let want = [400.0 + 0.0975, 800.0 - 0.0975, 250.0 + 0.42375, -97.5, 423.75, 97.5];
+    let want = [400.0 - 0.0975, 800.0 + 0.0975, 250.0 - 0.42375, 97.5, -423.75, -97.5];
     for (a, b) in v.iter().zip(want) {
         assert!((a - b).abs() < 1e-9, "{v:?} vs {want:?}");
     }

@@ -115,6 +115,107 @@ pub struct CellFile {
     pub tracker: Vec<TrackerFile>,
     #[serde(default, rename = "loop")]
     pub loop_: LoopFile,
+    /// The machine's travel (mm, machine frame); optional.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub machine: Option<MachineFile>,
+}
+
+/// `[machine] travel_min_mm = [x, y, z], travel_max_mm = [x, y, z]`: no commanded or corrected
+/// position may leave this box.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MachineFile {
+    pub travel_min_mm: [f64; 3],
+    pub travel_max_mm: [f64; 3],
+}
+
+/// Largest coordinate magnitude accepted anywhere in a cell file (mm): 100 m.
+pub const MAX_COORDINATE_MM: f64 = 1e5;
+
+impl CellFile {
+    /// Check every field's range; the message names the key.
+    fn check(&self) -> Result<(), String> {
+        let fin = |name: &str, v: f64| -> Result<(), String> {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err(format!("{name} must be a finite number, got {v}"))
+            }
+        };
+        let range = |name: &str, v: f64, lo: f64, hi: f64| -> Result<(), String> {
+            if v.is_finite() && (lo..=hi).contains(&v) {
+                Ok(())
+            } else {
+                Err(format!("{name} must be between {lo} and {hi}, got {v}"))
+            }
+        };
+        let coord = |name: &str, p: &[f64; 3]| -> Result<(), String> {
+            for v in p {
+                range(name, *v, -MAX_COORDINATE_MM, MAX_COORDINATE_MM)?;
+            }
+            Ok(())
+        };
+        range("error_scale", self.error_scale, 0.0, 100.0)?;
+        range("vibration_mm", self.vibration_mm, 0.0, 10.0)?;
+        range("beam_interrupt_probability", self.beam_interrupt_probability, 0.0, 1.0)?;
+        coord("tool_offset_mm", &self.tool_offset_mm)?;
+        if let Some(b) = self.tracker_bump {
+            range("tracker_bump time_s", b[0], 0.0, 1e7)?;
+            let k = b[1];
+            if !(k.fract() == 0.0 && k >= 0.0 && (k as usize) < self.tracker.len()) {
+                return Err(format!(
+                    "tracker_bump tracker index {k} is not one of the {} trackers",
+                    self.tracker.len()
+                ));
+            }
+            range("tracker_bump tilt_urad", b[2], -1e5, 1e5)?;
+        }
+        // The air: within the range where the refractive index equation holds (Ciddor, NIST).
+        range("[air] temperature_c", self.air.temperature_c, -40.0, 100.0)?;
+        range("[air] pressure_pa", self.air.pressure_pa, 10_000.0, 140_000.0)?;
+        range("[air] humidity_pct", self.air.humidity_pct, 0.0, 100.0)?;
+        fin("[air] drift_c_per_h", self.air.drift_c_per_h)?;
+        fin("[air] pressure_drift_pa_per_h", self.air.pressure_drift_pa_per_h)?;
+        range("[air] cycle_amplitude_c", self.air.cycle_amplitude_c, 0.0, 50.0)?;
+        range("[air] cycle_period_s", self.air.cycle_period_s, 1e-3, 1e7)?;
+        for s in &self.air.steps {
+            range("[air] steps time_s", s[0], 0.0, 1e7)?;
+            range("[air] steps delta_c", s[1], -100.0, 100.0)?;
+        }
+        range("[part] cte_ppm_per_c", self.part.cte_ppm_per_c, -1000.0, 1000.0)?;
+        range("[part] tau_s", self.part.tau_s, 1e-3, 1e7)?;
+        range("[part] placement_rz_urad", self.part.placement_rz_urad, -1e6, 1e6)?;
+        coord("[part] placement_mm", &self.part.placement_mm)?;
+        let mut seen = std::collections::HashSet::new();
+        for t in &self.part.target {
+            if t.id.trim().is_empty() {
+                return Err("[[part.target]] id must not be empty".into());
+            }
+            if !seen.insert(t.id.as_str()) {
+                return Err(format!("[[part.target]] id '{}' appears twice", t.id));
+            }
+            coord(&format!("[[part.target]] '{}' position", t.id), &[t.x_mm, t.y_mm, t.z_mm])?;
+        }
+        for (k, t) in self.tracker.iter().enumerate() {
+            coord(&format!("[[tracker]] {k} position_mm"), &t.position_mm)?;
+            range(&format!("[[tracker]] {k} yaw_deg"), t.yaw_deg, -360.0, 360.0)?;
+            for o in &t.obstructions {
+                coord(&format!("[[tracker]] {k} obstruction"), &o[0])?;
+                coord(&format!("[[tracker]] {k} obstruction"), &o[1])?;
+                if !(0..3).all(|i| o[0][i] <= o[1][i]) {
+                    return Err(format!("[[tracker]] {k} obstruction: min must not exceed max"));
+                }
+            }
+        }
+        if let Some(m) = &self.machine {
+            coord("[machine] travel_min_mm", &m.travel_min_mm)?;
+            coord("[machine] travel_max_mm", &m.travel_max_mm)?;
+            if !(0..3).all(|i| m.travel_min_mm[i] < m.travel_max_mm[i]) {
+                return Err("[machine] travel_min_mm must be below travel_max_mm on every axis".into());
+            }
+        }
+        Ok(())
+    }
 }
 
 impl CellFile {
@@ -163,11 +264,13 @@ impl CellFile {
                 samples: Some(params.samples),
                 ..Default::default()
             },
+            machine: params.travel_mm.map(|(lo, hi)| MachineFile { travel_min_mm: lo, travel_max_mm: hi }),
         }
     }
 
     pub fn to_config(&self, path: &Path) -> Result<(CellConfig, Targets, Params), InputError> {
         let bad = |m: String| InputError::in_file(path, m);
+        self.check().map_err(bad)?;
         if self.tracker.is_empty() {
             return Err(bad("the cell needs at least one [[tracker]]".into()));
         }
@@ -238,6 +341,7 @@ impl CellFile {
             refractive_update_ppm: l.refractive_update_ppm.unwrap_or(p0.refractive_update_ppm),
             part_cte_ppm_per_c: self.part.cte_ppm_per_c,
             orient_every: l.orient_every.unwrap_or(p0.orient_every),
+            travel_mm: self.machine.as_ref().map(|m| (m.travel_min_mm, m.travel_max_mm)),
             beam_recovery: match l.beam_recovery.as_deref() {
                 None => p0.beam_recovery,
                 Some("manual") => BeamRecovery::Manual,
@@ -422,4 +526,58 @@ pub fn write_scenario(dir: &Path, seed: u64, holes_per_row: usize) -> Result<Wri
         serde_json::to_string_pretty(&truth)?.as_bytes(),
     )?;
     Ok(Written { holes: sp.holes.len(), native_mean_error_mm: ns.mean_error_mm })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn file() -> CellFile {
+        let (cfg, sp, params) = scenario(7, 2);
+        CellFile::from_config(&cfg, &sp.targets, &params)
+    }
+
+    /// The cases: each is refused naming the key.
+    #[test]
+    fn cell_file_values_are_checked() {
+        let p = Path::new("cell.toml");
+        file().to_config(p).unwrap();
+        type Mutation = Box<dyn Fn(&mut CellFile)>;
+        let cases: Vec<(Mutation, &str)> = vec![
+            (Box::new(|f| f.part.target[1].id = f.part.target[0].id.clone()), "appears twice"),
+            (Box::new(|f| f.beam_interrupt_probability = 2.0), "beam_interrupt_probability"),
+            (Box::new(|f| f.vibration_mm = -0.1), "vibration_mm"),
+            (Box::new(|f| f.part.target[0].x_mm = 1e12), "position"),
+            (Box::new(|f| f.air.temperature_c = -300.0), "temperature_c"),
+            (Box::new(|f| f.air.humidity_pct = 150.0), "humidity_pct"),
+            (Box::new(|f| f.part.target[0].id = " ".into()), "empty"),
+            (Box::new(|f| f.tracker_bump = Some([1.0, 9.0, 10.0])), "tracker_bump"),
+            (
+                Box::new(|f| {
+                    f.machine = Some(MachineFile { travel_min_mm: [0.0; 3], travel_max_mm: [1.0, 1.0, -1.0] })
+                }),
+                "travel",
+            ),
+            (Box::new(|f| f.loop_.samples = Some(1_000_000_000)), "samples"),
+        ];
+        for (mutate, needle) in cases {
+            let mut f = file();
+            mutate(&mut f);
+            let e = f.to_config(p).expect_err(needle).to_string();
+            assert!(e.contains(needle) && e.contains("cell.toml"), "{needle}: {e}");
+        }
+    }
+
+    /// A travel box that excludes the program's holes: the run stops at the first block outside
+    /// it with a `travel_limit` alarm instead of moving there.
+    #[test]
+    fn blocks_outside_the_travel_stop_the_run() {
+        let (cfg, sp, mut params) = scenario(7, 2);
+        params.travel_mm = Some(([-1e4, -1e4, -1e4], [1e4, 1e4, -5e3]));
+        let vr =
+            run_virtual(&sp.program, cfg, sp.targets.clone(), &params, &mut MemoryAudit::default()).unwrap();
+        assert!(vr.report.halted);
+        assert!(vr.report.alarms.iter().any(|a| a.kind.as_str() == "travel_limit"), "{:?}", vr.report.alarms);
+        assert!(vr.report.stops.is_empty());
+    }
 }

@@ -122,8 +122,8 @@ pub struct LoadData {
     pub indicated_exact: Vec<Point3>,
     /// Indicated coordinates as measured (with noise): the points file.
     pub indicated: Vec<Point3>,
-    /// Portal positions (mm) and the portal's reported pitch/roll there (rad): the rotation of
-    /// the bed as seen from the portal, i.e. minus its physical tilt (`truepos-comp`'s sign).
+    /// Portal positions (mm) and the portal's pitch/roll there (rad): its physical rotations
+    /// about +X and +Y (right-hand rule), the contract's sign.
     pub portal_y: Vec<f64>,
     pub pitch: Vec<f64>,
     pub roll: Vec<f64>,
@@ -229,8 +229,8 @@ pub fn simulate(c: &LoadConfig, seed: u64) -> Result<LoadData, LoadScenarioError
     let (mut pitch, mut roll, mut sink) = (vec![], vec![], vec![]);
     for &y in &portal_y {
         let (a, b, s) = portal_tilt(&uz, c, y);
-        pitch.push(-a);
-        roll.push(-b);
+        pitch.push(a);
+        roll.push(b);
         sink.push(s);
     }
     let grid_x: Vec<f64> = (0..=50).map(|i| c.bed.size_x * i as f64 / 50.0).collect();

@@ -332,8 +332,8 @@ pub struct SimArgs {
     /// Contact (or scan) speed, mm/s.
     #[arg(long)]
     pub speed_mm_s: Option<f64>,
-    /// Repeats of the contact pattern (or scan revolutions).
-    #[arg(long)]
+    /// Repeats of the contact pattern (or scan revolutions), 1 to 1000.
+    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=1000))]
     pub repeats: Option<usize>,
     #[arg(long)]
     pub machine_rate_hz: Option<f64>,

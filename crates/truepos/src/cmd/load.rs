@@ -23,14 +23,14 @@ use truepos_io::InputError;
 use truepos_math::Vector3;
 
 const SIGN_HELP: &str = "\
-Pitch is the portal's rotation about +X, roll about +Y (µrad), with the sign that makes the
-contract's correction right: a measured point p at portal position y is corrected to p − e,
-e = (pitch, roll, 0) × (p − o), o = ((x1 + x2)/2, y, rail_height_mm). That is, the reported
-pitch/roll is the rotation of the bed (and the part) as seen from the portal = minus the
-portal's physical tilt: pitch_urad = 1e6·(uz_back − uz_front)/bearing_span (front = +Y bearing,
-mean of both rails), roll_urad = 1e6·(uz_rail2 − uz_rail1)/(x2 − x1) (uz positive up; mean of
-the two bearings on each rail). A load ahead of the portal gives a positive pitch. Imported maps
-must use this sign. The portal's common vertical sink is not part of the model.
+Pitch and roll are the portal's physical rotations (µrad, right-hand rule) about +X and +Y, as an
+outside FE package reports them: a measured point p at portal position y is corrected to p + e,
+e = (pitch, roll, 0) × (p − o), o = ((x1 + x2)/2, y, rail_height_mm) (the tilted portal carries
+the tip by e). From the bed deflection: pitch_urad = 1e6·(uz_front − uz_back)/bearing_span
+(front = +Y bearing, mean of both rails), roll_urad = 1e6·(uz_rail1 − uz_rail2)/(x2 − x1) (uz
+positive up; mean of the two bearings on each rail). A load ahead of the portal tips it forward:
+negative pitch. Imported maps are used as they come. The portal's common vertical sink is not
+part of the model.
 
 Load case: mass_kg (× 9.80665) or weight_n, cog_mm, rest_points_mm: forces by statics (exact
 for three points; the minimum-norm balanced distribution for more). A distribution that needs
@@ -41,7 +41,7 @@ Resting points outside the map's load grid, or measured points outside its porta
 input errors (the map does not cover the part).";
 
 #[derive(clap::Args, Debug)]
-#[command(long_about = SIGN_HELP, after_help = "Examples:\n  truepos load map --bed bed.toml --output map.csv\n  truepos load curves --map map.csv --load load.toml --json\n  truepos load correct --map map.csv --load load.toml --bed bed.toml --points meas.csv --output corrected.csv\n  truepos load deflection --bed bed.toml --load load.toml --at points.csv --json\n\nPitch is about +X, roll about +Y, signed so that p − (pitch, roll, 0) × (p − o) corrects a\nmeasured point (the bed seen from the portal; a load ahead of the portal gives positive pitch).\nDetails, statics and coverage rules: truepos load correct --help")]
+#[command(long_about = SIGN_HELP, after_help = "Examples:\n  truepos load map --bed bed.toml --output map.csv\n  truepos load curves --map map.csv --load load.toml --json\n  truepos load correct --map map.csv --load load.toml --bed bed.toml --points meas.csv --output corrected.csv\n  truepos load deflection --bed bed.toml --load load.toml --at points.csv --json\n\nPitch is about +X, roll about +Y: the portal's physical rotations (right-hand rule), so that\np + (pitch, roll, 0) × (p − o) corrects a measured point (a load ahead of the portal: negative pitch).\nDetails, statics and coverage rules: truepos load correct --help")]
 pub struct Args {
     #[command(subcommand)]
     pub command: Sub,
@@ -96,7 +96,7 @@ pub struct CorrectCmd {
     pub points: PathBuf,
     #[arg(long)]
     pub output: PathBuf,
-    /// Also apply a 21-parameter geometric map (combined correction p + E(p) − e(p)).
+    /// Also apply a 21-parameter geometric map (combined correction p + E(p) + e(p)).
     #[arg(long)]
     pub geometric_map: Option<PathBuf>,
     /// Squareness for --geometric-map (TOML or CSV).

@@ -326,8 +326,8 @@ fn run_json(r: &ScanRun, style: Style) -> serde_json::Value {
 pub struct SimArgs {
     #[command(flatten)]
     pub common: super::SimCommon,
-    /// Number of features on the part (bores, bosses, circles on the top plane, lines).
-    #[arg(long, default_value_t = 12)]
+    /// Number of features on the part (bores, bosses, circles on the top plane, lines), 1 to 200.
+    #[arg(long, default_value_t = 12, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=200))]
     pub features: usize,
 }
 

@@ -27,7 +27,7 @@ pub enum SomacCommand {
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos autoscale --reference balls_20C.csv --measured balls_now.csv --cte-ppm-per-c 23.6 --temperature-c 24.1 --json\n\nBoth files: id,x_mm,y_mm,z_mm, matched by id. The scale is the best-fit ratio of measured to\nreference size after removing rotation and translation (similarity fit)."
+    after_help = "Example:\n  truepos autoscale --reference balls_20C.csv --measured balls_now.csv --cte-ppm-per-c 23.6 --temperature-c 24.1 --json\n\nBoth files: id,x_mm,y_mm,z_mm, matched by id. The scale is the best-fit ratio of measured to\nreference size after removing rotation and translation (similarity fit); two features are\nenough (their distance ratio). Coincident reference or measured features are refused (exit 2)."
 )]
 pub struct AutoscaleArgs {
     /// Feature positions at the reference temperature (20 °C), e.g. from the drawing.
@@ -68,8 +68,16 @@ pub struct OrientArgs {
     #[arg(long)]
     pub scale: bool,
     /// Decimals of rewritten coordinates (default 4 in mm programs, 5 in inch programs).
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u8).range(0..=9))]
     pub decimals: Option<u8>,
+    /// Position before the program's first line, in the program's own (reference) coordinates
+    /// (mm). Needed when the first motion gives only some axes (e.g. `G0 Z50.`).
+    #[arg(long, value_name = "X,Y,Z", value_parser = crate::output::parse_triple, allow_hyphen_values = true)]
+    pub start_mm: Option<[f64; 3]>,
+    /// Replace arcs whose plane the transform tilts by G1 chords whose largest distance from the
+    /// exact transformed arc is at most this (mm). Without it such arcs are refused.
+    #[arg(long, value_name = "MM")]
+    pub arc_tolerance_mm: Option<f64>,
     #[arg(long)]
     pub json: bool,
 }
@@ -82,7 +90,7 @@ pub enum FormulaArg {
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos air --temperature-c 20 --pressure-pa 101325 --humidity-pct 50 --json\n\nEquations as in NIST's Refractive Index of Air Calculator (Stone & Zimmerman)."
+    after_help = "Example:\n  truepos air --temperature-c 20 --pressure-pa 101325 --humidity-pct 50 --json\n\nEquations as in NIST's Refractive Index of Air Calculator (Stone & Zimmerman). Inputs outside the\nrange where NIST states the equation valid are refused (exit 2): Ciddor 300-1700 nm, -40-100 °C,\n10000-140000 Pa, 0-100 % RH, 0-2000 ppm CO2; Edlén 300-1700 nm, 0-40 °C, 60000-140000 Pa,\n0-100 % RH, CO2 450 ppm only."
 )]
 pub struct AirArgs {
     #[arg(long)]
@@ -117,11 +125,11 @@ pub fn fit_scale(reference: &Path, measured: &Path) -> Result<(ScaleFit, truepos
     let r = read_id_points(reference)?;
     let m = read_id_points(measured)?;
     let mt = match_by_id(&r, &m);
-    if mt.ids.len() < 3 {
+    if mt.ids.len() < 2 {
         return Err(InputError::in_file(
             measured,
             format!(
-                "{} ids in common with {}; at least 3 features are needed",
+                "{} ids in common with {}; at least 2 features are needed (two give their distance ratio)",
                 mt.ids.len(),
                 reference.display()
             ),
@@ -150,9 +158,9 @@ pub fn autoscale(a: AutoscaleArgs) -> Result<Outcome> {
     if a.json {
         print_json(&json!({
             "scale": f.scale,
-            "scale_uncertainty": f.u_scale,
+            "scale_uncertainty": f.u_scale.is_finite().then_some(f.u_scale),
             "coverage_factor": truepos_fit::evaluate::COVERAGE_FACTOR,
-            "expanded_uncertainty": {"scale": truepos_fit::evaluate::COVERAGE_FACTOR * f.u_scale},
+            "expanded_uncertainty": {"scale": f.u_scale.is_finite().then_some(truepos_fit::evaluate::COVERAGE_FACTOR * f.u_scale)},
             "scale_ppm": (f.scale - 1.0) * 1e6,
             "expected_scale": expected,
             "discrepancy_ppm": discrepancy,
@@ -199,7 +207,14 @@ pub fn orient(a: OrientArgs) -> Result<Outcome> {
     let gerr =
         |e: truepos_gcode::GcodeError| InputError::at(&a.program, e.line(), Some(e.column()), e.detail());
     program.check().map_err(gerr)?;
-    let opts = truepos_gcode::TransformOptions { decimals: a.decimals, ..Default::default() };
+    let arc_policy = match a.arc_tolerance_mm {
+        None => truepos_gcode::ArcPolicy::Refuse,
+        Some(t) if t.is_finite() && t > 0.0 => truepos_gcode::ArcPolicy::Linearize { tolerance_mm: t },
+        Some(t) => {
+            return Err(UsageError(format!("--arc-tolerance-mm must be a positive number, got {t}")).into())
+        }
+    };
+    let opts = truepos_gcode::TransformOptions { decimals: a.decimals, arc_policy, start_mm: a.start_mm };
     let out = program.transform(&measured_from_reference, &opts).map_err(gerr)?;
     truepos_io::atomic::write_atomic(&a.output, out.as_bytes())?;
     let res = bestfit::residuals(&measured_from_reference, &mt.from, &mt.to);
@@ -241,18 +256,12 @@ pub fn air(a: AirArgs) -> Result<Outcome> {
         FormulaArg::Edlen => Formula::Edlen,
     };
     let n = air::refractive_index(&c, f).map_err(|e| UsageError(e.to_string()))?;
-    let warning = air::validity_warning(&c, f);
-    if let Some(w) = &warning {
-        eprintln!("warning: {w}");
-    }
     let name = match f {
         Formula::Ciddor => "ciddor",
         Formula::Edlen => "edlen",
     };
     if a.json {
-        print_json(
-            &json!({ "n": n, "formula": name, "n_minus_1_ppm": (n - 1.0) * 1e6, "warning": warning }),
-        )?;
+        print_json(&json!({ "n": n, "formula": name, "n_minus_1_ppm": (n - 1.0) * 1e6 }))?;
     } else {
         println!("n = {n:.15}  ({name}; n − 1 = {:.4} ppm)", (n - 1.0) * 1e6);
     }

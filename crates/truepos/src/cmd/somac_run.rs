@@ -49,8 +49,8 @@ pub struct RunArgs {
 pub struct SimArgs {
     #[command(flatten)]
     pub common: super::SimCommon,
-    /// Holes per row (two rows).
-    #[arg(long, default_value_t = 150)]
+    /// Holes per row (two rows), 1 to 2000.
+    #[arg(long, default_value_t = 150, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=2000))]
     pub holes_per_row: usize,
 }
 
@@ -76,27 +76,41 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         )
         .into());
     }
-    let started = format!("{:?}", std::time::SystemTime::now());
-    let mut audit = truepos_audit::SqliteAudit::open(&a.db, &a.program.display().to_string(), &started)
-        .with_context(|| format!("audit trail {}", a.db.display()))?;
+    let mut audit =
+        truepos_audit::SqliteAudit::open(&a.db, &a.program.display().to_string(), &truepos_audit::now_utc())
+            .map_err(|e| match e {
+                truepos_audit::AuditError::Sql(_) => {
+                    anyhow::Error::from(e).context(format!("audit trail {}", a.db.display()))
+                }
+                other => InputError::in_file(&a.db, other.to_string()).into(),
+            })?;
     let mut on_controller = None;
     let vr = if a.controller != "virtual" {
-        let (vr, extra) = run_on_controller(&a, &text, cfg, targets, &params, &mut audit)?;
-        on_controller = Some(extra);
-        vr
+        run_on_controller(&a, &text, cfg, targets, &params, &mut audit).map(|(vr, extra)| {
+            on_controller = Some(extra);
+            vr
+        })
     } else {
         audit.set_controller("virtual", "truepos virtual gantry cell")?;
-        run_virtual(&text, cfg, targets, &params, &mut audit).map_err(|e| match e
-            .downcast::<truepos_somac::run::RunError>()
-        {
-            Ok(truepos_somac::run::RunError::Program { line, message }) => {
-                InputError::at(&a.program, line, None, message).into()
-            }
-            Ok(truepos_somac::run::RunError::Params(m)) => UsageError(m).into(),
-            Ok(other) => anyhow::Error::from(other),
-            Err(e) => e,
-        })?
+        run_virtual(&text, cfg, targets, &params, &mut audit)
     };
+    // The run row records its end and final status, whatever happened.
+    let (status, message) = match &vr {
+        Ok(v) if failing(&v.report) => ("FAILURE", None),
+        Ok(_) => ("SUCCESS", None),
+        Err(e) => ("ERROR", Some(format!("{e:#}"))),
+    };
+    audit
+        .finish(status, message.as_deref(), &truepos_audit::now_utc())
+        .with_context(|| format!("audit trail {}", a.db.display()))?;
+    let vr = vr.map_err(|e| match e.downcast::<truepos_somac::run::RunError>() {
+        Ok(truepos_somac::run::RunError::Program { line, message }) => {
+            InputError::at(&a.program, line, None, message).into()
+        }
+        Ok(truepos_somac::run::RunError::Params(m)) => UsageError(m).into(),
+        Ok(other) => anyhow::Error::from(other),
+        Err(e) => e,
+    })?;
     let measured: Vec<f64> =
         vr.report.stops.iter().filter(|s| s.final_error_mm.is_finite()).map(|s| s.final_error_mm).collect();
     let hs = hole_stats(&measured);
