@@ -186,7 +186,7 @@ fn parquet_points_fit_like_the_csv_and_parquet_rows_are_named() {
     let (mut x, mut y, mut z) = (vec![], vec![], vec![]);
     let mut csv = String::from("x_mm,y_mm,z_mm\n");
     for i in 0..n {
-        let (u, v) = (i as f64 * 0.7013, i as f64 * 0.3137);
+        let (u, v) = (i as f64 * 0.7037, i as f64 * 0.3137);
         let r = 25.0 + 1e-3 * ((i * 7919) % 1000) as f64 / 1000.0;
         let p = [10.0 + r * u.cos() * v.sin(), -4.0 + r * u.sin() * v.sin(), 3.0 + r * v.cos()];
         csv.push_str(&format!(
