@@ -73,10 +73,8 @@ pub struct Params {
     /// Least duration of the settle path at scanning speed (s): the settle path is at least
     /// `settle_time · scan_speed` long, so the transient has time to die out at any speed.
     pub settle_time: f64,
-    /// Path acceleration limit (mm/s²).
+    /// Path acceleration limit.
     pub accel: f64,
-    /// Path jerk limit (mm/s³), kept on transfers and straight moves.
-    pub jerk: f64,
     /// Classic style: speed of the approach along the normal (touch/search speed).
     pub touch_speed: f64,
     /// Classic style: wait at the pre-hit point for the machine to settle.
@@ -97,7 +95,6 @@ impl Default for Params {
             settle_length: 3.0,
             settle_time: 0.15,
             accel: 1500.0,
-            jerk: 20_000.0,
             touch_speed: 3.0,
             prehit_dwell: 0.3,
         }
@@ -128,7 +125,6 @@ pub fn validate(features: &[Feature], p: &Params) -> Result<(), ScanError> {
     pos("settle_mm", p.settle_length)?;
     pos("settle_s", p.settle_time)?;
     pos("accel_mm_s2", p.accel)?;
-    pos("jerk_mm_s3", p.jerk)?;
     pos("touch_speed_mm_s", p.touch_speed)?;
     if !(p.overshoot.is_finite() && p.overshoot >= 0.0) {
         return Err(ScanError::Parameter("overshoot_mm", p.overshoot));

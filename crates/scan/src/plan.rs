@@ -12,16 +12,9 @@
 //! (commanded deflection) that starts with slope `cot α` (tangent-continuous with the approach),
 //! rises to `deflection + overshoot` and falls back to `deflection` along a half cosine; the scan
 //! holds `deflection`; the release lifts off with a cubic that reaches slope `−cot α` and then
-//! climbs straight to the clearance; the transfer is a quintic Hermite curve that matches the
-//! release's end point, direction and curvature at one end and the approach line (zero
-//! curvature) at the other, so position, velocity and acceleration are continuous at both joints.
-//!
-//! Transfers (and every straight move) run on jerk-limited speed profiles ([`Profile::s_curve`]:
-//! phases of constant jerk). On a curved transfer the speed is capped from the curve's largest
-//! curvature κ, curvature rate κ' and κτ so that the whole motion — tangential and lateral —
-//! stays within the limits: `|a| ≤ √(a_t² + v⁴κ²) ≤ accel` and
-//! `|j| ≤ |j_t| + v³κ² + 3·v·|a_t|·κ + v³|κ'| + v³|κτ| ≤ jerk` (the Frenet decomposition of
-//! the third derivative of the position). The settle path lies *before* the scan start
+//! climbs straight to the clearance; the transfer is a cubic Bézier tangent to the release at one
+//! end and to the next approach at the other (no corners), on a trapezoidal speed profile from
+//! scanning speed up to positioning speed and back. The settle path lies *before* the scan start
 //! (for a line, on the extension of the line before `start_mm`), so the scan covers the whole
 //! requested path.
 
@@ -110,12 +103,7 @@ pub enum Geom {
         a: Point3,
         b: Point3,
     },
-    /// Quintic Hermite: end points, end tangents (dP/dλ) and end second derivatives (d²P/dλ²).
-    Quintic {
-        p: [Point3; 2],
-        m: [Vector3; 2],
-        c: [Vector3; 2],
-    },
+    Bezier([Point3; 4]),
     /// Along the segment's feature from `u0` to `u1` (see [`Feature::point`]); `x_len` is the
     /// tangential length over which the penetration profile is evaluated.
     Along {
@@ -130,12 +118,12 @@ pub enum Geom {
     },
 }
 
-/// Speed profile over a length: a trapezoid, or a jerk-limited S-curve (phases of constant jerk).
+/// Speed profile over a length: a trapezoid, or (for curved transfers) a sampled profile that
+/// respects a lateral-acceleration speed limit along the curve.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Profile {
-    /// Phases of the S-curve: (start time, s, v, a, jerk) at each phase start; `None` for a
-    /// trapezoid.
-    table: Option<Vec<[f64; 5]>>,
+    /// (t, s, v) samples of a curvature-limited profile; `None` for a trapezoid.
+    table: Option<Vec<[f64; 3]>>,
     pub len: f64,
     pub v0: f64,
     pub v1: f64,
@@ -183,85 +171,35 @@ impl Profile {
         Profile { table: None, len, v0, v1, vp, a0: a, a1: a, t0, tc, t1 }
     }
 
-    /// Jerk-limited profile over `len` from `v0` to `v1` through a cruise speed of at most `vmax`
-    /// (the highest the length allows), with |a| ≤ `a` and |jerk| ≤ `j`: every speed change is an
-    /// S-curve (jerk ±j, then constant acceleration when the change is large enough, then ∓j),
-    /// starting and ending with zero acceleration. When `len` is too short to join `v0` and `v1`
-    /// at these limits, both are raised together just enough (as [`Profile::new`] does).
-    pub fn s_curve(len: f64, v0: f64, vmax: f64, v1: f64, a: f64, j: f64) -> Profile {
-        let len = len.max(0.0);
-        if len <= 1e-12 {
-            return Profile::new(0.0, v0, vmax, v1, a);
+    /// Time-optimal profile along a curve sampled at equal distances `ds` with speed limits
+    /// `vlim` (one per sample, the first and last replaced by `v0` and `v1`): forward and
+    /// backward passes with acceleration `a`, then constant acceleration between samples.
+    pub fn limited(ds: f64, vlim: &[f64], v0: f64, v1: f64, a: f64) -> Profile {
+        let n = vlim.len();
+        if n < 2 || ds <= 0.0 {
+            return Profile::new(ds * n.saturating_sub(1) as f64, v0, v0.max(v1), v1, a);
         }
-        // (phases (duration, jerk), distance) of a change from va to vb.
-        let change = |va: f64, vb: f64, a: f64, j: f64| -> (Vec<(f64, f64)>, f64) {
-            let d = (vb - va).abs();
-            if d <= 0.0 {
-                return (vec![], 0.0);
-            }
-            let sg = (vb - va).signum();
-            let (ph, t) = if d >= a * a / j {
-                (vec![(a / j, sg * j), (d / a - a / j, 0.0), (a / j, -sg * j)], d / a + a / j)
-            } else {
-                let t1 = (d / j).sqrt();
-                (vec![(t1, sg * j), (t1, -sg * j)], 2.0 * t1)
-            };
-            (ph, 0.5 * (va + vb) * t)
-        };
-        let lo = v0.max(v1);
-        let dist = |vp: f64, a: f64, j: f64| change(v0, vp, a, j).1 + change(vp, v1, a, j).1;
-        let (mut a, mut j) = (a, j);
-        while dist(lo, a, j) > len {
-            a *= 1.05;
-            j *= 1.05 * 1.05;
+        let mut v: Vec<f64> = vlim.to_vec();
+        v[0] = v0;
+        v[n - 1] = v1;
+        for i in 1..n {
+            v[i] = v[i].min((v[i - 1] * v[i - 1] + 2.0 * a * ds).sqrt());
         }
-        let hi = vmax.max(lo);
-        let vp = if dist(hi, a, j) <= len {
-            hi
-        } else {
-            let (mut l, mut h) = (lo, hi);
-            for _ in 0..100 {
-                let m = 0.5 * (l + h);
-                if dist(m, a, j) <= len {
-                    l = m;
-                } else {
-                    h = m;
-                }
-            }
-            l
-        };
-        let (up, d_up) = change(v0, vp, a, j);
-        let (down, d_down) = change(vp, v1, a, j);
-        let cruise = if vp > 0.0 { (len - d_up - d_down).max(0.0) / vp } else { 0.0 };
-        let mut phases = up;
-        if cruise > 0.0 {
-            phases.push((cruise, 0.0));
+        v[n - 1] = v1;
+        for i in (0..n - 1).rev() {
+            v[i] = v[i].min((v[i + 1] * v[i + 1] + 2.0 * a * ds).sqrt());
         }
-        phases.extend(down);
-        // Integrate the phases exactly.
-        let mut table = Vec::with_capacity(phases.len() + 1);
-        let (mut t, mut x, mut v, mut acc) = (0.0, 0.0, v0, 0.0);
-        for (dt, jk) in phases {
-            if dt <= 0.0 {
-                continue;
-            }
-            table.push([t, x, v, acc, jk]);
-            x += v * dt + 0.5 * acc * dt * dt + jk * dt * dt * dt / 6.0;
-            v += acc * dt + 0.5 * jk * dt * dt;
-            acc += jk * dt;
-            t += dt;
+        v[0] = v0;
+        let mut table = Vec::with_capacity(n);
+        let mut t = 0.0;
+        table.push([0.0, 0.0, v[0]]);
+        for i in 1..n {
+            let vm = (v[i - 1] + v[i]).max(1e-9);
+            t += 2.0 * ds / vm;
+            table.push([t, ds * i as f64, v[i]]);
         }
-        table.push([t, x, v, 0.0, 0.0]);
-        // t0/t1 hold the lengths of the speed changes (for curve checks), tc the cruise time.
-        Profile { table: Some(table), len, v0, v1, vp, a0: a, a1: a, t0: d_up, tc: cruise, t1: d_down }
-    }
-
-    /// Lengths of the initial and final speed changes of an S-curve (0 for other profiles).
-    fn change_lengths(&self) -> (f64, f64) {
-        match self.table {
-            Some(_) => (self.t0, self.t1),
-            None => (0.0, 0.0),
-        }
+        let len = ds * (n - 1) as f64;
+        Profile { table: Some(table), len, v0, v1, vp: v0.max(v1), a0: a, a1: a, t0: 0.0, tc: 0.0, t1: 0.0 }
     }
 
     /// Constant speed.
@@ -283,11 +221,12 @@ impl Profile {
         }
         let t = t.clamp(0.0, self.duration());
         if let Some(tb) = &self.table {
-            let i = tb.partition_point(|r| r[0] <= t).clamp(1, tb.len()) - 1;
-            let [t0, x, v, a, j] = tb[i];
-            let tau = t - t0;
-            let s = x + v * tau + 0.5 * a * tau * tau + j * tau * tau * tau / 6.0;
-            return (s.clamp(0.0, self.len), v + a * tau + 0.5 * j * tau * tau);
+            let i = tb.partition_point(|r| r[0] <= t).clamp(1, tb.len() - 1) - 1;
+            let (r0, r1) = (tb[i], tb[i + 1]);
+            let dt = r1[0] - r0[0];
+            let acc = if dt > 0.0 { (r1[2] - r0[2]) / dt } else { 0.0 };
+            let tau = t - r0[0];
+            return ((r0[1] + r0[2] * tau + 0.5 * acc * tau * tau).min(r1[1]), r0[2] + acc * tau);
         }
         if t < self.t0 {
             (self.v0 * t + 0.5 * self.a0 * t * t, self.v0 + self.a0 * t)
@@ -326,9 +265,6 @@ pub struct Segment {
     pub plane: Option<(Point3, Vector3)>,
     /// Arc-length table of the carrier: (λ at equal distance steps).
     table: Vec<f64>,
-    /// Quintic carriers: arc length at `ARC_N + 1` equal steps of λ (Gauss–Legendre), for the
-    /// exact (smooth) inverse λ(s) that a jerk-limited motion needs.
-    arc: Vec<f64>,
 }
 
 /// What a segment commands at a local time.
@@ -352,7 +288,7 @@ impl Segment {
         f: &Feature,
         tip: f64,
         speeds: (f64, f64, f64),
-        limits: (f64, f64),
+        accel: f64,
     ) -> Segment {
         let mut s = Segment {
             kind,
@@ -366,7 +302,6 @@ impl Segment {
             wait_settled: false,
             plane: None,
             table: Vec::new(),
-            arc: Vec::new(),
         };
         // arc-length table: cumulative chord lengths at equal λ, inverted to λ at equal s.
         let mut cum = Vec::with_capacity(TABLE_N + 1);
@@ -377,17 +312,7 @@ impl Segment {
             cum.push(cum[i - 1] + (p - prev).norm());
             prev = p;
         }
-        let mut len = cum[TABLE_N];
-        if let Geom::Quintic { p, m, c } = &s.geom {
-            let mut arc = Vec::with_capacity(ARC_N + 1);
-            arc.push(0.0);
-            for k in 0..ARC_N {
-                let (l0, l1) = (k as f64 / ARC_N as f64, (k + 1) as f64 / ARC_N as f64);
-                arc.push(arc[k] + gauss_length(p, m, c, l0, l1));
-            }
-            len = arc[ARC_N];
-            s.arc = arc;
-        }
+        let len = cum[TABLE_N];
         let mut table = Vec::with_capacity(TABLE_N + 1);
         let mut j = 0;
         for i in 0..=TABLE_N {
@@ -400,19 +325,32 @@ impl Segment {
             table.push((j as f64 + f) / TABLE_N as f64);
         }
         s.table = table;
-        let (accel, jerk) = limits;
-        s.profile = match &s.geom {
-            Geom::Line { .. } => Profile::s_curve(len, speeds.0, speeds.1, speeds.2, accel, jerk),
-            Geom::Quintic { p, m, c } if len > 1e-9 => {
-                let sh = curve_shape(p, m, c);
-                curve_profile(&sh, speeds.0, speeds.1, speeds.2, accel, jerk).unwrap_or_else(|| {
-                    // Even the end speeds exceed the limits somewhere (a near-cusp the tangent
-                    // stretching could not open): go through at the end speeds.
-                    let (_, _, a_t, j_t) = curve_budget(accel, jerk);
-                    Profile::s_curve(len, speeds.0, speeds.0.max(speeds.2), speeds.2, a_t, j_t)
-                })
+        s.profile = if matches!(s.geom, Geom::Bezier(_)) && len > 1e-9 {
+            // cap the speed where the curve bends: lateral acceleration v²/ρ ≤ accel
+            const N: usize = 128;
+            let ds = len / N as f64;
+            let pts: Vec<Point3> =
+                (0..=N).map(|k| s.carrier(s.lambda_at(ds * k as f64, len), f, tip)).collect();
+            let mut vlim = vec![speeds.1; N + 1];
+            for k in 1..N {
+                let (a, b) = (pts[k] - pts[k - 1], pts[k + 1] - pts[k]);
+                let (la, lb) = (a.norm(), b.norm());
+                if la > 1e-12 && lb > 1e-12 {
+                    let turn = (a.dot(&b) / (la * lb)).clamp(-1.0, 1.0).acos();
+                    if turn > 1e-12 {
+                        let rho = 0.5 * (la + lb) / turn;
+                        vlim[k] = vlim[k].min((accel * rho).sqrt());
+                    }
+                }
             }
-            _ => Profile::new(len, speeds.0, speeds.1, speeds.2, accel),
+            // never below half the slower end speed: a near-cusp must not become a stop
+            let floor = 0.5 * speeds.0.max(speeds.2).min(if speeds.0 > 0.0 { speeds.0 } else { speeds.2 });
+            for v in vlim.iter_mut() {
+                *v = v.max(floor);
+            }
+            Profile::limited(ds, &vlim, speeds.0, speeds.2, accel)
+        } else {
+            Profile::new(len, speeds.0, speeds.1, speeds.2, accel)
         };
         s
     }
@@ -430,7 +368,6 @@ impl Segment {
             wait_settled: false,
             plane: None,
             table: vec![0.0, 1.0],
-            arc: Vec::new(),
         }
     }
 
@@ -438,7 +375,15 @@ impl Segment {
     fn carrier(&self, l: f64, f: &Feature, tip: f64) -> Point3 {
         match &self.geom {
             Geom::Line { a, b } => a + (b - a) * l,
-            Geom::Quintic { p, m, c } => quintic(p, m, c, l, 0),
+            Geom::Bezier([p0, p1, p2, p3]) => {
+                let m = 1.0 - l;
+                Point3::from(
+                    p0.coords * (m * m * m)
+                        + p1.coords * (3.0 * m * m * l)
+                        + p2.coords * (3.0 * m * l * l)
+                        + p3.coords * (l * l * l),
+                )
+            }
             Geom::Along { u0, u1, pen, x_len } => f.point(u0 + (u1 - u0) * l, tip - pen.at(l * x_len)),
             Geom::Hold { p } => *p,
         }
@@ -474,27 +419,6 @@ impl Segment {
         if len <= 0.0 {
             return 0.0;
         }
-        if let (Geom::Quintic { p, m, c }, false) = (&self.geom, self.arc.is_empty()) {
-            // Newton on s(λ) = arc[i] + ∫ |P'| from λ_i, started from the linear guess.
-            let s = s.clamp(0.0, self.arc[ARC_N]);
-            let i = (self.arc.partition_point(|a| *a <= s).clamp(1, ARC_N)) - 1;
-            let l0 = i as f64 / ARC_N as f64;
-            let span = self.arc[i + 1] - self.arc[i];
-            let mut l = if span > 0.0 { l0 + (s - self.arc[i]) / span / ARC_N as f64 } else { l0 };
-            for _ in 0..8 {
-                let f = self.arc[i] + gauss_length(p, m, c, l0, l) - s;
-                let d = quintic(p, m, c, l, 1).coords.norm();
-                if d < 1e-12 {
-                    break;
-                }
-                let step = f / d;
-                l = (l - step).clamp(l0, (i + 1) as f64 / ARC_N as f64);
-                if step.abs() < 1e-15 {
-                    break;
-                }
-            }
-            return l;
-        }
         let x = (s / len).clamp(0.0, 1.0) * TABLE_N as f64;
         let i = (x.floor() as usize).min(TABLE_N - 1);
         let f = x - i as f64;
@@ -517,6 +441,17 @@ impl Segment {
         };
         let speed = if matches!(self.geom, Geom::Hold { .. }) { 0.0 } else { v };
         Command { position, speed, normal, deflection }
+    }
+
+    /// Unit direction of motion at the end (or start) of the carrier.
+    fn direction(&self, at_end: bool, f: &Feature, tip: f64) -> Vector3 {
+        let (a, b) = if at_end { (1.0 - 1e-4, 1.0) } else { (0.0, 1e-4) };
+        let d = self.carrier(b, f, tip) - self.carrier(a, f, tip);
+        if d.norm() > 1e-12 {
+            d.normalize()
+        } else {
+            Vector3::zeros()
+        }
     }
 }
 
@@ -560,243 +495,11 @@ pub fn home(features: &[Feature], p: &Params) -> Point3 {
     features[0].point(0.0, p.tip_radius + p.clearance + 10.0)
 }
 
-/// Derivative `order` (0–3) of the quintic Hermite curve at `l`.
-fn quintic(p: &[Point3; 2], m: &[Vector3; 2], c: &[Vector3; 2], l: f64, order: u8) -> Point3 {
-    let (l2, l3) = (l * l, l * l * l);
-    let (l4, l5) = (l3 * l, l3 * l2);
-    // Basis (value, d/dλ, d²/dλ², d³/dλ³) for p0, m0, c0, c1, m1, p1.
-    let w: [f64; 6] = match order {
-        0 => [
-            1.0 - 10.0 * l3 + 15.0 * l4 - 6.0 * l5,
-            l - 6.0 * l3 + 8.0 * l4 - 3.0 * l5,
-            0.5 * l2 - 1.5 * l3 + 1.5 * l4 - 0.5 * l5,
-            0.5 * l3 - l4 + 0.5 * l5,
-            -4.0 * l3 + 7.0 * l4 - 3.0 * l5,
-            10.0 * l3 - 15.0 * l4 + 6.0 * l5,
-        ],
-        1 => [
-            -30.0 * l2 + 60.0 * l3 - 30.0 * l4,
-            1.0 - 18.0 * l2 + 32.0 * l3 - 15.0 * l4,
-            l - 4.5 * l2 + 6.0 * l3 - 2.5 * l4,
-            1.5 * l2 - 4.0 * l3 + 2.5 * l4,
-            -12.0 * l2 + 28.0 * l3 - 15.0 * l4,
-            30.0 * l2 - 60.0 * l3 + 30.0 * l4,
-        ],
-        2 => [
-            -60.0 * l + 180.0 * l2 - 120.0 * l3,
-            -36.0 * l + 96.0 * l2 - 60.0 * l3,
-            1.0 - 9.0 * l + 18.0 * l2 - 10.0 * l3,
-            3.0 * l - 12.0 * l2 + 10.0 * l3,
-            -24.0 * l + 84.0 * l2 - 60.0 * l3,
-            60.0 * l - 180.0 * l2 + 120.0 * l3,
-        ],
-        _ => [
-            -60.0 + 360.0 * l - 360.0 * l2,
-            -36.0 + 192.0 * l - 180.0 * l2,
-            -9.0 + 36.0 * l - 30.0 * l2,
-            3.0 - 24.0 * l + 30.0 * l2,
-            -24.0 + 168.0 * l - 180.0 * l2,
-            60.0 - 360.0 * l + 360.0 * l2,
-        ],
-    };
-    let v = p[0].coords * w[0] + m[0] * w[1] + c[0] * w[2] + c[1] * w[3] + m[1] * w[4] + p[1].coords * w[5];
-    Point3::from(v)
-}
-
-/// Steps of the arc-length table of a quintic carrier.
-const ARC_N: usize = 64;
-
-/// Arc length of the quintic between `l0` and `l1` (8-point Gauss–Legendre: the speed |P'| is
-/// smooth, so this is exact to rounding on the short intervals used).
-fn gauss_length(p: &[Point3; 2], m: &[Vector3; 2], c: &[Vector3; 2], l0: f64, l1: f64) -> f64 {
-    const X: [f64; 4] =
-        [0.183_434_642_495_649_8, 0.525_532_409_916_329, 0.796_666_477_413_626_7, 0.960_289_856_497_536_3];
-    const W: [f64; 4] =
-        [0.362_683_783_378_362, 0.313_706_645_877_887_3, 0.222_381_034_453_374_5, 0.101_228_536_290_376_3];
-    let (h, mid) = (0.5 * (l1 - l0), 0.5 * (l1 + l0));
-    let mut sum = 0.0;
-    for (x, w) in X.iter().zip(W) {
-        sum += w
-            * (quintic(p, m, c, mid - h * x, 1).coords.norm()
-                + quintic(p, m, c, mid + h * x, 1).coords.norm());
-    }
-    sum * h
-}
-
-/// The curve's shape along its length: at samples of arc length `s`, the curvature κ (1/mm)
-/// and `q = κ² + |dκ/ds| + |κτ|` (1/mm²), the factor of v³ in the jerk.
-#[derive(Clone, Debug, Default)]
-struct CurveShape {
-    s: Vec<f64>,
-    kappa: Vec<f64>,
-    q: Vec<f64>,
-}
-
-impl CurveShape {
-    fn len(&self) -> f64 {
-        self.s.last().copied().unwrap_or(0.0)
-    }
-
-    /// Largest κ and q over `[s0, s1]` (one sample beyond each end, for the sampling).
-    fn max_in(&self, s0: f64, s1: f64) -> (f64, f64) {
-        let n = self.s.len();
-        let i0 = self.s.partition_point(|x| *x < s0).saturating_sub(1);
-        let i1 = (self.s.partition_point(|x| *x <= s1) + 1).min(n);
-        let mut out = (0.0f64, 0.0f64);
-        for k in i0..i1 {
-            out.0 = out.0.max(self.kappa[k]);
-            out.1 = out.1.max(self.q[k]);
-        }
-        out
-    }
-}
-
-fn curve_shape(p: &[Point3; 2], m: &[Vector3; 2], c: &[Vector3; 2]) -> CurveShape {
-    const N: usize = 1024;
-    let mut sh = CurveShape::default();
-    let mut s = 0.0;
-    let mut last = quintic(p, m, c, 0.0, 0);
-    let mut kt = Vec::with_capacity(N + 1);
-    for k in 0..=N {
-        let l = k as f64 / N as f64;
-        let pos = quintic(p, m, c, l, 0);
-        s += (pos - last).norm();
-        last = pos;
-        let d1 = quintic(p, m, c, l, 1).coords;
-        let d2 = quintic(p, m, c, l, 2).coords;
-        let d3 = quintic(p, m, c, l, 3).coords;
-        let sp = d1.norm();
-        let cr = d1.cross(&d2);
-        let (kappa, ktau) = if sp < 1e-9 {
-            // A cusp: no finite speed limit would do.
-            (f64::INFINITY, f64::INFINITY)
-        } else {
-            (cr.norm() / sp.powi(3), cr.dot(&d3).abs() / sp.powi(6))
-        };
-        sh.s.push(s);
-        sh.kappa.push(kappa);
-        kt.push(ktau);
-    }
-    for k in 0..=N {
-        let (a, b) = (k.saturating_sub(1), (k + 1).min(N));
-        let ds = sh.s[b] - sh.s[a];
-        let dk = if ds > 0.0 { (sh.kappa[b] - sh.kappa[a]).abs() / ds } else { f64::INFINITY };
-        sh.q.push(sh.kappa[k] * sh.kappa[k] + dk + kt[k]);
-    }
-    sh
-}
-
-/// Limits used on curves (a 10 % margin covers the sampling of the curve): the total
-/// acceleration and jerk allowed, and the tangential acceleration and jerk of speed changes.
-fn curve_budget(accel: f64, jerk: f64) -> (f64, f64, f64, f64) {
-    let (a_lim, j_lim) = (0.9 * accel, 0.9 * jerk);
-    let a_t = a_lim * std::f64::consts::FRAC_1_SQRT_2;
-    let j_t = 0.5 * j_lim;
-    (a_lim, j_lim, a_t, j_t)
-}
-
-/// Whether speed `v` is within the limits on a stretch with largest κ and q, with (`accel_zone`)
-/// or without tangential acceleration there:
-/// `|a| ≤ √(a_t² + v⁴κ²)`, `|j| ≤ |j_t| + v³·q + 3·v·|a_t|·κ` (Frenet decomposition of the jerk).
-fn speed_ok(v: f64, (kappa, q): (f64, f64), accel_zone: bool, accel: f64, jerk: f64) -> bool {
-    let (a_lim, j_lim, a_t, j_t) = curve_budget(accel, jerk);
-    if !(kappa.is_finite() && q.is_finite()) {
-        return v == 0.0;
-    }
-    let lat = v * v * kappa;
-    if accel_zone {
-        lat <= a_t && j_t + v.powi(3) * q + 3.0 * v * a_t * kappa <= j_lim
-    } else {
-        lat <= a_lim && v.powi(3) * q <= j_lim
-    }
-}
-
-/// The jerk-limited profile along a curve: the highest cruise speed (≤ `vmax`) for which the
-/// cruise stretch and the two speed-change stretches (at the reduced tangential limits) keep the
-/// total acceleration and jerk within the limits. `None` when even the end speeds cannot.
-fn curve_profile(sh: &CurveShape, v0: f64, vmax: f64, v1: f64, accel: f64, jerk: f64) -> Option<Profile> {
-    let (_, _, a_t, j_t) = curve_budget(accel, jerk);
-    let len = sh.len();
-    let lo = v0.max(v1);
-    let feasible = |vp: f64| -> Option<Profile> {
-        let pr = Profile::s_curve(len, v0, vp, v1, a_t, j_t);
-        let (d_up, d_down) = pr.change_lengths();
-        let cruise_ok = speed_ok(pr.vp, sh.max_in(d_up, len - d_down), false, accel, jerk);
-        let up_ok = d_up <= 0.0 || speed_ok(pr.vp.max(v0), sh.max_in(0.0, d_up), true, accel, jerk);
-        let down_ok =
-            d_down <= 0.0 || speed_ok(pr.vp.max(v1), sh.max_in(len - d_down, len), true, accel, jerk);
-        (cruise_ok && up_ok && down_ok).then_some(pr)
-    };
-    let hi = vmax.max(lo);
-    if let Some(p) = feasible(hi) {
-        return Some(p);
-    }
-    let mut best = feasible(lo)?;
-    let (mut l, mut h) = (lo, hi);
-    for _ in 0..40 {
-        let mid = 0.5 * (l + h);
-        match feasible(mid) {
-            Some(p) => {
-                best = p;
-                l = mid;
-            }
-            None => h = mid,
-        }
-    }
-    Some(best)
-}
-
-/// A transfer from `a` (leaving in direction `da` with curvature vector `ka`, 1/mm) to `b`
-/// (arriving in direction `db` on a straight line), as a quintic Hermite whose tangent lengths
-/// are about the chord (at most 45 mm, so long transfers stay nearly straight), times `stretch`.
-fn quintic_between(a: Point3, da: Vector3, ka: Vector3, b: Point3, db: Vector3, stretch: f64) -> Geom {
-    let k = (b - a).norm().clamp(1.0, 45.0) * stretch;
-    // d²P/dλ² = κ·|dP/dλ|² along the normal at the start (no tangential component).
-    Geom::Quintic { p: [a, b], m: [da * k, db * k], c: [ka * (k * k), Vector3::zeros()] }
-}
-
-/// The transfer segment from `a` to `b` (see [`quintic_between`]): the tangent lengths grow
-/// until the curve's speed cap admits both end speeds (a tight turn between close features).
-#[allow(clippy::too_many_arguments)]
-fn transfer(
-    i: usize,
-    f: &Feature,
-    p: &Params,
-    (a, da, ka): (Point3, Vector3, Vector3),
-    (b, db): (Point3, Vector3),
-    speeds: (f64, f64, f64),
-) -> Segment {
-    let mut stretch = 1.0;
-    loop {
-        let g = quintic_between(a, da, ka, b, db, stretch);
-        let ok = match &g {
-            Geom::Quintic { p: pp, m, c } => {
-                curve_profile(&curve_shape(pp, m, c), speeds.0, speeds.1, speeds.2, p.accel, p.jerk).is_some()
-            }
-            _ => true,
-        };
-        if ok || stretch > 8.0 {
-            return Segment::new(SegmentKind::Transfer, i, g, f, p.tip_radius, speeds, (p.accel, p.jerk));
-        }
-        stretch *= 1.25;
-    }
-}
-
-/// Unit direction and curvature vector (1/mm) at the end of a segment's carrier.
-fn end_state(s: &Segment, f: &Feature, tip: f64) -> (Point3, Vector3, Vector3) {
-    let e = s.carrier(1.0, f, tip);
-    let h = 1e-3;
-    let (p0, p1, p2) = (s.carrier(1.0 - 2.0 * h, f, tip), s.carrier(1.0 - h, f, tip), e);
-    let d1 = (p2 - p0) / (2.0 * h);
-    let d2 = (p2.coords - 2.0 * p1.coords + p0.coords) / (h * h);
-    let sp = d1.norm();
-    if sp < 1e-12 {
-        return (e, Vector3::zeros(), Vector3::zeros());
-    }
-    let t = d1 / sp;
-    // Curvature vector: the part of d²P/dλ² normal to the tangent, over |dP/dλ|².
-    let kv = (d2 - t * d2.dot(&t)) / (sp * sp);
-    (e, t, kv)
+fn bezier_between(a: Point3, da: Vector3, b: Point3, db: Vector3) -> Geom {
+    // tangent arms of at most 15 mm: long enough for a gentle turn at scanning speed, short
+    // enough that long transfers stay nearly straight (no loops)
+    let k = ((b - a).norm() / 3.0).min(15.0);
+    Geom::Bezier([a, a + da * k, b - db * k, b])
 }
 
 fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
@@ -812,7 +515,7 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
     let rel_len = xr + ((p.deflection + lift) - k * xr.powi(3)) / cot;
     let v = p.scan_speed;
     let mut segs: Vec<Segment> = Vec::new();
-    let mut prev_end: Option<(Point3, Vector3, Vector3)> = None;
+    let mut prev_end: Option<(Point3, Vector3)> = None;
     for (i, f) in features.iter().enumerate() {
         let m = f.metric(tip - p.deflection).max(1e-9);
         let uc = -settle_len / m;
@@ -827,20 +530,22 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
                 let h = home(features, p);
                 let d = (a - h).norm();
                 let dir = if d > 1e-9 { (a - h) / d } else { w };
-                transfer(i, f, p, (h, dir, Vector3::zeros()), (a, w), (0.0, p.move_speed, v))
+                let g = bezier_between(h, dir, a, w);
+                Segment::new(SegmentKind::Transfer, i, g, f, tip, (0.0, p.move_speed, v), p.accel)
             }
-            Some(start) => transfer(i, f, p, start, (a, w), (v, p.move_speed, v)),
+            Some((e, de)) => Segment::new(
+                SegmentKind::Transfer,
+                i,
+                bezier_between(e, de, a, w),
+                f,
+                tip,
+                (v, p.move_speed, v),
+                p.accel,
+            ),
         };
         segs.push(tr);
-        let mut ap = Segment::new(
-            SegmentKind::Approach,
-            i,
-            Geom::Line { a, b: c0 },
-            f,
-            tip,
-            (v, v, v),
-            (p.accel, p.jerk),
-        );
+        let mut ap =
+            Segment::new(SegmentKind::Approach, i, Geom::Line { a, b: c0 }, f, tip, (v, v, v), p.accel);
         ap.contact_time = Some(ap.duration());
         ap.plane = Some((f.point(uc, 0.0), n0));
         segs.push(ap);
@@ -856,7 +561,7 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
             f,
             tip,
             (v, v, v),
-            (p.accel, p.jerk),
+            p.accel,
         );
         st.feedback = true;
         st.feedback_after = (x1 + 0.3 * (settle_len - x1)) / settle_len * st.duration();
@@ -869,7 +574,7 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
             f,
             tip,
             (v, v, v),
-            (p.accel, p.jerk),
+            p.accel,
         );
         sc.feedback = true;
         segs.push(sc);
@@ -881,19 +586,26 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
             f,
             tip,
             (v, v, v),
-            (p.accel, p.jerk),
+            p.accel,
         );
-        let end = end_state(&rl, f, tip);
+        let e = rl.carrier(1.0, f, tip);
+        let de = rl.direction(true, f, tip);
         segs.push(rl);
-        prev_end = Some(end);
+        prev_end = Some((e, de));
     }
     // come to rest straight on from the last release
-    if let Some((e, de, ke)) = prev_end {
+    if let Some((e, de)) = prev_end {
         let f = &features[features.len() - 1];
-        // Room for the jerk-limited stop even at the reduced tangential limits of a curve.
-        let (a_t, j_t) = (0.6 * p.accel, 0.45 * p.jerk);
-        let d = 0.55 * v * (v / a_t + a_t / j_t) + 1e-6;
-        segs.push(transfer(features.len() - 1, f, p, (e, de, ke), (e + de * d.max(1.0), de), (v, v, 0.0)));
+        let d = v * v / (2.0 * p.accel) + 1e-6;
+        segs.push(Segment::new(
+            SegmentKind::Transfer,
+            features.len() - 1,
+            Geom::Line { a: e, b: e + de * d },
+            f,
+            tip,
+            (v, v, 0.0),
+            p.accel,
+        ));
     }
     segs
 }
@@ -914,7 +626,7 @@ fn classic(features: &[Feature], p: &Params) -> Vec<Segment> {
                 f,
                 tip,
                 (0.0, p.move_speed, 0.0),
-                (p.accel, p.jerk),
+                p.accel,
             ));
         }
         segs.push(Segment::hold(SegmentKind::Approach, i, pre, p.prehit_dwell));
@@ -926,7 +638,7 @@ fn classic(features: &[Feature], p: &Params) -> Vec<Segment> {
             f,
             tip,
             (0.0, p.touch_speed, 0.0),
-            (p.accel, p.jerk),
+            p.accel,
         );
         // time at which the nominal contact point is passed
         let target = p.clearance;
@@ -956,7 +668,7 @@ fn classic(features: &[Feature], p: &Params) -> Vec<Segment> {
             f,
             tip,
             (0.0, p.scan_speed, 0.0),
-            (p.accel, p.jerk),
+            p.accel,
         );
         sc.feedback = true;
         segs.push(sc);
@@ -969,7 +681,7 @@ fn classic(features: &[Feature], p: &Params) -> Vec<Segment> {
             f,
             tip,
             (0.0, p.move_speed, 0.0),
-            (p.accel, p.jerk),
+            p.accel,
         );
         rl.plane = Some((f.point(ext, 0.0), f.normal(ext)));
         segs.push(rl);
