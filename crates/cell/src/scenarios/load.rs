@@ -197,7 +197,7 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
         data.indicated.len(), cfg.noise_sigma * 1e3,
         heat, curve_plot,
         report::table(&["pad (mm)", "truepos (N)", "truth (N)"], &force_rows),
-        report::table(&["", "RMS before", "max before", "RMS after", "max after", "removed"], &rows),
+        report::table(&["errors", "RMS before", "max before", "RMS after", "max after", "removed"], &rows),
     );
     report.verdict(report::Verdict {
         section: "load".into(),

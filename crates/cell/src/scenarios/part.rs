@@ -167,7 +167,7 @@ pub fn autoscale_section(report: &mut Report) -> Result<()> {
         sigma * 1e3,
         f.rms_mm * 1e3,
         report::table(
-            &["", "scale", "ppm", "U (ppm, k = 2)"],
+            &["source", "scale", "ppm", "U (ppm, k = 2)"],
             &[
                 vec!["truth".into(), format!("{:.9}", truth.scale), format!("{:+.2}", (truth.scale - 1.0) * 1e6), "—".into()],
                 vec!["truepos".into(), format!("{:.9}", f.scale), format!("{:+.2}", (f.scale - 1.0) * 1e6), format!("{:.2}", 2.0 * u_ppm)],
@@ -205,7 +205,7 @@ pub fn orient_section(report: &mut Report) -> Result<()> {
     let html = format!(
         "<p>The program of the part (21 holes along y = 1500 mm) is carried through the best-fit transform of the measured targets (same data as autoscale, with scale). Reproduce: <code>truepos orient --reference reference.csv --measured measured.csv --program part.nc --output oriented.nc --scale</code>.</p>{}",
         report::table(
-            &["", "RMS (µm)", "max (µm)"],
+            &["quantity", "RMS (µm)", "max (µm)"],
             &[vec!["oriented − true position".into(), format!("{rms:.1}"), format!("{max:.1}")]]
         )
     );
