@@ -751,4 +751,40 @@ mod tests {
         assert_eq!(s["sections"][1]["tables"], serde_json::json!([]));
         assert_eq!(s["sections"][1]["id"], "s2");
     }
+
+    /// The header's date is the civil UTC date of the Unix time (checked against known dates).
+    #[test]
+    fn utc_string_is_the_civil_date() {
+        assert_eq!(utc_string(0), "1970-01-01 00:00:00 UTC");
+        assert_eq!(utc_string(1_700_000_000), "2023-11-14 22:13:20 UTC");
+        assert_eq!(utc_string(951_782_400), "2000-02-29 00:00:00 UTC");
+        assert_eq!(utc_string(-1), "1969-12-31 23:59:59 UTC");
+    }
+
+    /// With the generation time fixed (what `SOURCE_DATE_EPOCH` does in the CLI), the same
+    /// content gives byte-identical pages; the time is the only thing that differs otherwise.
+    #[test]
+    fn reruns_are_byte_identical_with_a_fixed_time() {
+        let build = |t: i64| {
+            let mut r = Report::new("unused");
+            r.header = Header { version: "v".into(), generated_unix_s: t, seed: 1, ..Header::default() };
+            let svg = xy_plot("p", "x", "y", &[Series::line("a", vec![(0.0, 0.0), (1.0, 2.0)])]).unwrap();
+            r.add("s", "S", format!("{}{svg}", table(&["a", "b"], &[vec!["x".into(), "pass".into()]])));
+            r.verdict(Verdict {
+                section: "s".into(),
+                capability: "c".into(),
+                measured: "m".into(),
+                truth: "t".into(),
+                result: "r".into(),
+                uncertainty: "U (k = 2)".into(),
+                tolerance: "tol".into(),
+                pass: true,
+            });
+            (r.html(), serde_json::to_string(&r.summary()).unwrap())
+        };
+        assert_eq!(build(1_700_000_000), build(1_700_000_000));
+        let (a, b) = (build(1_700_000_000).0, build(1_700_000_060).0);
+        assert_ne!(a, b);
+        assert_eq!(a.replace("22:13:20", "22:14:20"), b, "only the time differs");
+    }
 }
