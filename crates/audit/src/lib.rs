@@ -23,9 +23,10 @@ pub enum AuditError {
 }
 
 /// Numbered, portable migrations.
-pub const MIGRATIONS: &[(i64, &str)] = &[(
-    1,
-    "CREATE TABLE runs (
+pub const MIGRATIONS: &[(i64, &str)] = &[
+    (
+        1,
+        "CREATE TABLE runs (
         id INTEGER PRIMARY KEY,
         started_at TEXT NOT NULL,
         program TEXT NOT NULL,
@@ -87,7 +88,14 @@ pub const MIGRATIONS: &[(i64, &str)] = &[(
         iterations INTEGER NOT NULL,
         time_s REAL NOT NULL
     );",
-)];
+    ),
+    (
+        2,
+        // The controller a run drove (address and version as it reports them).
+        "ALTER TABLE runs ADD COLUMN controller TEXT;
+         ALTER TABLE runs ADD COLUMN controller_version TEXT;",
+    ),
+];
 
 /// An audit trail in a SQLite file.
 pub struct SqliteAudit {
@@ -124,6 +132,24 @@ impl SqliteAudit {
         conn.execute("INSERT INTO runs (started_at, program) VALUES (?1, ?2)", params![started_at, program])?;
         let run_id = conn.last_insert_rowid();
         Ok(Self { conn, run_id, in_tx: false })
+    }
+
+    /// Record the controller this run drives: its address and version.
+    pub fn set_controller(&mut self, address: &str, version: &str) -> Result<(), AuditError> {
+        self.conn.execute(
+            "UPDATE runs SET controller = ?1, controller_version = ?2 WHERE id = ?3",
+            params![address, version, self.run_id],
+        )?;
+        Ok(())
+    }
+
+    /// The controller recorded for this run (address, version).
+    pub fn controller(&self) -> Result<(Option<String>, Option<String>), AuditError> {
+        Ok(self.conn.query_row(
+            "SELECT controller, controller_version FROM runs WHERE id = ?1",
+            params![self.run_id],
+            |r| Ok((r.get(0)?, r.get(1)?)),
+        )?)
     }
 
     pub fn run_id(&self) -> i64 {
@@ -289,7 +315,15 @@ mod tests {
         assert_eq!((blocks, alarms), (1, 1));
         // Migrations ran once; the second open started run 2.
         let migs: i64 = conn.query_row("SELECT COUNT(*) FROM schema_migrations", [], |r| r.get(0)).unwrap();
-        assert_eq!(migs, 1);
+        assert_eq!(migs, MIGRATIONS.len() as i64);
         assert_eq!(a.run_id(), 2);
+        // The controller of a run (migration 2).
+        let mut a = a;
+        assert_eq!(a.controller().unwrap(), (None, None));
+        a.set_controller("linuxcncrsh://127.0.0.1:5007", "LinuxCNC 2.9.0").unwrap();
+        assert_eq!(
+            a.controller().unwrap(),
+            (Some("linuxcncrsh://127.0.0.1:5007".to_string()), Some("LinuxCNC 2.9.0".to_string()))
+        );
     }
 }

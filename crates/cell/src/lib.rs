@@ -13,10 +13,17 @@
 //!   (with `truth.json`) and its section of the demo report.
 //! - [`demo`]: the demo's sections in order; [`report`]: the report (`index.html` with SVG
 //!   plots, `summary.json`).
+//! - [`probing`]: the virtual machine tool with a spindle probe (a `ProbingMachine`);
+//!   [`observed`]: a real controller whose actual position the virtual cell follows.
 //! - [`scan_scenario`]: the simulator's `scan` scenario as `truepos-scan` features.
+//! - [`cmm`]: the touch-probe CMM behind `truepos ippdme serve` ([`cmm::IppdmeCmm`], a
+//!   `truepos_ippdme::Cmm`) and [`cmm::bind_virtual`].
 
+pub mod cmm;
 pub mod demo;
 pub mod gantry;
+pub mod observed;
+pub mod probing;
 pub mod report;
 pub mod scan_scenario;
 pub mod scanning_cmm;

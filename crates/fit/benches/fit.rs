@@ -1,5 +1,6 @@
 //! Criterion benches of the hot paths: sphere, plane and cylinder fits on 1e5 and 1e6 noisy
-//! points (the fit alone, data in memory). Figures: docs/performance-fit.md.
+//! points (the fit alone, data in memory); minimum-zone plane, circle, sphere and cylinder on
+//! 1e4 and 1e5 points. Figures: docs/performance-fit.md.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use rand::{Rng, SeedableRng};
@@ -71,5 +72,43 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench);
+fn circle_pts(n: usize) -> Vec<Point3> {
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    (0..n)
+        .map(|_| {
+            let a = rng.random::<f64>() * std::f64::consts::TAU;
+            let r = 25.0 + noise(&mut rng) + 0.002 * (3.0 * a).sin();
+            Point3::new(r * a.cos() + 5.0, r * a.sin() - 3.0, 7.0)
+        })
+        .collect()
+}
+
+/// Minimum-zone (Chebyshev) fits: plane, circle, sphere, cylinder, 1e4 and 1e5 points.
+fn bench_minzone(c: &mut Criterion) {
+    use truepos_fit::minzone::{self, Criterion as Crit};
+    let mut g = c.benchmark_group("minzone");
+    g.sample_size(10);
+    for n in [10_000usize, 100_000] {
+        g.throughput(Throughput::Elements(n as u64));
+        let p = plane_pts(n);
+        g.bench_with_input(BenchmarkId::new("plane", n), &p, |b, p| {
+            b.iter(|| minzone::plane_zone(p).unwrap())
+        });
+        let ci = circle_pts(n);
+        g.bench_with_input(BenchmarkId::new("circle", n), &ci, |b, p| {
+            b.iter(|| minzone::circle_fit(p, Crit::MinimumZone).unwrap())
+        });
+        let s = sphere_pts(n);
+        g.bench_with_input(BenchmarkId::new("sphere", n), &s, |b, p| {
+            b.iter(|| minzone::sphere_fit(p, Crit::MinimumZone).unwrap())
+        });
+        let cy = cylinder_pts(n);
+        g.bench_with_input(BenchmarkId::new("cylinder", n), &cy, |b, p| {
+            b.iter(|| minzone::cylinder_fit(p, Crit::MinimumZone).unwrap())
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench, bench_minzone);
 criterion_main!(benches);

@@ -40,6 +40,12 @@ pub struct CylinderFit {
     pub axis_uncertainty: f64,
     pub radius_uncertainty: f64,
     pub iterations: usize,
+    /// Covariance of `point` (perpendicular to the axis), mm².
+    pub point_covariance: Matrix3,
+    /// Covariance of the unit axis vector's components.
+    pub axis_covariance: Matrix3,
+    /// Cylindricity about this cylinder: largest minus smallest distance from the axis, mm.
+    pub form: f64,
 }
 
 /// Least-squares cone.
@@ -67,6 +73,19 @@ pub struct ConeFit {
     pub apex_angle_uncertainty: f64,
     pub surface_distance_uncertainty: f64,
     pub iterations: usize,
+    /// Covariance of the apex, mm².
+    pub apex_covariance: Matrix3,
+    /// Covariance of the unit axis vector's components.
+    pub axis_covariance: Matrix3,
+    /// Conicity about this cone: largest minus smallest signed orthogonal residual, mm.
+    pub form: f64,
+}
+
+/// `E C Eᵀ` for the 2×2 block of `cov` at (`k`, `k`) with `E = [u v]`.
+fn lift(cov: &SMatrix<f64, 5, 5>, k: usize, u: &Vector3, v: &Vector3) -> Matrix3 {
+    let e = nalgebra::Matrix3x2::from_columns(&[*u, *v]);
+    let c = nalgebra::Matrix2::new(cov[(k, k)], cov[(k, k + 1)], cov[(k + 1, k)], cov[(k + 1, k + 1)]);
+    e * c * e.transpose()
 }
 
 /// A frame on the current axis: origin on the axis, rows of `r` are (u, v, axis).
@@ -303,7 +322,15 @@ pub fn cylinder(points: &[Point3]) -> Result<CylinderFit, FitError> {
         return Err(FitError::CylinderIsFlat);
     }
     let n = points.len();
+    let (u, v) = (frame.u(), frame.v());
+    let (lo, hi) = crate::extremes(points, |p| {
+        let q = frame.local(p);
+        q.x.hypot(q.y)
+    });
     Ok(CylinderFit {
+        point_covariance: lift(&cov, 0, &u, &v),
+        axis_covariance: lift(&cov, 2, &u, &v),
+        form: hi - lo,
         point: frame.o,
         axis: canonical(frame.w()),
         radius,
@@ -360,7 +387,17 @@ pub fn cone(points: &[Point3]) -> Result<ConeFit, FitError> {
     jac.set_column(5, &(-wf / psi_f.sin()));
     let ca = jac * cov * jac.transpose();
     let n = points.len();
+    let cov5 = cov.fixed_view::<5, 5>(0, 0).into_owned();
+    let (sn, cs) = psi_f.sin_cos();
+    let s_f = sol.state.2;
+    let (lo, hi) = crate::extremes(points, |p| {
+        let q = frame.local(p);
+        q.x.hypot(q.y) * cs - q.z * sn - s_f
+    });
     Ok(ConeFit {
+        apex_covariance: ca,
+        axis_covariance: lift(&cov5, 2, &u, &v),
+        form: hi - lo,
         apex,
         axis: w,
         apex_angle: 2.0 * psi,

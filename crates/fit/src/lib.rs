@@ -24,7 +24,11 @@
 
 mod axial;
 mod engine;
+pub mod evaluate;
+mod lp;
+pub mod minzone;
 pub mod moments;
+pub mod verdict;
 
 pub use axial::{cone, cylinder, ConeFit, CylinderFit};
 
@@ -55,6 +59,8 @@ pub enum FitError {
     InvalidRadius(f64),
     #[error("the data does not determine the {kind}: the normal equations are singular")]
     Undetermined { kind: &'static str },
+    #[error("no bounded maximum inscribed {kind}: the points do not surround it (an open arc or cap)")]
+    InscribedUnbounded { kind: &'static str },
 }
 
 /// Iteration cap for Levenberg-Marquardt (convergence takes 3–15 iterations on real data).
@@ -91,6 +97,13 @@ pub struct LineFit {
     pub point_uncertainty: f64,
     /// Standard uncertainty of the direction (root-sum-square of two tilt angles), rad.
     pub direction_uncertainty: f64,
+    /// Covariance of `point` (perpendicular to the line), mm².
+    pub point_covariance: Matrix3,
+    /// Covariance of the unit `direction` vector's components (perpendicular to it).
+    pub direction_covariance: Matrix3,
+    /// Diameter of the cylindrical zone about the line that holds every point (2 × the largest
+    /// distance), mm.
+    pub form: f64,
 }
 
 /// Make the largest-magnitude component of a direction positive (a stable sign convention).
@@ -112,8 +125,11 @@ pub fn line(points: &[Point3]) -> Result<LineFit, FitError> {
         (v - dir * v.dot(&dir)).norm()
     });
     // Two residual components per point, four parameters (two offsets, two tilts).
+    // σ̂² = SSR/(n − p) with n the number of residual components (2 per point).
     let dof = (2 * n) as f64 - 4.0;
     let s2 = if dof > 0.0 { ssr / dof } else { 0.0 };
+    // Both perpendicular offsets have variance σ̂²/n, both tilts σ̂²/Σt² (t along the line).
+    let perp = Matrix3::identity() - dir * dir.transpose();
     Ok(LineFit {
         point: m.centroid,
         direction: dir,
@@ -122,6 +138,9 @@ pub fn line(points: &[Point3]) -> Result<LineFit, FitError> {
         n_points: n,
         point_uncertainty: (2.0 * s2 / n as f64).sqrt(),
         direction_uncertainty: (2.0 * s2 / m.eigenvalues[2]).sqrt(),
+        point_covariance: perp * (s2 / n as f64),
+        direction_covariance: perp * (s2 / m.eigenvalues[2]),
+        form: 2.0 * max_abs,
     })
 }
 
@@ -129,7 +148,7 @@ pub fn line(points: &[Point3]) -> Result<LineFit, FitError> {
 /// sum of squares is computed from the residuals, not from eigenvalues: an eigenvalue near zero
 /// carries an absolute error of ~1e-16 of the largest one, which would put a floor of
 /// ~1e-8·extent under the RMS of nearly exact data.
-fn ssr_max(points: &[Point3], f: impl Fn(&Point3) -> f64 + Sync) -> (f64, f64) {
+pub(crate) fn ssr_max(points: &[Point3], f: impl Fn(&Point3) -> f64 + Sync) -> (f64, f64) {
     use rayon::prelude::*;
     let fold = |(s, m): (f64, f64), p: &Point3| {
         let r = f(p);
@@ -139,6 +158,21 @@ fn ssr_max(points: &[Point3], f: impl Fn(&Point3) -> f64 + Sync) -> (f64, f64) {
         points.par_iter().fold(|| (0.0, 0.0), fold).reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)))
     } else {
         points.iter().fold((0.0, 0.0), fold)
+    }
+}
+
+/// Smallest and largest value of `f` over the points (one parallel pass).
+pub(crate) fn extremes(points: &[Point3], f: impl Fn(&Point3) -> f64 + Sync) -> (f64, f64) {
+    use rayon::prelude::*;
+    let fold = |(lo, hi): (f64, f64), p: &Point3| {
+        let r = f(p);
+        (lo.min(r), hi.max(r))
+    };
+    let id = (f64::INFINITY, f64::NEG_INFINITY);
+    if points.len() > 32 * 1024 {
+        points.par_iter().fold(|| id, fold).reduce(|| id, |a, b| (a.0.min(b.0), a.1.max(b.1)))
+    } else {
+        points.iter().fold(id, fold)
     }
 }
 
@@ -159,6 +193,12 @@ pub struct PlaneFit {
     pub offset_uncertainty: f64,
     /// Standard uncertainty of the normal (root-sum-square of two tilt angles), rad.
     pub normal_uncertainty: f64,
+    /// Covariance of `point` (along the normal: the plane's offset), mm².
+    pub point_covariance: Matrix3,
+    /// Covariance of the unit normal's components.
+    pub normal_covariance: Matrix3,
+    /// Flatness about this plane: largest minus smallest signed distance, mm.
+    pub form: f64,
 }
 
 impl PlaneFit {
@@ -173,9 +213,15 @@ fn plane_from_moments(points: &[Point3], m: &Moments) -> PlaneFit {
     let n = points.len();
     let c = m.centroid;
     let (ssr, max_abs) = ssr_max(points, |p| (p - c).dot(&normal));
+    let (lo, hi) = extremes(points, |p| (p - c).dot(&normal));
     let dof = n as f64 - 3.0;
     let s2 = if dof > 0.0 { ssr / dof } else { 0.0 };
+    let (e1, e2) = (m.axis(1), m.axis(2));
     PlaneFit {
+        point_covariance: normal * normal.transpose() * (s2 / n as f64),
+        normal_covariance: e1 * e1.transpose() * (s2 / m.eigenvalues[1])
+            + e2 * e2.transpose() * (s2 / m.eigenvalues[2]),
+        form: hi - lo,
         point: c,
         normal,
         rms: (ssr / n as f64).sqrt(),
@@ -211,6 +257,8 @@ pub struct SphereFit {
     /// Standard uncertainty of the radius, mm (0 when the radius was fixed).
     pub radius_uncertainty: f64,
     pub iterations: usize,
+    /// Sphericity about this sphere: largest minus smallest `|p − c|`, mm.
+    pub form: f64,
 }
 
 struct SphereModel {
@@ -297,7 +345,9 @@ pub fn sphere(points: &[Point3]) -> Result<SphereFit, FitError> {
     let cov = covariance(&sol.acc, points.len(), RCOND).ok_or(FitError::Undetermined { kind: "sphere" })?;
     let center_covariance = cov.fixed_view::<3, 3>(0, 0).into_owned();
     let n = points.len();
+    let (lo, hi) = extremes(points, |p| (p - center).norm());
     Ok(SphereFit {
+        form: hi - lo,
         center,
         radius: radius.abs(),
         rms: (sol.acc.ssr / n as f64).sqrt(),
@@ -331,7 +381,9 @@ pub fn sphere_with_radius(points: &[Point3], radius: f64) -> Result<SphereFit, F
     let center = sol.state;
     let cov = covariance(&sol.acc, points.len(), RCOND).ok_or(FitError::Undetermined { kind: "sphere" })?;
     let n = points.len();
+    let (lo, hi) = extremes(points, |p| (p - center).norm());
     Ok(SphereFit {
+        form: hi - lo,
         center,
         radius,
         rms: (sol.acc.ssr / n as f64).sqrt(),
@@ -368,6 +420,13 @@ pub struct CircleFit {
     /// Standard uncertainty of the normal (root-sum-square of two tilt angles), rad.
     pub normal_uncertainty: f64,
     pub iterations: usize,
+    /// Covariance of the centre, including the least-squares plane's offset and tilt, mm².
+    pub center_covariance: Matrix3,
+    /// Covariance of the unit normal's components (from the plane).
+    pub normal_covariance: Matrix3,
+    /// Roundness about this circle: largest minus smallest in-plane radial residual of the
+    /// points projected into the least-squares plane, mm.
+    pub form: f64,
 }
 
 struct CircleModel {
@@ -424,13 +483,22 @@ pub fn circle(points: &[Point3]) -> Result<CircleFit, FitError> {
     // Centre covariance: in-plane from the circle fit, along the normal from the plane offset.
     let e = nalgebra::Matrix3x2::from_columns(&[u, v]);
     let c_in = cov.fixed_view::<2, 2>(0, 0).into_owned();
-    let cc = e * c_in * e.transpose() + n * n.transpose() * pl.offset_uncertainty.powi(2);
+    // Along the normal: the plane's offset at the centroid, plus its two tilts (about the
+    // principal axes u, v through the centroid) carried over the in-plane lever arm c2.
+    let s2p = pl.offset_uncertainty.powi(2) * points.len() as f64;
+    let var_n = pl.offset_uncertainty.powi(2)
+        + c2.x * c2.x * s2p / m.eigenvalues[2]
+        + c2.y * c2.y * s2p / m.eigenvalues[1];
+    let cc = e * c_in * e.transpose() + n * n.transpose() * var_n;
     let nn = points.len();
     let mut ssr3 = 0.0;
     let mut max3 = 0.0f64;
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for (p, qq) in points.iter().zip(&q) {
         let h = (p - c).dot(&n);
         let rr = (qq.x - c2.x).hypot(qq.y - c2.y) - radius;
+        lo = lo.min(rr);
+        hi = hi.max(rr);
         let d2 = h * h + rr * rr;
         ssr3 += d2;
         max3 = max3.max(d2.sqrt());
@@ -448,5 +516,8 @@ pub fn circle(points: &[Point3]) -> Result<CircleFit, FitError> {
         radius_uncertainty: cov[(2, 2)].max(0.0).sqrt(),
         normal_uncertainty: pl.normal_uncertainty,
         iterations: sol.iterations,
+        center_covariance: cc,
+        normal_covariance: pl.normal_covariance,
+        form: hi - lo,
     })
 }

@@ -17,6 +17,10 @@ const PARALLEL_ABOVE: usize = 32 * 1024;
 /// sits near 1e-15. 1e-9 separates the two with margin on both sides.
 pub const DEGENERATE_RATIO: f64 = 1e-9;
 
+/// Spread ratio above which the eigenvalues alone decide the dimension (their rounding floor is
+/// ~1e-8 in this ratio, the square root of the relative rounding of an eigenvalue).
+pub const RESOLVED_RATIO: f64 = 1e-6;
+
 /// Moments of a point set about its centroid.
 #[derive(Clone, Debug)]
 pub struct Moments {
@@ -166,7 +170,8 @@ impl Moments {
     }
 
     /// Moments of `points` for a fit of `kind`: checks the count first (so an empty set is
-    /// "too few points"), then finiteness and the dimension (see [`require`](Self::require)).
+    /// "too few points"), then finiteness and the dimension (see [`require`](Self::require)),
+    /// confirmed on the points themselves when the eigenvalues cannot tell.
     pub fn for_fit(
         points: &[Point3],
         kind: &'static str,
@@ -177,12 +182,15 @@ impl Moments {
             return Err(FitError::TooFewPoints { kind, needed, got: points.len() });
         }
         let m = Moments::of(points)?;
-        m.require(kind, needed, dimension)?;
+        m.require_direct(points, kind, dimension)?;
         Ok(m)
     }
 
     /// Refuse point sets that cannot determine an element of `kind` with `needed` points and the
-    /// given dimension (1 = must not be collinear, 2 = must not be coplanar).
+    /// given dimension (1 = must not be collinear, 2 = must not be coplanar), by the
+    /// eigenvalues. An eigenvalue carries an absolute rounding error of ~1e-16 of the largest
+    /// one, so a spread ratio below ~1e-8 is not resolved here: [`for_fit`](Self::for_fit)
+    /// then measures the distances from the principal line or plane point by point.
     pub fn require(&self, kind: &'static str, needed: usize, dimension: usize) -> Result<(), FitError> {
         if self.n < needed {
             return Err(FitError::TooFewPoints { kind, needed, got: self.n });
@@ -196,6 +204,56 @@ impl Moments {
             return Err(FitError::CollinearPoints { kind });
         }
         if dimension >= 2 && !(self.eigenvalues[0].sqrt() > DEGENERATE_RATIO * max) {
+            return Err(FitError::CoplanarPoints { kind });
+        }
+        Ok(())
+    }
+
+    /// The dimension test on the points themselves, where the eigenvalues are too close to
+    /// their rounding floor to decide (spread ratio below [`RESOLVED_RATIO`]): the largest
+    /// distance from the centroid (coincident), from the principal line (collinear) and from the
+    /// principal plane (coplanar), against [`DEGENERATE_RATIO`] of the largest extent along the
+    /// principal axis plus the rounding of the coordinates (1e-13 of their magnitude).
+    fn require_direct(
+        &self,
+        points: &[Point3],
+        kind: &'static str,
+        dimension: usize,
+    ) -> Result<(), FitError> {
+        let max = self.eigenvalues[2].sqrt();
+        let scale = self.centroid.coords.amax().max(self.extent());
+        let check_point = !(max > RESOLVED_RATIO * scale);
+        let r1 = self.eigenvalues[1].sqrt() / max;
+        let r0 = self.eigenvalues[0].sqrt() / max;
+        let check_line = dimension >= 1 && !(r1 >= RESOLVED_RATIO);
+        let check_plane = dimension >= 2 && !(r0 >= RESOLVED_RATIO);
+        if !(check_point || check_line || check_plane) {
+            return Ok(());
+        }
+        let c = self.centroid;
+        let (a0, a2) = (self.axis(0), self.axis(2));
+        let fold = |acc: [f64; 4], p: &Point3| {
+            let d = p - c;
+            let along = d.dot(&a2);
+            let perp = (d - a2 * along).norm();
+            [acc[0].max(d.norm()), acc[1].max(along.abs()), acc[2].max(perp), acc[3].max(d.dot(&a0).abs())]
+        };
+        let m = if points.len() > PARALLEL_ABOVE {
+            points
+                .par_iter()
+                .fold(|| [0.0; 4], fold)
+                .reduce(|| [0.0; 4], |a, b| [a[0].max(b[0]), a[1].max(b[1]), a[2].max(b[2]), a[3].max(b[3])])
+        } else {
+            points.iter().fold([0.0; 4], fold)
+        };
+        let rounding = 1e-13 * self.centroid.coords.abs().max().max(m[0]);
+        if !(m[0] > rounding) {
+            return Err(FitError::CoincidentPoints);
+        }
+        if check_line && !(m[2] > DEGENERATE_RATIO * m[1] + rounding) {
+            return Err(FitError::CollinearPoints { kind });
+        }
+        if check_plane && !(m[3] > DEGENERATE_RATIO * m[1] + rounding) {
             return Err(FitError::CoplanarPoints { kind });
         }
         Ok(())

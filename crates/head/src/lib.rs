@@ -23,12 +23,15 @@
 //! - [`file::read_input`]: the points file as [`Reading`]s.
 //! - [`surface_point`] / [`beam_direction`]: the contract's forward model, used by
 //!   `truepos head-offset apply`.
+//! - [`acquire::probe_sphere`]: collect the points by probing a reference sphere through any
+//!   `truepos_device::ProbingMachine` (the virtual machine tool, LinuxCNC, a CMM).
 //!
 //! The classical methods are special cases of the one adjustment: head swivel only determines
 //! the offset components in the XZ plane (Y is not observable); table rotation only determines X
 //! and Y (the triangle of apparent centres about the known table centre; Z is not observable);
 //! any mix of both determines all three.
 
+pub mod acquire;
 pub mod file;
 pub mod init;
 

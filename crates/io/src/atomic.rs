@@ -2,10 +2,135 @@
 //!
 //! If anything fails before [`AtomicFile::commit`], the temporary file is removed on drop and
 //! the target is untouched, so bad input never leaves a partial output file.
+//!
+//! Temporary files are also removed when the process is interrupted: every live temporary path
+//! is kept in a process-wide registry, and the first [`AtomicFile::create`] installs a handler for
+//! SIGINT, SIGTERM and SIGHUP (the `signal-hook` crate: its handler only writes to a pipe, and a
+//! small thread does the work outside signal context, where taking a lock and unlinking files is
+//! allowed) that removes them and then lets the signal end the process the default way (so the
+//! exit status still says "killed by SIGINT"). [`remove_all_temporaries`] does the same for a
+//! caller that exits without unwinding.
+//!
+//! [`AtomicFile::create`] checks the output path first: a missing directory, a path that is a
+//! directory, or a directory that cannot be written is an [`OutputError::Path`] naming the path
+//! (bad usage, exit 2), not an I/O failure.
 
+use crate::InputError;
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::{Mutex, Once};
+
+/// An output file that could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    /// The path itself cannot be an output (missing directory, a directory, no permission):
+    /// the user's choice of path, exit 2.
+    #[error("{0}")]
+    Path(InputError),
+    /// Writing, syncing or renaming failed (disk full, I/O error).
+    #[error("cannot write {}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: io::Error,
+    },
+}
+
+impl OutputError {
+    /// True when the output path itself is the problem (bad usage rather than a failure).
+    pub fn is_path(&self) -> bool {
+        matches!(self, OutputError::Path(_))
+    }
+}
+
+/// For callers that return `std::io::Result`: the output error rides inside the `io::Error`
+/// (`get_ref()` gives it back, so a binary can still tell a bad path from a failed write).
+impl From<OutputError> for io::Error {
+    fn from(e: OutputError) -> Self {
+        let kind = match &e {
+            OutputError::Path(_) => io::ErrorKind::InvalidInput,
+            OutputError::Io { source, .. } => source.kind(),
+        };
+        io::Error::new(kind, e)
+    }
+}
+
+/// Temporary paths of live [`AtomicFile`]s (created, neither committed nor dropped).
+static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+static HANDLER: Once = Once::new();
+
+fn live() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    // A panic while the lock was held leaves a plain list behind: still usable.
+    LIVE.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// Remove every live temporary file (the signal handler does this before the process ends).
+/// Returns how many were removed.
+pub fn remove_all_temporaries() -> usize {
+    let mut l = live();
+    let n = l.iter().filter(|p| std::fs::remove_file(p).is_ok()).count();
+    l.clear();
+    n
+}
+
+fn install_signal_cleanup() {
+    HANDLER.call_once(|| {
+        #[cfg(unix)]
+        {
+            use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+            let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) else {
+                return;
+            };
+            let spawned = std::thread::Builder::new().name("truepos-signals".into()).spawn(move || {
+                if let Some(sig) = signals.forever().next() {
+                    // Hold the registry while removing and ending the process: a commit in
+                    // progress finishes its rename first, a new file waits and is never created.
+                    let mut l = live();
+                    for p in l.iter() {
+                        let _ = std::fs::remove_file(p);
+                    }
+                    l.clear();
+                    let _ = signal_hook::low_level::emulate_default_handler(sig);
+                    std::process::exit(128 + sig);
+                }
+            });
+            drop(spawned);
+        }
+    });
+}
+
+/// A path error naming `path`.
+fn path_error(path: &Path, message: impl std::fmt::Display) -> OutputError {
+    OutputError::Path(InputError::in_file(path, format!("cannot be written as an output: {message}")))
+}
+
+/// Check that `path` can become an output file: its directory exists and is a directory, and the
+/// path is not itself a directory.
+pub fn check_output_path(path: &Path) -> Result<(), OutputError> {
+    if path.as_os_str().is_empty() {
+        return Err(OutputError::Path(InputError::new("the output path is empty")));
+    }
+    if path.is_dir() {
+        return Err(path_error(path, "it is a directory"));
+    }
+    if path.file_name().is_none() {
+        return Err(path_error(path, "it has no file name"));
+    }
+    let dir = parent_dir(path);
+    match std::fs::metadata(&dir) {
+        Ok(m) if m.is_dir() => Ok(()),
+        Ok(_) => Err(path_error(path, format!("{} is not a directory", dir.display()))),
+        Err(_) => Err(path_error(path, format!("the directory {} does not exist", dir.display()))),
+    }
+}
+
+fn parent_dir(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
 
 /// A buffered writer to `<dir>/.<name>.tmp-<pid>-<n>` that becomes `path` on [`commit`](Self::commit).
 pub struct AtomicFile {
@@ -15,59 +140,114 @@ pub struct AtomicFile {
 }
 
 impl AtomicFile {
-    pub fn create(path: impl AsRef<Path>) -> io::Result<Self> {
+    /// Create the temporary file next to `path`. A path that cannot be an output is an
+    /// [`OutputError::Path`] naming it.
+    pub fn create(path: impl AsRef<Path>) -> Result<Self, OutputError> {
         use std::sync::atomic::{AtomicUsize, Ordering};
         static COUNTER: AtomicUsize = AtomicUsize::new(0);
         let target = path.as_ref().to_path_buf();
-        let dir = match target.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        let name = target
-            .file_name()
-            .ok_or_else(|| io::Error::new(io::ErrorKind::InvalidInput, "output path has no file name"))?
-            .to_string_lossy()
-            .into_owned();
+        check_output_path(&target)?;
+        install_signal_cleanup();
+        let dir = parent_dir(&target);
+        let name = target.file_name().unwrap_or_default().to_string_lossy().into_owned();
         let n = COUNTER.fetch_add(1, Ordering::Relaxed);
         let temp = dir.join(format!(".{name}.tmp-{}-{n}", std::process::id()));
-        let file = File::create(&temp)?;
+        // Registered before it exists, so an interrupt right after creation still removes it.
+        let mut l = live();
+        l.push(temp.clone());
+        let file = match File::create(&temp) {
+            Ok(f) => f,
+            Err(e) => {
+                l.retain(|p| p != &temp);
+                return Err(match e.kind() {
+                    io::ErrorKind::PermissionDenied | io::ErrorKind::NotFound => {
+                        path_error(&target, format!("cannot create a file in {}: {e}", dir.display()))
+                    }
+                    _ => OutputError::Io { path: target, source: e },
+                });
+            }
+        };
+        drop(l);
         Ok(Self { target, temp, writer: Some(BufWriter::with_capacity(1 << 20, file)) })
     }
 
-    /// Flush, sync and rename into place.
-    pub fn commit(mut self) -> io::Result<()> {
-        if let Some(w) = self.writer.take() {
-            let file = w.into_inner().map_err(|e| e.into_error())?;
-            file.sync_all()?;
-        }
-        std::fs::rename(&self.temp, &self.target)
+    /// The final path.
+    pub fn path(&self) -> &Path {
+        &self.target
     }
+
+    /// Flush, sync and rename into place.
+    pub fn commit(mut self) -> Result<(), OutputError> {
+        let io_err = |source| OutputError::Io { path: self.target.clone(), source };
+        if let Some(w) = self.writer.take() {
+            let file = match w.into_inner() {
+                Ok(f) => f,
+                Err(e) => {
+                    let _ = std::fs::remove_file(&self.temp);
+                    unregister(&self.temp);
+                    return Err(io_err(e.into_error()));
+                }
+            };
+            if let Err(e) = file.sync_all() {
+                let _ = std::fs::remove_file(&self.temp);
+                unregister(&self.temp);
+                return Err(io_err(e));
+            }
+        }
+        // The rename happens with the registry held, so a signal's cleanup runs either before
+        // it (the temporary is removed, no output) or after it (a complete output).
+        let mut l = live();
+        let r = std::fs::rename(&self.temp, &self.target);
+        if r.is_err() {
+            let _ = std::fs::remove_file(&self.temp);
+        }
+        l.retain(|p| p != &self.temp);
+        r.map_err(io_err)
+    }
+}
+
+fn unregister(temp: &Path) {
+    live().retain(|p| p != temp);
 }
 
 impl Write for AtomicFile {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        self.writer.as_mut().expect("writer present until commit").write(buf)
+        match self.writer.as_mut() {
+            Some(w) => w.write(buf),
+            None => Err(io::Error::other("write after commit")),
+        }
     }
     fn write_all(&mut self, buf: &[u8]) -> io::Result<()> {
-        self.writer.as_mut().expect("writer present until commit").write_all(buf)
+        match self.writer.as_mut() {
+            Some(w) => w.write_all(buf),
+            None => Err(io::Error::other("write after commit")),
+        }
     }
     fn flush(&mut self) -> io::Result<()> {
-        self.writer.as_mut().expect("writer present until commit").flush()
+        match self.writer.as_mut() {
+            Some(w) => w.flush(),
+            None => Ok(()),
+        }
     }
 }
 
 impl Drop for AtomicFile {
     fn drop(&mut self) {
-        if self.writer.take().is_some() {
+        if let Some(w) = self.writer.take() {
+            // Closed before removal; the buffered bytes are discarded with the file.
+            drop(w.into_parts());
             let _ = std::fs::remove_file(&self.temp);
+            unregister(&self.temp);
         }
     }
 }
 
 /// Write `bytes` to `path` atomically.
-pub fn write_atomic(path: impl AsRef<Path>, bytes: &[u8]) -> io::Result<()> {
+pub fn write_atomic(path: impl AsRef<Path>, bytes: &[u8]) -> Result<(), OutputError> {
     let mut f = AtomicFile::create(path)?;
-    f.write_all(bytes)?;
+    if let Err(source) = f.write_all(bytes) {
+        return Err(OutputError::Io { path: f.target.clone(), source });
+    }
     f.commit()
 }
 
@@ -82,11 +262,31 @@ mod tests {
         {
             let mut f = AtomicFile::create(&p).unwrap();
             f.write_all(b"partial").unwrap();
+            assert!(live().iter().any(|t| t.starts_with(dir.path())));
         }
         assert!(!p.exists());
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+        assert!(!live().iter().any(|t| t.starts_with(dir.path())));
         write_atomic(&p, b"done").unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"done");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        assert!(!live().iter().any(|t| t.starts_with(dir.path())));
+    }
+
+    #[test]
+    fn bad_output_paths_are_path_errors_naming_the_path() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("no_such_dir").join("out.csv");
+        let e = AtomicFile::create(&missing).err().unwrap();
+        assert!(e.is_path());
+        assert!(e.to_string().contains("out.csv") && e.to_string().contains("does not exist"), "{e}");
+        let e = AtomicFile::create(dir.path()).err().unwrap();
+        assert!(e.is_path());
+        assert!(e.to_string().contains("directory"), "{e}");
+        let file = dir.path().join("f");
+        std::fs::write(&file, b"x").unwrap();
+        let e = AtomicFile::create(file.join("out.csv")).err().unwrap();
+        assert!(e.is_path() && e.to_string().contains("not a directory"), "{e}");
+        assert!(write_atomic("", b"x").unwrap_err().is_path());
     }
 }

@@ -7,8 +7,7 @@ use std::path::Path;
 /// Read and deserialize a TOML file. Syntax and type errors name the line and column.
 pub fn read_toml<T: DeserializeOwned>(path: impl AsRef<Path>) -> Result<T, InputError> {
     let path = path.as_ref();
-    let text =
-        std::fs::read_to_string(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+    let text = crate::limits::read_string(path, "TOML")?;
     parse_toml(path, &text)
 }
 

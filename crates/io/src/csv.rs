@@ -10,6 +10,7 @@
 //! the first bad value with file, line, column number and column name. Ragged rows are errors.
 //! [`CsvWriter`] writes rows with shortest round-trip float formatting.
 
+use crate::num::NumFormat;
 use crate::InputError;
 use rayon::prelude::*;
 use std::io::Write;
@@ -47,7 +48,7 @@ pub struct Table {
 
 /// Split one CSV line into field byte ranges (relative to the line), honouring double quotes.
 #[inline]
-fn split_fields(line: &str, out: &mut Vec<(usize, usize)>) {
+pub(crate) fn split_fields(line: &str, out: &mut Vec<(usize, usize)>) {
     out.clear();
     let b = line.as_bytes();
     let mut i = 0;
@@ -121,63 +122,37 @@ fn split_fields_fast(line: &[u8], out: &mut Vec<(usize, usize)>) -> bool {
     }
 }
 
-/// Read a whole file. Large regular files are read by several threads at once (positioned
-/// reads into disjoint parts of one buffer), which spreads the kernel's copy and the page faults
-/// of the fresh buffer over the cores; anything unusual (a pipe, a file that changes size while
-/// read) falls back to `std::fs::read`.
 /// A read-only map of a regular file of at least 8 MiB (`None` for smaller files, pipes, or
 /// when mapping fails: the caller then reads it). Mapping saves the kernel copy of the whole
-/// file; the pages come straight from the page cache.
-fn map_large_file(path: &Path) -> Option<memmap2::Mmap> {
-    let file = std::fs::File::open(path).ok()?;
-    let meta = file.metadata().ok()?;
+/// file; the pages come straight from the page cache. Files over the size limit are refused.
+fn map_large_file(path: &Path) -> Result<Option<memmap2::Mmap>, InputError> {
+    let Ok(file) = std::fs::File::open(path) else { return Ok(None) };
+    let Ok(meta) = file.metadata() else { return Ok(None) };
+    crate::limits::check_file_size(path, &meta)?;
     if !meta.is_file() || meta.len() < 8 << 20 {
-        return None;
+        return Ok(None);
     }
     // SAFETY: a private read-only map; the input file is not expected to change while truepos
     // reads it (as with any reader, a file truncated meanwhile is an error the OS reports).
-    unsafe { memmap2::Mmap::map(&file).ok() }
+    Ok(unsafe { memmap2::Mmap::map(&file).ok() })
 }
 
-pub fn read_file(path: &Path) -> std::io::Result<Vec<u8>> {
-    const PART: usize = 4 << 20;
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::FileExt;
-        let file = std::fs::File::open(path)?;
-        let meta = file.metadata()?;
-        let len = meta.len() as usize;
-        if meta.is_file() && len >= 2 * PART {
-            let mut buf = vec![0u8; len];
-            let ok = buf.par_chunks_mut(PART).enumerate().all(|(k, dst)| {
-                let mut off = 0;
-                while off < dst.len() {
-                    match file.read_at(&mut dst[off..], (k * PART + off) as u64) {
-                        Ok(0) => return false,
-                        Ok(n) => off += n,
-                        Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-                        Err(_) => return false,
-                    }
-                }
-                true
-            });
-            // Complete and not grown meanwhile: return it; otherwise read it the ordinary way.
-            let mut probe = [0u8; 1];
-            if ok && matches!(file.read_at(&mut probe, len as u64), Ok(0)) {
-                return Ok(buf);
-            }
-        }
-    }
-    std::fs::read(path)
+/// Read a whole file with the bounds of [`crate::limits`] (size, line length, no NUL bytes).
+pub fn read_file(path: &Path) -> Result<Vec<u8>, InputError> {
+    crate::limits::read_text(path, "CSV")
 }
 
 /// Start offsets of the data rows in `text[from..to]` (`from` at a line start): lines that are
 /// blank or start with `#` (after leading whitespace) are skipped.
-fn index_rows(text: &str, from: usize, to: usize, out: &mut Vec<usize>) {
+/// Returns the offset of the first line longer than [`crate::limits::MAX_LINE_BYTES`], if any.
+pub(crate) fn index_rows(text: &str, from: usize, to: usize, out: &mut Vec<usize>) -> Option<usize> {
     let bytes = text.as_bytes();
     let mut pos = from;
     while pos < to {
         let end = memchr::memchr(b'\n', &bytes[pos..to]).map_or(to, |p| pos + p);
+        if end - pos > crate::limits::MAX_LINE_BYTES {
+            return Some(pos);
+        }
         let mut i = pos;
         while i < end && matches!(bytes[i], b' ' | b'\t' | b'\r' | 0x0b | 0x0c) {
             i += 1;
@@ -195,16 +170,20 @@ fn index_rows(text: &str, from: usize, to: usize, out: &mut Vec<usize>) {
         }
         pos = end + 1;
     }
+    None
 }
 
-/// [`index_rows`] over `text[from..]`, in parallel segments for large inputs.
-fn index_rows_parallel(text: &str, from: usize) -> Vec<usize> {
+/// [`index_rows`] over `text[from..]`, in parallel segments for large inputs. `Err(offset)`: a
+/// line over the length limit starts at `offset`.
+fn index_rows_parallel(text: &str, from: usize) -> Result<Vec<usize>, usize> {
     let bytes = text.as_bytes();
     let len = bytes.len();
     if len.saturating_sub(from) < (1 << 20) {
         let mut rows = Vec::new();
-        index_rows(text, from, len, &mut rows);
-        return rows;
+        return match index_rows(text, from, len, &mut rows) {
+            Some(bad) => Err(bad),
+            None => Ok(rows),
+        };
     }
     let parts = 4 * rayon::current_num_threads();
     let mut bounds = vec![from];
@@ -216,20 +195,22 @@ fn index_rows_parallel(text: &str, from: usize) -> Vec<usize> {
         }
     }
     bounds.push(len);
-    let segs: Vec<Vec<usize>> = bounds
+    let segs: Vec<Result<Vec<usize>, usize>> = bounds
         .par_windows(2)
         .map(|w| {
             // ~33 bytes per row is typical for x,y,z: reserve accordingly.
             let mut v = Vec::with_capacity((w[1] - w[0]) / 24 + 1);
-            index_rows(text, w[0], w[1], &mut v);
-            v
+            match index_rows(text, w[0], w[1], &mut v) {
+                Some(bad) => Err(bad),
+                None => Ok(v),
+            }
         })
         .collect();
-    let mut rows = Vec::with_capacity(segs.iter().map(Vec::len).sum());
+    let mut rows = Vec::with_capacity(segs.iter().map(|s| s.as_ref().map_or(0, Vec::len)).sum());
     for s in segs {
-        rows.extend_from_slice(&s);
+        rows.extend_from_slice(&s?);
     }
-    rows
+    Ok(rows)
 }
 
 fn line_of(text: &str, offset: usize) -> usize {
@@ -254,18 +235,51 @@ impl Table {
     /// Read and index a CSV file.
     pub fn read(path: impl AsRef<Path>) -> Result<Self, InputError> {
         let path = path.as_ref();
-        if let Some(map) = map_large_file(path) {
+        if crate::parquet_file::is_parquet(path) {
+            return Self::from_parquet(path);
+        }
+        if let Some(map) = map_large_file(path)? {
             return Self::from_text(path, Self::check_bytes(path, &map[..]).map(|_| Text::Mapped(map))?);
         }
-        let bytes = read_file(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
-        Self::from_bytes(path, bytes)
+        Self::from_bytes(path, read_file(path)?)
+    }
+
+    /// A Parquet file as a table: its columns written as CSV text in memory (numbers in shortest
+    /// round-trip form, so they read back bit for bit). Line `r + 2` of such a table is row `r + 1`
+    /// of the Parquet file.
+    fn from_parquet(path: &Path) -> Result<Self, InputError> {
+        use crate::parquet_file::ColumnData;
+        let c = crate::parquet_file::read_columns(path)?;
+        let mut w = CsvWriter::new(Vec::with_capacity(c.n_rows() * 40));
+        let names: Vec<&str> = c.names.iter().map(String::as_str).collect();
+        let io = |e: std::io::Error| InputError::in_file(path, e.to_string());
+        w.header(&names).map_err(io)?;
+        for r in 0..c.n_rows() {
+            for (name, d) in c.names.iter().zip(&c.data) {
+                match d {
+                    ColumnData::F64(v) => w.field_f64(v[r]).map_err(io)?,
+                    ColumnData::Str(v) => {
+                        if v[r].contains(['\n', '\r']) {
+                            return Err(InputError::in_file(
+                                path,
+                                format!("row {}: a line break in the text", r + 1),
+                            )
+                            .with_column_name(name.clone()));
+                        }
+                        w.field_str(&v[r]).map_err(io)?
+                    }
+                }
+            }
+            w.end_row().map_err(io)?;
+        }
+        Self::from_bytes(path, w.into_inner())
     }
 
     /// NUL bytes and invalid UTF-8 are input errors (a binary file is not a CSV file).
     fn check_bytes(path: &Path, bytes: &[u8]) -> Result<(), InputError> {
         if let Some(p) = memchr::memchr(0, bytes) {
             let line = memchr::memchr_iter(b'\n', &bytes[..p]).count() + 1;
-            return Err(InputError::at(path, line, None, "binary data (NUL byte): not a CSV text file"));
+            return Err(crate::limits::binary(path, line, "CSV"));
         }
         if let Err(e) = std::str::from_utf8(bytes) {
             let line = memchr::memchr_iter(b'\n', &bytes[..e.valid_up_to()]).count() + 1;
@@ -293,6 +307,9 @@ impl Table {
         let mut fields = Vec::new();
         while pos < bytes.len() {
             let end = memchr::memchr(b'\n', &bytes[pos..]).map_or(bytes.len(), |p| pos + p);
+            if end - pos > crate::limits::MAX_LINE_BYTES {
+                return Err(crate::limits::line_too_long(&path, line_of(&text, pos)));
+            }
             let line = trim_line(&text[pos..end]);
             let trimmed = line.trim_start();
             if trimmed.is_empty() {
@@ -325,7 +342,8 @@ impl Table {
                 header = Some(names);
                 pos = end + 1;
                 // The data rows are indexed in parallel (segments split at line ends).
-                rows = index_rows_parallel(&text, pos);
+                rows = index_rows_parallel(&text, pos)
+                    .map_err(|bad| crate::limits::line_too_long(&path, line_of(&text, bad)))?;
                 break;
             }
             pos = end + 1;
@@ -420,73 +438,9 @@ impl Table {
 
     /// Parse columns `idx` of every row into `out` (row-major, `idx.len()` values per row).
     fn parse_into(&self, idx: &[usize], out: &mut [f64]) -> Result<(), InputError> {
-        let k = idx.len();
-        let n = self.rows.len();
-        debug_assert_eq!(out.len(), n * k);
-        const CHUNK: usize = 16 * 1024;
-        let width = self.header.len();
-        // Column → output slot (usize::MAX: not wanted), for the fused fast path.
-        let mut slots = vec![usize::MAX; width];
-        for (j, &c) in idx.iter().enumerate() {
-            if c < width {
-                slots[c] = j;
-            }
-        }
-        let work = |c: usize, dst: &mut [f64]| -> Option<(usize, usize, String)> {
-            let mut buf = Vec::with_capacity(width);
-            let first = c * CHUNK;
-            let text = self.text.as_bytes();
-            for row in first..(first + CHUNK).min(n) {
-                // Bytes of the row (as `row_text`, without UTF-8 boundary checks on the hot path).
-                let s0 = self.rows[row];
-                let e0 = memchr::memchr(b'\n', &text[s0..]).map_or(text.len(), |p| s0 + p);
-                let line = match &text[s0..e0] {
-                    [l @ .., b'\r'] => l,
-                    l => l,
-                };
-                let d = &mut dst[(row - first) * k..(row - first + 1) * k];
-                if parse_row_fast(line, &slots, d) {
-                    continue;
-                }
-                if !split_fields_fast(line, &mut buf) {
-                    split_fields(self.row_text(row), &mut buf);
-                }
-                if buf.len() != width {
-                    return Some((row, usize::MAX, buf.len().to_string()));
-                }
-                for (j, &col) in idx.iter().enumerate() {
-                    let (a, b) = buf[col];
-                    let f = &line[a..b];
-                    let v = parse_f64_fast(f).or_else(|| std::str::from_utf8(f).ok().and_then(parse_f64));
-                    match v {
-                        Some(v) => d[j] = v,
-                        None => return Some((row, col, String::from_utf8_lossy(f).into_owned())),
-                    }
-                }
-            }
-            None
-        };
-        // Chunks of rows in parallel; the first bad row in file order is reported.
-        let first_error = if k == 0 {
-            (0..n.div_ceil(CHUNK)).into_par_iter().filter_map(|c| work(c, &mut [])).min_by_key(|e| e.0)
-        } else {
-            out.par_chunks_mut(CHUNK * k).enumerate().filter_map(|(c, dst)| work(c, dst)).min_by_key(|e| e.0)
-        };
-        if let Some((row, col, s)) = first_error {
-            if col == usize::MAX {
-                return Err(self.ragged(row, s.parse().unwrap_or(0)));
-            }
-            let what = if s.is_empty() {
-                "empty value where a number is required".to_string()
-            } else if s.parse::<f64>().is_ok() {
-                format!("not a finite number: '{s}'")
-            } else {
-                format!("not a number: '{}'", s.chars().take(40).collect::<String>())
-            };
-            return Err(InputError::at(&self.path, self.line_number(row), Some(col + 1), what)
-                .with_column_name(self.header[col].clone()));
-        }
-        Ok(())
+        let rows = Rows { text: self.text.as_bytes(), rows: &self.rows, width: self.header.len() };
+        rows.parse_into(idx, out)
+            .map_err(|e| e.into_input_error(&self.path, &self.header, |r| self.line_number(r)))
     }
 
     /// As [`f64_columns`](Self::f64_columns), one `[f64; K]` per row, parsed in place (no
@@ -516,25 +470,128 @@ impl Table {
     }
 }
 
-/// Parse a finite float (surrounding spaces already trimmed).
-///
-/// Plain decimals of at most 15 significant digits (what measuring machines write) take
-/// Clinger's fast path: the digits as an exact integer divided by an exact power of ten, one
-/// correctly rounded IEEE division, so the result is bit-identical to `str::parse`. Anything else
-/// (exponents, long mantissas, `inf`, malformed text) goes through `str::parse`.
-#[inline]
-pub fn parse_f64(s: &str) -> Option<f64> {
-    if let Some(v) = parse_f64_fast(s.as_bytes()) {
-        return Some(v);
-    }
-    let v: f64 = s.parse().ok()?;
-    v.is_finite().then_some(v)
+/// A bad row found by [`Rows::parse_into`]: row index, column (`usize::MAX`: ragged, with the
+/// field count in `text`) and the offending text.
+#[derive(Debug)]
+pub(crate) struct RowError {
+    pub row: usize,
+    pub col: usize,
+    pub text: String,
 }
 
-/// One pass over a quote-free row of plain decimals: wanted columns are parsed while the row is
-/// split (Clinger's fast path inline). Returns `false` on anything else (quotes, exponents, long
-/// mantissas, bad text, a wrong field count, a column wanted twice), and the caller then takes
-/// the general path, which also produces the error message.
+impl RowError {
+    /// The located input error (`line_of` gives the 1-based line of a row).
+    pub(crate) fn into_input_error(
+        self,
+        path: &Path,
+        header: &[String],
+        line_of: impl Fn(usize) -> usize,
+    ) -> InputError {
+        let line = line_of(self.row);
+        if self.col == usize::MAX {
+            let got: usize = self.text.parse().unwrap_or(0);
+            return InputError::at(
+                path,
+                line,
+                Some(got.min(header.len()) + 1),
+                format!("ragged row: {got} fields, the header has {}", header.len()),
+            );
+        }
+        let s = self.text;
+        let what = if s.is_empty() {
+            "empty value where a number is required".to_string()
+        } else if s.parse::<f64>().is_ok() {
+            format!("not a finite number: '{s}'")
+        } else {
+            format!("not a number: '{}'", s.chars().take(40).collect::<String>())
+        };
+        InputError::at(path, line, Some(self.col + 1), what).with_column_name(header[self.col].clone())
+    }
+}
+
+/// Data rows of CSV text: the text, the start offset of each row, the header width.
+pub(crate) struct Rows<'a> {
+    pub text: &'a [u8],
+    pub rows: &'a [usize],
+    pub width: usize,
+}
+
+impl Rows<'_> {
+    /// Bytes of row `r` without the line ending.
+    #[inline]
+    fn line(&self, r: usize) -> &[u8] {
+        let s0 = self.rows[r];
+        let e0 = memchr::memchr(b'\n', &self.text[s0..]).map_or(self.text.len(), |p| s0 + p);
+        match &self.text[s0..e0] {
+            [l @ .., b'\r'] => l,
+            l => l,
+        }
+    }
+
+    /// Parse columns `idx` of every row into `out` (row-major), rows in parallel chunks; the
+    /// first bad row in file order is reported.
+    pub(crate) fn parse_into(&self, idx: &[usize], out: &mut [f64]) -> Result<(), RowError> {
+        let k = idx.len();
+        let n = self.rows.len();
+        debug_assert_eq!(out.len(), n * k);
+        const CHUNK: usize = 8 * 1024;
+        let width = self.width;
+        // Column → output slot (usize::MAX: not wanted), for the fused fast path.
+        let mut slots = vec![usize::MAX; width];
+        for (j, &c) in idx.iter().enumerate() {
+            if c < width {
+                slots[c] = j;
+            }
+        }
+        let work = |c: usize, dst: &mut [f64]| -> Option<RowError> {
+            let mut buf = Vec::with_capacity(width);
+            let first = c * CHUNK;
+            for row in first..(first + CHUNK).min(n) {
+                let line = self.line(row);
+                let d = &mut dst[(row - first) * k..(row - first + 1) * k];
+                if parse_row_fast(line, &slots, d) {
+                    continue;
+                }
+                let text = std::str::from_utf8(line).unwrap_or("");
+                if !split_fields_fast(line, &mut buf) {
+                    split_fields(text, &mut buf);
+                }
+                if buf.len() != width {
+                    return Some(RowError { row, col: usize::MAX, text: buf.len().to_string() });
+                }
+                for (j, &col) in idx.iter().enumerate() {
+                    let (a, b) = buf[col];
+                    let f = &line[a..b];
+                    match crate::num::parse_f64_bytes(f) {
+                        Some(v) => d[j] = v,
+                        None => {
+                            return Some(RowError { row, col, text: String::from_utf8_lossy(f).into_owned() })
+                        }
+                    }
+                }
+            }
+            None
+        };
+        let first_error = if k == 0 {
+            (0..n.div_ceil(CHUNK)).into_par_iter().filter_map(|c| work(c, &mut [])).min_by_key(|e| e.row)
+        } else {
+            out.par_chunks_mut(CHUNK * k)
+                .enumerate()
+                .filter_map(|(c, dst)| work(c, dst))
+                .min_by_key(|e| e.row)
+        };
+        match first_error {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+}
+
+pub use crate::num::parse_f64;
+
+/// One pass over a quote-free row: wanted columns are parsed while the row is split. Returns
+/// `false` on anything else (quotes, bad text, a wrong field count, a column wanted twice), and
+/// the caller then takes the general path, which also produces the error message.
 #[inline]
 fn parse_row_fast(line: &[u8], slots: &[usize], d: &mut [f64]) -> bool {
     let mut i = 0;
@@ -560,101 +617,42 @@ fn parse_row_fast(line: &[u8], slots: &[usize], d: &mut [f64]) -> bool {
         while i < n && (line[i] == b' ' || line[i] == b'\t') {
             i += 1;
         }
-        let neg = i < n && line[i] == b'-';
-        if i < n && (line[i] == b'-' || line[i] == b'+') {
-            i += 1;
-        }
-        let mut mant: u64 = 0;
-        let s0 = i;
-        while i < n && line[i].is_ascii_digit() {
-            mant = mant.wrapping_mul(10).wrapping_add((line[i] - b'0') as u64);
-            i += 1;
-        }
-        let mut digits = i - s0;
-        let mut frac = 0;
-        if i < n && line[i] == b'.' {
-            i += 1;
-            let f0 = i;
-            while i < n && line[i].is_ascii_digit() {
-                mant = mant.wrapping_mul(10).wrapping_add((line[i] - b'0') as u64);
-                i += 1;
-            }
-            frac = i - f0;
-            digits += frac;
-        }
-        if digits == 0 || digits > 15 || frac > 22 {
+        let Some((v, used)) = crate::num::parse_f64_prefix(&line[i..]) else {
             return false;
-        }
+        };
+        i += used;
         while i < n && (line[i] == b' ' || line[i] == b'\t') {
             i += 1;
         }
         if i < n && line[i] != b',' {
             return false;
         }
-        let v = mant as f64 / POW10[frac];
-        d[slot] = if neg { -v } else { v };
+        d[slot] = v;
         filled += 1;
     }
     i == n && filled == d.len()
 }
 
-/// Exact powers of ten representable in an f64 (10^0 … 10^22).
-const POW10: [f64; 23] = [
-    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18,
-    1e19, 1e20, 1e21, 1e22,
-];
-
-/// Clinger's fast path for `[+-]digits[.digits]`; `None` means "use the general parser".
-#[inline]
-fn parse_f64_fast(b: &[u8]) -> Option<f64> {
-    let mut i = 0;
-    let neg = match b.first()? {
-        b'-' => {
-            i = 1;
-            true
-        }
-        b'+' => {
-            i = 1;
-            false
-        }
-        _ => false,
-    };
-    let mut mant: u64 = 0;
-    let mut digits = 0usize;
-    let int_start = i;
-    while i < b.len() && b[i].is_ascii_digit() {
-        mant = mant.wrapping_mul(10).wrapping_add((b[i] - b'0') as u64);
-        i += 1;
-    }
-    digits += i - int_start;
-    let mut frac = 0usize;
-    if i < b.len() && b[i] == b'.' {
-        i += 1;
-        let f0 = i;
-        while i < b.len() && b[i].is_ascii_digit() {
-            mant = mant.wrapping_mul(10).wrapping_add((b[i] - b'0') as u64);
-            i += 1;
-        }
-        frac = i - f0;
-        digits += frac;
-    }
-    // At most 15 digits: the mantissa is exact (< 2^53) and no wrapping happened.
-    if i != b.len() || digits == 0 || digits > 15 || frac > 22 {
-        return None;
-    }
-    let v = mant as f64 / POW10[frac];
-    Some(if neg { -v } else { v })
-}
-
-/// Write CSV rows with a header; floats in shortest round-trip form.
+/// Write CSV rows with a header; floats in shortest round-trip form (or a fixed number of
+/// decimals, [`CsvWriter::with_format`]).
 pub struct CsvWriter<W: Write> {
     w: W,
     first: bool,
+    fmt: NumFormat,
+    num: Vec<u8>,
 }
 
 impl<W: Write> CsvWriter<W> {
     pub fn new(w: W) -> Self {
-        Self { w, first: true }
+        Self { w, first: true, fmt: NumFormat::Shortest, num: Vec::with_capacity(32) }
+    }
+    /// How numbers are written.
+    pub fn with_format(mut self, fmt: NumFormat) -> Self {
+        self.fmt = fmt;
+        self
+    }
+    pub fn format(&self) -> NumFormat {
+        self.fmt
     }
     /// Write `# text` comment lines (before the header).
     pub fn comment(&mut self, text: &str) -> std::io::Result<()> {
@@ -675,12 +673,15 @@ impl<W: Write> CsvWriter<W> {
             self.w.write_all(s.as_bytes())
         }
     }
+    #[inline]
     pub fn field_f64(&mut self, v: f64) -> std::io::Result<()> {
+        self.num.clear();
         if !self.first {
-            self.w.write_all(b",")?;
+            self.num.push(b',');
         }
         self.first = false;
-        write!(self.w, "{v}")
+        self.fmt.write(v, &mut self.num);
+        self.w.write_all(&self.num)
     }
     /// Append a raw, already formatted CSV fragment (e.g. a passed-through row).
     pub fn raw(&mut self, s: &str) -> std::io::Result<()> {
@@ -703,6 +704,27 @@ impl<W: Write> CsvWriter<W> {
     pub fn into_inner(self) -> W {
         self.w
     }
+}
+
+/// Format `n` rows in parallel: `row(r, w)` writes row `r` (fields and `end_row`) into an
+/// in-memory writer; the pieces come back in row order, ready to be written one after another.
+/// This is how large outputs are written at the speed of the cores rather than of one.
+pub fn format_rows_parallel<F, E>(n: usize, fmt: NumFormat, row: F) -> Result<Vec<Vec<u8>>, E>
+where
+    F: Fn(usize, &mut CsvWriter<Vec<u8>>) -> Result<(), E> + Sync,
+    E: Send,
+{
+    const ROWS: usize = 8 * 1024;
+    (0..n.div_ceil(ROWS))
+        .into_par_iter()
+        .map(|c| {
+            let mut w = CsvWriter::new(Vec::with_capacity(ROWS * 48)).with_format(fmt);
+            for r in c * ROWS..((c + 1) * ROWS).min(n) {
+                row(r, &mut w)?;
+            }
+            Ok(w.into_inner())
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -814,7 +836,7 @@ mod tests {
         let start = s.find("x_mm").unwrap();
         let from = start + s[start..].find('\n').unwrap() + 1;
         let mut serial = Vec::new();
-        index_rows(&s, from, s.len(), &mut serial);
+        assert_eq!(index_rows(&s, from, s.len(), &mut serial), None);
         assert_eq!(t.rows, serial);
         // i % 97 ∈ {0, 1, 2} for 825 values of i each.
         assert_eq!(t.n_rows(), 80_000 - 3 * 825);

@@ -12,12 +12,22 @@
 //! - [`config::read_toml`]: TOML configuration into serde types, errors with line and column.
 //! - [`atomic::AtomicFile`] / [`atomic::write_atomic`]: outputs written to a temporary file and
 //!   renamed into place, so a failed run never leaves a partial file.
-//! - [`csv::CsvWriter`]: fast CSV output with shortest round-trip float formatting.
+//! - [`csv::CsvWriter`]: fast CSV output with shortest round-trip float formatting (or fixed
+//!   decimals), [`csv::format_rows_parallel`] for large outputs.
+//! - [`num`]: exact fast float parsing, shortest round-trip and fixed-decimal formatting.
+//! - [`stream::CsvStream`]: CSV in chunks with constant memory, reading overlapped with work;
+//!   [`stream::BackgroundWriter`] for the output side.
+//! - [`parquet_file`]: Parquet point and stream files (same column names), read and written.
+//! - [`limits`]: bounds on every input (file size, line length, binary data).
 
 pub mod atomic;
 pub mod config;
 pub mod csv;
 pub mod error;
+pub mod limits;
+pub mod num;
+pub mod parquet_file;
 pub mod points;
+pub mod stream;
 
 pub use error::InputError;

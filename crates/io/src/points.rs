@@ -14,11 +14,18 @@ pub struct PointSet {
     pub ids: Option<Vec<String>>,
 }
 
-/// Read a point file by extension: `.ds` as NIST data set, anything else as CSV.
+/// Read a point file by extension: `.ds` as NIST data set, `.parquet` as Parquet (same column
+/// names), anything else as CSV.
 pub fn read_points(path: impl AsRef<Path>) -> Result<PointSet, InputError> {
     let path = path.as_ref();
     if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("ds")) {
         return Ok(PointSet { points: read_ds(path)?, ids: None });
+    }
+    if crate::parquet_file::is_parquet(path) {
+        let c = crate::parquet_file::read_columns(path)?;
+        let (x, y, z) = (c.f64(path, "x_mm")?, c.f64(path, "y_mm")?, c.f64(path, "z_mm")?);
+        let points = x.iter().zip(y).zip(z).map(|((&x, &y), &z)| Point3::new(x, y, z)).collect();
+        return Ok(PointSet { points, ids: c.strings("id") });
     }
     let t = Table::read(path)?;
     // `[f64; 3]` and `Point3` have the same layout: this collect reuses the allocation.
@@ -33,8 +40,7 @@ pub fn read_points(path: impl AsRef<Path>) -> Result<PointSet, InputError> {
 /// Read a NIST `.ds` file.
 pub fn read_ds(path: impl AsRef<Path>) -> Result<Vec<Point3>, InputError> {
     let path = path.as_ref();
-    let bytes =
-        crate::csv::read_file(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+    let bytes = crate::limits::read_text(path, ".ds")?;
     parse_ds(path, &bytes)
 }
 

@@ -94,5 +94,5 @@ pub fn write_centres(path: &Path, delay_s: f64, probe: &StreamFile, out: &[[f64;
         }
         w.into_inner().flush()?;
     }
-    f.commit()
+    Ok(f.commit()?)
 }

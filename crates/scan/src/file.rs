@@ -192,7 +192,7 @@ pub fn write_path(path: &Path, pl: &Plan, samples: &[PathSample], style: &str) -
         }
         w.into_inner().flush()?;
     }
-    f.commit()
+    Ok(f.commit()?)
 }
 
 /// Write measured points as the contract's CSV (`t_s,x_mm,y_mm,z_mm,segment,feature,
@@ -238,7 +238,7 @@ pub fn write_points(
         }
         w.into_inner().flush()?;
     }
-    f.commit()
+    Ok(f.commit()?)
 }
 
 #[cfg(test)]

@@ -82,11 +82,14 @@ pub enum AlarmKind {
     MaxSingleCorrection,
     /// The accumulated correction reached the total limit.
     MaxTotalCorrection,
+    /// The controller failed (e-stop, lost connection, an error it reports): the run is aborted
+    /// and the stop in progress marked FAILURE.
+    ControllerFault,
 }
 
 impl AlarmKind {
     /// Every kind.
-    pub const ALL: [AlarmKind; 10] = [
+    pub const ALL: [AlarmKind; 11] = [
         AlarmKind::TemperatureRange,
         AlarmKind::TemperatureChange,
         AlarmKind::Inclination,
@@ -97,6 +100,7 @@ impl AlarmKind {
         AlarmKind::NoReading,
         AlarmKind::MaxSingleCorrection,
         AlarmKind::MaxTotalCorrection,
+        AlarmKind::ControllerFault,
     ];
 
     /// The name in the JSON output and the audit trail (`temperature_range`, `beam_break`, …).
@@ -112,6 +116,7 @@ impl AlarmKind {
             AlarmKind::NoReading => "no_reading",
             AlarmKind::MaxSingleCorrection => "max_single_correction",
             AlarmKind::MaxTotalCorrection => "max_total_correction",
+            AlarmKind::ControllerFault => "controller_fault",
         }
     }
 

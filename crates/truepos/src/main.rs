@@ -36,12 +36,26 @@ pub struct DeviceError(pub String);
 /// Exit code for an error: the one place where errors become exit codes. The first cause in the
 /// chain that says what kind of failure it is decides: bad input or usage → 2; a device, the
 /// audit trail or anything internal → 3.
+/// An output path that cannot be written is bad usage too (2).
 fn exit_code(err: &anyhow::Error) -> u8 {
     use truepos_scan::ScanError;
     use truepos_somac::run::RunError;
     for cause in err.chain() {
         if cause.is::<truepos_io::InputError>() || cause.is::<UsageError>() {
             return 2;
+        }
+        if cause.downcast_ref::<truepos_io::atomic::OutputError>().is_some_and(|o| o.is_path()) {
+            return 2;
+        }
+        // An output error carried inside an io::Error by a library that returns io::Result.
+        if let Some(io) = cause.downcast_ref::<std::io::Error>() {
+            if io
+                .get_ref()
+                .and_then(|i| i.downcast_ref::<truepos_io::atomic::OutputError>())
+                .is_some_and(|o| o.is_path())
+            {
+                return 2;
+            }
         }
         if cause.is::<DeviceError>() || cause.is::<truepos_device::DeviceError>() {
             return 3;
@@ -62,7 +76,46 @@ fn exit_code(err: &anyhow::Error) -> u8 {
     3
 }
 
+/// True when the error is a write to a closed pipe (`truepos … --json | head -c 10`): the
+/// reader has gone, nothing is wrong with the work, and the process ends quietly.
+fn is_broken_pipe(err: &anyhow::Error) -> bool {
+    err.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>().is_some_and(|e| e.kind() == std::io::ErrorKind::BrokenPipe)
+    })
+}
+
+/// `println!` panics when stdout is a closed pipe; that panic is the same quiet end.
+fn is_broken_pipe_panic(msg: &str) -> bool {
+    msg.contains("failed printing to stdout") && (msg.contains("Broken pipe") || msg.contains("os error 32"))
+}
+
+fn panic_message(p: &(dyn std::any::Any + Send)) -> String {
+    p.downcast_ref::<String>()
+        .cloned()
+        .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+        .unwrap_or_default()
+}
+
 fn main() -> ExitCode {
+    // Silence only the closed-pipe panic of `println!`; every other panic is reported as usual.
+    let default_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if !is_broken_pipe_panic(&panic_message(info.payload())) {
+            default_hook(info);
+        }
+    }));
+    let code = match std::panic::catch_unwind(real_main) {
+        Ok(c) => c,
+        Err(p) if is_broken_pipe_panic(&panic_message(p.as_ref())) => ExitCode::SUCCESS,
+        Err(_) => ExitCode::from(3),
+    };
+    // Nothing half-written survives the process (outputs are removed on drop; this also covers
+    // any still registered).
+    truepos_io::atomic::remove_all_temporaries();
+    code
+}
+
+fn real_main() -> ExitCode {
     let cli = match cmd::Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {
@@ -82,6 +135,7 @@ fn main() -> ExitCode {
     match cmd::run(cli) {
         Ok(Outcome::Done) => ExitCode::SUCCESS,
         Ok(Outcome::OutOfTolerance) => ExitCode::from(1),
+        Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::from(exit_code(&e))

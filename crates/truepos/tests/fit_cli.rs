@@ -184,3 +184,362 @@ fn json_fields_of_the_contract() {
         assert!(num(&v, "max_abs_residual_mm") >= num(&v, "rms_mm"));
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Methods, uncertainty fields, verdicts, QIF, bad options (issue 17) and degenerate data (14).
+
+fn write_csv(dir: &Path, name: &str, pts: &[[f64; 3]]) -> PathBuf {
+    let mut s = String::from("x_mm,y_mm,z_mm\n");
+    for p in pts {
+        s.push_str(&format!("{},{},{}\n", p[0], p[1], p[2]));
+    }
+    let f = dir.join(name);
+    std::fs::write(&f, s).unwrap();
+    f
+}
+
+/// A hole of diameter ≈ 20.002 mm with ±1 µm lobing, 48 points in z = 5.
+fn hole(dir: &Path) -> PathBuf {
+    let pts: Vec<[f64; 3]> = (0..48)
+        .map(|i| {
+            let a = i as f64 * std::f64::consts::TAU / 48.0;
+            let r = 10.001 + 0.001 * (3.0 * a).sin();
+            [3.0 + r * a.cos(), -2.0 + r * a.sin(), 5.0]
+        })
+        .collect();
+    write_csv(dir, "hole.csv", &pts)
+}
+
+fn run(args: &[&str], file: &Path) -> (Option<i32>, String, String) {
+    let out = bin().arg("fit").arg(args[0]).arg(file).args(&args[1..]).output().unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn uncertainty_coverage_factor_and_form_fields() {
+    let d = nist_dir();
+    for (kind, file, keys) in [
+        ("line", "Line3d/lin3.ds", &["point_mm", "direction"][..]),
+        ("plane", "Plane/pla7.ds", &["point_mm", "normal"][..]),
+        ("circle", "Circle3d/cir10.ds", &["center_mm", "normal", "radius_mm"][..]),
+        ("sphere", "Sphere/sph5.ds", &["center_mm", "radius_mm"][..]),
+        ("cylinder", "Cylinder/cyl21.ds", &["point_mm", "axis", "radius_mm"][..]),
+        ("cone", "Cone/con17.ds", &["apex_mm", "axis", "apex_angle_deg"][..]),
+    ] {
+        let v = run_json(kind, &d.join(file));
+        assert_eq!(v["coverage_factor"], 2.0, "{kind}");
+        assert!(num(&v, "form_mm") >= 0.0);
+        for k in keys {
+            let u = &v["uncertainty"][k];
+            let x = &v["expanded_uncertainty"][k];
+            assert!(!u.is_null() && !x.is_null(), "{kind}: uncertainty.{k}");
+            // Same shape as the parameter, and U = 2u.
+            assert_eq!(u.is_array(), v[k].is_array(), "{kind}: {k}");
+            if let (Some(ua), Some(xa)) = (u.as_array(), x.as_array()) {
+                assert_eq!(ua.len(), 3);
+                for (a, b) in ua.iter().zip(xa) {
+                    assert!((2.0 * a.as_f64().unwrap() - b.as_f64().unwrap()).abs() <= 1e-15);
+                }
+            } else {
+                assert!((2.0 * u.as_f64().unwrap() - x.as_f64().unwrap()).abs() <= 1e-15);
+            }
+        }
+    }
+}
+
+#[test]
+fn methods_and_verdicts_with_exit_codes() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = hole(dir.path());
+    // Minimum zone: the lobing's width 0.002 mm; the radius the mean of the zone radii.
+    let (code, out, err) = run(&["circle", "--method", "minimum-zone", "--json"], &f);
+    assert_eq!(code, Some(0), "{err}");
+    let v: Value = serde_json::from_str(&out).unwrap();
+    assert!((num(&v, "form_mm") - 0.002).abs() < 1e-9, "{v}");
+    assert!((num(&v, "radius_mm") - 10.001).abs() < 1e-9);
+    assert!(v.get("uncertainty").is_none(), "uncertainty only for least squares");
+    let (_, out, _) = run(&["circle", "--method", "mic", "--json"], &f);
+    let v: Value = serde_json::from_str(&out).unwrap();
+    assert!((num(&v, "radius_mm") - 10.0).abs() < 1e-9);
+    let (_, out, _) = run(&["circle", "--method", "mcc", "--json"], &f);
+    let v: Value = serde_json::from_str(&out).unwrap();
+    assert!((num(&v, "radius_mm") - 10.002).abs() < 1e-9);
+
+    // Size within −0.001/+0.006 of 20: pass (exit 0), both spellings of a negative value.
+    for args in [
+        &["circle", "--nominal-diameter-mm", "20", "--tolerance-mm=-0.001,0.006", "--json"][..],
+        &["circle", "--nominal-diameter-mm", "20", "--tolerance-mm", "-0.001,0.006", "--json"][..],
+    ] {
+        let (code, out, err) = run(args, &f);
+        assert_eq!(code, Some(0), "{err}");
+        let v: Value = serde_json::from_str(&out).unwrap();
+        assert_eq!(v["verdict"], "pass");
+    }
+    // Out of tolerance: fail, exit 1, JSON says which.
+    let (code, out, _) =
+        run(&["circle", "--nominal-diameter-mm", "20.01", "--tolerance-mm", "0.005", "--json"], &f);
+    assert_eq!(code, Some(1));
+    let v: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["verdict"], "fail");
+    assert_eq!(v["characteristics"][0]["verdict"], "fail");
+    // Form tolerance tighter than the lobing: fail whatever the size says.
+    let (code, out, _) = run(&["circle", "--form-tolerance-mm", "0.001", "--json"], &f);
+    assert_eq!(code, Some(1));
+    assert_eq!(serde_json::from_str::<Value>(&out).unwrap()["verdict"], "fail");
+    // Guarded: the LS diameter ~20.002 ± U; a limit at 20.002 + U/2 is undecided.
+    let (_, out, _) = run(&["circle", "--json"], &f);
+    let v: Value = serde_json::from_str(&out).unwrap();
+    let dia = 2.0 * num(&v, "radius_mm");
+    let u = 2.0 * v["expanded_uncertainty"]["radius_mm"].as_f64().unwrap();
+    assert!(u > 0.0);
+    let upper = format!("--tolerance-mm=-0.01,{}", dia - 20.0 + 0.5 * u);
+    let (code, out, _) =
+        run(&["circle", "--nominal-diameter-mm", "20", &upper, "--decision-rule", "guarded", "--json"], &f);
+    assert_eq!(code, Some(1));
+    let v: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["verdict"], "undecided");
+    assert!((v["characteristics"][0]["guard_band_mm"].as_f64().unwrap() - u).abs() < 1e-12);
+    // The same limits under the simple rule: pass.
+    let (code, _, _) = run(&["circle", "--nominal-diameter-mm", "20", &upper, "--json"], &f);
+    assert_eq!(code, Some(0));
+}
+
+#[test]
+fn bad_options_are_usage_errors_and_write_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = hole(dir.path());
+    let plane = write_csv(
+        dir.path(),
+        "plane.csv",
+        &(0..20).map(|i| [(i % 5) as f64, (i / 5) as f64, 0.001 * (i % 3) as f64]).collect::<Vec<_>>(),
+    );
+    let qif = dir.path().join("out.qif");
+    let q = format!("--qif={}", qif.display());
+    let cases: Vec<(Vec<&str>, &Path, &[&str])> = vec![
+        (vec!["plane", "--method", "mic"], &plane, &["--method", "mic", "plane"]),
+        (vec!["line", "--method", "mcc"], &plane, &["--method", "mcc", "line"]),
+        (vec!["cone", "--method", "minimum-zone"], &f, &["--method", "cone"]),
+        (
+            vec!["circle", "--nominal-diameter-mm", "20", "--tolerance-mm=0.006,-0.001"],
+            &f,
+            &["--tolerance-mm", "lower"],
+        ),
+        (vec!["circle", "--nominal-diameter-mm", "20", "--tolerance-mm", "-0.01"], &f, &["--tolerance-mm"]),
+        (
+            vec!["circle", "--nominal-diameter-mm", "20", "--tolerance-mm", "abc"],
+            &f,
+            &["--tolerance-mm", "abc"],
+        ),
+        (vec!["circle", "--form-tolerance-mm", "-0.001"], &f, &["--form-tolerance-mm"]),
+        (vec!["circle", "--nominal-diameter-mm", "20"], &f, &["--nominal-diameter-mm", "--tolerance-mm"]),
+        (
+            vec!["plane", "--nominal-diameter-mm", "20", "--tolerance-mm", "0.1"],
+            &plane,
+            &["size tolerance", "plane"],
+        ),
+    ];
+    for (args, file, needles) in cases {
+        let mut a = args.clone();
+        a.push(&q);
+        let (code, out, err) = run(&a, file);
+        assert_eq!(code, Some(2), "{args:?}: {err}");
+        assert!(out.is_empty());
+        for n in needles {
+            assert!(err.contains(n), "{args:?}: expected '{n}' in {err}");
+        }
+        assert!(!qif.exists(), "{args:?} wrote {}", qif.display());
+    }
+    // --qif into a missing directory, or onto a directory: named, nothing written.
+    let missing = dir.path().join("no/such/dir/out.qif");
+    let (code, _, err) = run(&["circle", "--qif", missing.to_str().unwrap()], &f);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("--qif") && err.contains("no/such/dir"), "{err}");
+    let (code, _, err) = run(&["circle", "--qif", dir.path().to_str().unwrap()], &f);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("directory"), "{err}");
+    // Bad input with --qif: no file.
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(&bad, "x_mm,y_mm,z_mm\n1,2,3\n1,2,3\n1,2,3\n").unwrap();
+    let (code, _, _) = run(&["circle", &q], &bad);
+    assert_eq!(code, Some(2));
+    assert!(!qif.exists());
+    let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert!(!names.iter().any(|n| n.to_string_lossy().contains(".tmp")), "{names:?}");
+}
+
+#[test]
+fn degenerate_data_beyond_exact_integers() {
+    let dir = tempfile::tempdir().unwrap();
+    // Collinear with decimal steps at a large offset: the eigenvalues alone cannot tell.
+    let l: Vec<[f64; 3]> =
+        (0..9).map(|i| [1000.1 + 0.1 * i as f64, 2000.2 + 0.2 * i as f64, 0.3 * i as f64]).collect();
+    let f = write_csv(dir.path(), "collinear.csv", &l);
+    for kind in ["plane", "circle"] {
+        let (code, _, err) = run(&[kind, "--json"], &f);
+        assert_eq!(code, Some(2), "{kind}: {err}");
+        assert!(err.contains("collinear") && err.contains("collinear.csv"), "{err}");
+    }
+    let l3: Vec<[f64; 3]> = (0..3).map(|i| [i as f64, i as f64, i as f64]).collect();
+    let f = write_csv(dir.path(), "three.csv", &l3);
+    let (code, _, err) = run(&["plane", "--json"], &f);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("collinear"), "{err}");
+    // An open arc has no bounded inscribed circle.
+    let arc: Vec<[f64; 3]> =
+        (0..20).map(|i| [10.0 * (i as f64 * 0.05).cos(), 10.0 * (i as f64 * 0.05).sin(), 0.0]).collect();
+    let f = write_csv(dir.path(), "arc.csv", &arc);
+    let (code, _, err) = run(&["circle", "--method", "mic", "--json"], &f);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("inscribed") && err.contains("arc.csv"), "{err}");
+    // Identical points at large coordinates.
+    let same = vec![[1234.5678, -9876.54321, 0.1]; 7];
+    let f = write_csv(dir.path(), "same.csv", &same);
+    let (code, _, err) = run(&["line", "--json"], &f);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("coincide"), "{err}");
+}
+
+fn xmllint_ok(path: &Path) -> Option<bool> {
+    let xsd = nist_dir().join("../../schemas/qif3/QIFApplications/QIFDocument.xsd");
+    if !xsd.is_file() {
+        eprintln!("SKIPPED: QIF schemas not found at {}", xsd.display());
+        return None;
+    }
+    match Command::new("xmllint").args(["--noout", "--nonet", "--schema"]).arg(&xsd).arg(path).output() {
+        Ok(o) => {
+            if !o.status.success() {
+                eprintln!("{}", String::from_utf8_lossy(&o.stderr));
+            }
+            Some(o.status.success())
+        }
+        Err(e) => {
+            eprintln!("SKIPPED: xmllint not available ({e}); install libxml2-utils");
+            None
+        }
+    }
+}
+
+/// The QIF file's numbers in document order for an element name.
+fn qif_values(xml: &str, tag: &str) -> Vec<f64> {
+    let open = format!("<{tag}");
+    let mut out = vec![];
+    let mut rest = xml;
+    while let Some(i) = rest.find(&open) {
+        let after = &rest[i + open.len()..];
+        if after.starts_with('>') || after.starts_with(' ') {
+            let gt = after.find('>').unwrap();
+            let end = after.find(&format!("</{tag}>")).unwrap();
+            out.extend(after[gt + 1..end].split_whitespace().map(|t| t.parse::<f64>().unwrap()));
+        }
+        rest = after;
+    }
+    out
+}
+
+#[test]
+fn qif_export_of_every_kind_validates_and_matches_the_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = nist_dir();
+    for (kind, file, loc, extra) in [
+        ("line", "Line3d/lin3.ds", "point_mm", vec![]),
+        ("plane", "Plane/pla7.ds", "point_mm", vec!["--form-tolerance-mm", "0.5"]),
+        ("circle", "Circle3d/cir10.ds", "center_mm", vec![]),
+        ("sphere", "Sphere/sph5.ds", "center_mm", vec![]),
+        ("cylinder", "Cylinder/cyl21.ds", "point_mm", vec![]),
+        ("cone", "Cone/con17.ds", "apex_mm", vec!["--form-tolerance-mm", "0.0001"]),
+    ] {
+        let q = dir.path().join(format!("{kind}.qif"));
+        let mut args = vec![kind, "--json", "--qif", q.to_str().unwrap()];
+        let v0 = run_json(kind, &d.join(file));
+        let tol = "--tolerance-mm=-0.01,0.02";
+        let nominal = v0
+            .get("radius_mm")
+            .map(|r| format!("{}", (2.0 * r.as_f64().unwrap()).round()))
+            .unwrap_or_default();
+        if !nominal.is_empty() {
+            args.extend(["--nominal-diameter-mm", &nominal, tol]);
+        }
+        args.extend(extra.iter().copied());
+        let (code, out, err) = run(&args, &d.join(file));
+        assert!(code == Some(0) || code == Some(1), "{kind}: {err}");
+        let v: Value = serde_json::from_str(&out).unwrap();
+        let xml = std::fs::read_to_string(&q).unwrap();
+        if let Some(ok) = xmllint_ok(&q) {
+            assert!(ok, "{kind}: QIF does not validate:\n{xml}");
+            eprintln!("{kind}: {} validates", q.display());
+        }
+        // Units declared; actual values equal to the JSON's to 1e-9 mm.
+        assert!(xml.contains("<UnitName>mm</UnitName>"));
+        let l = if kind == "cylinder" || kind == "cone" {
+            qif_values(&xml, "AxisPoint")
+        } else {
+            qif_values(&xml, "Location")
+        };
+        let want = arr(&v, loc);
+        for k in 0..3 {
+            assert!((l[k] - want[k]).abs() <= 1e-9, "{kind}: {l:?} vs {want:?}");
+        }
+        if let Some(r) = v.get("radius_mm").and_then(Value::as_f64) {
+            let dq = qif_values(&xml, "Diameter");
+            assert!((dq[0] - 2.0 * r).abs() <= 1e-9);
+            // The diameter characteristic: nominal, tolerance, actual value, status.
+            assert!(
+                xml.contains("<DiameterCharacteristicDefinition")
+                    && xml.contains("<MaxValue>0.02</MaxValue>")
+            );
+            assert!((qif_values(&xml, "TargetValue")[0] - nominal.parse::<f64>().unwrap()).abs() < 1e-12);
+            assert!((qif_values(&xml, "Value")[0] - 2.0 * r).abs() <= 1e-9);
+            let status = if v["characteristics"][0]["verdict"] == "pass" { "PASS" } else { "FAIL" };
+            assert!(xml.contains(&format!("<CharacteristicStatusEnum>{status}</CharacteristicStatusEnum>")));
+        }
+        if kind == "cone" {
+            let a = qif_values(&xml, "FullAngle");
+            assert!((a[0] - num(&v, "apex_angle_deg")).abs() <= 1e-9);
+        }
+        assert!((qif_values(&xml, "Form")[0] - num(&v, "form_mm")).abs() <= 1e-9);
+    }
+}
+
+#[test]
+fn tolerances_from_a_qif_plan() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = hole(dir.path());
+    let plan = dir.path().join("plan.qif");
+    std::fs::write(
+        &plan,
+        r#"<?xml version="1.0" encoding="UTF-8"?>
+<QIFDocument xmlns="http://qifstandards.org/xsd/qif3" versionQIF="3.0.0" idMax="5">
+  <QPId>0b7c1f2e-1234-4abc-8def-0123456789ab</QPId>
+  <FileUnits><PrimaryUnits><LinearUnit><SIUnitName>meter</SIUnitName><UnitName>mm</UnitName><UnitConversion><Factor>0.001</Factor></UnitConversion></LinearUnit></PrimaryUnits></FileUnits>
+  <Characteristics>
+    <FormalStandardId>1</FormalStandardId>
+    <CharacteristicDefinitions n="2">
+      <DiameterCharacteristicDefinition id="2"><Tolerance><MaxValue>0.006</MaxValue><MinValue>-0.001</MinValue><DefinedAsLimit>false</DefinedAsLimit></Tolerance></DiameterCharacteristicDefinition>
+      <CircularityCharacteristicDefinition id="4"><ToleranceValue>0.0015</ToleranceValue></CircularityCharacteristicDefinition>
+    </CharacteristicDefinitions>
+    <CharacteristicNominals n="1">
+      <DiameterCharacteristicNominal id="3"><CharacteristicDefinitionId>2</CharacteristicDefinitionId><TargetValue>20</TargetValue></DiameterCharacteristicNominal>
+    </CharacteristicNominals>
+  </Characteristics>
+</QIFDocument>"#,
+    )
+    .unwrap();
+    let (code, out, err) = run(&["circle", "--qif-plan", plan.to_str().unwrap(), "--json"], &f);
+    // Size passes (20.002 in 19.999…20.006); circularity 0.002 > 0.0015 fails.
+    assert_eq!(code, Some(1), "{err}");
+    let v: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["characteristics"][0]["verdict"], "pass");
+    assert_eq!(v["characteristics"][0]["nominal_mm"], 20.0);
+    assert_eq!(v["characteristics"][1]["verdict"], "fail");
+    assert_eq!(v["verdict"], "fail");
+    // A plan that is not QIF: input error naming the file.
+    let bad = dir.path().join("bad.qif");
+    std::fs::write(&bad, "<html/>").unwrap();
+    let (code, _, err) = run(&["circle", "--qif-plan", bad.to_str().unwrap()], &f);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("bad.qif") && err.contains("QIF"), "{err}");
+}

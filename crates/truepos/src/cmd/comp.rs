@@ -11,7 +11,6 @@ use crate::output::{parse_triple, print_json};
 use crate::Outcome;
 use anyhow::{Context, Result};
 use serde_json::json;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use truepos_comp::correct::CompError;
 use truepos_comp::{Chain, Corrector, GeometricMap};
@@ -100,6 +99,10 @@ pub struct CorrectArgs {
     /// The points are targets: write commanded positions c with c + E(c) = T.
     #[arg(long)]
     pub commanded: bool,
+    /// Write numbers with this many decimals (default: the shortest text that reads back as the
+    /// same number).
+    #[arg(long)]
+    pub decimals: Option<u8>,
     /// Print a JSON summary on stdout.
     #[arg(long)]
     pub json: bool,
@@ -146,45 +149,6 @@ pub fn batch_error(t: &Table, e: CompError) -> InputError {
     InputError::at(&t.path, t.line_number(e.index()), None, e.to_string())
 }
 
-/// Write `t` with x_mm,y_mm,z_mm replaced by `points` and dx_um,dy_um,dz_um set to `d` (added,
-/// or replaced when the input already has them); every other column passed through.
-pub fn write_corrected(t: &Table, points: &[Point3], d: &[Vector3], out: &Path) -> Result<()> {
-    let xyz = [t.require("x_mm")?, t.require("y_mm")?, t.require("z_mm")?];
-    let extra = ["dx_um", "dy_um", "dz_um"];
-    let existing: Vec<Option<usize>> = extra.iter().map(|n| t.column(n)).collect();
-    let mut f = AtomicFile::create(out).with_context(|| format!("cannot create {}", out.display()))?;
-    let mut w = CsvWriter::new(&mut f);
-    let mut header: Vec<&str> = t.header.iter().map(String::as_str).collect();
-    for (n, e) in extra.iter().zip(&existing) {
-        if e.is_none() {
-            header.push(n);
-        }
-    }
-    w.header(&header)?;
-    let mut buf = Vec::new();
-    for (r, (p, dv)) in points.iter().zip(d).enumerate() {
-        let fields = t.fields(r, &mut buf)?;
-        for (c, s) in fields.iter().enumerate() {
-            if let Some(k) = xyz.iter().position(|&x| x == c) {
-                w.field_f64(p[k])?;
-            } else if let Some(k) = existing.iter().position(|&e| e == Some(c)) {
-                w.field_f64(dv[k] * 1e3)?;
-            } else {
-                w.field_str(s)?;
-            }
-        }
-        for (k, e) in existing.iter().enumerate() {
-            if e.is_none() {
-                w.field_f64(dv[k] * 1e3)?;
-            }
-        }
-        w.end_row()?;
-    }
-    f.flush()?;
-    f.commit().with_context(|| format!("cannot write {}", out.display()))?;
-    Ok(())
-}
-
 pub fn run(a: Args) -> Result<Outcome> {
     match a.command {
         Sub::Correct(c) => correct(c),
@@ -192,41 +156,83 @@ pub fn run(a: Args) -> Result<Outcome> {
     }
 }
 
+/// Summary of a streamed correction.
+pub struct StreamedCorrection {
+    pub n_points: usize,
+    pub rms_um: f64,
+    pub max_um: f64,
+    /// Largest number of fixed-point iterations (commanded positions only).
+    pub iterations: usize,
+}
+
+/// Correct (or, `commanded`, compensate) the points of `input` chunk by chunk into `output`:
+/// constant memory, reading, correcting and writing overlapped (`truepos_io::stream`). A refused
+/// point is an input error on its line, with `hint` appended.
+pub fn correct_streamed(
+    corr: &Corrector,
+    input: &Path,
+    output: &Path,
+    commanded: bool,
+    decimals: Option<u8>,
+    hint: &str,
+) -> Result<StreamedCorrection> {
+    let fmt = truepos_io::num::NumFormat::from_decimals(decimals).map_err(crate::UsageError)?;
+    let (mut sum_sq, mut max, mut iterations) = (0.0f64, 0.0f64, 0usize);
+    let summary =
+        truepos_io::stream::rewrite_points(input, output, ["dx_um", "dy_um", "dz_um"], fmt, |_, pts, ex| {
+            let refused = |e: CompError| (e.index(), format!("{e}{hint}"));
+            if commanded {
+                let targets = pts.to_vec();
+                iterations = iterations.max(corr.compensate(pts).map_err(refused)?);
+                for ((c, t), e) in pts.iter().zip(&targets).zip(ex.iter_mut()) {
+                    let v = c - t;
+                    *e = [v.x * 1e3, v.y * 1e3, v.z * 1e3];
+                }
+            } else {
+                let mut d = vec![Vector3::zeros(); pts.len()];
+                corr.correct_measured(pts, Some(&mut d)).map_err(refused)?;
+                for (v, e) in d.iter().zip(ex.iter_mut()) {
+                    *e = [v.x * 1e3, v.y * 1e3, v.z * 1e3];
+                }
+            }
+            for e in ex.iter() {
+                let n2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+                sum_sq += n2;
+                max = max.max(n2.sqrt());
+            }
+            Ok(())
+        })
+        .map_err(|e| match e {
+            truepos_io::stream::RewriteError::Input(i) => anyhow::Error::from(i),
+            truepos_io::stream::RewriteError::Output(o) => anyhow::Error::from(o),
+        })?;
+    let n = summary.n_points;
+    let rms_um = if n == 0 { 0.0 } else { (sum_sq / n as f64).sqrt() };
+    Ok(StreamedCorrection { n_points: n, rms_um, max_um: max, iterations })
+}
+
 fn correct(a: CorrectArgs) -> Result<Outcome> {
     let map = load_map(&a.map)?;
-    let t = Table::read(&a.points)?;
-    let input = table_points(&t)?;
     let [ox, oy, oz] = a.map.probe_offset_mm;
     let corr = Corrector { geometric: Some(&map), load: None, probe_offset: Vector3::new(ox, oy, oz) };
-    let mut pts = input.clone();
-    let mut d = vec![Vector3::zeros(); pts.len()];
-    let mut iterations = 0;
-    if a.commanded {
-        iterations = corr.compensate(&mut pts).map_err(|e| batch_error(&t, e))?;
-        for (k, (c, t0)) in pts.iter().zip(&input).enumerate() {
-            d[k] = c - t0;
-        }
-    } else {
-        corr.correct_measured(&mut pts, Some(&mut d)).map_err(|e| batch_error(&t, e))?;
-    }
-    write_corrected(&t, &pts, &d, &a.output)?;
-    let (rms, max) = truepos_comp::files::rms_max_um(&d);
+    let r = correct_streamed(&corr, &a.points, &a.output, a.commanded, a.decimals, "")?;
+    let (rms, max) = (r.rms_um, r.max_um);
     if a.json {
         let mut j = json!({
-            "n_points": pts.len(),
+            "n_points": r.n_points,
             "output": a.output.display().to_string(),
             "mode": if a.commanded { "commanded" } else { "measured" },
             "rms_correction_um": rms,
             "max_correction_um": max,
         });
         if a.commanded {
-            j["max_iterations"] = json!(iterations);
+            j["max_iterations"] = json!(r.iterations);
         }
         print_json(&j)?;
     } else {
         eprintln!(
             "{} points {}; correction rms {rms:.3} µm, max {max:.3} µm → {}",
-            pts.len(),
+            r.n_points,
             if a.commanded { "compensated" } else { "corrected" },
             a.output.display()
         );

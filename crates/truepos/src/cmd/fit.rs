@@ -1,20 +1,26 @@
-//! `truepos fit <line|plane|circle|sphere|cylinder|cone> <points> [--json]`: least-squares
-//! geometric elements (ISO 10360-6 / ASME B89.4.10) with standard uncertainties.
+//! `truepos fit <line|plane|circle|sphere|cylinder|cone> <points> [--json]`: geometric elements
+//! by least squares (ISO 10360-6 / ASME B89.4.10) with standard and expanded uncertainties, or
+//! by the Chebyshev criteria of ISO form (minimum zone, maximum inscribed, minimum
+//! circumscribed); form; verdicts against size and form tolerances (simple or ISO 14253-1
+//! guarded rule); QIF 3.0 export and tolerances read from a QIF plan.
 //!
 //! Points come from a CSV (`x_mm,y_mm,z_mm`, any other columns ignored) or a NIST `.ds` file.
 //! Degenerate data (too few points, coincident, collinear, coplanar, a cone that is a cylinder,
-//! flat data for a cylinder) is an input error naming the file (exit 2).
+//! flat data for a cylinder, an open arc for an inscribed element) is an input error naming the
+//! file (exit 2). The work is `truepos_fit::evaluate::evaluate`; this module parses options,
+//! prints, and writes the QIF file (`truepos_qif`).
 //!
 //! Entry points: [`run`]; [`demo_section`] (every NIST reference data set against its certified
 //! fit); [`nist_table`] (the same comparison, reused by the tests).
 
 use crate::output::{print_json, v3};
-use crate::Outcome;
+use crate::{Outcome, UsageError};
 use anyhow::Result;
-use serde_json::{json, Value};
+use serde_json::{json, Map, Value};
 use std::path::{Path, PathBuf};
 use truepos_cell::report::{self, Report};
-use truepos_fit::FitError;
+use truepos_fit::evaluate::{self, Evaluation, Method, Spec, COVERAGE_FACTOR};
+use truepos_fit::verdict::{self, DecisionRule, SizeTolerance, Verdict};
 use truepos_io::InputError;
 use truepos_math::{Point3, Vector3};
 
@@ -30,24 +36,61 @@ pub enum Kind {
 
 impl Kind {
     fn name(self) -> &'static str {
+        self.lib().name()
+    }
+    fn lib(self) -> evaluate::Kind {
         match self {
-            Kind::Line => "line",
-            Kind::Plane => "plane",
-            Kind::Circle => "circle",
-            Kind::Sphere => "sphere",
-            Kind::Cylinder => "cylinder",
-            Kind::Cone => "cone",
+            Kind::Line => evaluate::Kind::Line,
+            Kind::Plane => evaluate::Kind::Plane,
+            Kind::Circle => evaluate::Kind::Circle,
+            Kind::Sphere => evaluate::Kind::Sphere,
+            Kind::Cylinder => evaluate::Kind::Cylinder,
+            Kind::Cone => evaluate::Kind::Cone,
         }
     }
 }
 
+/// Association criterion (`--method`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MethodArg {
+    /// Least squares (Gaussian), with uncertainties.
+    Ls,
+    /// Minimum zone (Chebyshev): line, plane, circle, sphere, cylinder.
+    MinimumZone,
+    /// Maximum inscribed: circle, sphere, cylinder.
+    Mic,
+    /// Minimum circumscribed: circle, sphere, cylinder.
+    Mcc,
+}
+
+/// Decision rule (`--decision-rule`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RuleArg {
+    /// Conformance inside the tolerance zone, limits included.
+    Simple,
+    /// ISO 14253-1: conformance only inside the zone shrunk by U, non-conformance only outside
+    /// the zone widened by U, else undecided.
+    Guarded,
+}
+
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos fit sphere points.csv --json\n  truepos fit cylinder bore.ds\n\n\
+    after_help = "Examples:\n  truepos fit sphere points.csv --json\n  truepos fit cylinder bore.ds --method minimum-zone --form-tolerance-mm 0.005\n  \
+truepos fit circle hole.csv --nominal-diameter-mm 20 --tolerance-mm=-0.001,0.006 --decision-rule guarded --qif hole.qif\n  \
+truepos fit circle hole.csv --qif-plan plan.qif --qif results.qif\n\n\
 Points: CSV with columns x_mm,y_mm,z_mm (any order, other columns ignored) or a NIST .ds file.\n\
-Fits are Gaussian (orthogonal distance). A 3D circle is the least-squares plane, then the\n\
-least-squares circle of the points projected into it. Uncertainties are standard\n\
-uncertainties from the fit covariance σ0²(JᵀJ)⁻¹ (noise only, no systematic effects)."
+Least-squares fits are Gaussian (orthogonal distance). A 3D circle is the least-squares plane,\n\
+then the circle of the points projected into it (for every method). form_mm is the largest minus\n\
+the smallest orthogonal residual about the reported feature (a line: the diameter of the\n\
+cylinder about it holding every point). Uncertainties (ls only) are standard uncertainties from\n\
+σ̂²(JᵀJ)⁻¹, σ̂² = SSR/(n − p) (noise only, no systematic effects); expanded with k = 2.\n\
+Verdicts: size deviation = measured diameter − nominal; guard band (guarded rule) = the\n\
+least-squares expanded uncertainty of the diameter, for every method; form uses the simple\n\
+rule. Exit code 1 when the verdict is not pass.\n\
+--qif-plan reads the nominal diameter with its tolerance (deviations or limits) and the kind's\n\
+form tolerance (straightness, flatness, circularity, sphericity, cylindricity, conicity) from a\n\
+QIF 3 plan or model; it does not read feature nominals, datums, position or profile\n\
+tolerances, limits-and-fits codes, or files with several diameter characteristics."
 )]
 pub struct Args {
     /// Geometric element to fit.
@@ -58,62 +101,253 @@ pub struct Args {
     /// Print one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Association criterion.
+    #[arg(long, value_enum, default_value = "ls")]
+    pub method: MethodArg,
+    /// Nominal diameter, mm (circle, sphere, cylinder; needs --tolerance-mm).
+    #[arg(long, value_name = "D", allow_hyphen_values = true)]
+    pub nominal_diameter_mm: Option<f64>,
+    /// Size tolerance, mm: T for ±T, or LOWER,UPPER signed deviations from the nominal
+    /// (e.g. --tolerance-mm=-0.001,0.006).
+    #[arg(long, value_name = "T|LOWER,UPPER", allow_hyphen_values = true)]
+    pub tolerance_mm: Option<String>,
+    /// Form tolerance (zone width), mm.
+    #[arg(long, value_name = "F", allow_hyphen_values = true)]
+    pub form_tolerance_mm: Option<f64>,
+    /// Decision rule for the size verdict.
+    #[arg(long, value_enum, default_value = "simple")]
+    pub decision_rule: RuleArg,
+    /// Write the result as a QIF 3.0 document.
+    #[arg(long, value_name = "OUT.qif")]
+    pub qif: Option<PathBuf>,
+    /// Read the nominal diameter, its tolerance and the form tolerance from a QIF plan/model.
+    #[arg(long, value_name = "PLAN.qif", conflicts_with_all = ["nominal_diameter_mm", "tolerance_mm", "form_tolerance_mm"])]
+    pub qif_plan: Option<PathBuf>,
 }
 
-/// The fit of `kind` to `points` as the JSON object of the interface contract (plus
-/// uncertainty fields). `file` names the input in error messages.
-pub fn fit_json(kind: Kind, points: &[Point3], file: &Path) -> Result<Value, InputError> {
-    let err = |e: FitError| InputError::in_file(file, format!("cannot fit a {}: {e}", kind.name()));
-    let n = points.len();
-    let mut v = match kind {
-        Kind::Line => {
-            let f = truepos_fit::line(points).map_err(err)?;
-            json!({"point_mm": v3(f.point), "direction": v3(f.direction),
-                "rms_mm": f.rms, "max_abs_residual_mm": f.max_abs_residual,
-                "point_uncertainty_mm": f.point_uncertainty, "direction_uncertainty_rad": f.direction_uncertainty})
-        }
-        Kind::Plane => {
-            let f = truepos_fit::plane(points).map_err(err)?;
-            json!({"point_mm": v3(f.point), "normal": v3(f.normal),
-                "rms_mm": f.rms, "max_abs_residual_mm": f.max_abs_residual,
-                "offset_uncertainty_mm": f.offset_uncertainty, "normal_uncertainty_rad": f.normal_uncertainty})
-        }
-        Kind::Circle => {
-            let f = truepos_fit::circle(points).map_err(err)?;
-            json!({"center_mm": v3(f.center), "normal": v3(f.normal), "radius_mm": f.radius,
-                "rms_mm": f.rms, "max_abs_residual_mm": f.max_abs_residual,
-                "radial_rms_mm": f.radial_rms, "plane_rms_mm": f.plane_rms,
-                "center_uncertainty_mm": v3(f.center_uncertainty), "radius_uncertainty_mm": f.radius_uncertainty,
-                "normal_uncertainty_rad": f.normal_uncertainty, "iterations": f.iterations})
-        }
-        Kind::Sphere => {
-            let f = truepos_fit::sphere(points).map_err(err)?;
-            json!({"center_mm": v3(f.center), "radius_mm": f.radius,
-                "rms_mm": f.rms, "max_abs_residual_mm": f.max_abs_residual,
-                "center_uncertainty_mm": v3(f.center_uncertainty), "radius_uncertainty_mm": f.radius_uncertainty,
-                "iterations": f.iterations})
-        }
-        Kind::Cylinder => {
-            let f = truepos_fit::cylinder(points).map_err(err)?;
-            json!({"point_mm": v3(f.point), "axis": v3(f.axis), "radius_mm": f.radius,
-                "rms_mm": f.rms, "max_abs_residual_mm": f.max_abs_residual,
-                "point_uncertainty_mm": f.point_uncertainty, "axis_uncertainty_rad": f.axis_uncertainty,
-                "radius_uncertainty_mm": f.radius_uncertainty, "iterations": f.iterations})
-        }
-        Kind::Cone => {
-            let f = truepos_fit::cone(points).map_err(err)?;
-            json!({"apex_mm": v3(f.apex), "axis": v3(f.axis), "apex_angle_deg": f.apex_angle.to_degrees(),
-                "rms_mm": f.rms, "max_abs_residual_mm": f.max_abs_residual,
-                "point_mm": v3(f.point), "surface_distance_mm": f.surface_distance,
-                "apex_uncertainty_mm": v3(f.apex_uncertainty), "axis_uncertainty_rad": f.axis_uncertainty,
-                "apex_angle_uncertainty_deg": f.apex_angle_uncertainty.to_degrees(),
-                "point_uncertainty_mm": f.point_uncertainty,
-                "surface_distance_uncertainty_mm": f.surface_distance_uncertainty, "iterations": f.iterations})
+fn method(m: MethodArg) -> Method {
+    match m {
+        MethodArg::Ls => Method::LeastSquares,
+        MethodArg::MinimumZone => Method::MinimumZone,
+        MethodArg::Mic => Method::MaximumInscribed,
+        MethodArg::Mcc => Method::MinimumCircumscribed,
+    }
+}
+
+/// `T` (±T) or `LOWER,UPPER`.
+fn parse_tolerance(text: &str, nominal: f64) -> Result<SizeTolerance, UsageError> {
+    let bad = |why: String| UsageError(format!("--tolerance-mm {text}: {why}"));
+    let num = |t: &str| -> Result<f64, UsageError> {
+        match t.trim().parse::<f64>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            _ => Err(bad(format!("'{}' is not a finite number", t.trim()))),
         }
     };
-    v["kind"] = json!(kind.name());
-    v["n_points"] = json!(n);
-    Ok(v)
+    let parts: Vec<&str> = text.split(',').collect();
+    let r = match parts.as_slice() {
+        [t] => SizeTolerance::symmetric(nominal, num(t)?),
+        [lo, hi] => SizeTolerance::new(nominal, num(lo)?, num(hi)?),
+        _ => return Err(bad("expected T or LOWER,UPPER".into())),
+    };
+    r.map_err(|e| {
+        if matches!(e, verdict::ToleranceError::BadNominal(_)) {
+            UsageError(format!("--nominal-diameter-mm: {e}"))
+        } else {
+            bad(e.to_string())
+        }
+    })
+}
+
+/// The tolerance specification from the options (or the QIF plan).
+fn spec(a: &Args) -> Result<Spec> {
+    let rule = match a.decision_rule {
+        RuleArg::Simple => DecisionRule::Simple,
+        RuleArg::Guarded => DecisionRule::Guarded,
+    };
+    if let Some(plan_path) = &a.qif_plan {
+        let text = std::fs::read_to_string(plan_path)
+            .map_err(|e| InputError::in_file(plan_path, format!("cannot read the QIF plan: {e}")))?;
+        let plan = truepos_qif::read_plan(&text, qif_kind(a.kind))
+            .map_err(|e| InputError::in_file(plan_path, e.to_string()))?;
+        for i in &plan.ignored {
+            eprintln!("note: {}: {i}", plan_path.display());
+        }
+        let size = match plan.diameter {
+            Some((n, lo, hi)) if a.kind.lib().has_size() => Some(
+                SizeTolerance::new(n, lo, hi).map_err(|e| InputError::in_file(plan_path, e.to_string()))?,
+            ),
+            Some(_) => {
+                eprintln!(
+                    "note: {}: the diameter characteristic does not apply to a {} and is not used",
+                    plan_path.display(),
+                    a.kind.name()
+                );
+                None
+            }
+            None => None,
+        };
+        let form_tolerance = plan
+            .form_tolerance
+            .map(verdict::check_form_tolerance)
+            .transpose()
+            .map_err(|e| InputError::in_file(plan_path, e.to_string()))?;
+        return Ok(Spec { size, form_tolerance, rule });
+    }
+    let size = match (a.nominal_diameter_mm, &a.tolerance_mm) {
+        (Some(n), Some(t)) => Some(parse_tolerance(t, n)?),
+        (Some(_), None) => return Err(UsageError("--nominal-diameter-mm needs --tolerance-mm".into()).into()),
+        (None, Some(_)) => return Err(UsageError("--tolerance-mm needs --nominal-diameter-mm".into()).into()),
+        (None, None) => None,
+    };
+    let form_tolerance = a
+        .form_tolerance_mm
+        .map(verdict::check_form_tolerance)
+        .transpose()
+        .map_err(|e| UsageError(format!("--form-tolerance-mm: {e}")))?;
+    Ok(Spec { size, form_tolerance, rule })
+}
+
+fn qif_kind(k: Kind) -> truepos_qif::FeatureKind {
+    match k {
+        Kind::Line => truepos_qif::FeatureKind::Line,
+        Kind::Plane => truepos_qif::FeatureKind::Plane,
+        Kind::Circle => truepos_qif::FeatureKind::Circle,
+        Kind::Sphere => truepos_qif::FeatureKind::Sphere,
+        Kind::Cylinder => truepos_qif::FeatureKind::Cylinder,
+        Kind::Cone => truepos_qif::FeatureKind::Cone,
+    }
+}
+
+/// An output path must be writable before any work: its directory exists and it is not a
+/// directory itself.
+fn check_output(path: &Path, option: &str) -> Result<(), UsageError> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if path.is_dir() {
+        return Err(UsageError(format!("{option} {}: is a directory", path.display())));
+    }
+    if !dir.is_dir() {
+        return Err(UsageError(format!(
+            "{option} {}: the directory {} does not exist",
+            path.display(),
+            dir.display()
+        )));
+    }
+    Ok(())
+}
+
+fn uncertainty_json(u: &evaluate::Uncertainty) -> Value {
+    let mut m = Map::new();
+    let mut put3 = |k: &str, v: Option<Vector3>| {
+        if let Some(v) = v {
+            m.insert(k.into(), json!(v3(v)));
+        }
+    };
+    put3("point_mm", u.point);
+    put3("center_mm", u.center);
+    put3("apex_mm", u.apex);
+    put3("direction", u.direction);
+    put3("normal", u.normal);
+    put3("axis", u.axis);
+    if let Some(r) = u.radius {
+        m.insert("radius_mm".into(), json!(r));
+    }
+    if let Some(a) = u.apex_angle {
+        m.insert("apex_angle_deg".into(), json!(a.to_degrees()));
+    }
+    Value::Object(m)
+}
+
+/// The evaluation as the JSON object of the interface contract.
+pub fn evaluation_json(e: &Evaluation) -> Value {
+    let mut m = Map::new();
+    m.insert("kind".into(), json!(e.kind.name()));
+    m.insert("method".into(), json!(e.method.name()));
+    m.insert("n_points".into(), json!(e.n_points));
+    let mut put3 = |k: &str, v: Option<Vector3>| {
+        if let Some(v) = v {
+            m.insert(k.into(), json!(v3(v)));
+        }
+    };
+    put3("point_mm", e.point.map(|p| p.coords));
+    put3("center_mm", e.center.map(|p| p.coords));
+    put3("apex_mm", e.apex.map(|p| p.coords));
+    put3("direction", e.direction);
+    put3("normal", e.normal);
+    put3("axis", e.axis);
+    if let Some(r) = e.radius {
+        m.insert("radius_mm".into(), json!(r));
+    }
+    if let Some(a) = e.apex_angle {
+        m.insert("apex_angle_deg".into(), json!(a.to_degrees()));
+    }
+    m.insert("rms_mm".into(), json!(e.rms));
+    m.insert("max_abs_residual_mm".into(), json!(e.max_abs_residual));
+    m.insert("form_mm".into(), json!(e.form));
+    if let Some((i, o)) = e.zone_radii {
+        m.insert("inner_radius_mm".into(), json!(i));
+        m.insert("outer_radius_mm".into(), json!(o));
+    }
+    for (k, v) in &e.extras {
+        if e.uncertainty.is_none() && k.contains("uncertainty") {
+            continue;
+        }
+        m.insert((*k).into(), if *k == "iterations" { json!(*v as u64) } else { json!(v) });
+    }
+    if let Some(u) = &e.uncertainty {
+        // Earlier field names, kept: per-component vectors of the centre and apex.
+        if let Some(c) = u.center {
+            m.insert("center_uncertainty_mm".into(), json!(v3(c)));
+        }
+        if let Some(a) = u.apex {
+            m.insert("apex_uncertainty_mm".into(), json!(v3(a)));
+        }
+        if let Some(a) = u.apex_angle {
+            m.insert("apex_angle_uncertainty_deg".into(), json!(a.to_degrees()));
+        }
+        m.insert("uncertainty".into(), uncertainty_json(u));
+        m.insert("coverage_factor".into(), json!(COVERAGE_FACTOR));
+        m.insert("expanded_uncertainty".into(), uncertainty_json(&u.scaled(COVERAGE_FACTOR)));
+    } else if e.method == Method::LeastSquares {
+        m.insert(
+            "uncertainty_note".into(),
+            json!("not determined: as many residuals as parameters (n − p = 0), the fit is exact whatever the noise"),
+        );
+    }
+    let mut chars = Vec::new();
+    if let Some(d) = &e.size_decision {
+        let mut c = json!({
+            "characteristic": "diameter",
+            "nominal_mm": d.tolerance.nominal,
+            "lower_deviation_mm": d.tolerance.lower,
+            "upper_deviation_mm": d.tolerance.upper,
+            "actual_mm": e.radius.map_or(d.tolerance.nominal + d.deviation, |r| 2.0 * r),
+            "deviation_mm": d.deviation,
+            "decision_rule": d.rule.name(),
+            "verdict": d.verdict.name(),
+        });
+        if d.rule == DecisionRule::Guarded {
+            c["guard_band_mm"] = json!(d.guard_band);
+            c["guard_band_source"] = json!("least-squares expanded uncertainty of the diameter, k = 2");
+        }
+        chars.push(c);
+    }
+    if let Some(f) = &e.form_decision {
+        chars.push(json!({
+            "characteristic": "form",
+            "tolerance_mm": f.tolerance,
+            "actual_mm": e.form,
+            "decision_rule": "simple",
+            "verdict": f.verdict.name(),
+        }));
+    }
+    if let Some(v) = e.verdict {
+        m.insert("characteristics".into(), Value::Array(chars));
+        m.insert("verdict".into(), json!(v.name()));
+    }
+    Value::Object(m)
 }
 
 fn fmt3(v: &Value) -> String {
@@ -126,14 +360,45 @@ fn fmt3(v: &Value) -> String {
 }
 
 pub fn run(a: Args) -> Result<Outcome> {
+    // Everything that can be refused is refused before any work or output.
+    let spec = spec(&a)?;
+    let m = method(a.method);
+    evaluate::check(a.kind.lib(), m, &spec).map_err(|e| UsageError(e.to_string()))?;
+    if let Some(q) = &a.qif {
+        check_output(q, "--qif")?;
+    }
     let set = truepos_io::points::read_points(&a.points)?;
-    let v = fit_json(a.kind, &set.points, &a.points)?;
+    let e = evaluate::evaluate(a.kind.lib(), m, &set.points, &spec).map_err(|e| match e {
+        evaluate::EvaluateError::Spec(s) => anyhow::Error::from(UsageError(s.to_string())),
+        evaluate::EvaluateError::Fit(f) => {
+            InputError::in_file(&a.points, format!("cannot fit a {}: {f}", a.kind.name())).into()
+        }
+    })?;
+    let v = evaluation_json(&e);
+    if let Some(q) = &a.qif {
+        let name = a.points.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let r =
+            truepos_qif::results_from_evaluation(&e, &name, concat!("truepos ", env!("CARGO_PKG_VERSION")));
+        let xml = truepos_qif::write_results(&r).map_err(|e| InputError::in_file(q, e.to_string()))?;
+        truepos_io::atomic::write_atomic(q, xml.as_bytes())
+            .map_err(|err| InputError::in_file(q, format!("cannot write the QIF file: {err}")))?;
+    }
+    let outcome = match e.verdict {
+        None | Some(Verdict::Pass) => Outcome::Done,
+        Some(_) => Outcome::OutOfTolerance,
+    };
     if a.json {
         print_json(&v)?;
-        return Ok(Outcome::Done);
+        return Ok(outcome);
     }
-    println!("{} fit of {} points from {}", a.kind.name(), set.points.len(), a.points.display());
-    // Human output: geometry first, then residuals, then uncertainties, in a fixed order.
+    println!(
+        "{} fit ({}) of {} points from {}",
+        a.kind.name(),
+        m.name(),
+        set.points.len(),
+        a.points.display()
+    );
+    // Human output: geometry first, then residuals and form, then uncertainties.
     let order = [
         ("center_mm", "centre", "mm"),
         ("point_mm", "point", "mm"),
@@ -142,20 +407,13 @@ pub fn run(a: Args) -> Result<Outcome> {
         ("normal", "normal", ""),
         ("axis", "axis", ""),
         ("radius_mm", "radius", "mm"),
+        ("inner_radius_mm", "inner radius", "mm"),
+        ("outer_radius_mm", "outer radius", "mm"),
         ("apex_angle_deg", "apex angle", "°"),
         ("surface_distance_mm", "surface distance", "mm"),
         ("rms_mm", "rms residual", "mm"),
         ("max_abs_residual_mm", "max |residual|", "mm"),
-        ("center_uncertainty_mm", "u(centre)", "mm"),
-        ("point_uncertainty_mm", "u(point)", "mm"),
-        ("apex_uncertainty_mm", "u(apex)", "mm"),
-        ("radius_uncertainty_mm", "u(radius)", "mm"),
-        ("offset_uncertainty_mm", "u(offset)", "mm"),
-        ("direction_uncertainty_rad", "u(direction)", "rad"),
-        ("normal_uncertainty_rad", "u(normal)", "rad"),
-        ("axis_uncertainty_rad", "u(axis)", "rad"),
-        ("apex_angle_uncertainty_deg", "u(apex angle)", "°"),
-        ("surface_distance_uncertainty_mm", "u(surface distance)", "mm"),
+        ("form_mm", "form", "mm"),
     ];
     for (key, label, unit) in order {
         match v.get(key) {
@@ -164,7 +422,31 @@ pub fn run(a: Args) -> Result<Outcome> {
             None => {}
         }
     }
-    Ok(Outcome::Done)
+    if let Some(u) = v.get("expanded_uncertainty").and_then(|u| u.as_object()) {
+        println!("  expanded uncertainties (k = {COVERAGE_FACTOR}):");
+        for (k, x) in u {
+            if x.is_array() {
+                println!("    U({k:<16}) {}", fmt3(x));
+            } else {
+                println!("    U({k:<16}) {:.9}", x.as_f64().unwrap_or(f64::NAN));
+            }
+        }
+    }
+    if let Some(cs) = v.get("characteristics").and_then(|c| c.as_array()) {
+        for c in cs {
+            println!(
+                "  {:<9} actual {:.6} mm: {}",
+                c["characteristic"].as_str().unwrap_or(""),
+                c["actual_mm"].as_f64().unwrap_or(f64::NAN),
+                c["verdict"].as_str().unwrap_or("")
+            );
+        }
+        println!("  verdict: {}", v["verdict"].as_str().unwrap_or(""));
+    }
+    if let Some(q) = &a.qif {
+        eprintln!("QIF written to {}", q.display());
+    }
+    Ok(outcome)
 }
 
 /// Where the shared reference data lives: `$TRUEPOS_SHARED_DATA`, else `../shared/data` from the

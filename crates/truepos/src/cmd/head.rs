@@ -277,9 +277,17 @@ fn to_json(
         (Reference::Sphere { .. }, Some(rad)) => Some(diameter.unwrap_or(2.0 * (rad - tip))),
         _ => None,
     };
+    let k = truepos_fit::evaluate::COVERAGE_FACTOR;
+    let expanded = json!({
+        "offset_mm": r.u_offset.iter().map(|u| u.map_or(serde_json::Value::Null, |v| json!(k * v))).collect::<Vec<_>>(),
+        "reference_point_mm": v3(r.u_reference_point * k),
+        "radius_mm": r.u_radius.map(|u| k * u),
+    });
     json!({
         "offset_mm": v3(r.offset),
         "observable": r.observable,
+        "coverage_factor": k,
+        "expanded_uncertainty": expanded,
         "from_tilt": r.from_tilt,
         "reference_point_depends_on_prior": r.reference_depends_on_prior,
         "uncertainty_mm": unc,

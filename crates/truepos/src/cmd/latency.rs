@@ -183,6 +183,14 @@ pub fn estimate_json(e: &lat::Estimate, opt: &Options) -> serde_json::Value {
         "warnings": e.warnings,
     });
     let o = v.as_object_mut().expect("json object");
+    // Expanded uncertainties with their coverage factor, as every command states them.
+    let k = truepos_fit::evaluate::COVERAGE_FACTOR;
+    let mut expanded = json!({"delay_s": k * e.u_delay});
+    if let Some(u) = e.u_static_size() {
+        expanded["static_size_mm"] = json!(k * u);
+    }
+    o.insert("coverage_factor".into(), json!(k));
+    o.insert("expanded_uncertainty".into(), expanded);
     if let Some(f) = e.feature() {
         o.insert("feature".into(), json!(f));
     }

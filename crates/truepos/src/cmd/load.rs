@@ -7,14 +7,14 @@
 //! CSV (`load_x_mm,load_y_mm,portal_y_mm,pitch_urad,roll_urad`, `# unit_load_n = …`).
 //! Physics and the sign of pitch/roll: `truepos_comp::load`.
 
-use crate::cmd::comp::{batch_error, load_map, table_points, write_corrected, ChainArg, MapArgs};
+use crate::cmd::comp::{load_map, ChainArg, MapArgs};
 use crate::output::{parse_triple, print_json, progress};
 use crate::Outcome;
 use anyhow::{Context, Result};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use truepos_comp::fe_map;
-use truepos_comp::files::{read_bed, read_influence, read_load, rms_max_um, write_influence, LoadCase};
+use truepos_comp::files::{read_bed, read_influence, read_load, write_influence, LoadCase};
 use truepos_comp::influence::InfluenceMap;
 use truepos_comp::{Corrector, LoadCorrection, PortalCurves};
 use truepos_fe::MeshOptions;
@@ -105,6 +105,9 @@ pub struct CorrectCmd {
     /// Probe offset for --geometric-map (ram frame, mm).
     #[arg(long, value_parser = parse_triple, default_value = "0,0,0")]
     pub probe_offset_mm: [f64; 3],
+    /// Write numbers with this many decimals (default: shortest round-trip text).
+    #[arg(long)]
+    pub decimals: Option<u8>,
     #[arg(long)]
     pub json: bool,
 }
@@ -244,22 +247,12 @@ fn correct_cmd(a: CorrectCmd) -> Result<Outcome> {
     };
     let [ox, oy, oz] = a.probe_offset_mm;
     let corr = Corrector { geometric: geo.as_ref(), load: Some(&lc), probe_offset: Vector3::new(ox, oy, oz) };
-    let t = Table::read(&a.points)?;
-    let mut pts = table_points(&t)?;
-    let mut d = vec![Vector3::zeros(); pts.len()];
-    corr.correct_measured(&mut pts, Some(&mut d)).map_err(|e| {
-        let mut ie = batch_error(&t, e);
-        ie.message.push_str(&format!(
-            " (the influence map {} covers portal y only over this range)",
-            a.map.display()
-        ));
-        ie
-    })?;
-    write_corrected(&t, &pts, &d, &a.output)?;
-    let (rms, max) = rms_max_um(&d);
+    let hint = format!(" (the influence map {} covers portal y only over this range)", a.map.display());
+    let r = super::comp::correct_streamed(&corr, &a.points, &a.output, false, a.decimals, &hint)?;
+    let (rms, max) = (r.rms_um, r.max_um);
     if a.json {
         print_json(&json!({
-            "n_points": pts.len(),
+            "n_points": r.n_points,
             "output": a.output.display().to_string(),
             "forces_n": case.loads.iter().map(|l| l.2).collect::<Vec<_>>(),
             "weight_n": case.weight_n,
@@ -269,7 +262,7 @@ fn correct_cmd(a: CorrectCmd) -> Result<Outcome> {
     } else {
         eprintln!(
             "{} points corrected; correction rms {rms:.3} µm, max {max:.3} µm → {}",
-            pts.len(),
+            r.n_points,
             a.output.display()
         );
     }

@@ -10,8 +10,10 @@ pub mod comp;
 pub mod demo;
 pub mod fit;
 pub mod head;
+pub mod ippdme;
 pub mod latency;
 pub mod load;
+pub mod probe;
 pub mod scan;
 pub mod somac;
 pub mod somac_run;
@@ -53,10 +55,14 @@ pub enum Command {
     Air(somac::AirArgs),
     /// Laser-tracker end-point control of a large NC machine.
     Somac(somac::Args),
+    /// Probe on a machine with a touch probe (virtual, LinuxCNC): `truepos probe sphere`.
+    Probe(probe::Args),
     /// Write a virtual-cell data set (and its truth.json) for one capability.
     Simulate(SimulateArgs),
     /// Run every capability end to end on the virtual cell and write a report.
     Demo(demo::Args),
+    /// I++ DME: the virtual CMM as an I++ DME server (`truepos ippdme serve`).
+    Ippdme(ippdme::Args),
 }
 
 #[derive(clap::Args, Debug)]
@@ -105,6 +111,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Command::Orient(a) => somac::orient(a),
         Command::Air(a) => somac::air(a),
         Command::Somac(a) => somac::run(a),
+        Command::Probe(a) => probe::run(a),
         Command::Simulate(s) => match s.scenario {
             Scenario::Latency(a) => latency::simulate(a),
             Scenario::HeadOffset(a) => head::simulate(a),
@@ -113,5 +120,6 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
             Scenario::Somac(a) => somac::simulate(a),
         },
         Command::Demo(a) => demo::run(a),
+        Command::Ippdme(a) => ippdme::run(a),
     }
 }

@@ -151,6 +151,8 @@ pub fn autoscale(a: AutoscaleArgs) -> Result<Outcome> {
         print_json(&json!({
             "scale": f.scale,
             "scale_uncertainty": f.u_scale,
+            "coverage_factor": truepos_fit::evaluate::COVERAGE_FACTOR,
+            "expanded_uncertainty": {"scale": truepos_fit::evaluate::COVERAGE_FACTOR * f.u_scale},
             "scale_ppm": (f.scale - 1.0) * 1e6,
             "expected_scale": expected,
             "discrepancy_ppm": discrepancy,
@@ -191,13 +193,8 @@ pub fn orient(a: OrientArgs) -> Result<Outcome> {
     let measured_from_reference =
         bestfit::best_fit(&mt.from, &mt.to, None, BestFitOptions { with_scale: a.scale })
             .map_err(|e| InputError::in_file(&a.measured, format!("cannot orient: {e}")))?;
-    let text = std::fs::read(&a.program)
-        .map_err(|e| InputError::in_file(&a.program, format!("cannot read: {e}")))?;
-    let text = String::from_utf8(text).map_err(|e| {
-        let ok = &e.as_bytes()[..e.utf8_error().valid_up_to()];
-        let line = ok.iter().filter(|&&b| b == b'\n').count() + 1;
-        InputError::at(&a.program, line, None, "not valid UTF-8 text")
-    })?;
+    // Bounded: size limit, line length, no binary data (see truepos_io::limits).
+    let text = truepos_io::limits::read_string(&a.program, "G-code")?;
     let program = truepos_gcode::Program::parse(&text);
     let gerr =
         |e: truepos_gcode::GcodeError| InputError::at(&a.program, e.line(), Some(e.column()), e.detail());

@@ -33,6 +33,11 @@ pub struct RunArgs {
     /// Measure and report only, never correct (the machine's native accuracy).
     #[arg(long)]
     pub no_correct: bool,
+    /// The NC: `virtual` (the cell's virtual gantry) or `linuxcncrsh://HOST:PORT[?password=…]`
+    /// (LinuxCNC moves the axes; the cell's virtual trackers observe its actual position through
+    /// the cell's structural error model).
+    #[arg(long, default_value = "virtual")]
+    pub controller: String,
     #[arg(long)]
     pub json: bool,
 }
@@ -74,7 +79,13 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
     let started = format!("{:?}", std::time::SystemTime::now());
     let mut audit = truepos_audit::SqliteAudit::open(&a.db, &a.program.display().to_string(), &started)
         .with_context(|| format!("audit trail {}", a.db.display()))?;
-    let vr =
+    let mut on_controller = None;
+    let vr = if a.controller != "virtual" {
+        let (vr, extra) = run_on_controller(&a, &text, cfg, targets, &params, &mut audit)?;
+        on_controller = Some(extra);
+        vr
+    } else {
+        audit.set_controller("virtual", "truepos virtual gantry cell")?;
         run_virtual(&text, cfg, targets, &params, &mut audit).map_err(|e| match e
             .downcast::<truepos_somac::run::RunError>()
         {
@@ -84,7 +95,8 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
             Ok(truepos_somac::run::RunError::Params(m)) => UsageError(m).into(),
             Ok(other) => anyhow::Error::from(other),
             Err(e) => e,
-        })?;
+        })?
+    };
     let measured: Vec<f64> =
         vr.report.stops.iter().filter(|s| s.final_error_mm.is_finite()).map(|s| s.final_error_mm).collect();
     let hs = hole_stats(&measured);
@@ -118,6 +130,12 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         "duration_s": vr.duration_s,
         "audit_db": a.db.display().to_string(),
     });
+    let mut out = out;
+    if let Some(extra) = on_controller {
+        for (k, v) in extra.as_object().into_iter().flatten() {
+            out[k] = v.clone();
+        }
+    }
     if a.json {
         print_json(&out)?;
     } else {
@@ -142,6 +160,56 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         }
     }
     Ok(if failing(&vr.report) { Outcome::OutOfTolerance } else { Outcome::Done })
+}
+
+/// `somac run --controller linuxcncrsh://…`: LinuxCNC moves the axes, the virtual cell's
+/// trackers observe its actual position (`truepos_cell::observed`). Returns the run as the
+/// virtual one is reported, plus the controller and wall-clock times per stop.
+fn run_on_controller(
+    a: &RunArgs,
+    text: &str,
+    cfg: truepos_cell::gantry::CellConfig,
+    targets: Vec<(String, truepos_math::Point3)>,
+    params: &truepos_somac::Params,
+    audit: &mut truepos_audit::SqliteAudit,
+) -> Result<(truepos_cell::scenarios::somac::VirtualRun, serde_json::Value)> {
+    use truepos_device::ProbingMachine;
+    use truepos_somac::run::RunError;
+    // Hook: further controllers (e.g. other NCs) are opened here.
+    let address = truepos_linuxcnc::Address::parse(&a.controller)
+        .map_err(|e| UsageError(format!("--controller: {e} (or `virtual`)")))?;
+    let ctl = truepos_linuxcnc::LinuxCnc::open_address(&address, truepos_linuxcnc::Options::default())
+        .map_err(|e| crate::DeviceError(e.to_string()))?;
+    let info = ctl.info();
+    audit.set_controller(&info.address, &info.version)?;
+    match truepos_cell::observed::run_observed(text, cfg, targets, params, ctl, audit) {
+        Ok(o) => {
+            let extra = json!({
+                "controller": { "address": info.address, "version": info.version },
+                "stop_wall_s": o.stop_wall_s.iter().map(|(l, t)| json!({"line": l, "wall_s": t})).collect::<Vec<_>>(),
+                "wall_s": o.wall_s,
+                "controller_moves": o.moves,
+            });
+            let vr = truepos_cell::scenarios::somac::VirtualRun {
+                report: o.report,
+                true_errors: o.true_errors,
+                diagonal_mm: o.diagonal_mm,
+                duration_s: o.duration_s,
+            };
+            Ok((vr, extra))
+        }
+        Err(ab) => Err(match ab.error {
+            RunError::Program { line, message } => InputError::at(&a.program, line, None, message).into(),
+            RunError::Params(m) => UsageError(m).into(),
+            other => crate::DeviceError(format!(
+                "{other}; the run was aborted at line {} (no further motion){}; audit trail {}",
+                ab.line,
+                ab.stop_line.map(|l| format!(", stop at line {l} marked FAILURE")).unwrap_or_default(),
+                a.db.display()
+            ))
+            .into(),
+        }),
+    }
 }
 
 pub fn simulate(a: SimArgs) -> Result<Outcome> {

@@ -1,0 +1,299 @@
+//! A virtual machine tool with a spindle touch probe and reference spheres on its table, behind
+//! [`ProbingMachine`] — what `truepos probe sphere --controller virtual` and head-offset
+//! acquisition run on, and the twin of the simulated LinuxCNC of the integration tests.
+//!
+//! The stylus is the simulator's touch-trigger probe ([`truepos_sim::touch::TouchProbe`]: ball
+//! radius, pre-travel and lobing), the contacts are exact ([`truepos_sim::artefact::Sphere`]).
+//! Like a CNC, the controller samples the probe input once per servo period and latches the
+//! axis positions at the first sample after the trigger: the latched point lies up to one
+//! servo step (`feed · period`, at a random phase) past the trigger, plus the axes' position
+//! noise. After the latch the machine retracts along the approach direction. A positioning
+//! move that touches anything stops at the trigger and is an error, as on a CNC ("probe tripped
+//! during non-probe move").
+//!
+//! Entry points: [`MachineToolConfig`] (`Default`: a 25 mm sphere at (120, 45, 30) and a 3 mm
+//! ball), [`VirtualMachineTool::new`], [`VirtualMachineTool::truth`].
+
+use truepos_device::{DeviceError, DeviceInfo, ProbeHit, ProbeRequest, ProbingMachine};
+use truepos_math::{Point3, Vector3};
+use truepos_sim::artefact::{Artefact, Sphere};
+use truepos_sim::noise::{self, ParamError, SimRng};
+use truepos_sim::touch::TouchProbe;
+
+const ADDRESS: &str = "virtual";
+
+/// The virtual machine tool.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MachineToolConfig {
+    pub seed: u64,
+    /// Reference spheres: centre (machine frame, mm) and radius (mm).
+    pub spheres: Vec<(Point3, f64)>,
+    /// The real stylus ball radius (the radius a request gives is only the plan's).
+    pub tip_radius_mm: f64,
+    pub pretravel_mm: f64,
+    pub lobing_mm: f64,
+    /// Servo period (s): the probe input's sampling.
+    pub servo_period_s: f64,
+    /// Standard deviation of each latched axis position (mm).
+    pub position_sigma_mm: f64,
+    /// Travel limits (machine frame, mm).
+    pub travel_min_mm: Point3,
+    pub travel_max_mm: Point3,
+    /// Where the tip centre is at start.
+    pub start_mm: Point3,
+}
+
+impl Default for MachineToolConfig {
+    fn default() -> Self {
+        MachineToolConfig {
+            seed: 1,
+            spheres: vec![(Point3::new(120.0, 45.0, 30.0), 12.5)],
+            tip_radius_mm: 1.5,
+            pretravel_mm: 0.0005,
+            lobing_mm: 0.0,
+            servo_period_s: 0.001,
+            position_sigma_mm: 0.0001,
+            travel_min_mm: Point3::new(-500.0, -500.0, -300.0),
+            travel_max_mm: Point3::new(1000.0, 800.0, 500.0),
+            start_mm: Point3::new(0.0, 0.0, 100.0),
+        }
+    }
+}
+
+impl MachineToolConfig {
+    /// A machine whose one reference sphere is set up near a nominal one (centre, radius) as a
+    /// real setup would be: displaced by a seeded error of σ = 0.1 mm per axis, its radius a few
+    /// µm off nominal; the stylus ball has the nominal tip radius; the machine starts 50 mm above
+    /// the sphere with ±500 mm of travel around it.
+    pub fn near(seed: u64, centre: Point3, radius: f64, tip_radius: f64) -> MachineToolConfig {
+        let mut rng = noise::stream(seed, 77);
+        let d = noise::gaussian3(&mut rng, 0.1);
+        let dr = noise::gaussian(&mut rng, 0.002);
+        MachineToolConfig {
+            seed,
+            spheres: vec![(centre + d, radius + dr)],
+            tip_radius_mm: tip_radius,
+            travel_min_mm: centre - Vector3::repeat(radius + 500.0),
+            travel_max_mm: centre + Vector3::repeat(radius + 500.0),
+            start_mm: centre + Vector3::new(0.0, 0.0, radius + tip_radius + 50.0),
+            ..MachineToolConfig::default()
+        }
+    }
+}
+
+/// The virtual machine tool behind [`ProbingMachine`].
+#[derive(Debug)]
+pub struct VirtualMachineTool {
+    cfg: MachineToolConfig,
+    spheres: Vec<Sphere>,
+    probe: TouchProbe,
+    rng: SimRng,
+    pos: Point3,
+    /// Probing moves made (for tests and reports).
+    pub probings: usize,
+}
+
+fn fmt_point(p: &Point3) -> String {
+    format!("({:.4}, {:.4}, {:.4})", p.x, p.y, p.z)
+}
+
+impl VirtualMachineTool {
+    pub fn new(cfg: MachineToolConfig) -> Result<VirtualMachineTool, ParamError> {
+        let spheres = cfg.spheres.iter().map(|(c, r)| Sphere::new(*c, *r)).collect::<Result<Vec<_>, _>>()?;
+        let probe = TouchProbe::new(cfg.tip_radius_mm, cfg.pretravel_mm, cfg.lobing_mm)?;
+        noise::check_positive("servo period", cfg.servo_period_s)?;
+        noise::check_nonneg("position sigma", cfg.position_sigma_mm)?;
+        let rng = noise::stream(cfg.seed, 31);
+        let pos = cfg.start_mm;
+        Ok(VirtualMachineTool { cfg, spheres, probe, rng, pos, probings: 0 })
+    }
+
+    /// The reference spheres (truth).
+    pub fn truth(&self) -> &[Sphere] {
+        &self.spheres
+    }
+
+    pub fn config(&self) -> &MachineToolConfig {
+        &self.cfg
+    }
+
+    /// First trigger on the straight move from `from` along unit `u` within `len`.
+    fn first_trigger(&self, from: &Point3, u: &Vector3, len: f64) -> Option<f64> {
+        self.spheres
+            .iter()
+            .filter_map(|s| self.probe.probe_along(s as &dyn Artefact, from, u, len))
+            .map(|t| t.travel_mm)
+            .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.min(t))))
+    }
+
+    fn in_travel(&self, p: &Point3) -> bool {
+        (0..3).all(|i| p[i] >= self.cfg.travel_min_mm[i] && p[i] <= self.cfg.travel_max_mm[i])
+    }
+
+    fn check_target(&self, p: &Point3, what: &str) -> Result<(), DeviceError> {
+        if !p.iter().all(|v| v.is_finite()) {
+            return Err(DeviceError::Rejected {
+                address: ADDRESS.into(),
+                what: what.into(),
+                message: "the target is not finite".into(),
+            });
+        }
+        if !self.in_travel(p) {
+            return Err(DeviceError::Rejected {
+                address: ADDRESS.into(),
+                what: what.into(),
+                message: format!(
+                    "the target is outside the travel {} … {}",
+                    fmt_point(&self.cfg.travel_min_mm),
+                    fmt_point(&self.cfg.travel_max_mm)
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    fn position_noise(&mut self) -> Vector3 {
+        noise::gaussian3(&mut self.rng, self.cfg.position_sigma_mm)
+    }
+}
+
+impl ProbingMachine for VirtualMachineTool {
+    fn info(&self) -> DeviceInfo {
+        DeviceInfo {
+            address: ADDRESS.into(),
+            version: format!(
+                "truepos virtual machine tool (touch probe: {} mm ball, {} µm pre-travel; {} ms servo latch)",
+                2.0 * self.cfg.tip_radius_mm,
+                self.cfg.pretravel_mm * 1e3,
+                self.cfg.servo_period_s * 1e3
+            ),
+        }
+    }
+
+    fn position(&mut self) -> Result<Point3, DeviceError> {
+        Ok(self.pos)
+    }
+
+    fn move_to(&mut self, target_mm: Point3) -> Result<(), DeviceError> {
+        let what = format!("positioning move to {}", fmt_point(&target_mm));
+        self.check_target(&target_mm, &what)?;
+        let d = target_mm - self.pos;
+        let len = d.norm();
+        if len == 0.0 {
+            return Ok(());
+        }
+        let u = d / len;
+        if let Some(s) = self.first_trigger(&self.pos, &u, len) {
+            self.pos += u * s;
+            return Err(DeviceError::Controller {
+                address: ADDRESS.into(),
+                what,
+                message: format!("probe tripped during a positioning move, at {}", fmt_point(&self.pos)),
+            });
+        }
+        self.pos = target_mm;
+        Ok(())
+    }
+
+    fn probe(&mut self, r: &ProbeRequest) -> Result<ProbeHit, DeviceError> {
+        let start = r.start_mm();
+        let end = r.end_mm();
+        let what = format!("probing move from {} to {}", fmt_point(&start), fmt_point(&end));
+        let ok = r.feed_mm_s.is_finite()
+            && r.feed_mm_s > 0.0
+            && r.retract_mm.is_finite()
+            && r.retract_mm >= 0.0
+            && (r.approach.norm() - 1.0).abs() < 1e-9;
+        if !ok {
+            return Err(DeviceError::Rejected {
+                address: ADDRESS.into(),
+                what,
+                message: "feed must be > 0, retract ≥ 0 and the approach a unit vector".into(),
+            });
+        }
+        self.check_target(&end, &what)?;
+        self.move_to(start)?;
+        self.probings += 1;
+        let d = end - start;
+        let len = d.norm();
+        if len == 0.0 {
+            return Err(DeviceError::Rejected { address: ADDRESS.into(), what, message: "no travel".into() });
+        }
+        let u = d / len;
+        let Some(s_trigger) = self.first_trigger(&start, &u, len) else {
+            // To the end of the move, then back to the start.
+            self.pos = start;
+            return Err(DeviceError::NoContact { address: ADDRESS.into(), what });
+        };
+        // The first servo sample at or after the trigger, at a random sampling phase.
+        let step = r.feed_mm_s * self.cfg.servo_period_s;
+        let s_latch = (s_trigger + step * noise::uniform(&mut self.rng, 0.0, 1.0)).min(len);
+        let latched = start + u * s_latch + self.position_noise();
+        // After braking, the machine retracts along the approach direction from the latch.
+        self.pos = latched + r.approach * r.retract_mm;
+        Ok(ProbeHit { tip_center_mm: latched, normal: None })
+    }
+
+    fn abort(&mut self) -> Result<(), DeviceError> {
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn machine() -> VirtualMachineTool {
+        VirtualMachineTool::new(MachineToolConfig::default()).unwrap()
+    }
+
+    #[test]
+    fn latches_within_one_servo_step_past_the_trigger() {
+        let mut m = machine();
+        let c = Point3::new(120.0, 45.0, 30.0);
+        for feed_mm_min in [50.0, 200.0, 1000.0] {
+            let r = ProbeRequest {
+                nominal_mm: c + Vector3::z() * 12.5,
+                approach: Vector3::z(),
+                tip_radius_mm: 1.5,
+                approach_mm: 1.0,
+                search_mm: 1.0,
+                retract_mm: 1.0,
+                feed_mm_s: feed_mm_min / 60.0,
+            };
+            m.move_to(r.start_mm()).unwrap();
+            let hit = m.probe(&r).unwrap();
+            // Trigger at 14 mm + pre-travel from the centre; latch up to one servo step and
+            // the position noise (5σ) further in.
+            let depth = 14.0 - (hit.tip_center_mm - c).norm();
+            let step = feed_mm_min / 60.0 * 1e-3;
+            assert!(depth >= 0.0005 - 5e-4 && depth <= 0.0005 + step + 5e-4, "{depth}");
+            assert!((m.position().unwrap() - (hit.tip_center_mm + Vector3::z())).norm() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn a_miss_is_no_contact_back_at_the_start_and_a_collision_is_an_error() {
+        let mut m = machine();
+        let r = ProbeRequest {
+            nominal_mm: Point3::new(0.0, 0.0, 0.0),
+            approach: Vector3::z(),
+            tip_radius_mm: 1.5,
+            approach_mm: 1.0,
+            search_mm: 1.0,
+            retract_mm: 1.0,
+            feed_mm_s: 1.0,
+        };
+        match m.probe(&r) {
+            Err(DeviceError::NoContact { address, .. }) => assert_eq!(address, "virtual"),
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(m.position().unwrap(), r.start_mm());
+        // Straight through the sphere.
+        m.move_to(Point3::new(120.0, 45.0, 60.0)).unwrap();
+        let e = m.move_to(Point3::new(120.0, 45.0, 0.0)).unwrap_err();
+        assert!(e.to_string().contains("probe tripped"), "{e}");
+        assert!((m.position().unwrap().z - (44.0 - 0.0005)).abs() < 1e-6);
+        assert!(m.move_to(Point3::new(5000.0, 0.0, 0.0)).is_err());
+    }
+}

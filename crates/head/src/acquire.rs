@@ -1,0 +1,251 @@
+//! Acquisition: probing a reference sphere through any [`ProbingMachine`] (`truepos probe
+//! sphere`, and the point collection of head-offset calibration where the machine has the axes).
+//!
+//! [`probe_sphere`] distributes the points over the upper hemisphere of the nominal sphere
+//! ([`hemisphere_directions`]: one at the pole, the others on a golden-angle spiral of equal
+//! area down to [`MAX_POLAR_DEG`] from the pole), and reaches each one safely: up to the safe
+//! height (the nominal top of the tip-centre sphere plus twice the clearance), across at that
+//! height, down to the start point, which lies `clearance` outside the nominal surface along the
+//! surface normal; then one probing move along the inward normal that gives up `clearance`
+//! beyond the nominal surface, and back up. A vertical line above a start point on the upper
+//! hemisphere only gets farther from the centre, so the descent keeps the clearance from the
+//! nominal sphere. The nominal centre must therefore be known to better than the clearance
+//! (otherwise a probe misses, or trips during a positioning move: both are errors naming the
+//! move, with the machine retracted).
+//!
+//! The latched tip centres are fitted with the least-squares sphere (`truepos_fit::sphere`,
+//! orthogonal distances); the sphere's radius is the fitted radius minus the tip radius.
+
+use thiserror::Error;
+use truepos_device::{DeviceError, DeviceInfo, ProbeRequest, ProbingMachine};
+use truepos_fit::FitError;
+use truepos_math::{Point3, Vector3};
+
+/// The lowest probing point, as the angle from the pole (deg): points near the equator would
+/// approach horizontally and leave the stem of a reference sphere no room.
+pub const MAX_POLAR_DEG: f64 = 80.0;
+
+/// What to probe and how.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SphereProbing {
+    /// Nominal centre (machine frame, mm).
+    pub near_mm: Point3,
+    /// Nominal sphere diameter (mm).
+    pub diameter_mm: f64,
+    /// Number of points (≥ 5: four determine a sphere and leave nothing to check it).
+    pub points: usize,
+    /// Probing feed (mm/s).
+    pub feed_mm_s: f64,
+    /// Distance from the nominal surface at which each probing move starts, and beyond which
+    /// it gives up (mm).
+    pub clearance_mm: f64,
+    /// Stylus tip radius (mm).
+    pub tip_radius_mm: f64,
+}
+
+/// A probed and fitted sphere.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProbedSphere {
+    pub center_mm: Point3,
+    /// Radius of the sphere: fitted tip-centre sphere minus the tip radius.
+    pub radius_mm: f64,
+    /// RMS and largest orthogonal residual of the fit (mm).
+    pub rms_mm: f64,
+    pub max_abs_residual_mm: f64,
+    /// Standard uncertainties from the fit covariance (mm).
+    pub center_uncertainty_mm: Vector3,
+    pub radius_uncertainty_mm: f64,
+    /// The latched tip centres, in probing order.
+    pub points: Vec<Point3>,
+    /// The machine the points came from.
+    pub device: DeviceInfo,
+}
+
+#[derive(Debug, Error)]
+pub enum AcquireError {
+    /// The request cannot be carried out as given.
+    #[error("invalid sphere probing: {0}")]
+    Plan(String),
+    /// The machine failed (the machine has been left retracted where it could move).
+    #[error(transparent)]
+    Device(#[from] DeviceError),
+    /// The points do not determine a sphere.
+    #[error("sphere fit of the probed points: {0}")]
+    Fit(#[from] FitError),
+}
+
+/// `n` unit directions over the upper hemisphere: the pole first, then a golden-angle spiral of
+/// equal area down to `max_polar` (rad) from the pole.
+pub fn hemisphere_directions(n: usize, max_polar: f64) -> Vec<Vector3> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let zmin = max_polar.cos();
+    (0..n)
+        .map(|i| {
+            if i == 0 {
+                return Vector3::z();
+            }
+            // Equal-area steps in z from just below the pole to the lowest ring.
+            let f = i as f64 / (n - 1).max(1) as f64;
+            let z = 1.0 - f * (1.0 - zmin);
+            let rho = (1.0 - z * z).max(0.0).sqrt();
+            let phi = i as f64 * golden;
+            Vector3::new(rho * phi.cos(), rho * phi.sin(), z)
+        })
+        .collect()
+}
+
+impl SphereProbing {
+    /// Check the request (before any machine moves).
+    pub fn check(&self) -> Result<(), AcquireError> {
+        let bad = |m: &str| Err(AcquireError::Plan(m.to_string()));
+        if !self.near_mm.iter().all(|v| v.is_finite()) {
+            return bad("the nominal centre is not finite");
+        }
+        if !(self.diameter_mm.is_finite() && self.diameter_mm > 0.0) {
+            return bad("the diameter must be a positive number (mm)");
+        }
+        if !(5..=10_000).contains(&self.points) {
+            return bad("the number of points must be between 5 and 10000 (four determine a sphere and leave nothing to check it)");
+        }
+        if !(self.feed_mm_s.is_finite() && self.feed_mm_s > 0.0) {
+            return bad("the probing feed must be a positive number");
+        }
+        if !(self.clearance_mm.is_finite() && self.clearance_mm > 0.0) {
+            return bad("the clearance must be a positive number (mm)");
+        }
+        if !(self.tip_radius_mm.is_finite() && self.tip_radius_mm >= 0.0) {
+            return bad("the tip diameter must be a number ≥ 0 (mm)");
+        }
+        Ok(())
+    }
+
+    /// Height of the clearance moves (mm).
+    pub fn safe_z_mm(&self) -> f64 {
+        self.near_mm.z + 0.5 * self.diameter_mm + self.tip_radius_mm + 2.0 * self.clearance_mm
+    }
+
+    /// The probing requests, in order.
+    pub fn requests(&self) -> Vec<ProbeRequest> {
+        let r = 0.5 * self.diameter_mm;
+        hemisphere_directions(self.points, MAX_POLAR_DEG.to_radians())
+            .into_iter()
+            .map(|d| ProbeRequest {
+                nominal_mm: self.near_mm + d * r,
+                approach: d,
+                tip_radius_mm: self.tip_radius_mm,
+                approach_mm: self.clearance_mm,
+                search_mm: self.clearance_mm,
+                retract_mm: self.clearance_mm,
+                feed_mm_s: self.feed_mm_s,
+            })
+            .collect()
+    }
+}
+
+/// Probe the sphere as [`SphereProbing`] says and fit it. The machine ends at the safe height
+/// above the last point; on a failure it is left where the failing move left it (a probing move
+/// without contact: back at its start point, clear of the sphere) and then raised to the safe
+/// height where it can be.
+pub fn probe_sphere<M: ProbingMachine + ?Sized>(
+    m: &mut M,
+    plan: &SphereProbing,
+) -> Result<ProbedSphere, AcquireError> {
+    plan.check()?;
+    let safe_z = plan.safe_z_mm();
+    let mut points = Vec::with_capacity(plan.points);
+    let p0 = m.position()?;
+    // Up first (never down to the safe height from above: that could reach the sphere).
+    let mut at = Point3::new(p0.x, p0.y, p0.z.max(safe_z));
+    if at != p0 {
+        m.move_to(at)?;
+    }
+    for req in plan.requests() {
+        let start = req.start_mm();
+        let above = Point3::new(start.x, start.y, safe_z);
+        let run = |m: &mut M, at: &mut Point3| -> Result<Point3, DeviceError> {
+            if at.z < safe_z {
+                *at = Point3::new(at.x, at.y, safe_z);
+                m.move_to(*at)?;
+            }
+            if (*at - above).norm() > 0.0 {
+                m.move_to(above)?;
+            }
+            m.move_to(start)?;
+            *at = start;
+            let hit = m.probe(&req)?;
+            *at = hit.tip_center_mm + req.approach * req.retract_mm;
+            Ok(hit.tip_center_mm)
+        };
+        match run(m, &mut at) {
+            Ok(p) => points.push(p),
+            Err(e) => {
+                if let DeviceError::NoContact { .. } = e {
+                    // Retracted to the start point by the machine: up and clear.
+                    let _ = m.move_to(above);
+                }
+                return Err(e.into());
+            }
+        }
+    }
+    m.move_to(Point3::new(at.x, at.y, safe_z))?;
+    let fit = truepos_fit::sphere(&points)?;
+    Ok(ProbedSphere {
+        center_mm: fit.center,
+        radius_mm: fit.radius - plan.tip_radius_mm,
+        rms_mm: fit.rms,
+        max_abs_residual_mm: fit.max_abs_residual,
+        center_uncertainty_mm: fit.center_uncertainty,
+        radius_uncertainty_mm: fit.radius_uncertainty,
+        points,
+        device: m.info(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn directions_cover_the_upper_cap_with_the_pole_first() {
+        let max = MAX_POLAR_DEG.to_radians();
+        for n in [5, 12, 25, 100] {
+            let d = hemisphere_directions(n, max);
+            assert_eq!(d.len(), n);
+            assert_eq!(d[0], Vector3::z());
+            for v in &d {
+                assert!((v.norm() - 1.0).abs() < 1e-12);
+                assert!(v.z >= max.cos() - 1e-12, "{v}");
+            }
+            // The lowest point is on the lowest ring; points are distinct.
+            assert!((d[n - 1].z - max.cos()).abs() < 1e-12);
+            for i in 0..n {
+                for j in 0..i {
+                    assert!((d[i] - d[j]).norm() > 1e-3);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn plans_are_validated() {
+        let ok = SphereProbing {
+            near_mm: Point3::origin(),
+            diameter_mm: 25.0,
+            points: 25,
+            feed_mm_s: 1.0,
+            clearance_mm: 2.0,
+            tip_radius_mm: 1.5,
+        };
+        assert!(ok.check().is_ok());
+        assert!(SphereProbing { points: 4, ..ok }.check().is_err());
+        assert!(SphereProbing { diameter_mm: -1.0, ..ok }.check().is_err());
+        assert!(SphereProbing { clearance_mm: 0.0, ..ok }.check().is_err());
+        assert!(SphereProbing { feed_mm_s: f64::NAN, ..ok }.check().is_err());
+        // Every start point is clearance + tip outside the nominal surface.
+        for r in ok.requests() {
+            let d = (r.start_mm() - ok.near_mm).norm();
+            assert!((d - (12.5 + 1.5 + 2.0)).abs() < 1e-9);
+            assert!(r.start_mm().z <= ok.safe_z_mm());
+        }
+    }
+}

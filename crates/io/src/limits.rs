@@ -1,0 +1,197 @@
+//! Bounds on what truepos reads: every input is text of bounded size with bounded lines.
+//!
+//! - A text line longer than [`MAX_LINE_BYTES`] (1 MiB; a CSV row or a G-code block is at most a
+//!   few hundred bytes) is an input error naming the line.
+//! - A file larger than [`max_input_bytes`] (2 GiB by default, `TRUEPOS_MAX_INPUT_MB` to change)
+//!   is refused before it is read (regular files: from their size; pipes and devices: when that
+//!   many bytes have arrived).
+//! - A NUL byte means binary data, not text: refused at the first block that contains one, so
+//!   `/dev/zero` or a binary file given by mistake fails at once instead of being read forever.
+//!
+//! [`read_text`] reads a whole (bounded) file for the readers that need all of it;
+//! [`crate::stream`] reads in blocks with the same checks and constant memory.
+
+use crate::InputError;
+use std::io::Read;
+use std::path::Path;
+
+/// Longest accepted line, bytes.
+pub const MAX_LINE_BYTES: usize = 1 << 20;
+
+/// Default largest input file, bytes (2 GiB).
+pub const DEFAULT_MAX_INPUT_BYTES: u64 = 2 << 30;
+
+/// Largest input file in bytes: `TRUEPOS_MAX_INPUT_MB` (mebibytes) if set to a positive number,
+/// else [`DEFAULT_MAX_INPUT_BYTES`].
+pub fn max_input_bytes() -> u64 {
+    std::env::var("TRUEPOS_MAX_INPUT_MB")
+        .ok()
+        .and_then(|s| s.trim().parse::<u64>().ok())
+        .filter(|&m| m > 0)
+        .map_or(DEFAULT_MAX_INPUT_BYTES, |m| m.saturating_mul(1 << 20))
+}
+
+/// Human size.
+pub fn human(bytes: u64) -> String {
+    let b = bytes as f64;
+    if b >= 1e9 {
+        format!("{:.1} GB", b / 1e9)
+    } else if b >= 1e6 {
+        format!("{:.1} MB", b / 1e6)
+    } else {
+        format!("{bytes} bytes")
+    }
+}
+
+/// The error for a file over the size limit.
+pub fn too_large(path: &Path, size: u64, limit: u64) -> InputError {
+    InputError::in_file(
+        path,
+        format!(
+            "the file is {}{}; truepos reads inputs of at most {} (set TRUEPOS_MAX_INPUT_MB to change the limit)",
+            if size > limit { "" } else { "over " },
+            human(size),
+            human(limit)
+        ),
+    )
+}
+
+/// The error for a line over [`MAX_LINE_BYTES`].
+pub fn line_too_long(path: &Path, line: usize) -> InputError {
+    InputError::at(
+        path,
+        line,
+        Some(1),
+        format!("line longer than {} MB: not a text file of this kind", MAX_LINE_BYTES >> 20),
+    )
+}
+
+/// The error for a NUL byte (binary data).
+pub fn binary(path: &Path, line: usize, what: &str) -> InputError {
+    InputError::at(path, line, None, format!("binary data (NUL byte): not a {what} text file"))
+}
+
+/// Refuse a regular file over the limit from its metadata (cheap, before any read).
+pub fn check_file_size(path: &Path, meta: &std::fs::Metadata) -> Result<(), InputError> {
+    let limit = max_input_bytes();
+    if meta.is_file() && meta.len() > limit {
+        return Err(too_large(path, meta.len(), limit));
+    }
+    Ok(())
+}
+
+/// Scans blocks of text as they arrive: NUL bytes, line lengths and line count.
+#[derive(Debug, Default, Clone)]
+pub struct LineGuard {
+    /// Completed lines so far.
+    pub lines: usize,
+    /// Bytes of the current (unfinished) line.
+    current: usize,
+}
+
+impl LineGuard {
+    /// Check `block`, the next bytes of the file.
+    pub fn scan(&mut self, path: &Path, block: &[u8], what: &str) -> Result<(), InputError> {
+        if let Some(p) = memchr::memchr(0, block) {
+            let line = self.lines + memchr::memchr_iter(b'\n', &block[..p]).count() + 1;
+            return Err(binary(path, line, what));
+        }
+        let mut start = 0;
+        for nl in memchr::memchr_iter(b'\n', block) {
+            if self.current + (nl - start) > MAX_LINE_BYTES {
+                return Err(line_too_long(path, self.lines + 1));
+            }
+            self.lines += 1;
+            self.current = 0;
+            start = nl + 1;
+        }
+        self.current += block.len() - start;
+        if self.current > MAX_LINE_BYTES {
+            return Err(line_too_long(path, self.lines + 1));
+        }
+        Ok(())
+    }
+}
+
+/// Read a whole text file with the bounds above (size, line length, no NUL bytes). `what` names
+/// the kind of file in messages ("CSV", "G-code", …). Regular files are read in one go after a
+/// size check; pipes and devices in blocks, each checked as it arrives.
+pub fn read_text(path: &Path, what: &str) -> Result<Vec<u8>, InputError> {
+    let cannot = |e: std::io::Error| InputError::in_file(path, format!("cannot read: {e}"));
+    let mut file = std::fs::File::open(path).map_err(cannot)?;
+    let meta = file.metadata().map_err(cannot)?;
+    if meta.is_dir() {
+        return Err(InputError::in_file(path, "is a directory, not a file"));
+    }
+    check_file_size(path, &meta)?;
+    let limit = max_input_bytes();
+    let mut guard = LineGuard::default();
+    let mut buf = Vec::with_capacity(if meta.is_file() { meta.len() as usize + 1 } else { 1 << 16 });
+    let mut block = vec![0u8; 1 << 20];
+    loop {
+        let n = match file.read(&mut block) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(cannot(e)),
+        };
+        guard.scan(path, &block[..n], what)?;
+        if (buf.len() + n) as u64 > limit {
+            return Err(too_large(path, (buf.len() + n) as u64, limit));
+        }
+        buf.extend_from_slice(&block[..n]);
+    }
+    Ok(buf)
+}
+
+/// [`read_text`] as a `String` (invalid UTF-8 is an error naming the line).
+pub fn read_string(path: &Path, what: &str) -> Result<String, InputError> {
+    let bytes = read_text(path, what)?;
+    String::from_utf8(bytes).map_err(|e| {
+        let ok = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+        let line = memchr::memchr_iter(b'\n', ok).count() + 1;
+        InputError::at(path, line, None, format!("not valid UTF-8 text: not a {what} file"))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn guard_finds_nul_and_long_lines_across_blocks() {
+        let p = Path::new("f.csv");
+        let mut g = LineGuard::default();
+        g.scan(p, b"a,b\n1,2\n", "CSV").unwrap();
+        let e = g.scan(p, b"3,\x004\n", "CSV").unwrap_err();
+        assert_eq!(e.line, Some(3));
+        assert!(e.to_string().contains("binary"));
+        let mut g = LineGuard::default();
+        let half = vec![b'x'; MAX_LINE_BYTES / 2 + 1];
+        g.scan(p, b"ok\n", "CSV").unwrap();
+        g.scan(p, &half, "CSV").unwrap();
+        let e = g.scan(p, &half, "CSV").unwrap_err();
+        assert_eq!(e.line, Some(2));
+        assert!(e.to_string().contains("longer than 1 MB"), "{e}");
+    }
+
+    #[test]
+    fn dev_zero_is_refused_at_once() {
+        let p = Path::new("/dev/zero");
+        if !p.exists() {
+            eprintln!("SKIPPED: no /dev/zero on this system");
+            return;
+        }
+        let t = std::time::Instant::now();
+        let e = read_text(p, "CSV").unwrap_err();
+        assert!(e.to_string().contains("binary"), "{e}");
+        assert!(t.elapsed().as_secs_f64() < 1.0);
+    }
+
+    #[test]
+    fn directories_and_missing_files_are_input_errors() {
+        let d = tempfile::tempdir().unwrap();
+        assert!(read_text(d.path(), "CSV").unwrap_err().to_string().contains("directory"));
+        assert!(read_text(&d.path().join("nope"), "CSV").unwrap_err().to_string().contains("cannot read"));
+    }
+}

@@ -1,0 +1,298 @@
+//! Numbers in text: exact fast parsing and shortest round-trip (or fixed-decimal) formatting.
+//!
+//! - [`parse_f64`] / [`parse_f64_prefix`]: correctly rounded decimal → `f64` (every input gives
+//!   the nearest double, as `str::parse` does). Plain decimals of at most 15 significant digits
+//!   take Clinger's fast path inline (one exact integer, one correctly rounded division by an
+//!   exact power of ten); everything else goes to the `fast-float2` crate (Eisel–Lemire with an
+//!   exact big-decimal fallback), which parses straight from bytes.
+//! - [`NumFormat`]: how written numbers look. `Shortest` (the default) writes the shortest text
+//!   that parses back to the same `f64` (the `zmij` crate: Schubfach/yy, already in the tree
+//!   through serde_json), so every written number round-trips bit for bit; `Fixed(n)` writes `n`
+//!   decimals (what `--decimals N` asks for), by integer arithmetic when exact.
+
+/// Exact powers of ten representable in an f64 (10^0 … 10^22).
+pub(crate) const POW10: [f64; 23] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18,
+    1e19, 1e20, 1e21, 1e22,
+];
+
+/// Parse a finite float (surrounding spaces already trimmed): the whole text must be a number.
+/// `None` for malformed text and for values that are not finite (`inf`, `nan`, `1e999`).
+#[inline]
+pub fn parse_f64(s: &str) -> Option<f64> {
+    parse_f64_bytes(s.as_bytes())
+}
+
+/// [`parse_f64`] on bytes.
+#[inline]
+pub fn parse_f64_bytes(b: &[u8]) -> Option<f64> {
+    match parse_f64_prefix(b) {
+        Some((v, n)) if n == b.len() => Some(v),
+        _ => None,
+    }
+}
+
+/// Parse the longest number at the start of `b`: `(value, bytes used)`. `None` when `b` does not
+/// start with a number, or the number is not finite. Only decimal syntax is accepted
+/// (`[+-]digits[.digits][e[+-]digits]`, `.5`, `1.`); `inf`/`nan` words are refused.
+#[inline]
+pub fn parse_f64_prefix(b: &[u8]) -> Option<(f64, usize)> {
+    // Clinger's fast path for `[+-]digits[.digits]` with ≤ 15 significant digits, not followed
+    // by an exponent.
+    let mut i = 0;
+    let neg = match b.first() {
+        Some(b'-') => {
+            i = 1;
+            true
+        }
+        Some(b'+') => {
+            i = 1;
+            false
+        }
+        _ => false,
+    };
+    let mut mant: u64 = 0;
+    let s0 = i;
+    while i < b.len() && b[i].is_ascii_digit() {
+        mant = mant.wrapping_mul(10).wrapping_add((b[i] - b'0') as u64);
+        i += 1;
+    }
+    let mut digits = i - s0;
+    let mut frac = 0usize;
+    if i < b.len() && b[i] == b'.' {
+        i += 1;
+        let f0 = i;
+        while i < b.len() && b[i].is_ascii_digit() {
+            mant = mant.wrapping_mul(10).wrapping_add((b[i] - b'0') as u64);
+            i += 1;
+        }
+        frac = i - f0;
+        digits += frac;
+    }
+    if digits > 0 && digits <= 15 && frac <= 22 && !(i < b.len() && (b[i] | 0x20) == b'e') {
+        let v = mant as f64 / POW10[frac];
+        return Some((if neg { -v } else { v }, i));
+    }
+    if digits == 0 {
+        // No digits: not a number in our syntax (this also refuses `inf`, `nan`, `infinity`).
+        return None;
+    }
+    let (v, n) = fast_float2::parse_partial::<f64, _>(b).ok()?;
+    v.is_finite().then_some((v, n))
+}
+
+/// How numbers are written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum NumFormat {
+    /// The shortest text that parses back to the same `f64`.
+    #[default]
+    Shortest,
+    /// A fixed number of decimals (no `-0.000`: a value that rounds to zero is written unsigned).
+    Fixed(u8),
+}
+
+/// Largest number of decimals [`NumFormat::Fixed`] accepts (beyond 17 significant digits an
+/// f64 has no more information to show).
+pub const MAX_DECIMALS: u8 = 17;
+
+impl NumFormat {
+    /// `Fixed(n)` for `Some(n)`, `Shortest` for `None`; more than [`MAX_DECIMALS`] is an error.
+    pub fn from_decimals(decimals: Option<u8>) -> Result<Self, String> {
+        match decimals {
+            None => Ok(NumFormat::Shortest),
+            Some(n) if n <= MAX_DECIMALS => Ok(NumFormat::Fixed(n)),
+            Some(n) => Err(format!("--decimals {n}: at most {MAX_DECIMALS} decimals")),
+        }
+    }
+
+    /// Append `v` to `out`. Non-finite values are written `NaN`, `inf`, `-inf`.
+    #[inline]
+    pub fn write(self, v: f64, out: &mut Vec<u8>) {
+        match self {
+            NumFormat::Shortest => write_shortest(v, out),
+            NumFormat::Fixed(d) => write_fixed(v, d, out),
+        }
+    }
+
+    /// `v` as a `String`.
+    pub fn to_string(self, v: f64) -> String {
+        let mut out = Vec::with_capacity(24);
+        self.write(v, &mut out);
+        String::from_utf8(out).unwrap_or_default()
+    }
+}
+
+/// Shortest round-trip text of `v`.
+#[inline]
+pub fn write_shortest(v: f64, out: &mut Vec<u8>) {
+    let mut b = zmij::Buffer::new();
+    let s = b.format(v);
+    // zmij writes integers as `1.0`; the short form `1` is what the files always had.
+    let s = s.strip_suffix(".0").unwrap_or(s);
+    out.extend_from_slice(s.as_bytes());
+}
+
+/// `v` with `dec` decimals.
+#[inline]
+pub fn write_fixed(v: f64, dec: u8, out: &mut Vec<u8>) {
+    let scale = 10u64.pow(dec.min(MAX_DECIMALS) as u32);
+    let scaled = (v * scale as f64).round();
+    // Exact integer arithmetic while |v|·10^dec < 2^53 and the product is exact enough: the
+    // product v·10^dec is one rounding away from exact, so the integer route is used only when
+    // the scaled value is far from a .5 tie (otherwise std's exact decimal formatting decides).
+    let frac_part = (v * scale as f64).abs().fract();
+    if !v.is_finite() || scaled.abs() >= 9.0e15 || (frac_part - 0.5).abs() < 1e-6 + scaled.abs() * 1e-15 {
+        let s = format!("{:.*}", dec as usize, v);
+        let negzero = s.starts_with('-') && s[1..].bytes().all(|c| c == b'0' || c == b'.');
+        out.extend_from_slice(if negzero { &s.as_bytes()[1..] } else { s.as_bytes() });
+        return;
+    }
+    let n = scaled as i64;
+    if n < 0 {
+        out.push(b'-');
+    }
+    let a = n.unsigned_abs();
+    let int = a / scale;
+    let frac = a % scale;
+    let mut ib = itoa_buf(int);
+    out.extend_from_slice(ib.as_bytes());
+    if dec > 0 {
+        out.push(b'.');
+        ib = itoa_buf(frac);
+        for _ in ib.len()..dec as usize {
+            out.push(b'0');
+        }
+        out.extend_from_slice(ib.as_bytes());
+    }
+}
+
+/// Decimal digits of `n` (a small stack string).
+fn itoa_buf(mut n: u64) -> ItoaBuf {
+    let mut buf = [0u8; 20];
+    let mut i = 20;
+    loop {
+        i -= 1;
+        buf[i] = b'0' + (n % 10) as u8;
+        n /= 10;
+        if n == 0 {
+            break;
+        }
+    }
+    ItoaBuf { buf, start: i }
+}
+
+struct ItoaBuf {
+    buf: [u8; 20],
+    start: usize,
+}
+
+impl ItoaBuf {
+    fn as_bytes(&self) -> &[u8] {
+        &self.buf[self.start..]
+    }
+    fn len(&self) -> usize {
+        20 - self.start
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parse_edge_cases_match_std() {
+        for s in [
+            "0",
+            "-0",
+            "-0.0",
+            "+1.5",
+            "123456789012345",
+            "1234567890123456789012",
+            "0.000000000000001",
+            "9999999999999.99",
+            "1.",
+            ".5",
+            "-.5",
+            "00012.500",
+            "0.1",
+            "1.7976931348623157",
+            "1.7976931348623157e308",
+            "2.2250738585072014e-308",
+            "4.9e-324",
+            "12.7000015",
+            "1e5",
+            "1E-5",
+            "-3.14159265358979323846264338327950288",
+            "0.30000000000000004",
+            "123.456e-7",
+        ] {
+            let want: f64 = s.parse().unwrap();
+            assert_eq!(parse_f64(s).map(f64::to_bits), Some(want.to_bits()), "{s}");
+        }
+        for s in [
+            "", "-", ".", "+", "1.2.3", "1e5x", "--1", "1,5", "nan", "NaN", "inf", "-inf", "infinity",
+            "1e400", "0x10", "e5", " 1", "1 ",
+        ] {
+            assert_eq!(parse_f64(s), None, "{s}");
+        }
+        assert_eq!(parse_f64_prefix(b"1.5,2"), Some((1.5, 3)));
+        assert_eq!(parse_f64_prefix(b"-2.5e3 x"), Some((-2500.0, 6)));
+        assert_eq!(parse_f64_prefix(b"12345678901234567,"), Some((12345678901234567.0, 17)));
+    }
+
+    #[test]
+    fn shortest_is_short_and_exact() {
+        let f = |v: f64| NumFormat::Shortest.to_string(v);
+        assert_eq!(f(1.0), "1");
+        assert_eq!(f(-0.5), "-0.5");
+        assert_eq!(f(0.1 + 0.2), "0.30000000000000004");
+        assert_eq!(f(100.0), "100");
+        assert_eq!(f(f64::NAN), "NaN");
+        assert_eq!(parse_f64(&f(1e-300)), Some(1e-300));
+        assert_eq!(parse_f64(&f(f64::MAX)), Some(f64::MAX));
+    }
+
+    #[test]
+    fn fixed_decimals() {
+        let f = |v: f64, d: u8| NumFormat::Fixed(d).to_string(v);
+        assert_eq!(f(1.23456, 3), "1.235");
+        assert_eq!(f(-1.23456, 3), "-1.235");
+        assert_eq!(f(-0.00001, 3), "0.000");
+        assert_eq!(f(12.0, 0), "12");
+        assert_eq!(f(0.05, 4), "0.0500");
+        assert_eq!(f(2.5, 0), format!("{:.0}", 2.5));
+        assert_eq!(f(1e20, 2), "100000000000000000000.00");
+        assert!(NumFormat::from_decimals(Some(18)).is_err());
+    }
+
+    proptest::proptest! {
+        /// Shortest output parses back to the same bits, for any finite f64.
+        #[test]
+        fn shortest_round_trips_bit_exactly(bits in proptest::num::u64::ANY) {
+            let v = f64::from_bits(bits);
+            proptest::prop_assume!(v.is_finite());
+            let s = NumFormat::Shortest.to_string(v);
+            let back = parse_f64(&s).unwrap();
+            proptest::prop_assert_eq!(back.to_bits(), v.to_bits(), "{}", s);
+        }
+
+        /// The parser agrees with `str::parse` bit for bit on decimal text of every shape.
+        #[test]
+        fn parse_matches_std(int in "[0-9]{0,20}", frac in "[0-9]{0,20}", exp in proptest::option::of(-330i32..330), neg in proptest::bool::ANY) {
+            proptest::prop_assume!(!(int.is_empty() && frac.is_empty()));
+            let mut s = format!("{}{}", if neg { "-" } else { "" }, int);
+            if !frac.is_empty() { s = format!("{s}.{frac}"); }
+            if let Some(e) = exp { s = format!("{s}e{e}"); }
+            let want = s.parse::<f64>().ok().filter(|v| v.is_finite());
+            proptest::prop_assert_eq!(parse_f64(&s).map(f64::to_bits), want.map(f64::to_bits), "{}", s);
+        }
+
+        /// Fixed decimals agree with std's exact `{:.n}` formatting (up to the sign of zero).
+        #[test]
+        fn fixed_matches_std(v in -1e9f64..1e9, d in 0u8..10) {
+            let want = format!("{:.*}", d as usize, v);
+            let want = if want.starts_with('-') && want[1..].bytes().all(|c| c == b'0' || c == b'.') { want[1..].to_string() } else { want };
+            proptest::prop_assert_eq!(NumFormat::Fixed(d).to_string(v), want);
+        }
+    }
+}

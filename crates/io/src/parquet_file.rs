@@ -1,0 +1,298 @@
+//! Parquet point and stream files: the same column names as the CSV files (`x_mm`, `y_mm`,
+//! `z_mm`, `id`, `t_s`, …), one column per name, chosen by the `.parquet` extension.
+//!
+//! - [`read_columns`]: the numeric columns (DOUBLE, FLOAT, INT32, INT64 read as `f64`) and text
+//!   columns (UTF-8 BYTE_ARRAY) of every row group. A null or non-finite value is an input error
+//!   naming the column and the 1-based **row** (Parquet has no lines).
+//! - [`write_columns`]: required DOUBLE / UTF-8 columns, Snappy pages, one row group per
+//!   [`ROW_GROUP`] rows, written atomically.
+//!
+//! Values are binary doubles, so a Parquet file holds exactly the `f64`s that were written (no
+//! decimal conversion at all).
+
+use crate::atomic::{AtomicFile, OutputError};
+use crate::InputError;
+use ::parquet::basic::Compression;
+use ::parquet::column::reader::ColumnReader;
+use ::parquet::data_type::{ByteArray, ByteArrayType, DoubleType};
+use ::parquet::file::properties::WriterProperties;
+use ::parquet::file::reader::{FileReader, SerializedFileReader};
+use ::parquet::file::writer::SerializedFileWriter;
+use std::path::Path;
+use std::sync::Arc;
+
+/// Rows per row group when writing.
+pub const ROW_GROUP: usize = 1 << 20;
+
+/// Values of one column.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ColumnData {
+    F64(Vec<f64>),
+    Str(Vec<String>),
+}
+
+impl ColumnData {
+    pub fn len(&self) -> usize {
+        match self {
+            ColumnData::F64(v) => v.len(),
+            ColumnData::Str(v) => v.len(),
+        }
+    }
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// The columns of a file, by name, in file order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Columns {
+    pub names: Vec<String>,
+    pub data: Vec<ColumnData>,
+}
+
+impl Columns {
+    pub fn n_rows(&self) -> usize {
+        self.data.first().map_or(0, ColumnData::len)
+    }
+    pub fn index(&self, name: &str) -> Option<usize> {
+        self.names.iter().position(|n| n == name)
+    }
+    /// A numeric column, or an error naming it.
+    pub fn f64(&self, path: &Path, name: &str) -> Result<&[f64], InputError> {
+        match self.index(name).map(|i| &self.data[i]) {
+            Some(ColumnData::F64(v)) => Ok(v),
+            Some(ColumnData::Str(_)) => Err(InputError::in_file(
+                path,
+                format!("column '{name}' holds text, a number column is needed"),
+            )),
+            None => Err(InputError::in_file(
+                path,
+                format!("missing required column '{name}' (columns: {})", self.names.join(",")),
+            )),
+        }
+    }
+    /// A text column (numbers are formatted shortest round-trip).
+    pub fn strings(&self, name: &str) -> Option<Vec<String>> {
+        match &self.data[self.index(name)?] {
+            ColumnData::Str(v) => Some(v.clone()),
+            ColumnData::F64(v) => {
+                Some(v.iter().map(|&x| crate::num::NumFormat::Shortest.to_string(x)).collect())
+            }
+        }
+    }
+}
+
+fn pq_err(path: &Path, e: impl std::fmt::Display) -> InputError {
+    InputError::in_file(path, format!("not a readable Parquet file: {e}"))
+}
+
+/// Row error: 1-based row, column name.
+fn row_err(path: &Path, name: &str, row: usize, msg: &str) -> InputError {
+    InputError::in_file(path, format!("row {row}: {msg}")).with_column_name(name)
+}
+
+/// Read every numeric and text column of a Parquet file.
+pub fn read_columns(path: &Path) -> Result<Columns, InputError> {
+    let file =
+        std::fs::File::open(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+    let meta = file.metadata().map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+    crate::limits::check_file_size(path, &meta)?;
+    let reader = SerializedFileReader::new(file).map_err(|e| pq_err(path, e))?;
+    let md = reader.metadata();
+    let schema = md.file_metadata().schema_descr();
+    let cols = schema.columns();
+    let mut names = Vec::with_capacity(cols.len());
+    let mut data: Vec<ColumnData> = Vec::with_capacity(cols.len());
+    let total = usize::try_from(md.file_metadata().num_rows()).unwrap_or(0);
+    for c in cols {
+        if c.max_rep_level() > 0 {
+            return Err(InputError::in_file(
+                path,
+                format!("column '{}' is repeated (a list): not supported", c.name()),
+            ));
+        }
+        names.push(c.name().to_string());
+        data.push(match c.physical_type() {
+            ::parquet::basic::Type::BYTE_ARRAY => ColumnData::Str(Vec::with_capacity(total)),
+            _ => ColumnData::F64(Vec::with_capacity(total)),
+        });
+    }
+    for g in 0..reader.num_row_groups() {
+        let rg = reader.get_row_group(g).map_err(|e| pq_err(path, e))?;
+        let n = usize::try_from(rg.metadata().num_rows()).unwrap_or(0);
+        for (i, c) in cols.iter().enumerate() {
+            let name = c.name();
+            let first_row = data[i].len();
+            let mut defs: Vec<i16> = Vec::with_capacity(n);
+            let want_defs = c.max_def_level() > 0;
+            let reader = rg.get_column_reader(i).map_err(|e| pq_err(path, e))?;
+            macro_rules! numeric {
+                ($r:expr, $conv:expr) => {{
+                    let mut r = $r;
+                    let mut vals = Vec::with_capacity(n);
+                    let (recs, _, _) = r
+                        .read_records(n, if want_defs { Some(&mut defs) } else { None }, None, &mut vals)
+                        .map_err(|e| pq_err(path, e))?;
+                    if recs != n || vals.len() != n {
+                        let bad = defs.iter().position(|&d| d < c.max_def_level()).unwrap_or(vals.len());
+                        return Err(row_err(
+                            path,
+                            name,
+                            first_row + bad + 1,
+                            "empty (null) value where a number is required",
+                        ));
+                    }
+                    let ColumnData::F64(out) = &mut data[i] else { unreachable!() };
+                    for (k, v) in vals.into_iter().enumerate() {
+                        let x: f64 = $conv(v);
+                        if !x.is_finite() {
+                            return Err(row_err(
+                                path,
+                                name,
+                                first_row + k + 1,
+                                &format!("not a finite number: {x}"),
+                            ));
+                        }
+                        out.push(x);
+                    }
+                }};
+            }
+            match reader {
+                ColumnReader::DoubleColumnReader(r) => numeric!(r, |v: f64| v),
+                ColumnReader::FloatColumnReader(r) => numeric!(r, |v: f32| v as f64),
+                ColumnReader::Int32ColumnReader(r) => numeric!(r, |v: i32| v as f64),
+                ColumnReader::Int64ColumnReader(r) => numeric!(r, |v: i64| v as f64),
+                ColumnReader::ByteArrayColumnReader(mut r) => {
+                    let mut vals: Vec<ByteArray> = Vec::with_capacity(n);
+                    let (recs, _, _) = r
+                        .read_records(n, if want_defs { Some(&mut defs) } else { None }, None, &mut vals)
+                        .map_err(|e| pq_err(path, e))?;
+                    if recs != n || vals.len() != n {
+                        let bad = defs.iter().position(|&d| d < c.max_def_level()).unwrap_or(vals.len());
+                        return Err(row_err(path, name, first_row + bad + 1, "empty (null) value"));
+                    }
+                    let ColumnData::Str(out) = &mut data[i] else { unreachable!() };
+                    for (k, v) in vals.into_iter().enumerate() {
+                        match std::str::from_utf8(v.data()) {
+                            Ok(s) => out.push(s.to_string()),
+                            Err(_) => {
+                                return Err(row_err(path, name, first_row + k + 1, "not valid UTF-8 text"))
+                            }
+                        }
+                    }
+                }
+                _ => {
+                    return Err(InputError::in_file(
+                        path,
+                        format!(
+                            "column '{name}': type {} not supported (numbers or text)",
+                            c.physical_type()
+                        ),
+                    ))
+                }
+            }
+        }
+    }
+    Ok(Columns { names, data })
+}
+
+/// Write `columns` (all of one length) to `path` atomically: numbers as required DOUBLE, text as
+/// required UTF-8 BYTE_ARRAY, Snappy compressed.
+pub fn write_columns(path: &Path, columns: &Columns) -> Result<(), OutputError> {
+    let out = path.to_path_buf();
+    let io = |e: ::parquet::errors::ParquetError| OutputError::Io {
+        path: out.clone(),
+        source: std::io::Error::other(e),
+    };
+    let n = columns.n_rows();
+    if columns.data.iter().any(|c| c.len() != n) || columns.names.len() != columns.data.len() {
+        return Err(OutputError::Io {
+            path: out.clone(),
+            source: std::io::Error::other("columns of different lengths"),
+        });
+    }
+    let mut fields = String::new();
+    for (name, d) in columns.names.iter().zip(&columns.data) {
+        if !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') || name.is_empty() {
+            return Err(OutputError::Io {
+                path: out.clone(),
+                source: std::io::Error::other(format!("column name '{name}' cannot be written to Parquet")),
+            });
+        }
+        match d {
+            ColumnData::F64(_) => fields.push_str(&format!("required double {name}; ")),
+            ColumnData::Str(_) => fields.push_str(&format!("required binary {name} (UTF8); ")),
+        }
+    }
+    let schema = ::parquet::schema::parser::parse_message_type(&format!("message truepos {{ {fields}}}"))
+        .map_err(io)?;
+    let props = WriterProperties::builder().set_compression(Compression::SNAPPY).build();
+    let file = AtomicFile::create(path)?;
+    let mut w = SerializedFileWriter::new(file, Arc::new(schema), Arc::new(props)).map_err(io)?;
+    let mut start = 0;
+    while start < n || (n == 0 && start == 0) {
+        let end = (start + ROW_GROUP).min(n);
+        let mut rg = w.next_row_group().map_err(io)?;
+        let mut k = 0;
+        while let Some(mut col) = rg.next_column().map_err(io)? {
+            match &columns.data[k] {
+                ColumnData::F64(v) => {
+                    col.typed::<DoubleType>().write_batch(&v[start..end], None, None).map_err(io)?;
+                }
+                ColumnData::Str(v) => {
+                    let b: Vec<ByteArray> =
+                        v[start..end].iter().map(|s| ByteArray::from(s.as_str())).collect();
+                    col.typed::<ByteArrayType>().write_batch(&b, None, None).map_err(io)?;
+                }
+            }
+            col.close().map_err(io)?;
+            k += 1;
+        }
+        rg.close().map_err(io)?;
+        if n == 0 {
+            break;
+        }
+        start = end;
+    }
+    let file = w.into_inner().map_err(io)?;
+    file.commit()
+}
+
+/// True for a path with the `.parquet` extension.
+pub fn is_parquet(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("parquet"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_is_bit_exact_and_errors_name_the_row() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("pts.parquet");
+        let n = 5000;
+        let x: Vec<f64> = (0..n).map(|i| (i as f64).sqrt() * 0.1 + 1e-300 * i as f64).collect();
+        let y: Vec<f64> = (0..n).map(|i| -(i as f64) / 3.0).collect();
+        let ids: Vec<String> = (0..n).map(|i| format!("P{i}")).collect();
+        let c = Columns {
+            names: vec!["id".into(), "x_mm".into(), "y_mm".into()],
+            data: vec![ColumnData::Str(ids.clone()), ColumnData::F64(x.clone()), ColumnData::F64(y.clone())],
+        };
+        write_columns(&p, &c).unwrap();
+        let back = read_columns(&p).unwrap();
+        assert_eq!(back, c);
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        // A non-finite value: named by row and column.
+        let mut bad = c.clone();
+        if let ColumnData::F64(v) = &mut bad.data[2] {
+            v[41] = f64::NAN;
+        }
+        write_columns(&p, &bad).unwrap();
+        let e = read_columns(&p).unwrap_err();
+        assert!(e.to_string().contains("row 42") && e.to_string().contains("y_mm"), "{e}");
+        // Not Parquet at all.
+        std::fs::write(&p, b"x_mm,y_mm\n1,2\n").unwrap();
+        assert!(read_columns(&p).unwrap_err().to_string().contains("Parquet"));
+    }
+}

@@ -1,0 +1,675 @@
+//! Streaming CSV: constant memory whatever the file size, reading overlapped with work.
+//!
+//! [`CsvStream::open`] starts a reader thread that reads the file in blocks of
+//! [`BLOCK_BYTES`], checks each block as it arrives (size limit, line length, NUL bytes, UTF-8;
+//! see [`crate::limits`]), cuts it at the last line end and indexes its data rows, then hands
+//! the [`Chunk`] over a channel two deep. So at most a few blocks are in memory at any time,
+//! and the next block is read and indexed while the caller parses (in parallel, with rayon) and
+//! processes the current one. Errors keep the file, line and column of the whole file.
+//!
+//! ```no_run
+//! # fn main() -> Result<(), truepos_io::InputError> {
+//! let mut s = truepos_io::stream::CsvStream::open("points.csv")?;
+//! let idx = [s.require("x_mm")?, s.require("y_mm")?, s.require("z_mm")?];
+//! while let Some(chunk) = s.next_chunk()? {
+//!     let xyz: Vec<[f64; 3]> = chunk.f64_rows(&idx)?;
+//!     // … process, write …
+//! }
+//! # Ok(()) }
+//! ```
+//!
+//! [`BackgroundWriter`] is the output side: formatted pieces go to a thread that writes them to
+//! an [`AtomicFile`], so writing overlaps the next chunk's work too.
+
+use crate::atomic::{AtomicFile, OutputError};
+use crate::csv::{index_rows, split_fields, Rows};
+use crate::limits::{self, LineGuard};
+use crate::InputError;
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+
+/// Bytes read per block (a chunk holds the complete lines of about one block).
+pub const BLOCK_BYTES: usize = 4 << 20;
+
+/// A block of complete lines with its data rows indexed.
+pub struct Chunk {
+    path: Arc<PathBuf>,
+    header: Arc<Vec<String>>,
+    text: String,
+    rows: Vec<usize>,
+    /// 1-based line number of the first byte of `text`.
+    first_line: usize,
+    /// Index (in the whole file) of the first data row.
+    first_row: usize,
+}
+
+impl Chunk {
+    pub fn n_rows(&self) -> usize {
+        self.rows.len()
+    }
+    /// Index in the whole file of this chunk's first data row.
+    pub fn first_row(&self) -> usize {
+        self.first_row
+    }
+    /// 1-based line number (in the whole file) of data row `r` of this chunk.
+    pub fn line_number(&self, r: usize) -> usize {
+        self.first_line + memchr::memchr_iter(b'\n', &self.text.as_bytes()[..self.rows[r]]).count()
+    }
+    /// The text of data row `r` without its line ending.
+    pub fn row_text(&self, r: usize) -> &str {
+        let s = self.rows[r];
+        let b = self.text.as_bytes();
+        let e = memchr::memchr(b'\n', &b[s..]).map_or(b.len(), |p| s + p);
+        let l = &self.text[s..e];
+        l.strip_suffix('\r').unwrap_or(l)
+    }
+    /// The fields of data row `r`, checked against the header width.
+    pub fn fields<'a>(&'a self, r: usize, buf: &mut Vec<(usize, usize)>) -> Result<Vec<&'a str>, InputError> {
+        let line = self.row_text(r);
+        split_fields(line, buf);
+        if buf.len() != self.header.len() {
+            return Err(InputError::at(
+                self.path.as_path(),
+                self.line_number(r),
+                Some(buf.len().min(self.header.len()) + 1),
+                format!("ragged row: {} fields, the header has {}", buf.len(), self.header.len()),
+            ));
+        }
+        Ok(buf.iter().map(|&(a, b)| &line[a..b]).collect())
+    }
+    /// Parse columns `idx` of every row (row-major), in parallel.
+    pub fn f64_columns_at(&self, idx: &[usize]) -> Result<Vec<f64>, InputError> {
+        let mut out = vec![0.0; self.rows.len() * idx.len()];
+        self.parse_into(idx, &mut out)?;
+        Ok(out)
+    }
+    /// One `[f64; K]` per row.
+    pub fn f64_rows<const K: usize>(&self, idx: &[usize; K]) -> Result<Vec<[f64; K]>, InputError> {
+        let mut out = vec![[0.0; K]; self.rows.len()];
+        self.parse_into(idx, out.as_flattened_mut())?;
+        Ok(out)
+    }
+    fn parse_into(&self, idx: &[usize], out: &mut [f64]) -> Result<(), InputError> {
+        let rows = Rows { text: self.text.as_bytes(), rows: &self.rows, width: self.header.len() };
+        rows.parse_into(idx, out)
+            .map_err(|e| e.into_input_error(self.path.as_path(), &self.header, |r| self.line_number(r)))
+    }
+}
+
+/// A CSV file read in chunks (see the module docs).
+pub struct CsvStream {
+    path: Arc<PathBuf>,
+    header: Arc<Vec<String>>,
+    /// Comment lines before the header (without `#`).
+    pub comments: Vec<String>,
+    header_line: usize,
+    rx: Receiver<Result<Block, InputError>>,
+    /// Unconsumed remainder of the block that held the header.
+    pending: Option<Block>,
+    next_row: usize,
+    reader: Option<JoinHandle<()>>,
+}
+
+/// Complete lines from the reader thread: text and the line number of its first byte.
+struct Block {
+    text: String,
+    first_line: usize,
+}
+
+fn reader_thread(path: PathBuf, mut file: std::fs::File, tx: SyncSender<Result<Block, InputError>>) {
+    let limit = limits::max_input_bytes();
+    let mut guard = LineGuard::default();
+    let mut carry: Vec<u8> = Vec::new();
+    let mut total: u64 = 0;
+    let mut line = 1usize;
+    loop {
+        let mut buf = Vec::with_capacity(BLOCK_BYTES + carry.len());
+        buf.append(&mut carry);
+        let start = buf.len();
+        buf.resize(start + BLOCK_BYTES, 0);
+        let mut filled = start;
+        let mut eof = false;
+        while filled < buf.len() {
+            match file.read(&mut buf[filled..]) {
+                Ok(0) => {
+                    eof = true;
+                    break;
+                }
+                Ok(n) => filled += n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => {
+                    let _ = tx.send(Err(InputError::in_file(&path, format!("cannot read: {e}"))));
+                    return;
+                }
+            }
+        }
+        buf.truncate(filled);
+        total += (filled - start) as u64;
+        if total > limit {
+            let _ = tx.send(Err(limits::too_large(&path, total, limit)));
+            return;
+        }
+        if let Err(e) = guard.scan(&path, &buf[start..], "CSV") {
+            let _ = tx.send(Err(e));
+            return;
+        }
+        // Cut after the last line end (everything at end of file).
+        let cut = if eof { buf.len() } else { memchr::memrchr(b'\n', &buf).map_or(0, |p| p + 1) };
+        carry = buf.split_off(cut);
+        if !buf.is_empty() {
+            let lines_here = memchr::memchr_iter(b'\n', &buf).count();
+            let text = match String::from_utf8(buf) {
+                Ok(t) => t,
+                Err(e) => {
+                    let ok = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+                    let l = line + memchr::memchr_iter(b'\n', ok).count();
+                    let _ =
+                        tx.send(Err(InputError::at(&path, l, None, "not valid UTF-8 text: not a CSV file")));
+                    return;
+                }
+            };
+            if tx.send(Ok(Block { text, first_line: line })).is_err() {
+                return; // the consumer stopped (an error, or it had enough)
+            }
+            line += lines_here;
+        }
+        if eof {
+            return;
+        }
+    }
+}
+
+impl CsvStream {
+    /// Open `path`, start the reader and read up to the header row.
+    pub fn open(path: impl AsRef<Path>) -> Result<Self, InputError> {
+        let path = path.as_ref().to_path_buf();
+        let cannot = |e: std::io::Error| InputError::in_file(&path, format!("cannot read: {e}"));
+        let file = std::fs::File::open(&path).map_err(cannot)?;
+        let meta = file.metadata().map_err(cannot)?;
+        if meta.is_dir() {
+            return Err(InputError::in_file(&path, "is a directory, not a file"));
+        }
+        limits::check_file_size(&path, &meta)?;
+        let (tx, rx) = sync_channel(2);
+        let p2 = path.clone();
+        let reader = std::thread::Builder::new()
+            .name("truepos-csv-reader".into())
+            .spawn(move || reader_thread(p2, file, tx))
+            .map_err(|e| InputError::in_file(&path, format!("cannot start the reader: {e}")))?;
+        let mut comments = Vec::new();
+        let mut bom_checked = false;
+        // Blocks until the header line.
+        loop {
+            let mut block = match rx.recv() {
+                Ok(b) => b?,
+                Err(_) => return Err(InputError::in_file(&path, "empty file: no header row")),
+            };
+            if !bom_checked {
+                bom_checked = true;
+                if let Some(rest) = block.text.strip_prefix('\u{feff}') {
+                    block.text = rest.to_string();
+                }
+            }
+            let mut pos = 0;
+            let mut line = block.first_line;
+            let bytes = block.text.as_bytes();
+            while pos < bytes.len() {
+                let end = memchr::memchr(b'\n', &bytes[pos..]).map_or(bytes.len(), |p| pos + p);
+                let raw = &block.text[pos..end];
+                let l = raw.strip_suffix('\r').unwrap_or(raw);
+                let trimmed = l.trim_start();
+                if trimmed.is_empty() {
+                } else if let Some(c) = trimmed.strip_prefix('#') {
+                    comments.push(c.trim().to_string());
+                } else {
+                    let mut f = Vec::new();
+                    split_fields(l, &mut f);
+                    let names: Vec<String> = f.iter().map(|&(a, b)| l[a..b].to_string()).collect();
+                    for (i, n) in names.iter().enumerate() {
+                        if n.is_empty() {
+                            return Err(InputError::at(
+                                &path,
+                                line,
+                                Some(i + 1),
+                                "empty column name in the header",
+                            ));
+                        }
+                        if names[..i].contains(n) {
+                            return Err(InputError::at(
+                                &path,
+                                line,
+                                Some(i + 1),
+                                format!("duplicate column '{n}' in the header"),
+                            ));
+                        }
+                    }
+                    let rest = block.text[(end + 1).min(bytes.len())..].to_string();
+                    let pending = (!rest.is_empty()).then_some(Block { text: rest, first_line: line + 1 });
+                    return Ok(Self {
+                        path: Arc::new(path),
+                        header: Arc::new(names),
+                        comments,
+                        header_line: line,
+                        rx,
+                        pending,
+                        next_row: 0,
+                        reader: Some(reader),
+                    });
+                }
+                pos = end + 1;
+                line += 1;
+            }
+        }
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+    pub fn header(&self) -> &[String] {
+        &self.header
+    }
+    /// 1-based line of the header row.
+    pub fn header_line(&self) -> usize {
+        self.header_line
+    }
+    /// Index of a column by name.
+    pub fn column(&self, name: &str) -> Option<usize> {
+        self.header.iter().position(|h| h == name)
+    }
+    /// Index of a required column, or an error naming it.
+    pub fn require(&self, name: &str) -> Result<usize, InputError> {
+        self.column(name).ok_or_else(|| {
+            InputError::at(
+                self.path.as_path(),
+                self.header_line,
+                None,
+                format!("missing required column '{name}' (columns: {})", self.header.join(",")),
+            )
+        })
+    }
+
+    /// The next chunk of data rows (`None` at the end of the file). Chunks without data rows
+    /// (only comments or blank lines) are skipped.
+    pub fn next_chunk(&mut self) -> Result<Option<Chunk>, InputError> {
+        loop {
+            let block = match self.pending.take() {
+                Some(b) => b,
+                None => match self.rx.recv() {
+                    Ok(b) => b?,
+                    Err(_) => return Ok(None),
+                },
+            };
+            let mut rows = Vec::with_capacity(block.text.len() / 24 + 1);
+            if let Some(bad) = index_rows(&block.text, 0, block.text.len(), &mut rows) {
+                let line =
+                    block.first_line + memchr::memchr_iter(b'\n', &block.text.as_bytes()[..bad]).count();
+                return Err(limits::line_too_long(&self.path, line));
+            }
+            if rows.is_empty() {
+                continue;
+            }
+            let first_row = self.next_row;
+            self.next_row += rows.len();
+            return Ok(Some(Chunk {
+                path: self.path.clone(),
+                header: self.header.clone(),
+                text: block.text,
+                rows,
+                first_line: block.first_line,
+                first_row,
+            }));
+        }
+    }
+}
+
+impl Drop for CsvStream {
+    fn drop(&mut self) {
+        // The reader ends at its next send (the receiver is gone). It is not waited for: on a
+        // pipe it may be blocked in a read that only the writer's end can finish.
+        drop(self.reader.take());
+    }
+}
+
+/// Writes byte pieces to an [`AtomicFile`] on a thread of its own, two pieces deep, so the
+/// caller computes the next piece while the last one is written. [`finish`](Self::finish)
+/// returns the file for [`AtomicFile::commit`]; dropping the writer unfinished removes the
+/// temporary file.
+pub struct BackgroundWriter {
+    tx: Option<SyncSender<Vec<u8>>>,
+    handle: Option<JoinHandle<(AtomicFile, std::io::Result<()>)>>,
+    path: PathBuf,
+}
+
+impl BackgroundWriter {
+    pub fn new(mut file: AtomicFile) -> Self {
+        let path = file.path().to_path_buf();
+        let (tx, rx) = sync_channel::<Vec<u8>>(2);
+        let handle = std::thread::spawn(move || {
+            let mut r = Ok(());
+            for piece in rx {
+                if r.is_ok() {
+                    r = file.write_all(&piece);
+                }
+            }
+            (file, r)
+        });
+        Self { tx: Some(tx), handle: Some(handle), path }
+    }
+
+    /// Queue `piece` for writing. A failed earlier write is reported here (or at `finish`).
+    pub fn send(&mut self, piece: Vec<u8>) -> Result<(), OutputError> {
+        let sent = self.tx.as_ref().map(|tx| tx.send(piece).is_ok()).unwrap_or(false);
+        if sent {
+            return Ok(());
+        }
+        self.finish_inner().map(|_| ())
+    }
+
+    /// Wait for every queued piece to be written; the file, ready to commit.
+    pub fn finish(mut self) -> Result<AtomicFile, OutputError> {
+        self.finish_inner()
+    }
+
+    fn finish_inner(&mut self) -> Result<AtomicFile, OutputError> {
+        self.tx = None;
+        let h = self.handle.take().ok_or_else(|| OutputError::Io {
+            path: self.path.clone(),
+            source: std::io::Error::other("writer already finished"),
+        })?;
+        match h.join() {
+            Ok((file, Ok(()))) => Ok(file),
+            Ok((_file, Err(source))) => Err(OutputError::Io { path: self.path.clone(), source }),
+            Err(_) => Err(OutputError::Io {
+                path: self.path.clone(),
+                source: std::io::Error::other("the writer thread panicked"),
+            }),
+        }
+    }
+}
+
+impl Drop for BackgroundWriter {
+    fn drop(&mut self) {
+        self.tx = None;
+        if let Some(h) = self.handle.take() {
+            // The file is dropped with the thread's result: the temporary is removed.
+            let _ = h.join();
+        }
+    }
+}
+
+/// What [`rewrite_points`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RewriteSummary {
+    pub n_points: usize,
+    pub n_chunks: usize,
+}
+
+/// Failure of [`rewrite_points`]: bad input (located), an unwritable output, or the caller's
+/// own error for a point (turned into an input error on that point's line).
+#[derive(Debug, thiserror::Error)]
+pub enum RewriteError {
+    #[error(transparent)]
+    Input(#[from] InputError),
+    #[error(transparent)]
+    Output(#[from] OutputError),
+}
+
+/// Stream a point CSV through `f` into `output`: the input with `x_mm,y_mm,z_mm` replaced by the
+/// points as `f` leaves them and the columns `extra` (three values per point from `f`, e.g.
+/// `dx_um,dy_um,dz_um`) replaced where the input has them or appended; every other column is
+/// passed through unchanged. Constant memory: one chunk of about [`BLOCK_BYTES`] at a time,
+/// the next one read while this one is parsed (in parallel), transformed and formatted (in
+/// parallel), and the previous one written.
+///
+/// `f(first_row, points, extra)` is called once per chunk in file order; it returns
+/// `Err((row_in_chunk, message))` to refuse a point, which becomes an input error on that point's
+/// line. The output is atomic: nothing is left at `output` unless every row was written.
+pub fn rewrite_points<F>(
+    input: &Path,
+    output: &Path,
+    extra: [&str; 3],
+    fmt: crate::num::NumFormat,
+    mut f: F,
+) -> Result<RewriteSummary, RewriteError>
+where
+    F: FnMut(usize, &mut [truepos_math::Point3], &mut [[f64; 3]]) -> Result<(), (usize, String)>,
+{
+    let mut s = CsvStream::open(input)?;
+    let xyz = [s.require("x_mm")?, s.require("y_mm")?, s.require("z_mm")?];
+    let existing: Vec<Option<usize>> = extra.iter().map(|n| s.column(n)).collect();
+    let width = s.header().len();
+    // Output column c: what to write.
+    #[derive(Clone, Copy)]
+    enum Src {
+        Point(usize),
+        Extra(usize),
+        Pass(usize),
+    }
+    let mut plan: Vec<Src> = (0..width)
+        .map(|c| {
+            if let Some(k) = xyz.iter().position(|&x| x == c) {
+                Src::Point(k)
+            } else if let Some(k) = existing.iter().position(|&e| e == Some(c)) {
+                Src::Extra(k)
+            } else {
+                Src::Pass(c)
+            }
+        })
+        .collect();
+    let mut names: Vec<&str> = s.header().iter().map(String::as_str).collect();
+    for (k, e) in existing.iter().enumerate() {
+        if e.is_none() {
+            plan.push(Src::Extra(k));
+            names.push(extra[k]);
+        }
+    }
+    let file = AtomicFile::create(output)?;
+    let mut head = crate::csv::CsvWriter::new(Vec::new()).with_format(fmt);
+    head.header(&names).map_err(|e| OutputError::Io { path: output.to_path_buf(), source: e })?;
+    let mut w = BackgroundWriter::new(file);
+    w.send(head.into_inner())?;
+    let mut n_points = 0;
+    let mut n_chunks = 0;
+    while let Some(chunk) = s.next_chunk()? {
+        let rows: Vec<[f64; 3]> = chunk.f64_rows(&xyz)?;
+        // `[f64; 3]` and `Point3` have the same layout: this collect reuses the allocation.
+        let mut pts: Vec<truepos_math::Point3> = rows.into_iter().map(truepos_math::Point3::from).collect();
+        let mut ex = vec![[0.0; 3]; pts.len()];
+        f(chunk.first_row(), &mut pts, &mut ex)
+            .map_err(|(r, msg)| InputError::at(input, chunk.line_number(r), None, msg))?;
+        let pieces = crate::csv::format_rows_parallel(chunk.n_rows(), fmt, |r, cw| {
+            let mut buf = Vec::with_capacity(width);
+            let fields = chunk.fields(r, &mut buf)?;
+            let io = |e: std::io::Error| InputError::new(format!("formatting: {e}"));
+            for src in &plan {
+                match *src {
+                    Src::Point(k) => cw.field_f64(pts[r][k]).map_err(io)?,
+                    Src::Extra(k) => cw.field_f64(ex[r][k]).map_err(io)?,
+                    Src::Pass(c) => cw.field_str(fields[c]).map_err(io)?,
+                }
+            }
+            cw.end_row().map_err(io)
+        })?;
+        for p in pieces {
+            w.send(p)?;
+        }
+        n_points += chunk.n_rows();
+        n_chunks += 1;
+    }
+    w.finish()?.commit()?;
+    Ok(RewriteSummary { n_points, n_chunks })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+
+    #[test]
+    fn chunks_cover_every_row_with_file_line_numbers() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut text = String::from("\u{feff}# made by a test\n\nx_mm,y_mm,z_mm,id\n");
+        let n = 300_000; // several blocks
+        for i in 0..n {
+            if i % 1000 == 0 {
+                text.push_str("# a comment inside\n");
+            }
+            text.push_str(&format!("{i}.5,{},{},P{i}\r\n", i * 2, -(i as f64) * 0.25));
+        }
+        assert!(text.len() > 2 * BLOCK_BYTES);
+        let p = write(dir.path(), "big.csv", &text);
+        let mut s = CsvStream::open(&p).unwrap();
+        assert_eq!(s.comments, vec!["made by a test"]);
+        assert_eq!(s.header_line(), 3);
+        let idx = [s.require("x_mm").unwrap(), s.require("y_mm").unwrap(), s.require("z_mm").unwrap()];
+        let mut seen = 0;
+        let mut chunks = 0;
+        while let Some(c) = s.next_chunk().unwrap() {
+            assert_eq!(c.first_row(), seen);
+            let v = c.f64_rows(&idx).unwrap();
+            for (r, row) in v.iter().enumerate() {
+                let i = seen + r;
+                assert_eq!(*row, [i as f64 + 0.5, (i * 2) as f64, -(i as f64) * 0.25]);
+            }
+            // Line of row r: header line 3, one comment line per 1000 rows before it.
+            let r = c.n_rows() - 1;
+            let i = seen + r;
+            assert_eq!(c.line_number(r), 3 + i + 1 + i / 1000 + 1);
+            let mut buf = Vec::new();
+            assert_eq!(c.fields(r, &mut buf).unwrap()[3], format!("P{i}"));
+            seen += c.n_rows();
+            chunks += 1;
+        }
+        assert_eq!(seen, n);
+        assert!(chunks >= 3);
+    }
+
+    #[test]
+    fn errors_are_located_in_the_whole_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut text = String::from("x_mm,y_mm\n");
+        for i in 0..400_000 {
+            text.push_str(&format!("{i},{i}.25\n"));
+        }
+        text.push_str("1,abc\n");
+        let p = write(dir.path(), "bad.csv", &text);
+        let mut s = CsvStream::open(&p).unwrap();
+        let idx = [0, 1];
+        let e = loop {
+            match s.next_chunk().unwrap() {
+                Some(c) => {
+                    if let Err(e) = c.f64_rows(&idx) {
+                        break e;
+                    }
+                }
+                None => panic!("no error"),
+            }
+        };
+        assert_eq!((e.line, e.column), (Some(400_002), Some(2)));
+        assert!(e.to_string().contains("y_mm") && e.to_string().contains("abc"), "{e}");
+
+        let p = write(dir.path(), "empty.csv", "# nothing\n\n");
+        assert!(CsvStream::open(&p).err().unwrap().to_string().contains("no header"));
+        let p = write(dir.path(), "dup.csv", "a,a\n1,2\n");
+        assert!(CsvStream::open(&p).err().unwrap().to_string().contains("duplicate"));
+        let p = write(dir.path(), "m.csv", "a,b\n1,2\n");
+        assert!(CsvStream::open(&p).unwrap().require("z").unwrap_err().to_string().contains("missing"));
+    }
+
+    #[test]
+    fn dev_zero_and_long_lines_end_at_once() {
+        if Path::new("/dev/zero").exists() {
+            let t = std::time::Instant::now();
+            let e = CsvStream::open("/dev/zero").err().unwrap();
+            assert!(e.to_string().contains("binary"), "{e}");
+            assert!(t.elapsed().as_secs_f64() < 1.0);
+        } else {
+            eprintln!("SKIPPED: no /dev/zero");
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let mut text = String::from("a,b\n1,2\n");
+        text.push_str(&"9".repeat(limits::MAX_LINE_BYTES + 10));
+        text.push_str("\n3,4\n");
+        let p = write(dir.path(), "long.csv", &text);
+        // Found by the reader as the block arrives: at open (here) or at a later chunk.
+        let e = match CsvStream::open(&p) {
+            Err(e) => e,
+            Ok(mut s) => loop {
+                match s.next_chunk() {
+                    Err(e) => break e,
+                    Ok(Some(_)) => {}
+                    Ok(None) => panic!("no error"),
+                }
+            },
+        };
+        assert_eq!(e.line, Some(3));
+        assert!(e.to_string().contains("longer than"), "{e}");
+    }
+
+    #[test]
+    fn rewrite_points_replaces_adds_and_passes_through() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut text = String::from("# c\nid,z_mm,x_mm,y_mm,dy_um,note\n");
+        let n = 250_000;
+        for i in 0..n {
+            text.push_str(&format!("P{i},{}.5,{i},0.1,9,\"a,{i}\"\n", i % 10));
+        }
+        let inp = write(dir.path(), "in.csv", &text);
+        let out = dir.path().join("out.csv");
+        let sum =
+            rewrite_points(&inp, &out, ["dx_um", "dy_um", "dz_um"], Default::default(), |first, p, e| {
+                for (k, (q, d)) in p.iter_mut().zip(e.iter_mut()).enumerate() {
+                    q.x += 1.0;
+                    *d = [(first + k) as f64, 0.25, -1.0];
+                }
+                Ok(())
+            })
+            .unwrap();
+        assert_eq!(sum.n_points, n);
+        assert!(sum.n_chunks >= 2);
+        let t = crate::csv::Table::read(&out).unwrap();
+        assert_eq!(t.header, vec!["id", "z_mm", "x_mm", "y_mm", "dy_um", "note", "dx_um", "dz_um"]);
+        assert_eq!(t.n_rows(), n);
+        let r = n - 7;
+        assert_eq!(t.row_text(r), format!("P{r},{}.5,{},0.1,0.25,\"a,{r}\",{r},-1", r % 10, r + 1));
+        // A refused point: an input error on its line; no output left behind.
+        std::fs::remove_file(&out).unwrap();
+        let e = rewrite_points(&inp, &out, ["dx_um", "dy_um", "dz_um"], Default::default(), |first, _, _| {
+            if first > 0 {
+                Err((3, "outside the map".into()))
+            } else {
+                Ok(())
+            }
+        })
+        .unwrap_err();
+        let RewriteError::Input(e) = e else { panic!("{e}") };
+        assert!(e.line.unwrap() > 3 && e.to_string().contains("outside the map"), "{e}");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn background_writer_writes_in_order_and_cleans_up() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("out.txt");
+        let mut w = BackgroundWriter::new(AtomicFile::create(&p).unwrap());
+        for i in 0..100 {
+            w.send(format!("{i}\n").into_bytes()).unwrap();
+        }
+        w.finish().unwrap().commit().unwrap();
+        let want: String = (0..100).map(|i| format!("{i}\n")).collect();
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), want);
+        {
+            let mut w = BackgroundWriter::new(AtomicFile::create(dir.path().join("gone.txt")).unwrap());
+            w.send(b"partial".to_vec()).unwrap();
+        }
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+}

@@ -1,0 +1,119 @@
+//! What a CMM behind the I++ DME server must do: the [`Cmm`] trait.
+//!
+//! Everything here is in the machine frame, millimetres, tip-centre positions. The server does the
+//! protocol, the coordinate systems, the tool table and the PtMeas/scan geometry of the
+//! specification; the machine moves, reports contacts and follows surfaces.
+
+use thiserror::Error;
+use truepos_math::{Point3, Vector3};
+
+/// A failure inside the machine, mapped by the server to the specification's error numbers.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum MachineError {
+    /// The move would leave the machine volume (1008).
+    #[error("target outside the machine volume")]
+    OutOfVolume,
+    /// The stylus touched the part during a positioning move (1001); the machine stopped at
+    /// `stopped_mm`.
+    #[error("the stylus touched the part during a positioning move at {stopped_mm:?}")]
+    IllegalTouch { stopped_mm: Point3 },
+    /// Any other machine failure (1011).
+    #[error("the machine cannot move: {0}")]
+    Unable(String),
+}
+
+/// A contact of the stylus ball with the material.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Contact {
+    /// Tip-centre position at the contact.
+    pub tip_center_mm: Point3,
+    /// Unit surface normal at the contact (out of the material).
+    pub normal: Vector3,
+}
+
+/// A scan path the machine follows in contact, with the surface found by a first probing.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ScanPath {
+    /// Circle about `axis` through `center`: the tip centre keeps contact while the start contact
+    /// is rotated about the axis by angles `0, step, 2·step, …` up to `delta` (rad, signed).
+    Circle { center: Point3, axis: Vector3, delta_rad: f64, step_rad: f64 },
+    /// Straight line in the plane through the start contact spanned by `direction` and the start
+    /// normal; points every `step_mm` until `length_mm` from the start contact.
+    Line { direction: Vector3, length_mm: f64, step_mm: f64 },
+    /// Unknown contour (specification 11.3): from the start contact, step `step_mm` along the
+    /// surface, the tip centre staying on `guide`, first towards `toward`, until `stop` is met
+    /// (evaluated on the surface points, tip centre − r·normal) or `max_length_mm` is travelled
+    /// (an error).
+    Contour { guide: Guide, toward: Vector3, step_mm: f64, stop: Stop, max_length_mm: f64 },
+}
+
+/// The surface the tip centre stays on during an unknown-contour scan.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Guide {
+    /// The plane through the start contact with this unit normal.
+    Plane { normal: Vector3 },
+    /// The cylinder about this axis through the start contact.
+    Cylinder { point: Point3, axis: Vector3 },
+}
+
+/// When an unknown-contour scan ends.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Stop {
+    /// At the `count`-th entry into the sphere, where the distance to its centre is minimal
+    /// (a start inside the sphere must leave it first).
+    Sphere { center: Point3, radius: f64, count: u32 },
+    /// At the `count`-th crossing of the plane, checked once `arm_mm` has been travelled.
+    Plane { point: Point3, normal: Vector3, count: u32, arm_mm: f64 },
+    /// At the `count`-th crossing of the cylinder's surface (a start inside must leave first).
+    Cylinder { point: Point3, axis: Vector3, radius: f64, count: u32 },
+}
+
+/// One scanned point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScanPoint {
+    pub tip_center_mm: Point3,
+    pub normal: Vector3,
+    /// Quality 0 (good) … 100 (bad), as in the specification's `Q()`.
+    pub quality: f64,
+}
+
+/// A coordinate measuring machine behind the protocol.
+pub trait Cmm: Send {
+    /// One line describing the machine (for logs and `GetXtdErrStatus`).
+    fn describe(&self) -> String;
+    /// The reachable box of tip-centre positions (min, max corners).
+    fn volume(&self) -> (Point3, Point3);
+    /// Home the axes; returns the tip-centre position after homing.
+    fn home(&mut self) -> Result<Point3, MachineError>;
+    /// Where the tip centre is.
+    fn position(&self) -> Point3;
+    /// A positioning move with a ball of `tip_radius_mm` (0 for a tool that cannot touch). A touch
+    /// of the part on the way stops the machine and is [`MachineError::IllegalTouch`].
+    fn move_to(&mut self, target_mm: Point3, tip_radius_mm: f64) -> Result<(), MachineError>;
+    /// A probing move of the tip centre from `from_mm` to `to_mm` (straight line): the first
+    /// touch of the ball on the material is latched and the machine stops there. `None` if the
+    /// move ends without contact (the machine is then at `to_mm`). `nominal_mm` and
+    /// `nominal_normal` are the nominal surface point and the probing direction reversed (a
+    /// machine without a part model touches the ideal plane through them).
+    fn probe(
+        &mut self,
+        from_mm: Point3,
+        to_mm: Point3,
+        tip_radius_mm: f64,
+        nominal_mm: Point3,
+        nominal_normal: Vector3,
+    ) -> Result<Option<Contact>, MachineError>;
+    /// Follow `path` in contact from `start` (a contact found by probing); the points are
+    /// appended to `out` (the first is at the start contact). Stops early, without error, where
+    /// the surface ends.
+    fn scan(
+        &mut self,
+        start: Contact,
+        path: &ScanPath,
+        tip_radius_mm: f64,
+        out: &mut Vec<ScanPoint>,
+    ) -> Result<(), MachineError>;
+    /// Stop all motion now (client gone, AbortE). Moves are instant on the virtual machine, so
+    /// this only has to leave it in a defined, stopped state.
+    fn stop(&mut self);
+}

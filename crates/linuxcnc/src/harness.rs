@@ -1,0 +1,470 @@
+//! A simulated LinuxCNC for tests: [`SimLinuxCnc::start`] copies the test configuration
+//! (`tests/lcnc/`: a 3-axis machine with an ideal servo loop, a 1 ms servo period and a virtual
+//! reference sphere on the probe input) into a temporary directory owned by an unprivileged user
+//! (LinuxCNC refuses to run as root; `TRUEPOS_LINUXCNC_USER`, default `lcnc`), picks a free
+//! loopback port for linuxcncrsh, starts `linuxcnc` headless in its own session and waits for
+//! linuxcncrsh to greet. [`SimLinuxCnc::arm`] does what an operator does at the machine (release
+//! the e-stop, switch on, home) — truepos itself never does.
+//!
+//! Only one LinuxCNC can run on a machine (a second start kills the first): every
+//! [`SimLinuxCnc`] holds a process-wide lock for its lifetime, and dropping it (also on a
+//! panic) stops LinuxCNC: SIGTERM to its `linuxcncrsh` (the `linuxcnc` script then runs its own
+//! cleanup), then SIGTERM/SIGKILL to the process group it was started in.
+//!
+//! When LinuxCNC is not installed or cannot start, [`SimLinuxCnc::start`] returns
+//! [`Unavailable`] with the reason: tests print `SKIPPED: …` and return.
+
+use std::fs;
+use std::io::{BufRead, BufReader, Write};
+use std::net::{TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+use truepos_math::Point3;
+
+const INI: &str = include_str!("../tests/lcnc/truepos_sim.ini");
+const HAL: &str = include_str!("../tests/lcnc/truepos_sim.hal");
+const TBL: &str = include_str!("../tests/lcnc/sim_mm.tbl");
+
+static ONE_LINUXCNC: Mutex<()> = Mutex::new(());
+
+/// Why the simulated LinuxCNC is not available (the test is skipped, loudly).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Unavailable(pub String);
+
+impl std::fmt::Display for Unavailable {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+/// The virtual reference sphere wired to the probe input (the HAL truth).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SphereTruth {
+    pub center_mm: Point3,
+    pub radius_mm: f64,
+    /// The probe trips when the tip centre is within `radius + tip_radius` of the centre.
+    pub tip_radius_mm: f64,
+}
+
+impl Default for SphereTruth {
+    /// A 25 mm sphere at (120, 45, 30) probed with a 3 mm ball.
+    fn default() -> Self {
+        SphereTruth { center_mm: Point3::new(120.0, 45.0, 30.0), radius_mm: 12.5, tip_radius_mm: 1.5 }
+    }
+}
+
+/// A running simulated LinuxCNC (stopped on drop).
+pub struct SimLinuxCnc {
+    child: Option<Child>,
+    dir: PathBuf,
+    port: u16,
+    sphere: SphereTruth,
+    /// The user and the runuser program when running as root.
+    run_as: Option<(String, PathBuf)>,
+    _exclusive: MutexGuard<'static, ()>,
+}
+
+fn find_program(name: &str) -> Option<PathBuf> {
+    let path = std::env::var_os("PATH").unwrap_or_default();
+    std::env::split_paths(&path)
+        .chain(
+            ["/usr/local/sbin", "/usr/local/bin", "/usr/sbin", "/usr/bin", "/sbin", "/bin"]
+                .map(PathBuf::from),
+        )
+        .map(|d| d.join(name))
+        .find(|p| p.is_file())
+}
+
+fn my_uid() -> Option<u32> {
+    let s = fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("Uid:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+fn id_of(user: &str, flag: &str) -> Option<u32> {
+    let out = Command::new("id").args([flag, user]).output().ok()?;
+    if !out.status.success() {
+        return None;
+    }
+    String::from_utf8_lossy(&out.stdout).trim().parse().ok()
+}
+
+/// Processes of session `sid`: (pid, command name).
+fn session_processes(sid: u32) -> Vec<(u32, String)> {
+    let mut out = vec![];
+    let Ok(rd) = fs::read_dir("/proc") else { return out };
+    for e in rd.flatten() {
+        let Some(pid) = e.file_name().to_str().and_then(|s| s.parse::<u32>().ok()) else { continue };
+        let Ok(stat) = fs::read_to_string(e.path().join("stat")) else { continue };
+        let (Some(open), Some(close)) = (stat.find('('), stat.rfind(')')) else { continue };
+        let comm = stat[open + 1..close].to_string();
+        let fields: Vec<&str> = stat[close + 1..].split_whitespace().collect();
+        // state ppid pgrp session …
+        if fields.get(3).and_then(|s| s.parse::<u32>().ok()) == Some(sid) {
+            out.push((pid, comm));
+        }
+    }
+    out
+}
+
+fn signal(target: &str, sig: &str) {
+    let _ =
+        Command::new("kill").args([sig, "--", target]).stdout(Stdio::null()).stderr(Stdio::null()).status();
+}
+
+fn any_process_named(name: &str) -> bool {
+    let Ok(rd) = fs::read_dir("/proc") else { return false };
+    rd.flatten().any(|e| fs::read_to_string(e.path().join("comm")).map(|c| c.trim() == name).unwrap_or(false))
+}
+
+/// Stop LinuxCNCs left by a test process that was killed before it could stop them (their
+/// configuration directory names a process id that no longer exists): SIGTERM to their
+/// `linuxcncrsh`, found by that directory in its command line.
+fn reap_orphans() {
+    let Ok(rd) = fs::read_dir("/proc") else { return };
+    let marker = format!("{}/truepos-lcnc-", std::env::temp_dir().display());
+    let mut reaped = false;
+    for e in rd.flatten() {
+        let Some(pid) = e.file_name().to_str().and_then(|s| s.parse::<u32>().ok()) else { continue };
+        if fs::read_to_string(e.path().join("comm")).map(|c| c.trim() != "linuxcncrsh").unwrap_or(true) {
+            continue;
+        }
+        let Ok(cmdline) = fs::read(e.path().join("cmdline")) else { continue };
+        let cmdline = String::from_utf8_lossy(&cmdline).replace('\0', " ");
+        let Some(at) = cmdline.find(&marker) else { continue };
+        let owner: String = cmdline[at + marker.len()..].chars().take_while(|c| c.is_ascii_digit()).collect();
+        if owner.is_empty() || Path::new("/proc").join(&owner).exists() {
+            continue;
+        }
+        eprintln!("harness: stopping a LinuxCNC left by the killed test process {owner} (linuxcncrsh {pid})");
+        signal(&pid.to_string(), "-TERM");
+        reaped = true;
+    }
+    if reaped {
+        let t = Instant::now();
+        while any_process_named("linuxcnc") && t.elapsed() < Duration::from_secs(10) {
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+}
+
+fn set_key(text: &str, key: &str, value: &str) -> String {
+    text.lines()
+        .map(|l| {
+            let t = l.trim_start();
+            if t.starts_with(key) && t[key.len()..].trim_start().starts_with('=') {
+                format!("{key} = {value}")
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+        + "\n"
+}
+
+fn tail(path: &Path, n: usize) -> String {
+    let s = fs::read_to_string(path).unwrap_or_default();
+    let lines: Vec<&str> = s.lines().collect();
+    lines[lines.len().saturating_sub(n)..].join("\n")
+}
+
+/// A plain linuxcncrsh client for the harness's operator actions.
+struct Operator {
+    reader: BufReader<TcpStream>,
+    writer: TcpStream,
+}
+
+impl Operator {
+    fn connect(port: u16, timeout: Duration) -> Result<Operator, String> {
+        let s =
+            TcpStream::connect_timeout(&([127, 0, 0, 1], port).into(), timeout).map_err(|e| e.to_string())?;
+        s.set_read_timeout(Some(timeout)).map_err(|e| e.to_string())?;
+        let writer = s.try_clone().map_err(|e| e.to_string())?;
+        let mut op = Operator { reader: BufReader::new(s), writer };
+        let hello = op.cmd("hello EMC truepos-test-operator 1.1")?;
+        if !hello.starts_with("HELLO ACK") {
+            return Err(format!("greeting answered `{hello}`"));
+        }
+        op.send("set echo off")?;
+        op.send("set verbose on")?;
+        loop {
+            if op.line()? == "SET VERBOSE ACK" {
+                break;
+            }
+        }
+        op.expect("set enable EMCTOO", "SET ENABLE ACK")?;
+        Ok(op)
+    }
+
+    fn send(&mut self, l: &str) -> Result<(), String> {
+        self.writer.write_all(format!("{l}\r\n").as_bytes()).map_err(|e| e.to_string())
+    }
+
+    fn line(&mut self) -> Result<String, String> {
+        loop {
+            let mut s = String::new();
+            if self.reader.read_line(&mut s).map_err(|e| e.to_string())? == 0 {
+                return Err("connection closed".into());
+            }
+            let t = s.trim();
+            if !t.is_empty() {
+                return Ok(t.to_string());
+            }
+        }
+    }
+
+    fn cmd(&mut self, l: &str) -> Result<String, String> {
+        self.send(l)?;
+        self.line()
+    }
+
+    fn expect(&mut self, l: &str, answer: &str) -> Result<(), String> {
+        let a = self.cmd(l)?;
+        if a == answer {
+            Ok(())
+        } else {
+            Err(format!("`{l}` answered `{a}`"))
+        }
+    }
+}
+
+impl SimLinuxCnc {
+    /// Start LinuxCNC with the test configuration and the given sphere; waits (≤ 30 s) until
+    /// linuxcncrsh greets. Blocks while another [`SimLinuxCnc`] of this process runs.
+    pub fn start(sphere: SphereTruth) -> Result<SimLinuxCnc, Unavailable> {
+        let guard = ONE_LINUXCNC.lock().unwrap_or_else(|p| p.into_inner());
+        let un = |s: String| Unavailable(s);
+        let linuxcnc = find_program("linuxcnc")
+            .ok_or_else(|| un("LinuxCNC is not installed (apt-get install linuxcnc-uspace)".into()))?;
+        let setsid = find_program("setsid").ok_or_else(|| un("setsid (util-linux) not found".into()))?;
+        let uid = my_uid().ok_or_else(|| un("cannot read this process's uid".into()))?;
+        let run_as = if uid == 0 {
+            let user = std::env::var("TRUEPOS_LINUXCNC_USER").unwrap_or_else(|_| "lcnc".into());
+            let (Some(u), Some(g)) = (id_of(&user, "-u"), id_of(&user, "-g")) else {
+                return Err(un(format!(
+                    "running as root and the user `{user}` to run LinuxCNC does not exist (useradd -m {user})"
+                )));
+            };
+            let runuser =
+                find_program("runuser").ok_or_else(|| un("runuser (util-linux) not found".into()))?;
+            Some((user, u, g, runuser))
+        } else {
+            None
+        };
+        reap_orphans();
+        // Another LinuxCNC (not ours) would be killed by our start: wait for it, then give up.
+        let lock = std::env::temp_dir().join("linuxcnc.lock");
+        let t = Instant::now();
+        while lock.exists() && any_process_named("linuxcnc") {
+            if t.elapsed() > Duration::from_secs(30) {
+                return Err(un(format!("another LinuxCNC is running on this machine ({})", lock.display())));
+            }
+            std::thread::sleep(Duration::from_millis(200));
+        }
+        let port = TcpListener::bind("127.0.0.1:0")
+            .and_then(|l| l.local_addr())
+            .map(|a| a.port())
+            .map_err(|e| un(format!("no free port: {e}")))?;
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_nanos())
+            .unwrap_or(0);
+        let dir = std::env::temp_dir().join(format!("truepos-lcnc-{}-{nanos}", std::process::id()));
+        let write = |name: &str, text: &str| fs::write(dir.join(name), text);
+        let c = sphere.center_mm;
+        let mut ini = set_key(INI, "DISPLAY", &format!("linuxcncrsh --port {port}"));
+        for (k, v) in [
+            ("OFFSET_X", -c.x),
+            ("OFFSET_Y", -c.y),
+            ("OFFSET_Z", -c.z),
+            ("TRIP_RADIUS", sphere.radius_mm + sphere.tip_radius_mm),
+        ] {
+            ini = set_key(&ini, k, &format!("{v}"));
+        }
+        fs::create_dir_all(&dir)
+            .and_then(|_| write("truepos_sim.ini", &ini))
+            .and_then(|_| write("truepos_sim.hal", HAL))
+            .and_then(|_| write("sim_mm.tbl", TBL))
+            .and_then(|_| write("sim_mm.var", ""))
+            .map_err(|e| un(format!("cannot write the configuration in {}: {e}", dir.display())))?;
+        if let Some((_, u, g, _)) = &run_as {
+            for e in fs::read_dir(&dir).map_err(|e| un(e.to_string()))?.flatten() {
+                let _ = std::os::unix::fs::chown(e.path(), Some(*u), Some(*g));
+            }
+            std::os::unix::fs::chown(&dir, Some(*u), Some(*g)).map_err(|e| un(format!("chown: {e}")))?;
+        }
+        let log = fs::File::create(dir.join("linuxcnc-output.txt")).map_err(|e| un(e.to_string()))?;
+        let log2 = log.try_clone().map_err(|e| un(e.to_string()))?;
+        let ini_path = dir.join("truepos_sim.ini");
+        let mut cmd = Command::new(setsid);
+        if let Some((user, _, _, runuser)) = &run_as {
+            cmd.arg(runuser).args(["-u", user, "--"]);
+        }
+        cmd.arg(&linuxcnc).arg(&ini_path);
+        cmd.current_dir(&dir)
+            .env_remove("DISPLAY")
+            .env("PATH", "/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin")
+            .stdin(Stdio::null())
+            .stdout(Stdio::from(log))
+            .stderr(Stdio::from(log2));
+        let child = cmd.spawn().map_err(|e| un(format!("cannot start linuxcnc: {e}")))?;
+        let run_as = run_as.map(|(user, _, _, runuser)| (user, runuser));
+        let mut sim = SimLinuxCnc { child: Some(child), dir, port, sphere, run_as, _exclusive: guard };
+        sim.wait_for_greeting()?;
+        Ok(sim)
+    }
+
+    fn wait_for_greeting(&mut self) -> Result<(), Unavailable> {
+        let t = Instant::now();
+        let mut last = String::new();
+        while t.elapsed() < Duration::from_secs(30) {
+            if let Some(c) = self.child.as_mut() {
+                if let Ok(Some(status)) = c.try_wait() {
+                    let home_log = Path::new("/home")
+                        .join(std::env::var("TRUEPOS_LINUXCNC_USER").unwrap_or_else(|_| "lcnc".into()))
+                        .join("linuxcnc_print.txt");
+                    let why = format!(
+                        "LinuxCNC exited at start-up ({status}): {}\n{}",
+                        tail(&self.dir.join("linuxcnc-output.txt"), 10),
+                        tail(&home_log, 10)
+                    );
+                    self.child = None;
+                    return Err(Unavailable(why));
+                }
+            }
+            match Operator::connect(self.port, Duration::from_secs(2)) {
+                Ok(_) => return Ok(()),
+                Err(e) => last = e,
+            }
+            std::thread::sleep(Duration::from_millis(150));
+        }
+        Err(Unavailable(format!("linuxcncrsh did not greet within 30 s on port {}: {last}", self.port)))
+    }
+
+    /// `linuxcncrsh://127.0.0.1:PORT`.
+    pub fn url(&self) -> String {
+        format!("linuxcncrsh://127.0.0.1:{}", self.port)
+    }
+
+    pub fn port(&self) -> u16 {
+        self.port
+    }
+
+    pub fn sphere(&self) -> SphereTruth {
+        self.sphere
+    }
+
+    /// The operator's part: release the e-stop, switch on, home every joint where it stands,
+    /// MDI mode.
+    pub fn arm(&self) -> Result<(), String> {
+        let mut op = Operator::connect(self.port, Duration::from_secs(5))?;
+        op.expect("set set_wait done", "SET SET_WAIT ACK")?;
+        op.expect("set estop off", "SET ESTOP ACK")?;
+        op.expect("set machine on", "SET MACHINE ACK")?;
+        op.expect("set mode manual", "SET MODE ACK")?;
+        op.expect("set home -1", "SET HOME ACK")?;
+        let t = Instant::now();
+        loop {
+            let h = op.cmd("get joint_homed")?;
+            if h.starts_with("JOINT_HOMED YES YES YES") {
+                break;
+            }
+            if t.elapsed() > Duration::from_secs(10) {
+                return Err(format!("not homed after 10 s: {h}"));
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        op.expect("set mode mdi", "SET MODE ACK")?;
+        Ok(())
+    }
+
+    /// The operator presses the e-stop button (a HAL pin in the e-stop chain, set with
+    /// `halcmd`; a second linuxcncrsh session would take the enable from truepos's session).
+    pub fn press_estop(&self) -> Result<(), String> {
+        self.halcmd(&["setp", "estop_button.in1", "0"])
+    }
+
+    /// Run `halcmd ARGS` as the user LinuxCNC runs as.
+    pub fn halcmd(&self, args: &[&str]) -> Result<(), String> {
+        let halcmd = find_program("halcmd").ok_or("halcmd not found")?;
+        let mut cmd = match &self.run_as {
+            Some((user, runuser)) => {
+                let mut c = Command::new(runuser);
+                c.args(["-u", user, "--"]).arg(&halcmd);
+                c
+            }
+            None => Command::new(&halcmd),
+        };
+        let out = cmd.args(args).current_dir(&self.dir).output().map_err(|e| e.to_string())?;
+        if out.status.success() {
+            Ok(())
+        } else {
+            Err(format!("halcmd {}: {}", args.join(" "), String::from_utf8_lossy(&out.stderr).trim()))
+        }
+    }
+
+    /// An MDI line from the operator's session (e.g. to put the machine somewhere).
+    pub fn operator_mdi(&self, line: &str) -> Result<(), String> {
+        let mut op = Operator::connect(self.port, Duration::from_secs(30))?;
+        op.expect("set set_wait done", "SET SET_WAIT ACK")?;
+        op.expect(&format!("set mdi {line}"), "SET MDI ACK")?;
+        let e = op.cmd("get error")?;
+        if e == "ERROR OK" {
+            Ok(())
+        } else {
+            Err(e)
+        }
+    }
+
+    /// Stop LinuxCNC (also done on drop).
+    pub fn stop(&mut self) {
+        let Some(mut child) = self.child.take() else { return };
+        let sid = child.id();
+        for (pid, comm) in session_processes(sid) {
+            if comm == "linuxcncrsh" {
+                signal(&pid.to_string(), "-TERM");
+            }
+        }
+        let t = Instant::now();
+        let mut done = false;
+        while t.elapsed() < Duration::from_secs(15) {
+            if let Ok(Some(_)) = child.try_wait() {
+                done = true;
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        if !done {
+            signal(&format!("-{sid}"), "-TERM");
+            std::thread::sleep(Duration::from_secs(2));
+            signal(&format!("-{sid}"), "-KILL");
+            let _ = child.wait();
+        }
+        // Leftovers of our session (none after a clean exit).
+        if !session_processes(sid).is_empty() {
+            signal(&format!("-{sid}"), "-KILL");
+        }
+        let _ = fs::remove_dir_all(&self.dir);
+    }
+}
+
+impl Drop for SimLinuxCnc {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ini_keys_are_rewritten_in_place() {
+        let t = set_key("[A]\nDISPLAY = x\nDISPLAY_X = 3\nOFFSET_X = 1\n", "DISPLAY", "linuxcncrsh --port 9");
+        assert_eq!(t, "[A]\nDISPLAY = linuxcncrsh --port 9\nDISPLAY_X = 3\nOFFSET_X = 1\n");
+        assert!(INI.contains("TRIP_RADIUS") && HAL.contains("motion.probe-input") && TBL.starts_with("T1"));
+    }
+}

@@ -1,0 +1,819 @@
+//! # truepos-qif
+//!
+//! QIF 3.0 (ISO 23952:2020) for fitted features: [`write_results`] turns one measured feature
+//! (and, when tolerances are given, its diameter and form characteristics with status) into a
+//! QIF document that validates against the official QIF 3.0 schemas; [`read_plan`] takes a
+//! nominal diameter, its tolerance and a form tolerance from a QIF plan or model document.
+//!
+//! What the export holds:
+//! - `FileUnits`: millimetres as the primary linear unit, degrees as the angular unit (every
+//!   number in the document is in these units).
+//! - `Results/MeasurementResultsSet/MeasurementResults/MeasuredFeatures`: one
+//!   `XxxFeatureMeasurement` (Line, Plane, Circle, Sphere, Cylinder, Cone) with the fitted
+//!   location, direction (normal, axis), diameter, full apex angle and form, the substitute
+//!   feature algorithm (`LEASTSQUARES`, `MINMAX` for minimum zone, `MAXINSCRIBED`,
+//!   `MINCIRCUMSCRIBED`), and the standard uncertainties (k = 1) in the schema's
+//!   `combinedUncertainty` attributes (per component for points and vectors).
+//! - With a size tolerance: a `DiameterCharacteristic` definition (limit deviations), nominal
+//!   (target value), item and measurement (actual value, status) that refers to the feature
+//!   measurement. With a form tolerance: the kind's form characteristic (straightness,
+//!   flatness, circularity, sphericity, cylindricity, conicity) likewise. Status `PASS`,
+//!   `FAIL`, or `INDETERMINATE` for an undecided guarded decision; the measurement results'
+//!   inspection status is `PASS`, `FAIL` or `UNKNOWN` accordingly.
+//!
+//! What the import reads ([`read_plan`]): the linear unit (`FileUnits`, converted to mm), the
+//! one `DiameterCharacteristicDefinition` with a `Tolerance` (deviations, or limits when
+//! `DefinedAsLimit` is true) and its nominal's `TargetValue`, and the tolerance value of a form
+//! characteristic. It does not read feature nominals (location, orientation), datums,
+//! positional or profile tolerances, limits-and-fits codes, dual values, or several diameter
+//! characteristics in one file; these are refused or ignored as [`PlanError`] and
+//! [`Plan::ignored`] say.
+//!
+//! Numbers are written in plain decimal notation (`xs:decimal` has no exponent) with the
+//! shortest representation that reads back to the same `f64`.
+
+use std::fmt::Write as _;
+use thiserror::Error;
+
+/// The element kinds truepos fits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FeatureKind {
+    Line,
+    Plane,
+    Circle,
+    Sphere,
+    Cylinder,
+    Cone,
+}
+
+impl FeatureKind {
+    fn qif(self) -> &'static str {
+        match self {
+            FeatureKind::Line => "Line",
+            FeatureKind::Plane => "Plane",
+            FeatureKind::Circle => "Circle",
+            FeatureKind::Sphere => "Sphere",
+            FeatureKind::Cylinder => "Cylinder",
+            FeatureKind::Cone => "Cone",
+        }
+    }
+    /// The QIF form characteristic of this kind.
+    pub fn form_characteristic(self) -> &'static str {
+        match self {
+            FeatureKind::Line => "Straightness",
+            FeatureKind::Plane => "Flatness",
+            FeatureKind::Circle => "Circularity",
+            FeatureKind::Sphere => "Sphericity",
+            FeatureKind::Cylinder => "Cylindricity",
+            FeatureKind::Cone => "Conicity",
+        }
+    }
+    /// Whether the kind has a diameter.
+    pub fn has_diameter(self) -> bool {
+        matches!(self, FeatureKind::Circle | FeatureKind::Sphere | FeatureKind::Cylinder)
+    }
+}
+
+/// The substitute feature algorithm (association criterion).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Algorithm {
+    LeastSquares,
+    MinimumZone,
+    MaximumInscribed,
+    MinimumCircumscribed,
+}
+
+impl Algorithm {
+    fn qif(self) -> &'static str {
+        match self {
+            Algorithm::LeastSquares => "LEASTSQUARES",
+            Algorithm::MinimumZone => "MINMAX",
+            Algorithm::MaximumInscribed => "MAXINSCRIBED",
+            Algorithm::MinimumCircumscribed => "MINCIRCUMSCRIBED",
+        }
+    }
+}
+
+/// Conformance status of a characteristic.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Status {
+    Pass,
+    Fail,
+    /// Neither conformance nor non-conformance proven (ISO 14253-1 guarded rule).
+    Undecided,
+}
+
+impl Status {
+    fn characteristic(self) -> &'static str {
+        match self {
+            Status::Pass => "PASS",
+            Status::Fail => "FAIL",
+            Status::Undecided => "INDETERMINATE",
+        }
+    }
+}
+
+/// A value with an optional standard uncertainty (k = 1).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Value<T> {
+    pub value: T,
+    pub uncertainty: Option<T>,
+}
+
+impl<T> Value<T> {
+    pub fn new(value: T, uncertainty: Option<T>) -> Self {
+        Value { value, uncertainty }
+    }
+}
+
+/// One measured (fitted) feature. Lengths in mm, angles in degrees.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeasuredFeature {
+    pub kind: FeatureKind,
+    /// Feature name (written as `FeatureName`).
+    pub name: String,
+    pub algorithm: Algorithm,
+    /// Line, plane: a point on it; circle, sphere: the centre; cylinder, cone: a point on the
+    /// axis (for a cone, the apex).
+    pub location: Value<[f64; 3]>,
+    /// Line: direction; plane, circle: normal; cylinder, cone: axis; sphere: none.
+    pub direction: Option<Value<[f64; 3]>>,
+    /// Circle, sphere, cylinder: diameter.
+    pub diameter: Option<Value<f64>>,
+    /// Cone: full apex angle, degrees.
+    pub full_angle_deg: Option<Value<f64>>,
+    /// Form deviation (zone width about the reported feature), mm.
+    pub form: f64,
+}
+
+/// The diameter characteristic: nominal, limit deviations, actual value and status.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DiameterCharacteristic {
+    pub nominal: f64,
+    /// Lower and upper deviation from the nominal (lower ≤ upper), mm.
+    pub lower: f64,
+    pub upper: f64,
+    pub actual: Value<f64>,
+    pub status: Status,
+}
+
+/// The form characteristic of the feature's kind: tolerance, actual value and status.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FormCharacteristic {
+    pub tolerance: f64,
+    pub actual: f64,
+    pub status: Status,
+}
+
+/// Everything one results document holds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Results {
+    pub feature: MeasuredFeature,
+    pub diameter: Option<DiameterCharacteristic>,
+    pub form: Option<FormCharacteristic>,
+    /// Written as the application's name in the header (e.g. "truepos 0.1.0").
+    pub application: String,
+}
+
+/// Why a results document cannot be written.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum WriteError {
+    #[error("{what} is not a finite number")]
+    NotFinite { what: &'static str },
+    #[error("a diameter characteristic needs a feature with a diameter (not a {0:?})")]
+    NoDiameter(FeatureKind),
+}
+
+/// Most digits an `xs:decimal` may have for common validators (libxml2 accepts 24; the
+/// standard asks every processor for at least 18).
+const MAX_DIGITS: usize = 24;
+
+/// A number as `xs:decimal`: plain notation, the shortest digits that read back to the same
+/// `f64`, or — when that needs more than [`MAX_DIGITS`] digits (values below ~1e-8 written
+/// with all their leading zeros) — rounded to 24 decimal places, an absolute error below
+/// 1e-24 of the unit.
+fn dec(v: f64) -> String {
+    // Rust's `Display` for f64 never uses an exponent; "-0" becomes "0".
+    if v == 0.0 {
+        return "0".into();
+    }
+    let s = format!("{v}");
+    let digits =
+        s.trim_start_matches('-').trim_start_matches('0').chars().filter(char::is_ascii_digit).count();
+    if digits <= MAX_DIGITS {
+        return s;
+    }
+    let int_digits =
+        s.trim_start_matches('-').split('.').next().map_or(0, |i| i.trim_start_matches('0').len());
+    let frac = MAX_DIGITS.saturating_sub(int_digits);
+    let r = format!("{v:.frac$}");
+    let r = if r.contains('.') { r.trim_end_matches('0').trim_end_matches('.').to_string() } else { r };
+    if r.trim_start_matches('-').chars().all(|c| c == '0' || c == '.') {
+        "0".into()
+    } else {
+        r
+    }
+}
+
+fn check(v: f64, what: &'static str) -> Result<(), WriteError> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(WriteError::NotFinite { what })
+    }
+}
+
+fn escape(s: &str) -> String {
+    let mut o = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => o.push_str("&amp;"),
+            '<' => o.push_str("&lt;"),
+            '>' => o.push_str("&gt;"),
+            '"' => o.push_str("&quot;"),
+            '\'' => o.push_str("&apos;"),
+            c if (c as u32) < 0x20 && c != '\t' && c != '\n' && c != '\r' => o.push(' '),
+            c => o.push(c),
+        }
+    }
+    o
+}
+
+/// A QIF `xs:token` (no leading, trailing or repeated whitespace).
+fn token(s: &str) -> String {
+    let t = s.split_whitespace().collect::<Vec<_>>().join(" ");
+    escape(if t.is_empty() { "feature" } else { &t })
+}
+
+fn vec3(v: &[f64; 3]) -> String {
+    format!("{} {} {}", dec(v[0]), dec(v[1]), dec(v[2]))
+}
+
+fn vec_unc(u: &Option<[f64; 3]>) -> String {
+    match u {
+        Some(u) => format!(
+            " xCombinedUncertainty=\"{}\" yCombinedUncertainty=\"{}\" zCombinedUncertainty=\"{}\"",
+            dec(u[0].abs()),
+            dec(u[1].abs()),
+            dec(u[2].abs())
+        ),
+        None => String::new(),
+    }
+}
+
+fn scalar_unc(u: &Option<f64>) -> String {
+    match u {
+        Some(u) => format!(" combinedUncertainty=\"{}\"", dec(u.abs())),
+        None => String::new(),
+    }
+}
+
+/// A deterministic QPId (UUID version 4 layout) from the document's content: the same
+/// results give the same identifier, different results different ones.
+fn qpid(content: &str) -> String {
+    let h = |seed: u64| {
+        let mut x: u64 = 0xcbf2_9ce4_8422_2325 ^ seed;
+        for b in content.bytes() {
+            x ^= b as u64;
+            x = x.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        x
+    };
+    let (a, b) = (h(0x9e37_79b9_7f4a_7c15), h(0x6a09_e667_f3bc_c908));
+    let hi = (a & 0xffff_ffff_ffff_0fff) | 0x4000;
+    let lo = (b & 0x3fff_ffff_ffff_ffff) | 0x8000_0000_0000_0000;
+    format!(
+        "{:08x}-{:04x}-{:04x}-{:04x}-{:012x}",
+        hi >> 32,
+        (hi >> 16) & 0xffff,
+        hi & 0xffff,
+        lo >> 48,
+        lo & 0xffff_ffff_ffff
+    )
+}
+
+/// The QIF 3.0 document for `r`.
+pub fn write_results(r: &Results) -> Result<String, WriteError> {
+    let f = &r.feature;
+    for v in f.location.value.iter().chain(f.location.uncertainty.iter().flatten()) {
+        check(*v, "the feature location")?;
+    }
+    if let Some(d) = &f.direction {
+        for v in d.value.iter().chain(d.uncertainty.iter().flatten()) {
+            check(*v, "the feature direction")?;
+        }
+    }
+    for (v, what) in [
+        (f.diameter.map(|d| d.value), "the diameter"),
+        (f.diameter.and_then(|d| d.uncertainty), "the diameter's uncertainty"),
+        (f.full_angle_deg.map(|d| d.value), "the apex angle"),
+        (f.full_angle_deg.and_then(|d| d.uncertainty), "the apex angle's uncertainty"),
+        (Some(f.form), "the form"),
+    ] {
+        if let Some(v) = v {
+            check(v, what)?;
+        }
+    }
+    if let Some(d) = &r.diameter {
+        if !f.kind.has_diameter() {
+            return Err(WriteError::NoDiameter(f.kind));
+        }
+        for v in [d.nominal, d.lower, d.upper, d.actual.value] {
+            check(v, "the diameter characteristic")?;
+        }
+    }
+    if let Some(fc) = &r.form {
+        check(fc.tolerance, "the form tolerance")?;
+        check(fc.actual, "the form value")?;
+    }
+
+    // Ids: 1 standard, 2 results, 3 feature measurement, then 4 per characteristic.
+    let (std_id, res_id, feat_id) = (1, 2, 3);
+    let mut next = 4;
+    let mut chars: Vec<(String, usize, usize, usize, usize)> = Vec::new(); // (type, def, nom, item, meas)
+    let mut defs = String::new();
+    let mut noms = String::new();
+    let mut items = String::new();
+    let mut meas = String::new();
+    let alg = format!(
+        "<SubstituteFeatureAlgorithm><SubstituteFeatureAlgorithmEnum>{}</SubstituteFeatureAlgorithmEnum></SubstituteFeatureAlgorithm>",
+        f.algorithm.qif()
+    );
+    let mut statuses = Vec::new();
+    if let Some(d) = &r.diameter {
+        let (def, nom, item, m) = (next, next + 1, next + 2, next + 3);
+        next += 4;
+        chars.push(("Diameter".into(), def, nom, item, m));
+        let _ = write!(
+            defs,
+            "      <DiameterCharacteristicDefinition id=\"{def}\">\n        <Tolerance><MaxValue>{}</MaxValue><MinValue>{}</MinValue><DefinedAsLimit>false</DefinedAsLimit></Tolerance>\n      </DiameterCharacteristicDefinition>\n",
+            dec(d.upper),
+            dec(d.lower)
+        );
+        let _ = write!(
+            noms,
+            "      <DiameterCharacteristicNominal id=\"{nom}\">\n        <CharacteristicDefinitionId>{def}</CharacteristicDefinitionId>\n        <TargetValue>{}</TargetValue>\n      </DiameterCharacteristicNominal>\n",
+            dec(d.nominal)
+        );
+        let _ = write!(
+            items,
+            "      <DiameterCharacteristicItem id=\"{item}\">\n        <Name>{} diameter</Name>\n        {alg}\n        <CharacteristicNominalId>{nom}</CharacteristicNominalId>\n      </DiameterCharacteristicItem>\n",
+            token(&f.name)
+        );
+        let _ = write!(
+            meas,
+            "            <DiameterCharacteristicMeasurement id=\"{m}\">\n              <Status><CharacteristicStatusEnum>{}</CharacteristicStatusEnum></Status>\n              <CharacteristicItemId>{item}</CharacteristicItemId>\n              <FeatureMeasurementIds n=\"1\"><Id>{feat_id}</Id></FeatureMeasurementIds>\n              <Value{}>{}</Value>\n            </DiameterCharacteristicMeasurement>\n",
+            d.status.characteristic(),
+            scalar_unc(&d.actual.uncertainty),
+            dec(d.actual.value)
+        );
+        statuses.push(d.status);
+    }
+    if let Some(fc) = &r.form {
+        let t = f.kind.form_characteristic();
+        let (def, nom, item, m) = (next, next + 1, next + 2, next + 3);
+        next += 4;
+        chars.push((t.into(), def, nom, item, m));
+        let zone = if f.kind == FeatureKind::Line {
+            "\n        <ZoneShape><DiametricalZone/></ZoneShape>"
+        } else {
+            ""
+        };
+        let _ = write!(
+            defs,
+            "      <{t}CharacteristicDefinition id=\"{def}\">\n        <ToleranceValue>{}</ToleranceValue>{zone}\n      </{t}CharacteristicDefinition>\n",
+            dec(fc.tolerance)
+        );
+        let _ = write!(
+            noms,
+            "      <{t}CharacteristicNominal id=\"{nom}\">\n        <CharacteristicDefinitionId>{def}</CharacteristicDefinitionId>\n      </{t}CharacteristicNominal>\n"
+        );
+        let _ = write!(
+            items,
+            "      <{t}CharacteristicItem id=\"{item}\">\n        <Name>{} form</Name>\n        {alg}\n        <CharacteristicNominalId>{nom}</CharacteristicNominalId>\n      </{t}CharacteristicItem>\n",
+            token(&f.name)
+        );
+        let _ = write!(
+            meas,
+            "            <{t}CharacteristicMeasurement id=\"{m}\">\n              <Status><CharacteristicStatusEnum>{}</CharacteristicStatusEnum></Status>\n              <CharacteristicItemId>{item}</CharacteristicItemId>\n              <FeatureMeasurementIds n=\"1\"><Id>{feat_id}</Id></FeatureMeasurementIds>\n              <Value>{}</Value>\n            </{t}CharacteristicMeasurement>\n",
+            fc.status.characteristic(),
+            dec(fc.actual)
+        );
+        statuses.push(fc.status);
+    }
+    let id_max = next - 1;
+
+    let mut body = String::new();
+    let k = f.kind.qif();
+    let _ = writeln!(body, "          <{k}FeatureMeasurement id=\"{feat_id}\">");
+    let _ = writeln!(body, "            <FeatureName>{}</FeatureName>", token(&f.name));
+    let _ = writeln!(body, "            {alg}");
+    let loc = format!("{}>{}", vec_unc(&f.location.uncertainty), vec3(&f.location.value));
+    let dir = f.direction.as_ref().map(|d| format!("{}>{}", vec_unc(&d.uncertainty), vec3(&d.value)));
+    let dia = f.diameter.map(|d| format!("{}>{}", scalar_unc(&d.uncertainty), dec(d.value)));
+    let mut push = |name: &str, v: &Option<String>| {
+        if let Some(v) = v {
+            let _ = writeln!(body, "            <{name}{v}</{name}>");
+        }
+    };
+    match f.kind {
+        FeatureKind::Line => {
+            push("Location", &Some(loc));
+            push("Direction", &dir);
+        }
+        FeatureKind::Plane => {
+            push("Location", &Some(loc));
+            push("Normal", &dir);
+        }
+        FeatureKind::Circle => {
+            push("Location", &Some(loc));
+            push("Normal", &dir);
+            push("Diameter", &dia);
+        }
+        FeatureKind::Sphere => {
+            push("Location", &Some(loc));
+            push("Diameter", &dia);
+        }
+        FeatureKind::Cylinder | FeatureKind::Cone => {
+            let _ = writeln!(body, "            <Axis>");
+            let _ = writeln!(body, "              <AxisPoint{loc}</AxisPoint>");
+            if let Some(d) = &dir {
+                let _ = writeln!(body, "              <Direction{d}</Direction>");
+            }
+            let _ = writeln!(body, "            </Axis>");
+            if f.kind == FeatureKind::Cylinder {
+                if let Some(d) = &dia {
+                    let _ = writeln!(body, "            <Diameter{d}</Diameter>");
+                }
+            } else if let Some(a) = &f.full_angle_deg {
+                let _ = writeln!(
+                    body,
+                    "            <FullAngle{}>{}</FullAngle>",
+                    scalar_unc(&a.uncertainty),
+                    dec(a.value)
+                );
+            }
+        }
+    }
+    let _ = writeln!(body, "            <Form>{}</Form>", dec(f.form));
+    let _ = writeln!(body, "          </{k}FeatureMeasurement>");
+
+    let inspection = if statuses.contains(&Status::Fail) {
+        "FAIL"
+    } else if statuses.contains(&Status::Undecided) {
+        "UNKNOWN"
+    } else if statuses.is_empty() {
+        "NOT_CALCULATED"
+    } else {
+        "PASS"
+    };
+
+    let mut doc = String::new();
+    let _ = writeln!(
+        doc,
+        "  <Header>\n    <Application>\n      <Name>{}</Name>\n    </Application>\n  </Header>",
+        escape(&r.application)
+    );
+    let _ = writeln!(
+        doc,
+        "  <StandardsDefinitions n=\"1\">\n    <Standard id=\"{std_id}\">\n      <Organization><StandardsOrganizationEnum>ISO</StandardsOrganizationEnum></Organization>\n      <Designator>1101</Designator>\n      <Year>2017</Year>\n    </Standard>\n  </StandardsDefinitions>"
+    );
+    let _ = writeln!(
+        doc,
+        "  <FileUnits>\n    <PrimaryUnits>\n      <AngularUnit><SIUnitName>radian</SIUnitName><UnitName>degree</UnitName><UnitConversion><Factor>0.017453292519943295</Factor></UnitConversion></AngularUnit>\n      <LinearUnit><SIUnitName>meter</SIUnitName><UnitName>mm</UnitName><UnitConversion><Factor>0.001</Factor></UnitConversion></LinearUnit>\n    </PrimaryUnits>\n  </FileUnits>"
+    );
+    if !chars.is_empty() {
+        let n = chars.len();
+        let _ = write!(
+            doc,
+            "  <Characteristics>\n    <FormalStandardId>{std_id}</FormalStandardId>\n    <CharacteristicDefinitions n=\"{n}\">\n{defs}    </CharacteristicDefinitions>\n    <CharacteristicNominals n=\"{n}\">\n{noms}    </CharacteristicNominals>\n    <CharacteristicItems n=\"{n}\">\n{items}    </CharacteristicItems>\n  </Characteristics>\n"
+        );
+    }
+    let _ = write!(
+        doc,
+        "  <Results>\n    <MeasurementResultsSet n=\"1\">\n      <MeasurementResults id=\"{res_id}\">\n        <MeasuredFeatures n=\"1\">\n{body}        </MeasuredFeatures>\n"
+    );
+    if !chars.is_empty() {
+        let _ = write!(
+            doc,
+            "        <MeasuredCharacteristics>\n          <CharacteristicMeasurements n=\"{}\">\n{meas}          </CharacteristicMeasurements>\n        </MeasuredCharacteristics>\n",
+            chars.len()
+        );
+    }
+    let _ = write!(
+        doc,
+        "        <InspectionStatus><InspectionStatusEnum>{inspection}</InspectionStatusEnum></InspectionStatus>\n      </MeasurementResults>\n    </MeasurementResultsSet>\n  </Results>\n"
+    );
+    let id = qpid(&doc);
+    Ok(format!(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<QIFDocument xmlns=\"http://qifstandards.org/xsd/qif3\" xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\" xsi:schemaLocation=\"http://qifstandards.org/xsd/qif3 ../QIFApplications/QIFDocument.xsd\" versionQIF=\"3.0.0\" idMax=\"{id_max}\">\n  <QPId>{id}</QPId>\n{doc}</QIFDocument>\n"
+    ))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reading a plan / model
+
+/// What [`read_plan`] found, in mm.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct Plan {
+    /// Nominal diameter and its lower/upper deviation.
+    pub diameter: Option<(f64, f64, f64)>,
+    /// Form tolerance of the requested kind.
+    pub form_tolerance: Option<f64>,
+    /// Length unit of the file, as its `UnitName` says (`mm` when the file declares none).
+    pub unit: String,
+    /// Elements present in the file that are not used (each named once).
+    pub ignored: Vec<String>,
+}
+
+/// Why a plan cannot be read.
+#[derive(Debug, Error)]
+pub enum PlanError {
+    #[error("not well-formed XML: {0}")]
+    Xml(#[from] roxmltree::Error),
+    #[error("line {line}, column {column}: {why}")]
+    At { line: u32, column: u32, why: String },
+    #[error("the root element is <{0}>, not a QIF document <QIFDocument>")]
+    NotQif(String),
+    #[error("{0}")]
+    Unsupported(String),
+}
+
+const QIF_NS: &str = "http://qifstandards.org/xsd/qif3";
+
+fn child<'a, 'i>(n: roxmltree::Node<'a, 'i>, name: &str) -> Option<roxmltree::Node<'a, 'i>> {
+    n.children().find(|c| c.is_element() && c.tag_name().name() == name)
+}
+
+fn elems<'a, 'i>(parent: Option<roxmltree::Node<'a, 'i>>, name: &str) -> Vec<roxmltree::Node<'a, 'i>> {
+    parent
+        .map(|p| p.children().filter(|c| c.is_element() && c.tag_name().name() == name).collect())
+        .unwrap_or_default()
+}
+
+fn at(doc: &roxmltree::Document, n: roxmltree::Node, why: String) -> PlanError {
+    let p = doc.text_pos_at(n.range().start);
+    PlanError::At { line: p.row, column: p.col, why }
+}
+
+fn number(doc: &roxmltree::Document, n: roxmltree::Node, scale: f64) -> Result<f64, PlanError> {
+    let t = n.text().unwrap_or("").trim();
+    match t.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v * scale),
+        _ => Err(at(doc, n, format!("<{}> is not a number: '{t}'", n.tag_name().name()))),
+    }
+}
+
+/// Read the nominal diameter with its tolerance and the form tolerance of `kind` from a QIF
+/// plan or model document (`text`).
+pub fn read_plan(text: &str, kind: FeatureKind) -> Result<Plan, PlanError> {
+    let doc = roxmltree::Document::parse(text)?;
+    let root = doc.root_element();
+    if root.tag_name().name() != "QIFDocument" || root.tag_name().namespace().is_some_and(|n| n != QIF_NS) {
+        return Err(PlanError::NotQif(root.tag_name().name().to_string()));
+    }
+    let mut plan = Plan { unit: "mm".into(), ..Default::default() };
+    // Linear unit → mm.
+    let mut scale = 1.0;
+    if let Some(lu) =
+        child(root, "FileUnits").and_then(|u| child(u, "PrimaryUnits")).and_then(|u| child(u, "LinearUnit"))
+    {
+        let name = child(lu, "UnitName").and_then(|n| n.text()).unwrap_or("").trim().to_string();
+        scale = match child(lu, "UnitConversion").and_then(|c| child(c, "Factor")) {
+            Some(f) => number(&doc, f, 1000.0)?,
+            None => match name.to_ascii_lowercase().as_str() {
+                "mm" | "millimeter" | "millimetre" => 1.0,
+                "inch" | "in" => 25.4,
+                "m" | "meter" | "metre" => 1000.0,
+                _ => {
+                    return Err(at(
+                        &doc,
+                        lu,
+                        format!("unknown linear unit '{name}' without a UnitConversion factor"),
+                    ))
+                }
+            },
+        };
+        if scale.is_nan() || scale <= 0.0 {
+            return Err(at(&doc, lu, "the linear unit's conversion factor is not positive".into()));
+        }
+        plan.unit = name;
+    }
+    let Some(chars) = child(root, "Characteristics") else {
+        return Err(PlanError::Unsupported("the QIF document has no <Characteristics>".into()));
+    };
+    let defs = child(chars, "CharacteristicDefinitions");
+    let noms = child(chars, "CharacteristicNominals");
+    let dia: Vec<_> = elems(defs, "DiameterCharacteristicDefinition");
+    if dia.len() > 1 {
+        return Err(PlanError::Unsupported(format!(
+            "the QIF document has {} diameter characteristics; truepos fit reads exactly one",
+            dia.len()
+        )));
+    }
+    if let Some(d) = dia.first() {
+        let id = d.attribute("id").unwrap_or("");
+        let Some(tol) = child(*d, "Tolerance") else {
+            return Err(at(
+                &doc,
+                *d,
+                "the diameter characteristic has no <Tolerance> (limits-and-fits codes and non-toleranced characteristics are not supported)".into(),
+            ));
+        };
+        if child(tol, "DefinitionId").is_some() {
+            return Err(at(
+                &doc,
+                tol,
+                "a tolerance given by reference (DefinitionId) is not supported".into(),
+            ));
+        }
+        let max = child(tol, "MaxValue").map(|n| number(&doc, n, scale)).transpose()?;
+        let min = child(tol, "MinValue").map(|n| number(&doc, n, scale)).transpose()?;
+        let limit = child(tol, "DefinedAsLimit")
+            .and_then(|n| n.text())
+            .map(|t| t.trim() == "true" || t.trim() == "1");
+        let target = elems(noms, "DiameterCharacteristicNominal")
+            .into_iter()
+            .find(|n| {
+                child(*n, "CharacteristicDefinitionId").and_then(|c| c.text()).map(str::trim) == Some(id)
+            })
+            .and_then(|n| child(n, "TargetValue"))
+            .map(|n| number(&doc, n, scale))
+            .transpose()?;
+        let (Some(max), Some(min)) = (max, min) else {
+            return Err(at(
+                &doc,
+                tol,
+                "a one-sided diameter tolerance (only MaxValue or MinValue) is not supported".into(),
+            ));
+        };
+        let triple = if limit == Some(true) {
+            // Limits of size: the nominal is the target when given, else the mid-limit.
+            let nominal = target.unwrap_or(0.5 * (min + max));
+            (nominal, min - nominal, max - nominal)
+        } else {
+            let Some(nominal) = target else {
+                return Err(at(
+                    &doc,
+                    *d,
+                    "the diameter characteristic's nominal has no <TargetValue> (needed with deviations)"
+                        .into(),
+                ));
+            };
+            (nominal, min, max)
+        };
+        plan.diameter = Some(triple);
+    }
+    let form_name = format!("{}CharacteristicDefinition", kind.form_characteristic());
+    let forms = elems(defs, &form_name);
+    if forms.len() > 1 {
+        return Err(PlanError::Unsupported(format!(
+            "the QIF document has {} {} characteristics; truepos fit reads at most one",
+            forms.len(),
+            kind.form_characteristic().to_lowercase()
+        )));
+    }
+    if let Some(f) = forms.first() {
+        let Some(tv) = child(*f, "ToleranceValue") else {
+            return Err(at(
+                &doc,
+                *f,
+                "the form characteristic has no <ToleranceValue> (per-unit zones are not supported)".into(),
+            ));
+        };
+        plan.form_tolerance = Some(number(&doc, tv, scale)?);
+    }
+    if let Some(d) = defs {
+        for c in d.children().filter(|c| c.is_element()) {
+            let n = c.tag_name().name();
+            if n != "DiameterCharacteristicDefinition" && n != form_name {
+                let s = format!("{n} (not read)");
+                if !plan.ignored.contains(&s) {
+                    plan.ignored.push(s);
+                }
+            }
+        }
+    }
+    if plan.diameter.is_none() && plan.form_tolerance.is_none() {
+        return Err(PlanError::Unsupported(format!(
+            "the QIF document has neither a diameter characteristic nor a {} characteristic",
+            kind.form_characteristic().to_lowercase()
+        )));
+    }
+    Ok(plan)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn decimals_have_no_exponent_and_round_trip() {
+        for v in [1e-12, 123456.789e10, -0.1, 0.30000000000000004, 1234.5678901234567, -9.87654321e-7] {
+            let s = dec(v);
+            assert!(!s.contains('e') && !s.contains('E'), "{s}");
+            assert_eq!(s.parse::<f64>().unwrap(), v);
+        }
+        // Tiny values: at most 24 digits, absolute error below 1e-24.
+        for v in [6.14195912794905e-17, -1.3e-30, 5e-324, 1.234567890123456e-9] {
+            let s = dec(v);
+            let digits = s.chars().filter(char::is_ascii_digit).count();
+            assert!(digits <= 25 && !s.contains('e'), "{s}");
+            assert!((s.parse::<f64>().unwrap() - v).abs() < 1e-24, "{s}");
+        }
+        assert_eq!(dec(-0.0), "0");
+    }
+
+    #[test]
+    fn qpid_has_the_uuid_pattern() {
+        let q = qpid("x");
+        assert_eq!(q.len(), 36);
+        let parts: Vec<_> = q.split('-').map(str::len).collect();
+        assert_eq!(parts, vec![8, 4, 4, 4, 12]);
+        assert_ne!(qpid("a"), qpid("b"));
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// From a truepos fit
+
+mod from_fit {
+    use super::*;
+    use truepos_fit::evaluate::{Evaluation, Kind, Method};
+    use truepos_fit::verdict::Verdict;
+    use truepos_math::Vector3;
+
+    fn arr(v: &Vector3) -> [f64; 3] {
+        [v.x, v.y, v.z]
+    }
+
+    fn status(v: Verdict) -> Status {
+        match v {
+            Verdict::Pass => Status::Pass,
+            Verdict::Fail => Status::Fail,
+            Verdict::Undecided => Status::Undecided,
+        }
+    }
+
+    /// The QIF results of a truepos evaluation (feature name `name`, e.g. the input file's
+    /// stem). Uncertainties are the standard uncertainties (k = 1) of a least-squares fit.
+    pub fn results_from_evaluation(e: &Evaluation, name: &str, application: &str) -> Results {
+        let kind = match e.kind {
+            Kind::Line => FeatureKind::Line,
+            Kind::Plane => FeatureKind::Plane,
+            Kind::Circle => FeatureKind::Circle,
+            Kind::Sphere => FeatureKind::Sphere,
+            Kind::Cylinder => FeatureKind::Cylinder,
+            Kind::Cone => FeatureKind::Cone,
+        };
+        let algorithm = match e.method {
+            Method::LeastSquares => Algorithm::LeastSquares,
+            Method::MinimumZone => Algorithm::MinimumZone,
+            Method::MaximumInscribed => Algorithm::MaximumInscribed,
+            Method::MinimumCircumscribed => Algorithm::MinimumCircumscribed,
+        };
+        let u = e.uncertainty.as_ref();
+        let (loc, loc_u) = match e.kind {
+            Kind::Circle | Kind::Sphere => (e.center, u.and_then(|u| u.center)),
+            Kind::Cone => (e.apex, u.and_then(|u| u.apex)),
+            _ => (e.point, u.and_then(|u| u.point)),
+        };
+        let (dir, dir_u) = match e.kind {
+            Kind::Line => (e.direction, u.and_then(|u| u.direction)),
+            Kind::Plane | Kind::Circle => (e.normal, u.and_then(|u| u.normal)),
+            Kind::Cylinder | Kind::Cone => (e.axis, u.and_then(|u| u.axis)),
+            Kind::Sphere => (None, None),
+        };
+        let diameter = e.radius.map(|r| Value::new(2.0 * r, u.and_then(|u| u.radius).map(|ur| 2.0 * ur)));
+        let feature = MeasuredFeature {
+            kind,
+            name: name.to_string(),
+            algorithm,
+            location: Value::new(loc.map(|p| [p.x, p.y, p.z]).unwrap_or([0.0; 3]), loc_u.map(|v| arr(&v))),
+            direction: dir.map(|d| Value::new(arr(&d), dir_u.map(|v| arr(&v)))),
+            diameter: if kind.has_diameter() { diameter } else { None },
+            full_angle_deg: e
+                .apex_angle
+                .map(|a| Value::new(a.to_degrees(), u.and_then(|u| u.apex_angle).map(f64::to_degrees))),
+            form: e.form,
+        };
+        let diameter = match (&e.size_decision, diameter) {
+            (Some(d), Some(actual)) => Some(DiameterCharacteristic {
+                nominal: d.tolerance.nominal,
+                lower: d.tolerance.lower,
+                upper: d.tolerance.upper,
+                actual,
+                status: status(d.verdict),
+            }),
+            _ => None,
+        };
+        let form = e.form_decision.map(|f| FormCharacteristic {
+            tolerance: f.tolerance,
+            actual: e.form,
+            status: status(f.verdict),
+        });
+        Results { feature, diameter, form, application: application.to_string() }
+    }
+}
+
+pub use from_fit::results_from_evaluation;

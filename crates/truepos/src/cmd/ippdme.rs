@@ -1,0 +1,63 @@
+//! `truepos ippdme serve`: the virtual CMM behind an I++ DME server (contract "CMM protocol").
+//! Thin: the work is in `truepos_cell::cmm` and `truepos_ippdme::server`.
+
+use crate::{DeviceError, Outcome, UsageError};
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+#[command(after_help = "Example:\n  truepos ippdme serve --port 1294 --part part.toml --log ippdme.log")]
+pub struct Args {
+    #[command(subcommand)]
+    pub command: IppCommand,
+}
+
+#[derive(clap::Subcommand, Debug)]
+pub enum IppCommand {
+    /// Serve the virtual CMM over I++ DME 1.4.3 (TCP, one client at a time) until SIGINT/SIGTERM.
+    ///
+    /// The part file (TOML, machine mm) is the union of `[[sphere]] center_mm, diameter_mm`,
+    /// `[[plane]] point_mm, normal` (half-space below the normal) and `[[cylinder]] point_mm,
+    /// axis, diameter_mm, side = "outside"` (pins), minus `side = "inside"` cylinders (bores).
+    /// Without `--part` every probe touches the ideal plane through its nominal point. The
+    /// machine file's `[ippdme] volume_min_mm, volume_max_mm` (default ±1000) and `[[ippdme.tool]]
+    /// name, tip_diameter_mm` add to the tools `RefTool`, `NoTool`, `Probe1` (3 mm ball). Moves are
+    /// instant. `--log` appends every line received (`<`) and sent (`>`) with its UTC time.
+    #[command(
+        after_help = "Example:\n  truepos ippdme serve --bind 127.0.0.1 --port 1294 --part sphere.toml\n\nExit codes: 0 after SIGINT/SIGTERM, 2 bad option or part/machine file, 3 port in use."
+    )]
+    Serve(ServeArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct ServeArgs {
+    /// Address to listen on.
+    #[arg(long, default_value = "127.0.0.1")]
+    pub bind: String,
+    /// TCP port (I++ DME's is 1294; 0 picks a free one).
+    #[arg(long, default_value_t = 1294)]
+    pub port: u16,
+    /// Part file (TOML): the material the probe touches.
+    #[arg(long)]
+    pub part: Option<PathBuf>,
+    /// Machine file (TOML) with an `[ippdme]` section: volume and extra tools.
+    #[arg(long)]
+    pub machine: Option<PathBuf>,
+    /// Append the session log to this file.
+    #[arg(long)]
+    pub log: Option<PathBuf>,
+}
+
+pub fn run(args: Args) -> anyhow::Result<Outcome> {
+    let IppCommand::Serve(a) = args.command;
+    use truepos_cell::cmm::{bind_virtual, ServeError, ServeOptions};
+    let opts = ServeOptions { bind: a.bind, port: a.port, part: a.part, machine: a.machine, log: a.log };
+    let server = bind_virtual(&opts).map_err(|e| match e {
+        ServeError::Bind { .. } => anyhow::Error::new(DeviceError(e.to_string())),
+        other => anyhow::Error::new(UsageError(other.to_string())),
+    })?;
+    let addr = server.local_addr().map_err(|e| DeviceError(e.to_string()))?;
+    let stop = truepos_ippdme::server::stop_on_signals();
+    eprintln!("ippdme: listening on {addr}");
+    server.run(stop).map_err(|e| DeviceError(format!("ippdme server on {addr}: {e}")))?;
+    Ok(Outcome::Done)
+}
