@@ -21,5 +21,9 @@ pub fn sections() -> Vec<(&'static str, SectionFn)> {
         ("bed load", scenarios::load::demo_section),
         ("scanning", scenarios::scan::demo_section),
         ("end-point control", scenarios::somac::demo_section),
+        ("geometric map", scenarios::part::comp_section),
+        ("autoscale", scenarios::part::autoscale_section),
+        ("orient", scenarios::part::orient_section),
+        ("air", scenarios::part::air_section),
     ]
 }

@@ -1,8 +1,13 @@
-//! The demo report: an `index.html` with one section per capability, tables and inline SVG
-//! plots drawn with plotters' SVG backend.
+//! The demo report: an `index.html` with a header (version, time, seed, machine, environment,
+//! command line), the overall verdict and one summary row per capability, then one section per
+//! capability with its verdict against truth, tables and inline SVG plots drawn with plotters'
+//! SVG backend; and `summary.json` with the same content as data.
 //!
-//! Entry points: [`Report`] (collect sections, write atomically), [`xy_plot`], [`histogram`],
-//! [`heatmap`], [`table`].
+//! Entry points: [`Report`] (collect sections and verdicts, write atomically), [`Header`],
+//! [`Verdict`], [`xy_plot`] / [`xy_plot_equal`], [`histogram`], [`heatmap`], [`table`].
+//!
+//! Reruns are byte-identical apart from the generation time, which the caller passes in
+//! ([`Header::generated_unix_s`]; the CLI takes it from `SOURCE_DATE_EPOCH` when set).
 
 use anyhow::Result;
 use plotters::prelude::*;
@@ -14,50 +19,184 @@ pub struct Section {
     pub html: String,
 }
 
+/// Who and what produced the report (printed at the top and in `summary.json`).
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct Header {
+    /// truepos version.
+    pub version: String,
+    /// Generation time, seconds since 1970-01-01 UTC.
+    pub generated_unix_s: i64,
+    /// The command line that produced the report.
+    pub command_line: String,
+    /// Random seed of the simulated cells.
+    pub seed: u64,
+    /// The machine(s) simulated.
+    pub machine: String,
+    /// Environment used (temperature, pressure, humidity).
+    pub environment: String,
+}
+
+/// One capability's result against truth: a row of the summary table and the box at the top of
+/// its section. Uncertainties are expanded, with the coverage factor written in the text.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Verdict {
+    /// Section id this verdict belongs to.
+    pub section: String,
+    pub capability: String,
+    /// What was measured.
+    pub measured: String,
+    pub truth: String,
+    pub result: String,
+    /// Expanded uncertainty with its coverage factor (e.g. "U = 1.2 µm (k = 2)").
+    pub uncertainty: String,
+    /// Tolerance the result is judged against, with its reason.
+    pub tolerance: String,
+    pub pass: bool,
+}
+
+/// UTC calendar date and time `YYYY-MM-DD hh:mm:ss UTC` of a Unix time (proleptic Gregorian,
+/// days-to-civil conversion).
+pub fn utc_string(unix_s: i64) -> String {
+    let days = unix_s.div_euclid(86_400);
+    let secs = unix_s.rem_euclid(86_400);
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!("{y:04}-{m:02}-{d:02} {:02}:{:02}:{:02} UTC", secs / 3600, secs % 3600 / 60, secs % 60)
+}
+
+const CSS: &str = "body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
+table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #999;padding:3px 8px;text-align:right;vertical-align:top}thead th{background:#eee}
+td:first-child,th:first-child,th[scope=row]{text-align:left}tbody th{font-weight:normal}
+.wrap{overflow-x:auto;max-width:100%}
+figure{margin:1em 0}figure svg{max-width:100%;height:auto;display:block}figcaption{font-size:.95em;color:#333}
+.legend{list-style:none;padding:0;margin:.3em 0;display:flex;flex-wrap:wrap;gap:1.2em}.swatch{display:inline-block;width:1.2em;height:.8em;margin-right:.4em;vertical-align:middle;border:1px solid #555}
+.pass{color:#065f06;font-weight:bold}.fail{color:#a00000;font-weight:bold}
+.overall{font-size:1.3em;padding:.5em 1em;border:2px solid currentColor;display:inline-block}
+dl.header{display:grid;grid-template-columns:max-content 1fr;gap:.2em 1em}dl.header dt{font-weight:bold}dl.header dd{margin:0;overflow-wrap:anywhere}
+.verdict td,.verdict th{text-align:left}
+@media print{body{max-width:none;margin:0;font-size:10pt;color:#000}nav{display:none}section{break-before:page}figure,table{break-inside:avoid}a{color:#000;text-decoration:none}.wrap{overflow:visible}}
+";
+
 /// A report under construction.
 pub struct Report {
     pub dir: PathBuf,
+    pub header: Header,
     sections: Vec<Section>,
+    verdicts: Vec<Verdict>,
 }
 
 impl Report {
     pub fn new(dir: impl AsRef<Path>) -> Self {
-        Self { dir: dir.as_ref().to_path_buf(), sections: Vec::new() }
+        Self {
+            dir: dir.as_ref().to_path_buf(),
+            header: Header::default(),
+            sections: Vec::new(),
+            verdicts: Vec::new(),
+        }
     }
 
     pub fn add(&mut self, id: &str, title: &str, html: String) {
         self.sections.push(Section { id: id.to_string(), title: title.to_string(), html });
     }
 
-    /// Write `index.html` into the report directory.
-    pub fn write(&self) -> Result<PathBuf> {
-        std::fs::create_dir_all(&self.dir)?;
-        let mut html = String::from(
-            "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n<title>truepos demo report</title>\n<style>\nbody{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}\ntable{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;text-align:right}th{background:#eee}\ntd:first-child,th:first-child{text-align:left}\nsvg{max-width:100%;height:auto}.pass{color:#070}.fail{color:#b00}\n</style></head><body>\n<h1>truepos demo report</h1>\n<p>Every capability run end to end on the virtual cell; each table compares what truepos recovered with the simulator's truth.</p>\n<ul>\n",
+    /// Record a capability's verdict against truth (one summary row; shown at the top of its
+    /// section).
+    pub fn verdict(&mut self, v: Verdict) {
+        self.verdicts.push(v);
+    }
+
+    /// True when every recorded verdict passes (and there is at least one).
+    pub fn overall_pass(&self) -> bool {
+        !self.verdicts.is_empty() && self.verdicts.iter().all(|v| v.pass)
+    }
+
+    /// The whole `index.html`.
+    pub fn html(&self) -> String {
+        let h = &self.header;
+        let pass = self.overall_pass();
+        let failed: Vec<&str> =
+            self.verdicts.iter().filter(|v| !v.pass).map(|v| v.capability.as_str()).collect();
+        let mut html = format!(
+            "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n<title>truepos demo report</title>\n<style>\n{CSS}</style></head><body>\n<header>\n<h1>truepos demo report</h1>\n<dl class=\"header\">\n<dt>truepos version</dt><dd>{}</dd>\n<dt>generated</dt><dd>{}</dd>\n<dt>command line</dt><dd><code>{}</code></dd>\n<dt>seed</dt><dd>{}</dd>\n<dt>machines</dt><dd>{}</dd>\n<dt>environment</dt><dd>{}</dd>\n</dl>\n</header>\n<main>\n<h2 id=\"verdict\">Overall verdict</h2>\n<p class=\"overall {}\">{}</p>\n",
+            escape(&h.version),
+            utc_string(h.generated_unix_s),
+            escape(&h.command_line),
+            h.seed,
+            escape(&h.machine),
+            escape(&h.environment),
+            if pass { "pass" } else { "fail" },
+            if pass {
+                format!("PASS — all {} capabilities within tolerance against the simulator's truth", self.verdicts.len())
+            } else {
+                escape(&format!("FAIL — outside tolerance: {}", failed.join(", ")))
+            },
         );
+        html.push_str("<p>Every capability runs end to end on the virtual cell (or on NIST reference data for fitting); each result is compared with the truth the simulator used, which truepos never sees. Uncertainties are expanded uncertainties U with the coverage factor k stated (k = 2: about 95 % coverage for a normal distribution).</p>\n");
+        let rows: Vec<Vec<String>> = self
+            .verdicts
+            .iter()
+            .map(|v| {
+                vec![
+                    v.capability.clone(),
+                    v.measured.clone(),
+                    v.result.clone(),
+                    v.uncertainty.clone(),
+                    v.tolerance.clone(),
+                    verdict_word(v.pass).into(),
+                ]
+            })
+            .collect();
+        html.push_str("<h2 id=\"summary\">Summary</h2>\n");
+        html.push_str(&table_left(
+            "One row per capability",
+            &["capability", "measured", "result", "uncertainty", "tolerance", "verdict"],
+            &rows,
+        ));
+        html.push_str("<nav aria-label=\"Sections\"><h2>Sections</h2><ul>\n");
         for s in &self.sections {
             html.push_str(&format!("<li><a href=\"#{}\">{}</a></li>\n", s.id, escape(&s.title)));
         }
-        html.push_str("</ul>\n");
+        html.push_str("</ul></nav>\n");
         for s in &self.sections {
+            let mut boxes = String::new();
+            for v in self.verdicts.iter().filter(|v| v.section == s.id) {
+                boxes.push_str(&verdict_box(v));
+            }
             html.push_str(&format!(
-                "<section id=\"{}\"><h2>{}</h2>\n{}\n</section>\n",
+                "<section id=\"{}\" aria-labelledby=\"{}-h\"><h2 id=\"{}-h\">{}</h2>\n{}{}\n</section>\n",
+                s.id,
+                s.id,
                 s.id,
                 escape(&s.title),
+                boxes,
                 s.html
             ));
         }
-        html.push_str("</body></html>\n");
+        html.push_str("</main>\n</body></html>\n");
+        html
+    }
+
+    /// Write `index.html` and `summary.json` into the report directory.
+    pub fn write(&self) -> Result<PathBuf> {
+        std::fs::create_dir_all(&self.dir)?;
         let path = self.dir.join("index.html");
-        truepos_io::atomic::write_atomic(&path, html.as_bytes())?;
+        truepos_io::atomic::write_atomic(&path, self.html().as_bytes())?;
         let summary = serde_json::to_vec_pretty(&self.summary())?;
         truepos_io::atomic::write_atomic(self.dir.join("summary.json"), &summary)?;
         Ok(path)
     }
 
-    /// Every table of the report as data (`summary.json`): one entry per section with its
-    /// tables, each a header and rows of the cells exactly as the report prints them. Two runs
-    /// of the demo are compared by diffing this file.
+    /// The report as data (`summary.json`): the header, the overall verdict, one verdict per
+    /// capability, and one entry per section with its tables, each a header and rows of the
+    /// cells exactly as the report prints them. Two runs of the demo are compared by diffing
+    /// this file.
     pub fn summary(&self) -> serde_json::Value {
         let sections: Vec<serde_json::Value> = self
             .sections
@@ -70,8 +209,58 @@ impl Report {
                 serde_json::json!({ "id": s.id, "title": s.title, "tables": tables })
             })
             .collect();
-        serde_json::json!({ "sections": sections })
+        serde_json::json!({
+            "header": {
+                "version": self.header.version,
+                "generated_utc": utc_string(self.header.generated_unix_s),
+                "generated_unix_s": self.header.generated_unix_s,
+                "command_line": self.header.command_line,
+                "seed": self.header.seed,
+                "machine": self.header.machine,
+                "environment": self.header.environment,
+            },
+            "overall": verdict_word(self.overall_pass()),
+            "capabilities": self.verdicts,
+            "sections": sections,
+        })
     }
+}
+
+fn verdict_word(pass: bool) -> &'static str {
+    if pass {
+        "pass"
+    } else {
+        "FAIL"
+    }
+}
+
+fn verdict_box(v: &Verdict) -> String {
+    let rows = vec![
+        vec!["measured".to_string(), v.measured.clone()],
+        vec!["truth".to_string(), v.truth.clone()],
+        vec!["result".to_string(), v.result.clone()],
+        vec!["uncertainty".to_string(), v.uncertainty.clone()],
+        vec!["tolerance".to_string(), v.tolerance.clone()],
+        vec!["verdict".to_string(), verdict_word(v.pass).to_string()],
+    ];
+    let mut h = format!(
+        "<table class=\"verdict\"><caption>{}: verdict against truth</caption><tbody>\n",
+        escape(&v.capability)
+    );
+    for r in rows {
+        let class = match r[1].as_str() {
+            "pass" => " class=\"pass\"",
+            "FAIL" => " class=\"fail\"",
+            _ => "",
+        };
+        h.push_str(&format!(
+            "<tr><th scope=\"row\">{}</th><td{class}>{}</td></tr>\n",
+            escape(&r[0]),
+            escape(&r[1])
+        ));
+    }
+    h.push_str("</tbody></table>\n");
+    h
 }
 
 /// The tables [`table`] wrote into a section's HTML, back as (header, rows) of unescaped cells.
@@ -85,11 +274,25 @@ fn parse_tables(html: &str) -> Vec<(Vec<String>, Vec<Vec<String>>)> {
             let row = row.split("</tr>").next().unwrap_or("");
             let mut cells = Vec::new();
             let mut is_header = false;
-            for cell in row.split("<t").skip(1) {
-                is_header |= cell.starts_with('h');
-                let text = cell.split_once('>').map_or("", |(_, rest)| rest);
-                let text = text.split("</t").next().unwrap_or("");
-                cells.push(unescape(text));
+            let mut rest = row;
+            while let Some(i) = rest.find("<t") {
+                let tag = &rest[i + 2..];
+                let kind = tag.chars().next().unwrap_or(' ');
+                let after = tag.get(1..).unwrap_or("");
+                if !(kind == 'h' || kind == 'd') || !(after.starts_with('>') || after.starts_with(' ')) {
+                    rest = tag;
+                    continue;
+                }
+                let text = after.split_once('>').map_or("", |(_, r)| r);
+                let end = text.find("</t").unwrap_or(text.len());
+                if kind == 'h' && after.contains("scope=\"col\"") {
+                    is_header = true;
+                }
+                if kind == 'h' && after.starts_with('>') {
+                    is_header = true;
+                }
+                cells.push(unescape(&text[..end]));
+                rest = &text[end..];
             }
             if is_header {
                 header = cells;
@@ -111,28 +314,37 @@ pub fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
 }
 
-/// An HTML table from a header and rows of already formatted cells (escaped; cells reading
-/// `pass` / `FAIL` are coloured).
+fn table_left(caption: &str, header: &[&str], rows: &[Vec<String>]) -> String {
+    let t = table(header, rows);
+    t.replacen("<table>", &format!("<table class=\"verdict\"><caption>{}</caption>", escape(caption)), 1)
+}
+
+/// An HTML table from a header and rows of already formatted cells (escaped; `<thead>` with
+/// column headers, the first cell of each row a row header; cells reading `pass` / `FAIL` are
+/// coloured). Wrapped so a wide table scrolls on a narrow screen instead of the page.
 pub fn table(header: &[&str], rows: &[Vec<String>]) -> String {
-    let mut h = String::from("<table><tr>");
+    let mut h = String::from("<div class=\"wrap\"><table><thead><tr>");
     for c in header {
-        h.push_str(&format!("<th>{}</th>", escape(c)));
+        h.push_str(&format!("<th scope=\"col\">{}</th>", escape(c)));
     }
-    h.push_str("</tr>\n");
+    h.push_str("</tr></thead>\n<tbody>\n");
     for r in rows {
         h.push_str("<tr>");
-        for c in r {
-            // Verdict cells are coloured.
+        for (i, c) in r.iter().enumerate() {
             let class = match c.as_str() {
                 "pass" => " class=\"pass\"",
                 "FAIL" | "fail" => " class=\"fail\"",
                 _ => "",
             };
-            h.push_str(&format!("<td{class}>{}</td>", escape(c)));
+            if i == 0 {
+                h.push_str(&format!("<th scope=\"row\"{class}>{}</th>", escape(c)));
+            } else {
+                h.push_str(&format!("<td{class}>{}</td>", escape(c)));
+            }
         }
         h.push_str("</tr>\n");
     }
-    h.push_str("</table>\n");
+    h.push_str("</tbody></table></div>\n");
     h
 }
 
@@ -159,14 +371,20 @@ impl Series {
     }
 }
 
+/// Colour-blind-safe palette (Okabe–Ito), dark enough against white.
 const PALETTE: [RGBColor; 6] = [
-    RGBColor(31, 119, 180),
-    RGBColor(214, 39, 40),
-    RGBColor(44, 160, 44),
-    RGBColor(255, 127, 14),
-    RGBColor(148, 103, 189),
-    RGBColor(140, 86, 75),
+    RGBColor(0, 114, 178),
+    RGBColor(213, 94, 0),
+    RGBColor(0, 158, 115),
+    RGBColor(204, 121, 167),
+    RGBColor(86, 180, 233),
+    RGBColor(230, 159, 0),
 ];
+
+/// Chart text sizes (px in the 760 px wide drawing; the figure scales down only on screens
+/// narrower than that).
+const CAPTION_PX: u32 = 20;
+const LABEL_PX: u32 = 15;
 
 fn bounds(series: &[Series]) -> (f64, f64, f64, f64) {
     let mut b = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
@@ -193,59 +411,158 @@ fn plot_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
     anyhow::anyhow!("plot: {e:?}")
 }
 
-/// A line/scatter plot as an SVG string.
+fn rgb(c: RGBColor) -> String {
+    format!("#{:02x}{:02x}{:02x}", c.0, c.1, c.2)
+}
+
+/// Round to 4 significant digits for text alternatives.
+fn sig(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let mag = v.abs().log10().floor() as i32;
+    let dec = (3 - mag).clamp(0, 9) as usize;
+    format!("{v:.dec$}")
+}
+
+/// Wrap a plotters SVG as an accessible figure: `role="img"` with a `<title>`, the legend as
+/// HTML below the drawing (never over the data), and a caption that is the text alternative.
+fn figure(svg: &str, title: &str, legend: &[(String, RGBColor)], alt: &str) -> String {
+    let svg = svg.replacen("<svg ", &format!("<svg role=\"img\" aria-label=\"{}\" ", escape(title)), 1);
+    let svg = match svg.find('>') {
+        Some(i) => format!("{}<title>{}</title>{}", &svg[..=i], escape(title), &svg[i + 1..]),
+        None => svg,
+    };
+    let mut h = format!("<figure>\n{svg}\n");
+    if !legend.is_empty() {
+        h.push_str("<ul class=\"legend\" aria-label=\"legend\">");
+        for (label, c) in legend {
+            h.push_str(&format!(
+                "<li><span class=\"swatch\" style=\"background:{}\"></span>{}</li>",
+                rgb(*c),
+                escape(label)
+            ));
+        }
+        h.push_str("</ul>\n");
+    }
+    h.push_str(&format!("<figcaption>{}</figcaption>\n</figure>\n", escape(alt)));
+    h
+}
+
+fn series_alt(x_label: &str, y_label: &str, series: &[Series]) -> String {
+    let parts: Vec<String> = series
+        .iter()
+        .map(|s| {
+            let b = bounds(std::slice::from_ref(s));
+            let (xs, ys): (Vec<f64>, Vec<f64>) = s.points.iter().copied().unzip();
+            let lo = |v: &[f64]| v.iter().copied().filter(|x| x.is_finite()).fold(f64::INFINITY, f64::min);
+            let hi =
+                |v: &[f64]| v.iter().copied().filter(|x| x.is_finite()).fold(f64::NEG_INFINITY, f64::max);
+            let _ = b;
+            format!(
+                "“{}”: {} points, {x_label} {} to {}, {y_label} {} to {}",
+                s.label,
+                s.points.len(),
+                sig(lo(&xs)),
+                sig(hi(&xs)),
+                sig(lo(&ys)),
+                sig(hi(&ys))
+            )
+        })
+        .collect();
+    format!("Text alternative: {}.", parts.join("; "))
+}
+
+/// A line/scatter plot as an accessible SVG figure (legend and text alternative in HTML).
 pub fn xy_plot(title: &str, x_label: &str, y_label: &str, series: &[Series]) -> Result<String> {
+    xy_plot_impl(title, x_label, y_label, series, false)
+}
+
+/// As [`xy_plot`] with one data unit the same length on both axes (paths in a plane: a circle
+/// is drawn as a circle).
+pub fn xy_plot_equal(title: &str, x_label: &str, y_label: &str, series: &[Series]) -> Result<String> {
+    xy_plot_impl(title, x_label, y_label, series, true)
+}
+
+fn xy_plot_impl(title: &str, x_label: &str, y_label: &str, series: &[Series], equal: bool) -> Result<String> {
     let mut svg = String::new();
+    let (w, h) = (760u32, if equal { 620u32 } else { 420u32 });
+    let (xa, ya, margin, cap) = (50u32, 90u32, 12u32, 40u32);
     {
-        let root = SVGBackend::with_string(&mut svg, (760, 420)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, (w, h)).into_drawing_area();
         root.fill(&WHITE).map_err(plot_err)?;
-        let (x0, x1, y0, y1) = bounds(series);
+        let (mut x0, mut x1, mut y0, mut y1) = bounds(series);
+        if equal {
+            // Plot area in pixels; widen the range that is short of the common mm/px scale.
+            let pw = f64::from(w - ya - 2 * margin);
+            let ph = f64::from(h - xa - 2 * margin - cap);
+            let s = ((x1 - x0) / pw).max((y1 - y0) / ph);
+            let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+            (x0, x1, y0, y1) = (cx - s * pw / 2.0, cx + s * pw / 2.0, cy - s * ph / 2.0, cy + s * ph / 2.0);
+        }
         let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 18))
-            .margin(10)
-            .x_label_area_size(40)
-            .y_label_area_size(70)
+            .caption(title, ("sans-serif", CAPTION_PX))
+            .margin(margin)
+            .x_label_area_size(xa)
+            .y_label_area_size(ya)
             .build_cartesian_2d(x0..x1, y0..y1)
             .map_err(plot_err)?;
-        chart.configure_mesh().x_desc(x_label).y_desc(y_label).draw().map_err(plot_err)?;
+        chart
+            .configure_mesh()
+            .x_desc(x_label)
+            .y_desc(y_label)
+            .label_style(("sans-serif", LABEL_PX))
+            .axis_desc_style(("sans-serif", LABEL_PX))
+            .draw()
+            .map_err(plot_err)?;
         for (i, s) in series.iter().enumerate() {
             let color = PALETTE[i % PALETTE.len()];
             match s.style {
                 Style::Line => {
                     chart
                         .draw_series(LineSeries::new(s.points.iter().copied(), color.stroke_width(2)))
-                        .map_err(plot_err)?
-                        .label(s.label.clone())
-                        .legend(move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 16, y)], color.stroke_width(2))
-                        });
+                        .map_err(plot_err)?;
                 }
                 Style::Points => {
                     chart
                         .draw_series(s.points.iter().map(|&p| Circle::new(p, 2, color.filled())))
-                        .map_err(plot_err)?
-                        .label(s.label.clone())
-                        .legend(move |(x, y)| Circle::new((x + 8, y), 3, color.filled()));
+                        .map_err(plot_err)?;
                 }
             }
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(plot_err)?;
         root.present().map_err(plot_err)?;
     }
-    Ok(svg)
+    let legend: Vec<(String, RGBColor)> =
+        series.iter().enumerate().map(|(i, s)| (s.label.clone(), PALETTE[i % PALETTE.len()])).collect();
+    let mut alt = series_alt(x_label, y_label, series);
+    if equal {
+        alt.push_str(" Both axes have the same scale.");
+    }
+    Ok(figure(&svg, title, &legend, &alt))
 }
 
-/// Overlaid histograms of several value sets over common bins.
-pub fn histogram(title: &str, x_label: &str, sets: &[(&str, &[f64])], bins: usize) -> Result<String> {
+/// Overlaid histograms of several value sets over common bins from `range` (or the data's own
+/// range when `None`; pass the same range to histograms that are to be compared).
+pub fn histogram(
+    title: &str,
+    x_label: &str,
+    sets: &[(&str, &[f64])],
+    bins: usize,
+    range: Option<(f64, f64)>,
+) -> Result<String> {
     let all: Vec<f64> = sets.iter().flat_map(|s| s.1.iter().copied()).filter(|v| v.is_finite()).collect();
-    let lo = all.iter().cloned().fold(f64::INFINITY, f64::min);
-    let hi = all.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-    let (lo, hi) = if lo.is_finite() && hi > lo { (lo, hi) } else { (0.0, 1.0) };
+    let (lo, hi) = match range {
+        Some((a, b)) if b > a => (a, b),
+        _ => {
+            let lo = all.iter().cloned().fold(f64::INFINITY, f64::min);
+            let hi = all.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+            if lo.is_finite() && hi > lo {
+                (lo, hi)
+            } else {
+                (0.0, 1.0)
+            }
+        }
+    };
     let bins = bins.max(1);
     let w = (hi - lo) / bins as f64;
     let counts: Vec<Vec<usize>> = sets
@@ -253,7 +570,7 @@ pub fn histogram(title: &str, x_label: &str, sets: &[(&str, &[f64])], bins: usiz
         .map(|s| {
             let mut c = vec![0; bins];
             for v in s.1.iter().filter(|v| v.is_finite()) {
-                let k = (((v - lo) / w) as usize).min(bins - 1);
+                let k = (((v - lo) / w).max(0.0) as usize).min(bins - 1);
                 c[k] += 1;
             }
             c
@@ -265,82 +582,151 @@ pub fn histogram(title: &str, x_label: &str, sets: &[(&str, &[f64])], bins: usiz
         let root = SVGBackend::with_string(&mut svg, (760, 380)).into_drawing_area();
         root.fill(&WHITE).map_err(plot_err)?;
         let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 18))
-            .margin(10)
-            .x_label_area_size(40)
-            .y_label_area_size(50)
+            .caption(title, ("sans-serif", CAPTION_PX))
+            .margin(12)
+            .x_label_area_size(50)
+            .y_label_area_size(70)
             .build_cartesian_2d(lo..hi, 0.0..ymax * 1.1)
             .map_err(plot_err)?;
-        chart.configure_mesh().x_desc(x_label).y_desc("count").draw().map_err(plot_err)?;
-        for (i, (label, _)) in sets.iter().enumerate() {
+        chart
+            .configure_mesh()
+            .x_desc(x_label)
+            .y_desc("count")
+            .label_style(("sans-serif", LABEL_PX))
+            .axis_desc_style(("sans-serif", LABEL_PX))
+            .draw()
+            .map_err(plot_err)?;
+        for (i, c) in counts.iter().enumerate() {
             let color = PALETTE[i % PALETTE.len()];
-            let c = &counts[i];
             chart
                 .draw_series(c.iter().enumerate().map(|(k, &n)| {
                     let x0 = lo + k as f64 * w;
-                    Rectangle::new([(x0, 0.0), (x0 + w, n as f64)], color.mix(0.45).filled())
+                    Rectangle::new([(x0, 0.0), (x0 + w, n as f64)], color.mix(0.55).filled())
                 }))
-                .map_err(plot_err)?
-                .label(label.to_string())
-                .legend(move |(x, y)| {
-                    Rectangle::new([(x, y - 5), (x + 12, y + 5)], color.mix(0.45).filled())
-                });
+                .map_err(plot_err)?;
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(plot_err)?;
         root.present().map_err(plot_err)?;
     }
-    Ok(svg)
+    let legend: Vec<(String, RGBColor)> =
+        sets.iter().enumerate().map(|(i, s)| (s.0.to_string(), PALETTE[i % PALETTE.len()])).collect();
+    let parts: Vec<String> = sets
+        .iter()
+        .map(|(label, v)| {
+            let f: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+            let mean = f.iter().sum::<f64>() / f.len().max(1) as f64;
+            let max = f.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            format!("“{label}”: {} values, mean {}, max {}", f.len(), sig(mean), sig(max))
+        })
+        .collect();
+    let alt = format!(
+        "Text alternative: histogram of {x_label}, {bins} bins from {} to {}; {}.",
+        sig(lo),
+        sig(hi),
+        parts.join("; ")
+    );
+    Ok(figure(&svg, title, &legend, &alt))
 }
 
-/// A colour map of `values[j][i]` over `x` (i) and `y` (j) cell centres, with a legend of the range.
+/// Diverging colour for `t` in [-1, 1]: blue (−) through white (0) to red (+).
+fn diverging(t: f64) -> RGBColor {
+    let t = t.clamp(-1.0, 1.0);
+    let (r, g, b) = if t < 0.0 {
+        let a = -t;
+        (255.0 * (1.0 - a) + 33.0 * a, 255.0 * (1.0 - a) + 102.0 * a, 255.0 * (1.0 - a) + 172.0 * a)
+    } else {
+        (255.0 * (1.0 - t) + 178.0 * t, 255.0 * (1.0 - t) + 24.0 * t, 255.0 * (1.0 - t) + 43.0 * t)
+    };
+    RGBColor(r as u8, g as u8, b as u8)
+}
+
+/// A colour map of `values[j][i]` over `x` (i) and `y` (j) cell centres (equal aspect), with a
+/// colour bar centred on zero (white = 0, blue negative, red positive, symmetric range).
 pub fn heatmap(title: &str, x: &[f64], y: &[f64], values: &[Vec<f64>], unit: &str) -> Result<String> {
     let lo = values.iter().flatten().cloned().fold(f64::INFINITY, f64::min);
     let hi = values.iter().flatten().cloned().fold(f64::NEG_INFINITY, f64::max);
-    let span = if hi > lo { hi - lo } else { 1.0 };
+    let m = lo.abs().max(hi.abs());
+    let m = if m > 0.0 && m.is_finite() { m } else { 1.0 };
     let dx = if x.len() > 1 { x[1] - x[0] } else { 1.0 };
     let dy = if y.len() > 1 { y[1] - y[0] } else { 1.0 };
+    let x0 = x.first().copied().unwrap_or(0.0) - dx / 2.0;
+    let x1 = x.last().copied().unwrap_or(1.0) + dx / 2.0;
+    let y0 = y.first().copied().unwrap_or(0.0) - dy / 2.0;
+    let y1 = y.last().copied().unwrap_or(1.0) + dy / 2.0;
+    let (w, bar_w) = (760u32, 130u32);
+    // Height for equal aspect of the map area.
+    let map_w = f64::from(w - bar_w - 80 - 24);
+    let map_h = (map_w * (y1 - y0) / (x1 - x0)).clamp(150.0, 700.0);
+    let h = map_h as u32 + 50 + 24 + 40;
     let mut svg = String::new();
     {
-        let root = SVGBackend::with_string(&mut svg, (760, 520)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, (w, h)).into_drawing_area();
         root.fill(&WHITE).map_err(plot_err)?;
-        let caption = format!("{title} ({lo:.3} … {hi:.3} {unit}, blue → red)");
-        let x0 = x.first().copied().unwrap_or(0.0) - dx / 2.0;
-        let x1 = x.last().copied().unwrap_or(1.0) + dx / 2.0;
-        let y0 = y.first().copied().unwrap_or(0.0) - dy / 2.0;
-        let y1 = y.last().copied().unwrap_or(1.0) + dy / 2.0;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(caption, ("sans-serif", 16))
-            .margin(10)
-            .x_label_area_size(40)
-            .y_label_area_size(60)
+        let (map_area, bar_area) = root.split_horizontally(w - bar_w);
+        let mut chart = ChartBuilder::on(&map_area)
+            .caption(title, ("sans-serif", CAPTION_PX))
+            .margin(12)
+            .x_label_area_size(50)
+            .y_label_area_size(80)
             .build_cartesian_2d(x0..x1, y0..y1)
             .map_err(plot_err)?;
-        chart.configure_mesh().x_desc("x (mm)").y_desc("y (mm)").disable_mesh().draw().map_err(plot_err)?;
+        chart
+            .configure_mesh()
+            .x_desc("x (mm)")
+            .y_desc("y (mm)")
+            .label_style(("sans-serif", LABEL_PX))
+            .axis_desc_style(("sans-serif", LABEL_PX))
+            .disable_mesh()
+            .draw()
+            .map_err(plot_err)?;
         chart
             .draw_series(values.iter().enumerate().flat_map(|(j, row)| {
                 row.iter().enumerate().map(move |(i, &v)| {
-                    let t = ((v - lo) / span).clamp(0.0, 1.0);
-                    let c = RGBColor(
-                        (255.0 * t) as u8,
-                        (80.0 * (1.0 - (2.0 * t - 1.0).abs())) as u8,
-                        (255.0 * (1.0 - t)) as u8,
-                    );
                     let (cx, cy) = (x[i], y[j]);
                     Rectangle::new(
                         [(cx - dx / 2.0, cy - dy / 2.0), (cx + dx / 2.0, cy + dy / 2.0)],
-                        c.filled(),
+                        diverging(v / m).filled(),
                     )
                 })
             }))
             .map_err(plot_err)?;
+        let mut bar = ChartBuilder::on(&bar_area)
+            .margin_top(12 + CAPTION_PX + 10)
+            .margin_bottom(12)
+            .margin_right(12)
+            .x_label_area_size(50)
+            .y_label_area_size(70)
+            .build_cartesian_2d(0.0..1.0, -m..m)
+            .map_err(plot_err)?;
+        bar.configure_mesh()
+            .disable_x_mesh()
+            .disable_x_axis()
+            .disable_y_mesh()
+            .y_desc(unit)
+            .y_labels(5)
+            .label_style(("sans-serif", LABEL_PX))
+            .axis_desc_style(("sans-serif", LABEL_PX))
+            .draw()
+            .map_err(plot_err)?;
+        let n = 60;
+        bar.draw_series((0..n).map(|k| {
+            let a = -m + 2.0 * m * k as f64 / n as f64;
+            let b = a + 2.0 * m / n as f64;
+            Rectangle::new([(0.0, a), (1.0, b)], diverging((a + b) / (2.0 * m)).filled())
+        }))
+        .map_err(plot_err)?;
         root.present().map_err(plot_err)?;
     }
-    Ok(svg)
+    let alt = format!(
+        "Text alternative: colour map of {title} over x {} to {} mm and y {} to {} mm; values from {} to {} {unit}; colour bar centred on zero (white), blue negative, red positive, ±{} {unit}.",
+        sig(x0),
+        sig(x1),
+        sig(y0),
+        sig(y1),
+        sig(lo),
+        sig(hi),
+        sig(m)
+    );
+    Ok(figure(&svg, title, &[], &alt))
 }
 
 #[cfg(test)]
@@ -364,5 +750,41 @@ mod tests {
         assert_eq!(t[1]["rows"], serde_json::json!([]));
         assert_eq!(s["sections"][1]["tables"], serde_json::json!([]));
         assert_eq!(s["sections"][1]["id"], "s2");
+    }
+
+    /// The header's date is the civil UTC date of the Unix time (checked against known dates).
+    #[test]
+    fn utc_string_is_the_civil_date() {
+        assert_eq!(utc_string(0), "1970-01-01 00:00:00 UTC");
+        assert_eq!(utc_string(1_700_000_000), "2023-11-14 22:13:20 UTC");
+        assert_eq!(utc_string(951_782_400), "2000-02-29 00:00:00 UTC");
+        assert_eq!(utc_string(-1), "1969-12-31 23:59:59 UTC");
+    }
+
+    /// With the generation time fixed (what `SOURCE_DATE_EPOCH` does in the CLI), the same
+    /// content gives byte-identical pages; the time is the only thing that differs otherwise.
+    #[test]
+    fn reruns_are_byte_identical_with_a_fixed_time() {
+        let build = |t: i64| {
+            let mut r = Report::new("unused");
+            r.header = Header { version: "v".into(), generated_unix_s: t, seed: 1, ..Header::default() };
+            let svg = xy_plot("p", "x", "y", &[Series::line("a", vec![(0.0, 0.0), (1.0, 2.0)])]).unwrap();
+            r.add("s", "S", format!("{}{svg}", table(&["a", "b"], &[vec!["x".into(), "pass".into()]])));
+            r.verdict(Verdict {
+                section: "s".into(),
+                capability: "c".into(),
+                measured: "m".into(),
+                truth: "t".into(),
+                result: "r".into(),
+                uncertainty: "U (k = 2)".into(),
+                tolerance: "tol".into(),
+                pass: true,
+            });
+            (r.html(), serde_json::to_string(&r.summary()).unwrap())
+        };
+        assert_eq!(build(1_700_000_000), build(1_700_000_000));
+        let (a, b) = (build(1_700_000_000).0, build(1_700_000_060).0);
+        assert_ne!(a, b);
+        assert_eq!(a.replace("22:13:20", "22:14:20"), b, "only the time differs");
     }
 }

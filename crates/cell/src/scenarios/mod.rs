@@ -6,5 +6,6 @@ pub mod align;
 pub mod head;
 pub mod latency;
 pub mod load;
+pub mod part;
 pub mod scan;
 pub mod somac;

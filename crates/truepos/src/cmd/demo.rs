@@ -7,7 +7,10 @@ use truepos_cell::demo::SectionFn;
 use truepos_cell::report::Report;
 
 #[derive(clap::Args, Debug)]
-#[command(after_help = "Example:\n  truepos demo --out demo   # then open demo/index.html")]
+#[command(
+    long_about = "Run every capability end to end on the virtual cell (fitting on the NIST reference data) and compare each result with the simulator's truth.\n\nWrites into --out:\n  index.html    the report: header (version, UTC time, seed, machines, environment, command line), overall verdict, one summary row per capability, one section per capability with tables and plots (self-contained, no network)\n  summary.json  the same as data: header, verdicts, every table\n  load/         the influence map of the bed-load section (map.csv)\n\nProgress: one line per capability with its time on stderr. Reruns are byte-identical except the generation time; set SOURCE_DATE_EPOCH (Unix seconds) to fix it too.",
+    after_help = "Example:\n  truepos demo --out demo   # then open demo/index.html"
+)]
 pub struct Args {
     /// Report directory (data sets of each capability go in subdirectories).
     #[arg(long, default_value = "demo")]
@@ -16,17 +19,43 @@ pub struct Args {
 
 pub fn run(a: Args) -> anyhow::Result<Outcome> {
     let mut report = Report::new(&a.out);
+    // Generation time: SOURCE_DATE_EPOCH (reproducible builds convention) when set, else now.
+    let now = match std::env::var("SOURCE_DATE_EPOCH") {
+        Ok(v) => v.trim().parse::<i64>().map_err(|_| {
+            crate::UsageError(format!("SOURCE_DATE_EPOCH must be Unix seconds (an integer), got {v:?}"))
+        })?,
+        Err(_) => std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_secs() as i64)
+            .unwrap_or(0),
+    };
+    report.header = truepos_cell::report::Header {
+        version: env!("CARGO_PKG_VERSION").to_string(),
+        generated_unix_s: now,
+        command_line: std::env::args().collect::<Vec<_>>().join(" "),
+        seed: truepos_cell::scenarios::part::SEED,
+        machine: "virtual bridge CMM (bed load, geometric map), virtual scanning CMM, virtual VMC with swivel head, virtual 12 m × 4 m × 2 m gantry with two laser trackers, latency test cell".into(),
+        environment: "air 20 °C, 101 325 Pa, 50 % RH, 450 ppm CO₂ (reference conditions); the gantry's part warms during its run and the autoscale part is 4 °C above 20 °C".into(),
+    };
     let mut sections: Vec<(&str, SectionFn)> = vec![("fitting", super::fit::demo_section)];
     sections.extend(truepos_cell::demo::sections());
-    let pb = crate::output::progress(sections.len() as u64, "demo");
-    for (name, f) in sections {
+    let n = sections.len();
+    let pb = crate::output::progress(n as u64, "demo");
+    let t_all = std::time::Instant::now();
+    for (i, (name, f)) in sections.into_iter().enumerate() {
         pb.set_message(name.to_string());
         let t0 = std::time::Instant::now();
         f(&mut report).map_err(|e| e.context(format!("demo section '{name}'")))?;
-        tracing::info!("demo section {name}: {:.2} s", t0.elapsed().as_secs_f64());
+        // One line per capability (above the bar on a terminal; plain lines otherwise).
+        pb.suspend(|| eprintln!("[{}/{n}] {name:<18} {:6.2} s", i + 1, t0.elapsed().as_secs_f64()));
         pb.inc(1);
     }
     pb.finish_and_clear();
+    eprintln!(
+        "all {n} sections in {:.1} s; overall: {}",
+        t_all.elapsed().as_secs_f64(),
+        if report.overall_pass() { "PASS" } else { "FAIL" }
+    );
     let path = report.write()?;
     eprintln!("report written to {}", path.display());
     Ok(Outcome::Done)

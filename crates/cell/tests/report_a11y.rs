@@ -1,0 +1,97 @@
+//! Accessibility audit of the demo report in a real browser: writes a report with every kind of
+//! element the demo uses (header, verdicts, tables, line/point plots, equal-aspect plot,
+//! histogram, heat map), runs axe-core in headless Chromium through `tests/a11y/audit.js`, and
+//! fails on any serious or critical violation. Screenshots (desktop and 420 px) go to
+//! `target/a11y/`. Needs node, /usr/bin/chromium and `npm ci --prefix crates/cell/tests/a11y`;
+//! without them it prints `SKIPPED: …` and returns.
+
+use std::path::PathBuf;
+use std::process::Command;
+use truepos_cell::report::{self, Header, Report, Series, Verdict};
+
+fn sample_report(dir: &std::path::Path) -> PathBuf {
+    let mut r = Report::new(dir);
+    r.header = Header {
+        version: "test".into(),
+        generated_unix_s: 1_700_000_000,
+        command_line: "truepos demo --out x".into(),
+        seed: 1,
+        machine: "virtual CMM".into(),
+        environment: "20 °C".into(),
+    };
+    r.verdict(Verdict {
+        section: "s".into(),
+        capability: "Cap".into(),
+        measured: "m".into(),
+        truth: "t".into(),
+        result: "r".into(),
+        uncertainty: "U = 1 µm (k = 2)".into(),
+        tolerance: "≤ 2 µm".into(),
+        pass: true,
+    });
+    let circle: Vec<(f64, f64)> =
+        (0..100).map(|i| (i as f64 / 15.9).cos()).zip((0..100).map(|i| (i as f64 / 15.9).sin())).collect();
+    let html = [
+        report::table(&["a", "b"], &[vec!["x".into(), "pass".into()], vec!["y".into(), "FAIL".into()]]),
+        report::xy_plot(
+            "Line",
+            "x (mm)",
+            "y (µm)",
+            &[Series::line("l", circle.clone()), Series::points("p", circle.clone())],
+        )
+        .unwrap(),
+        report::xy_plot_equal("Circle", "x (mm)", "y (mm)", &[Series::points("c", circle)]).unwrap(),
+        report::histogram(
+            "Hist",
+            "e (µm)",
+            &[("a", &[1.0, 2.0, 2.5]), ("b", &[0.5, 1.0])],
+            10,
+            Some((0.0, 3.0)),
+        )
+        .unwrap(),
+        report::heatmap(
+            "Heat",
+            &[0.0, 1.0, 2.0],
+            &[0.0, 1.0],
+            &[vec![-1.0, 0.0, 1.0], vec![0.5, -0.5, 2.0]],
+            "µm",
+        )
+        .unwrap(),
+    ]
+    .concat();
+    r.add("s", "Section", html);
+    r.write().unwrap()
+}
+
+#[test]
+fn report_passes_axe_in_chromium() {
+    let here = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/a11y");
+    let out = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/a11y");
+    std::fs::create_dir_all(&out).unwrap();
+    // A real demo report when one is named (e.g. written by `truepos demo`), else a sample.
+    let html = match std::env::var("TRUEPOS_REPORT_HTML") {
+        Ok(p) => PathBuf::from(p),
+        Err(_) => sample_report(&out.join("sample")),
+    };
+    if Command::new("node").arg("--version").output().is_err() {
+        eprintln!("SKIPPED: node not found; the report's accessibility audit did not run");
+        return;
+    }
+    if !std::path::Path::new("/usr/bin/chromium").exists() && std::env::var("CHROMIUM").is_err() {
+        eprintln!("SKIPPED: /usr/bin/chromium not found (set CHROMIUM); the accessibility audit did not run");
+        return;
+    }
+    if !here.join("node_modules/axe-core").exists() || !here.join("node_modules/puppeteer-core").exists() {
+        eprintln!("SKIPPED: node modules missing; run `npm ci --prefix crates/cell/tests/a11y`; the accessibility audit did not run");
+        return;
+    }
+    let o = Command::new("node").arg(here.join("audit.js")).arg(&html).arg(&out).output().unwrap();
+    let text = format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    eprintln!("{text}");
+    if o.status.code() == Some(2) {
+        eprintln!("SKIPPED: the browser could not be started; the accessibility audit did not run");
+        return;
+    }
+    assert!(o.status.success(), "serious/critical accessibility violations:\n{text}");
+    assert!(out.join("report-desktop.png").exists() && out.join("report-narrow.png").exists());
+}
