@@ -10,17 +10,13 @@ fn truepos() -> Command {
     Command::new(env!("CARGO_BIN_EXE_truepos"))
 }
 
-#[test]
-fn serve_runs_a_session_logs_it_and_ends_on_sigterm() {
-    let dir = tempfile::tempdir().unwrap();
-    let part = dir.path().join("part.toml");
-    std::fs::write(&part, "[[sphere]]\ncenter_mm = [0, 0, 0]\ndiameter_mm = 20\n").unwrap();
-    let log = dir.path().join("ippdme.log");
+/// Start `truepos ippdme serve` on a free loopback port with `part` (and `extra` options);
+/// returns the child and the address it printed.
+fn spawn_server(part: &std::path::Path, extra: &[&std::ffi::OsStr]) -> (std::process::Child, String) {
     let mut child = truepos()
         .args(["ippdme", "serve", "--port", "0", "--part"])
-        .arg(&part)
-        .arg("--log")
-        .arg(&log)
+        .arg(part)
+        .args(extra)
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
@@ -29,6 +25,16 @@ fn serve_runs_a_session_logs_it_and_ends_on_sigterm() {
     err.read_line(&mut first).unwrap();
     let addr =
         first.trim().strip_prefix("ippdme: listening on ").unwrap_or_else(|| panic!("{first}")).to_string();
+    (child, addr)
+}
+
+#[test]
+fn serve_runs_a_session_logs_it_and_ends_on_sigterm() {
+    let dir = tempfile::tempdir().unwrap();
+    let part = dir.path().join("part.toml");
+    std::fs::write(&part, "[[sphere]]\ncenter_mm = [0, 0, 0]\ndiameter_mm = 20\n").unwrap();
+    let log = dir.path().join("ippdme.log");
+    let (mut child, addr) = spawn_server(&part, &["--log".as_ref(), log.as_os_str()]);
     let s = TcpStream::connect(&addr).unwrap();
     s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
     let mut w = s.try_clone().unwrap();
@@ -90,17 +96,7 @@ fn probe_sphere_through_ippdme_finds_the_part_sphere() {
     let part = dir.path().join("part.toml");
     // Truth: centre (10, -5, 20), Ø25 mm; the probe's ball is Probe1's 3 mm.
     std::fs::write(&part, "[[sphere]]\ncenter_mm = [10, -5, 20]\ndiameter_mm = 25\n").unwrap();
-    let mut child = truepos()
-        .args(["ippdme", "serve", "--port", "0", "--part"])
-        .arg(&part)
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut err = BufReader::new(child.stderr.take().unwrap());
-    let mut first = String::new();
-    err.read_line(&mut first).unwrap();
-    let addr =
-        first.trim().strip_prefix("ippdme: listening on ").unwrap_or_else(|| panic!("{first}")).to_string();
+    let (mut child, addr) = spawn_server(&part, &[]);
     // The operator's side: home the machine and pick the probe (both persist across sessions;
     // truepos itself never homes a machine).
     {
