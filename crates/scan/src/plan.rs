@@ -103,7 +103,12 @@ pub enum Geom {
         a: Point3,
         b: Point3,
     },
-    Bezier([Point3; 4]),
+    /// Quintic Hermite: end points, end derivatives dP/dλ and end second derivatives d²P/dλ².
+    Quintic {
+        p: [Point3; 2],
+        m: [Vector3; 2],
+        c: [Vector3; 2],
+    },
     /// Along the segment's feature from `u0` to `u1` (see [`Feature::point`]); `x_len` is the
     /// tangential length over which the penetration profile is evaluated.
     Along {
@@ -118,127 +123,140 @@ pub enum Geom {
     },
 }
 
-/// Speed profile over a length: a trapezoid, or (for curved transfers) a sampled profile that
-/// respects a lateral-acceleration speed limit along the curve.
+/// Speed profile over a length: phases of constant jerk (an S-curve for every speed change, each
+/// change starting and ending with zero acceleration), or a constant speed.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Profile {
-    /// (t, s, v) samples of a curvature-limited profile; `None` for a trapezoid.
-    table: Option<Vec<[f64; 3]>>,
+    /// (start time, s, v, a, jerk) at the start of each phase; the last row is the end state.
+    phases: Vec<[f64; 5]>,
     pub len: f64,
     pub v0: f64,
     pub v1: f64,
-    vp: f64,
-    a0: f64,
-    a1: f64,
-    t0: f64,
-    tc: f64,
-    t1: f64,
+}
+
+/// Distance of the S-curve speed change of [`change`] (without building its phases).
+fn change_dist(va: f64, vb: f64, a: f64, j: f64) -> f64 {
+    let d = (vb - va).abs();
+    if d <= 1e-12 {
+        return 0.0;
+    }
+    let t = if d >= a * a / j { d / a + a / j } else { 2.0 * (d / j).sqrt() };
+    0.5 * (va + vb) * t
+}
+
+/// Phases (duration, jerk) and distance of an S-curve speed change from `va` to `vb` with
+/// |a| ≤ `a`, |jerk| ≤ `j`, from zero acceleration to zero acceleration.
+fn change(va: f64, vb: f64, a: f64, j: f64) -> (Vec<(f64, f64)>, f64) {
+    let d = (vb - va).abs();
+    if d <= 1e-12 {
+        return (vec![], 0.0);
+    }
+    let sg = (vb - va).signum();
+    let (ph, t) = if d >= a * a / j {
+        (vec![(a / j, sg * j), (d / a - a / j, 0.0), (a / j, -sg * j)], d / a + a / j)
+    } else {
+        let t1 = (d / j).sqrt();
+        (vec![(t1, sg * j), (t1, -sg * j)], 2.0 * t1)
+    };
+    (ph, 0.5 * (va + vb) * t)
 }
 
 impl Profile {
-    /// From `v0` to `v1`, cruising at most at `vmax`, accelerating at most at `a` (the limit is
-    /// raised only when the length cannot join `v0` and `v1` otherwise).
-    pub fn new(len: f64, v0: f64, vmax: f64, v1: f64, a: f64) -> Profile {
+    /// Constant speed `v` over `len` (a zero-length profile when `len` is 0).
+    pub fn constant(len: f64, v: f64) -> Profile {
+        let len = len.max(0.0);
+        let t = if len > 0.0 && v > 0.0 { len / v } else { 0.0 };
+        let len = if t > 0.0 { len } else { 0.0 };
+        Profile { phases: vec![[0.0, 0.0, v, 0.0, 0.0], [t, len, v, 0.0, 0.0]], len, v0: v, v1: v }
+    }
+
+    /// From `v0` through a plateau at exactly `vp` to `v1` (S-curves with |a| ≤ `a`,
+    /// |jerk| ≤ `j`); `None` when the changes do not fit in `len`.
+    pub fn with_peak(len: f64, v0: f64, vp: f64, v1: f64, a: f64, j: f64) -> Option<Profile> {
+        let (up, d_up) = change(v0, vp, a, j);
+        let (down, d_down) = change(vp, v1, a, j);
+        let rest = len - d_up - d_down;
+        if rest < -1e-9 * len.max(1.0) {
+            return None;
+        }
+        let rest = rest.max(0.0);
+        if rest > 1e-12 && vp <= 1e-12 {
+            return None;
+        }
+        let mut phases = up;
+        if rest > 1e-12 {
+            phases.push((rest / vp, 0.0));
+        }
+        phases.extend(down);
+        let mut rows = Vec::with_capacity(phases.len() + 1);
+        let (mut t, mut x, mut v, mut acc) = (0.0, 0.0, v0, 0.0);
+        for (dt, jk) in phases {
+            if dt <= 0.0 {
+                continue;
+            }
+            rows.push([t, x, v, acc, jk]);
+            x += v * dt + 0.5 * acc * dt * dt + jk * dt * dt * dt / 6.0;
+            v += acc * dt + 0.5 * jk * dt * dt;
+            acc += jk * dt;
+            t += dt;
+        }
+        rows.push([t, x, v1, 0.0, 0.0]);
+        Some(Profile { phases: rows, len, v0, v1 })
+    }
+
+    /// Jerk-limited profile over `len` from `v0` to `v1` through the highest plateau ≤ `vmax`
+    /// that fits. When `len` is too short to join `v0` and `v1` at these limits, both limits
+    /// are raised together just enough (never needed by the planner's own moves, which are
+    /// long enough by construction).
+    pub fn s_curve(len: f64, v0: f64, vmax: f64, v1: f64, a: f64, j: f64) -> Profile {
         let len = len.max(0.0);
         if len <= 1e-12 {
-            return Profile {
-                table: None,
-                len: 0.0,
-                v0,
-                v1,
-                vp: v0,
-                a0: 0.0,
-                a1: 0.0,
-                t0: 0.0,
-                tc: 0.0,
-                t1: 0.0,
-            };
+            return Profile::constant(0.0, v0);
         }
-        let need = (v1 * v1 - v0 * v0).abs() / (2.0 * len);
-        let a = a.max(need * (1.0 + 1e-9));
-        let mut vp = vmax.max(v0).max(v1);
-        let d0 = (vp * vp - v0 * v0) / (2.0 * a);
-        let d1 = (vp * vp - v1 * v1) / (2.0 * a);
-        if d0 + d1 > len {
-            vp = ((2.0 * a * len + v0 * v0 + v1 * v1) / 2.0).sqrt().max(v0).max(v1);
+        let lo = v0.max(v1);
+        let (mut a, mut j) = (a, j);
+        while Profile::with_peak(len, v0, lo, v1, a, j).is_none() {
+            a *= 1.05;
+            j *= 1.05 * 1.05;
         }
-        let d0 = (vp * vp - v0 * v0) / (2.0 * a);
-        let d1 = (vp * vp - v1 * v1) / (2.0 * a);
-        let dc = (len - d0 - d1).max(0.0);
-        let t0 = (vp - v0) / a;
-        let t1 = (vp - v1) / a;
-        let tc = if vp > 0.0 { dc / vp } else { 0.0 };
-        Profile { table: None, len, v0, v1, vp, a0: a, a1: a, t0, tc, t1 }
-    }
-
-    /// Time-optimal profile along a curve sampled at equal distances `ds` with speed limits
-    /// `vlim` (one per sample, the first and last replaced by `v0` and `v1`): forward and
-    /// backward passes with acceleration `a`, then constant acceleration between samples.
-    pub fn limited(ds: f64, vlim: &[f64], v0: f64, v1: f64, a: f64) -> Profile {
-        let n = vlim.len();
-        if n < 2 || ds <= 0.0 {
-            return Profile::new(ds * n.saturating_sub(1) as f64, v0, v0.max(v1), v1, a);
+        let hi = vmax.max(lo);
+        if let Some(p) = Profile::with_peak(len, v0, hi, v1, a, j) {
+            return p;
         }
-        let mut v: Vec<f64> = vlim.to_vec();
-        v[0] = v0;
-        v[n - 1] = v1;
-        for i in 1..n {
-            v[i] = v[i].min((v[i - 1] * v[i - 1] + 2.0 * a * ds).sqrt());
+        let (mut l, mut h) = (lo, hi);
+        for _ in 0..60 {
+            let m = 0.5 * (l + h);
+            if Profile::with_peak(len, v0, m, v1, a, j).is_some() {
+                l = m;
+            } else {
+                h = m;
+            }
         }
-        v[n - 1] = v1;
-        for i in (0..n - 1).rev() {
-            v[i] = v[i].min((v[i + 1] * v[i + 1] + 2.0 * a * ds).sqrt());
-        }
-        v[0] = v0;
-        let mut table = Vec::with_capacity(n);
-        let mut t = 0.0;
-        table.push([0.0, 0.0, v[0]]);
-        for i in 1..n {
-            let vm = (v[i - 1] + v[i]).max(1e-9);
-            t += 2.0 * ds / vm;
-            table.push([t, ds * i as f64, v[i]]);
-        }
-        let len = ds * (n - 1) as f64;
-        Profile { table: Some(table), len, v0, v1, vp: v0.max(v1), a0: a, a1: a, t0: 0.0, tc: 0.0, t1: 0.0 }
-    }
-
-    /// Constant speed.
-    pub fn constant(len: f64, v: f64) -> Profile {
-        Profile::new(len, v, v, v, 1.0)
+        Profile::with_peak(len, v0, l, v1, a, j).unwrap_or_else(|| Profile::constant(len, lo))
     }
 
     pub fn duration(&self) -> f64 {
-        match &self.table {
-            Some(tb) => tb.last().map_or(0.0, |r| r[0]),
-            None => self.t0 + self.tc + self.t1,
+        self.phases.last().map_or(0.0, |r| r[0])
+    }
+
+    /// Distance, speed, tangential acceleration and jerk at time `t` from the start.
+    pub fn state(&self, t: f64) -> [f64; 4] {
+        if self.len == 0.0 {
+            return [0.0, self.v0, 0.0, 0.0];
         }
+        let t = t.clamp(0.0, self.duration());
+        let n = self.phases.len();
+        let i = self.phases.partition_point(|r| r[0] <= t).clamp(1, n) - 1;
+        let [t0, x, v, a, j] = self.phases[i];
+        let tau = t - t0;
+        let s = x + v * tau + 0.5 * a * tau * tau + j * tau * tau * tau / 6.0;
+        [s.clamp(0.0, self.len), v + a * tau + 0.5 * j * tau * tau, a + j * tau, j]
     }
 
     /// Distance and speed at time `t` from the start.
     pub fn at(&self, t: f64) -> (f64, f64) {
-        if self.len == 0.0 {
-            return (0.0, self.v0);
-        }
-        let t = t.clamp(0.0, self.duration());
-        if let Some(tb) = &self.table {
-            let i = tb.partition_point(|r| r[0] <= t).clamp(1, tb.len() - 1) - 1;
-            let (r0, r1) = (tb[i], tb[i + 1]);
-            let dt = r1[0] - r0[0];
-            let acc = if dt > 0.0 { (r1[2] - r0[2]) / dt } else { 0.0 };
-            let tau = t - r0[0];
-            return ((r0[1] + r0[2] * tau + 0.5 * acc * tau * tau).min(r1[1]), r0[2] + acc * tau);
-        }
-        if t < self.t0 {
-            (self.v0 * t + 0.5 * self.a0 * t * t, self.v0 + self.a0 * t)
-        } else if t < self.t0 + self.tc {
-            let d0 = self.v0 * self.t0 + 0.5 * self.a0 * self.t0 * self.t0;
-            (d0 + self.vp * (t - self.t0), self.vp)
-        } else {
-            let d0 = self.v0 * self.t0 + 0.5 * self.a0 * self.t0 * self.t0;
-            let dcl = d0 + self.vp * self.tc;
-            let r = t - self.t0 - self.tc;
-            ((dcl + self.vp * r - 0.5 * self.a1 * r * r).min(self.len), self.vp - self.a1 * r)
-        }
+        let [s, v, _, _] = self.state(t);
+        (s, v)
     }
 }
 
@@ -263,8 +281,11 @@ pub struct Segment {
     /// Surface point and outward normal for segments that are not [`Geom::Along`] (approach
     /// target, classic retract): the target deflection is the penetration of this plane.
     pub plane: Option<(Point3, Vector3)>,
-    /// Arc-length table of the carrier: (λ at equal distance steps).
-    table: Vec<f64>,
+    /// Arc length of the carrier at `ARC_N + 1` equal steps of λ (Gauss–Legendre), for the
+    /// smooth inverse λ(s); empty for carriers run at a constant rate (lines, constant offsets).
+    arc: Vec<f64>,
+    /// Carrier length (mm).
+    len: f64,
 }
 
 /// What a segment commands at a local time.
@@ -278,18 +299,302 @@ pub struct Command {
     pub deflection: f64,
 }
 
-const TABLE_N: usize = 256;
+/// λ steps of the arc-length table.
+const ARC_N: usize = 64;
+/// Gauss–Legendre nodes and weights (5 points on [−1, 1]).
+const GL: [(f64, f64); 5] = [
+    (0.0, 0.568_888_888_888_888_9),
+    (0.538_469_310_105_683_1, 0.478_628_670_499_366_5),
+    (-0.538_469_310_105_683_1, 0.478_628_670_499_366_5),
+    (0.906_179_845_938_664, 0.236_926_885_056_189_1),
+    (-0.906_179_845_938_664, 0.236_926_885_056_189_1),
+];
+/// Arc-length steps of the curvature grid of a curved move.
+const GRID_N: usize = 512;
+/// Share of the limits the planner's own check allows (the rest absorbs interpolation between
+/// its samples and grid points).
+const MARGIN: f64 = 0.95;
+
+/// Power-basis coefficients of a quintic Hermite curve.
+fn quintic_coeffs(p: &[Point3; 2], m: &[Vector3; 2], c: &[Vector3; 2]) -> [Vector3; 6] {
+    let (p0, p1) = (p[0].coords, p[1].coords);
+    [
+        p0,
+        m[0],
+        c[0] * 0.5,
+        -p0 * 10.0 - m[0] * 6.0 - c[0] * 1.5 + c[1] * 0.5 - m[1] * 4.0 + p1 * 10.0,
+        p0 * 15.0 + m[0] * 8.0 + c[0] * 1.5 - c[1] + m[1] * 7.0 - p1 * 15.0,
+        -p0 * 6.0 - m[0] * 3.0 - c[0] * 0.5 + c[1] * 0.5 - m[1] * 3.0 + p1 * 6.0,
+    ]
+}
+
+/// Unit tangent, curvature vector and its arc-length derivative along a curved move, on an
+/// equal arc-length grid.
+struct CurveGrid {
+    ds: f64,
+    tan: Vec<Vector3>,
+    k: Vec<Vector3>,
+    dk: Vec<Vector3>,
+}
+
+impl CurveGrid {
+    fn at(&self, s: f64) -> (Vector3, Vector3, Vector3) {
+        let n = self.tan.len() - 1;
+        let x = (s / self.ds).clamp(0.0, n as f64);
+        let i = (x.floor() as usize).min(n - 1);
+        let f = x - i as f64;
+        let lerp = |v: &Vec<Vector3>| v[i] + (v[i + 1] - v[i]) * f;
+        (lerp(&self.tan), lerp(&self.k), lerp(&self.dk))
+    }
+
+    /// Whether `pr` keeps |v| ≤ `vmax`, |a| ≤ `a` and |jerk| ≤ `j` along the curve (with
+    /// [`MARGIN`]): a = a_t·T + v²·K, jerk = j_t·T + 3·v·a_t·K + v³·dK/ds (K the curvature
+    /// vector), on a dense time grid that includes every phase boundary.
+    fn admits(&self, pr: &Profile, vmax: f64, a: f64, j: f64) -> bool {
+        self.violation(pr, vmax, a, j).is_none()
+    }
+
+    /// The distance along the curve of the first sample where `pr` breaks a limit.
+    fn violation(&self, pr: &Profile, vmax: f64, a: f64, j: f64) -> Option<f64> {
+        let dur = pr.duration();
+        let n = ((dur / 1e-3).ceil() as usize).clamp(200, 20_000);
+        let mut times: Vec<f64> = (0..=n).map(|k| dur * k as f64 / n as f64).collect();
+        for r in &pr.phases {
+            times.push(r[0]);
+            times.push((r[0] - 1e-9).max(0.0));
+        }
+        times.sort_by(f64::total_cmp);
+        times.into_iter().find_map(|t| {
+            let [s, v, at, jt] = pr.state(t);
+            let (tn, k, dk) = self.at(s);
+            let acc = tn * at + k * (v * v);
+            let jerk = tn * jt + k * (3.0 * v * at) + dk * (v * v * v);
+            let ok = v <= vmax * (1.0 + 1e-9) && acc.norm() <= MARGIN * a && jerk.norm() <= MARGIN * j;
+            (!ok).then_some(s)
+        })
+    }
+
+    /// Speed cap from the curve alone at grid point `i` (lateral acceleration v²|K| and the
+    /// jerk terms v³(|K|² + |dK/ds|) within shares of the limits).
+    fn cap(&self, i: usize, a: f64, j: f64) -> f64 {
+        let k = self.k[i].norm();
+        let q = k * k + self.dk[i].norm();
+        let ca = if k > 1e-12 { (0.8 * a / k).sqrt() } else { f64::INFINITY };
+        let cj = if q > 1e-12 { (0.4 * j / q).cbrt() } else { f64::INFINITY };
+        ca.min(cj)
+    }
+}
+
+/// Profile from (duration, jerk) phases starting at `v0` with zero acceleration.
+fn from_phases(len: f64, v0: f64, v1: f64, phases: &[(f64, f64)]) -> Profile {
+    let mut rows = Vec::with_capacity(phases.len() + 1);
+    let (mut t, mut x, mut v, mut acc) = (0.0, 0.0, v0, 0.0);
+    for &(dt, jk) in phases {
+        if dt <= 0.0 {
+            continue;
+        }
+        rows.push([t, x, v, acc, jk]);
+        x += v * dt + 0.5 * acc * dt * dt + jk * dt * dt * dt / 6.0;
+        v += acc * dt + 0.5 * jk * dt * dt;
+        acc += jk * dt;
+        t += dt;
+    }
+    rows.push([t, x, v1, 0.0, 0.0]);
+    Profile { phases: rows, len, v0, v1 }
+}
+
+/// A profile of plateaus along a curve: the curve is cut into windows of about 3 mm, each run
+/// at one speed no higher than its curvature allows; every change between neighbouring
+/// plateaus is an S-curve (tangential limits 0.6·a, 0.5·j, lower if needed) inside the faster window, and a
+/// window too short for its changes is slowed until they fit. Where the full check still finds
+/// the limits broken, that window's speed is lowered by 15 % and the profile rebuilt.
+fn plateau_profile(
+    g: &CurveGrid,
+    len: f64,
+    speeds: (f64, f64, f64),
+    floor: f64,
+    a: f64,
+    j: f64,
+) -> Option<Profile> {
+    // in a tight turn the tangential acceleration couples into the jerk (3·v·a_t·|K|): gentler
+    // speed changes when the bolder ones cannot keep the limits
+    [(0.6, 0.5), (0.3, 0.25), (0.12, 0.1), (0.05, 0.04)]
+        .into_iter()
+        .find_map(|(sa, sj)| plateaus(g, len, speeds, floor, (a, j), (sa * a, sj * j)))
+}
+
+fn plateaus(
+    g: &CurveGrid,
+    len: f64,
+    (v0, vmax, v1): (f64, f64, f64),
+    floor: f64,
+    (a, j): (f64, f64),
+    (at, jt): (f64, f64),
+) -> Option<Profile> {
+    let nw = ((len / 3.0).round() as usize).clamp(1, 64);
+    let lw = len / nw as f64;
+    let ng = g.k.len() - 1;
+    let mut cap: Vec<f64> = (0..nw)
+        .map(|w| {
+            let i0 = ((w as f64 * lw / g.ds).floor() as usize).saturating_sub(2);
+            let i1 = (((w + 1) as f64 * lw / g.ds).ceil() as usize + 2).min(ng);
+            (i0..=i1).map(|i| g.cap(i, a, j)).fold(vmax, f64::min).max(floor)
+        })
+        .collect();
+    let dist = |x: f64, y: f64| change_dist(x, y, at, jt);
+    for _ in 0..150 {
+        let mut w = cap.clone();
+        // hosted changes: (in, out) of window i
+        let need = |w: &[f64], i: usize, wi: f64| {
+            let left = if i == 0 { v0 } else { w[i - 1] };
+            let right = if i + 1 == nw { v1 } else { w[i + 1] };
+            let din = if left < wi || (i == 0 && left != wi) { dist(left, wi) } else { 0.0 };
+            let dout = if right < wi || (i + 1 == nw && right != wi) { dist(wi, right) } else { 0.0 };
+            din + dout
+        };
+        let mut feasible = true;
+        for _pass in 0..100 {
+            let mut changed = false;
+            for i in 0..nw {
+                if need(&w, i, w[i]) <= lw * (1.0 - 1e-9) {
+                    continue;
+                }
+                let left = if i == 0 { v0 } else { w[i - 1] };
+                let right = if i + 1 == nw { v1 } else { w[i + 1] };
+                let mut lo = left.min(right).min(w[i]);
+                if need(&w, i, lo) > lw {
+                    // only at the ends: the end speed cannot be joined inside one window
+                    lo = floor.min(lo);
+                    if need(&w, i, lo) > lw {
+                        feasible = false;
+                        break;
+                    }
+                }
+                let mut hi = w[i];
+                for _ in 0..30 {
+                    let m = 0.5 * (lo + hi);
+                    if need(&w, i, m) <= lw * (1.0 - 1e-9) {
+                        lo = m;
+                    } else {
+                        hi = m;
+                    }
+                }
+                w[i] = lo;
+                changed = true;
+            }
+            if !changed || !feasible {
+                break;
+            }
+        }
+        if !feasible {
+            return None;
+        }
+        // assemble the phases
+        let mut ph: Vec<(f64, f64)> = Vec::new();
+        for i in 0..nw {
+            let left = if i == 0 { v0 } else { w[i - 1] };
+            let right = if i + 1 == nw { v1 } else { w[i + 1] };
+            let host_in = left < w[i] || (i == 0 && left != w[i]);
+            let host_out = right < w[i] || (i + 1 == nw && right != w[i]);
+            let (pin, din) = if host_in { change(left, w[i], at, jt) } else { (vec![], 0.0) };
+            let (pout, dout) = if host_out { change(w[i], right, at, jt) } else { (vec![], 0.0) };
+            ph.extend(pin);
+            let c = (lw - din - dout).max(0.0);
+            if c > 0.0 && w[i] > 0.0 {
+                ph.push((c / w[i], 0.0));
+            }
+            ph.extend(pout);
+        }
+        let pr = from_phases(len, v0, v1, &ph);
+        match g.violation(&pr, vmax, a, j) {
+            None => return Some(pr),
+            Some(sf) => {
+                let i = ((sf / lw).floor() as usize).min(nw - 1);
+                if w[i] <= floor * (1.0 + 1e-9) {
+                    return None;
+                }
+                // the window of the violation and its neighbours (a change hosted next door)
+                for k in i.saturating_sub(1)..=(i + 1).min(nw - 1) {
+                    cap[k] = cap[k].min((0.85 * w[i]).max(floor));
+                }
+            }
+        }
+    }
+    None
+}
+
+/// The fastest jerk-limited profile along a curve from `v0` to `v1` whose plateau is at most
+/// `vmax` and at least half the slower non-zero end speed (a tight bend slows the move, it never
+/// stops it), keeping |v|, |a| (tangential and centripetal together) and |jerk| within the
+/// limits; tried with several shares of the limits for the tangential part. `None` when no
+/// plateau in that range keeps the limits.
+fn curve_profile(
+    g: &CurveGrid,
+    len: f64,
+    (v0, vmax, v1): (f64, f64, f64),
+    a: f64,
+    j: f64,
+) -> Option<Profile> {
+    let slow = match (v0 > 0.0, v1 > 0.0) {
+        (true, true) => v0.min(v1),
+        (true, false) => v0,
+        (false, true) => v1,
+        (false, false) => 0.0,
+    };
+    let vlo = if slow > 0.0 { 0.5 * slow } else { 1e-3 * vmax };
+    if let Some(pr) = plateau_profile(g, len, (v0, vmax, v1), vlo, a, j) {
+        return Some(pr);
+    }
+    let mut best: Option<Profile> = None;
+    for share in [0.9, 0.7, 0.5, 0.3] {
+        let (at, jt) = (a * share, j * share);
+        let ok = |vp: f64| Profile::with_peak(len, v0, vp, v1, at, jt).filter(|pr| g.admits(pr, vmax, a, j));
+        let found = match ok(vmax) {
+            Some(pr) => Some(pr),
+            None => {
+                // the highest admissible plateau: from the lowest one that is admitted
+                let steps = 24;
+                let mut lo_ok = None;
+                let mut hi_bad = vmax;
+                for k in 0..=steps {
+                    let vp = vlo + (vmax - vlo) * k as f64 / steps as f64;
+                    match ok(vp) {
+                        Some(pr) => lo_ok = Some((vp, pr)),
+                        None if lo_ok.is_some() => {
+                            hi_bad = vp;
+                            break;
+                        }
+                        None => {}
+                    }
+                }
+                lo_ok.map(|(mut l, mut pr)| {
+                    let mut h = hi_bad;
+                    for _ in 0..20 {
+                        let m = 0.5 * (l + h);
+                        match ok(m) {
+                            Some(p) => {
+                                pr = p;
+                                l = m;
+                            }
+                            None => h = m,
+                        }
+                    }
+                    pr
+                })
+            }
+        };
+        if let Some(pr) = found {
+            if best.as_ref().is_none_or(|b| pr.duration() < b.duration()) {
+                best = Some(pr);
+            }
+        }
+    }
+    best
+}
 
 impl Segment {
-    fn new(
-        kind: SegmentKind,
-        feature: usize,
-        geom: Geom,
-        f: &Feature,
-        tip: f64,
-        speeds: (f64, f64, f64),
-        accel: f64,
-    ) -> Segment {
+    /// A segment on `geom` (its arc length measured), still without a speed profile.
+    fn new(kind: SegmentKind, feature: usize, geom: Geom, f: &Feature, tip: f64) -> Segment {
         let mut s = Segment {
             kind,
             feature,
@@ -301,58 +606,87 @@ impl Segment {
             contact_time: None,
             wait_settled: false,
             plane: None,
-            table: Vec::new(),
+            arc: Vec::new(),
+            len: 0.0,
         };
-        // arc-length table: cumulative chord lengths at equal λ, inverted to λ at equal s.
-        let mut cum = Vec::with_capacity(TABLE_N + 1);
-        cum.push(0.0);
-        let mut prev = s.carrier(0.0, f, tip);
-        for i in 1..=TABLE_N {
-            let p = s.carrier(i as f64 / TABLE_N as f64, f, tip);
-            cum.push(cum[i - 1] + (p - prev).norm());
-            prev = p;
-        }
-        let len = cum[TABLE_N];
-        let mut table = Vec::with_capacity(TABLE_N + 1);
-        let mut j = 0;
-        for i in 0..=TABLE_N {
-            let target = len * i as f64 / TABLE_N as f64;
-            while j < TABLE_N - 1 && cum[j + 1] < target {
-                j += 1;
-            }
-            let span = cum[j + 1] - cum[j];
-            let f = if span > 0.0 { ((target - cum[j]) / span).clamp(0.0, 1.0) } else { 0.0 };
-            table.push((j as f64 + f) / TABLE_N as f64);
-        }
-        s.table = table;
-        s.profile = if matches!(s.geom, Geom::Bezier(_)) && len > 1e-9 {
-            // cap the speed where the curve bends: lateral acceleration v²/ρ ≤ accel
-            const N: usize = 128;
-            let ds = len / N as f64;
-            let pts: Vec<Point3> =
-                (0..=N).map(|k| s.carrier(s.lambda_at(ds * k as f64, len), f, tip)).collect();
-            let mut vlim = vec![speeds.1; N + 1];
-            for k in 1..N {
-                let (a, b) = (pts[k] - pts[k - 1], pts[k + 1] - pts[k]);
-                let (la, lb) = (a.norm(), b.norm());
-                if la > 1e-12 && lb > 1e-12 {
-                    let turn = (a.dot(&b) / (la * lb)).clamp(-1.0, 1.0).acos();
-                    if turn > 1e-12 {
-                        let rho = 0.5 * (la + lb) / turn;
-                        vlim[k] = vlim[k].min((accel * rho).sqrt());
-                    }
+        match &s.geom {
+            Geom::Hold { .. } => {}
+            Geom::Line { a, b } => s.len = (b - a).norm(),
+            Geom::Along { pen: Penetration::Const(_), .. } => s.len = s.arc_piece(0.0, 1.0, f, tip),
+            _ => {
+                let mut arc = Vec::with_capacity(ARC_N + 1);
+                arc.push(0.0);
+                for k in 0..ARC_N {
+                    let (l0, l1) = (k as f64 / ARC_N as f64, (k + 1) as f64 / ARC_N as f64);
+                    arc.push(arc[k] + s.arc_piece(l0, l1, f, tip));
                 }
+                s.len = arc[ARC_N];
+                s.arc = arc;
             }
-            // never below half the slower end speed: a near-cusp must not become a stop
-            let floor = 0.5 * speeds.0.max(speeds.2).min(if speeds.0 > 0.0 { speeds.0 } else { speeds.2 });
-            for v in vlim.iter_mut() {
-                *v = v.max(floor);
-            }
-            Profile::limited(ds, &vlim, speeds.0, speeds.2, accel)
-        } else {
-            Profile::new(len, speeds.0, speeds.1, speeds.2, accel)
-        };
+        }
         s
+    }
+
+    /// The segment run at `speeds` = (start, highest, end) within the limits of `p`: constant
+    /// speed, a jerk-limited S-curve on a straight line, or on a curve the fastest S-curve that
+    /// keeps the whole acceleration and jerk vectors within the limits.
+    fn timed(mut self, f: &Feature, tip: f64, speeds: (f64, f64, f64), p: &Params) -> Segment {
+        self.profile = self.profile_for(f, tip, speeds, p).unwrap_or_else(|| {
+            // no plateau keeps the limits (a cusp): through at the slower end speed
+            Profile::s_curve(self.len, speeds.0, speeds.0.min(speeds.2).max(1e-3), speeds.2, p.accel, p.jerk)
+        });
+        self
+    }
+
+    fn profile_for(
+        &self,
+        f: &Feature,
+        tip: f64,
+        (v0, vmax, v1): (f64, f64, f64),
+        p: &Params,
+    ) -> Option<Profile> {
+        if matches!(self.geom, Geom::Hold { .. }) || self.len <= 1e-12 {
+            return Some(Profile::constant(0.0, v0));
+        }
+        if v0 == vmax && vmax == v1 {
+            return Some(Profile::constant(self.len, v0));
+        }
+        if matches!(self.geom, Geom::Line { .. }) {
+            return Some(Profile::s_curve(self.len, v0, vmax, v1, p.accel, p.jerk));
+        }
+        let g = self.grid(f, tip);
+        curve_profile(&g, self.len, (v0, vmax, v1), p.accel, p.jerk)
+    }
+
+    /// Tangent, curvature vector and its derivative on [`GRID_N`] equal arc-length steps (finite
+    /// differences of the carrier at the smooth λ(s)).
+    fn grid(&self, f: &Feature, tip: f64) -> CurveGrid {
+        // at most 0.05 mm apart: tight turns between close features are a few mm long
+        let n = ((self.len / 0.05).ceil() as usize).clamp(GRID_N, 8 * GRID_N);
+        let ds = self.len / n as f64;
+        let pts: Vec<Point3> =
+            (0..=n).map(|i| self.carrier(self.lambda(ds * i as f64, f, tip), f, tip)).collect();
+        let mut tan = Vec::with_capacity(n + 1);
+        let mut k = Vec::with_capacity(n + 1);
+        for i in 0..=n {
+            let (a, b, c) = match i {
+                0 => (0, 1, 2),
+                i if i == n => (n - 2, n - 1, n),
+                i => (i - 1, i, i + 1),
+            };
+            let d1 = (pts[c] - pts[a]) / (2.0 * ds);
+            let d2 = (pts[c].coords - pts[b].coords * 2.0 + pts[a].coords) / (ds * ds);
+            let t = if d1.norm() > 1e-12 { d1.normalize() } else { Vector3::zeros() };
+            tan.push(t);
+            k.push(d2 - t * t.dot(&d2));
+        }
+        let dk = (0..=n)
+            .map(|i| {
+                let (a, c) = (i.saturating_sub(1), (i + 1).min(n));
+                (k[c] - k[a]) / (ds * (c - a) as f64)
+            })
+            .collect();
+        CurveGrid { ds, tan, k, dk }
     }
 
     fn hold(kind: SegmentKind, feature: usize, p: Point3, duration: f64) -> Segment {
@@ -367,7 +701,8 @@ impl Segment {
             contact_time: None,
             wait_settled: false,
             plane: None,
-            table: vec![0.0, 1.0],
+            arc: Vec::new(),
+            len: 0.0,
         }
     }
 
@@ -375,18 +710,33 @@ impl Segment {
     fn carrier(&self, l: f64, f: &Feature, tip: f64) -> Point3 {
         match &self.geom {
             Geom::Line { a, b } => a + (b - a) * l,
-            Geom::Bezier([p0, p1, p2, p3]) => {
-                let m = 1.0 - l;
-                Point3::from(
-                    p0.coords * (m * m * m)
-                        + p1.coords * (3.0 * m * m * l)
-                        + p2.coords * (3.0 * m * l * l)
-                        + p3.coords * (l * l * l),
-                )
+            Geom::Quintic { p, m, c } => {
+                let q = quintic_coeffs(p, m, c);
+                Point3::from(q[0] + (q[1] + (q[2] + (q[3] + (q[4] + q[5] * l) * l) * l) * l) * l)
             }
             Geom::Along { u0, u1, pen, x_len } => f.point(u0 + (u1 - u0) * l, tip - pen.at(l * x_len)),
             Geom::Hold { p } => *p,
         }
+    }
+
+    /// |dP/dλ| of the carrier.
+    fn rate(&self, l: f64, f: &Feature, tip: f64) -> f64 {
+        match &self.geom {
+            Geom::Quintic { p, m, c } => {
+                let q = quintic_coeffs(p, m, c);
+                (q[1] + (q[2] * 2.0 + (q[3] * 3.0 + (q[4] * 4.0 + q[5] * (5.0 * l)) * l) * l) * l).norm()
+            }
+            _ => {
+                let h = 1e-6;
+                (self.carrier(l + h, f, tip) - self.carrier(l - h, f, tip)).norm() / (2.0 * h)
+            }
+        }
+    }
+
+    /// Arc length between `l0` and `l1` (5-point Gauss–Legendre).
+    fn arc_piece(&self, l0: f64, l1: f64, f: &Feature, tip: f64) -> f64 {
+        let (m, r) = (0.5 * (l0 + l1), 0.5 * (l1 - l0));
+        GL.iter().map(|&(x, w)| w * self.rate(m + r * x, f, tip)).sum::<f64>() * r
     }
 
     pub fn duration(&self) -> f64 {
@@ -411,24 +761,36 @@ impl Segment {
         }
     }
 
-    fn lambda(&self, s: f64) -> f64 {
-        self.lambda_at(s, self.profile.len)
-    }
-
-    fn lambda_at(&self, s: f64, len: f64) -> f64 {
-        if len <= 0.0 {
+    /// λ at arc length `s`: exact for constant-rate carriers, otherwise Newton steps on the
+    /// Gauss–Legendre arc length from the table's linear guess (smooth in `s`, so a jerk-limited
+    /// speed profile stays jerk-limited in space).
+    fn lambda(&self, s: f64, f: &Feature, tip: f64) -> f64 {
+        if self.len <= 0.0 {
             return 0.0;
         }
-        let x = (s / len).clamp(0.0, 1.0) * TABLE_N as f64;
-        let i = (x.floor() as usize).min(TABLE_N - 1);
-        let f = x - i as f64;
-        self.table[i] + (self.table[i + 1] - self.table[i]) * f
+        let s = s.clamp(0.0, self.len);
+        if self.arc.is_empty() {
+            return s / self.len;
+        }
+        let k = self.arc.partition_point(|&a| a <= s).clamp(1, ARC_N) - 1;
+        let span = self.arc[k + 1] - self.arc[k];
+        let mut l = (k as f64 + if span > 0.0 { (s - self.arc[k]) / span } else { 0.0 }) / ARC_N as f64;
+        for _ in 0..3 {
+            let kk = ((l * ARC_N as f64).floor() as usize).min(ARC_N - 1);
+            let at = self.arc[kk] + self.arc_piece(kk as f64 / ARC_N as f64, l, f, tip);
+            let r = self.rate(l, f, tip);
+            if r <= 1e-12 {
+                break;
+            }
+            l = (l - (at - s) / r).clamp(0.0, 1.0);
+        }
+        l
     }
 
     /// What the segment commands at local time `t`.
     pub fn eval(&self, t: f64, f: &Feature, tip: f64) -> Command {
         let (s, v) = self.profile.at(t);
-        let l = self.lambda(s);
+        let l = self.lambda(s, f, tip);
         let position = self.carrier(l, f, tip);
         let (normal, deflection) = match &self.geom {
             Geom::Along { u0, u1, pen, x_len } => {
@@ -443,15 +805,23 @@ impl Segment {
         Command { position, speed, normal, deflection }
     }
 
-    /// Unit direction of motion at the end (or start) of the carrier.
-    fn direction(&self, at_end: bool, f: &Feature, tip: f64) -> Vector3 {
-        let (a, b) = if at_end { (1.0 - 1e-4, 1.0) } else { (0.0, 1e-4) };
-        let d = self.carrier(b, f, tip) - self.carrier(a, f, tip);
-        if d.norm() > 1e-12 {
-            d.normalize()
-        } else {
-            Vector3::zeros()
+    /// End point, unit direction of motion and curvature vector (1/mm) at the end of the
+    /// carrier (backward differences in arc length).
+    fn end_state(&self, f: &Feature, tip: f64) -> (Point3, Vector3, Vector3) {
+        let e = self.carrier(1.0, f, tip);
+        let h = (self.len * 1e-3).clamp(1e-6, 0.01);
+        if self.len < 3.0 * h {
+            return (e, Vector3::zeros(), Vector3::zeros());
         }
+        let p1 = self.carrier(self.lambda(self.len - h, f, tip), f, tip);
+        let p2 = self.carrier(self.lambda(self.len - 2.0 * h, f, tip), f, tip);
+        let d1 = (e.coords * 3.0 - p1.coords * 4.0 + p2.coords) / (2.0 * h);
+        let d2 = (e.coords - p1.coords * 2.0 + p2.coords) / (h * h);
+        if d1.norm() < 1e-12 {
+            return (e, Vector3::zeros(), Vector3::zeros());
+        }
+        let t = d1.normalize();
+        (e, t, d2 - t * t.dot(&d2))
     }
 }
 
@@ -495,11 +865,62 @@ pub fn home(features: &[Feature], p: &Params) -> Point3 {
     features[0].point(0.0, p.tip_radius + p.clearance + 10.0)
 }
 
-fn bezier_between(a: Point3, da: Vector3, b: Point3, db: Vector3) -> Geom {
-    // tangent arms of at most 15 mm: long enough for a gentle turn at scanning speed, short
-    // enough that long transfers stay nearly straight (no loops)
-    let k = ((b - a).norm() / 3.0).min(15.0);
-    Geom::Bezier([a, a + da * k, b - db * k, b])
+/// A transfer carrier from `a` (leaving along `da` with curvature vector `ka`, 1/mm) to `b`
+/// (arriving along `db` on a straight line, zero curvature): a quintic Hermite with end
+/// derivatives of length `k`, so position, direction and curvature — and with them velocity and
+/// acceleration — are continuous at both joins.
+fn quintic_between(a: Point3, da: Vector3, ka: Vector3, b: Point3, db: Vector3, k: f64) -> Geom {
+    // d²P/dλ² = κ·|dP/dλ|² along the curvature vector (no tangential part) at the start.
+    Geom::Quintic { p: [a, b], m: [da * k, db * k], c: [ka * (k * k), Vector3::zeros()] }
+}
+
+/// The fastest transfer from `start` = (point, direction, curvature vector) to `end` = (point,
+/// direction): quintic carriers with end derivatives of 0.5 to 1.8 chords (a tight turn between
+/// close features needs a wider swing, a long transfer a nearly straight one) are each given the
+/// fastest profile within the limits ([`curve_profile`]); the shortest in time wins. When none
+/// keeps the limits (a U-turn between close neighbours), wider swings up to 6 chords are tried.
+fn transfer(
+    i: usize,
+    f: &Feature,
+    p: &Params,
+    (a, da, ka): (Point3, Vector3, Vector3),
+    (b, db): (Point3, Vector3),
+    speeds: (f64, f64, f64),
+) -> Segment {
+    let tip = p.tip_radius;
+    let chord = (b - a).norm().max(1.0);
+    let mut best: Option<Segment> = None;
+    let mut fallback: Option<Segment> = None;
+    for stretch in [0.5, 0.8, 1.2, 1.8, 2.7, 4.0, 6.0] {
+        if stretch > 2.0 && best.is_some() {
+            break;
+        }
+        let seg = Segment::new(
+            SegmentKind::Transfer,
+            i,
+            quintic_between(a, da, ka, b, db, chord * stretch),
+            f,
+            tip,
+        );
+        match seg.profile_for(f, tip, speeds, p) {
+            Some(pr) => {
+                if best.as_ref().is_none_or(|s| pr.duration() < s.duration()) {
+                    best = Some(Segment { profile: pr, ..seg });
+                }
+            }
+            None if fallback.is_none() => fallback = Some(seg),
+            None => {}
+        }
+    }
+    best.or_else(|| fallback.map(|s| s.timed(f, tip, speeds, p))).unwrap_or_else(|| {
+        Segment::new(SegmentKind::Transfer, i, Geom::Line { a, b }, f, tip).timed(f, tip, speeds, p)
+    })
+}
+
+/// Distance a jerk-limited stop from `v` needs at half the limits (room for the final stop).
+fn stop_distance(v: f64, p: &Params) -> f64 {
+    let (a, j) = (0.5 * p.accel, 0.5 * p.jerk);
+    0.5 * v * (v / a + a / j)
 }
 
 fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
@@ -515,7 +936,7 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
     let rel_len = xr + ((p.deflection + lift) - k * xr.powi(3)) / cot;
     let v = p.scan_speed;
     let mut segs: Vec<Segment> = Vec::new();
-    let mut prev_end: Option<(Point3, Vector3)> = None;
+    let mut prev_end: Option<(Point3, Vector3, Vector3)> = None;
     for (i, f) in features.iter().enumerate() {
         let m = f.metric(tip - p.deflection).max(1e-9);
         let uc = -settle_len / m;
@@ -530,22 +951,17 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
                 let h = home(features, p);
                 let d = (a - h).norm();
                 let dir = if d > 1e-9 { (a - h) / d } else { w };
-                let g = bezier_between(h, dir, a, w);
-                Segment::new(SegmentKind::Transfer, i, g, f, tip, (0.0, p.move_speed, v), p.accel)
+                transfer(i, f, p, (h, dir, Vector3::zeros()), (a, w), (0.0, p.move_speed, v))
             }
-            Some((e, de)) => Segment::new(
-                SegmentKind::Transfer,
-                i,
-                bezier_between(e, de, a, w),
-                f,
-                tip,
-                (v, p.move_speed, v),
-                p.accel,
-            ),
+            Some(start) => transfer(i, f, p, start, (a, w), (v, p.move_speed, v)),
         };
         segs.push(tr);
-        let mut ap =
-            Segment::new(SegmentKind::Approach, i, Geom::Line { a, b: c0 }, f, tip, (v, v, v), p.accel);
+        let mut ap = Segment::new(SegmentKind::Approach, i, Geom::Line { a, b: c0 }, f, tip).timed(
+            f,
+            tip,
+            (v, v, v),
+            p,
+        );
         ap.contact_time = Some(ap.duration());
         ap.plane = Some((f.point(uc, 0.0), n0));
         segs.push(ap);
@@ -560,9 +976,8 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
             Geom::Along { u0: uc, u1: 0.0, pen, x_len: settle_len },
             f,
             tip,
-            (v, v, v),
-            p.accel,
-        );
+        )
+        .timed(f, tip, (v, v, v), p);
         st.feedback = true;
         st.feedback_after = (x1 + 0.3 * (settle_len - x1)) / settle_len * st.duration();
         segs.push(st);
@@ -573,9 +988,8 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
             Geom::Along { u0: 0.0, u1: ext, pen: Penetration::Const(p.deflection), x_len: ext * m },
             f,
             tip,
-            (v, v, v),
-            p.accel,
-        );
+        )
+        .timed(f, tip, (v, v, v), p);
         sc.feedback = true;
         segs.push(sc);
         let pen = Penetration::Release { d: p.deflection, k, xr, c: cot };
@@ -585,27 +999,18 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
             Geom::Along { u0: ext, u1: ext + rel_len / m, pen, x_len: rel_len },
             f,
             tip,
-            (v, v, v),
-            p.accel,
-        );
-        let e = rl.carrier(1.0, f, tip);
-        let de = rl.direction(true, f, tip);
+        )
+        .timed(f, tip, (v, v, v), p);
+        let end = rl.end_state(f, tip);
         segs.push(rl);
-        prev_end = Some((e, de));
+        prev_end = Some(end);
     }
-    // come to rest straight on from the last release
-    if let Some((e, de)) = prev_end {
-        let f = &features[features.len() - 1];
-        let d = v * v / (2.0 * p.accel) + 1e-6;
-        segs.push(Segment::new(
-            SegmentKind::Transfer,
-            features.len() - 1,
-            Geom::Line { a: e, b: e + de * d },
-            f,
-            tip,
-            (v, v, 0.0),
-            p.accel,
-        ));
+    // come to rest straight on from the last release (curvature-continuous out of it)
+    if let Some((e, de, ke)) = prev_end {
+        let last = features.len() - 1;
+        let f = &features[last];
+        let d = 2.0 * stop_distance(v, p) + 1.0;
+        segs.push(transfer(last, f, p, (e, de, ke), (e + de * d, de), (v, v, 0.0)));
     }
     segs
 }
@@ -619,26 +1024,20 @@ fn classic(features: &[Feature], p: &Params) -> Vec<Segment> {
         let c0 = f.point(0.0, tip);
         let pre = c0 + n0 * p.clearance;
         if (pre - pos).norm() > 1e-9 {
-            segs.push(Segment::new(
-                SegmentKind::Transfer,
-                i,
-                Geom::Line { a: pos, b: pre },
+            segs.push(Segment::new(SegmentKind::Transfer, i, Geom::Line { a: pos, b: pre }, f, tip).timed(
                 f,
                 tip,
                 (0.0, p.move_speed, 0.0),
-                p.accel,
+                p,
             ));
         }
         segs.push(Segment::hold(SegmentKind::Approach, i, pre, p.prehit_dwell));
         let deep = c0 - n0 * p.deflection;
-        let mut ap = Segment::new(
-            SegmentKind::Approach,
-            i,
-            Geom::Line { a: pre, b: deep },
+        let mut ap = Segment::new(SegmentKind::Approach, i, Geom::Line { a: pre, b: deep }, f, tip).timed(
             f,
             tip,
             (0.0, p.touch_speed, 0.0),
-            p.accel,
+            p,
         );
         // time at which the nominal contact point is passed
         let target = p.clearance;
@@ -667,21 +1066,17 @@ fn classic(features: &[Feature], p: &Params) -> Vec<Segment> {
             Geom::Along { u0: 0.0, u1: ext, pen: Penetration::Const(p.deflection), x_len: ext * m },
             f,
             tip,
-            (0.0, p.scan_speed, 0.0),
-            p.accel,
-        );
+        )
+        .timed(f, tip, (0.0, p.scan_speed, 0.0), p);
         sc.feedback = true;
         segs.push(sc);
         let a = f.point(ext, tip - p.deflection);
         let b = f.point(ext, tip + p.clearance);
-        let mut rl = Segment::new(
-            SegmentKind::Release,
-            i,
-            Geom::Line { a, b },
+        let mut rl = Segment::new(SegmentKind::Release, i, Geom::Line { a, b }, f, tip).timed(
             f,
             tip,
             (0.0, p.move_speed, 0.0),
-            p.accel,
+            p,
         );
         rl.plane = Some((f.point(ext, 0.0), f.normal(ext)));
         segs.push(rl);
