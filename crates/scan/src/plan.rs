@@ -903,11 +903,10 @@ fn transfer(
             tip,
         );
         match seg.profile_for(f, tip, speeds, p) {
-            Some(pr) => {
-                if best.as_ref().is_none_or(|s| pr.duration() < s.duration()) {
-                    best = Some(Segment { profile: pr, ..seg });
-                }
+            Some(pr) if best.as_ref().is_none_or(|s| pr.duration() < s.duration()) => {
+                best = Some(Segment { profile: pr, ..seg });
             }
+            Some(_) => {}
             None if fallback.is_none() => fallback = Some(seg),
             None => {}
         }
