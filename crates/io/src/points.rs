@@ -153,6 +153,31 @@ pub fn match_by_id(from: &IdPoints, to: &IdPoints) -> Matched {
     m
 }
 
+/// Read two id-point files and pair their points by id (`from` → `to`); fewer than `min` common
+/// ids is an input error on `to` that says what needs them (`what`, e.g. "orientation").
+pub fn read_matched(
+    from: &Path,
+    to: &Path,
+    min: usize,
+    what: &str,
+) -> Result<(IdPoints, IdPoints, Matched), InputError> {
+    let a = read_id_points(from)?;
+    let b = read_id_points(to)?;
+    let m = match_by_id(&a, &b);
+    if m.ids.len() < min {
+        return Err(InputError::in_file(
+            to,
+            format!(
+                "only {} ids are common to {} and {}; {what} needs at least {min}",
+                m.ids.len(),
+                from.display(),
+                to.display()
+            ),
+        ));
+    }
+    Ok((a, b, m))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

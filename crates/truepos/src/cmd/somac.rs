@@ -10,7 +10,7 @@ use truepos_io::InputError;
 use truepos_math::air::{self, AirConditions, Formula};
 use truepos_math::bestfit::{self, BestFitOptions};
 
-use truepos_io::points::{match_by_id, read_id_points, Matched};
+use truepos_io::points::{read_matched, Matched};
 use truepos_somac::scale::ScaleFit;
 
 #[derive(clap::Args, Debug)]
@@ -122,20 +122,7 @@ pub fn run(a: Args) -> Result<Outcome> {
 /// Read the two id-point files, match them by id and fit the scale
 /// (`truepos_somac::scale::fit_scale`).
 pub fn fit_scale(reference: &Path, measured: &Path) -> Result<(ScaleFit, truepos_math::Transform3, Matched)> {
-    let r = read_id_points(reference)?;
-    let m = read_id_points(measured)?;
-    let mt = match_by_id(&r, &m);
-    if mt.ids.len() < 2 {
-        return Err(InputError::in_file(
-            measured,
-            format!(
-                "{} ids in common with {}; at least 2 features are needed (two give their distance ratio)",
-                mt.ids.len(),
-                reference.display()
-            ),
-        )
-        .into());
-    }
+    let (_, _, mt) = read_matched(reference, measured, 2, "a scale (two give their distance ratio)")?;
     let (f, t) = truepos_somac::scale::fit_scale(&mt.from, &mt.to)
         .map_err(|e| InputError::in_file(measured, format!("cannot fit a scale: {e}")))?;
     Ok((f, t, mt))
@@ -184,20 +171,7 @@ pub fn autoscale(a: AutoscaleArgs) -> Result<Outcome> {
 }
 
 pub fn orient(a: OrientArgs) -> Result<Outcome> {
-    let r = read_id_points(&a.reference)?;
-    let m = read_id_points(&a.measured)?;
-    let mt = match_by_id(&r, &m);
-    if mt.ids.len() < 3 {
-        return Err(InputError::in_file(
-            &a.measured,
-            format!(
-                "{} targets in common with {}; orientation needs at least 3",
-                mt.ids.len(),
-                a.reference.display()
-            ),
-        )
-        .into());
-    }
+    let (_, _, mt) = read_matched(&a.reference, &a.measured, 3, "orientation")?;
     let measured_from_reference =
         bestfit::best_fit(&mt.from, &mt.to, None, BestFitOptions { with_scale: a.scale })
             .map_err(|e| InputError::in_file(&a.measured, format!("cannot orient: {e}")))?;
