@@ -59,13 +59,13 @@ impl Token {
     }
 }
 
-pub(crate) fn parse(source: &str) -> Program {
+pub(crate) fn parse(source: String) -> Program {
     // Large programs are tokenised in parallel chunks split at line ends.
     const CHUNK: usize = 1 << 20;
     let b = source.as_bytes();
     if b.len() <= 2 * CHUNK {
-        let (tokens, lines) = parse_range(source, 0, b.len());
-        return Program { source: source.to_string(), tokens, lines };
+        let (tokens, lines) = parse_range(&source, 0, b.len());
+        return Program { source, tokens, lines };
     }
     let mut bounds = vec![0];
     let mut at = CHUNK;
@@ -82,7 +82,7 @@ pub(crate) fn parse(source: &str) -> Program {
     bounds.dedup();
     use rayon::prelude::*;
     let parts: Vec<(Vec<Token>, Vec<Line>)> =
-        bounds.par_windows(2).map(|w| parse_range(source, w[0], w[1])).collect();
+        bounds.par_windows(2).map(|w| parse_range(&source, w[0], w[1])).collect();
     let n_tok = parts.iter().map(|p| p.0.len()).sum();
     let n_lines = parts.iter().map(|p| p.1.len()).sum();
     let mut tokens = Vec::with_capacity(n_tok);
@@ -95,7 +95,7 @@ pub(crate) fn parse(source: &str) -> Program {
         }));
         tokens.extend(t);
     }
-    Program { source: source.to_string(), tokens, lines }
+    Program { source, tokens, lines }
 }
 
 /// Tokenise the lines in `source[from..to]` (`from` at a line start, `to` after a line end or
@@ -351,7 +351,7 @@ mod tests {
     use super::*;
 
     fn kinds(s: &str) -> Vec<(TokenKind, String)> {
-        let p = parse(s);
+        let p = parse(s.to_string());
         p.tokens.iter().map(|t| (t.kind, s[t.start..t.end].to_string())).collect()
     }
 
@@ -380,7 +380,7 @@ mod tests {
             }
         }
         s.push_str("G0 X1");
-        let p = parse(&s);
+        let p = parse(s.clone());
         let (tokens, lines) = parse_range(&s, 0, s.len());
         assert_eq!(p.tokens, tokens);
         assert_eq!(p.lines, lines);
