@@ -340,6 +340,18 @@ fn lex_number(b: &[u8], start: usize, end: usize) -> Option<(usize, f64, Option<
     if j > i {
         return Some((j, f64::NAN, None, false));
     }
+    // Up to 15 digits: the integer of all digits and one division by an exact power of ten,
+    // both exact, so the quotient is the correctly rounded value (Clinger's fast path).
+    if n_int + n_frac <= 15 {
+        const POW10: [f64; 16] =
+            [1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15];
+        let m = b[int_start..i]
+            .iter()
+            .filter(|c| c.is_ascii_digit())
+            .fold(0u64, |m, c| m * 10 + (c - b'0') as u64);
+        let v = m as f64 / POW10[n_frac];
+        return Some((i, if b[start] == b'-' { -v } else { v }, decimals, true));
+    }
     // Safe: the range holds only ASCII sign, digits and one point.
     let text = std::str::from_utf8(&b[start..i]).ok()?;
     let value: f64 = text.parse().ok()?;
@@ -385,6 +397,28 @@ mod tests {
         assert_eq!(p.tokens, tokens);
         assert_eq!(p.lines, lines);
         assert_eq!(p.to_string(), s);
+    }
+
+    /// The fast path for short numbers gives the standard library's value bit for bit.
+    #[test]
+    fn short_numbers_parse_exactly() {
+        let mut x = 0x9e3779b97f4a7c15u64;
+        for _ in 0..200_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let digits = (x % 15 + 1) as usize;
+            let m = x >> 4;
+            let txt = format!("{}", m % 10u64.pow(digits as u32));
+            let p = (x >> 60) as usize % (txt.len() + 1);
+            let sign = if x & 8 != 0 { "-" } else { "" };
+            let s = format!("{sign}{}.{}", &txt[..p], &txt[p..]);
+            let b = s.as_bytes();
+            let (_, v, _, ok) = lex_number(b, 0, b.len()).unwrap();
+            assert!(ok);
+            let want: f64 = s.parse().unwrap();
+            assert_eq!(v.to_bits(), want.to_bits(), "{s}");
+        }
     }
 
     #[test]

@@ -60,19 +60,33 @@ fn fmt_num(v: f64, dec: u8) -> String {
         return format!("{:.*}", dec as usize, v);
     }
     let n = scaled as i64;
-    let mut s = String::with_capacity(24);
-    if n < 0 {
-        s.push('-');
+    // At most 16 digits, a point and a sign.
+    let mut buf = [0u8; 24];
+    let mut i = buf.len();
+    let mut a = n.unsigned_abs();
+    for _ in 0..dec {
+        i -= 1;
+        buf[i] = b'0' + (a % 10) as u8;
+        a /= 10;
     }
-    let a = n.unsigned_abs();
-    let int = a / scale as u64;
-    let frac = a % scale as u64;
-    use std::fmt::Write;
-    let _ = write!(s, "{int}");
     if dec > 0 {
-        let _ = write!(s, ".{frac:0width$}", width = dec as usize);
+        i -= 1;
+        buf[i] = b'.';
     }
-    s
+    loop {
+        i -= 1;
+        buf[i] = b'0' + (a % 10) as u8;
+        a /= 10;
+        if a == 0 {
+            break;
+        }
+    }
+    if n < 0 {
+        i -= 1;
+        buf[i] = b'-';
+    }
+    // ASCII digits, point and sign only.
+    std::str::from_utf8(&buf[i..]).map(str::to_owned).unwrap_or_default()
 }
 
 fn round_to(v: f64, dec: u8) -> f64 {
@@ -646,6 +660,22 @@ mod tests {
 
     fn tr(prog: &str, t: Transform3) -> Result<String, GcodeError> {
         Program::parse(prog).transform(&t, &TransformOptions::default())
+    }
+
+    #[test]
+    fn fixed_point_text() {
+        for (v, dec, want) in [
+            (1.5, 4, "1.5000"),
+            (-0.00001, 4, "0.0000"),
+            (-12.34567, 3, "-12.346"),
+            (0.0, 0, "0"),
+            (-7.5, 0, "-8"),
+            (123456789.123456, 6, "123456789.123456"),
+            (0.05, 1, "0.1"),
+            (1e300, 2, &format!("{:.2}", 1e300)),
+        ] {
+            assert_eq!(fmt_num(v, dec), want, "{v} {dec}");
+        }
     }
 
     #[test]
