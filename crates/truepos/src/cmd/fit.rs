@@ -368,6 +368,13 @@ pub fn run(a: Args) -> Result<Outcome> {
         check_output(q, "--qif")?;
     }
     let set = truepos_io::points::read_points(&a.points)?;
+    if set.skipped_invalid > 0 {
+        eprintln!(
+            "note: {}: {} points marked invalid in the file were skipped",
+            a.points.display(),
+            set.skipped_invalid
+        );
+    }
     let e = evaluate::evaluate(a.kind.lib(), m, &set.points, &spec).map_err(|e| match e {
         evaluate::EvaluateError::Spec(s) => anyhow::Error::from(UsageError(s.to_string())),
         evaluate::EvaluateError::Fit(f) => {
