@@ -60,11 +60,19 @@ impl Token {
 }
 
 pub(crate) fn parse(source: String) -> Program {
+    parse_reusing(source, Vec::new(), Vec::new())
+}
+
+/// [`parse`], filling `tokens` and `lines` (cleared first): a streamed program hands the
+/// vectors of a finished piece back, so their memory is reused instead of allocated anew.
+pub(crate) fn parse_reusing(source: String, mut tokens: Vec<Token>, mut lines: Vec<Line>) -> Program {
     // Large programs are tokenised in parallel chunks split at line ends.
     const CHUNK: usize = 1 << 20;
     let b = source.as_bytes();
     if b.len() <= 2 * CHUNK {
-        let (tokens, lines) = parse_range(&source, 0, b.len());
+        tokens.clear();
+        lines.clear();
+        parse_range(&source, 0, b.len(), &mut tokens, &mut lines);
         return Program { source, tokens, lines };
     }
     let mut bounds = vec![0];
@@ -81,12 +89,20 @@ pub(crate) fn parse(source: String) -> Program {
     bounds.push(b.len());
     bounds.dedup();
     use rayon::prelude::*;
-    let parts: Vec<(Vec<Token>, Vec<Line>)> =
-        bounds.par_windows(2).map(|w| parse_range(&source, w[0], w[1])).collect();
+    let parts: Vec<(Vec<Token>, Vec<Line>)> = bounds
+        .par_windows(2)
+        .map(|w| {
+            let (mut t, mut l) = (Vec::new(), Vec::new());
+            parse_range(&source, w[0], w[1], &mut t, &mut l);
+            (t, l)
+        })
+        .collect();
     let n_tok = parts.iter().map(|p| p.0.len()).sum();
     let n_lines = parts.iter().map(|p| p.1.len()).sum();
-    let mut tokens = Vec::with_capacity(n_tok);
-    let mut lines = Vec::with_capacity(n_lines);
+    tokens.clear();
+    lines.clear();
+    tokens.reserve(n_tok);
+    lines.reserve(n_lines);
     for (t, l) in parts {
         let base = tokens.len();
         lines.extend(l.into_iter().map(|mut line| {
@@ -99,11 +115,11 @@ pub(crate) fn parse(source: String) -> Program {
 }
 
 /// Tokenise the lines in `source[from..to]` (`from` at a line start, `to` after a line end or
-/// at the end of the source). Offsets are absolute.
-fn parse_range(source: &str, from: usize, to: usize) -> (Vec<Token>, Vec<Line>) {
+/// at the end of the source), appending to `tokens` and `lines`. Offsets are absolute.
+fn parse_range(source: &str, from: usize, to: usize, tokens: &mut Vec<Token>, lines: &mut Vec<Line>) {
     let b = &source.as_bytes()[..to];
-    let mut tokens = Vec::with_capacity((to - from) / 4);
-    let mut lines = Vec::with_capacity((to - from) / 16 + 1);
+    tokens.reserve((to - from) / 4);
+    lines.reserve((to - from) / 16 + 1);
     let mut pos = from;
     while pos < b.len() {
         let nl = memchr_nl(&b[pos..]).map(|p| pos + p);
@@ -113,11 +129,10 @@ fn parse_range(source: &str, from: usize, to: usize) -> (Vec<Token>, Vec<Line>) 
             None => (b.len(), b.len()),
         };
         let t0 = tokens.len();
-        lex_line(source, pos, end, &mut tokens);
+        lex_line(source, pos, end, tokens);
         lines.push(Line { start: pos, end, next, tokens: t0..tokens.len() });
         pos = next;
     }
-    (tokens, lines)
 }
 
 #[inline]
@@ -393,7 +408,8 @@ mod tests {
         }
         s.push_str("G0 X1");
         let p = parse(s.clone());
-        let (tokens, lines) = parse_range(&s, 0, s.len());
+        let (mut tokens, mut lines) = (Vec::new(), Vec::new());
+        parse_range(&s, 0, s.len(), &mut tokens, &mut lines);
         assert_eq!(p.tokens, tokens);
         assert_eq!(p.lines, lines);
         assert_eq!(p.to_string(), s);

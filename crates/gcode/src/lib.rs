@@ -108,8 +108,12 @@ impl Program {
         source: String,
         params: &mut expr::Params,
         first: bool,
+        reuse: Option<Program>,
     ) -> (Program, Result<(), GcodeError>) {
-        let mut p = lex::parse(source);
+        let mut p = match reuse {
+            Some(old) => lex::parse_reusing(source, old.tokens, old.lines),
+            None => lex::parse(source),
+        };
         let (values, checked) = p.evaluate(params, first);
         p.set_values(values);
         (p, checked)

@@ -89,8 +89,15 @@ fn fmt_num(v: f64, dec: u8) -> String {
     std::str::from_utf8(&buf[i..]).map(str::to_owned).unwrap_or_default()
 }
 
+/// 10^dec (a table for the usual decimals: this is on every rewritten word).
+fn pow10(dec: u8) -> f64 {
+    const T: [f64; 16] =
+        [1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15];
+    T.get(dec as usize).copied().unwrap_or_else(|| 10f64.powi(dec as i32))
+}
+
 fn round_to(v: f64, dec: u8) -> f64 {
-    let f = 10f64.powi(dec as i32);
+    let f = pow10(dec);
     (v * f).round() / f
 }
 
@@ -206,7 +213,7 @@ impl Rewriter {
             }
         }
         let dec = self.opts.decimals.unwrap_or(if blk.after.units == crate::Units::Inch { 5 } else { 4 });
-        let half = 0.5 * 10f64.powi(-(dec as i32));
+        let half = 0.5 / pow10(dec);
         let has_axes = blk.axes.iter().any(|a| a.is_some());
         let has_centre = blk.ijk.iter().any(|a| a.is_some()) || blk.r.is_some();
         let copy = |out: &mut String| out.push_str(&p.source[line.start..line.next]);

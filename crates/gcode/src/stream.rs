@@ -58,8 +58,8 @@ struct PieceParser {
 }
 
 impl PieceParser {
-    fn parse(&mut self, text: String) -> Piece {
-        let (program, checked) = Program::parse_piece(text, &mut self.params, !self.started);
+    fn parse(&mut self, text: String, reuse: Option<Program>) -> Piece {
+        let (program, checked) = Program::parse_piece(text, &mut self.params, !self.started, reuse);
         self.started = true;
         Piece { program, checked }
     }
@@ -113,14 +113,14 @@ impl StreamTransform {
         self.carry.push_str(text);
         let Some(nl) = memchr::memrchr(b'\n', self.carry.as_bytes()) else { return Ok(()) };
         let rest = self.carry.split_off(nl + 1);
-        let piece = self.parser.parse(std::mem::replace(&mut self.carry, rest));
+        let piece = self.parser.parse(std::mem::replace(&mut self.carry, rest), None);
         rewrite_piece(&mut self.rewriter, &piece, out)
     }
 
     /// Rewrite what is left (a last line without a line end) and return the number of lines.
     pub fn finish(mut self, out: &mut String) -> Result<StreamSummary, GcodeError> {
         if !self.carry.is_empty() {
-            let piece = self.parser.parse(std::mem::take(&mut self.carry));
+            let piece = self.parser.parse(std::mem::take(&mut self.carry), None);
             rewrite_piece(&mut self.rewriter, &piece, out)?;
         }
         Ok(StreamSummary { lines: self.rewriter.lines_done() })
@@ -145,9 +145,11 @@ where
     W: Write,
 {
     let (tx, rx) = sync_channel::<Result<Piece, StreamError>>(2);
+    // Finished pieces go back to the reader, which reuses their memory.
+    let (back_tx, back_rx) = std::sync::mpsc::channel::<Program>();
     let reader = std::thread::Builder::new()
         .name("truepos-gcode-reader".into())
-        .spawn(move || read_pieces(input, tx))
+        .spawn(move || read_pieces(input, tx, back_rx))
         .map_err(StreamError::Read)?;
     let mut rw = Rewriter::new(new_from_old, opts);
     let mut out = String::with_capacity(PIECE_BYTES + PIECE_BYTES / 4);
@@ -155,8 +157,7 @@ where
         let piece = piece?;
         out.clear();
         rewrite_piece(&mut rw, &piece, &mut out)?;
-        // Freed here, on this thread, while the reader prepares the next piece.
-        drop(piece);
+        let _ = back_tx.send(piece.program);
         output.write_all(out.as_bytes()).map_err(StreamError::Write)?;
     }
     output.flush().map_err(StreamError::Write)?;
@@ -168,12 +169,24 @@ where
 /// The reader thread: pieces of complete lines, tokenised and evaluated, in order. Stops after
 /// a piece whose check failed (nothing after it is rewritten), at an error, or when the
 /// receiver is gone.
-fn read_pieces<R: BufRead>(mut input: R, tx: SyncSender<Result<Piece, StreamError>>) {
+fn read_pieces<R: BufRead>(
+    mut input: R,
+    tx: SyncSender<Result<Piece, StreamError>>,
+    back: std::sync::mpsc::Receiver<Program>,
+) {
     let mut parser = PieceParser::default();
     let mut carry: Vec<u8> = Vec::new();
     let mut lines_before = 0usize;
     loop {
+        let mut reuse = back.try_recv().ok();
         let mut buf = std::mem::take(&mut carry);
+        if let Some(old) = &mut reuse {
+            // The text of a finished piece: its allocation, with the carried part first.
+            let mut text = std::mem::take(&mut old.source).into_bytes();
+            text.clear();
+            text.extend_from_slice(&buf);
+            buf = text;
+        }
         buf.reserve(PIECE_BYTES);
         let mut eof = false;
         while buf.len() < PIECE_BYTES {
@@ -206,7 +219,7 @@ fn read_pieces<R: BufRead>(mut input: R, tx: SyncSender<Result<Piece, StreamErro
                     return;
                 }
             };
-            let piece = parser.parse(text);
+            let piece = parser.parse(text, reuse);
             lines_before += piece.program.lines.len();
             let failed = piece.checked.is_err();
             if tx.send(Ok(piece)).is_err() || failed {
