@@ -6,6 +6,7 @@ pub mod align;
 pub mod head;
 pub mod latency;
 pub mod load;
+pub mod nist;
 pub mod part;
 pub mod scan;
 pub mod somac;
