@@ -194,8 +194,8 @@ pub fn probe_sphere<M: ProbingMachine + ?Sized>(
         radius_mm: fit.radius - plan.tip_radius_mm,
         rms_mm: fit.rms,
         max_abs_residual_mm: fit.max_abs_residual,
-        center_uncertainty_mm: fit.center_uncertainty,
-        radius_uncertainty_mm: fit.radius_uncertainty,
+        center_uncertainty_mm: fit.u_center,
+        radius_uncertainty_mm: fit.u_radius,
         points,
         device: m.info(),
     })

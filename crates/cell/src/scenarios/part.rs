@@ -6,8 +6,8 @@
 //!
 //! Entry points: [`comp_section`], [`autoscale_section`], [`orient_section`], [`air_section`].
 
+use crate::error::Result;
 use crate::report::{self, Report, Verdict};
-use anyhow::Result;
 use rand::Rng;
 use truepos_comp::{AxisErrors, AxisTable, Chain, Corrector, GeometricMap, Squareness};
 use truepos_math::bestfit::{self, BestFitOptions};
