@@ -48,8 +48,19 @@ fn prepare(addr: std::net::SocketAddr) -> Result<()> {
     }
 }
 
-/// Rows of the result table: truth, result, error.
-fn rows(s: &ProbedSphere, centre: Point3, radius: f64) -> (Vec<Vec<String>>, f64, f64) {
+/// A length in the unit `(name, per mm)` with `dec` decimals and a sign; never "-0.00".
+fn signed(v_mm: f64, unit: (&str, f64), dec: usize) -> String {
+    let t = format!("{:+.*}", dec, v_mm * unit.1);
+    if t[1..].chars().all(|c| c == '0' || c == '.') {
+        t[1..].to_string()
+    } else {
+        t
+    }
+}
+
+/// Rows of the result table (truth, result, U with k = 2, error) with the errors in `unit`
+/// (µm, or nm where the errors are a few nm), and the centre and radius errors (mm).
+fn rows(s: &ProbedSphere, centre: Point3, radius: f64, unit: (&str, f64)) -> (Vec<Vec<String>>, f64, f64) {
     let ce = (s.center_mm - centre).norm();
     let re = s.radius_mm - radius;
     let p = |v: &Point3| format!("({:.4}, {:.4}, {:.4})", v.x, v.y, v.z);
@@ -58,21 +69,28 @@ fn rows(s: &ProbedSphere, centre: Point3, radius: f64) -> (Vec<Vec<String>>, f64
             "centre (mm)".into(),
             p(&centre),
             p(&s.center_mm),
-            format!("{:.3}", 2.0 * s.center_uncertainty_mm.norm() * 1e3),
-            format!("{:.3} (3D)", ce * 1e3),
+            format!("{:.2}", 2.0 * s.center_uncertainty_mm.norm() * unit.1),
+            format!("{:.2} (3D distance)", ce * unit.1),
         ],
         vec![
-            "diameter (mm)".into(),
-            format!("{:.4}", 2.0 * radius),
-            format!("{:.4}", 2.0 * s.radius_mm),
-            format!("{:.3}", 4.0 * s.radius_uncertainty_mm * 1e3),
-            format!("{:+.3}", 2.0 * re * 1e3),
+            "radius (mm)".into(),
+            format!("{:.4}", radius),
+            format!("{:.4}", s.radius_mm),
+            format!("{:.2}", 2.0 * s.radius_uncertainty_mm * unit.1),
+            signed(re, unit, 2),
         ],
     ];
     (rows, ce, re)
 }
 
-const HEADER: [&str; 5] = ["quantity", "truth", "measured", "U, k = 2 (µm)", "error (µm)"];
+/// The result table in `unit`.
+fn result_table(rows: &[Vec<String>], unit: &str) -> String {
+    let (u, e) = (format!("U, k = 2 ({unit})"), format!("error ({unit})"));
+    report::table(&["quantity", "truth", "measured", &u, &e], rows)
+}
+
+const NM: (&str, f64) = ("nm", 1e6);
+const UM: (&str, f64) = ("µm", 1e3);
 
 /// Demo: the virtual CMM as an I++ DME server on 127.0.0.1 (an ephemeral port), a sphere probed
 /// through the I++ DME client with the same procedure as `truepos probe sphere`, against the
@@ -120,7 +138,7 @@ pub fn ippdme_section(report: &mut Report) -> Result<()> {
     let version = s.device.version.clone();
     drop(client);
     server.shutdown();
-    let (rows, ce, re) = rows(&s, centre, radius);
+    let (rows, ce, re) = rows(&s, centre, radius, NM);
     // The virtual CMM has no probing noise and reports ≥ 6 decimals (1 nm): what remains is the
     // rounding of the reported points and the fit; 0.1 µm is ten times that and far below any
     // CMM's probing error.
@@ -134,10 +152,10 @@ pub fn ippdme_section(report: &mut Report) -> Result<()> {
             s.points.len()
         ),
         truth: "the sphere of the virtual CMM's part file".into(),
-        result: format!("centre error {:.3} µm, diameter error {:+.3} µm", ce * 1e3, 2.0 * re * 1e3),
+        result: format!("centre error {:.2} nm, radius error {} nm", ce * 1e6, signed(re, NM, 2)),
         uncertainty: format!(
-            "U = {:.3} µm on the centre (k = 2, from the fit)",
-            2.0 * s.center_uncertainty_mm.norm() * 1e3
+            "U = {:.2} nm on the centre (k = 2, from the fit)",
+            2.0 * s.center_uncertainty_mm.norm() * 1e6
         ),
         tolerance: format!("centre and radius within {tol_um} µm (no probing noise; 1 nm reporting)"),
         pass,
@@ -149,7 +167,7 @@ pub fn ippdme_section(report: &mut Report) -> Result<()> {
         CENTRE[2],
         s.points.len(),
         (plan.near_mm - centre).norm(),
-        report::table(&HEADER, &rows),
+        result_table(&rows, NM.0),
     );
     report.add("ippdme", "I++ DME: the virtual CMM through the protocol", html);
     Ok(())
@@ -173,7 +191,7 @@ pub fn controller_section(report: &mut Report) -> Result<()> {
         tip_radius_mm: tip,
     };
     let s = probe_sphere(&mut m, &plan).context("probing the sphere on the virtual machine tool")?;
-    let (rows, ce, re) = rows(&s, true_centre, true_radius);
+    let (rows, ce, re) = rows(&s, true_centre, true_radius, UM);
     // At 50 mm/min the 1 ms servo latch puts each point up to 0.83 µm inside, plus 0.5 µm
     // pre-travel and 0.1 µm noise: the radius reads low by about 0.9 µm and the centre is within
     // about one servo step; 1.5 µm bounds both.
@@ -187,9 +205,9 @@ pub fn controller_section(report: &mut Report) -> Result<()> {
             s.points.len()
         ),
         truth: "the virtual machine's true sphere (set up 0.1 mm σ off nominal)".into(),
-        result: format!("centre error {:.3} µm, diameter error {:+.3} µm", ce * 1e3, 2.0 * re * 1e3),
+        result: format!("centre error {:.2} µm, radius error {} µm", ce * 1e3, signed(re, UM, 2)),
         uncertainty: format!(
-            "U = {:.3} µm on the centre (k = 2, from the fit)",
+            "U = {:.2} µm on the centre (k = 2, from the fit)",
             2.0 * s.center_uncertainty_mm.norm() * 1e3
         ),
         tolerance: format!(
@@ -200,8 +218,43 @@ pub fn controller_section(report: &mut Report) -> Result<()> {
     let html = format!(
         "<p>The sphere procedure of <code>truepos probe sphere</code> on the virtual machine tool through the controller trait (<code>ProbingMachine</code>: position, moves, single-point probing), what <code>--controller virtual</code> runs: a touch probe with 0.5 µm pre-travel, 0.1 µm noise and a 1 ms servo latch, {} points at 50 mm/min over the upper hemisphere of a Ø {DIAMETER_MM} mm sphere set up near its nominal centre. A LinuxCNC run is what <code>truepos probe sphere --controller linuxcncrsh://HOST:PORT --near=X,Y,Z --diameter-mm 25</code> does: the same procedure through the same trait, with G38.2 moves sent over linuxcncrsh and the latched point read back from <code>#5061..#5063</code>, on a machine that is on, homed and idle. The demo does not start LinuxCNC (the LinuxCNC integration tests do, in <code>crates/linuxcnc</code>).</p>{}",
         s.points.len(),
-        report::table(&HEADER, &rows),
+        result_table(&rows, UM.0),
     );
     report.add("controller", "Machine-tool controller: probing through the trait", html);
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn signed_never_writes_minus_zero() {
+        assert_eq!(signed(-1e-9, UM, 2), "0.00");
+        assert_eq!(signed(-0.0012, UM, 2), "-1.20");
+        assert_eq!(signed(0.0012, NM, 1), "+1200.0");
+    }
+
+    /// Both sections run (the I++ DME server on a loopback port, the virtual machine tool) and
+    /// pass against their truth; the report states that LinuxCNC is not started.
+    #[test]
+    fn interface_sections_pass_against_truth() {
+        let d = tempfile::tempdir().unwrap();
+        let mut r = Report::new(d.path());
+        ippdme_section(&mut r).unwrap();
+        controller_section(&mut r).unwrap();
+        let index = r.write().unwrap();
+        let html = std::fs::read_to_string(index).unwrap();
+        assert!(html.contains("id=\"ippdme\"") && html.contains("id=\"controller\""));
+        assert!(html.contains("The demo does not start LinuxCNC"));
+        let summary: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(d.path().join("summary.json")).unwrap()).unwrap();
+        let caps = summary["capabilities"].as_array().unwrap();
+        assert_eq!(caps.len(), 2);
+        for c in caps {
+            assert_eq!(c["pass"], true, "{c}");
+        }
+        // No port number in the report: reruns stay byte-identical.
+        assert_eq!(html.matches("127.0.0.1:").count(), html.matches("127.0.0.1:1294").count());
+    }
 }
