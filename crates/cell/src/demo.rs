@@ -11,11 +11,12 @@ use crate::scenarios;
 /// One section of the demo report.
 pub type SectionFn = fn(&mut Report) -> anyhow::Result<()>;
 
-/// The virtual cell's sections of the demo, in report order, with their names. (The fitting
-/// section, which needs the NIST reference data rather than the virtual cell, is the binary's.)
+/// The demo's sections, in report order, with their names (fitting on the NIST reference data
+/// first, then the virtual cell's capabilities).
 pub fn sections() -> Vec<(&'static str, SectionFn)> {
     vec![
-        ("alignment", scenarios::align::demo_section as SectionFn),
+        ("fitting", scenarios::nist::demo_section as SectionFn),
+        ("alignment", scenarios::align::demo_section),
         ("system delay", scenarios::latency::demo_section),
         ("head offset", scenarios::head::demo_section),
         ("bed load", scenarios::load::demo_section),

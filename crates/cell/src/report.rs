@@ -54,21 +54,9 @@ pub struct Verdict {
     pub pass: bool,
 }
 
-/// UTC calendar date and time `YYYY-MM-DD hh:mm:ss UTC` of a Unix time (proleptic Gregorian,
-/// days-to-civil conversion).
+/// UTC calendar date and time `YYYY-MM-DD hh:mm:ss UTC` of a Unix time.
 pub fn utc_string(unix_s: i64) -> String {
-    let days = unix_s.div_euclid(86_400);
-    let secs = unix_s.rem_euclid(86_400);
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + i64::from(m <= 2);
-    format!("{y:04}-{m:02}-{d:02} {:02}:{:02}:{:02} UTC", secs / 3600, secs % 3600 / 60, secs % 60)
+    truepos_math::time::UtcDateTime::from_unix(unix_s).human()
 }
 
 const CSS: &str = "body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222;line-height:1.45}

@@ -26,6 +26,7 @@ pub mod grid1;
 pub mod influence;
 pub mod load;
 pub mod statics;
+pub mod stream;
 
 pub use correct::{CompError, Corrector};
 pub use fe_map::{BedModel, LoadGrid};

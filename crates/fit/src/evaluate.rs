@@ -21,8 +21,7 @@ use crate::verdict::{self, DecisionRule, SizeDecision, SizeTolerance, Verdict};
 use crate::FitError;
 use truepos_math::{Matrix3, Point3, Vector3};
 
-/// Coverage factor of the expanded uncertainties (≈ 95 % for a normal distribution).
-pub const COVERAGE_FACTOR: f64 = 2.0;
+pub use truepos_math::stats::COVERAGE_FACTOR;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kind {

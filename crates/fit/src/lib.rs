@@ -25,6 +25,7 @@
 mod axial;
 mod engine;
 pub mod evaluate;
+pub mod json;
 mod lp;
 pub mod minzone;
 pub mod moments;

@@ -25,6 +25,7 @@
 pub mod contact;
 pub mod file;
 pub mod geom;
+pub mod json;
 pub mod scan;
 pub mod stream;
 pub mod touch;

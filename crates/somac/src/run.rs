@@ -164,6 +164,16 @@ pub struct RunReport {
     pub blocks_sent: usize,
 }
 
+impl RunReport {
+    /// The run did not do its job: it halted, a stop did not succeed, or an alarm that fails a
+    /// run fired (exit code 1, final status FAILURE in the audit trail).
+    pub fn failed(&self) -> bool {
+        self.halted
+            || self.stops.iter().any(|s| s.status != StopStatus::Success)
+            || self.alarms.iter().any(|a| a.kind.fails_run())
+    }
+}
+
 #[derive(Debug, Error)]
 pub enum RunError {
     #[error("invalid parameters: {0}")]

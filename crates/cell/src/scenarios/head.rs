@@ -13,9 +13,14 @@ use truepos_head::{solve, Params, Reading, Reference};
 use truepos_io::atomic::AtomicFile;
 use truepos_io::csv::CsvWriter;
 use truepos_math::{Point3, Vector3};
-use truepos_sim::scenario::head_offset::{self as sim, HeadOffsetConfig, HeadOffsetData, Variant};
+pub use truepos_sim::scenario::head_offset::Variant;
+use truepos_sim::scenario::head_offset::{self as sim, HeadOffsetConfig, HeadOffsetData};
 
-/// Write `points.csv` (contract columns) for a simulated data set.
+/// The data set of a preset variant (`truepos simulate head-offset --variant V --seed S`).
+pub fn simulate(variant: Variant, seed: u64) -> Result<HeadOffsetData, sim::HeadOffsetError> {
+    sim::simulate(&HeadOffsetConfig::preset(variant, seed))
+}
+
 /// Write the readings as the points file `truepos head-offset` reads, with the command line that
 /// calibrates them in a comment.
 pub fn write_points(path: &Path, d: &HeadOffsetData, command: &str) -> Result<()> {

@@ -60,6 +60,74 @@ pub fn write_dataset(dir: &Path, d: &scen::Dataset) -> Result<()> {
     Ok(())
 }
 
+/// A `truepos simulate latency` request: a preset variant and the values that override it.
+#[derive(Clone, Debug, Default)]
+pub struct SimRequest {
+    /// One of [`scen::Variant::ALL`] by name (sphere, plates, speeds, …).
+    pub variant: String,
+    pub seed: u64,
+    /// System delay (s): machine capture latency minus probe capture latency.
+    pub delay_s: Option<f64>,
+    pub speed_mm_s: Option<f64>,
+    /// Repeats of the contact pattern; `None`: [`default_repeats`] (enough for the 10 µs goal).
+    pub repeats: Option<usize>,
+    pub machine_rate_hz: Option<f64>,
+    pub probe_rate_hz: Option<f64>,
+}
+
+/// A request the scenario cannot honour.
+#[derive(Debug, thiserror::Error)]
+pub enum SimRequestError {
+    #[error("unknown variant '{given}': one of {known}")]
+    UnknownVariant { given: String, known: String },
+    #[error("--delay-s must be finite")]
+    DelayNotFinite,
+    #[error(transparent)]
+    Scenario(#[from] scen::LatencyError),
+}
+
+/// The scenario configuration of a request: the variant's preset with the overrides applied.
+pub fn config(r: &SimRequest) -> Result<scen::Config, SimRequestError> {
+    let v = scen::Variant::parse(&r.variant).ok_or_else(|| SimRequestError::UnknownVariant {
+        given: r.variant.clone(),
+        known: scen::Variant::ALL.iter().map(|v| v.name()).collect::<Vec<_>>().join(", "),
+    })?;
+    let mut c = scen::Config::preset(v);
+    c.seed = r.seed;
+    if let Some(d) = r.delay_s {
+        if !d.is_finite() {
+            return Err(SimRequestError::DelayNotFinite);
+        }
+        // Keep the probe latency; the machine latencies follow the requested delay (per axis:
+        // shifted so that their mean delay is d).
+        let mean = c.machine_latencies().iter().sum::<f64>() / 3.0 - c.probe_latency_s;
+        if let Some(ax) = &mut c.axis_latency_s {
+            for l in ax.iter_mut() {
+                *l += d - mean;
+            }
+        }
+        c.machine_latency_s = c.probe_latency_s + d;
+    }
+    if let Some(s) = r.speed_mm_s {
+        c.speed_mm_s = s;
+    }
+    // Without repeats, enough contacts to meet the 10 µs goal (not the simulator's single
+    // pattern): see [`default_repeats`].
+    c.repeats = r.repeats.unwrap_or_else(|| default_repeats(v));
+    if let Some(h) = r.machine_rate_hz {
+        c.machine_rate_hz = h;
+    }
+    if let Some(h) = r.probe_rate_hz {
+        c.probe_rate_hz = h;
+    }
+    Ok(c)
+}
+
+/// The data set of a request (the simulator run on [`config`]).
+pub fn simulate(r: &SimRequest) -> Result<scen::Dataset, SimRequestError> {
+    Ok(scen::simulate(&config(r)?)?)
+}
+
 /// Streams of a data set, as the library takes them.
 pub struct OwnedStreams {
     pub mt: Vec<f64>,

@@ -7,6 +7,7 @@ pub mod head;
 pub mod interfaces;
 pub mod latency;
 pub mod load;
+pub mod nist;
 pub mod part;
 pub mod scan;
 pub mod somac;

@@ -14,12 +14,12 @@ use serde_json::json;
 use std::collections::BTreeMap;
 use std::path::Path;
 use truepos_io::InputError;
-use truepos_math::Point3;
+use truepos_math::{Point3, Vector3};
 use truepos_sim::scenario::somac::{spar, SparConfig};
 use truepos_sim::thermal::{Step, TemperatureHistory};
 use truepos_somac::audit::{AuditSink, MemoryAudit};
 use truepos_somac::params::BeamRecovery;
-use truepos_somac::stats::{capability_ppm, hole_stats};
+use truepos_somac::stats::{capability_ppm, hole_stats, HoleStats};
 use truepos_somac::{run_program, Params, RunReport};
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -382,6 +382,57 @@ pub struct VirtualRun {
     pub true_errors: Vec<(usize, f64)>,
     pub diagonal_mm: f64,
     pub duration_s: f64,
+}
+
+impl VirtualRun {
+    /// Hole statistics of the run: as measured by the trackers (final errors of the stops) and
+    /// as the virtual cell's truth has them.
+    pub fn stats(&self) -> (HoleStats, HoleStats) {
+        let measured: Vec<f64> = self
+            .report
+            .stops
+            .iter()
+            .filter(|s| s.final_error_mm.is_finite())
+            .map(|s| s.final_error_mm)
+            .collect();
+        let truth: Vec<f64> = self.true_errors.iter().map(|e| e.1).collect();
+        (hole_stats(&measured), hole_stats(&truth))
+    }
+
+    /// The run as the JSON of `truepos somac run --json` (stops, alarms, measured and true hole
+    /// statistics, capability in ppm of the diagonal, the audit database it was recorded in).
+    pub fn to_json(&self, audit_db: &Path) -> serde_json::Value {
+        let v3 = |v: Vector3| json!([v.x, v.y, v.z]);
+        let (hs, ts) = self.stats();
+        let true_by_line: BTreeMap<usize, f64> = self.true_errors.iter().copied().collect();
+        json!({
+            "stops": self.report.stops.iter().map(|s| json!({
+                "true_error_mm": true_by_line.get(&s.line),
+                "line": s.line,
+                "commanded_mm": v3(s.commanded_mm.coords),
+                "measured_mm": s.measured_mm.map(|m| v3(m.coords)),
+                "corrections": s.corrections.iter().map(|c| v3(*c)).collect::<Vec<_>>(),
+                "iterations": s.iterations,
+                "final_error_mm": if s.final_error_mm.is_finite() { json!(s.final_error_mm) } else { json!(null) },
+                "status": s.status.as_str(),
+                "message": s.message,
+            })).collect::<Vec<_>>(),
+            "alarms": self.report.alarms.iter().map(|al| json!({"line": al.line, "kind": al.kind.as_str(), "message": al.message, "action": al.action})).collect::<Vec<_>>(),
+            "halted": self.report.halted,
+            "mean_error_mm": hs.mean_error_mm,
+            "std_error_mm": hs.std_error_mm,
+            "max_error_mm": hs.max_error_mm,
+            "capability_ppm": capability_ppm(hs.max_error_mm, self.diagonal_mm),
+            "true_mean_error_mm": ts.mean_error_mm,
+            "true_std_error_mm": ts.std_error_mm,
+            "true_max_error_mm": ts.max_error_mm,
+            "true_capability_ppm": capability_ppm(ts.max_error_mm, self.diagonal_mm),
+            "orientations": self.report.orientations,
+            "refractive_index_updates": self.report.refractive_updates,
+            "duration_s": self.duration_s,
+            "audit_db": audit_db.display().to_string(),
+        })
+    }
 }
 
 pub fn run_virtual(

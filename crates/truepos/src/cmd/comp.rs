@@ -157,18 +157,8 @@ pub fn run(a: Args) -> Result<Outcome> {
     }
 }
 
-/// Summary of a streamed correction.
-pub struct StreamedCorrection {
-    pub n_points: usize,
-    pub rms_um: f64,
-    pub max_um: f64,
-    /// Largest number of fixed-point iterations (commanded positions only).
-    pub iterations: usize,
-}
-
-/// Correct (or, `commanded`, compensate) the points of `input` chunk by chunk into `output`:
-/// constant memory, reading, correcting and writing overlapped (`truepos_io::stream`). A refused
-/// point is an input error on its line, with `hint` appended.
+/// Correct (or, `commanded`, compensate) the points of `input` into `output`, streamed
+/// (`truepos_comp::stream`); `--decimals` checked first.
 pub fn correct_streamed(
     corr: &Corrector,
     input: &Path,
@@ -176,40 +166,14 @@ pub fn correct_streamed(
     commanded: bool,
     decimals: Option<u8>,
     hint: &str,
-) -> Result<StreamedCorrection> {
+) -> Result<truepos_comp::stream::Summary> {
     let fmt = truepos_io::num::NumFormat::from_decimals(decimals).map_err(crate::UsageError)?;
-    let (mut sum_sq, mut max, mut iterations) = (0.0f64, 0.0f64, 0usize);
-    let summary =
-        truepos_io::stream::rewrite_points(input, output, ["dx_um", "dy_um", "dz_um"], fmt, |_, pts, ex| {
-            let refused = |e: CompError| (e.index(), format!("{e}{hint}"));
-            if commanded {
-                let targets = pts.to_vec();
-                iterations = iterations.max(corr.compensate(pts).map_err(refused)?);
-                for ((c, t), e) in pts.iter().zip(&targets).zip(ex.iter_mut()) {
-                    let v = c - t;
-                    *e = [v.x * 1e3, v.y * 1e3, v.z * 1e3];
-                }
-            } else {
-                let mut d = vec![Vector3::zeros(); pts.len()];
-                corr.correct_measured(pts, Some(&mut d)).map_err(refused)?;
-                for (v, e) in d.iter().zip(ex.iter_mut()) {
-                    *e = [v.x * 1e3, v.y * 1e3, v.z * 1e3];
-                }
-            }
-            for e in ex.iter() {
-                let n2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
-                sum_sq += n2;
-                max = max.max(n2.sqrt());
-            }
-            Ok(())
-        })
-        .map_err(|e| match e {
-            truepos_io::stream::RewriteError::Input(i) => anyhow::Error::from(i),
-            truepos_io::stream::RewriteError::Output(o) => anyhow::Error::from(o),
-        })?;
-    let n = summary.n_points;
-    let rms_um = if n == 0 { 0.0 } else { (sum_sq / n as f64).sqrt() };
-    Ok(StreamedCorrection { n_points: n, rms_um, max_um: max, iterations })
+    let mode =
+        if commanded { truepos_comp::stream::Mode::Commanded } else { truepos_comp::stream::Mode::Measured };
+    truepos_comp::stream::correct_file(corr, input, output, mode, fmt, hint).map_err(|e| match e {
+        truepos_io::stream::RewriteError::Input(i) => anyhow::Error::from(i),
+        truepos_io::stream::RewriteError::Output(o) => anyhow::Error::from(o),
+    })
 }
 
 fn correct(a: CorrectArgs) -> Result<Outcome> {

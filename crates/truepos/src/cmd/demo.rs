@@ -3,7 +3,6 @@
 
 use crate::Outcome;
 use std::path::PathBuf;
-use truepos_cell::demo::SectionFn;
 use truepos_cell::report::Report;
 
 #[derive(clap::Args, Debug)]
@@ -37,8 +36,7 @@ pub fn run(a: Args) -> anyhow::Result<Outcome> {
         machine: "virtual bridge CMM (bed load, geometric map), virtual scanning CMM, virtual VMC with swivel head, virtual 12 m × 4 m × 2 m gantry with two laser trackers, latency test cell".into(),
         environment: "air 20 °C, 101 325 Pa, 50 % RH, 450 ppm CO₂ (reference conditions); the gantry's part warms during its run and the autoscale part is 4 °C above 20 °C".into(),
     };
-    let mut sections: Vec<(&str, SectionFn)> = vec![("fitting", super::fit::demo_section)];
-    sections.extend(truepos_cell::demo::sections());
+    let sections = truepos_cell::demo::sections();
     let n = sections.len();
     let pb = crate::output::progress(n as u64, "demo");
     let t_all = std::time::Instant::now();

@@ -6,19 +6,15 @@
 //! simulate head-offset`: the virtual cell's data set and its truth), [`demo_section`]. The
 //! numerics are in `truepos-head`; this module reads and writes the contract's files.
 
-use crate::output::{parse_pair, parse_triple, print_json, v3};
+use crate::output::{parse_pair, parse_triple, print_json};
 use crate::{Outcome, UsageError};
 use anyhow::{Context, Result};
-use serde_json::json;
-use std::io::Write;
-use std::path::{Path, PathBuf};
-use truepos_head::file::{head_error, read_input, Input};
-use truepos_head::{beam_direction, machine_to_table, solve, surface_point, HeadOffset, Params, Reference};
-use truepos_io::atomic::AtomicFile;
-use truepos_io::csv::CsvWriter;
+use std::path::PathBuf;
+use truepos_cell::scenarios::head::Variant;
+use truepos_head::file::{head_error, read_input};
+use truepos_head::{solve, HeadOffset, Params, Reference};
 use truepos_io::InputError;
 use truepos_math::{Point3, Vector3};
-use truepos_sim::scenario::head_offset::{self as sim, HeadOffsetConfig, Variant};
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RefKind {
@@ -250,7 +246,7 @@ pub fn run(args: Args) -> Result<Outcome> {
         }
     }
     if a.json {
-        print_json(&to_json(&r, &setup, a.tip_radius_mm, a.sphere_diameter_mm, &input))?;
+        print_json(&truepos_head::json::result(&r, &setup, a.tip_radius_mm, a.sphere_diameter_mm, &input))?;
     } else {
         print_human(&r, a.tip_radius_mm);
     }
@@ -263,60 +259,6 @@ fn why_unobservable(j: usize) -> &'static str {
         2 => "a table turn about Z moves no point along Z: swivel the head as well",
         _ => "add orientations with other B and C angles",
     }
-}
-
-fn to_json(
-    r: &HeadOffset,
-    setup: &Params,
-    tip: f64,
-    diameter: Option<f64>,
-    input: &Input,
-) -> serde_json::Value {
-    let name = |names: &[String], id: i64| names.get(id as usize).cloned().unwrap_or_default();
-    let unc: Vec<serde_json::Value> =
-        r.u_offset.iter().map(|u| u.map_or(serde_json::Value::Null, |v| json!(v))).collect();
-    let sphere_diameter = match (setup.reference, r.radius) {
-        (Reference::Sphere { .. }, Some(rad)) => Some(diameter.unwrap_or(2.0 * (rad - tip))),
-        _ => None,
-    };
-    let k = truepos_fit::evaluate::COVERAGE_FACTOR;
-    let expanded = json!({
-        "offset_mm": r.u_offset.iter().map(|u| u.map_or(serde_json::Value::Null, |v| json!(k * v))).collect::<Vec<_>>(),
-        "reference_point_mm": v3(r.u_reference_point * k),
-        "radius_mm": r.u_radius.map(|u| k * u),
-    });
-    json!({
-        "offset_mm": v3(r.offset),
-        "observable": r.observable,
-        "coverage_factor": k,
-        "expanded_uncertainty": expanded,
-        "from_tilt": r.from_tilt,
-        "reference_point_depends_on_prior": r.reference_depends_on_prior,
-        "uncertainty_mm": unc,
-        "reference": match setup.reference { Reference::Sphere { .. } => "sphere", Reference::Vertex { .. } => "vertex" },
-        "reference_point_mm": v3(r.reference_point),
-        "reference_point_uncertainty_mm": v3(r.u_reference_point),
-        "radius_mm": r.radius,
-        "radius_uncertainty_mm": r.u_radius,
-        "sphere_diameter_mm": sphere_diameter,
-        "tip_radius_mm": tip,
-        "rms_mm": r.rms,
-        "max_residual_mm": r.max_abs_residual,
-        "n_points": r.n_points,
-        "n_orientations": r.orientations.len(),
-        "orientations": r.orientations.iter().map(|o| json!({
-            "b_deg": o.b.to_degrees(), "c_deg": o.c.to_degrees(), "group": o.group.map(|g| name(&input.group_names, g)),
-            "n_points": o.n_points, "apparent_point_mm": v3(o.apparent),
-        })).collect::<Vec<_>>(),
-        "face_normals": r.face_normals.iter().map(|(id, n)| json!({"face": name(&input.face_names, *id), "normal": v3(*n)})).collect::<Vec<_>>(),
-        "prior_offset_mm": v3(setup.prior),
-        "closed_form_offset_mm": v3(r.closed_form_offset),
-        "table_center_mm": v3(setup.table_center),
-        "tilt_deg": [setup.tilt[0].to_degrees(), setup.tilt[1].to_degrees()],
-        "condition": if r.condition.is_finite() { json!(r.condition) } else { serde_json::Value::Null },
-        "iterations": r.iterations,
-        "converged": r.converged,
-    })
 }
 
 fn print_human(r: &HeadOffset, tip: f64) {
@@ -357,71 +299,24 @@ fn print_human(r: &HeadOffset, tip: f64) {
     println!("rms {:.4} µm, max {:.4} µm", r.rms * 1e3, r.max_abs_residual * 1e3);
 }
 
-fn create_output(path: &Path) -> Result<AtomicFile, InputError> {
-    AtomicFile::create(path)
-        .map_err(|e| InputError::in_file(path, format!("cannot create the output file: {e}")))
-}
-
 fn apply(a: ApplyArgs) -> Result<Outcome> {
-    let tilt = tilt_rad(a.tilt_deg, "--tilt-deg")?;
+    tilt_rad(a.tilt_deg, "--tilt-deg")?;
     let offset = Vector3::from(a.offset_mm);
     let table_center = match (a.table_frame, a.table_center_mm) {
         (true, None) => return Err(UsageError("--table-frame needs --table-center-mm X,Y,Z".into()).into()),
-        (_, t) => t.map(Point3::from),
+        (true, t) => t.map(Point3::from),
+        (false, _) => None,
     };
     let input = read_input(&a.points, a.table_frame)?;
-    let table = &input.table;
-    let beam = beam_direction(tilt);
-    let (ix, iy, iz) = (table.require("x_mm")?, table.require("y_mm")?, table.require("z_mm")?);
-    let mut file = create_output(&a.output)?;
-    let write = |file: &mut AtomicFile| -> std::io::Result<()> {
-        let mut w = CsvWriter::new(file);
-        for c in &table.comments {
-            w.comment(c)?;
-        }
-        w.comment(&format!(
-            "truepos head-offset apply: offset_mm = {},{},{}; tilt_deg = {},{}; {}",
-            offset.x,
-            offset.y,
-            offset.z,
-            a.tilt_deg[0],
-            a.tilt_deg[1],
-            if a.table_frame { "table coordinates at c = 0" } else { "machine coordinates" }
-        ))?;
-        let header: Vec<&str> = table.header.iter().map(|s| s.as_str()).collect();
-        w.header(&header)?;
-        let mut buf = Vec::new();
-        for (i, r) in input.readings.iter().enumerate() {
-            let fields = table.fields(i, &mut buf).map_err(|e| std::io::Error::other(e.to_string()))?;
-            let mut q = surface_point(&r.p, r.b, &offset, r.dist, &beam);
-            if let (true, Some(o)) = (a.table_frame, table_center) {
-                q = machine_to_table(&q, r.c, &o);
-            }
-            for (k, f) in fields.iter().enumerate() {
-                if k == ix {
-                    w.field_f64(q.x)?;
-                } else if k == iy {
-                    w.field_f64(q.y)?;
-                } else if k == iz {
-                    w.field_f64(q.z)?;
-                } else {
-                    w.field_str(f)?;
-                }
-            }
-            w.end_row()?;
-        }
-        Ok(())
-    };
-    write(&mut file).with_context(|| format!("writing {}", a.output.display()))?;
-    file.flush()?;
-    file.commit().with_context(|| format!("writing {}", a.output.display()))?;
+    truepos_head::file::write_applied(&a.output, &input, &offset, a.tilt_deg, table_center)
+        .with_context(|| format!("writing {}", a.output.display()))?;
     eprintln!("wrote {} points to {}", input.readings.len(), a.output.display());
     Ok(Outcome::Done)
 }
 
 pub fn simulate(args: SimArgs) -> Result<Outcome> {
-    let cfg = HeadOffsetConfig::preset(args.variant.sim(), args.common.seed);
-    let d = sim::simulate(&cfg).map_err(|e| UsageError(e.to_string()))?;
+    let d = truepos_cell::scenarios::head::simulate(args.variant.sim(), args.common.seed)
+        .map_err(|e| UsageError(e.to_string()))?;
     // Where the data set cannot be written is the user's choice of --out: an input error.
     let w = truepos_cell::scenarios::head::write_dataset(&args.common.out, &d)
         .map_err(|e| InputError::in_file(&args.common.out, format!("{e:#}")))?;

@@ -5,17 +5,14 @@
 //! and the loop parameters (`[loop]`, every field optional). A real controller and trackers plug
 //! in behind the same traits (`truepos_somac::device`).
 
-use crate::output::{print_json, v3};
+use crate::output::print_json;
 use crate::{Outcome, UsageError};
 use anyhow::{Context, Result};
 use serde_json::json;
-use std::collections::BTreeMap;
 use std::path::PathBuf;
 use truepos_cell::scenarios::somac::{read_cell_file, run_virtual, write_scenario};
 use truepos_io::InputError;
 use truepos_somac::run::StopStatus;
-use truepos_somac::stats::{capability_ppm, hole_stats};
-use truepos_somac::RunReport;
 
 #[derive(clap::Args, Debug)]
 #[command(
@@ -62,12 +59,6 @@ pub struct SimArgs {
     pub holes_per_row: usize,
 }
 
-fn failing(report: &RunReport) -> bool {
-    report.halted
-        || report.stops.iter().any(|s| s.status != StopStatus::Success)
-        || report.alarms.iter().any(|a| a.kind.fails_run())
-}
-
 pub fn run(a: RunArgs) -> Result<Outcome> {
     let (cfg, targets, mut params) = read_cell_file(&a.cell)?;
     if a.no_correct {
@@ -107,7 +98,7 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
     };
     // The run row records its end and final status, whatever happened.
     let (status, message) = match &vr {
-        Ok(v) if failing(&v.report) => ("FAILURE", None),
+        Ok(v) if v.report.failed() => ("FAILURE", None),
         Ok(_) => ("SUCCESS", None),
         Err(e) => ("ERROR", Some(format!("{e:#}"))),
     };
@@ -122,40 +113,9 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         Ok(other) => anyhow::Error::from(other),
         Err(e) => e,
     })?;
-    let measured: Vec<f64> =
-        vr.report.stops.iter().filter(|s| s.final_error_mm.is_finite()).map(|s| s.final_error_mm).collect();
-    let hs = hole_stats(&measured);
-    let truth: Vec<f64> = vr.true_errors.iter().map(|e| e.1).collect();
-    let ts = hole_stats(&truth);
-    let true_by_line: BTreeMap<usize, f64> = vr.true_errors.iter().copied().collect();
-    let out = json!({
-        "stops": vr.report.stops.iter().map(|s| json!({
-            "true_error_mm": true_by_line.get(&s.line),
-            "line": s.line,
-            "commanded_mm": v3(s.commanded_mm.coords),
-            "measured_mm": s.measured_mm.map(|m| v3(m.coords)),
-            "corrections": s.corrections.iter().map(|c| v3(*c)).collect::<Vec<_>>(),
-            "iterations": s.iterations,
-            "final_error_mm": if s.final_error_mm.is_finite() { json!(s.final_error_mm) } else { json!(null) },
-            "status": s.status.as_str(),
-            "message": s.message,
-        })).collect::<Vec<_>>(),
-        "alarms": vr.report.alarms.iter().map(|al| json!({"line": al.line, "kind": al.kind.as_str(), "message": al.message, "action": al.action})).collect::<Vec<_>>(),
-        "halted": vr.report.halted,
-        "mean_error_mm": hs.mean_error_mm,
-        "std_error_mm": hs.std_error_mm,
-        "max_error_mm": hs.max_error_mm,
-        "capability_ppm": capability_ppm(hs.max_error_mm, vr.diagonal_mm),
-        "true_mean_error_mm": ts.mean_error_mm,
-        "true_std_error_mm": ts.std_error_mm,
-        "true_max_error_mm": ts.max_error_mm,
-        "true_capability_ppm": capability_ppm(ts.max_error_mm, vr.diagonal_mm),
-        "orientations": vr.report.orientations,
-        "refractive_index_updates": vr.report.refractive_updates,
-        "duration_s": vr.duration_s,
-        "audit_db": a.db.display().to_string(),
-    });
+    let out = vr.to_json(&a.db);
     let mut out = out;
+    let (hs, ts) = vr.stats();
     if let Some(extra) = on_controller {
         for (k, v) in extra.as_object().into_iter().flatten() {
             out[k] = v.clone();
@@ -178,7 +138,7 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
             ts.mean_error_mm,
             ts.std_error_mm,
             ts.max_error_mm,
-            capability_ppm(ts.max_error_mm, vr.diagonal_mm)
+            truepos_somac::stats::capability_ppm(ts.max_error_mm, vr.diagonal_mm)
         );
         for al in &vr.report.alarms {
             eprintln!("alarm line {}: {} — {} ({})", al.line, al.kind, al.message, al.action);
@@ -193,7 +153,7 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         }
     }
     eprintln!("audit trail appended to {} (run with --db FILE to choose another)", a.db.display());
-    Ok(if failing(&vr.report) { Outcome::OutOfTolerance } else { Outcome::Done })
+    Ok(if vr.report.failed() { Outcome::OutOfTolerance } else { Outcome::Done })
 }
 
 /// `somac run --controller linuxcncrsh://…`: LinuxCNC moves the axes, the virtual cell's

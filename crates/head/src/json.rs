@@ -1,0 +1,63 @@
+//! The JSON of `truepos head-offset --json` (the interface contract's head-offset object): the
+//! offset with per-component observability, standard and expanded uncertainties (k stated), the
+//! reference point, the orientations and the solver's diagnostics.
+//!
+//! Entry point: [`result`].
+
+use crate::file::Input;
+use crate::{HeadOffset, Params, Reference};
+use serde_json::{json, Value};
+use truepos_math::stats::COVERAGE_FACTOR;
+
+fn v3(v: impl Into<[f64; 3]>) -> Value {
+    json!(v.into())
+}
+
+/// The calibration result as JSON: `r` solved with `setup`; `tip` the touch-probe tip radius and
+/// `diameter` the sphere diameter given by the user (mm), `input` the readings' names.
+pub fn result(r: &HeadOffset, setup: &Params, tip: f64, diameter: Option<f64>, input: &Input) -> Value {
+    let name = |names: &[String], id: i64| names.get(id as usize).cloned().unwrap_or_default();
+    let unc: Vec<Value> = r.u_offset.iter().map(|u| u.map_or(Value::Null, |v| json!(v))).collect();
+    let sphere_diameter = match (setup.reference, r.radius) {
+        (Reference::Sphere { .. }, Some(rad)) => Some(diameter.unwrap_or(2.0 * (rad - tip))),
+        _ => None,
+    };
+    let k = COVERAGE_FACTOR;
+    let expanded = json!({
+        "offset_mm": r.u_offset.iter().map(|u| u.map_or(Value::Null, |v| json!(k * v))).collect::<Vec<_>>(),
+        "reference_point_mm": v3(r.u_reference_point * k),
+        "radius_mm": r.u_radius.map(|u| k * u),
+    });
+    json!({
+        "offset_mm": v3(r.offset),
+        "observable": r.observable,
+        "coverage_factor": k,
+        "expanded_uncertainty": expanded,
+        "from_tilt": r.from_tilt,
+        "reference_point_depends_on_prior": r.reference_depends_on_prior,
+        "uncertainty_mm": unc,
+        "reference": match setup.reference { Reference::Sphere { .. } => "sphere", Reference::Vertex { .. } => "vertex" },
+        "reference_point_mm": v3(r.reference_point),
+        "reference_point_uncertainty_mm": v3(r.u_reference_point),
+        "radius_mm": r.radius,
+        "radius_uncertainty_mm": r.u_radius,
+        "sphere_diameter_mm": sphere_diameter,
+        "tip_radius_mm": tip,
+        "rms_mm": r.rms,
+        "max_residual_mm": r.max_abs_residual,
+        "n_points": r.n_points,
+        "n_orientations": r.orientations.len(),
+        "orientations": r.orientations.iter().map(|o| json!({
+            "b_deg": o.b.to_degrees(), "c_deg": o.c.to_degrees(), "group": o.group.map(|g| name(&input.group_names, g)),
+            "n_points": o.n_points, "apparent_point_mm": v3(o.apparent),
+        })).collect::<Vec<_>>(),
+        "face_normals": r.face_normals.iter().map(|(id, n)| json!({"face": name(&input.face_names, *id), "normal": v3(*n)})).collect::<Vec<_>>(),
+        "prior_offset_mm": v3(setup.prior),
+        "closed_form_offset_mm": v3(r.closed_form_offset),
+        "table_center_mm": v3(setup.table_center),
+        "tilt_deg": [setup.tilt[0].to_degrees(), setup.tilt[1].to_degrees()],
+        "condition": if r.condition.is_finite() { json!(r.condition) } else { Value::Null },
+        "iterations": r.iterations,
+        "converged": r.converged,
+    })
+}
