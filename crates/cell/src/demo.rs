@@ -26,5 +26,7 @@ pub fn sections() -> Vec<(&'static str, SectionFn)> {
         ("autoscale", scenarios::part::autoscale_section),
         ("orient", scenarios::part::orient_section),
         ("air", scenarios::part::air_section),
+        ("I++ DME", scenarios::interfaces::ippdme_section),
+        ("controller", scenarios::interfaces::controller_section),
     ]
 }

@@ -39,6 +39,9 @@ pub enum CellError {
     /// A scenario asked for something it cannot be (sizes, counts): the message says what.
     #[error("{0}")]
     Invalid(String),
+    /// A step of the plant failed (a protocol exchange, a device): the message says which.
+    #[error("{0}")]
+    Failed(String),
     /// An error of a library the plant drives (simulator, capability, device), with what the
     /// plant was doing.
     #[error("{context}")]

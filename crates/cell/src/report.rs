@@ -61,7 +61,7 @@ pub fn utc_string(unix_s: i64) -> String {
 
 const CSS: &str = "body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #999;padding:3px 8px;text-align:right;vertical-align:top}thead th{background:#eee}
-td:first-child,th:first-child,th[scope=row]{text-align:left}tbody th{font-weight:normal}
+td:first-child,th:first-child,th[scope=row]{text-align:left}tbody th{font-weight:normal}caption{text-align:left;font-weight:600;padding:0 0 .3em}
 .wrap{overflow-x:auto;max-width:100%}
 figure{margin:1em 0}figure svg{max-width:100%;height:auto;display:block}figcaption{font-size:.95em;color:#333}
 .legend{list-style:none;padding:0;margin:.3em 0;display:flex;flex-wrap:wrap;gap:1.2em}.swatch{display:inline-block;width:1.2em;height:.8em;margin-right:.4em;vertical-align:middle;border:1px solid #555}
@@ -580,6 +580,8 @@ pub fn histogram(
             .configure_mesh()
             .x_desc(x_label)
             .y_desc("count")
+            // Counts are whole numbers: no "70.0".
+            .y_label_formatter(&|v| if v.fract() == 0.0 { format!("{v:.0}") } else { format!("{v:.1}") })
             .label_style(("sans-serif", LABEL_PX))
             .axis_desc_style(("sans-serif", LABEL_PX))
             .draw()

@@ -337,6 +337,23 @@ pub fn read_map(path: &Path) -> Result<GeometricMap, InputError> {
     if map.x.is_none() && map.y.is_none() && map.z.is_none() {
         return Err(InputError::in_file(path, "the map has no rows"));
     }
+    // A missing table would silently read as zero errors for that axis: refuse it by name.
+    let missing: Vec<&str> = [("x", map.x.is_none()), ("y", map.y.is_none()), ("z", map.z.is_none())]
+        .into_iter()
+        .filter_map(|(n, m)| m.then_some(n))
+        .collect();
+    if !missing.is_empty() {
+        return Err(InputError::in_file(
+            path,
+            format!(
+                "the {} table{} missing: the map needs rows for every axis (axis column x, y and z; \
+                 a table of zeros if that axis really has no errors)",
+                missing.join(" and "),
+                if missing.len() > 1 { "s are" } else { " is" }
+            ),
+        )
+        .with_column_name("axis"));
+    }
     Ok(map)
 }
 

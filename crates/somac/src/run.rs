@@ -693,6 +693,16 @@ impl<C: Controller, T: Tracker, E: Cell> Loop<'_, C, T, E> {
                 });
                 return Ok(stop);
             }
+            // A tracker that moved since the last alignment (an inclinometer says so) made this
+            // reading wrong: send no correction from it. The caller re-aligns the trackers,
+            // re-orients and measures the stop again (a bumped tracker at 5 m tilted by 120 µrad
+            // would otherwise send a 0.6 mm correction and then have to undo it).
+            if self.cell.inclinations().max_change(&self.st.incl_base) > self.params.inclination_limit_urad {
+                stop.status = StopStatus::Partial;
+                stop.message =
+                    Some("a tracker moved during the stop: reading discarded, no correction sent".into());
+                return Ok(stop);
+            }
             // The correction: −e, clipped to the single limit and to the total limit.
             let mut delta = -e;
             let mut clipped = false;

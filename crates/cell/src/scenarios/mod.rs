@@ -4,6 +4,7 @@
 
 pub mod align;
 pub mod head;
+pub mod interfaces;
 pub mod latency;
 pub mod load;
 pub mod nist;

@@ -39,6 +39,7 @@ pub struct Args {
     /// Name of a column of weights (looked up in --to, then in --from).
     #[arg(long)]
     pub weights: Option<String>,
+    /// How the transform is found: least squares over all matched points, or the first three (3-2-1).
     #[arg(long, value_enum, default_value_t = Method::BestFit)]
     pub method: Method,
     /// Print one JSON object on stdout.

@@ -117,6 +117,7 @@ pub struct ErrorArgs {
     /// Write a CSV (x_mm,y_mm,z_mm,ex_um,ey_um,ez_um) instead of printing.
     #[arg(long)]
     pub output: Option<PathBuf>,
+    /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
 }
@@ -238,5 +239,35 @@ fn error(a: ErrorArgs) -> Result<Outcome> {
             );
         }
     }
+    Ok(Outcome::Done)
+}
+
+#[derive(clap::Args, Debug)]
+#[command(
+    after_help = "Example:\n  truepos simulate comp --out data/comp --seed 1\n\nWrites map.csv (axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad: the\nx, y and z tables of a virtual bridge CMM, every 25 mm), squareness.toml, points.csv (indicated\nprobe-tip points, id,x_mm,y_mm,z_mm) and truth.json (true_points_mm, probe offset), and prints\nthe `truepos comp correct` command that corrects the points."
+)]
+pub struct SimArgs {
+    #[command(flatten)]
+    pub common: super::SimCommon,
+}
+
+/// `truepos simulate comp`: the geometric-map data set with its truth.
+pub fn simulate(a: SimArgs) -> Result<Outcome> {
+    let w = truepos_cell::scenarios::part::write_comp_dataset(&a.common.out, a.common.seed)?;
+    eprintln!(
+        "comp scenario: bridge CMM map with {} x, {} y and {} z rows, squareness, {} points (uncorrected 3D error RMS {:.2} µm, max {:.2} µm) → {}",
+        w.rows[0],
+        w.rows[1],
+        w.rows[2],
+        w.n_points,
+        w.rms_um,
+        w.max_um,
+        a.common.out.display()
+    );
+    eprintln!("next: {}", w.command);
+    eprintln!(
+        "then compare corrected.csv with true_points_mm in {} (expect within about 0.5 µm)",
+        w.truth.display()
+    );
     Ok(Outcome::Done)
 }

@@ -59,6 +59,7 @@ pub struct CalibrateArgs {
     /// Readings of the reference object (columns b_deg,c_deg,x_mm,y_mm,z_mm[,dist_mm,face,group]).
     #[arg(long)]
     pub points: Option<PathBuf>,
+    /// The reference object: a sphere (its centre) or a vertex (the common point of fitted face planes).
     #[arg(long, value_enum, default_value_t = RefKind::Sphere)]
     pub reference: RefKind,
     /// Sphere diameter (mm): fixes the radius (plus --tip-radius-mm for a touch probe).
@@ -150,6 +151,7 @@ impl SimVariant {
 pub struct SimArgs {
     #[command(flatten)]
     pub common: super::SimCommon,
+    /// Which head and reference object, and which B/C orientations are measured.
     #[arg(long, value_enum, default_value_t = SimVariant::Both)]
     pub variant: SimVariant,
 }

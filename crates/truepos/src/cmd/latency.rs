@@ -62,6 +62,7 @@ pub struct Args {
     /// Probe deflections: t_s,a_mm,b_mm,c_mm.
     #[arg(long)]
     pub probe: Option<PathBuf>,
+    /// How the delay is found (auto: chosen from the data and the options given).
     #[arg(long, value_enum, default_value_t = MethodArg::Auto)]
     pub method: MethodArg,
     /// Known sphere (or ring) diameter, mm (artefact method).
@@ -104,10 +105,13 @@ pub struct ApplyArgs {
     /// The system delay (s).
     #[arg(long, allow_hyphen_values = true)]
     pub delay_s: f64,
+    /// Machine positions: t_s,x_mm,y_mm,z_mm (encoder position of the probe body).
     #[arg(long)]
     pub machine: PathBuf,
+    /// Probe deflections: t_s,a_mm,b_mm,c_mm (along the machine axes).
     #[arg(long)]
     pub probe: PathBuf,
+    /// Output CSV: t_s,x_mm,y_mm,z_mm stylus-centre positions at the probe time stamps, then the probe file's other columns.
     #[arg(long)]
     pub output: PathBuf,
     /// Print a JSON summary on stdout.
@@ -206,13 +210,37 @@ pub fn run(a: Args) -> Result<Outcome> {
             println!("  {sp:8.3} mm/s  size {sz:.6} mm");
         }
         if let Some(pa) = e.per_axis() {
+            println!("per axis      each axis's own delay, from its contacts on opposite sides (or at several speeds) along it:");
             for (k, name) in ["X", "Y", "Z"].iter().enumerate() {
                 match (pa.delay[k], pa.u_delay[k]) {
                     (Some(d), Some(u)) => {
                         println!("delay {name}       {:+.3} µs ± {:.3} µs", d * 1e6, u * 1e6)
                     }
-                    _ => println!("delay {name}       not observable from these contacts"),
+                    _ => println!(
+                        "delay {name}       not determined: no opposite contacts (or speeds) along {name} in this data"
+                    ),
                 }
+            }
+            // Do the axes really differ? Largest pairwise difference against its combined
+            // standard uncertainty; more than 3 u is significant.
+            let obs: Vec<(f64, f64)> = (0..3).filter_map(|k| Some((pa.delay[k]?, pa.u_delay[k]?))).collect();
+            let worst = obs
+                .iter()
+                .enumerate()
+                .flat_map(|(i, a)| obs[i + 1..].iter().map(move |b| ((a.0 - b.0).abs(), a.1.hypot(b.1))))
+                .max_by(|x, y| (x.0 / x.1).total_cmp(&(y.0 / y.1)));
+            match worst {
+                Some((diff, u)) if diff > 3.0 * u => println!(
+                    "note          the axes differ by up to {:.1} µs ({:.0} u): this machine's axes have different delays, so\n              correct each axis with its own delay. The single delay above is a compromise over the axes\n              and its distance from any one axis's delay is not an error of the method.",
+                    diff * 1e6,
+                    diff / u
+                ),
+                Some((diff, u)) => println!(
+                    "note          the axes agree within their uncertainties (largest difference {:.1} µs = {:.1} u,\n              below 3 u): one delay for all axes is enough.",
+                    diff * 1e6,
+                    diff / u
+                ),
+                None => println!("note          fewer than two axes determined: the axes cannot be compared."),
             }
         }
         println!("rms           {:.3} µm", e.rms * 1e3);
@@ -274,11 +302,14 @@ pub struct SimArgs {
     /// Contact (or scan) speed, mm/s.
     #[arg(long)]
     pub speed_mm_s: Option<f64>,
-    /// Repeats of the contact pattern (or scan revolutions), 1 to 1000.
+    /// Repeats of the contact pattern (or scan revolutions), 1 to 1000 (default: 24; 8 for
+    /// speeds, 12 for scan: enough contacts for the 10 µs goal).
     #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=1000))]
     pub repeats: Option<usize>,
+    /// Machine position stream rate, Hz (default 1000).
     #[arg(long)]
     pub machine_rate_hz: Option<f64>,
+    /// Probe deflection stream rate, Hz (default 1000; 4000 for multi-rate).
     #[arg(long)]
     pub probe_rate_hz: Option<f64>,
 }
@@ -296,12 +327,13 @@ pub fn simulate(a: SimArgs) -> Result<Outcome> {
     let d = latency_scenario::simulate(&request).map_err(|e| UsageError(e.to_string()))?;
     latency_scenario::write_dataset(&a.common.out, &d)?;
     eprintln!(
-        "latency scenario '{}': {} machine and {} probe samples, delay {} s → {}",
-        a.variant,
+        "latency scenario {}; {} machine and {} probe samples → {}",
+        latency_scenario::key_facts(&d.truth),
         d.machine.len(),
         d.probe.len(),
-        d.truth.delay_s,
         a.common.out.display()
     );
+    eprintln!("next: {}", latency_scenario::suggested_command(&a.common.out, &d.truth));
+    eprintln!("then compare delay_s with the true delay_s in {}", a.common.out.join("truth.json").display());
     Ok(Outcome::Done)
 }

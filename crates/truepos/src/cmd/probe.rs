@@ -59,6 +59,7 @@ pub struct SphereArgs {
     /// Seed of the virtual machine (where its sphere really is relative to the nominal one).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
 }

@@ -64,6 +64,7 @@ pub struct Common {
     /// Features and parameters (TOML: [[feature]] tables, top-level parameters).
     #[arg(long)]
     pub features: PathBuf,
+    /// Path style: blended (no stops) or classic (stop, approach along the normal, retract).
     #[arg(long, value_enum, default_value_t = StyleArg::Blended)]
     pub style: StyleArg,
     /// Angle between the approach line and the surface normal, 20 to 60 degrees (default 45).

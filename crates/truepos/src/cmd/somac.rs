@@ -45,6 +45,7 @@ pub struct AutoscaleArgs {
     /// Reference temperature of the reference file (°C).
     #[arg(long, default_value_t = 20.0)]
     pub reference_temperature_c: f64,
+    /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
 }
@@ -60,8 +61,10 @@ pub struct OrientArgs {
     /// Current measured target positions (machine frame).
     #[arg(long)]
     pub measured: PathBuf,
+    /// The G-code program to re-orient (its coordinates are in the reference frame).
     #[arg(long)]
     pub program: PathBuf,
+    /// Output G-code: the program with its coordinates rewritten in the measured frame.
     #[arg(long)]
     pub output: PathBuf,
     /// Also fit a uniform scale (parts that grew or shrank).
@@ -78,6 +81,7 @@ pub struct OrientArgs {
     /// exact transformed arc is at most this (mm). Without it such arcs are refused.
     #[arg(long, value_name = "MM")]
     pub arc_tolerance_mm: Option<f64>,
+    /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
 }
@@ -93,10 +97,13 @@ pub enum FormulaArg {
     after_help = "Example:\n  truepos air --temperature-c 20 --pressure-pa 101325 --humidity-pct 50 --json\n\nEquations as in NIST's Refractive Index of Air Calculator (Stone & Zimmerman). Inputs outside the\nrange where NIST states the equation valid are refused (exit 2): Ciddor 300-1700 nm, -40-100 °C,\n10000-140000 Pa, 0-100 % RH, 0-2000 ppm CO2; Edlén 300-1700 nm, 0-40 °C, 60000-140000 Pa,\n0-100 % RH, CO2 450 ppm only."
 )]
 pub struct AirArgs {
+    /// Air temperature, °C.
     #[arg(long)]
     pub temperature_c: f64,
+    /// Air pressure, Pa.
     #[arg(long)]
     pub pressure_pa: f64,
+    /// Relative humidity, %.
     #[arg(long)]
     pub humidity_pct: f64,
     /// CO2 mole fraction (µmol/mol); the modified Edlén equation assumes 450.
@@ -105,8 +112,10 @@ pub struct AirArgs {
     /// Vacuum wavelength.
     #[arg(long, default_value_t = 633.0)]
     pub wavelength_nm: f64,
+    /// Equation: ciddor (Ciddor 1996) or edlen (modified Edlén, Birch and Downs 1993/94).
     #[arg(long, value_enum, default_value_t = FormulaArg::Ciddor)]
     pub formula: FormulaArg,
+    /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
 }

@@ -19,22 +19,30 @@ use truepos_somac::run::StopStatus;
     after_help = "Example:\n  truepos simulate somac --out spar && truepos somac run --program spar/program.nc --cell spar/cell.toml --json\n\nExit code 1 when a stop is not SUCCESS, the run halted, or an alarm other than an\nautomatically recovered beam break fired."
 )]
 pub struct RunArgs {
+    /// The G-code program; measurement blocks carry the loop's keyword comment ([loop] keyword, default `(MSG,Measure SOMaC)`).
     #[arg(long)]
     pub program: PathBuf,
     /// The cell: virtual gantry, trackers, part targets, loop parameters.
     #[arg(long)]
     pub cell: PathBuf,
-    /// Audit trail database (SQLite).
+    /// Audit trail database (SQLite), created if missing; every run is appended to it (one run
+    /// row, one row per stop, alarm and correction). Its path is printed at the end of the run.
     #[arg(long, default_value = "somac-audit.sqlite")]
     pub db: PathBuf,
-    /// Measure and report only, never correct (the machine's native accuracy).
+    /// Measure and report only, never correct. The program is still oriented through the
+    /// measured part targets (placement and thermal scale); add --no-orient for the machine's
+    /// native accuracy (the figure `truepos simulate somac` prints as "native").
     #[arg(long)]
     pub no_correct: bool,
+    /// Do not orient the program through the measured part targets (run it as written).
+    #[arg(long)]
+    pub no_orient: bool,
     /// The NC: `virtual` (the cell's virtual gantry) or `linuxcncrsh://HOST:PORT[?password=…]`
     /// (LinuxCNC moves the axes; the cell's virtual trackers observe its actual position through
     /// the cell's structural error model).
     #[arg(long, default_value = "virtual")]
     pub controller: String,
+    /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
 }
@@ -55,6 +63,9 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
     let (cfg, targets, mut params) = read_cell_file(&a.cell)?;
     if a.no_correct {
         params.correct = false;
+    }
+    if a.no_orient {
+        params.orient = false;
     }
     let text = std::fs::read_to_string(&a.program)
         .map_err(|e| InputError::in_file(&a.program, format!("cannot read: {e}")))?;
@@ -132,7 +143,16 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         for al in &vr.report.alarms {
             eprintln!("alarm line {}: {} — {} ({})", al.line, al.kind, al.message, al.action);
         }
+        match (params.correct, params.orient) {
+            (false, true) => eprintln!(
+                "note: --no-correct: holes drilled through the orientation on the part targets, without the correction loop; add --no-orient for the program as written (the native error of `truepos simulate somac`)"
+            ),
+            (false, false) => eprintln!("note: --no-correct --no-orient: the program as written, the machine's native accuracy"),
+            (true, false) => eprintln!("note: --no-orient: corrections without orienting the program on the part targets"),
+            (true, true) => {}
+        }
     }
+    eprintln!("audit trail appended to {} (run with --db FILE to choose another)", a.db.display());
     Ok(if vr.report.failed() { Outcome::OutOfTolerance } else { Outcome::Done })
 }
 
@@ -191,11 +211,18 @@ pub fn simulate(a: SimArgs) -> Result<Outcome> {
         return Err(UsageError("--holes-per-row must be at least 1".into()).into());
     }
     let w = write_scenario(&a.common.out, a.common.seed, a.holes_per_row)?;
+    let dir = a.common.out.display();
     eprintln!(
-        "wrote {}/program.nc ({} holes), cell.toml, truth.json; native error mean {:.3} mm",
-        a.common.out.display(),
-        w.holes,
-        w.native_mean_error_mm
+        "somac scenario: a {}-hole wing-spar program on the virtual 12 m gantry with {} laser trackers → {dir}/program.nc, cell.toml (commented), truth.json",
+        w.holes, w.trackers
     );
+    eprintln!(
+        "true mean hole error without end-point control: {:.3} mm as written (native), {:.3} mm oriented on the part targets but not corrected",
+        w.native_mean_error_mm, w.oriented_only_mean_error_mm
+    );
+    eprintln!(
+        "next: truepos somac run --program {dir}/program.nc --cell {dir}/cell.toml --db {dir}/audit.sqlite"
+    );
+    eprintln!("  (compare: add --no-correct for the oriented-only figure, --no-correct --no-orient for the native one)");
     Ok(Outcome::Done)
 }
