@@ -221,16 +221,8 @@ pub fn run(a: Args) -> Result<Outcome> {
                     ),
                 }
             }
-            // Do the axes really differ? Largest pairwise difference against its combined
-            // standard uncertainty; more than 3 u is significant.
-            let obs: Vec<(f64, f64)> = (0..3).filter_map(|k| Some((pa.delay[k]?, pa.u_delay[k]?))).collect();
-            let worst = obs
-                .iter()
-                .enumerate()
-                .flat_map(|(i, a)| obs[i + 1..].iter().map(move |b| ((a.0 - b.0).abs(), a.1.hypot(b.1))))
-                .max_by(|x, y| (x.0 / x.1).total_cmp(&(y.0 / y.1)));
-            match worst {
-                Some((diff, u)) if diff > 3.0 * u => println!(
+            match pa.largest_difference() {
+                Some((diff, u)) if diff > truepos_latency::touch::AXES_DIFFER_K * u => println!(
                     "note          the axes differ by up to {:.1} µs ({:.0} u): this machine's axes have different delays, so\n              correct each axis with its own delay. The single delay above is a compromise over the axes\n              and its distance from any one axis's delay is not an error of the method.",
                     diff * 1e6,
                     diff / u
