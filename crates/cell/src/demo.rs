@@ -9,7 +9,7 @@ use crate::report::Report;
 use crate::scenarios;
 
 /// One section of the demo report.
-pub type SectionFn = fn(&mut Report) -> anyhow::Result<()>;
+pub type SectionFn = fn(&mut Report) -> crate::error::Result<()>;
 
 /// The demo's sections, in report order, with their names (fitting on the NIST reference data
 /// first, then the virtual cell's capabilities).

@@ -39,6 +39,9 @@ pub enum CellError {
     /// A scenario asked for something it cannot be (sizes, counts): the message says what.
     #[error("{0}")]
     Invalid(String),
+    /// A step of the plant failed (a protocol exchange, a device): the message says which.
+    #[error("{0}")]
+    Failed(String),
     /// An error of a library the plant drives (simulator, capability, device), with what the
     /// plant was doing.
     #[error("{context}")]
@@ -59,8 +62,13 @@ impl CellError {
         match self {
             CellError::Input(_) | CellError::Invalid(_) => true,
             CellError::Output(o) => o.is_path(),
+            // The path is the user's choice (`--out`): one that cannot be a directory or file.
             CellError::Io { source, .. } => {
-                matches!(source.kind(), std::io::ErrorKind::NotFound | std::io::ErrorKind::PermissionDenied)
+                use std::io::ErrorKind as K;
+                matches!(
+                    source.kind(),
+                    K::NotFound | K::PermissionDenied | K::AlreadyExists | K::NotADirectory | K::IsADirectory
+                )
             }
             CellError::Context { source, .. } => {
                 let mut e: Option<&(dyn StdError + 'static)> = Some(source.as_ref());
@@ -86,6 +94,34 @@ impl CellError {
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         CellError::Io { path: path.into(), source }
     }
+}
+
+/// Errors of the libraries the plant drives, each kept as the source of a [`CellError::Context`]
+/// that names the library's task.
+macro_rules! library_errors {
+    ($($t:ty => $what:literal,)*) => {
+        $(impl From<$t> for CellError {
+            fn from(e: $t) -> Self {
+                CellError::Context { context: $what.into(), source: Box::new(e) }
+            }
+        })*
+    };
+}
+
+library_errors! {
+    truepos_fit::FitError => "fitting",
+    truepos_math::bestfit::BestFitError => "best-fit transform",
+    truepos_math::air::AirError => "refractive index of air",
+    truepos_sim::scenario::head_offset::HeadOffsetError => "head-offset simulation",
+    truepos_sim::scenario::latency::LatencyError => "latency simulation",
+    truepos_head::HeadError => "head-offset calibration",
+    truepos_comp::fe_map::FeMapError => "plate FE influence map",
+    truepos_comp::statics::StaticsError => "statics of the resting points",
+    truepos_comp::influence::NotCovered => "influence map",
+    truepos_comp::CompError => "compensation",
+    truepos_comp::geometric::MapError => "geometric map",
+    truepos_somac::run::RunError => "end-point control run",
+    truepos_device::DeviceError => "device",
 }
 
 /// Adds what the plant was doing to an error of a library it drives.

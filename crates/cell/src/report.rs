@@ -9,7 +9,7 @@
 //! Reruns are byte-identical apart from the generation time, which the caller passes in
 //! ([`Header::generated_unix_s`]; the CLI takes it from `SOURCE_DATE_EPOCH` when set).
 
-use anyhow::Result;
+use crate::error::Result;
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -395,8 +395,8 @@ fn bounds(series: &[Series]) -> (f64, f64, f64, f64) {
     (x0, x1, y0, y1)
 }
 
-fn plot_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
-    anyhow::anyhow!("plot: {e:?}")
+fn plot_err<E: std::fmt::Debug>(e: E) -> crate::error::CellError {
+    crate::error::CellError::Plot(format!("{e:?}"))
 }
 
 fn rgb(c: RGBColor) -> String {

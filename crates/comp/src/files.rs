@@ -398,3 +398,23 @@ pub fn read_squareness(path: &Path) -> Result<Squareness, InputError> {
     }
     Ok(Squareness { xy: xy * 1e-6, xz: xz * 1e-6, yz: yz * 1e-6 })
 }
+
+/// Write the volumetric errors at points (`truepos comp error --output`): `x_mm,y_mm,z_mm` and
+/// the error `ex_um,ey_um,ez_um`, atomically. A bad path rides in the `io::Error` as an
+/// `OutputError`.
+pub fn write_errors(
+    path: &Path,
+    points: &[truepos_math::Point3],
+    errors: &[truepos_math::Vector3],
+) -> std::io::Result<()> {
+    let mut f = AtomicFile::create(path)?;
+    {
+        let mut w = CsvWriter::new(&mut f);
+        w.header(&["x_mm", "y_mm", "z_mm", "ex_um", "ey_um", "ez_um"])?;
+        for (p, v) in points.iter().zip(errors) {
+            w.row_f64(&[p.x, p.y, p.z, v.x * 1e3, v.y * 1e3, v.z * 1e3])?;
+        }
+    }
+    f.commit()?;
+    Ok(())
+}

@@ -7,9 +7,9 @@
 //! Entry points: [`ippdme_section`], [`controller_section`].
 
 use crate::cmm::IppdmeCmm;
+use crate::error::{CellError, Context, Result};
 use crate::probing::{MachineToolConfig, VirtualMachineTool};
 use crate::report::{self, Report, Verdict};
-use anyhow::{Context, Result};
 use std::io::{BufRead, BufReader, Write};
 use std::net::TcpStream;
 use std::time::{Duration, Instant};
@@ -24,8 +24,7 @@ const DIAMETER_MM: f64 = 25.0;
 /// Prepare the CMM as an operator would before a client program runs: a session that homes
 /// the machine and puts `Probe1` in the spindle (both persist across sessions).
 fn prepare(addr: std::net::SocketAddr) -> Result<()> {
-    let s =
-        TcpStream::connect(addr).with_context(|| format!("connecting to the I++ DME server at {addr}"))?;
+    let s = TcpStream::connect(addr).context(format!("connecting to the I++ DME server at {addr}"))?;
     s.set_read_timeout(Some(Duration::from_secs(10)))?;
     let mut w = s.try_clone()?;
     w.write_all(
@@ -36,11 +35,13 @@ fn prepare(addr: std::net::SocketAddr) -> Result<()> {
     loop {
         line.clear();
         if r.read_line(&mut line)? == 0 {
-            anyhow::bail!("the I++ DME server closed the connection while preparing the machine");
+            return Err(CellError::Failed(
+                "the I++ DME server closed the connection while preparing the machine".into(),
+            ));
         }
         let l = line.trim_end();
         if l.contains(" ! ") {
-            anyhow::bail!("the I++ DME server refused the preparation: {l}");
+            return Err(CellError::Failed(format!("the I++ DME server refused the preparation: {l}")));
         }
         if l.starts_with("00004") && l[5..].trim() == "%" {
             return Ok(());
@@ -181,7 +182,7 @@ pub fn controller_section(report: &mut Report) -> Result<()> {
     let tip = 1.5;
     let cfg = MachineToolConfig::near(1, centre, 0.5 * DIAMETER_MM, tip);
     let (true_centre, true_radius) = cfg.spheres[0];
-    let mut m = VirtualMachineTool::new(cfg).map_err(|e| anyhow::anyhow!("virtual machine tool: {e}"))?;
+    let mut m = VirtualMachineTool::new(cfg).context("virtual machine tool")?;
     let plan = SphereProbing {
         near_mm: centre,
         diameter_mm: DIAMETER_MM,

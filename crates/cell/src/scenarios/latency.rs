@@ -4,8 +4,8 @@
 //! Entry points: [`write_dataset`], [`OwnedStreams`] (a data set as the library's streams),
 //! [`demo_section`].
 
+use crate::error::{CellError, Result};
 use crate::report::{self, Report, Series};
-use anyhow::{Context, Result};
 use std::io::Write;
 use std::path::Path;
 use truepos_io::atomic::AtomicFile;
@@ -15,7 +15,7 @@ use truepos_sim::scenario::latency as scen;
 /// Write a data set as the contract's files: `machine.csv` (t_s,x_mm,y_mm,z_mm), `probe.csv`
 /// (t_s,a_mm,b_mm,c_mm) and `truth.json`.
 pub fn write_dataset(dir: &Path, d: &scen::Dataset) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    std::fs::create_dir_all(dir).map_err(|e| CellError::io(dir, e))?;
     let facts = key_facts(&d.truth);
     let next = suggested_command(dir, &d.truth);
     let write = |name: &str, header: [&str; 4], rows: &mut dyn Iterator<Item = [f64; 4]>| -> Result<()> {

@@ -4,8 +4,8 @@
 //!
 //! Entry points: [`write_scenario`], [`demo_section`].
 
+use crate::error::{CellError, Context, Result};
 use crate::report::{self, Report, Series};
-use anyhow::{Context, Result};
 use serde_json::json;
 use std::path::Path;
 use truepos_comp::fe_map::{self, BedModel, LoadGrid};
@@ -61,11 +61,13 @@ fn load_toml(c: &LoadConfig) -> String {
 /// configuration and the simulated data. `mass_kg` must be positive and `noise_um` non-negative.
 pub fn write_scenario(dir: &Path, seed: u64, mass_kg: f64, noise_um: f64) -> Result<(LoadConfig, LoadData)> {
     if !(mass_kg.is_finite() && mass_kg > 0.0 && noise_um.is_finite() && noise_um >= 0.0) {
-        anyhow::bail!("--mass-kg must be positive and --noise-um non-negative (got {mass_kg}, {noise_um})");
+        return Err(CellError::Invalid(format!(
+            "--mass-kg must be positive and --noise-um non-negative (got {mass_kg}, {noise_um})"
+        )));
     }
     let cfg = LoadConfig { mass_kg, noise_sigma: noise_um * 1e-3, ..LoadConfig::default() };
-    let data = sim_load(&cfg, seed).map_err(|e| anyhow::anyhow!("load scenario: {e}"))?;
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let data = sim_load(&cfg, seed).context("load scenario")?;
+    std::fs::create_dir_all(dir).map_err(|e| CellError::io(dir, e))?;
     write_atomic(dir.join("bed.toml"), bed_toml(&cfg).as_bytes())?;
     write_atomic(dir.join("load.toml"), load_toml(&cfg).as_bytes())?;
     let mut f = AtomicFile::create(dir.join("points.csv"))?;
@@ -128,7 +130,7 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
     // Time goes to the log, not the report (reruns stay byte-identical).
     eprintln!("  load: influence map in {:.1} s", t0.elapsed().as_secs_f64());
     write_influence(&map, &dir.join("map.csv"), "plate FE of bed.toml")
-        .with_context(|| format!("cannot write {}", dir.join("map.csv").display()))?;
+        .map_err(|e| CellError::io(dir.join("map.csv"), e))?;
     let forces = statics::distribute(cfg.mass_kg * G, cfg.cog, &cfg.rests)?;
     let loads: Vec<(f64, f64, f64)> = cfg.rests.iter().zip(&forces).map(|(r, f)| (r[0], r[1], *f)).collect();
     let curves = map.superpose(&loads)?;

@@ -6,8 +6,8 @@
 //! Entry points: [`shared_data_dir`], [`nist_table`] (the comparison, also used by tests),
 //! [`demo_section`].
 
+use crate::error::Result;
 use crate::report::{self, Report};
-use anyhow::Result;
 use std::path::{Path, PathBuf};
 use truepos_fit::evaluate::Kind;
 use truepos_io::InputError;

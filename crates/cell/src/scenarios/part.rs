@@ -7,8 +7,8 @@
 //! Entry points: [`comp_section`], [`autoscale_section`], [`orient_section`], [`air_section`];
 //! [`write_comp_dataset`] (the `truepos simulate comp` data set, from [`comp_data`]).
 
+use crate::error::{CellError, Result};
 use crate::report::{self, Report, Verdict};
-use anyhow::{Context, Result};
 use rand::Rng;
 use std::path::{Path, PathBuf};
 use truepos_comp::{AxisErrors, AxisTable, Chain, Corrector, GeometricMap, Squareness};
@@ -104,8 +104,7 @@ pub struct CompWritten {
 /// and `truth.json` (the true points, the probe offset, the chain), every file commented.
 pub fn write_comp_dataset(dir: &Path, seed: u64) -> Result<CompWritten> {
     let d = comp_data(seed)?;
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("cannot create the output directory {}", dir.display()))?;
+    std::fs::create_dir_all(dir).map_err(|e| CellError::io(dir, e))?;
     let (map_p, sq_p, pts_p, truth_p) =
         (dir.join("map.csv"), dir.join("squareness.toml"), dir.join("points.csv"), dir.join("truth.json"));
     let t = d.tool;

@@ -6,9 +6,9 @@
 //! part targets and the loop's `[loop]` parameters), [`scenario`], [`run_virtual`],
 //! [`write_scenario`], [`demo_section`].
 
+use crate::error::{CellError, Result};
 use crate::gantry::{CellConfig, Obstruction, TrackerConfig, VirtualCell};
 use crate::report::{self, Report, Series};
-use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -441,7 +441,7 @@ pub fn run_virtual(
     targets: Vec<(String, Point3)>,
     params: &Params,
     sink: &mut dyn AuditSink,
-) -> Result<VirtualRun> {
+) -> Result<VirtualRun, truepos_somac::run::RunError> {
     let program = truepos_gcode::Program::parse(program_text);
     let cell = VirtualCell::new(cfg, targets);
     let mut trackers = cell.align_trackers().map_err(|e| {
@@ -611,7 +611,7 @@ pub struct Written {
 /// native error of this cell: the same run without corrections) into `dir`.
 pub fn write_scenario(dir: &Path, seed: u64, holes_per_row: usize) -> Result<Written> {
     let (cfg, sp, params) = scenario(seed, holes_per_row);
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    std::fs::create_dir_all(dir).map_err(|e| CellError::io(dir, e))?;
     let cell = CellFile::from_config(&cfg, &sp.targets, &params);
     let toml = annotate_cell_toml(&toml::to_string_pretty(&cell)?);
     truepos_io::atomic::write_atomic(dir.join("program.nc"), sp.program.as_bytes())?;

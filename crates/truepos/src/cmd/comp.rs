@@ -14,8 +14,7 @@ use serde_json::json;
 use std::path::{Path, PathBuf};
 use truepos_comp::correct::CompError;
 use truepos_comp::{Chain, Corrector, GeometricMap};
-use truepos_io::atomic::AtomicFile;
-use truepos_io::csv::{CsvWriter, Table};
+use truepos_io::csv::Table;
 use truepos_io::InputError;
 use truepos_math::{Point3, Vector3};
 
@@ -219,13 +218,8 @@ fn error(a: ErrorArgs) -> Result<Outcome> {
         );
     }
     if let Some(out) = &a.output {
-        let mut f = AtomicFile::create(out).with_context(|| format!("cannot create {}", out.display()))?;
-        let mut w = CsvWriter::new(&mut f);
-        w.header(&["x_mm", "y_mm", "z_mm", "ex_um", "ey_um", "ez_um"])?;
-        for (p, v) in pts.iter().zip(&e) {
-            w.row_f64(&[p.x, p.y, p.z, v.x * 1e3, v.y * 1e3, v.z * 1e3])?;
-        }
-        f.commit()?;
+        truepos_comp::files::write_errors(out, &pts, &e)
+            .with_context(|| format!("writing {}", out.display()))?;
     }
     if a.json {
         print_json(&json!({

@@ -43,7 +43,7 @@ pub fn run(a: Args) -> anyhow::Result<Outcome> {
     for (i, (name, f)) in sections.into_iter().enumerate() {
         pb.set_message(name.to_string());
         let t0 = std::time::Instant::now();
-        f(&mut report).map_err(|e| e.context(format!("demo section '{name}'")))?;
+        f(&mut report).map_err(|e| anyhow::Error::from(e).context(format!("demo section '{name}'")))?;
         // One line per capability (above the bar on a terminal; plain lines otherwise).
         pb.suspend(|| eprintln!("[{}/{n}] {name:<18} {:6.2} s", i + 1, t0.elapsed().as_secs_f64()));
         pb.inc(1);

@@ -213,6 +213,13 @@ pub fn run(a: Args) -> Result<Outcome> {
         truepos_io::atomic::check_output_path(q).map_err(|e| anyhow::Error::from(e).context("--qif"))?;
     }
     let set = truepos_io::points::read_points(&a.points)?;
+    if set.skipped_invalid > 0 {
+        eprintln!(
+            "note: {}: {} points marked invalid in the file were skipped",
+            a.points.display(),
+            set.skipped_invalid
+        );
+    }
     let e = evaluate::evaluate(a.kind.lib(), m, &set.points, &spec).map_err(|e| match e {
         evaluate::EvaluateError::Spec(s) => anyhow::Error::from(UsageError(s.to_string())),
         evaluate::EvaluateError::Fit(f) => {

@@ -351,8 +351,7 @@ pub fn simulate(a: SimArgs) -> Result<Outcome> {
         .into());
     }
     let (_, data) =
-        truepos_cell::scenarios::load::write_scenario(&a.common.out, a.common.seed, a.mass_kg, a.noise_um)
-            .map_err(|e| crate::DeviceError(format!("{e:#}")))?;
+        truepos_cell::scenarios::load::write_scenario(&a.common.out, a.common.seed, a.mass_kg, a.noise_um)?;
     eprintln!(
         "load scenario: a {} kg die on three pads on a granite bed (forces {:?} N), {} points measured with {} µm noise → {}",
         a.mass_kg,

@@ -94,7 +94,7 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         })
     } else {
         audit.set_controller("virtual", "truepos virtual gantry cell")?;
-        run_virtual(&text, cfg, targets, &params, &mut audit)
+        run_virtual(&text, cfg, targets, &params, &mut audit).map_err(anyhow::Error::from)
     };
     // The run row records its end and final status, whatever happened.
     let (status, message) = match &vr {
