@@ -2,12 +2,13 @@
 //! residuals and form, standard and expanded uncertainties with the coverage factor, and the
 //! characteristics with their verdicts. One definition, used by the binary and the demo.
 //!
-//! Entry point: [`evaluation`].
+//! Entry points: [`evaluation`], [`text`] (the same for people, as `truepos fit` prints it).
 
 use crate::evaluate::{Evaluation, Method, Uncertainty, COVERAGE_FACTOR};
 use crate::verdict::DecisionRule;
 use nalgebra::Vector3;
 use serde_json::{json, Map, Value};
+use std::fmt::Write;
 
 fn v3(v: Vector3<f64>) -> Value {
     json!([v.x, v.y, v.z])
@@ -123,4 +124,73 @@ pub fn evaluation(e: &Evaluation) -> Value {
         m.insert("verdict".into(), json!(v.name()));
     }
     Value::Object(m)
+}
+
+/// One line into the text (writing to a `String` cannot fail).
+macro_rules! w {
+    ($($t:tt)*) => {{
+        let _ = writeln!($($t)*);
+    }};
+}
+
+fn fmt3(v: &Value) -> String {
+    match v.as_array() {
+        Some(a) => {
+            a.iter().map(|x| format!("{:.6}", x.as_f64().unwrap_or(f64::NAN))).collect::<Vec<_>>().join(", ")
+        }
+        None => String::new(),
+    }
+}
+
+/// The fit object of [`evaluation`] for people: geometry first, then residuals and form, then
+/// expanded uncertainties (k stated) and the characteristics with their verdicts.
+pub fn text(v: &Value) -> String {
+    let mut out = String::new();
+    // Human output: geometry first, then residuals and form, then uncertainties.
+    let order = [
+        ("center_mm", "centre", "mm"),
+        ("point_mm", "point", "mm"),
+        ("apex_mm", "apex", "mm"),
+        ("direction", "direction", ""),
+        ("normal", "normal", ""),
+        ("axis", "axis", ""),
+        ("radius_mm", "radius", "mm"),
+        ("inner_radius_mm", "inner radius", "mm"),
+        ("outer_radius_mm", "outer radius", "mm"),
+        ("apex_angle_deg", "apex angle", "°"),
+        ("surface_distance_mm", "surface distance", "mm"),
+        ("rms_mm", "rms residual", "mm"),
+        ("max_abs_residual_mm", "max |residual|", "mm"),
+        ("form_mm", "form", "mm"),
+    ];
+    for (key, label, unit) in order {
+        match v.get(key) {
+            Some(x) if x.is_array() => w!(out, "  {label:<22} {}  {unit}", fmt3(x)),
+            Some(x) => w!(out, "  {label:<22} {:.9}  {unit}", x.as_f64().unwrap_or(f64::NAN)),
+            None => {}
+        }
+    }
+    if let Some(u) = v.get("expanded_uncertainty").and_then(|u| u.as_object()) {
+        w!(out, "  expanded uncertainties (k = {COVERAGE_FACTOR}):");
+        for (k, x) in u {
+            if x.is_array() {
+                w!(out, "    U({k:<16}) {}", fmt3(x));
+            } else {
+                w!(out, "    U({k:<16}) {:.9}", x.as_f64().unwrap_or(f64::NAN));
+            }
+        }
+    }
+    if let Some(cs) = v.get("characteristics").and_then(|c| c.as_array()) {
+        for c in cs {
+            w!(
+                out,
+                "  {:<9} actual {:.6} mm: {}",
+                c["characteristic"].as_str().unwrap_or(""),
+                c["actual_mm"].as_f64().unwrap_or(f64::NAN),
+                c["verdict"].as_str().unwrap_or("")
+            );
+        }
+        w!(out, "  verdict: {}", v["verdict"].as_str().unwrap_or(""));
+    }
+    out
 }

@@ -2,11 +2,12 @@
 //! offset with per-component observability, standard and expanded uncertainties (k stated), the
 //! reference point, the orientations and the solver's diagnostics.
 //!
-//! Entry point: [`result`].
+//! Entry points: [`result`], [`text`] (the same for people, as `truepos head-offset` prints it).
 
 use crate::file::Input;
 use crate::{HeadOffset, Params, Reference};
 use serde_json::{json, Value};
+use std::fmt::Write;
 use truepos_math::stats::COVERAGE_FACTOR;
 
 fn v3(v: impl Into<[f64; 3]>) -> Value {
@@ -60,4 +61,58 @@ pub fn result(r: &HeadOffset, setup: &Params, tip: f64, diameter: Option<f64>, i
         "iterations": r.iterations,
         "converged": r.converged,
     })
+}
+
+/// One line into the text (writing to a `String` cannot fail).
+macro_rules! w {
+    ($($t:tt)*) => {{
+        let _ = writeln!($($t)*);
+    }};
+}
+
+const AXES: [&str; 3] = ["X", "Y", "Z"];
+
+/// The calibration result for people: each offset component with its standard uncertainty or
+/// "not observable", the reference point, the radius, the residuals (`tip`: the touch-probe tip
+/// radius, mm).
+pub fn text(r: &HeadOffset, tip: f64) -> String {
+    let mut out = String::new();
+    w!(out, "head offset R ({} points, {} orientations)", r.n_points, r.orientations.len());
+    for j in 0..3 {
+        match r.u_offset[j] {
+            Some(u) => {
+                w!(out, "  R{} = {:+.6} mm  ± {:.4} µm (1σ)", AXES[j].to_lowercase(), r.offset[j], u * 1e3)
+            }
+            None => w!(
+                out,
+                "  R{} = {:+.6} mm  not observable (prior, not measured)",
+                AXES[j].to_lowercase(),
+                r.offset[j]
+            ),
+        }
+    }
+    let p = r.reference_point;
+    w!(out, "reference point at c = 0: {:.6}, {:.6}, {:.6} mm", p.x, p.y, p.z);
+    for j in 0..3 {
+        if r.reference_depends_on_prior[j] {
+            w!(
+                out,
+                "  (its {} follows the prior offset: only A{} − R{} is measured)",
+                AXES[j],
+                AXES[j].to_lowercase(),
+                AXES[j].to_lowercase()
+            );
+        }
+    }
+    if let Some(rad) = r.radius {
+        match r.u_radius {
+            Some(u) => w!(out, "radius {rad:.6} mm ± {:.4} µm", u * 1e3),
+            None => w!(out, "radius {rad:.6} mm (fixed)"),
+        }
+        if tip > 0.0 {
+            w!(out, "sphere diameter {:.6} mm (radius − tip radius {tip} mm, doubled)", 2.0 * (rad - tip));
+        }
+    }
+    w!(out, "rms {:.4} µm, max {:.4} µm", r.rms * 1e3, r.max_abs_residual * 1e3);
+    out
 }

@@ -28,6 +28,7 @@ pub mod geom;
 pub mod json;
 pub mod scan;
 pub mod stream;
+pub mod text;
 pub mod touch;
 
 pub use contact::{Contact, Phase};

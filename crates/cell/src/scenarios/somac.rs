@@ -399,6 +399,33 @@ impl VirtualRun {
         (hole_stats(&measured), hole_stats(&truth))
     }
 
+    /// The run for people (`truepos somac run`): stops and alarms, measured and true hole errors.
+    pub fn text(&self) -> String {
+        use std::fmt::Write;
+        let mut out = String::new();
+        let (hs, ts) = self.stats();
+        let n_ok =
+            self.report.stops.iter().filter(|s| s.status == truepos_somac::run::StopStatus::Success).count();
+        let _ = writeln!(
+            out,
+            "{} stops: {n_ok} SUCCESS; {} alarms; measured error mean {:.4} σ {:.4} max {:.4} mm",
+            self.report.stops.len(),
+            self.report.alarms.len(),
+            hs.mean_error_mm,
+            hs.std_error_mm,
+            hs.max_error_mm
+        );
+        let _ = writeln!(
+            out,
+            "true hole error (virtual cell): mean {:.4} σ {:.4} max {:.4} mm ({:.1} ppm of the diagonal)",
+            ts.mean_error_mm,
+            ts.std_error_mm,
+            ts.max_error_mm,
+            capability_ppm(ts.max_error_mm, self.diagonal_mm)
+        );
+        out
+    }
+
     /// The run as the JSON of `truepos somac run --json` (stops, alarms, measured and true hole
     /// statistics, capability in ppm of the diagonal, the audit database it was recorded in).
     pub fn to_json(&self, audit_db: &Path) -> serde_json::Value {

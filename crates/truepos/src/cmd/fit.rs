@@ -16,9 +16,8 @@
 use crate::output::print_json;
 use crate::{Outcome, UsageError};
 use anyhow::Result;
-use serde_json::Value;
 use std::path::PathBuf;
-use truepos_fit::evaluate::{self, Method, Spec, COVERAGE_FACTOR};
+use truepos_fit::evaluate::{self, Method, Spec};
 use truepos_fit::verdict::{self, DecisionRule, SizeTolerance, Verdict};
 use truepos_io::InputError;
 
@@ -195,15 +194,6 @@ fn qif_kind(k: Kind) -> truepos_qif::FeatureKind {
     }
 }
 
-fn fmt3(v: &Value) -> String {
-    match v.as_array() {
-        Some(a) => {
-            a.iter().map(|x| format!("{:.6}", x.as_f64().unwrap_or(f64::NAN))).collect::<Vec<_>>().join(", ")
-        }
-        None => String::new(),
-    }
-}
-
 pub fn run(a: Args) -> Result<Outcome> {
     // Everything that can be refused is refused before any work or output.
     let spec = spec(&a)?;
@@ -250,51 +240,7 @@ pub fn run(a: Args) -> Result<Outcome> {
         set.points.len(),
         a.points.display()
     );
-    // Human output: geometry first, then residuals and form, then uncertainties.
-    let order = [
-        ("center_mm", "centre", "mm"),
-        ("point_mm", "point", "mm"),
-        ("apex_mm", "apex", "mm"),
-        ("direction", "direction", ""),
-        ("normal", "normal", ""),
-        ("axis", "axis", ""),
-        ("radius_mm", "radius", "mm"),
-        ("inner_radius_mm", "inner radius", "mm"),
-        ("outer_radius_mm", "outer radius", "mm"),
-        ("apex_angle_deg", "apex angle", "°"),
-        ("surface_distance_mm", "surface distance", "mm"),
-        ("rms_mm", "rms residual", "mm"),
-        ("max_abs_residual_mm", "max |residual|", "mm"),
-        ("form_mm", "form", "mm"),
-    ];
-    for (key, label, unit) in order {
-        match v.get(key) {
-            Some(x) if x.is_array() => println!("  {label:<22} {}  {unit}", fmt3(x)),
-            Some(x) => println!("  {label:<22} {:.9}  {unit}", x.as_f64().unwrap_or(f64::NAN)),
-            None => {}
-        }
-    }
-    if let Some(u) = v.get("expanded_uncertainty").and_then(|u| u.as_object()) {
-        println!("  expanded uncertainties (k = {COVERAGE_FACTOR}):");
-        for (k, x) in u {
-            if x.is_array() {
-                println!("    U({k:<16}) {}", fmt3(x));
-            } else {
-                println!("    U({k:<16}) {:.9}", x.as_f64().unwrap_or(f64::NAN));
-            }
-        }
-    }
-    if let Some(cs) = v.get("characteristics").and_then(|c| c.as_array()) {
-        for c in cs {
-            println!(
-                "  {:<9} actual {:.6} mm: {}",
-                c["characteristic"].as_str().unwrap_or(""),
-                c["actual_mm"].as_f64().unwrap_or(f64::NAN),
-                c["verdict"].as_str().unwrap_or("")
-            );
-        }
-        println!("  verdict: {}", v["verdict"].as_str().unwrap_or(""));
-    }
+    print!("{}", truepos_fit::json::text(&v));
     if let Some(q) = &a.qif {
         eprintln!("QIF written to {}", q.display());
     }

@@ -12,7 +12,7 @@ use anyhow::{Context, Result};
 use std::path::PathBuf;
 use truepos_cell::scenarios::head::Variant;
 use truepos_head::file::{head_error, read_input};
-use truepos_head::{solve, HeadOffset, Params, Reference};
+use truepos_head::{solve, Params, Reference};
 use truepos_io::InputError;
 use truepos_math::{Point3, Vector3};
 
@@ -248,7 +248,7 @@ pub fn run(args: Args) -> Result<Outcome> {
     if a.json {
         print_json(&truepos_head::json::result(&r, &setup, a.tip_radius_mm, a.sphere_diameter_mm, &input))?;
     } else {
-        print_human(&r, a.tip_radius_mm);
+        print!("{}", truepos_head::json::text(&r, a.tip_radius_mm));
     }
     Ok(Outcome::Done)
 }
@@ -259,44 +259,6 @@ fn why_unobservable(j: usize) -> &'static str {
         2 => "a table turn about Z moves no point along Z: swivel the head as well",
         _ => "add orientations with other B and C angles",
     }
-}
-
-fn print_human(r: &HeadOffset, tip: f64) {
-    println!("head offset R ({} points, {} orientations)", r.n_points, r.orientations.len());
-    for j in 0..3 {
-        match r.u_offset[j] {
-            Some(u) => {
-                println!("  R{} = {:+.6} mm  ± {:.4} µm (1σ)", AXES[j].to_lowercase(), r.offset[j], u * 1e3)
-            }
-            None => println!(
-                "  R{} = {:+.6} mm  not observable (prior, not measured)",
-                AXES[j].to_lowercase(),
-                r.offset[j]
-            ),
-        }
-    }
-    let p = r.reference_point;
-    println!("reference point at c = 0: {:.6}, {:.6}, {:.6} mm", p.x, p.y, p.z);
-    for j in 0..3 {
-        if r.reference_depends_on_prior[j] {
-            println!(
-                "  (its {} follows the prior offset: only A{} − R{} is measured)",
-                AXES[j],
-                AXES[j].to_lowercase(),
-                AXES[j].to_lowercase()
-            );
-        }
-    }
-    if let Some(rad) = r.radius {
-        match r.u_radius {
-            Some(u) => println!("radius {rad:.6} mm ± {:.4} µm", u * 1e3),
-            None => println!("radius {rad:.6} mm (fixed)"),
-        }
-        if tip > 0.0 {
-            println!("sphere diameter {:.6} mm (radius − tip radius {tip} mm, doubled)", 2.0 * (rad - tip));
-        }
-    }
-    println!("rms {:.4} µm, max {:.4} µm", r.rms * 1e3, r.max_abs_residual * 1e3);
 }
 
 fn apply(a: ApplyArgs) -> Result<Outcome> {

@@ -193,49 +193,7 @@ pub fn run(a: Args) -> Result<Outcome> {
     if a.json {
         print_json(&truepos_latency::json::estimate(&e, &opt))?;
     } else {
-        println!("method        {}", e.method().name());
-        println!("delay         {:+.3} µs ± {:.3} µs (standard uncertainty)", e.delay * 1e6, e.u_delay * 1e6);
-        if opt.already_corrected != 0.0 {
-            println!(
-                "residual      {:+.3} µs (data already corrected by {:+.3} µs)",
-                e.residual_delay * 1e6,
-                opt.already_corrected * 1e6
-            );
-        }
-        println!("contacts      {}", e.n_contacts);
-        if let Some(s) = e.static_size() {
-            println!("static size   {s:.6} mm");
-        }
-        for (sp, sz) in e.per_speed() {
-            println!("  {sp:8.3} mm/s  size {sz:.6} mm");
-        }
-        if let Some(pa) = e.per_axis() {
-            println!("per axis      each axis's own delay, from its contacts on opposite sides (or at several speeds) along it:");
-            for (k, name) in ["X", "Y", "Z"].iter().enumerate() {
-                match (pa.delay[k], pa.u_delay[k]) {
-                    (Some(d), Some(u)) => {
-                        println!("delay {name}       {:+.3} µs ± {:.3} µs", d * 1e6, u * 1e6)
-                    }
-                    _ => println!(
-                        "delay {name}       not determined: no opposite contacts (or speeds) along {name} in this data"
-                    ),
-                }
-            }
-            match pa.largest_difference() {
-                Some((diff, u)) if diff > truepos_latency::touch::AXES_DIFFER_K * u => println!(
-                    "note          the axes differ by up to {:.1} µs ({:.0} u): this machine's axes have different delays, so\n              correct each axis with its own delay. The single delay above is a compromise over the axes\n              and its distance from any one axis's delay is not an error of the method.",
-                    diff * 1e6,
-                    diff / u
-                ),
-                Some((diff, u)) => println!(
-                    "note          the axes agree within their uncertainties (largest difference {:.1} µs = {:.1} u,\n              below 3 u): one delay for all axes is enough.",
-                    diff * 1e6,
-                    diff / u
-                ),
-                None => println!("note          fewer than two axes determined: the axes cannot be compared."),
-            }
-        }
-        println!("rms           {:.3} µm", e.rms * 1e3);
+        print!("{}", truepos_latency::text::estimate(&e, &opt));
     }
     Ok(Outcome::Done)
 }

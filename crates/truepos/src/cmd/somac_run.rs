@@ -12,7 +12,6 @@ use serde_json::json;
 use std::path::PathBuf;
 use truepos_cell::scenarios::somac::{read_cell_file, run_virtual, write_scenario};
 use truepos_io::InputError;
-use truepos_somac::run::StopStatus;
 
 #[derive(clap::Args, Debug)]
 #[command(
@@ -115,7 +114,6 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
     })?;
     let out = vr.to_json(&a.db);
     let mut out = out;
-    let (hs, ts) = vr.stats();
     if let Some(extra) = on_controller {
         for (k, v) in extra.as_object().into_iter().flatten() {
             out[k] = v.clone();
@@ -124,22 +122,7 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
     if a.json {
         print_json(&out)?;
     } else {
-        let n_ok = vr.report.stops.iter().filter(|s| s.status == StopStatus::Success).count();
-        println!(
-            "{} stops: {n_ok} SUCCESS; {} alarms; measured error mean {:.4} σ {:.4} max {:.4} mm",
-            vr.report.stops.len(),
-            vr.report.alarms.len(),
-            hs.mean_error_mm,
-            hs.std_error_mm,
-            hs.max_error_mm
-        );
-        println!(
-            "true hole error (virtual cell): mean {:.4} σ {:.4} max {:.4} mm ({:.1} ppm of the diagonal)",
-            ts.mean_error_mm,
-            ts.std_error_mm,
-            ts.max_error_mm,
-            truepos_somac::stats::capability_ppm(ts.max_error_mm, vr.diagonal_mm)
-        );
+        print!("{}", vr.text());
         for al in &vr.report.alarms {
             eprintln!("alarm line {}: {} — {} ({})", al.line, al.kind, al.message, al.action);
         }
