@@ -2,7 +2,7 @@
 //! offset with per-component observability, standard and expanded uncertainties (k stated), the
 //! reference point, the orientations and the solver's diagnostics.
 //!
-//! Entry points: [`result`], [`text`] (the same for people, as `truepos head-offset` prints it).
+//! Entry points: [`result`], [`notes`] (warnings on observability), [`text`] (the same for people, as `truepos head-offset` prints it).
 
 use crate::file::Input;
 use crate::{HeadOffset, Params, Reference};
@@ -114,5 +114,38 @@ pub fn text(r: &HeadOffset, tip: f64) -> String {
         }
     }
     w!(out, "rms {:.4} µm, max {:.4} µm", r.rms * 1e3, r.max_abs_residual * 1e3);
+    out
+}
+
+/// Why offset component `j` (0 = X, 1 = Y, 2 = Z) is not observable, and what to add.
+fn why_unobservable(j: usize) -> &'static str {
+    match j {
+        1 => "a swivel about Y moves no point along Y: turn the table as well",
+        2 => "a table turn about Z moves no point along Z: swivel the head as well",
+        _ => "add orientations with other B and C angles",
+    }
+}
+
+/// Notes and warnings on a result for the user: components that come from the beam tilt rather
+/// than a rotation, and components the orientations cannot determine (held at `prior`, mm).
+pub fn notes(r: &HeadOffset, prior: &truepos_math::Vector3) -> Vec<String> {
+    let mut out = Vec::new();
+    for j in 0..3 {
+        if r.from_tilt[j] {
+            out.push(format!(
+                "note: offset component {} comes from the beam tilt (R parallel to the beam), not from a rotation",
+                AXES[j]
+            ));
+        }
+        if !r.observable[j] {
+            out.push(format!(
+                "warning: offset component {} is not observable from these orientations ({}); held at the \
+                 prior {} mm, not measured",
+                AXES[j],
+                why_unobservable(j),
+                prior[j]
+            ));
+        }
+    }
     out
 }

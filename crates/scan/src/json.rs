@@ -2,11 +2,13 @@
 //! contract's scan objects): cycle time, stops, and per feature its time, form error, contact
 //! shift, vibration and settling.
 //!
-//! Entry points: [`plan`], [`run`], [`feature_times`].
+//! Entry points: [`plan`], [`run`], [`text`] (a run for people), [`feature_times`].
 
 use crate::execute::Run;
 use crate::{Plan, SegmentKind, Style};
 use serde_json::{json, Value};
+use std::fmt::Write;
+use std::path::Path;
 
 /// A plan as JSON (`truepos scan plan --json`), `n_points` the samples written.
 pub fn plan(pl: &Plan, style: Style, n_points: usize) -> Value {
@@ -59,4 +61,41 @@ pub fn feature_times(pl: &Plan) -> Vec<(String, f64)> {
             (f.id.clone(), b - a)
         })
         .collect()
+}
+
+/// One line into the text (writing to a `String` cannot fail).
+macro_rules! w {
+    ($($t:tt)*) => {{
+        let _ = writeln!($($t)*);
+    }};
+}
+
+/// A run for people (`truepos scan run`): cycle time, stops, the points file, and per feature its
+/// time, form error, contact shift and scan-start vibration.
+pub fn text(r: &Run, style: Style, output: &Path) -> String {
+    let mut out = String::new();
+    w!(
+        out,
+        "{} style: cycle {:.3} s, {} stops, {} points written to {}",
+        style.name(),
+        r.cycle_time,
+        r.stops,
+        r.points.len(),
+        output.display()
+    );
+    for f in &r.features {
+        w!(
+            out,
+            "  {:12} {:7.3} s  form {:>7} µm  shift {:+8.3} mm  scan-start vibration {:6.2} µm rms",
+            f.id,
+            f.time,
+            match &f.form_note {
+                None => format!("{:.2}", f.form_error * 1e3),
+                Some(_) => "-".to_string(),
+            },
+            f.contact_shift,
+            f.vibration_rms * 1e3
+        );
+    }
+    out
 }

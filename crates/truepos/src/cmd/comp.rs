@@ -210,13 +210,7 @@ fn error(a: ErrorArgs) -> Result<Outcome> {
     let pts = table_points(&t)?;
     let [ox, oy, oz] = a.map.probe_offset_mm;
     let corr = Corrector { geometric: Some(&map), load: None, probe_offset: Vector3::new(ox, oy, oz) };
-    let mut e = Vec::with_capacity(pts.len());
-    for (i, p) in pts.iter().enumerate() {
-        e.push(
-            corr.displacement(p)
-                .map_err(|source| batch_error(&t, CompError::OutOfRange { index: i, source }))?,
-        );
-    }
+    let e = corr.displacements(&pts).map_err(|err| batch_error(&t, err))?;
     if let Some(out) = &a.output {
         truepos_comp::files::write_errors(out, &pts, &e)
             .with_context(|| format!("writing {}", out.display()))?;

@@ -163,8 +163,6 @@ fn tilt_rad(t: [f64; 2], name: &str) -> Result<[f64; 2], UsageError> {
     Ok([t[0].to_radians(), t[1].to_radians()])
 }
 
-const AXES: [&str; 3] = ["X", "Y", "Z"];
-
 pub fn run(args: Args) -> Result<Outcome> {
     if let Some(Action::Apply(a)) = args.action {
         return apply(a);
@@ -228,22 +226,8 @@ pub fn run(args: Args) -> Result<Outcome> {
         beam_through_reference: a.beam_through_reference,
     };
     let r = solve(&input.readings, &setup).map_err(|e| head_error(&input.table, e))?;
-    for j in 0..3 {
-        if r.from_tilt[j] {
-            eprintln!(
-                "note: offset component {} comes from the beam tilt (R parallel to the beam), not from a rotation",
-                AXES[j]
-            );
-        }
-        if !r.observable[j] {
-            eprintln!(
-                "warning: offset component {} is not observable from these orientations ({}); held at the \
-                 prior {} mm, not measured",
-                AXES[j],
-                why_unobservable(j),
-                a.prior_offset_mm[j]
-            );
-        }
+    for note in truepos_head::json::notes(&r, &setup.prior) {
+        eprintln!("{note}");
     }
     if a.json {
         print_json(&truepos_head::json::result(&r, &setup, a.tip_radius_mm, a.sphere_diameter_mm, &input))?;
@@ -251,14 +235,6 @@ pub fn run(args: Args) -> Result<Outcome> {
         print!("{}", truepos_head::json::text(&r, a.tip_radius_mm));
     }
     Ok(Outcome::Done)
-}
-
-fn why_unobservable(j: usize) -> &'static str {
-    match j {
-        1 => "a swivel about Y moves no point along Y: turn the table as well",
-        2 => "a table turn about Z moves no point along Z: swivel the head as well",
-        _ => "add orientations with other B and C angles",
-    }
 }
 
 fn apply(a: ApplyArgs) -> Result<Outcome> {

@@ -228,27 +228,7 @@ fn run_run(a: RunArgs) -> Result<Outcome> {
     if a.common.json {
         print_json(&truepos_scan::json::run(&r, style))?;
     } else {
-        eprintln!(
-            "{} style: cycle {:.3} s, {} stops, {} points written to {}",
-            style.name(),
-            r.cycle_time,
-            r.stops,
-            r.points.len(),
-            a.output.display()
-        );
-        for f in &r.features {
-            eprintln!(
-                "  {:12} {:7.3} s  form {:>7} µm  shift {:+8.3} mm  scan-start vibration {:6.2} µm rms",
-                f.id,
-                f.time,
-                match &f.form_note {
-                    None => format!("{:.2}", f.form_error * 1e3),
-                    Some(_) => "-".to_string(),
-                },
-                f.contact_shift,
-                f.vibration_rms * 1e3
-            );
-        }
+        eprint!("{}", truepos_scan::json::text(&r, style, &a.output));
     }
     Ok(Outcome::Done)
 }

@@ -164,17 +164,7 @@ pub fn autoscale(a: AutoscaleArgs) -> Result<Outcome> {
             "n_points": f.n,
         }))?;
     } else {
-        println!(
-            "scale            {:.9}  ({:+.2} ppm, u = {:.2} ppm)",
-            f.scale,
-            (f.scale - 1.0) * 1e6,
-            f.u_scale * 1e6
-        );
-        if let (Some(e), Some(d)) = (expected, discrepancy) {
-            println!("expected (CTE)   {e:.9}");
-            println!("discrepancy      {d:+.2} ppm");
-        }
-        println!("rms residual     {:.4} mm over {} features", f.rms_mm, f.n);
+        print!("{}", f.text(expected));
     }
     Ok(Outcome::Done)
 }
