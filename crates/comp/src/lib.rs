@@ -24,6 +24,7 @@ pub mod files;
 pub mod geometric;
 pub mod grid1;
 pub mod influence;
+pub mod json;
 pub mod load;
 pub mod statics;
 pub mod stream;

@@ -283,25 +283,9 @@ fn curves_cmd(a: CurvesCmd) -> Result<Outcome> {
     let case = read_load(&a.load)?;
     let c = superpose(&map, &case, &a.map, &a.load)?;
     if a.json {
-        print_json(&json!({
-            "portal_y_mm": c.y(),
-            "pitch_urad": c.pitch.iter().map(|v| v * 1e6).collect::<Vec<_>>(),
-            "roll_urad": c.roll.iter().map(|v| v * 1e6).collect::<Vec<_>>(),
-            "forces_n": case.loads.iter().map(|l| l.2).collect::<Vec<_>>(),
-            "rest_points_mm": case.loads.iter().map(|l| [l.0, l.1]).collect::<Vec<_>>(),
-            "weight_n": case.weight_n,
-            "cog_mm": case.cog,
-            "explicit_forces": case.explicit,
-        }))?;
+        print_json(&truepos_comp::json::curves(&c, &case))?;
     } else {
-        println!("forces (N):");
-        for l in &case.loads {
-            println!("  ({:.1}, {:.1}) mm  {:.3}", l.0, l.1, l.2);
-        }
-        println!("{:>12} {:>12} {:>12}", "portal_y_mm", "pitch_urad", "roll_urad");
-        for ((y, p), r) in c.y().iter().zip(&c.pitch).zip(&c.roll) {
-            println!("{y:12.3} {:12.4} {:12.4}", p * 1e6, r * 1e6);
-        }
+        print!("{}", truepos_comp::json::curves_text(&c, &case));
     }
     Ok(Outcome::Done)
 }
