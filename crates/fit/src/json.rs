@@ -14,25 +14,39 @@ fn v3(v: Vector3<f64>) -> Value {
     json!([v.x, v.y, v.z])
 }
 
-fn uncertainty_json(u: &Uncertainty) -> Value {
-    let mut m = Map::new();
-    let mut put3 = |k: &str, v: Option<Vector3<f64>>| {
+/// The element's geometry into `m` under the contract's names (only what the kind has): points
+/// and vectors as `[x, y, z]`, the radius in mm, the apex angle in degrees. Used for the element
+/// and for its uncertainties, which have the same shape.
+fn put_geometry(
+    m: &mut Map<String, Value>,
+    vectors: [(&str, Option<Vector3<f64>>); 6],
+    radius: Option<f64>,
+    apex_angle: Option<f64>,
+) {
+    for (k, v) in vectors {
         if let Some(v) = v {
-            m.insert(k.into(), json!(v3(v)));
+            m.insert(k.into(), v3(v));
         }
-    };
-    put3("point_mm", u.point);
-    put3("center_mm", u.center);
-    put3("apex_mm", u.apex);
-    put3("direction", u.direction);
-    put3("normal", u.normal);
-    put3("axis", u.axis);
-    if let Some(r) = u.radius {
+    }
+    if let Some(r) = radius {
         m.insert("radius_mm".into(), json!(r));
     }
-    if let Some(a) = u.apex_angle {
+    if let Some(a) = apex_angle {
         m.insert("apex_angle_deg".into(), json!(a.to_degrees()));
     }
+}
+
+fn uncertainty_json(u: &Uncertainty) -> Value {
+    let mut m = Map::new();
+    let vectors = [
+        ("point_mm", u.point),
+        ("center_mm", u.center),
+        ("apex_mm", u.apex),
+        ("direction", u.direction),
+        ("normal", u.normal),
+        ("axis", u.axis),
+    ];
+    put_geometry(&mut m, vectors, u.radius, u.apex_angle);
     Value::Object(m)
 }
 
@@ -42,23 +56,15 @@ pub fn evaluation(e: &Evaluation) -> Value {
     m.insert("kind".into(), json!(e.kind.name()));
     m.insert("method".into(), json!(e.method.name()));
     m.insert("n_points".into(), json!(e.n_points));
-    let mut put3 = |k: &str, v: Option<Vector3<f64>>| {
-        if let Some(v) = v {
-            m.insert(k.into(), json!(v3(v)));
-        }
-    };
-    put3("point_mm", e.point.map(|p| p.coords));
-    put3("center_mm", e.center.map(|p| p.coords));
-    put3("apex_mm", e.apex.map(|p| p.coords));
-    put3("direction", e.direction);
-    put3("normal", e.normal);
-    put3("axis", e.axis);
-    if let Some(r) = e.radius {
-        m.insert("radius_mm".into(), json!(r));
-    }
-    if let Some(a) = e.apex_angle {
-        m.insert("apex_angle_deg".into(), json!(a.to_degrees()));
-    }
+    let vectors = [
+        ("point_mm", e.point.map(|p| p.coords)),
+        ("center_mm", e.center.map(|p| p.coords)),
+        ("apex_mm", e.apex.map(|p| p.coords)),
+        ("direction", e.direction),
+        ("normal", e.normal),
+        ("axis", e.axis),
+    ];
+    put_geometry(&mut m, vectors, e.radius, e.apex_angle);
     m.insert("rms_mm".into(), json!(e.rms));
     m.insert("max_abs_residual_mm".into(), json!(e.max_abs_residual));
     m.insert("form_mm".into(), json!(e.form));
