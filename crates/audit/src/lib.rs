@@ -65,26 +65,9 @@ pub fn now_utc() -> String {
     iso8601_utc(d.as_secs() as i64, d.subsec_millis())
 }
 
-/// `secs` since the Unix epoch as ISO 8601 UTC (proleptic Gregorian calendar, days to civil date
-/// by the era algorithm).
+/// `secs` since the Unix epoch as ISO 8601 UTC with milliseconds.
 pub fn iso8601_utc(secs: i64, millis: u32) -> String {
-    let days = secs.div_euclid(86_400);
-    let sod = secs.rem_euclid(86_400);
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let day = doy - (153 * mp + 2) / 5 + 1;
-    let month = if mp < 10 { mp + 3 } else { mp - 9 };
-    let year = yoe + era * 400 + i64::from(month <= 2);
-    format!(
-        "{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}.{millis:03}Z",
-        sod / 3600,
-        sod % 3600 / 60,
-        sod % 60
-    )
+    truepos_math::time::UtcDateTime::from_unix(secs).iso8601_millis(millis)
 }
 
 /// Whether `s` is ISO 8601 UTC: `YYYY-MM-DDTHH:MM:SS`, optional fraction, `Z`.

@@ -9,13 +9,14 @@ use crate::report::Report;
 use crate::scenarios;
 
 /// One section of the demo report.
-pub type SectionFn = fn(&mut Report) -> anyhow::Result<()>;
+pub type SectionFn = fn(&mut Report) -> crate::error::Result<()>;
 
-/// The virtual cell's sections of the demo, in report order, with their names. (The fitting
-/// section, which needs the NIST reference data rather than the virtual cell, is the binary's.)
+/// The demo's sections, in report order, with their names (fitting on the NIST reference data
+/// first, then the virtual cell's capabilities).
 pub fn sections() -> Vec<(&'static str, SectionFn)> {
     vec![
-        ("alignment", scenarios::align::demo_section as SectionFn),
+        ("fitting", scenarios::nist::demo_section as SectionFn),
+        ("alignment", scenarios::align::demo_section),
         ("system delay", scenarios::latency::demo_section),
         ("head offset", scenarios::head::demo_section),
         ("bed load", scenarios::load::demo_section),
@@ -25,5 +26,7 @@ pub fn sections() -> Vec<(&'static str, SectionFn)> {
         ("autoscale", scenarios::part::autoscale_section),
         ("orient", scenarios::part::orient_section),
         ("air", scenarios::part::air_section),
+        ("I++ DME", scenarios::interfaces::ippdme_section),
+        ("controller", scenarios::interfaces::controller_section),
     ]
 }

@@ -21,6 +21,7 @@
 
 pub mod cmm;
 pub mod demo;
+pub mod error;
 pub mod gantry;
 pub mod observed;
 pub mod probing;
@@ -28,3 +29,5 @@ pub mod report;
 pub mod scan_scenario;
 pub mod scanning_cmm;
 pub mod scenarios;
+
+pub use error::{CellError, Context};

@@ -9,7 +9,7 @@
 //! Reruns are byte-identical apart from the generation time, which the caller passes in
 //! ([`Header::generated_unix_s`]; the CLI takes it from `SOURCE_DATE_EPOCH` when set).
 
-use anyhow::Result;
+use crate::error::Result;
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -54,26 +54,14 @@ pub struct Verdict {
     pub pass: bool,
 }
 
-/// UTC calendar date and time `YYYY-MM-DD hh:mm:ss UTC` of a Unix time (proleptic Gregorian,
-/// days-to-civil conversion).
+/// UTC calendar date and time `YYYY-MM-DD hh:mm:ss UTC` of a Unix time.
 pub fn utc_string(unix_s: i64) -> String {
-    let days = unix_s.div_euclid(86_400);
-    let secs = unix_s.rem_euclid(86_400);
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + i64::from(m <= 2);
-    format!("{y:04}-{m:02}-{d:02} {:02}:{:02}:{:02} UTC", secs / 3600, secs % 3600 / 60, secs % 60)
+    truepos_math::time::UtcDateTime::from_unix(unix_s).human()
 }
 
 const CSS: &str = "body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #999;padding:3px 8px;text-align:right;vertical-align:top}thead th{background:#eee}
-td:first-child,th:first-child,th[scope=row]{text-align:left}tbody th{font-weight:normal}
+td:first-child,th:first-child,th[scope=row]{text-align:left}tbody th{font-weight:normal}caption{text-align:left;font-weight:600;padding:0 0 .3em}
 .wrap{overflow-x:auto;max-width:100%}
 figure{margin:1em 0}figure svg{max-width:100%;height:auto;display:block}figcaption{font-size:.95em;color:#333}
 .legend{list-style:none;padding:0;margin:.3em 0;display:flex;flex-wrap:wrap;gap:1.2em}.swatch{display:inline-block;width:1.2em;height:.8em;margin-right:.4em;vertical-align:middle;border:1px solid #555}
@@ -407,8 +395,8 @@ fn bounds(series: &[Series]) -> (f64, f64, f64, f64) {
     (x0, x1, y0, y1)
 }
 
-fn plot_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
-    anyhow::anyhow!("plot: {e:?}")
+fn plot_err<E: std::fmt::Debug>(e: E) -> crate::error::CellError {
+    crate::error::CellError::Plot(format!("{e:?}"))
 }
 
 fn rgb(c: RGBColor) -> String {
@@ -592,6 +580,8 @@ pub fn histogram(
             .configure_mesh()
             .x_desc(x_label)
             .y_desc("count")
+            // Counts are whole numbers: no "70.0".
+            .y_label_formatter(&|v| if v.fract() == 0.0 { format!("{v:.0}") } else { format!("{v:.1}") })
             .label_style(("sans-serif", LABEL_PX))
             .axis_desc_style(("sans-serif", LABEL_PX))
             .draw()

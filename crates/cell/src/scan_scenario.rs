@@ -162,13 +162,26 @@ pub fn read_truth(path: &Path, nominal: &[Feature], params: &Params) -> Result<V
 pub fn toml_features(s: &ScanScenario) -> String {
     let f3 = |v: [f64; 3]| format!("[{}, {}, {}]", v[0], v[1], v[2]);
     let mut t = String::new();
-    t.push_str("# truepos simulate scan: nominal features and scan parameters\n");
+    t.push_str("# truepos simulate scan: nominal features and scan parameters (mm, mm/s, degrees).\n");
+    t.push_str(
+        "# Each parameter can be overridden by the option of the same name, e.g. --scan-speed-mm-s 20.\n",
+    );
+    t.push_str("# angle between the approach line and the surface normal at the contact point (20 to 60°)\n");
     t.push_str(&format!("approach_angle_deg = {}\n", s.approach_angle_deg));
+    t.push_str("# speed along the surface while scanning (mm/s)\n");
     t.push_str(&format!("scan_speed_mm_s = {}\n", s.scan_speed_mm_s));
+    t.push_str("# speed of the transfer moves between features (mm/s)\n");
     t.push_str(&format!("move_speed_mm_s = {}\n", s.move_speed_mm_s));
+    t.push_str("# nominal probe deflection while scanning (mm)\n");
     t.push_str(&format!("deflection_mm = {}\n", s.deflection_mm));
+    t.push_str("# how far past the target deflection the settle path goes (mm)\n");
     t.push_str(&format!("overshoot_mm = {}\n", s.overshoot_mm));
+    t.push_str("# quality bands on |deflection − target| (mm): within the first → quality 0, the second → 5, else 9\n");
     t.push_str(&format!("quality_bands_mm = [{}, {}]\n", s.quality_bands_mm[0], s.quality_bands_mm[1]));
+    t.push_str(
+        "\n# Features: kind circle (center_mm, axis, radius_mm, side inside|outside|plane, start_deg,\n",
+    );
+    t.push_str("# sweep_deg) or line (start_mm, end_mm, normal = outward normal of the material surface).\n");
     for f in &s.features {
         t.push_str("\n[[feature]]\n");
         t.push_str(&format!("id = \"{}\"\n", f.id));

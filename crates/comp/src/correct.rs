@@ -55,6 +55,16 @@ pub struct Corrector<'a> {
 const CHUNK: usize = 4096;
 
 impl<'a> Corrector<'a> {
+    /// The volumetric error at each point; the first point outside the map's range is an
+    /// [`CompError::OutOfRange`] with its index.
+    pub fn displacements(&self, points: &[Point3]) -> Result<Vec<Vector3>, CompError> {
+        points
+            .iter()
+            .enumerate()
+            .map(|(index, p)| self.displacement(p).map_err(|source| CompError::OutOfRange { index, source }))
+            .collect()
+    }
+
     /// `corrected − p` at indicated tip point `p`: `E(p − t; t) + e(p)`.
     #[inline]
     pub fn displacement(&self, p: &Point3) -> Result<Vector3, OutOfRange> {

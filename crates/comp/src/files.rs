@@ -337,6 +337,23 @@ pub fn read_map(path: &Path) -> Result<GeometricMap, InputError> {
     if map.x.is_none() && map.y.is_none() && map.z.is_none() {
         return Err(InputError::in_file(path, "the map has no rows"));
     }
+    // A missing table would silently read as zero errors for that axis: refuse it by name.
+    let missing: Vec<&str> = [("x", map.x.is_none()), ("y", map.y.is_none()), ("z", map.z.is_none())]
+        .into_iter()
+        .filter_map(|(n, m)| m.then_some(n))
+        .collect();
+    if !missing.is_empty() {
+        return Err(InputError::in_file(
+            path,
+            format!(
+                "the {} table{} missing: the map needs rows for every axis (axis column x, y and z; \
+                 a table of zeros if that axis really has no errors)",
+                missing.join(" and "),
+                if missing.len() > 1 { "s are" } else { " is" }
+            ),
+        )
+        .with_column_name("axis"));
+    }
     Ok(map)
 }
 
@@ -380,4 +397,24 @@ pub fn read_squareness(path: &Path) -> Result<Squareness, InputError> {
         }
     }
     Ok(Squareness { xy: xy * 1e-6, xz: xz * 1e-6, yz: yz * 1e-6 })
+}
+
+/// Write the volumetric errors at points (`truepos comp error --output`): `x_mm,y_mm,z_mm` and
+/// the error `ex_um,ey_um,ez_um`, atomically. A bad path rides in the `io::Error` as an
+/// `OutputError`.
+pub fn write_errors(
+    path: &Path,
+    points: &[truepos_math::Point3],
+    errors: &[truepos_math::Vector3],
+) -> std::io::Result<()> {
+    let mut f = AtomicFile::create(path)?;
+    {
+        let mut w = CsvWriter::new(&mut f);
+        w.header(&["x_mm", "y_mm", "z_mm", "ex_um", "ey_um", "ez_um"])?;
+        for (p, v) in points.iter().zip(errors) {
+            w.row_f64(&[p.x, p.y, p.z, v.x * 1e3, v.y * 1e3, v.z * 1e3])?;
+        }
+    }
+    f.commit()?;
+    Ok(())
 }

@@ -24,8 +24,10 @@ pub mod files;
 pub mod geometric;
 pub mod grid1;
 pub mod influence;
+pub mod json;
 pub mod load;
 pub mod statics;
+pub mod stream;
 
 pub use correct::{CompError, Corrector};
 pub use fe_map::{BedModel, LoadGrid};

@@ -35,10 +35,10 @@ pub struct CylinderFit {
     pub max_abs_residual: f64,
     pub n_points: usize,
     /// Standard uncertainty of `point` perpendicular to the axis (root-sum-square), mm.
-    pub point_uncertainty: f64,
+    pub u_point: f64,
     /// Standard uncertainty of the axis direction (root-sum-square of two tilts), rad.
-    pub axis_uncertainty: f64,
-    pub radius_uncertainty: f64,
+    pub u_axis: f64,
+    pub u_radius: f64,
     pub iterations: usize,
     /// Covariance of `point` (perpendicular to the axis), mm².
     pub point_covariance: Matrix3,
@@ -64,14 +64,14 @@ pub struct ConeFit {
     pub max_abs_residual: f64,
     pub n_points: usize,
     /// Standard uncertainties of the apex coordinates, mm (large for small apex angles).
-    pub apex_uncertainty: Vector3,
+    pub u_apex: Vector3,
     /// Standard uncertainty of `point` perpendicular to the axis (root-sum-square), mm.
-    pub point_uncertainty: f64,
+    pub u_point: f64,
     /// Standard uncertainty of the axis direction (root-sum-square of two tilts), rad.
-    pub axis_uncertainty: f64,
+    pub u_axis: f64,
     /// Standard uncertainty of the full apex angle, rad.
-    pub apex_angle_uncertainty: f64,
-    pub surface_distance_uncertainty: f64,
+    pub u_apex_angle: f64,
+    pub u_surface_distance: f64,
     pub iterations: usize,
     /// Covariance of the apex, mm².
     pub apex_covariance: Matrix3,
@@ -337,9 +337,9 @@ pub fn cylinder(points: &[Point3]) -> Result<CylinderFit, FitError> {
         rms: (sol.acc.ssr / n as f64).sqrt(),
         max_abs_residual: sol.acc.max_abs,
         n_points: n,
-        point_uncertainty: (cov[(0, 0)] + cov[(1, 1)]).max(0.0).sqrt(),
-        axis_uncertainty: (cov[(2, 2)] + cov[(3, 3)]).max(0.0).sqrt(),
-        radius_uncertainty: ur,
+        u_point: (cov[(0, 0)] + cov[(1, 1)]).max(0.0).sqrt(),
+        u_axis: (cov[(2, 2)] + cov[(3, 3)]).max(0.0).sqrt(),
+        u_radius: ur,
         iterations: sol.iterations,
     })
 }
@@ -406,11 +406,11 @@ pub fn cone(points: &[Point3]) -> Result<ConeFit, FitError> {
         rms: (sol.acc.ssr / n as f64).sqrt(),
         max_abs_residual: sol.acc.max_abs,
         n_points: n,
-        apex_uncertainty: Vector3::new(ca[(0, 0)], ca[(1, 1)], ca[(2, 2)]).map(|x| x.max(0.0).sqrt()),
-        point_uncertainty: (cov[(0, 0)] + cov[(1, 1)]).max(0.0).sqrt(),
-        axis_uncertainty: (cov[(2, 2)] + cov[(3, 3)]).max(0.0).sqrt(),
-        apex_angle_uncertainty: 2.0 * cov[(4, 4)].max(0.0).sqrt(),
-        surface_distance_uncertainty: cov[(5, 5)].max(0.0).sqrt(),
+        u_apex: Vector3::new(ca[(0, 0)], ca[(1, 1)], ca[(2, 2)]).map(|x| x.max(0.0).sqrt()),
+        u_point: (cov[(0, 0)] + cov[(1, 1)]).max(0.0).sqrt(),
+        u_axis: (cov[(2, 2)] + cov[(3, 3)]).max(0.0).sqrt(),
+        u_apex_angle: 2.0 * cov[(4, 4)].max(0.0).sqrt(),
+        u_surface_distance: cov[(5, 5)].max(0.0).sqrt(),
         iterations: sol.iterations,
     })
 }

@@ -21,8 +21,7 @@ use crate::verdict::{self, DecisionRule, SizeDecision, SizeTolerance, Verdict};
 use crate::FitError;
 use truepos_math::{Matrix3, Point3, Vector3};
 
-/// Coverage factor of the expanded uncertainties (≈ 95 % for a normal distribution).
-pub const COVERAGE_FACTOR: f64 = 2.0;
+pub use truepos_math::stats::COVERAGE_FACTOR;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kind {
@@ -228,10 +227,8 @@ fn ls(kind: Kind, points: &[Point3]) -> Result<Evaluation, FitError> {
             e.form = f.form;
             u.point = Some(std3(&f.point_covariance));
             u.direction = Some(std3(&f.direction_covariance));
-            e.extras = vec![
-                ("point_uncertainty_mm", f.point_uncertainty),
-                ("direction_uncertainty_rad", f.direction_uncertainty),
-            ];
+            e.extras =
+                vec![("point_uncertainty_mm", f.u_point), ("direction_uncertainty_rad", f.u_direction)];
         }
         Kind::Plane => {
             let f = crate::plane(points)?;
@@ -242,10 +239,7 @@ fn ls(kind: Kind, points: &[Point3]) -> Result<Evaluation, FitError> {
             e.form = f.form;
             u.point = Some(std3(&f.point_covariance));
             u.normal = Some(std3(&f.normal_covariance));
-            e.extras = vec![
-                ("offset_uncertainty_mm", f.offset_uncertainty),
-                ("normal_uncertainty_rad", f.normal_uncertainty),
-            ];
+            e.extras = vec![("offset_uncertainty_mm", f.u_offset), ("normal_uncertainty_rad", f.u_normal)];
         }
         Kind::Circle => {
             let f = crate::circle(points)?;
@@ -257,12 +251,12 @@ fn ls(kind: Kind, points: &[Point3]) -> Result<Evaluation, FitError> {
             e.form = f.form;
             u.center = Some(std3(&f.center_covariance));
             u.normal = Some(std3(&f.normal_covariance));
-            u.radius = Some(f.radius_uncertainty);
+            u.radius = Some(f.u_radius);
             e.extras = vec![
                 ("radial_rms_mm", f.radial_rms),
                 ("plane_rms_mm", f.plane_rms),
-                ("radius_uncertainty_mm", f.radius_uncertainty),
-                ("normal_uncertainty_rad", f.normal_uncertainty),
+                ("radius_uncertainty_mm", f.u_radius),
+                ("normal_uncertainty_rad", f.u_normal),
                 ("iterations", f.iterations as f64),
             ];
         }
@@ -273,10 +267,9 @@ fn ls(kind: Kind, points: &[Point3]) -> Result<Evaluation, FitError> {
             e.rms = f.rms;
             e.max_abs_residual = f.max_abs_residual;
             e.form = f.form;
-            u.center = Some(f.center_uncertainty);
-            u.radius = Some(f.radius_uncertainty);
-            e.extras =
-                vec![("radius_uncertainty_mm", f.radius_uncertainty), ("iterations", f.iterations as f64)];
+            u.center = Some(f.u_center);
+            u.radius = Some(f.u_radius);
+            e.extras = vec![("radius_uncertainty_mm", f.u_radius), ("iterations", f.iterations as f64)];
         }
         Kind::Cylinder => {
             let f = crate::cylinder(points)?;
@@ -288,11 +281,11 @@ fn ls(kind: Kind, points: &[Point3]) -> Result<Evaluation, FitError> {
             e.form = f.form;
             u.point = Some(std3(&f.point_covariance));
             u.axis = Some(std3(&f.axis_covariance));
-            u.radius = Some(f.radius_uncertainty);
+            u.radius = Some(f.u_radius);
             e.extras = vec![
-                ("point_uncertainty_mm", f.point_uncertainty),
-                ("axis_uncertainty_rad", f.axis_uncertainty),
-                ("radius_uncertainty_mm", f.radius_uncertainty),
+                ("point_uncertainty_mm", f.u_point),
+                ("axis_uncertainty_rad", f.u_axis),
+                ("radius_uncertainty_mm", f.u_radius),
                 ("iterations", f.iterations as f64),
             ];
         }
@@ -307,12 +300,12 @@ fn ls(kind: Kind, points: &[Point3]) -> Result<Evaluation, FitError> {
             e.form = f.form;
             u.apex = Some(std3(&f.apex_covariance));
             u.axis = Some(std3(&f.axis_covariance));
-            u.apex_angle = Some(f.apex_angle_uncertainty);
+            u.apex_angle = Some(f.u_apex_angle);
             e.extras = vec![
                 ("surface_distance_mm", f.surface_distance),
-                ("axis_uncertainty_rad", f.axis_uncertainty),
-                ("point_uncertainty_mm", f.point_uncertainty),
-                ("surface_distance_uncertainty_mm", f.surface_distance_uncertainty),
+                ("axis_uncertainty_rad", f.u_axis),
+                ("point_uncertainty_mm", f.u_point),
+                ("surface_distance_uncertainty_mm", f.u_surface_distance),
                 ("iterations", f.iterations as f64),
             ];
         }

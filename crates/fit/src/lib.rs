@@ -25,6 +25,7 @@
 mod axial;
 mod engine;
 pub mod evaluate;
+pub mod json;
 mod lp;
 pub mod minzone;
 pub mod moments;
@@ -94,9 +95,9 @@ pub struct LineFit {
     pub n_points: usize,
     /// Standard uncertainty of `point` perpendicular to the line (root-sum-square of the two
     /// perpendicular components), mm.
-    pub point_uncertainty: f64,
+    pub u_point: f64,
     /// Standard uncertainty of the direction (root-sum-square of two tilt angles), rad.
-    pub direction_uncertainty: f64,
+    pub u_direction: f64,
     /// Covariance of `point` (perpendicular to the line), mm².
     pub point_covariance: Matrix3,
     /// Covariance of the unit `direction` vector's components (perpendicular to it).
@@ -136,8 +137,8 @@ pub fn line(points: &[Point3]) -> Result<LineFit, FitError> {
         rms: (ssr / n as f64).sqrt(),
         max_abs_residual: max_abs,
         n_points: n,
-        point_uncertainty: (2.0 * s2 / n as f64).sqrt(),
-        direction_uncertainty: (2.0 * s2 / m.eigenvalues[2]).sqrt(),
+        u_point: (2.0 * s2 / n as f64).sqrt(),
+        u_direction: (2.0 * s2 / m.eigenvalues[2]).sqrt(),
         point_covariance: perp * (s2 / n as f64),
         direction_covariance: perp * (s2 / m.eigenvalues[2]),
         form: 2.0 * max_abs,
@@ -190,9 +191,9 @@ pub struct PlaneFit {
     pub max_abs_residual: f64,
     pub n_points: usize,
     /// Standard uncertainty of the plane's position along its normal at `point`, mm.
-    pub offset_uncertainty: f64,
+    pub u_offset: f64,
     /// Standard uncertainty of the normal (root-sum-square of two tilt angles), rad.
-    pub normal_uncertainty: f64,
+    pub u_normal: f64,
     /// Covariance of `point` (along the normal: the plane's offset), mm².
     pub point_covariance: Matrix3,
     /// Covariance of the unit normal's components.
@@ -227,8 +228,8 @@ fn plane_from_moments(points: &[Point3], m: &Moments) -> PlaneFit {
         rms: (ssr / n as f64).sqrt(),
         max_abs_residual: max_abs,
         n_points: n,
-        offset_uncertainty: (s2 / n as f64).sqrt(),
-        normal_uncertainty: rss(s2 / m.eigenvalues[1], s2 / m.eigenvalues[2]),
+        u_offset: (s2 / n as f64).sqrt(),
+        u_normal: rss(s2 / m.eigenvalues[1], s2 / m.eigenvalues[2]),
     }
 }
 
@@ -251,11 +252,11 @@ pub struct SphereFit {
     pub max_abs_residual: f64,
     pub n_points: usize,
     /// Standard uncertainties of the centre coordinates, mm.
-    pub center_uncertainty: Vector3,
+    pub u_center: Vector3,
     /// Covariance of the centre, mm².
     pub center_covariance: Matrix3,
     /// Standard uncertainty of the radius, mm (0 when the radius was fixed).
-    pub radius_uncertainty: f64,
+    pub u_radius: f64,
     pub iterations: usize,
     /// Sphericity about this sphere: largest minus smallest `|p − c|`, mm.
     pub form: f64,
@@ -353,9 +354,9 @@ pub fn sphere(points: &[Point3]) -> Result<SphereFit, FitError> {
         rms: (sol.acc.ssr / n as f64).sqrt(),
         max_abs_residual: sol.acc.max_abs,
         n_points: n,
-        center_uncertainty: sqrt_diag(&center_covariance),
+        u_center: sqrt_diag(&center_covariance),
         center_covariance,
-        radius_uncertainty: cov[(3, 3)].max(0.0).sqrt(),
+        u_radius: cov[(3, 3)].max(0.0).sqrt(),
         iterations: sol.iterations,
     })
 }
@@ -389,9 +390,9 @@ pub fn sphere_with_radius(points: &[Point3], radius: f64) -> Result<SphereFit, F
         rms: (sol.acc.ssr / n as f64).sqrt(),
         max_abs_residual: sol.acc.max_abs,
         n_points: n,
-        center_uncertainty: sqrt_diag(&cov),
+        u_center: sqrt_diag(&cov),
         center_covariance: cov,
-        radius_uncertainty: 0.0,
+        u_radius: 0.0,
         iterations: sol.iterations,
     })
 }
@@ -415,10 +416,10 @@ pub struct CircleFit {
     pub plane_rms: f64,
     pub n_points: usize,
     /// Standard uncertainties of the centre coordinates, mm.
-    pub center_uncertainty: Vector3,
-    pub radius_uncertainty: f64,
+    pub u_center: Vector3,
+    pub u_radius: f64,
     /// Standard uncertainty of the normal (root-sum-square of two tilt angles), rad.
-    pub normal_uncertainty: f64,
+    pub u_normal: f64,
     pub iterations: usize,
     /// Covariance of the centre, including the least-squares plane's offset and tilt, mm².
     pub center_covariance: Matrix3,
@@ -485,10 +486,9 @@ pub fn circle(points: &[Point3]) -> Result<CircleFit, FitError> {
     let c_in = cov.fixed_view::<2, 2>(0, 0).into_owned();
     // Along the normal: the plane's offset at the centroid, plus its two tilts (about the
     // principal axes u, v through the centroid) carried over the in-plane lever arm c2.
-    let s2p = pl.offset_uncertainty.powi(2) * points.len() as f64;
-    let var_n = pl.offset_uncertainty.powi(2)
-        + c2.x * c2.x * s2p / m.eigenvalues[2]
-        + c2.y * c2.y * s2p / m.eigenvalues[1];
+    let s2p = pl.u_offset.powi(2) * points.len() as f64;
+    let var_n =
+        pl.u_offset.powi(2) + c2.x * c2.x * s2p / m.eigenvalues[2] + c2.y * c2.y * s2p / m.eigenvalues[1];
     let cc = e * c_in * e.transpose() + n * n.transpose() * var_n;
     let nn = points.len();
     let mut ssr3 = 0.0;
@@ -512,9 +512,9 @@ pub fn circle(points: &[Point3]) -> Result<CircleFit, FitError> {
         radial_rms: (sol.acc.ssr / nn as f64).sqrt(),
         plane_rms: pl.rms,
         n_points: nn,
-        center_uncertainty: sqrt_diag(&cc),
-        radius_uncertainty: cov[(2, 2)].max(0.0).sqrt(),
-        normal_uncertainty: pl.normal_uncertainty,
+        u_center: sqrt_diag(&cc),
+        u_radius: cov[(2, 2)].max(0.0).sqrt(),
+        u_normal: pl.u_normal,
         iterations: sol.iterations,
         center_covariance: cc,
         normal_covariance: pl.normal_covariance,

@@ -63,6 +63,10 @@ pub enum ToleranceError {
     NegativeForm(f64),
     #[error("a tolerance value is not a finite number")]
     NotFinite,
+    #[error("'{0}' is not a finite number")]
+    NotANumber(String),
+    #[error("expected T or LOWER,UPPER")]
+    Syntax,
 }
 
 /// A size tolerance: nominal diameter and the signed limit deviations from it, mm.
@@ -74,6 +78,22 @@ pub struct SizeTolerance {
 }
 
 impl SizeTolerance {
+    /// A tolerance as written on a command line or in a plan: `T` (±T) or `LOWER,UPPER` (signed
+    /// deviations from `nominal`, mm).
+    pub fn parse(text: &str, nominal: f64) -> Result<Self, ToleranceError> {
+        let num = |t: &str| -> Result<f64, ToleranceError> {
+            match t.trim().parse::<f64>() {
+                Ok(v) if v.is_finite() => Ok(v),
+                _ => Err(ToleranceError::NotANumber(t.trim().to_string())),
+            }
+        };
+        match text.split(',').collect::<Vec<_>>().as_slice() {
+            [t] => Self::symmetric(nominal, num(t)?),
+            [lo, hi] => Self::new(nominal, num(lo)?, num(hi)?),
+            _ => Err(ToleranceError::Syntax),
+        }
+    }
+
     /// Nominal with asymmetric limit deviations (`lower ≤ upper`, either may be negative).
     pub fn new(nominal: f64, lower: f64, upper: f64) -> Result<Self, ToleranceError> {
         if !(nominal.is_finite() && nominal > 0.0) {
@@ -200,5 +220,17 @@ mod tests {
         assert!(SizeTolerance::symmetric(-20.0, 0.01).is_err());
         assert!(check_form_tolerance(-0.001).is_err());
         assert!(check_form_tolerance(f64::NAN).is_err());
+    }
+
+    #[test]
+    fn tolerance_text_parses_symmetric_and_asymmetric_and_refuses_junk() {
+        let t = SizeTolerance::parse("0.01", 20.0).unwrap();
+        assert_eq!((t.nominal, t.lower, t.upper), (20.0, -0.01, 0.01));
+        let t = SizeTolerance::parse("-0.001, 0.006", 20.0).unwrap();
+        assert_eq!((t.lower, t.upper), (-0.001, 0.006));
+        assert!(matches!(SizeTolerance::parse("a", 20.0), Err(ToleranceError::NotANumber(s)) if s == "a"));
+        assert!(matches!(SizeTolerance::parse("1,2,3", 20.0), Err(ToleranceError::Syntax)));
+        assert!(matches!(SizeTolerance::parse("inf", 20.0), Err(ToleranceError::NotANumber(_))));
+        assert!(matches!(SizeTolerance::parse("0.01", -1.0), Err(ToleranceError::BadNominal(_))));
     }
 }

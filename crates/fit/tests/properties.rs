@@ -209,7 +209,7 @@ proptest! {
         for f1 in [sphere(&mv(&sp)).unwrap(), { let s = sphere(&shuffle(&sp, &mut rng)).unwrap(); truepos_fit::SphereFit { center: rot * s.center + t, ..s } }] {
             prop_assert!((f1.center - (rot * f0.center + t)).norm() < tp);
             prop_assert!((f1.radius - f0.radius).abs() < tp);
-            prop_assert!((f1.radius_uncertainty - f0.radius_uncertainty).abs() < 1e-6 * f0.radius_uncertainty);
+            prop_assert!((f1.u_radius - f0.u_radius).abs() < 1e-6 * f0.u_radius);
         }
 
         let cp = cylinder_points(Point3::new(5.0, 5.0, 5.0), w, 20.0, 50.0, 80, 0.01, &mut rng);
@@ -267,26 +267,26 @@ fn stated_uncertainty_matches_scatter() {
         // Sphere: 25 points on a hemisphere of radius 10 mm.
         let c = Point3::new(50.0, -20.0, 10.0);
         let f = sphere(&sphere_points(c, 10.0, 25, 1.6, noise, &mut rng)).unwrap();
-        zs[0].push((f.radius - 10.0) / f.radius_uncertainty);
-        zs[1].push((f.center.x - c.x) / f.center_uncertainty.x);
+        zs[0].push((f.radius - 10.0) / f.u_radius);
+        zs[1].push((f.center.x - c.x) / f.u_center.x);
         let g = sphere_with_radius(&sphere_points(c, 10.0, 25, 1.6, noise, &mut rng), 10.0).unwrap();
-        zs[2].push((g.center.z - c.z) / g.center_uncertainty.z);
+        zs[2].push((g.center.z - c.z) / g.u_center.z);
         // Cylinder: 40 points, radius 15, length 40.
         let p0 = Point3::new(0.0, 0.0, 0.0);
         let cy = cylinder(&cylinder_points(p0, w, 15.0, 40.0, 40, noise, &mut rng)).unwrap();
-        zs[3].push((cy.radius - 15.0) / cy.radius_uncertainty);
+        zs[3].push((cy.radius - 15.0) / cy.u_radius);
         // The axis tilt along u: angle component over the root-sum-square of two → ×√2.
         let tilt_u = cy.axis.dot(&u) * cy.axis.dot(&w).signum();
-        zs[4].push(tilt_u / (cy.axis_uncertainty / 2f64.sqrt()));
+        zs[4].push(tilt_u / (cy.u_axis / 2f64.sqrt()));
         // Cone: half angle 0.3 rad, 50 points.
         let k =
             cone(&cone_points(Point3::new(0.0, 0.0, 0.0), w, 0.3, 20.0, 50.0, 50, noise, &mut rng)).unwrap();
-        zs[5].push((k.apex_angle - 0.6) / k.apex_angle_uncertainty);
-        zs[6].push(k.apex.x / k.apex_uncertainty.x);
+        zs[5].push((k.apex_angle - 0.6) / k.u_apex_angle);
+        zs[6].push(k.apex.x / k.u_apex.x);
         // Circle: 20 points over 270°.
         let cc = Point3::new(3.0, 4.0, 5.0);
         let ci = circle(&circle_points(cc, w, 25.0, 4.7, 20, noise, &mut rng)).unwrap();
-        zs[7].push((ci.radius - 25.0) / ci.radius_uncertainty);
+        zs[7].push((ci.radius - 25.0) / ci.u_radius);
         // Plane: 30 points of a 50 mm square with noise along the normal.
         let (pu, pv) = frame(&w);
         let pts: Vec<Point3> = (0..30)
@@ -298,7 +298,7 @@ fn stated_uncertainty_matches_scatter() {
             .collect();
         let pl = plane(&pts).unwrap();
         // The true plane is w·x = 0: the fitted point's distance from it is the offset error.
-        zs[8].push(pl.point.coords.dot(&w) / pl.offset_uncertainty);
+        zs[8].push(pl.point.coords.dot(&w) / pl.u_offset);
     }
     let names = [
         "sphere radius",
@@ -328,8 +328,8 @@ fn large_noisy_sphere_converges_quickly() {
     let f = sphere(&pts).unwrap();
     assert!(f.iterations < 20, "{} iterations", f.iterations);
     // 2 µm noise over 2e5 points: centre uncertainty ~1e-5 mm; 6σ bound.
-    assert!((f.center - c).norm() < 6.0 * f.center_uncertainty.norm(), "{:?}", f.center - c);
-    assert!((f.radius - 12.7).abs() < 6.0 * f.radius_uncertainty);
+    assert!((f.center - c).norm() < 6.0 * f.u_center.norm(), "{:?}", f.center - c);
+    assert!((f.radius - 12.7).abs() < 6.0 * f.u_radius);
     let cy = cylinder(&cylinder_points(
         Point3::origin(),
         Vector3::new(0.1, 0.2, 1.0).normalize(),

@@ -59,13 +59,21 @@ impl Token {
     }
 }
 
-pub(crate) fn parse(source: &str) -> Program {
+pub(crate) fn parse(source: String) -> Program {
+    parse_reusing(source, Vec::new(), Vec::new())
+}
+
+/// [`parse`], filling `tokens` and `lines` (cleared first): a streamed program hands the
+/// vectors of a finished piece back, so their memory is reused instead of allocated anew.
+pub(crate) fn parse_reusing(source: String, mut tokens: Vec<Token>, mut lines: Vec<Line>) -> Program {
     // Large programs are tokenised in parallel chunks split at line ends.
     const CHUNK: usize = 1 << 20;
     let b = source.as_bytes();
     if b.len() <= 2 * CHUNK {
-        let (tokens, lines) = parse_range(source, 0, b.len());
-        return Program { source: source.to_string(), tokens, lines };
+        tokens.clear();
+        lines.clear();
+        parse_range(&source, 0, b.len(), &mut tokens, &mut lines);
+        return Program { source, tokens, lines };
     }
     let mut bounds = vec![0];
     let mut at = CHUNK;
@@ -81,12 +89,20 @@ pub(crate) fn parse(source: &str) -> Program {
     bounds.push(b.len());
     bounds.dedup();
     use rayon::prelude::*;
-    let parts: Vec<(Vec<Token>, Vec<Line>)> =
-        bounds.par_windows(2).map(|w| parse_range(source, w[0], w[1])).collect();
+    let parts: Vec<(Vec<Token>, Vec<Line>)> = bounds
+        .par_windows(2)
+        .map(|w| {
+            let (mut t, mut l) = (Vec::new(), Vec::new());
+            parse_range(&source, w[0], w[1], &mut t, &mut l);
+            (t, l)
+        })
+        .collect();
     let n_tok = parts.iter().map(|p| p.0.len()).sum();
     let n_lines = parts.iter().map(|p| p.1.len()).sum();
-    let mut tokens = Vec::with_capacity(n_tok);
-    let mut lines = Vec::with_capacity(n_lines);
+    tokens.clear();
+    lines.clear();
+    tokens.reserve(n_tok);
+    lines.reserve(n_lines);
     for (t, l) in parts {
         let base = tokens.len();
         lines.extend(l.into_iter().map(|mut line| {
@@ -95,15 +111,15 @@ pub(crate) fn parse(source: &str) -> Program {
         }));
         tokens.extend(t);
     }
-    Program { source: source.to_string(), tokens, lines }
+    Program { source, tokens, lines }
 }
 
 /// Tokenise the lines in `source[from..to]` (`from` at a line start, `to` after a line end or
-/// at the end of the source). Offsets are absolute.
-fn parse_range(source: &str, from: usize, to: usize) -> (Vec<Token>, Vec<Line>) {
+/// at the end of the source), appending to `tokens` and `lines`. Offsets are absolute.
+fn parse_range(source: &str, from: usize, to: usize, tokens: &mut Vec<Token>, lines: &mut Vec<Line>) {
     let b = &source.as_bytes()[..to];
-    let mut tokens = Vec::with_capacity((to - from) / 4);
-    let mut lines = Vec::with_capacity((to - from) / 16 + 1);
+    tokens.reserve((to - from) / 4);
+    lines.reserve((to - from) / 16 + 1);
     let mut pos = from;
     while pos < b.len() {
         let nl = memchr_nl(&b[pos..]).map(|p| pos + p);
@@ -113,11 +129,10 @@ fn parse_range(source: &str, from: usize, to: usize) -> (Vec<Token>, Vec<Line>) 
             None => (b.len(), b.len()),
         };
         let t0 = tokens.len();
-        lex_line(source, pos, end, &mut tokens);
+        lex_line(source, pos, end, tokens);
         lines.push(Line { start: pos, end, next, tokens: t0..tokens.len() });
         pos = next;
     }
-    (tokens, lines)
 }
 
 #[inline]
@@ -340,6 +355,18 @@ fn lex_number(b: &[u8], start: usize, end: usize) -> Option<(usize, f64, Option<
     if j > i {
         return Some((j, f64::NAN, None, false));
     }
+    // Up to 15 digits: the integer of all digits and one division by an exact power of ten,
+    // both exact, so the quotient is the correctly rounded value (Clinger's fast path).
+    if n_int + n_frac <= 15 {
+        const POW10: [f64; 16] =
+            [1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15];
+        let m = b[int_start..i]
+            .iter()
+            .filter(|c| c.is_ascii_digit())
+            .fold(0u64, |m, c| m * 10 + (c - b'0') as u64);
+        let v = m as f64 / POW10[n_frac];
+        return Some((i, if b[start] == b'-' { -v } else { v }, decimals, true));
+    }
     // Safe: the range holds only ASCII sign, digits and one point.
     let text = std::str::from_utf8(&b[start..i]).ok()?;
     let value: f64 = text.parse().ok()?;
@@ -351,7 +378,7 @@ mod tests {
     use super::*;
 
     fn kinds(s: &str) -> Vec<(TokenKind, String)> {
-        let p = parse(s);
+        let p = parse(s.to_string());
         p.tokens.iter().map(|t| (t.kind, s[t.start..t.end].to_string())).collect()
     }
 
@@ -380,11 +407,34 @@ mod tests {
             }
         }
         s.push_str("G0 X1");
-        let p = parse(&s);
-        let (tokens, lines) = parse_range(&s, 0, s.len());
+        let p = parse(s.clone());
+        let (mut tokens, mut lines) = (Vec::new(), Vec::new());
+        parse_range(&s, 0, s.len(), &mut tokens, &mut lines);
         assert_eq!(p.tokens, tokens);
         assert_eq!(p.lines, lines);
         assert_eq!(p.to_string(), s);
+    }
+
+    /// The fast path for short numbers gives the standard library's value bit for bit.
+    #[test]
+    fn short_numbers_parse_exactly() {
+        let mut x = 0x9e3779b97f4a7c15u64;
+        for _ in 0..200_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let digits = (x % 15 + 1) as usize;
+            let m = x >> 4;
+            let txt = format!("{}", m % 10u64.pow(digits as u32));
+            let p = (x >> 60) as usize % (txt.len() + 1);
+            let sign = if x & 8 != 0 { "-" } else { "" };
+            let s = format!("{sign}{}.{}", &txt[..p], &txt[p..]);
+            let b = s.as_bytes();
+            let (_, v, _, ok) = lex_number(b, 0, b.len()).unwrap();
+            assert!(ok);
+            let want: f64 = s.parse().unwrap();
+            assert_eq!(v.to_bits(), want.to_bits(), "{s}");
+        }
     }
 
     #[test]

@@ -13,15 +13,20 @@
 //! - [`Program::blocks`]: the interpreted blocks (line, commanded position in mm, comments), as a
 //!   controller would execute them — used for trickle feeding.
 //! - [`Program::transform`]: rewrite the program through `new_from_old` (mm).
+//! - [`transform_stream`] / [`StreamTransform`]: the same rewrite of a program of any size in
+//!   constant memory, chunk by chunk (modal state and parameters carried across chunks), read
+//!   from a `BufRead` and written to a `Write`, byte-identical to [`Program::transform`].
 
 mod expr;
 mod interp;
 mod lex;
 mod rewrite;
+mod stream;
 
 pub use interp::{Block, Modal, MotionMode, Plane, Units};
 pub use lex::{Token, TokenKind};
 pub use rewrite::{ArcPolicy, TransformOptions};
+pub use stream::{transform_stream, StreamError, StreamSummary, StreamTransform, PIECE_BYTES};
 
 use thiserror::Error;
 
@@ -54,6 +59,13 @@ impl GcodeError {
             GcodeError::MalformedNumber { column, .. } | GcodeError::Unsupported { column, .. } => *column,
         }
     }
+    /// The same error `lines` further down (for a piece of a program that follows `lines` lines).
+    pub(crate) fn shifted(mut self, lines: usize) -> Self {
+        match &mut self {
+            GcodeError::MalformedNumber { line, .. } | GcodeError::Unsupported { line, .. } => *line += lines,
+        }
+        self
+    }
 }
 
 /// One source line: its tokens and its line ending.
@@ -80,16 +92,39 @@ impl Program {
     /// Tokenise `source`. Never fails: unknown or malformed text becomes tokens that are kept
     /// verbatim (see [`Program::check`] for malformed numbers).
     pub fn parse(source: &str) -> Program {
-        let mut p = lex::parse(source);
+        let mut p = lex::parse(source.to_string());
         if p.tokens.iter().any(|t| matches!(t.kind, TokenKind::Expr { .. })) {
-            let (values, _) = p.evaluate();
-            for (ti, v) in values {
-                if let TokenKind::Expr { letter, .. } = p.tokens[ti].kind {
-                    p.tokens[ti].kind = TokenKind::Expr { letter, value: Some(v) };
-                }
-            }
+            let (values, _) = p.evaluate(&mut expr::Params::default(), true);
+            p.set_values(values);
         }
         p
+    }
+
+    /// Tokenise the next piece of a program (complete lines) and evaluate it with the
+    /// parameters set by the pieces before it (`params`, updated). `first` says whether this is
+    /// the program's first piece (where a byte-order mark may stand). The check's result has
+    /// line numbers relative to the piece.
+    pub(crate) fn parse_piece(
+        source: String,
+        params: &mut expr::Params,
+        first: bool,
+        reuse: Option<Program>,
+    ) -> (Program, Result<(), GcodeError>) {
+        let mut p = match reuse {
+            Some(old) => lex::parse_reusing(source, old.tokens, old.lines),
+            None => lex::parse(source),
+        };
+        let (values, checked) = p.evaluate(params, first);
+        p.set_values(values);
+        (p, checked)
+    }
+
+    fn set_values(&mut self, values: Vec<(usize, f64)>) {
+        for (ti, v) in values {
+            if let TokenKind::Expr { letter, .. } = self.tokens[ti].kind {
+                self.tokens[ti].kind = TokenKind::Expr { letter, value: Some(v) };
+            }
+        }
     }
 
     /// The text of a token.
@@ -114,12 +149,18 @@ impl Program {
     /// control flow, an unclosed comment, or text that is not G-code. Passing this check means
     /// every word's value is known.
     pub fn check(&self) -> Result<(), GcodeError> {
-        self.evaluate().1
+        self.evaluate(&mut expr::Params::default(), true).1
     }
 
-    /// Evaluate parameters and expressions in program order (see the `expr` module): the
-    /// values of expression words (token index, value) up to the first error, and that error.
-    fn evaluate(&self) -> (Vec<(usize, f64)>, Result<(), GcodeError>) {
+    /// Evaluate parameters and expressions in program order (see the `expr` module), starting
+    /// from `params` (the settings of earlier pieces; updated): the values of expression words
+    /// (token index, value) up to the first error, and that error. `first`: this text starts
+    /// the program (a byte-order mark may open it).
+    fn evaluate(
+        &self,
+        params: &mut expr::Params,
+        first: bool,
+    ) -> (Vec<(usize, f64)>, Result<(), GcodeError>) {
         const FLOW: [&str; 15] = [
             "sub",
             "endsub",
@@ -137,7 +178,6 @@ impl Program {
             "endrepeat",
             "return",
         ];
-        let mut params = expr::Params::default();
         let mut values = Vec::new();
         for (i, l) in self.lines.iter().enumerate() {
             let mut pending: Vec<(expr::Key, f64)> = Vec::new();
@@ -145,9 +185,10 @@ impl Program {
             for ti in l.tokens.clone() {
                 let t = &self.tokens[ti];
                 let text = self.text(t);
-                let column = self.source[l.start..t.start].chars().count() + 1;
+                // Only computed for an error: counting characters on every token is slow.
+                let column = || self.source[l.start..t.start].chars().count() + 1;
                 let unsupported = |message: String| -> GcodeError {
-                    GcodeError::Unsupported { line: i + 1, column, message }
+                    GcodeError::Unsupported { line: i + 1, column: column(), message }
                 };
                 let res: Result<(), GcodeError> = match t.kind {
                     TokenKind::Word { letter: b'O', .. } => {
@@ -164,7 +205,11 @@ impl Program {
                                  follows a program line by line and cannot know which lines run how often"
                             )))
                         } else {
-                            Err(GcodeError::MalformedNumber { line: i + 1, column, text: text.to_string() })
+                            Err(GcodeError::MalformedNumber {
+                                line: i + 1,
+                                column: column(),
+                                text: text.to_string(),
+                            })
                         }
                     }
                     TokenKind::ParenComment { closed: false } => {
@@ -175,7 +220,7 @@ impl Program {
                             && self.tokens[l.tokens.start..ti]
                                 .iter()
                                 .all(|x| x.kind == TokenKind::Whitespace);
-                        let bom = t.start == 0 && text == "\u{feff}";
+                        let bom = first && t.start == 0 && text == "\u{feff}";
                         if block_delete || bom {
                             Ok(())
                         } else {

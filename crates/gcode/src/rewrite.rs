@@ -60,23 +60,44 @@ fn fmt_num(v: f64, dec: u8) -> String {
         return format!("{:.*}", dec as usize, v);
     }
     let n = scaled as i64;
-    let mut s = String::with_capacity(24);
-    if n < 0 {
-        s.push('-');
+    // At most 16 digits, a point and a sign.
+    let mut buf = [0u8; 24];
+    let mut i = buf.len();
+    let mut a = n.unsigned_abs();
+    for _ in 0..dec {
+        i -= 1;
+        buf[i] = b'0' + (a % 10) as u8;
+        a /= 10;
     }
-    let a = n.unsigned_abs();
-    let int = a / scale as u64;
-    let frac = a % scale as u64;
-    use std::fmt::Write;
-    let _ = write!(s, "{int}");
     if dec > 0 {
-        let _ = write!(s, ".{frac:0width$}", width = dec as usize);
+        i -= 1;
+        buf[i] = b'.';
     }
-    s
+    loop {
+        i -= 1;
+        buf[i] = b'0' + (a % 10) as u8;
+        a /= 10;
+        if a == 0 {
+            break;
+        }
+    }
+    if n < 0 {
+        i -= 1;
+        buf[i] = b'-';
+    }
+    // ASCII digits, point and sign only.
+    std::str::from_utf8(&buf[i..]).map(str::to_owned).unwrap_or_default()
+}
+
+/// 10^dec (a table for the usual decimals: this is on every rewritten word).
+fn pow10(dec: u8) -> f64 {
+    const T: [f64; 16] =
+        [1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15];
+    T.get(dec as usize).copied().unwrap_or_else(|| 10f64.powi(dec as i32))
 }
 
 fn round_to(v: f64, dec: u8) -> f64 {
-    let f = 10f64.powi(dec as i32);
+    let f = pow10(dec);
     (v * f).round() / f
 }
 
@@ -90,283 +111,343 @@ struct Edits {
 
 impl Program {
     /// Rewrite the program through `new_from_old` (mm). See the module docs.
+    ///
+    /// The first thing that cannot be executed or re-oriented, in program order, is the error
+    /// (a malformed word on line 9 is reported before a refused arc on line 12, and after one on
+    /// line 5). The same [`Rewriter`] does the work of [`crate::transform_stream`], chunk by chunk.
     pub fn transform(
         &self,
         new_from_old: &Transform3,
         opts: &TransformOptions,
     ) -> Result<String, GcodeError> {
-        // Every word's value must be known (no malformed numbers, expressions evaluated).
-        self.check()?;
+        // Every word's value must be known (no malformed numbers, expressions evaluated): lines
+        // up to the first one that fails the check are rewritten, then that check fails.
+        let checked = self.check();
+        let upto = match &checked {
+            Ok(()) => self.lines.len(),
+            Err(e) => e.line() - 1,
+        };
+        let mut out = String::with_capacity(self.source.len() + self.source.len() / 8);
+        let mut rw = Rewriter::new(new_from_old, opts);
+        rw.rewrite_lines(self, upto, &mut out)?;
+        checked.map(|()| out)
+    }
+}
+
+/// The rewriting state carried from line to line (and from chunk to chunk of a streamed
+/// program): the modal state of the old program, the last written new-frame values and the
+/// exact incremental accumulators, and how many lines came before.
+pub(crate) struct Rewriter {
+    new_from_old: Transform3,
+    opts: TransformOptions,
+    old: Modal,
+    /// Last written new-frame absolute values (program units).
+    written: [Option<f64>; 3],
+    /// Exact new-frame increments accumulated in incremental mode.
+    exact_inc: [f64; 3],
+    /// An axis whose new value depends on other old axes (the transform mixes them) is written
+    /// on every transformed move.
+    mixes: [bool; 3],
+    /// Lines rewritten so far (in earlier chunks): added to the line numbers of errors.
+    base: usize,
+}
+
+impl Rewriter {
+    pub(crate) fn new(new_from_old: &Transform3, opts: &TransformOptions) -> Self {
         let s = new_from_old.scale;
         let r = new_from_old.rotation;
         let t = new_from_old.translation;
         let mut old = Modal::default();
-        if let Some(p) = opts.start_mm {
-            old.pos = [Some(p[0]), Some(p[1]), Some(p[2])];
-        }
-        // Last written new-frame absolute values (program units), and exact incremental accumulators.
         let mut written: [Option<f64>; 3] = [None; 3];
         if let Some(p) = opts.start_mm {
+            old.pos = [Some(p[0]), Some(p[1]), Some(p[2])];
             for (k, w) in written.iter_mut().enumerate() {
                 *w = Some(s * (r.row(k) * truepos_math::Vector3::new(p[0], p[1], p[2]))[0] + t[k]);
             }
         }
-        let mut exact_inc = [0.0f64; 3];
-        // An axis whose new value depends on other old axes (the transform mixes them) is written
-        // on every transformed move.
-        let mixes: Vec<bool> =
-            (0..3).map(|k| (0..3).any(|j| j != k && (s * r[(k, j)]).abs() > MIX_EPS)).collect();
-        let mut out = String::with_capacity(self.source.len() + self.source.len() / 8);
-        for i in 0..self.lines.len() {
-            let blk = self.interpret_line(i, &old);
-            let line = &self.lines[i];
-            let toks = &self.tokens[line.tokens.clone()];
-            let units_mm = blk.after.units.mm();
-            if blk.after.units != old.units {
-                let f = old.units.mm() / units_mm;
-                for w in written.iter_mut() {
-                    *w = w.map(|v| v * f);
-                }
+        let mixes = std::array::from_fn(|k| (0..3).any(|j| j != k && (s * r[(k, j)]).abs() > MIX_EPS));
+        Self {
+            new_from_old: *new_from_old,
+            opts: opts.clone(),
+            old,
+            written,
+            exact_inc: [0.0; 3],
+            mixes,
+            base: 0,
+        }
+    }
+
+    /// Lines of the program done so far (rewritten, or passed over in an erroneous piece).
+    pub(crate) fn lines_done(&self) -> usize {
+        self.base
+    }
+
+    /// Rewrite lines `0..upto` of `p` (the next piece of the program) into `out`, then count all
+    /// of `p`'s lines as done. Errors carry line numbers in the whole program.
+    pub(crate) fn rewrite_lines(
+        &mut self,
+        p: &Program,
+        upto: usize,
+        out: &mut String,
+    ) -> Result<(), GcodeError> {
+        for i in 0..upto {
+            self.line(p, i, out).map_err(|e| e.shifted(self.base))?;
+        }
+        self.base += p.lines.len();
+        Ok(())
+    }
+
+    /// Rewrite line `i` of `p` (line numbers of errors relative to `p`).
+    fn line(&mut self, p: &Program, i: usize, out: &mut String) -> Result<(), GcodeError> {
+        let s = self.new_from_old.scale;
+        let r = self.new_from_old.rotation;
+        let t = self.new_from_old.translation;
+        let blk = p.interpret_line(i, &self.old);
+        let line = &p.lines[i];
+        let toks = &p.tokens[line.tokens.clone()];
+        let units_mm = blk.after.units.mm();
+        if blk.after.units != self.old.units {
+            let f = self.old.units.mm() / units_mm;
+            for w in self.written.iter_mut() {
+                *w = w.map(|v| v * f);
             }
-            let dec = opts.decimals.unwrap_or(if blk.after.units == crate::Units::Inch { 5 } else { 4 });
-            let half = 0.5 * 10f64.powi(-(dec as i32));
-            let has_axes = blk.axes.iter().any(|a| a.is_some());
-            let has_centre = blk.ijk.iter().any(|a| a.is_some()) || blk.r.is_some();
-            let copy = |out: &mut String| out.push_str(&self.source[line.start..line.next]);
-            let err = |tok: Option<&crate::Token>, message: String| GcodeError::Unsupported {
-                line: i + 1,
-                column: tok.map_or(1, |tk| self.column_of(i, tk)),
-                message,
-            };
-            let axis_token = |letter: u8| toks.iter().position(|tk| tk.word().is_some_and(|w| w.0 == letter));
-            match blk.special {
-                Some(Special::SetPosition) => {
-                    return Err(err(
-                        toks.iter()
-                            .find(|tk| tk.word().is_some_and(|w| w.0 == b'G' && (w.1 - 92.0).abs() < 1e-6)),
-                        "G92 shifts the coordinate system; a program that uses it cannot be re-oriented"
-                            .into(),
-                    ));
-                }
-                Some(Special::Machine) => {
-                    if has_axes {
-                        written = [None; 3];
-                    }
-                    copy(&mut out);
-                    old = blk.after;
-                    continue;
-                }
-                Some(Special::DataSetting) => {
-                    copy(&mut out);
-                    old = blk.after;
-                    continue;
-                }
-                _ => {}
-            }
-            let moving =
-                has_axes && (blk.after.motion != MotionMode::None || blk.special == Some(Special::Home));
-            if !moving && !has_centre {
-                copy(&mut out);
-                old = blk.after;
-                continue;
-            }
-            if moving && blk.after.pos.iter().any(|p| p.is_none()) {
-                // The machine's position on an axis the move does not give is unknown: the
-                // transformed move could not say where it goes (contract: a start position).
-                let given: String =
-                    (0..3).filter(|&k| blk.axes[k].is_some()).map(|k| AXES[k] as char).collect();
-                let missing: Vec<String> = (0..3)
-                    .filter(|&k| blk.after.pos[k].is_none())
-                    .map(|k| (AXES[k] as char).to_string())
-                    .collect();
-                let first = (0..3).find_map(|k| axis_token(AXES[k])).map(|x| &toks[x]);
+        }
+        let dec = self.opts.decimals.unwrap_or(if blk.after.units == crate::Units::Inch { 5 } else { 4 });
+        let half = 0.5 / pow10(dec);
+        let has_axes = blk.axes.iter().any(|a| a.is_some());
+        let has_centre = blk.ijk.iter().any(|a| a.is_some()) || blk.r.is_some();
+        let copy = |out: &mut String| out.push_str(&p.source[line.start..line.next]);
+        let err = |tok: Option<&crate::Token>, message: String| GcodeError::Unsupported {
+            line: i + 1,
+            column: tok.map_or(1, |tk| p.column_of(i, tk)),
+            message,
+        };
+        let axis_token = |letter: u8| toks.iter().position(|tk| tk.word().is_some_and(|w| w.0 == letter));
+        match blk.special {
+            Some(Special::SetPosition) => {
                 return Err(err(
-                    first,
-                    format!(
-                        "this motion gives only {given} and the {} position before it is not known (give it \
-                         earlier in the program, or the start position: orient --start-mm X,Y,Z in the \
-                         program's coordinates)",
-                        missing.join(", ")
-                    ),
+                    toks.iter()
+                        .find(|tk| tk.word().is_some_and(|w| w.0 == b'G' && (w.1 - 92.0).abs() < 1e-6)),
+                    "G92 shifts the coordinate system; a program that uses it cannot be re-oriented".into(),
                 ));
             }
-            let is_arc = matches!(blk.after.motion, MotionMode::ArcCw | MotionMode::ArcCcw);
-            if let (true, true, ArcPolicy::Linearize { tolerance_mm }) =
-                (is_arc && moving, has_centre, opts.arc_policy)
-            {
-                let n = blk.after.plane.normal_axis();
-                if (r[(n, n)].abs() - 1.0).abs() > MIX_EPS {
-                    self.linearize_arc(
-                        i,
-                        &blk,
-                        &old,
-                        new_from_old,
-                        tolerance_mm,
-                        dec,
-                        &mut written,
-                        &mut out,
-                    )?;
-                    old = blk.after;
-                    continue;
+            Some(Special::Machine) => {
+                if has_axes {
+                    self.written = [None; 3];
+                }
+                copy(out);
+                self.old = blk.after;
+                return Ok(());
+            }
+            Some(Special::DataSetting) => {
+                copy(out);
+                self.old = blk.after;
+                return Ok(());
+            }
+            _ => {}
+        }
+        let moving = has_axes && (blk.after.motion != MotionMode::None || blk.special == Some(Special::Home));
+        if !moving && !has_centre {
+            copy(out);
+            self.old = blk.after;
+            return Ok(());
+        }
+        if moving && blk.after.pos.iter().any(|p| p.is_none()) {
+            // The machine's position on an axis the move does not give is unknown: the
+            // transformed move could not say where it goes (contract: a start position).
+            let given: String = (0..3).filter(|&k| blk.axes[k].is_some()).map(|k| AXES[k] as char).collect();
+            let missing: Vec<String> = (0..3)
+                .filter(|&k| blk.after.pos[k].is_none())
+                .map(|k| (AXES[k] as char).to_string())
+                .collect();
+            let first = (0..3).find_map(|k| axis_token(AXES[k])).map(|x| &toks[x]);
+            return Err(err(
+                first,
+                format!(
+                    "this motion gives only {given} and the {} position before it is not known (give it \
+                     earlier in the program, or the start position: orient --start-mm X,Y,Z in the \
+                     program's coordinates)",
+                    missing.join(", ")
+                ),
+            ));
+        }
+        let is_arc = matches!(blk.after.motion, MotionMode::ArcCw | MotionMode::ArcCcw);
+        if let (true, true, ArcPolicy::Linearize { tolerance_mm }) =
+            (is_arc && moving, has_centre, self.opts.arc_policy)
+        {
+            let n = blk.after.plane.normal_axis();
+            if (r[(n, n)].abs() - 1.0).abs() > MIX_EPS {
+                p.linearize_arc(
+                    i,
+                    &blk,
+                    &self.old,
+                    &self.new_from_old,
+                    tolerance_mm,
+                    dec,
+                    &mut self.written,
+                    out,
+                )?;
+                self.old = blk.after;
+                return Ok(());
+            }
+        }
+        let mut edits = Edits::default();
+        if let MotionMode::Cycle(_) = blk.after.motion {
+            if (r[(2, 2)] - 1.0).abs() > MIX_EPS || r[(0, 2)].abs() > MIX_EPS || r[(1, 2)].abs() > MIX_EPS {
+                return Err(err(
+                    axis_token(b'Z').map(|k| &toks[k]),
+                    "a canned drilling cycle cannot be re-oriented by a rotation that tilts the Z axis"
+                        .into(),
+                ));
+            }
+        }
+        // New values per axis (program units) for the axis words.
+        let mut new_vals: [Option<f64>; 3] = [None; 3];
+        if moving {
+            if blk.after.absolute {
+                let pos = blk.after.pos;
+                for k in 0..3 {
+                    let mut acc = t[k] / units_mm;
+                    let mut known = true;
+                    for j in 0..3 {
+                        let c = s * r[(k, j)];
+                        if c.abs() > MIX_EPS {
+                            match pos[j] {
+                                Some(v) => acc += c * v,
+                                None => known = false,
+                            }
+                        }
+                    }
+                    if known {
+                        // Exact: compared with the written value before any rounding, so a
+                        // value the transform leaves alone is never rewritten, however large.
+                        new_vals[k] = Some(acc);
+                    } else if blk.axes[k].is_some() {
+                        let missing = (0..3)
+                            .find(|&j| pos[j].is_none() && (s * r[(k, j)]).abs() > MIX_EPS)
+                            .unwrap_or(k);
+                        return Err(err(axis_token(AXES[k]).map(|x| &toks[x]), format!("the {} position is not known before this move (give it earlier in the program, or a start position)", AXES[missing] as char)));
+                    }
+                }
+                for k in 0..3 {
+                    let Some(v) = new_vals[k] else { continue };
+                    match (blk.axes[k], axis_token(AXES[k])) {
+                        (Some(orig), Some(ti)) => {
+                            if (v - orig).abs() >= half {
+                                edits.replace.push((ti, fmt_num(v, dec)));
+                                self.written[k] = Some(round_to(v, dec));
+                            } else {
+                                self.written[k] = Some(orig);
+                            }
+                        }
+                        _ => {
+                            if self.mixes[k] || self.written[k].is_none_or(|w| (w - v).abs() >= half) {
+                                p.plan_insert(toks, &mut edits, k, &AXES, &fmt_num(v, dec));
+                                self.written[k] = Some(round_to(v, dec));
+                            }
+                        }
+                    }
+                }
+            } else {
+                let d: Vec<f64> = (0..3).map(|k| blk.axes[k].unwrap_or(0.0)).collect();
+                for k in 0..3 {
+                    let dn = s * (r[(k, 0)] * d[0] + r[(k, 1)] * d[1] + r[(k, 2)] * d[2]);
+                    let before = self.exact_inc[k];
+                    self.exact_inc[k] += dn;
+                    let inc = round_to(self.exact_inc[k], dec) - round_to(before, dec);
+                    let inc = round_to(inc, dec);
+                    match (blk.axes[k], axis_token(AXES[k])) {
+                        (Some(orig), Some(ti)) => {
+                            // Unchanged by the transform (to the resolution, before rounding):
+                            // keep the text.
+                            if (dn - orig).abs() >= half && (inc - orig).abs() >= half {
+                                edits.replace.push((ti, fmt_num(inc, dec)));
+                            }
+                        }
+                        _ => {
+                            if self.mixes[k] || inc.abs() >= half {
+                                p.plan_insert(toks, &mut edits, k, &AXES, &fmt_num(inc, dec));
+                            }
+                        }
+                    }
+                    self.written[k] = self.written[k].map(|w| w + inc);
                 }
             }
-            let mut edits = Edits::default();
-            if let MotionMode::Cycle(_) = blk.after.motion {
-                if (r[(2, 2)] - 1.0).abs() > MIX_EPS || r[(0, 2)].abs() > MIX_EPS || r[(1, 2)].abs() > MIX_EPS
-                {
-                    return Err(err(
-                        axis_token(b'Z').map(|k| &toks[k]),
-                        "a canned drilling cycle cannot be re-oriented by a rotation that tilts the Z axis"
-                            .into(),
-                    ));
-                }
-            }
-            // New values per axis (program units) for the axis words.
-            let mut new_vals: [Option<f64>; 3] = [None; 3];
-            if moving {
-                if blk.after.absolute {
-                    let pos = blk.after.pos;
-                    for k in 0..3 {
-                        let mut acc = t[k] / units_mm;
-                        let mut known = true;
-                        for j in 0..3 {
-                            let c = s * r[(k, j)];
-                            if c.abs() > MIX_EPS {
-                                match pos[j] {
-                                    Some(v) => acc += c * v,
-                                    None => known = false,
-                                }
-                            }
-                        }
-                        if known {
-                            // Exact: compared with the written value before any rounding, so a
-                            // value the transform leaves alone is never rewritten, however large.
-                            new_vals[k] = Some(acc);
-                        } else if blk.axes[k].is_some() {
-                            let missing = (0..3)
-                                .find(|&j| pos[j].is_none() && (s * r[(k, j)]).abs() > MIX_EPS)
-                                .unwrap_or(k);
-                            return Err(err(axis_token(AXES[k]).map(|x| &toks[x]), format!("the {} position is not known before this move (give it earlier in the program, or a start position)", AXES[missing] as char)));
-                        }
-                    }
-                    for k in 0..3 {
-                        let Some(v) = new_vals[k] else { continue };
-                        match (blk.axes[k], axis_token(AXES[k])) {
-                            (Some(orig), Some(ti)) => {
-                                if (v - orig).abs() >= half {
-                                    edits.replace.push((ti, fmt_num(v, dec)));
-                                    written[k] = Some(round_to(v, dec));
-                                } else {
-                                    written[k] = Some(orig);
-                                }
-                            }
-                            _ => {
-                                if mixes[k] || written[k].is_none_or(|w| (w - v).abs() >= half) {
-                                    self.plan_insert(toks, &mut edits, k, &AXES, &fmt_num(v, dec));
-                                    written[k] = Some(round_to(v, dec));
-                                }
-                            }
-                        }
-                    }
-                } else {
-                    let d: Vec<f64> = (0..3).map(|k| blk.axes[k].unwrap_or(0.0)).collect();
-                    for k in 0..3 {
-                        let dn = s * (r[(k, 0)] * d[0] + r[(k, 1)] * d[1] + r[(k, 2)] * d[2]);
-                        let before = exact_inc[k];
-                        exact_inc[k] += dn;
-                        let inc = round_to(exact_inc[k], dec) - round_to(before, dec);
-                        let inc = round_to(inc, dec);
-                        match (blk.axes[k], axis_token(AXES[k])) {
-                            (Some(orig), Some(ti)) => {
-                                // Unchanged by the transform (to the resolution, before rounding):
-                                // keep the text.
-                                if (dn - orig).abs() >= half && (inc - orig).abs() >= half {
-                                    edits.replace.push((ti, fmt_num(inc, dec)));
-                                }
-                            }
-                            _ => {
-                                if mixes[k] || inc.abs() >= half {
-                                    self.plan_insert(toks, &mut edits, k, &AXES, &fmt_num(inc, dec));
-                                }
-                            }
-                        }
-                        written[k] = written[k].map(|w| w + inc);
-                    }
-                }
-                // Canned-cycle R plane: a Z level.
-                if let (MotionMode::Cycle(_), Some(rv)) = (blk.after.motion, blk.r) {
-                    if let Some(ti) = axis_token(b'R') {
-                        let nv = if blk.after.absolute { s * rv + t[2] / units_mm } else { s * rv };
-                        if (nv - rv).abs() >= half {
-                            edits.replace.push((ti, fmt_num(nv, dec)));
-                        }
-                    }
-                }
-            }
-            if has_centre && matches!(blk.after.motion, MotionMode::ArcCw | MotionMode::ArcCcw) {
-                let n = blk.after.plane.normal_axis();
-                let rn = r[(n, n)];
-                if (rn.abs() - 1.0).abs() > MIX_EPS {
-                    let tok = axis_token(CENTRE[(n + 1) % 3]).or_else(|| axis_token(b'R')).map(|x| &toks[x]);
-                    return Err(err(tok, format!("this arc lies in the {:?} plane and the transform tilts that plane; arcs can only be re-oriented by rotations that keep their plane", blk.after.plane)));
-                }
-                if rn < 0.0 {
-                    // The plane is turned over: clockwise becomes counter-clockwise.
-                    let g = toks.iter().position(|tk| {
-                        tk.word().is_some_and(|w| {
-                            w.0 == b'G' && ((w.1 - 2.0).abs() < 1e-6 || (w.1 - 3.0).abs() < 1e-6)
-                        })
-                    });
-                    match g {
-                        Some(gi) => {
-                            let txt = self.text(&toks[gi]);
-                            let swapped: String = txt.chars().map(|c| match c { '2' => '3', '3' => '2', c => c }).collect();
-                            edits.replace.push((gi, swapped[1..].to_string()));
-                        }
-                        None => return Err(err(None, "the transform turns the arc plane over, which swaps G2 and G3, but the arc's G2/G3 word is modal (not on this line)".into())),
-                    }
-                }
-                let v: Vec<f64> = (0..3).map(|k| blk.ijk[k].unwrap_or(0.0)).collect();
-                if blk.ijk.iter().any(|x| x.is_some()) {
-                    for k in 0..3 {
-                        if k == n {
-                            continue;
-                        }
-                        let mut nv = s * (r[(k, 0)] * v[0] + r[(k, 1)] * v[1] + r[(k, 2)] * v[2]);
-                        if blk.after.arc_absolute {
-                            nv += t[k] / units_mm;
-                        }
-                        match (blk.ijk[k], axis_token(CENTRE[k])) {
-                            (Some(orig), Some(ti)) => {
-                                if (nv - orig).abs() >= half {
-                                    edits.replace.push((ti, fmt_num(nv, dec)));
-                                }
-                            }
-                            _ => {
-                                if nv.abs() >= half {
-                                    self.plan_insert(toks, &mut edits, k, &CENTRE, &fmt_num(nv, dec));
-                                }
-                            }
-                        }
-                    }
-                }
-                if let (Some(rv), Some(ti)) = (blk.r, axis_token(b'R')) {
-                    let nv = s * rv;
+            // Canned-cycle R plane: a Z level.
+            if let (MotionMode::Cycle(_), Some(rv)) = (blk.after.motion, blk.r) {
+                if let Some(ti) = axis_token(b'R') {
+                    let nv = if blk.after.absolute { s * rv + t[2] / units_mm } else { s * rv };
                     if (nv - rv).abs() >= half {
                         edits.replace.push((ti, fmt_num(nv, dec)));
                     }
                 }
             }
-            if edits.replace.is_empty() && edits.insert_after.is_empty() && edits.insert_before.is_empty() {
-                copy(&mut out);
-            } else {
-                self.emit_line(i, &edits, &mut out);
-            }
-            old = blk.after;
         }
-        Ok(out)
+        if has_centre && matches!(blk.after.motion, MotionMode::ArcCw | MotionMode::ArcCcw) {
+            let n = blk.after.plane.normal_axis();
+            let rn = r[(n, n)];
+            if (rn.abs() - 1.0).abs() > MIX_EPS {
+                let tok = axis_token(CENTRE[(n + 1) % 3]).or_else(|| axis_token(b'R')).map(|x| &toks[x]);
+                return Err(err(tok, format!("this arc lies in the {:?} plane and the transform tilts that plane; arcs can only be re-oriented by rotations that keep their plane", blk.after.plane)));
+            }
+            if rn < 0.0 {
+                // The plane is turned over: clockwise becomes counter-clockwise.
+                let g = toks.iter().position(|tk| {
+                    tk.word().is_some_and(|w| {
+                        w.0 == b'G' && ((w.1 - 2.0).abs() < 1e-6 || (w.1 - 3.0).abs() < 1e-6)
+                    })
+                });
+                match g {
+                    Some(gi) => {
+                        let txt = p.text(&toks[gi]);
+                        let swapped: String = txt.chars().map(|c| match c { '2' => '3', '3' => '2', c => c }).collect();
+                        edits.replace.push((gi, swapped[1..].to_string()));
+                    }
+                    None => return Err(err(None, "the transform turns the arc plane over, which swaps G2 and G3, but the arc's G2/G3 word is modal (not on this line)".into())),
+                }
+            }
+            let v: Vec<f64> = (0..3).map(|k| blk.ijk[k].unwrap_or(0.0)).collect();
+            if blk.ijk.iter().any(|x| x.is_some()) {
+                for k in 0..3 {
+                    if k == n {
+                        continue;
+                    }
+                    let mut nv = s * (r[(k, 0)] * v[0] + r[(k, 1)] * v[1] + r[(k, 2)] * v[2]);
+                    if blk.after.arc_absolute {
+                        nv += t[k] / units_mm;
+                    }
+                    match (blk.ijk[k], axis_token(CENTRE[k])) {
+                        (Some(orig), Some(ti)) => {
+                            if (nv - orig).abs() >= half {
+                                edits.replace.push((ti, fmt_num(nv, dec)));
+                            }
+                        }
+                        _ => {
+                            if nv.abs() >= half {
+                                p.plan_insert(toks, &mut edits, k, &CENTRE, &fmt_num(nv, dec));
+                            }
+                        }
+                    }
+                }
+            }
+            if let (Some(rv), Some(ti)) = (blk.r, axis_token(b'R')) {
+                let nv = s * rv;
+                if (nv - rv).abs() >= half {
+                    edits.replace.push((ti, fmt_num(nv, dec)));
+                }
+            }
+        }
+        if edits.replace.is_empty() && edits.insert_after.is_empty() && edits.insert_before.is_empty() {
+            copy(out);
+        } else {
+            p.emit_line(i, &edits, out);
+        }
+        self.old = blk.after;
+        Ok(())
     }
+}
 
+impl Program {
     /// Replace arc block `blk` (line `i`) by G1 chords of the transformed arc (see
     /// [`ArcPolicy::Linearize`]): the intermediate points on lines of their own before the
     /// block, the end point on the block's own line (G2/G3 becomes G1, I/J/K/R are removed, a
@@ -586,6 +667,22 @@ mod tests {
 
     fn tr(prog: &str, t: Transform3) -> Result<String, GcodeError> {
         Program::parse(prog).transform(&t, &TransformOptions::default())
+    }
+
+    #[test]
+    fn fixed_point_text() {
+        for (v, dec, want) in [
+            (1.5, 4, "1.5000"),
+            (-0.00001, 4, "0.0000"),
+            (-12.34567, 3, "-12.346"),
+            (0.0, 0, "0"),
+            (-7.5, 0, "-8"),
+            (123456789.123456, 6, "123456789.123456"),
+            (0.05, 1, "0.1"),
+            (1e300, 2, &format!("{:.2}", 1e300)),
+        ] {
+            assert_eq!(fmt_num(v, dec), want, "{v} {dec}");
+        }
     }
 
     #[test]

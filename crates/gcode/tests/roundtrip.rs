@@ -56,3 +56,55 @@ proptest! {
         }
     }
 }
+
+/// The streamed rewrite is the in-memory one: same bytes, or the same error at the same place,
+/// however the text is split into pushes.
+fn same_as_in_memory(
+    s: &str,
+    cuts: &[usize],
+    t: &Transform3,
+    opts: &TransformOptions,
+) -> Result<(), TestCaseError> {
+    let want = Program::parse(s).transform(t, opts);
+    let mut st = truepos_gcode::StreamTransform::new(t, opts);
+    let mut out = String::new();
+    let mut at = 0;
+    let mut got = Ok(());
+    for &c in cuts.iter().chain(std::iter::once(&s.len())) {
+        let mut c = c.clamp(at, s.len());
+        while !s.is_char_boundary(c) {
+            c += 1;
+        }
+        got = st.push(&s[at..c], &mut out);
+        at = c;
+        if got.is_err() {
+            break;
+        }
+    }
+    let got = got.and_then(|()| st.finish(&mut out).map(|_| out));
+    match (want, got) {
+        (Ok(w), Ok(g)) => prop_assert_eq!(w, g),
+        (Err(w), Err(g)) => {
+            prop_assert_eq!((w.line(), w.column(), w.to_string()), (g.line(), g.column(), g.to_string()))
+        }
+        (w, g) => prop_assert!(false, "in memory {:?}, streamed {:?}", w, g),
+    }
+    Ok(())
+}
+
+proptest! {
+    #[test]
+    fn streamed_rewrite_equals_in_memory(s in gcode_text(), cuts in prop::collection::vec(0usize..400, 0..6),
+                                         angle in -0.5f64..0.5, tilt in prop::bool::ANY) {
+        let mut cuts = cuts;
+        cuts.sort_unstable();
+        let rot = if tilt { truepos_math::types::rx(angle) } else { truepos_math::types::rz(angle) };
+        let t = Transform3::new(1.0002, rot, truepos_math::Vector3::new(1.5, -0.7, 0.2));
+        for opts in [
+            TransformOptions::default(),
+            TransformOptions { start_mm: Some([1.0, 2.0, 3.0]), arc_policy: truepos_gcode::ArcPolicy::Linearize { tolerance_mm: 0.01 }, decimals: Some(3) },
+        ] {
+            same_as_in_memory(&s, &cuts, &t, &opts)?;
+        }
+    }
+}

@@ -61,6 +61,25 @@ pub struct ProbedSphere {
     pub device: DeviceInfo,
 }
 
+impl ProbedSphere {
+    /// The probed sphere as the JSON of `truepos probe sphere --json` (centre, radius, diameter,
+    /// residuals, every contact point, standard uncertainties).
+    pub fn to_json(&self) -> serde_json::Value {
+        let v3 = |v: &nalgebra::Vector3<f64>| serde_json::json!([v.x, v.y, v.z]);
+        serde_json::json!({
+            "center_mm": v3(&self.center_mm.coords),
+            "radius_mm": self.radius_mm,
+            "diameter_mm": 2.0 * self.radius_mm,
+            "rms_mm": self.rms_mm,
+            "max_abs_residual_mm": self.max_abs_residual_mm,
+            "n_points": self.points.len(),
+            "points": self.points.iter().map(|p| v3(&p.coords)).collect::<Vec<_>>(),
+            "center_uncertainty_mm": v3(&self.center_uncertainty_mm),
+            "radius_uncertainty_mm": self.radius_uncertainty_mm,
+        })
+    }
+}
+
 #[derive(Debug, Error)]
 pub enum AcquireError {
     /// The request cannot be carried out as given.
@@ -194,8 +213,8 @@ pub fn probe_sphere<M: ProbingMachine + ?Sized>(
         radius_mm: fit.radius - plan.tip_radius_mm,
         rms_mm: fit.rms,
         max_abs_residual_mm: fit.max_abs_residual,
-        center_uncertainty_mm: fit.center_uncertainty,
-        radius_uncertainty_mm: fit.radius_uncertainty,
+        center_uncertainty_mm: fit.u_center,
+        radius_uncertainty_mm: fit.u_radius,
         points,
         device: m.info(),
     })

@@ -3,10 +3,13 @@
 //! and line of a solver error that concerns one reading.
 
 use crate::{HeadError, Reading};
+use std::io::Write;
 use std::path::Path;
+use truepos_io::atomic::AtomicFile;
+use truepos_io::csv::CsvWriter;
 use truepos_io::csv::Table;
 use truepos_io::InputError;
-use truepos_math::Point3;
+use truepos_math::{Point3, Vector3};
 
 /// The readings of a points file.
 pub struct Input {
@@ -102,4 +105,63 @@ pub fn head_error(table: &Table, e: HeadError) -> InputError {
         }
         _ => InputError::in_file(&table.path, e.to_string()),
     }
+}
+
+/// Write `input`'s rows as measured points (`truepos head-offset apply`), atomically: x_mm, y_mm,
+/// z_mm become the measured point Q = P + Ry(b)·R (or the laser surface point
+/// Q + dist·Ry(b)·u with the beam of `tilt_deg`), expressed on the table at c = 0 when
+/// `table_center` is given; every other column and the comments pass through. Returns the number
+/// of rows. A bad output path rides inside the `io::Error` as a `truepos_io::atomic::OutputError`.
+pub fn write_applied(
+    path: &Path,
+    input: &Input,
+    offset: &Vector3,
+    tilt_deg: [f64; 2],
+    table_center: Option<Point3>,
+) -> std::io::Result<usize> {
+    let table = &input.table;
+    let beam = crate::beam_direction([tilt_deg[0].to_radians(), tilt_deg[1].to_radians()]);
+    let col = |name: &str| table.require(name).map_err(std::io::Error::other);
+    let (ix, iy, iz) = (col("x_mm")?, col("y_mm")?, col("z_mm")?);
+    let mut file = AtomicFile::create(path)?;
+    {
+        let mut w = CsvWriter::new(&mut file);
+        for c in &table.comments {
+            w.comment(c)?;
+        }
+        w.comment(&format!(
+            "truepos head-offset apply: offset_mm = {},{},{}; tilt_deg = {},{}; {}",
+            offset.x,
+            offset.y,
+            offset.z,
+            tilt_deg[0],
+            tilt_deg[1],
+            if table_center.is_some() { "table coordinates at c = 0" } else { "machine coordinates" }
+        ))?;
+        let header: Vec<&str> = table.header.iter().map(|s| s.as_str()).collect();
+        w.header(&header)?;
+        let mut buf = Vec::new();
+        for (i, r) in input.readings.iter().enumerate() {
+            let fields = table.fields(i, &mut buf).map_err(|e| std::io::Error::other(e.to_string()))?;
+            let mut q = crate::surface_point(&r.p, r.b, offset, r.dist, &beam);
+            if let Some(o) = table_center {
+                q = crate::machine_to_table(&q, r.c, &o);
+            }
+            for (k, f) in fields.iter().enumerate() {
+                if k == ix {
+                    w.field_f64(q.x)?;
+                } else if k == iy {
+                    w.field_f64(q.y)?;
+                } else if k == iz {
+                    w.field_f64(q.z)?;
+                } else {
+                    w.field_str(f)?;
+                }
+            }
+            w.end_row()?;
+        }
+    }
+    file.flush()?;
+    file.commit()?;
+    Ok(input.readings.len())
 }

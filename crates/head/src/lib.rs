@@ -34,6 +34,7 @@
 pub mod acquire;
 pub mod file;
 pub mod init;
+pub mod json;
 
 use init::{algebraic_sphere, intersect_planes, linear_solve, plane_fit, Apparent};
 use std::collections::BTreeMap;

@@ -236,7 +236,18 @@ impl Table {
     pub fn read(path: impl AsRef<Path>) -> Result<Self, InputError> {
         let path = path.as_ref();
         if crate::parquet_file::is_parquet(path) {
-            return Self::from_parquet(path);
+            return Self::from_columns(path, crate::parquet_file::read_columns(path)?);
+        }
+        if crate::e57_file::is_e57(path) {
+            // The points of every scan as x_mm,y_mm,z_mm (see `crate::e57_file`).
+            let e = crate::e57_file::read_e57(path)?;
+            let col =
+                |k: usize| crate::parquet_file::ColumnData::F64(e.points.iter().map(|p| p[k]).collect());
+            let names = ["x_mm", "y_mm", "z_mm"].map(String::from).to_vec();
+            return Self::from_columns(
+                path,
+                crate::parquet_file::Columns { names, data: vec![col(0), col(1), col(2)] },
+            );
         }
         if let Some(map) = map_large_file(path)? {
             return Self::from_text(path, Self::check_bytes(path, &map[..]).map(|_| Text::Mapped(map))?);
@@ -247,9 +258,9 @@ impl Table {
     /// A Parquet file as a table: its columns written as CSV text in memory (numbers in shortest
     /// round-trip form, so they read back bit for bit). Line `r + 2` of such a table is row `r + 1`
     /// of the Parquet file.
-    fn from_parquet(path: &Path) -> Result<Self, InputError> {
+    /// (E57 files come the same way, as their `x_mm,y_mm,z_mm` columns.)
+    fn from_columns(path: &Path, c: crate::parquet_file::Columns) -> Result<Self, InputError> {
         use crate::parquet_file::ColumnData;
-        let c = crate::parquet_file::read_columns(path)?;
         let mut w = CsvWriter::new(Vec::with_capacity(c.n_rows() * 40));
         let names: Vec<&str> = c.names.iter().map(String::as_str).collect();
         let io = |e: std::io::Error| InputError::in_file(path, e.to_string());

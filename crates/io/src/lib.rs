@@ -18,11 +18,15 @@
 //! - [`stream::CsvStream`]: CSV in chunks with constant memory, reading overlapped with work;
 //!   [`stream::BackgroundWriter`] for the output side.
 //! - [`parquet_file`]: Parquet point and stream files (same column names), read and written.
-//! - [`limits`]: bounds on every input (file size, line length, binary data).
+//! - [`e57_file`]: E57 point clouds (ASTM E2807) as point files: every scan, in mm, invalid
+//!   points skipped and counted.
+//! - [`limits`]: bounds on every input (file size, line length, binary data); [`limits::open_text`]
+//!   for readers that stream text themselves.
 
 pub mod atomic;
 pub mod config;
 pub mod csv;
+pub mod e57_file;
 pub mod error;
 pub mod limits;
 pub mod num;

@@ -9,7 +9,8 @@
 //!   `/dev/zero` or a binary file given by mistake fails at once instead of being read forever.
 //!
 //! [`read_text`] reads a whole (bounded) file for the readers that need all of it;
-//! [`crate::stream`] reads in blocks with the same checks and constant memory.
+//! [`crate::stream`] reads in blocks with the same checks and constant memory; [`open_text`]
+//! gives a `BufRead` with the same checks for readers that stream text themselves (G-code).
 
 use crate::InputError;
 use std::io::Read;
@@ -154,6 +155,61 @@ pub fn read_string(path: &Path, what: &str) -> Result<String, InputError> {
     })
 }
 
+/// A file read through the bounds above (size limit, line length, no NUL bytes), checked block
+/// by block as it is read. A violation is an `io::Error` carrying the located [`InputError`]
+/// (get it back with [`read_error`]).
+pub struct BoundedReader {
+    path: std::path::PathBuf,
+    what: String,
+    file: std::fs::File,
+    guard: LineGuard,
+    total: u64,
+    limit: u64,
+}
+
+impl Read for BoundedReader {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.file.read(buf)?;
+        self.total += n as u64;
+        let bad = |e: InputError| std::io::Error::new(std::io::ErrorKind::InvalidData, e);
+        if self.total > self.limit {
+            return Err(bad(too_large(&self.path, self.total, self.limit)));
+        }
+        self.guard.scan(&self.path, &buf[..n], &self.what).map_err(bad)?;
+        Ok(n)
+    }
+}
+
+/// Open a text file for streaming with the bounds above; `what` names the kind of file in
+/// messages. A directory, a missing file or a file over the size limit is refused here.
+pub fn open_text(path: &Path, what: &str) -> Result<std::io::BufReader<BoundedReader>, InputError> {
+    let cannot = |e: std::io::Error| InputError::in_file(path, format!("cannot read: {e}"));
+    let file = std::fs::File::open(path).map_err(cannot)?;
+    let meta = file.metadata().map_err(cannot)?;
+    if meta.is_dir() {
+        return Err(InputError::in_file(path, "is a directory, not a file"));
+    }
+    check_file_size(path, &meta)?;
+    let r = BoundedReader {
+        path: path.to_path_buf(),
+        what: what.to_string(),
+        file,
+        guard: LineGuard::default(),
+        total: 0,
+        limit: max_input_bytes(),
+    };
+    Ok(std::io::BufReader::with_capacity(1 << 20, r))
+}
+
+/// The input error of a failed read of `path` through a [`BoundedReader`]: the located error it
+/// carries, or "cannot read" with the system's message.
+pub fn read_error(path: &Path, e: std::io::Error) -> InputError {
+    match e.get_ref().and_then(|i| i.downcast_ref::<InputError>()) {
+        Some(i) => i.clone(),
+        None => InputError::in_file(path, format!("cannot read: {e}")),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -193,5 +249,37 @@ mod tests {
         let d = tempfile::tempdir().unwrap();
         assert!(read_text(d.path(), "CSV").unwrap_err().to_string().contains("directory"));
         assert!(read_text(&d.path().join("nope"), "CSV").unwrap_err().to_string().contains("cannot read"));
+    }
+
+    #[test]
+    fn bounded_reader_locates_nul_bytes_and_long_lines() {
+        use std::io::BufRead;
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("p.nc");
+        std::fs::write(&p, b"G0 X1\nG1 X2\nG1 \x00X3\n").unwrap();
+        let mut r = open_text(&p, "G-code").unwrap();
+        let mut line = String::new();
+        let e = loop {
+            line.clear();
+            match r.read_line(&mut line) {
+                Ok(0) => panic!("no error"),
+                Ok(_) => {}
+                Err(e) => break read_error(&p, e),
+            }
+        };
+        assert_eq!(e.line, Some(3));
+        assert!(e.to_string().contains("binary") && e.to_string().contains("G-code"), "{e}");
+        let mut long = b"G0 X1\n".to_vec();
+        long.extend(std::iter::repeat_n(b'(', MAX_LINE_BYTES + 1));
+        std::fs::write(&p, &long).unwrap();
+        let mut all = Vec::new();
+        let e = read_error(
+            &p,
+            std::io::Read::read_to_end(&mut open_text(&p, "G-code").unwrap(), &mut all).unwrap_err(),
+        );
+        assert_eq!(e.line, Some(2));
+        assert!(open_text(d.path(), "G-code").err().unwrap().to_string().contains("directory"));
+        let e = read_error(&p, std::io::Error::other("gone"));
+        assert!(e.to_string().contains("cannot read: gone"), "{e}");
     }
 }

@@ -1,5 +1,5 @@
-//! Point files: CSV with `x_mm,y_mm,z_mm` (optional `id`) or NIST `.ds` (a count, then
-//! `x y z` per line, whitespace separated); points with required unique ids
+//! Point files: CSV with `x_mm,y_mm,z_mm` (optional `id`), NIST `.ds` (a count, then
+//! `x y z` per line, whitespace separated), Parquet (same column names) or E57 point clouds; points with required unique ids
 //! ([`read_id_points`]) and their matching by id ([`match_by_id`]).
 
 use crate::csv::Table;
@@ -12,20 +12,28 @@ use truepos_math::Point3;
 pub struct PointSet {
     pub points: Vec<Point3>,
     pub ids: Option<Vec<String>>,
+    /// Points of the file left out because the file marks them invalid (E57
+    /// `cartesianInvalidState`); 0 for the other formats.
+    pub skipped_invalid: usize,
 }
 
 /// Read a point file by extension: `.ds` as NIST data set, `.parquet` as Parquet (same column
-/// names), anything else as CSV.
+/// names), `.e57` as E57 point cloud (every scan, in mm; see [`crate::e57_file`]), anything
+/// else as CSV.
 pub fn read_points(path: impl AsRef<Path>) -> Result<PointSet, InputError> {
     let path = path.as_ref();
     if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("ds")) {
-        return Ok(PointSet { points: read_ds(path)?, ids: None });
+        return Ok(PointSet { points: read_ds(path)?, ids: None, skipped_invalid: 0 });
+    }
+    if crate::e57_file::is_e57(path) {
+        let e = crate::e57_file::read_e57(path)?;
+        return Ok(PointSet { points: e.points, ids: None, skipped_invalid: e.skipped_invalid });
     }
     if crate::parquet_file::is_parquet(path) {
         let c = crate::parquet_file::read_columns(path)?;
         let (x, y, z) = (c.f64(path, "x_mm")?, c.f64(path, "y_mm")?, c.f64(path, "z_mm")?);
         let points = x.iter().zip(y).zip(z).map(|((&x, &y), &z)| Point3::new(x, y, z)).collect();
-        return Ok(PointSet { points, ids: c.strings("id") });
+        return Ok(PointSet { points, ids: c.strings("id"), skipped_invalid: 0 });
     }
     let t = Table::read(path)?;
     // `[f64; 3]` and `Point3` have the same layout: this collect reuses the allocation.
@@ -34,7 +42,7 @@ pub fn read_points(path: impl AsRef<Path>) -> Result<PointSet, InputError> {
         Some(_) => Some(t.str_column("id")?),
         None => None,
     };
-    Ok(PointSet { points, ids })
+    Ok(PointSet { points, ids, skipped_invalid: 0 })
 }
 
 /// Read a NIST `.ds` file.
@@ -151,6 +159,31 @@ pub fn match_by_id(from: &IdPoints, to: &IdPoints) -> Matched {
         }
     }
     m
+}
+
+/// Read two id-point files and pair their points by id (`from` → `to`); fewer than `min` common
+/// ids is an input error on `to` that says what needs them (`what`, e.g. "orientation").
+pub fn read_matched(
+    from: &Path,
+    to: &Path,
+    min: usize,
+    what: &str,
+) -> Result<(IdPoints, IdPoints, Matched), InputError> {
+    let a = read_id_points(from)?;
+    let b = read_id_points(to)?;
+    let m = match_by_id(&a, &b);
+    if m.ids.len() < min {
+        return Err(InputError::in_file(
+            to,
+            format!(
+                "only {} ids are common to {} and {}; {what} needs at least {min}",
+                m.ids.len(),
+                from.display(),
+                to.display()
+            ),
+        ));
+    }
+    Ok((a, b, m))
 }
 
 #[cfg(test)]

@@ -25,8 +25,10 @@
 pub mod contact;
 pub mod file;
 pub mod geom;
+pub mod json;
 pub mod scan;
 pub mod stream;
+pub mod text;
 pub mod touch;
 
 pub use contact::{Contact, Phase};

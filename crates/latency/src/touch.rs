@@ -31,6 +31,22 @@ pub struct PerAxis {
     pub u_delay: [Option<f64>; 3],
 }
 
+/// Axes whose delays differ by more than this many combined standard uncertainties have
+/// different delays (3 u: a false alarm in ~0.3 % of cases for normal errors).
+pub const AXES_DIFFER_K: f64 = 3.0;
+
+impl PerAxis {
+    /// The pair of determined axes that differ most relative to their combined standard
+    /// uncertainty: `(|Δdelay|, u(Δdelay))` in s, or `None` with fewer than two axes determined.
+    pub fn largest_difference(&self) -> Option<(f64, f64)> {
+        let obs: Vec<(f64, f64)> = (0..3).filter_map(|k| Some((self.delay[k]?, self.u_delay[k]?))).collect();
+        obs.iter()
+            .enumerate()
+            .flat_map(|(i, a)| obs[i + 1..].iter().map(move |b| ((a.0 - b.0).abs(), a.1.hypot(b.1))))
+            .max_by(|x, y| (x.0 / x.1).total_cmp(&(y.0 / y.1)))
+    }
+}
+
 /// Known size: fit the feature with its known (signed, stylus-centre) size and the delay.
 pub fn artefact(
     feature: Feature,
@@ -421,4 +437,22 @@ pub fn weighted_mean(v: &[(f64, f64)]) -> (f64, f64, f64) {
         1.0
     };
     (m, (1.0 / sw).sqrt() * birge.max(1.0), birge)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The most significant pair wins (not the largest raw difference); one axis is not a pair.
+    #[test]
+    fn largest_difference_is_the_most_significant_pair() {
+        let pa = PerAxis {
+            delay: [Some(10e-6), Some(14e-6), Some(30e-6)],
+            u_delay: [Some(1e-6), Some(1e-6), Some(20e-6)],
+        };
+        let (d, u) = pa.largest_difference().unwrap();
+        assert!((d - 4e-6).abs() < 1e-15 && (u - 2f64.sqrt() * 1e-6).abs() < 1e-15, "{d} {u}");
+        let one = PerAxis { delay: [Some(1e-6), None, None], u_delay: [Some(1e-7), None, None] };
+        assert!(one.largest_difference().is_none());
+    }
 }

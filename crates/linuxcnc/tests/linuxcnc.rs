@@ -87,9 +87,10 @@ fn probe_sphere_through_linuxcnc_matches_the_hal_sphere_at_two_feeds() {
 
 #[test]
 fn unreachable_controllers_fail_within_ten_seconds_naming_the_address() {
-    // Nothing listens: connection refused.
-    let port = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-    let url = format!("linuxcncrsh://127.0.0.1:{port}");
+    // Nothing listens: connection refused. Port 1 is privileged, so no test process (nor the
+    // LinuxCNC that the other tests here start on a free ephemeral port) can be listening there;
+    // a port taken from the ephemeral range and released again could be reused in between.
+    let url = "linuxcncrsh://127.0.0.1:1".to_string();
     let t = Instant::now();
     let e = LinuxCnc::open(&url).err().expect("must fail");
     assert!(t.elapsed() < Duration::from_secs(10));

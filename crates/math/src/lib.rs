@@ -23,6 +23,7 @@ pub mod bestfit;
 pub mod interp;
 pub mod lsq;
 pub mod stats;
+pub mod time;
 pub mod transform;
 pub mod types;
 

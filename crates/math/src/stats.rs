@@ -1,7 +1,12 @@
 //! Descriptive statistics and straight-line regression with standard uncertainties.
 //!
 //! Entry points: [`mean`], [`std_dev`], [`rms`], [`LineFit`] via [`fit_line`] (weighted
-//! `y = a + b·x` with the standard uncertainties of `a` and `b` from the residual scatter).
+//! `y = a + b·x` with the standard uncertainties of `a` and `b` from the residual scatter),
+//! [`COVERAGE_FACTOR`] (the k of every expanded uncertainty truepos reports).
+
+/// Coverage factor of the expanded uncertainties U = k·u (k = 2: ≈ 95 % coverage for a normal
+/// distribution, GUM 6.3). One value for every capability.
+pub const COVERAGE_FACTOR: f64 = 2.0;
 
 /// Arithmetic mean (NaN for an empty slice).
 pub fn mean(x: &[f64]) -> f64 {

@@ -23,6 +23,7 @@ pub mod execute;
 pub mod feature;
 pub mod file;
 pub mod form;
+pub mod json;
 pub mod plan;
 
 pub use feature::{validate, Feature, Geometry, Params, Side};

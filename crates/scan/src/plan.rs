@@ -50,6 +50,16 @@ pub enum Style {
     Classic,
 }
 
+impl Style {
+    /// The name used in files, JSON and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Style::Blended => "blended",
+            Style::Classic => "classic",
+        }
+    }
+}
+
 /// Commanded penetration (deflection) along a surface-following segment, as a function of the
 /// tangential distance `x` (mm) from the segment start.
 #[derive(Clone, Debug, PartialEq)]

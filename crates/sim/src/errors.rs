@@ -125,19 +125,20 @@ impl ErrorFn {
     }
 }
 
-/// The six component errors of one linear axis.
+/// The six component error functions of one linear axis (the model; `truepos_comp::AxisErrors` is
+/// the six values at one position, as a map table holds them).
 #[derive(Debug, Clone, PartialEq, Default)]
-pub struct AxisErrors {
+pub struct AxisErrorFns {
     /// `[pos, str1, str2]` (mm), see [`Axis::linear_axes`].
     pub linear: [ErrorFn; 3],
     /// `[pitch, yaw, roll]` (rad), see [`Axis::angular_axes`].
     pub angular: [ErrorFn; 3],
 }
 
-impl AxisErrors {
+impl AxisErrorFns {
     /// All six components zero.
-    pub fn zero() -> AxisErrors {
-        AxisErrors {
+    pub fn zero() -> AxisErrorFns {
+        AxisErrorFns {
             linear: [ErrorFn::zero(), ErrorFn::zero(), ErrorFn::zero()],
             angular: [ErrorFn::zero(), ErrorFn::zero(), ErrorFn::zero()],
         }
@@ -219,7 +220,7 @@ impl ErrorMagnitudes {
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct GeometricErrors {
     /// Indexed by [`Axis::index`].
-    pub axes: [AxisErrors; 3],
+    pub axes: [AxisErrorFns; 3],
     pub squareness: Squareness,
 }
 
@@ -227,14 +228,14 @@ impl GeometricErrors {
     /// All 21 parameters zero (the nominal machine).
     pub fn zero() -> GeometricErrors {
         GeometricErrors {
-            axes: [AxisErrors::zero(), AxisErrors::zero(), AxisErrors::zero()],
+            axes: [AxisErrorFns::zero(), AxisErrorFns::zero(), AxisErrorFns::zero()],
             squareness: Squareness::default(),
         }
     }
 
     /// A random realistic set of the given size class.
     pub fn realistic<R: Rng + ?Sized>(rng: &mut R, m: &ErrorMagnitudes) -> GeometricErrors {
-        let mut axes = [AxisErrors::zero(), AxisErrors::zero(), AxisErrors::zero()];
+        let mut axes = [AxisErrorFns::zero(), AxisErrorFns::zero(), AxisErrorFns::zero()];
         for (i, ax) in axes.iter_mut().enumerate() {
             let l = m.travel[i];
             ax.linear = [
@@ -254,7 +255,7 @@ impl GeometricErrors {
     }
 
     /// The component errors of `axis`.
-    pub fn axis(&self, axis: Axis) -> &AxisErrors {
+    pub fn axis(&self, axis: Axis) -> &AxisErrorFns {
         &self.axes[axis.index()]
     }
 

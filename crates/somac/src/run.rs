@@ -164,6 +164,16 @@ pub struct RunReport {
     pub blocks_sent: usize,
 }
 
+impl RunReport {
+    /// The run did not do its job: it halted, a stop did not succeed, or an alarm that fails a
+    /// run fired (exit code 1, final status FAILURE in the audit trail).
+    pub fn failed(&self) -> bool {
+        self.halted
+            || self.stops.iter().any(|s| s.status != StopStatus::Success)
+            || self.alarms.iter().any(|a| a.kind.fails_run())
+    }
+}
+
 #[derive(Debug, Error)]
 pub enum RunError {
     #[error("invalid parameters: {0}")]
@@ -681,6 +691,16 @@ impl<C: Controller, T: Tracker, E: Cell> Loop<'_, C, T, E> {
                 } else {
                     "iteration limit reached".into()
                 });
+                return Ok(stop);
+            }
+            // A tracker that moved since the last alignment (an inclinometer says so) made this
+            // reading wrong: send no correction from it. The caller re-aligns the trackers,
+            // re-orients and measures the stop again (a bumped tracker at 5 m tilted by 120 µrad
+            // would otherwise send a 0.6 mm correction and then have to undo it).
+            if self.cell.inclinations().max_change(&self.st.incl_base) > self.params.inclination_limit_urad {
+                stop.status = StopStatus::Partial;
+                stop.message =
+                    Some("a tracker moved during the stop: reading discarded, no correction sent".into());
                 return Ok(stop);
             }
             // The correction: −e, clipped to the single limit and to the total limit.

@@ -18,6 +18,25 @@ pub struct ScaleFit {
     pub n: usize,
 }
 
+impl ScaleFit {
+    /// The fit for people (`truepos autoscale`): scale in ppm with its standard uncertainty, the
+    /// scale `expected` from the CTE and temperature with the discrepancy, and the residual.
+    pub fn text(&self, expected: Option<f64>) -> String {
+        let mut out = format!(
+            "scale            {:.9}  ({:+.2} ppm, u = {:.2} ppm)\n",
+            self.scale,
+            (self.scale - 1.0) * 1e6,
+            self.u_scale * 1e6
+        );
+        if let Some(e) = expected {
+            out += &format!("expected (CTE)   {e:.9}\n");
+            out += &format!("discrepancy      {:+.2} ppm\n", (self.scale / e - 1.0) * 1e6);
+        }
+        out += &format!("rms residual     {:.4} mm over {} features\n", self.rms_mm, self.n);
+        out
+    }
+}
+
 /// Fit `measured = s·R·reference + t` and the scale's uncertainty. Two points are enough (the
 /// scale is then their distance ratio); coincident reference or measured points are refused.
 ///

@@ -60,6 +60,9 @@ fn exit_code(err: &anyhow::Error) -> u8 {
         if cause.is::<DeviceError>() || cause.is::<truepos_device::DeviceError>() {
             return 3;
         }
+        if let Some(e) = cause.downcast_ref::<truepos_cell::CellError>() {
+            return if e.is_user_input() { 2 } else { 3 };
+        }
         if let Some(e) = cause.downcast_ref::<RunError>() {
             return match e {
                 RunError::Params(_) | RunError::Program { .. } => 2,

@@ -266,3 +266,35 @@ fn count_options_have_limits() {
     let o = bin().args(["simulate", "scan", "--out", s(d.path()), "--features", "100000"]).output().unwrap();
     assert_eq!(o.status.code(), Some(2));
 }
+
+/// A program of several pieces streamed through orient: the output is what the library's
+/// in-memory transform gives; an error far down keeps its line and column in the whole file and
+/// leaves no output (not even the pieces before it).
+#[test]
+fn orient_streams_long_programs_and_locates_late_errors() {
+    let d = tempfile::tempdir().unwrap();
+    let mut prog = String::from("G21 G90\nG0 X0 Y0 Z0\n");
+    for i in 0..120_000 {
+        prog.push_str(&format!("N{i} G1 X{}.25 Y{} (c {i})\n", i % 500, i % 300));
+    }
+    assert!(prog.len() > 3 * truepos_gcode::PIECE_BYTES);
+    let (o, out) = orient(d.path(), 0.1, &prog, &["--json"]);
+    let v = json(&o);
+    assert_eq!(v["lines"], 120_002);
+    let (r, m) = targets(d.path(), 0.1);
+    let (r, m) =
+        (truepos_io::points::read_id_points(&r).unwrap(), truepos_io::points::read_id_points(&m).unwrap());
+    let mt = truepos_io::points::match_by_id(&r, &m);
+    let opts = truepos_math::bestfit::BestFitOptions { with_scale: false };
+    let t = truepos_math::bestfit::best_fit(&mt.from, &mt.to, None, opts).unwrap();
+    let want = truepos_gcode::Program::parse(&prog).transform(&t, &Default::default()).unwrap();
+    assert!(
+        std::fs::read_to_string(&out).unwrap() == want,
+        "streamed orient differs from the in-memory rewrite"
+    );
+    std::fs::remove_file(&out).unwrap();
+    prog.push_str("G1 X1 Y2\nG1 X1..5\n");
+    let (o, out) = orient(d.path(), 0.1, &prog, &[]);
+    expect_input_error(&o, &["prog.nc:120004:4"]);
+    assert!(!out.exists(), "no output on bad input");
+}

@@ -226,3 +226,46 @@ fn parquet_points_fit_like_the_csv_and_parquet_rows_are_named() {
     let o = bin().args(["fit", "sphere", s(&pq), "--json"]).output().unwrap();
     expect_input_error(&o, &["pts.parquet", "row 100", "z_mm"]);
 }
+
+/// Issue 19: an E57 point cloud written (by the `e57` crate) from a CSV's points fits like the
+/// CSV; a corrupt E57 file is exit 2 naming the file.
+#[test]
+fn e57_points_fit_like_the_csv_and_corrupt_e57_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut csv = String::from("x_mm,y_mm,z_mm\n");
+    for i in 0..3000 {
+        let (u, v) = (i as f64 * 0.7037, i as f64 * 0.3137);
+        let r = 25.0 + 1e-3 * ((i * 7919) % 1000) as f64 / 1000.0;
+        csv.push_str(&format!(
+            "{},{},{}\n",
+            10.0 + r * u.cos() * v.sin(),
+            -4.0 + r * u.sin() * v.sin(),
+            3.0 + r * v.cos()
+        ));
+    }
+    let c = write(dir.path(), "pts.csv", csv);
+    let points = truepos_io::points::read_points(&c).unwrap().points;
+    let e57 = dir.path().join("pts.e57");
+    truepos_io::e57_file::write_e57(&e57, &points).unwrap();
+    let fit = |p: &Path| {
+        let o = bin().args(["fit", "sphere", s(p), "--json"]).output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()
+    };
+    let (a, b) = (fit(&c), fit(&e57));
+    assert_eq!(b["n_points"], 3000);
+    // E57 holds metres: mm → m → mm moves a coordinate by an ulp or two (~1e-14 mm here), so
+    // the fits agree far within 1e-9 mm.
+    for k in 0..3 {
+        let (ca, cb) = (a["center_mm"][k].as_f64().unwrap(), b["center_mm"][k].as_f64().unwrap());
+        assert!((ca - cb).abs() <= 1e-9, "{a} {b}");
+    }
+    assert!((a["radius_mm"].as_f64().unwrap() - b["radius_mm"].as_f64().unwrap()).abs() <= 1e-9);
+    // Corrupt: the second half of the file inverted (pages and XML section broken).
+    let mut bytes = std::fs::read(&e57).unwrap();
+    let n = bytes.len();
+    bytes[n / 2..].iter_mut().for_each(|b| *b = !*b);
+    let bad = write(dir.path(), "bad.e57", bytes);
+    let o = bin().args(["fit", "sphere", s(&bad), "--json"]).output().unwrap();
+    expect_input_error(&o, &["bad.e57", "E57"]);
+}

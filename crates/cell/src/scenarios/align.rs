@@ -1,8 +1,8 @@
 //! The alignment section of the demo: a simulated tracker frame aligned to the machine frame
 //! by best fit, against the known transform.
 
+use crate::error::Result;
 use crate::report::{self, Report};
-use anyhow::Result;
 use truepos_math::bestfit::{self, BestFitOptions};
 use truepos_math::{Point3, Transform3};
 

@@ -6,23 +6,27 @@
 //! head-offset`), [`sim_readings`] (a simulated data set as the library's readings),
 //! [`demo_section`].
 
+use crate::error::{CellError, Result};
 use crate::report::{self, Report};
-use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 use truepos_head::{solve, Params, Reading, Reference};
 use truepos_io::atomic::AtomicFile;
 use truepos_io::csv::CsvWriter;
 use truepos_math::{Point3, Vector3};
-use truepos_sim::scenario::head_offset::{self as sim, HeadOffsetConfig, HeadOffsetData, Variant};
+pub use truepos_sim::scenario::head_offset::Variant;
+use truepos_sim::scenario::head_offset::{self as sim, HeadOffsetConfig, HeadOffsetData};
 
-/// Write `points.csv` (contract columns) for a simulated data set.
+/// The data set of a preset variant (`truepos simulate head-offset --variant V --seed S`).
+pub fn simulate(variant: Variant, seed: u64) -> Result<HeadOffsetData, sim::HeadOffsetError> {
+    sim::simulate(&HeadOffsetConfig::preset(variant, seed))
+}
+
 /// Write the readings as the points file `truepos head-offset` reads, with the command line that
 /// calibrates them in a comment.
 pub fn write_points(path: &Path, d: &HeadOffsetData, command: &str) -> Result<()> {
     let laser = d.rows.iter().any(|r| r.dist_mm.is_some());
     let vertex = d.rows.iter().any(|r| r.face.is_some());
-    let mut file = AtomicFile::create(path)
-        .with_context(|| format!("cannot create the output file {}", path.display()))?;
+    let mut file = AtomicFile::create(path)?;
     {
         let mut w = CsvWriter::new(&mut file);
         w.comment("truepos simulate head-offset: raw head reference points P reported by the NC")?;
@@ -89,8 +93,7 @@ pub struct Written {
 
 /// Write `points.csv` and `truth.json` of a simulated data set into `dir`.
 pub fn write_dataset(dir: &Path, d: &HeadOffsetData) -> Result<Written> {
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("cannot create the output directory {}", dir.display()))?;
+    std::fs::create_dir_all(dir).map_err(|e| CellError::io(dir, e))?;
     let points = dir.join("points.csv");
     let command = suggested_command(d, &points);
     write_points(&points, d, &command)?;

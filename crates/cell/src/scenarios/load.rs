@@ -4,8 +4,8 @@
 //!
 //! Entry points: [`write_scenario`], [`demo_section`].
 
+use crate::error::{CellError, Context, Result};
 use crate::report::{self, Report, Series};
-use anyhow::{Context, Result};
 use serde_json::json;
 use std::path::Path;
 use truepos_comp::fe_map::{self, BedModel, LoadGrid};
@@ -27,14 +27,29 @@ fn bed_toml(c: &LoadConfig) -> String {
         Supports::SimplySupportedEdges => "supports = \"simply-supported-edges\"".into(),
     };
     format!(
-        "# Virtual bridge CMM: granite bed on its pads, portal rails (truepos simulate load)\n[bed]\nsize_x_mm = {}\nsize_y_mm = {}\nthickness_mm = {}\nyoungs_modulus_mpa = {}\npoisson = {}\n{supports}\nelement_size_mm = {}\n\n[portal]\nrail_x_mm = [{}, {}]\nrail_height_mm = {}\nbearing_span_mm = {}\ny_range_mm = [{}, {}]\ny_step_mm = {}\n\n[grid]\nspacing_mm = {}\nunit_load_n = {}\n",
+        "# Virtual bridge CMM: granite bed on its pads, portal rails (truepos simulate load).\n\
+         # Bed coordinates are machine X, Y (mm); deflection uz is positive upwards.\n\
+         [bed]\n\
+         # plate size along X and Y, and thickness (mm)\nsize_x_mm = {}\nsize_y_mm = {}\nthickness_mm = {}\n\
+         # Young's modulus (MPa) and Poisson's ratio of the granite\nyoungs_modulus_mpa = {}\npoisson = {}\n\
+         # support pads under the bed, [x, y] (mm)\n{supports}\n\
+         # finite-element size of the influence map (mm)\nelement_size_mm = {}\n\n\
+         [portal]\n\
+         # X of the two rails the portal runs on (mm), and the height (machine Z) of its pivot on them (mm)\nrail_x_mm = [{}, {}]\nrail_height_mm = {}\n\
+         # distance between the portal's bearings along Y (mm)\nbearing_span_mm = {}\n\
+         # portal positions at which the map gives pitch and roll: from, to, step (mm)\ny_range_mm = [{}, {}]\ny_step_mm = {}\n\n\
+         [grid]\n\
+         # spacing of the unit loads of the influence map (mm) and their size (N)\nspacing_mm = {}\nunit_load_n = {}\n",
         c.bed.size_x, c.bed.size_y, c.bed.thickness, c.bed.youngs_modulus, c.bed.poisson, c.map_element_size, c.rail_x[0], c.rail_x[1], c.rail_height, c.bearing_span, c.y_range[0], c.y_range[1], c.y_step, c.grid_spacing, c.unit_load_n
     )
 }
 
 fn load_toml(c: &LoadConfig) -> String {
     format!(
-        "# A die on three pads (truepos simulate load)\nmass_kg = {}\ncog_mm = [{}, {}]\nrest_points_mm = [{}]\n",
+        "# A die on three pads (truepos simulate load).\n\
+         # mass of the part (kg); its weight is shared among the resting points by statics\nmass_kg = {}\n\
+         # centre of gravity, [x, y] in bed (machine) coordinates (mm)\ncog_mm = [{}, {}]\n\
+         # where the part rests on the bed, [x, y] (mm)\nrest_points_mm = [{}]\n",
         c.mass_kg,
         c.cog[0],
         c.cog[1],
@@ -46,11 +61,13 @@ fn load_toml(c: &LoadConfig) -> String {
 /// configuration and the simulated data. `mass_kg` must be positive and `noise_um` non-negative.
 pub fn write_scenario(dir: &Path, seed: u64, mass_kg: f64, noise_um: f64) -> Result<(LoadConfig, LoadData)> {
     if !(mass_kg.is_finite() && mass_kg > 0.0 && noise_um.is_finite() && noise_um >= 0.0) {
-        anyhow::bail!("--mass-kg must be positive and --noise-um non-negative (got {mass_kg}, {noise_um})");
+        return Err(CellError::Invalid(format!(
+            "--mass-kg must be positive and --noise-um non-negative (got {mass_kg}, {noise_um})"
+        )));
     }
     let cfg = LoadConfig { mass_kg, noise_sigma: noise_um * 1e-3, ..LoadConfig::default() };
-    let data = sim_load(&cfg, seed).map_err(|e| anyhow::anyhow!("load scenario: {e}"))?;
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let data = sim_load(&cfg, seed).context("load scenario")?;
+    std::fs::create_dir_all(dir).map_err(|e| CellError::io(dir, e))?;
     write_atomic(dir.join("bed.toml"), bed_toml(&cfg).as_bytes())?;
     write_atomic(dir.join("load.toml"), load_toml(&cfg).as_bytes())?;
     let mut f = AtomicFile::create(dir.join("points.csv"))?;
@@ -113,7 +130,7 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
     // Time goes to the log, not the report (reruns stay byte-identical).
     eprintln!("  load: influence map in {:.1} s", t0.elapsed().as_secs_f64());
     write_influence(&map, &dir.join("map.csv"), "plate FE of bed.toml")
-        .with_context(|| format!("cannot write {}", dir.join("map.csv").display()))?;
+        .map_err(|e| CellError::io(dir.join("map.csv"), e))?;
     let forces = statics::distribute(cfg.mass_kg * G, cfg.cog, &cfg.rests)?;
     let loads: Vec<(f64, f64, f64)> = cfg.rests.iter().zip(&forces).map(|(r, f)| (r[0], r[1], *f)).collect();
     let curves = map.superpose(&loads)?;
@@ -211,4 +228,21 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
     });
     report.add("load", "Bed deformation under load", html);
     Ok(())
+}
+
+/// The commands that correct a `load` data set written to `dir`: the influence map from the
+/// bed, then the correction of the points.
+pub fn suggested_commands(dir: &Path) -> [String; 2] {
+    let f = |n: &str| dir.join(n).display().to_string();
+    [
+        format!("truepos load map --bed {} --output {}", f("bed.toml"), f("map.csv")),
+        format!(
+            "truepos load correct --map {} --load {} --bed {} --points {} --output {}",
+            f("map.csv"),
+            f("load.toml"),
+            f("bed.toml"),
+            f("points.csv"),
+            f("corrected.csv")
+        ),
+    ]
 }

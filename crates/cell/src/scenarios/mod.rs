@@ -4,8 +4,10 @@
 
 pub mod align;
 pub mod head;
+pub mod interfaces;
 pub mod latency;
 pub mod load;
+pub mod nist;
 pub mod part;
 pub mod scan;
 pub mod somac;

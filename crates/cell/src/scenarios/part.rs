@@ -4,12 +4,16 @@
 //! runs the library on simulated data (or published reference values) and judges the result
 //! against the truth with a stated tolerance.
 //!
-//! Entry points: [`comp_section`], [`autoscale_section`], [`orient_section`], [`air_section`].
+//! Entry points: [`comp_section`], [`autoscale_section`], [`orient_section`], [`air_section`];
+//! [`write_comp_dataset`] (the `truepos simulate comp` data set, from [`comp_data`]).
 
+use crate::error::{CellError, Result};
 use crate::report::{self, Report, Verdict};
-use anyhow::Result;
 use rand::Rng;
+use std::path::{Path, PathBuf};
 use truepos_comp::{AxisErrors, AxisTable, Chain, Corrector, GeometricMap, Squareness};
+use truepos_io::atomic::{write_atomic, AtomicFile};
+use truepos_io::csv::CsvWriter;
 use truepos_math::bestfit::{self, BestFitOptions};
 use truepos_math::types::{rx, ry, rz, Axis};
 use truepos_math::{Point3, Transform3, Vector3};
@@ -20,12 +24,27 @@ use truepos_sim::noise;
 /// Seed of every simulated data set in these sections.
 pub const SEED: u64 = 1;
 
-/// Demo: a bridge CMM with realistic geometric errors; its 21-parameter map sampled every
-/// 25 mm (as a laser calibration would), measured points corrected with the map and compared
-/// with the exact (non-linearised) kinematic chain of the simulator.
-pub fn comp_section(report: &mut Report) -> Result<()> {
+/// The geometric-map data set: a bridge CMM's simulated errors, its map sampled every 25 mm
+/// (what a laser calibration delivers), and 400 points measured with a probe 150 mm below the ram
+/// with their true positions (the simulator's exact kinematic chain).
+pub struct CompData {
+    pub mags: ErrorMagnitudes,
+    pub errors: GeometricErrors,
+    /// Map step (mm).
+    pub step: f64,
+    pub map: GeometricMap,
+    /// Probe offset in the ram frame (mm).
+    pub tool: Vector3,
+    /// Indicated tip points (axis positions + tool), as the CMM reports them.
+    pub indicated: Vec<Point3>,
+    /// True tip points.
+    pub actual: Vec<Point3>,
+}
+
+/// The `comp` data set of a seed (the demo uses [`SEED`]).
+pub fn comp_data(seed: u64) -> Result<CompData> {
     let mags = ErrorMagnitudes::cmm();
-    let mut rng = noise::stream(SEED, 31);
+    let mut rng = noise::stream(seed, 31);
     let errors = GeometricErrors::realistic(&mut rng, &mags);
     let chain = SerialChain::new([Axis::Y, Axis::X, Axis::Z], errors.clone());
     let step = 25.0;
@@ -60,7 +79,155 @@ pub fn comp_section(report: &mut Report) -> Result<()> {
         })
         .collect();
     let actual: Vec<Point3> = axes.iter().map(|a| chain.actual(a, &tool)).collect();
-    let mut indicated: Vec<Point3> = axes.iter().map(|a| a + tool).collect();
+    let indicated: Vec<Point3> = axes.iter().map(|a| a + tool).collect();
+    Ok(CompData { mags, errors, step, map, tool, indicated, actual })
+}
+
+/// What [`write_comp_dataset`] wrote.
+pub struct CompWritten {
+    pub map: PathBuf,
+    pub squareness: PathBuf,
+    pub points: PathBuf,
+    pub truth: PathBuf,
+    /// The command line that corrects the points.
+    pub command: String,
+    pub n_points: usize,
+    /// Map rows per axis (x, y, z).
+    pub rows: [usize; 3],
+    /// RMS and max 3D error of the uncorrected points (µm).
+    pub rms_um: f64,
+    pub max_um: f64,
+}
+
+/// Write the `comp` data set (`truepos simulate comp`) into `dir`: `map.csv` (the contract's map
+/// columns, one table per axis), `squareness.toml`, `points.csv` (indicated tip points with ids)
+/// and `truth.json` (the true points, the probe offset, the chain), every file commented.
+pub fn write_comp_dataset(dir: &Path, seed: u64) -> Result<CompWritten> {
+    let d = comp_data(seed)?;
+    std::fs::create_dir_all(dir).map_err(|e| CellError::io(dir, e))?;
+    let (map_p, sq_p, pts_p, truth_p) =
+        (dir.join("map.csv"), dir.join("squareness.toml"), dir.join("points.csv"), dir.join("truth.json"));
+    let t = d.tool;
+    let command = format!(
+        "truepos comp correct --map {} --squareness {} --points {} --output {} --probe-offset-mm {},{},{}",
+        map_p.display(),
+        sq_p.display(),
+        pts_p.display(),
+        dir.join("corrected.csv").display(),
+        t.x,
+        t.y,
+        t.z
+    );
+    let mut rows = [0usize; 3];
+    let mut f = AtomicFile::create(&map_p)?;
+    {
+        // 0.01 nm and 0.01 nrad: exact for any use, and no 1e-19 noise at the tables' zero.
+        let mut w =
+            CsvWriter::new(std::io::BufWriter::new(&mut f)).with_format(truepos_io::num::NumFormat::Fixed(5));
+        for c in [
+            format!("Geometric error map of a virtual bridge CMM (truepos simulate comp, seed {seed}), sampled every {} mm.", d.step),
+            "Errors of motion, actual − nominal, one table per axis (rows with axis = x, y, z), at the axis position position_mm (mm).".into(),
+            "pos_um: positioning error along the axis itself (µm); str1_um, str2_um: straightness along the next two axes in x→y→z→x order (µm).".into(),
+            "pitch_urad, yaw_urad, roll_urad: angular errors (µrad, right-handed): X: roll about X, pitch about Y, yaw about Z; Y: roll about Y, pitch about X, yaw about Z; Z: roll about Z, pitch about X, yaw about Y.".into(),
+            "Squareness: squareness.toml. Chain: bed → Y → X → Z → tool (bridge, the default of truepos comp).".into(),
+            format!("Correct the points with: {command}"),
+        ] {
+            w.comment(&c)?;
+        }
+        w.header(&[
+            "axis",
+            "position_mm",
+            "pos_um",
+            "str1_um",
+            "str2_um",
+            "pitch_urad",
+            "yaw_urad",
+            "roll_urad",
+        ])?;
+        for (k, axis) in Axis::ALL.into_iter().enumerate() {
+            let tr = d.mags.travel[axis.index()];
+            let n = (tr / d.step).ceil() as usize;
+            let pos: Vec<f64> = (0..=n).map(|i| (i as f64 * d.step).min(tr)).collect();
+            for (p, v) in pos.iter().zip(d.errors.sample(axis, &pos)) {
+                w.field_str(["x", "y", "z"][k])?;
+                w.row_f64(&[*p, v[0] * 1e3, v[1] * 1e3, v[2] * 1e3, v[3] * 1e6, v[4] * 1e6, v[5] * 1e6])?;
+                rows[k] += 1;
+            }
+        }
+        std::io::Write::flush(&mut w.into_inner())?;
+    }
+    f.commit()?;
+    let sq = &d.errors.squareness;
+    write_atomic(
+        &sq_p,
+        format!(
+            "# Squareness errors of the virtual bridge CMM (truepos simulate comp, seed {seed}), µrad.\n\
+             # Positive = the angle between the positive axes is smaller than 90°; xy adds (0, xy·x, 0),\n\
+             # xz adds (xz·z, 0, 0), yz adds (0, yz·z, 0) to the volumetric error.\n\
+             [squareness]\n\
+             # between X and Y (µrad)\nxy_urad = {}\n\
+             # between X and Z (µrad)\nxz_urad = {}\n\
+             # between Y and Z (µrad)\nyz_urad = {}\n",
+            sq.xy * 1e6,
+            sq.xz * 1e6,
+            sq.yz * 1e6
+        )
+        .as_bytes(),
+    )?;
+    let mut f = AtomicFile::create(&pts_p)?;
+    {
+        let mut w = CsvWriter::new(std::io::BufWriter::new(&mut f));
+        w.comment(&format!(
+            "{} points measured on the virtual bridge CMM (seed {seed}): x_mm,y_mm,z_mm are the indicated probe-tip coordinates (mm), probe {},{},{} mm from the ram.",
+            d.indicated.len(), t.x, t.y, t.z
+        ))?;
+        w.comment("Their true positions are true_points_mm in truth.json (same order, same ids).")?;
+        w.header(&["id", "x_mm", "y_mm", "z_mm"])?;
+        for (i, p) in d.indicated.iter().enumerate() {
+            w.field_str(&format!("P{}", i + 1))?;
+            w.row_f64(&[p.x, p.y, p.z])?;
+        }
+        std::io::Write::flush(&mut w.into_inner())?;
+    }
+    f.commit()?;
+    let err: Vec<f64> = d.indicated.iter().zip(&d.actual).map(|(i, a)| (i - a).norm() * 1e3).collect();
+    let (rms_um, max_um) = (truepos_math::stats::rms(&err), err.iter().copied().fold(0.0_f64, f64::max));
+    let truth = serde_json::json!({
+        "scenario": "comp",
+        "seed": seed,
+        "chain": "bridge (bed → Y → X → Z → tool)",
+        "travel_mm": d.mags.travel,
+        "map_step_mm": d.step,
+        "probe_offset_mm": [t.x, t.y, t.z],
+        "squareness_urad": {"xy": sq.xy * 1e6, "xz": sq.xz * 1e6, "yz": sq.yz * 1e6},
+        "ids": (1..=d.actual.len()).map(|i| format!("P{i}")).collect::<Vec<_>>(),
+        "true_points_mm": d.actual.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
+        "uncorrected_rms_error_um": rms_um,
+        "uncorrected_max_error_um": max_um,
+        "command": command,
+        "note": "true_points_mm: the probe tip on the simulator's exact (non-linearised) kinematic chain; the map is first-order, so a corrected point is within about 0.5 µm of the truth, not exactly on it",
+    });
+    let mut text = serde_json::to_string_pretty(&truth)?;
+    text.push('\n');
+    write_atomic(&truth_p, text.as_bytes())?;
+    Ok(CompWritten {
+        map: map_p,
+        squareness: sq_p,
+        points: pts_p,
+        truth: truth_p,
+        command,
+        n_points: d.indicated.len(),
+        rows,
+        rms_um,
+        max_um,
+    })
+}
+
+/// Demo: a bridge CMM with realistic geometric errors; its 21-parameter map sampled every
+/// 25 mm (as a laser calibration would), measured points corrected with the map and compared
+/// with the exact (non-linearised) kinematic chain of the simulator.
+pub fn comp_section(report: &mut Report) -> Result<()> {
+    let CompData { mags, errors, step, map, tool, mut indicated, actual } = comp_data(SEED)?;
     let before: Vec<f64> = indicated.iter().zip(&actual).map(|(i, t)| (i - t).norm() * 1e3).collect();
     let corr = Corrector { geometric: Some(&map), load: None, probe_offset: tool };
     corr.correct_measured(&mut indicated, None)?;

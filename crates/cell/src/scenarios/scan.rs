@@ -2,9 +2,9 @@
 //! on the virtual CMM, side by side, with the path shift at missed surfaces against the true
 //! offsets. (The `scan` data set itself is [`crate::scan_scenario`].)
 
+use crate::error::{Context, Result};
 use crate::report::{self, Report, Series};
 use crate::scanning_cmm::{run_scan, CmmConfig};
-use anyhow::Result;
 use truepos_scan::execute::{ControlParams, Run as ScanRun};
 use truepos_scan::{plan, validate, Plan, SegmentKind, Style};
 
@@ -13,12 +13,12 @@ use truepos_scan::{plan, validate, Plan, SegmentKind, Style};
 pub fn demo_section(report: &mut Report) -> Result<()> {
     let s = truepos_sim::scenario::scan::scenario(1, 12);
     let (nominal, truth, params) = crate::scan_scenario::program(&s);
-    validate(&nominal, &params).map_err(|e| anyhow::anyhow!("demo features: {e}"))?;
+    validate(&nominal, &params).context("demo features")?;
     let (machine, control) = (CmmConfig::default(), ControlParams::default());
     let pb = plan(&nominal, &params, Style::Blended);
     let pc = plan(&nominal, &params, Style::Classic);
-    let rb = run_scan(&pb, &truth, &machine, &control, 1).map_err(|e| anyhow::anyhow!("blended run: {e}"))?;
-    let rc = run_scan(&pc, &truth, &machine, &control, 1).map_err(|e| anyhow::anyhow!("classic run: {e}"))?;
+    let rb = run_scan(&pb, &truth, &machine, &control, 1).context("blended run")?;
+    let rc = run_scan(&pc, &truth, &machine, &control, 1).context("classic run")?;
 
     // path plots (XY of the boss `boss1` with its incoming transfer), coloured by segment
     let kinds = [

@@ -6,20 +6,20 @@
 //! part targets and the loop's `[loop]` parameters), [`scenario`], [`run_virtual`],
 //! [`write_scenario`], [`demo_section`].
 
+use crate::error::{CellError, Result};
 use crate::gantry::{CellConfig, Obstruction, TrackerConfig, VirtualCell};
 use crate::report::{self, Report, Series};
-use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::path::Path;
 use truepos_io::InputError;
-use truepos_math::Point3;
+use truepos_math::{Point3, Vector3};
 use truepos_sim::scenario::somac::{spar, SparConfig};
 use truepos_sim::thermal::{Step, TemperatureHistory};
 use truepos_somac::audit::{AuditSink, MemoryAudit};
 use truepos_somac::params::BeamRecovery;
-use truepos_somac::stats::{capability_ppm, hole_stats};
+use truepos_somac::stats::{capability_ppm, hole_stats, HoleStats};
 use truepos_somac::{run_program, Params, RunReport};
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -384,13 +384,91 @@ pub struct VirtualRun {
     pub duration_s: f64,
 }
 
+impl VirtualRun {
+    /// Hole statistics of the run: as measured by the trackers (final errors of the stops) and
+    /// as the virtual cell's truth has them.
+    pub fn stats(&self) -> (HoleStats, HoleStats) {
+        let measured: Vec<f64> = self
+            .report
+            .stops
+            .iter()
+            .filter(|s| s.final_error_mm.is_finite())
+            .map(|s| s.final_error_mm)
+            .collect();
+        let truth: Vec<f64> = self.true_errors.iter().map(|e| e.1).collect();
+        (hole_stats(&measured), hole_stats(&truth))
+    }
+
+    /// The run for people (`truepos somac run`): stops and alarms, measured and true hole errors.
+    pub fn text(&self) -> String {
+        use std::fmt::Write;
+        let mut out = String::new();
+        let (hs, ts) = self.stats();
+        let n_ok =
+            self.report.stops.iter().filter(|s| s.status == truepos_somac::run::StopStatus::Success).count();
+        let _ = writeln!(
+            out,
+            "{} stops: {n_ok} SUCCESS; {} alarms; measured error mean {:.4} σ {:.4} max {:.4} mm",
+            self.report.stops.len(),
+            self.report.alarms.len(),
+            hs.mean_error_mm,
+            hs.std_error_mm,
+            hs.max_error_mm
+        );
+        let _ = writeln!(
+            out,
+            "true hole error (virtual cell): mean {:.4} σ {:.4} max {:.4} mm ({:.1} ppm of the diagonal)",
+            ts.mean_error_mm,
+            ts.std_error_mm,
+            ts.max_error_mm,
+            capability_ppm(ts.max_error_mm, self.diagonal_mm)
+        );
+        out
+    }
+
+    /// The run as the JSON of `truepos somac run --json` (stops, alarms, measured and true hole
+    /// statistics, capability in ppm of the diagonal, the audit database it was recorded in).
+    pub fn to_json(&self, audit_db: &Path) -> serde_json::Value {
+        let v3 = |v: Vector3| json!([v.x, v.y, v.z]);
+        let (hs, ts) = self.stats();
+        let true_by_line: BTreeMap<usize, f64> = self.true_errors.iter().copied().collect();
+        json!({
+            "stops": self.report.stops.iter().map(|s| json!({
+                "true_error_mm": true_by_line.get(&s.line),
+                "line": s.line,
+                "commanded_mm": v3(s.commanded_mm.coords),
+                "measured_mm": s.measured_mm.map(|m| v3(m.coords)),
+                "corrections": s.corrections.iter().map(|c| v3(*c)).collect::<Vec<_>>(),
+                "iterations": s.iterations,
+                "final_error_mm": if s.final_error_mm.is_finite() { json!(s.final_error_mm) } else { json!(null) },
+                "status": s.status.as_str(),
+                "message": s.message,
+            })).collect::<Vec<_>>(),
+            "alarms": self.report.alarms.iter().map(|al| json!({"line": al.line, "kind": al.kind.as_str(), "message": al.message, "action": al.action})).collect::<Vec<_>>(),
+            "halted": self.report.halted,
+            "mean_error_mm": hs.mean_error_mm,
+            "std_error_mm": hs.std_error_mm,
+            "max_error_mm": hs.max_error_mm,
+            "capability_ppm": capability_ppm(hs.max_error_mm, self.diagonal_mm),
+            "true_mean_error_mm": ts.mean_error_mm,
+            "true_std_error_mm": ts.std_error_mm,
+            "true_max_error_mm": ts.max_error_mm,
+            "true_capability_ppm": capability_ppm(ts.max_error_mm, self.diagonal_mm),
+            "orientations": self.report.orientations,
+            "refractive_index_updates": self.report.refractive_updates,
+            "duration_s": self.duration_s,
+            "audit_db": audit_db.display().to_string(),
+        })
+    }
+}
+
 pub fn run_virtual(
     program_text: &str,
     cfg: CellConfig,
     targets: Vec<(String, Point3)>,
     params: &Params,
     sink: &mut dyn AuditSink,
-) -> Result<VirtualRun> {
+) -> Result<VirtualRun, truepos_somac::run::RunError> {
     let program = truepos_gcode::Program::parse(program_text);
     let cell = VirtualCell::new(cfg, targets);
     let mut trackers = cell.align_trackers().map_err(|e| {
@@ -416,6 +494,7 @@ pub fn run_virtual(
 /// Demo: the spar with and without correction.
 pub fn demo_section(report: &mut Report) -> Result<()> {
     let (cfg, sp, params) = scenario(1, 150);
+    let cfg_bump = cfg.tracker_bump;
     let native = Params { correct: false, orient: false, ..params.clone() };
     let r0 = run_virtual(&sp.program, cfg.clone(), sp.targets.clone(), &native, &mut MemoryAudit::default())?;
     let mut audit = MemoryAudit::default();
@@ -488,6 +567,17 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
     for (r, n) in alarms.iter_mut().zip(&counts) {
         r.push(n.to_string());
     }
+    // The bumped tracker: say when it happened and that no correction came from its readings.
+    let bump_note = match (cfg_bump, r1.report.alarms.iter().find(|a| a.kind.as_str() == "inclination")) {
+        (Some((t, k, tilt)), Some(a)) => format!(
+            "Tracker {} is bumped ({tilt:.0} µrad) at {:.1} min: its inclinometer shows it at line {}, the readings taken with it are discarded before any correction is sent, the trackers are re-aligned on the machine targets and the part re-oriented, and the stop is measured again.",
+            k + 1,
+            t / 60.0,
+            a.line
+        ),
+        (Some((t, k, _)), None) => format!("Tracker {} is bumped at {:.1} min; no inclination alarm fired.", k + 1, t / 60.0),
+        _ => String::new(),
+    };
     let tol_um = 50.0;
     report.verdict(report::Verdict {
         section: "somac".into(),
@@ -509,12 +599,14 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
         pass: s1.max_error_mm <= tol_um,
     });
     let html = format!(
-        "<p>A {}-hole wing-spar drilling program on the virtual 12 m × 4 m × 2 m gantry (geometric errors, thermal growth of the scales, part misplaced by ~1.4 mm and 150 µrad, aluminium part warming during the run), two laser trackers with MPE ±(15 µm + 6 µm/m), beam breaks and a tracker bumped mid-run. Errors are true 3D distances between the drilled position and the hole on the warm part.</p>{}{}{}{}<h3>Alarms</h3>{}<p>{} orientations, {} refractive-index updates.</p>",
+        "<p>A {}-hole wing-spar drilling program on the virtual 12 m × 4 m × 2 m gantry (geometric errors, thermal growth of the scales, part misplaced by ~1.4 mm and 150 µrad, aluminium part warming during the run), two laser trackers with MPE ±(15 µm + 6 µm/m), beam breaks and a tracker bumped mid-run. Errors are true 3D distances between the drilled position and the hole on the warm part.</p>{}{}{}{}<p>In the corrections plot, “|offset in force|” is the accumulated correction at each stop that needed one: what the gantry's own geometric and thermal error amounts to at that place and time after the program was oriented on the part targets (a few hundred µm on this machine). “|correction move|” is each move sent (tens of µm, the loop's threshold is {:.0} µm). {}</p><h3>Alarms</h3>{}<p>{} orientations, {} refractive-index updates.</p>",
         sp.holes.len(),
         report::table(&["run", "mean (µm)", "σ (µm)", "max (µm)", "capability (ppm of diagonal)"], &rows),
         hist0,
         hist1,
         plot,
+        params.threshold_mm * 1000.0,
+        bump_note,
         report::table(&["line", "kind", "message", "action", "times"], &alarms),
         r1.report.orientations,
         r1.report.refractive_updates,
@@ -534,23 +626,34 @@ pub fn read_cell_file(path: &Path) -> Result<(CellConfig, Targets, Params), Inpu
 /// What [`write_scenario`] wrote.
 pub struct Written {
     pub holes: usize,
-    /// Mean true hole error of the uncorrected run (mm).
+    /// Mean true hole error of the program run as written: no orientation, no correction (mm).
     pub native_mean_error_mm: f64,
+    /// Mean true hole error with the orientation through the part targets but no correction
+    /// loop, as `somac run --no-correct` runs it (mm).
+    pub oriented_only_mean_error_mm: f64,
+    pub trackers: usize,
 }
 
 /// Write `program.nc`, `cell.toml` and `truth.json` (the holes, the part placement and the
 /// native error of this cell: the same run without corrections) into `dir`.
 pub fn write_scenario(dir: &Path, seed: u64, holes_per_row: usize) -> Result<Written> {
     let (cfg, sp, params) = scenario(seed, holes_per_row);
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    std::fs::create_dir_all(dir).map_err(|e| CellError::io(dir, e))?;
     let cell = CellFile::from_config(&cfg, &sp.targets, &params);
-    let toml = toml::to_string_pretty(&cell)?;
+    let toml = annotate_cell_toml(&toml::to_string_pretty(&cell)?);
     truepos_io::atomic::write_atomic(dir.join("program.nc"), sp.program.as_bytes())?;
     truepos_io::atomic::write_atomic(dir.join("cell.toml"), toml.as_bytes())?;
     let native = Params { correct: false, orient: false, ..params.clone() };
     let vr = run_virtual(&sp.program, cfg.clone(), sp.targets.clone(), &native, &mut MemoryAudit::default())?;
     let e: Vec<f64> = vr.true_errors.iter().map(|x| x.1).collect();
     let ns = hole_stats(&e);
+    // What `somac run --no-correct` does: the program is still oriented through the measured
+    // part targets (placement, thermal scale), only the per-hole correction loop is off.
+    let oriented = Params { correct: false, ..params.clone() };
+    let vo =
+        run_virtual(&sp.program, cfg.clone(), sp.targets.clone(), &oriented, &mut MemoryAudit::default())?;
+    let eo: Vec<f64> = vo.true_errors.iter().map(|x| x.1).collect();
+    let os = hole_stats(&eo);
     let v3 = |p: &Point3| [p.x, p.y, p.z];
     let truth = json!({
         "holes": sp.holes.iter().map(|(l, p)| json!({"line": l, "nominal_mm": v3(p)})).collect::<Vec<_>>(),
@@ -560,12 +663,125 @@ pub fn write_scenario(dir: &Path, seed: u64, holes_per_row: usize) -> Result<Wri
         "part_cte_ppm_per_c": cfg.part_cte * 1e6,
         "native_mean_error_mm": ns.mean_error_mm,
         "native_max_error_mm": ns.max_error_mm,
+        "oriented_only_mean_error_mm": os.mean_error_mm,
+        "oriented_only_max_error_mm": os.max_error_mm,
+        "note": "native_*: true hole errors of the program run as written (no orientation, no correction: `somac run --no-correct --no-orient`); oriented_only_*: the program oriented through the measured part targets but without the correction loop (`somac run --no-correct`)",
     });
     truepos_io::atomic::write_atomic(
         dir.join("truth.json"),
         serde_json::to_string_pretty(&truth)?.as_bytes(),
     )?;
-    Ok(Written { holes: sp.holes.len(), native_mean_error_mm: ns.mean_error_mm })
+    Ok(Written {
+        holes: sp.holes.len(),
+        native_mean_error_mm: ns.mean_error_mm,
+        oriented_only_mean_error_mm: os.mean_error_mm,
+        trackers: cfg.trackers.len(),
+    })
+}
+
+/// Comments for the keys of `cell.toml`: `(table, key, comment)`; table "" is the top level,
+/// key "" comments the table header itself (first occurrence only).
+const CELL_COMMENTS: &[(&str, &str, &str)] = &[
+    ("", "seed", "random seed of the virtual cell (tracker noise, beam breaks, vibration)"),
+    (
+        "",
+        "error_scale",
+        "multiplier on the virtual gantry's geometric errors (1 = as built; a worn machine > 1)",
+    ),
+    ("", "tool_offset_mm", "reflector (drill point) offset from the ram reference point, ram frame (mm)"),
+    ("", "vibration_mm", "end-effector vibration amplitude after a move (mm)"),
+    (
+        "",
+        "beam_interrupt_probability",
+        "probability that someone walks through a tracker beam at a reading (0 to 1)",
+    ),
+    ("", "tracker_bump", "a tracker is bumped: [time_s, tracker index, tilt_urad]"),
+    ("air", "", "shop air around the trackers (refractive index, part temperature)"),
+    ("air", "temperature_c", "air temperature at the start (°C)"),
+    ("air", "drift_c_per_h", "linear temperature drift (°C per hour)"),
+    ("air", "steps", "sudden temperature changes: [time_s, delta_c] (a door opened)"),
+    ("air", "cycle_amplitude_c", "amplitude of a periodic temperature cycle (°C; air conditioning)"),
+    ("air", "cycle_period_s", "period of that cycle (s)"),
+    ("air", "pressure_pa", "air pressure (Pa)"),
+    ("air", "pressure_drift_pa_per_h", "pressure drift (Pa per hour)"),
+    ("air", "humidity_pct", "relative humidity (%)"),
+    ("part", "", "the part: material, how it is really placed, its targets"),
+    ("part", "cte_ppm_per_c", "coefficient of thermal expansion (ppm/°C; aluminium 23)"),
+    ("part", "tau_s", "thermal time constant of the part following the air (s)"),
+    (
+        "part",
+        "placement_rz_urad",
+        "actual placement against the program's nominal one: rotation about Z (µrad)",
+    ),
+    ("part", "placement_mm", "and translation (mm)"),
+    ("part.target", "", "tracker targets on the part, nominal positions in the program frame (mm)"),
+    ("tracker", "", "one laser tracker (MPE ±(15 µm + 6 µm/m))"),
+    ("tracker", "position_mm", "tracker head position in the machine frame (mm)"),
+    ("tracker", "yaw_deg", "rotation of the tracker frame about Z against the machine (degrees)"),
+    (
+        "tracker",
+        "adm",
+        "absolute distance meter: can reacquire a broken beam by pointing (look-ahead recovery)",
+    ),
+    (
+        "tracker",
+        "obstructions",
+        "boxes that block the beam: [[min_x, min_y, min_z], [max_x, max_y, max_z]] (mm)",
+    ),
+    ("loop", "", "the measure / compare / correct loop (every key optional; truepos somac run --help)"),
+    ("loop", "keyword", "comment text that marks a measurement block in the program"),
+    ("loop", "threshold_mm", "a stop succeeds when its 3D error is at most this (mm)"),
+    ("loop", "max_iterations", "correction moves per stop at most"),
+    ("loop", "max_single_correction_mm", "largest single correction move (mm)"),
+    ("loop", "max_total_correction_mm", "largest accumulated correction offset (mm)"),
+    ("loop", "samples", "repeated tracker samples per reading"),
+    ("loop", "autoscale_step_c", "re-scale the part when its temperature has moved by this (°C)"),
+    ("machine", "", "the machine's travel: no commanded or corrected position may leave this box"),
+    ("machine", "travel_min_mm", "lower corner, machine frame (mm)"),
+    ("machine", "travel_max_mm", "upper corner, machine frame (mm)"),
+];
+
+/// `cell.toml` as written by [`write_scenario`], with a `#` comment (meaning and unit) above
+/// every key and table it knows ([`CELL_COMMENTS`]).
+pub fn annotate_cell_toml(text: &str) -> String {
+    let mut out = String::from(
+        "# truepos cell file: the virtual large gantry, its laser trackers, the part and the loop.\n\
+         # Written by `truepos simulate somac`; read by `truepos somac run --cell`. Lengths mm, angles as named.\n",
+    );
+    let mut table = String::new();
+    let mut seen_tables = std::collections::HashSet::new();
+    let mut seen_keys = std::collections::HashSet::new();
+    for line in text.lines() {
+        let t = line.trim();
+        let header = t.strip_prefix("[[").and_then(|r| r.strip_suffix("]]")).or_else(|| {
+            t.strip_prefix('[')
+                .and_then(|r| r.strip_suffix(']'))
+                .filter(|r| !r.contains(',') && !r.is_empty())
+        });
+        if let Some(h) =
+            header.filter(|h| h.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '.'))
+        {
+            table = h.trim().to_string();
+            if seen_tables.insert(table.clone()) {
+                if let Some(c) = CELL_COMMENTS.iter().find(|c| c.0 == table && c.1.is_empty()) {
+                    if !out.ends_with("\n\n") {
+                        out.push('\n');
+                    }
+                    out.push_str(&format!("# {}\n", c.2));
+                }
+            }
+        } else if let Some((key, _)) = t.split_once(" = ") {
+            let key = key.trim();
+            if seen_keys.insert((table.clone(), key.to_string())) {
+                if let Some(c) = CELL_COMMENTS.iter().find(|c| c.0 == table && c.1 == key) {
+                    out.push_str(&format!("# {}\n", c.2));
+                }
+            }
+        }
+        out.push_str(line);
+        out.push('\n');
+    }
+    out
 }
 
 #[cfg(test)]
@@ -606,6 +822,25 @@ mod tests {
             let e = f.to_config(p).expect_err(needle).to_string();
             assert!(e.contains(needle) && e.contains("cell.toml"), "{needle}: {e}");
         }
+    }
+
+    /// The written cell file is commented and still reads back to the same cell.
+    #[test]
+    fn annotated_cell_file_reads_back() {
+        let f = file();
+        let text = annotate_cell_toml(&toml::to_string_pretty(&f).unwrap());
+        for needle in [
+            "# probability that someone walks",
+            "# air pressure (Pa)",
+            "# tracker head position",
+            "# a stop succeeds",
+        ] {
+            assert!(text.contains(needle), "{needle} missing in:\n{text}");
+        }
+        // Array-of-tables headers are commented once, not per target.
+        assert_eq!(text.matches("# tracker targets on the part").count(), 1, "{text}");
+        let back: CellFile = toml::from_str(&text).unwrap();
+        assert_eq!(toml::to_string_pretty(&back).unwrap(), toml::to_string_pretty(&f).unwrap());
     }
 
     /// A travel box that excludes the program's holes: the run stops at the first block outside

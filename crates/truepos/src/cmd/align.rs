@@ -9,7 +9,7 @@ use crate::{Outcome, UsageError};
 use anyhow::Result;
 use serde_json::json;
 use std::path::PathBuf;
-use truepos_io::points::{match_by_id, read_id_points, Matched};
+use truepos_io::points::{read_matched, Matched};
 use truepos_io::InputError;
 use truepos_math::bestfit::{self, BestFitOptions};
 use truepos_math::Transform3;
@@ -39,6 +39,7 @@ pub struct Args {
     /// Name of a column of weights (looked up in --to, then in --from).
     #[arg(long)]
     pub weights: Option<String>,
+    /// How the transform is found: least squares over all matched points, or the first three (3-2-1).
     #[arg(long, value_enum, default_value_t = Method::BestFit)]
     pub method: Method,
     /// Print one JSON object on stdout.
@@ -64,21 +65,7 @@ pub fn fit_transform(
 }
 
 pub fn run(a: Args) -> Result<Outcome> {
-    let from = read_id_points(&a.from)?;
-    let to = read_id_points(&a.to)?;
-    let m = match_by_id(&from, &to);
-    if m.ids.len() < 3 {
-        return Err(InputError::in_file(
-            &a.to,
-            format!(
-                "only {} ids are common to {} and {}; at least 3 are needed",
-                m.ids.len(),
-                a.from.display(),
-                a.to.display()
-            ),
-        )
-        .into());
-    }
+    let (from, to, m) = read_matched(&a.from, &a.to, 3, "a rigid alignment")?;
     let weights = match &a.weights {
         None => None,
         Some(col) => {

@@ -14,8 +14,7 @@ use serde_json::json;
 use std::path::{Path, PathBuf};
 use truepos_comp::correct::CompError;
 use truepos_comp::{Chain, Corrector, GeometricMap};
-use truepos_io::atomic::AtomicFile;
-use truepos_io::csv::{CsvWriter, Table};
+use truepos_io::csv::Table;
 use truepos_io::InputError;
 use truepos_math::{Point3, Vector3};
 
@@ -118,6 +117,7 @@ pub struct ErrorArgs {
     /// Write a CSV (x_mm,y_mm,z_mm,ex_um,ey_um,ez_um) instead of printing.
     #[arg(long)]
     pub output: Option<PathBuf>,
+    /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
 }
@@ -156,18 +156,8 @@ pub fn run(a: Args) -> Result<Outcome> {
     }
 }
 
-/// Summary of a streamed correction.
-pub struct StreamedCorrection {
-    pub n_points: usize,
-    pub rms_um: f64,
-    pub max_um: f64,
-    /// Largest number of fixed-point iterations (commanded positions only).
-    pub iterations: usize,
-}
-
-/// Correct (or, `commanded`, compensate) the points of `input` chunk by chunk into `output`:
-/// constant memory, reading, correcting and writing overlapped (`truepos_io::stream`). A refused
-/// point is an input error on its line, with `hint` appended.
+/// Correct (or, `commanded`, compensate) the points of `input` into `output`, streamed
+/// (`truepos_comp::stream`); `--decimals` checked first.
 pub fn correct_streamed(
     corr: &Corrector,
     input: &Path,
@@ -175,40 +165,14 @@ pub fn correct_streamed(
     commanded: bool,
     decimals: Option<u8>,
     hint: &str,
-) -> Result<StreamedCorrection> {
+) -> Result<truepos_comp::stream::Summary> {
     let fmt = truepos_io::num::NumFormat::from_decimals(decimals).map_err(crate::UsageError)?;
-    let (mut sum_sq, mut max, mut iterations) = (0.0f64, 0.0f64, 0usize);
-    let summary =
-        truepos_io::stream::rewrite_points(input, output, ["dx_um", "dy_um", "dz_um"], fmt, |_, pts, ex| {
-            let refused = |e: CompError| (e.index(), format!("{e}{hint}"));
-            if commanded {
-                let targets = pts.to_vec();
-                iterations = iterations.max(corr.compensate(pts).map_err(refused)?);
-                for ((c, t), e) in pts.iter().zip(&targets).zip(ex.iter_mut()) {
-                    let v = c - t;
-                    *e = [v.x * 1e3, v.y * 1e3, v.z * 1e3];
-                }
-            } else {
-                let mut d = vec![Vector3::zeros(); pts.len()];
-                corr.correct_measured(pts, Some(&mut d)).map_err(refused)?;
-                for (v, e) in d.iter().zip(ex.iter_mut()) {
-                    *e = [v.x * 1e3, v.y * 1e3, v.z * 1e3];
-                }
-            }
-            for e in ex.iter() {
-                let n2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
-                sum_sq += n2;
-                max = max.max(n2.sqrt());
-            }
-            Ok(())
-        })
-        .map_err(|e| match e {
-            truepos_io::stream::RewriteError::Input(i) => anyhow::Error::from(i),
-            truepos_io::stream::RewriteError::Output(o) => anyhow::Error::from(o),
-        })?;
-    let n = summary.n_points;
-    let rms_um = if n == 0 { 0.0 } else { (sum_sq / n as f64).sqrt() };
-    Ok(StreamedCorrection { n_points: n, rms_um, max_um: max, iterations })
+    let mode =
+        if commanded { truepos_comp::stream::Mode::Commanded } else { truepos_comp::stream::Mode::Measured };
+    truepos_comp::stream::correct_file(corr, input, output, mode, fmt, hint).map_err(|e| match e {
+        truepos_io::stream::RewriteError::Input(i) => anyhow::Error::from(i),
+        truepos_io::stream::RewriteError::Output(o) => anyhow::Error::from(o),
+    })
 }
 
 fn correct(a: CorrectArgs) -> Result<Outcome> {
@@ -246,21 +210,10 @@ fn error(a: ErrorArgs) -> Result<Outcome> {
     let pts = table_points(&t)?;
     let [ox, oy, oz] = a.map.probe_offset_mm;
     let corr = Corrector { geometric: Some(&map), load: None, probe_offset: Vector3::new(ox, oy, oz) };
-    let mut e = Vec::with_capacity(pts.len());
-    for (i, p) in pts.iter().enumerate() {
-        e.push(
-            corr.displacement(p)
-                .map_err(|source| batch_error(&t, CompError::OutOfRange { index: i, source }))?,
-        );
-    }
+    let e = corr.displacements(&pts).map_err(|err| batch_error(&t, err))?;
     if let Some(out) = &a.output {
-        let mut f = AtomicFile::create(out).with_context(|| format!("cannot create {}", out.display()))?;
-        let mut w = CsvWriter::new(&mut f);
-        w.header(&["x_mm", "y_mm", "z_mm", "ex_um", "ey_um", "ez_um"])?;
-        for (p, v) in pts.iter().zip(&e) {
-            w.row_f64(&[p.x, p.y, p.z, v.x * 1e3, v.y * 1e3, v.z * 1e3])?;
-        }
-        f.commit()?;
+        truepos_comp::files::write_errors(out, &pts, &e)
+            .with_context(|| format!("writing {}", out.display()))?;
     }
     if a.json {
         print_json(&json!({
@@ -280,5 +233,35 @@ fn error(a: ErrorArgs) -> Result<Outcome> {
             );
         }
     }
+    Ok(Outcome::Done)
+}
+
+#[derive(clap::Args, Debug)]
+#[command(
+    after_help = "Example:\n  truepos simulate comp --out data/comp --seed 1\n\nWrites map.csv (axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad: the\nx, y and z tables of a virtual bridge CMM, every 25 mm), squareness.toml, points.csv (indicated\nprobe-tip points, id,x_mm,y_mm,z_mm) and truth.json (true_points_mm, probe offset), and prints\nthe `truepos comp correct` command that corrects the points."
+)]
+pub struct SimArgs {
+    #[command(flatten)]
+    pub common: super::SimCommon,
+}
+
+/// `truepos simulate comp`: the geometric-map data set with its truth.
+pub fn simulate(a: SimArgs) -> Result<Outcome> {
+    let w = truepos_cell::scenarios::part::write_comp_dataset(&a.common.out, a.common.seed)?;
+    eprintln!(
+        "comp scenario: bridge CMM map with {} x, {} y and {} z rows, squareness, {} points (uncorrected 3D error RMS {:.2} µm, max {:.2} µm) → {}",
+        w.rows[0],
+        w.rows[1],
+        w.rows[2],
+        w.n_points,
+        w.rms_um,
+        w.max_um,
+        a.common.out.display()
+    );
+    eprintln!("next: {}", w.command);
+    eprintln!(
+        "then compare corrected.csv with true_points_mm in {} (expect within about 0.5 µm)",
+        w.truth.display()
+    );
     Ok(Outcome::Done)
 }

@@ -3,12 +3,11 @@
 
 use crate::Outcome;
 use std::path::PathBuf;
-use truepos_cell::demo::SectionFn;
 use truepos_cell::report::Report;
 
 #[derive(clap::Args, Debug)]
 #[command(
-    long_about = "Run every capability end to end on the virtual cell (fitting on the NIST reference data) and compare each result with the simulator's truth.\n\nWrites into --out:\n  index.html    the report: header (version, UTC time, seed, machines, environment, command line), overall verdict, one summary row per capability, one section per capability with tables and plots (self-contained, no network)\n  summary.json  the same as data: header, verdicts, every table\n  load/         the influence map of the bed-load section (map.csv)\n\nProgress: one line per capability with its time on stderr. Reruns are byte-identical except the generation time; set SOURCE_DATE_EPOCH (Unix seconds) to fix it too.",
+    long_about = "Run every capability end to end on the virtual cell (fitting on the NIST reference data) and compare each result with the simulator's truth.\n\nWrites into --out:\n  index.html    the report: header (version, UTC time, seed, machines, environment, command line), overall verdict, one summary row per capability, one section per capability with tables and plots (self-contained, no network), including the real interfaces: the I++ DME section starts the virtual CMM's I++ DME server on 127.0.0.1 (an ephemeral port) while it runs, and the controller section probes through the same trait as LinuxCNC (LinuxCNC itself is not started)\n  summary.json  the same as data: header, verdicts, every table\n  load/         the influence map of the bed-load section (map.csv)\n\nProgress: one line per capability with its time on stderr. Reruns are byte-identical except the generation time; set SOURCE_DATE_EPOCH (Unix seconds) to fix it too.",
     after_help = "Example:\n  truepos demo --out demo   # then open demo/index.html"
 )]
 pub struct Args {
@@ -37,15 +36,14 @@ pub fn run(a: Args) -> anyhow::Result<Outcome> {
         machine: "virtual bridge CMM (bed load, geometric map), virtual scanning CMM, virtual VMC with swivel head, virtual 12 m × 4 m × 2 m gantry with two laser trackers, latency test cell".into(),
         environment: "air 20 °C, 101 325 Pa, 50 % RH, 450 ppm CO₂ (reference conditions); the gantry's part warms during its run and the autoscale part is 4 °C above 20 °C".into(),
     };
-    let mut sections: Vec<(&str, SectionFn)> = vec![("fitting", super::fit::demo_section)];
-    sections.extend(truepos_cell::demo::sections());
+    let sections = truepos_cell::demo::sections();
     let n = sections.len();
     let pb = crate::output::progress(n as u64, "demo");
     let t_all = std::time::Instant::now();
     for (i, (name, f)) in sections.into_iter().enumerate() {
         pb.set_message(name.to_string());
         let t0 = std::time::Instant::now();
-        f(&mut report).map_err(|e| e.context(format!("demo section '{name}'")))?;
+        f(&mut report).map_err(|e| anyhow::Error::from(e).context(format!("demo section '{name}'")))?;
         // One line per capability (above the bar on a terminal; plain lines otherwise).
         pb.suspend(|| eprintln!("[{}/{n}] {name:<18} {:6.2} s", i + 1, t0.elapsed().as_secs_f64()));
         pb.inc(1);

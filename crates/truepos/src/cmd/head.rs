@@ -6,19 +6,15 @@
 //! simulate head-offset`: the virtual cell's data set and its truth), [`demo_section`]. The
 //! numerics are in `truepos-head`; this module reads and writes the contract's files.
 
-use crate::output::{parse_pair, parse_triple, print_json, v3};
+use crate::output::{parse_pair, parse_triple, print_json};
 use crate::{Outcome, UsageError};
 use anyhow::{Context, Result};
-use serde_json::json;
-use std::io::Write;
-use std::path::{Path, PathBuf};
-use truepos_head::file::{head_error, read_input, Input};
-use truepos_head::{beam_direction, machine_to_table, solve, surface_point, HeadOffset, Params, Reference};
-use truepos_io::atomic::AtomicFile;
-use truepos_io::csv::CsvWriter;
+use std::path::PathBuf;
+use truepos_cell::scenarios::head::Variant;
+use truepos_head::file::{head_error, read_input};
+use truepos_head::{solve, Params, Reference};
 use truepos_io::InputError;
 use truepos_math::{Point3, Vector3};
-use truepos_sim::scenario::head_offset::{self as sim, HeadOffsetConfig, Variant};
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RefKind {
@@ -63,6 +59,7 @@ pub struct CalibrateArgs {
     /// Readings of the reference object (columns b_deg,c_deg,x_mm,y_mm,z_mm[,dist_mm,face,group]).
     #[arg(long)]
     pub points: Option<PathBuf>,
+    /// The reference object: a sphere (its centre) or a vertex (the common point of fitted face planes).
     #[arg(long, value_enum, default_value_t = RefKind::Sphere)]
     pub reference: RefKind,
     /// Sphere diameter (mm): fixes the radius (plus --tip-radius-mm for a touch probe).
@@ -154,6 +151,7 @@ impl SimVariant {
 pub struct SimArgs {
     #[command(flatten)]
     pub common: super::SimCommon,
+    /// Which head and reference object, and which B/C orientations are measured.
     #[arg(long, value_enum, default_value_t = SimVariant::Both)]
     pub variant: SimVariant,
 }
@@ -164,8 +162,6 @@ fn tilt_rad(t: [f64; 2], name: &str) -> Result<[f64; 2], UsageError> {
     }
     Ok([t[0].to_radians(), t[1].to_radians()])
 }
-
-const AXES: [&str; 3] = ["X", "Y", "Z"];
 
 pub fn run(args: Args) -> Result<Outcome> {
     if let Some(Action::Apply(a)) = args.action {
@@ -230,196 +226,35 @@ pub fn run(args: Args) -> Result<Outcome> {
         beam_through_reference: a.beam_through_reference,
     };
     let r = solve(&input.readings, &setup).map_err(|e| head_error(&input.table, e))?;
-    for j in 0..3 {
-        if r.from_tilt[j] {
-            eprintln!(
-                "note: offset component {} comes from the beam tilt (R parallel to the beam), not from a rotation",
-                AXES[j]
-            );
-        }
-        if !r.observable[j] {
-            eprintln!(
-                "warning: offset component {} is not observable from these orientations ({}); held at the \
-                 prior {} mm, not measured",
-                AXES[j],
-                why_unobservable(j),
-                a.prior_offset_mm[j]
-            );
-        }
+    for note in truepos_head::json::notes(&r, &setup.prior) {
+        eprintln!("{note}");
     }
     if a.json {
-        print_json(&to_json(&r, &setup, a.tip_radius_mm, a.sphere_diameter_mm, &input))?;
+        print_json(&truepos_head::json::result(&r, &setup, a.tip_radius_mm, a.sphere_diameter_mm, &input))?;
     } else {
-        print_human(&r, a.tip_radius_mm);
+        print!("{}", truepos_head::json::text(&r, a.tip_radius_mm));
     }
     Ok(Outcome::Done)
 }
 
-fn why_unobservable(j: usize) -> &'static str {
-    match j {
-        1 => "a swivel about Y moves no point along Y: turn the table as well",
-        2 => "a table turn about Z moves no point along Z: swivel the head as well",
-        _ => "add orientations with other B and C angles",
-    }
-}
-
-fn to_json(
-    r: &HeadOffset,
-    setup: &Params,
-    tip: f64,
-    diameter: Option<f64>,
-    input: &Input,
-) -> serde_json::Value {
-    let name = |names: &[String], id: i64| names.get(id as usize).cloned().unwrap_or_default();
-    let unc: Vec<serde_json::Value> =
-        r.u_offset.iter().map(|u| u.map_or(serde_json::Value::Null, |v| json!(v))).collect();
-    let sphere_diameter = match (setup.reference, r.radius) {
-        (Reference::Sphere { .. }, Some(rad)) => Some(diameter.unwrap_or(2.0 * (rad - tip))),
-        _ => None,
-    };
-    let k = truepos_fit::evaluate::COVERAGE_FACTOR;
-    let expanded = json!({
-        "offset_mm": r.u_offset.iter().map(|u| u.map_or(serde_json::Value::Null, |v| json!(k * v))).collect::<Vec<_>>(),
-        "reference_point_mm": v3(r.u_reference_point * k),
-        "radius_mm": r.u_radius.map(|u| k * u),
-    });
-    json!({
-        "offset_mm": v3(r.offset),
-        "observable": r.observable,
-        "coverage_factor": k,
-        "expanded_uncertainty": expanded,
-        "from_tilt": r.from_tilt,
-        "reference_point_depends_on_prior": r.reference_depends_on_prior,
-        "uncertainty_mm": unc,
-        "reference": match setup.reference { Reference::Sphere { .. } => "sphere", Reference::Vertex { .. } => "vertex" },
-        "reference_point_mm": v3(r.reference_point),
-        "reference_point_uncertainty_mm": v3(r.u_reference_point),
-        "radius_mm": r.radius,
-        "radius_uncertainty_mm": r.u_radius,
-        "sphere_diameter_mm": sphere_diameter,
-        "tip_radius_mm": tip,
-        "rms_mm": r.rms,
-        "max_residual_mm": r.max_abs_residual,
-        "n_points": r.n_points,
-        "n_orientations": r.orientations.len(),
-        "orientations": r.orientations.iter().map(|o| json!({
-            "b_deg": o.b.to_degrees(), "c_deg": o.c.to_degrees(), "group": o.group.map(|g| name(&input.group_names, g)),
-            "n_points": o.n_points, "apparent_point_mm": v3(o.apparent),
-        })).collect::<Vec<_>>(),
-        "face_normals": r.face_normals.iter().map(|(id, n)| json!({"face": name(&input.face_names, *id), "normal": v3(*n)})).collect::<Vec<_>>(),
-        "prior_offset_mm": v3(setup.prior),
-        "closed_form_offset_mm": v3(r.closed_form_offset),
-        "table_center_mm": v3(setup.table_center),
-        "tilt_deg": [setup.tilt[0].to_degrees(), setup.tilt[1].to_degrees()],
-        "condition": if r.condition.is_finite() { json!(r.condition) } else { serde_json::Value::Null },
-        "iterations": r.iterations,
-        "converged": r.converged,
-    })
-}
-
-fn print_human(r: &HeadOffset, tip: f64) {
-    println!("head offset R ({} points, {} orientations)", r.n_points, r.orientations.len());
-    for j in 0..3 {
-        match r.u_offset[j] {
-            Some(u) => {
-                println!("  R{} = {:+.6} mm  ± {:.4} µm (1σ)", AXES[j].to_lowercase(), r.offset[j], u * 1e3)
-            }
-            None => println!(
-                "  R{} = {:+.6} mm  not observable (prior, not measured)",
-                AXES[j].to_lowercase(),
-                r.offset[j]
-            ),
-        }
-    }
-    let p = r.reference_point;
-    println!("reference point at c = 0: {:.6}, {:.6}, {:.6} mm", p.x, p.y, p.z);
-    for j in 0..3 {
-        if r.reference_depends_on_prior[j] {
-            println!(
-                "  (its {} follows the prior offset: only A{} − R{} is measured)",
-                AXES[j],
-                AXES[j].to_lowercase(),
-                AXES[j].to_lowercase()
-            );
-        }
-    }
-    if let Some(rad) = r.radius {
-        match r.u_radius {
-            Some(u) => println!("radius {rad:.6} mm ± {:.4} µm", u * 1e3),
-            None => println!("radius {rad:.6} mm (fixed)"),
-        }
-        if tip > 0.0 {
-            println!("sphere diameter {:.6} mm (radius − tip radius {tip} mm, doubled)", 2.0 * (rad - tip));
-        }
-    }
-    println!("rms {:.4} µm, max {:.4} µm", r.rms * 1e3, r.max_abs_residual * 1e3);
-}
-
-fn create_output(path: &Path) -> Result<AtomicFile, InputError> {
-    AtomicFile::create(path)
-        .map_err(|e| InputError::in_file(path, format!("cannot create the output file: {e}")))
-}
-
 fn apply(a: ApplyArgs) -> Result<Outcome> {
-    let tilt = tilt_rad(a.tilt_deg, "--tilt-deg")?;
+    tilt_rad(a.tilt_deg, "--tilt-deg")?;
     let offset = Vector3::from(a.offset_mm);
     let table_center = match (a.table_frame, a.table_center_mm) {
         (true, None) => return Err(UsageError("--table-frame needs --table-center-mm X,Y,Z".into()).into()),
-        (_, t) => t.map(Point3::from),
+        (true, t) => t.map(Point3::from),
+        (false, _) => None,
     };
     let input = read_input(&a.points, a.table_frame)?;
-    let table = &input.table;
-    let beam = beam_direction(tilt);
-    let (ix, iy, iz) = (table.require("x_mm")?, table.require("y_mm")?, table.require("z_mm")?);
-    let mut file = create_output(&a.output)?;
-    let write = |file: &mut AtomicFile| -> std::io::Result<()> {
-        let mut w = CsvWriter::new(file);
-        for c in &table.comments {
-            w.comment(c)?;
-        }
-        w.comment(&format!(
-            "truepos head-offset apply: offset_mm = {},{},{}; tilt_deg = {},{}; {}",
-            offset.x,
-            offset.y,
-            offset.z,
-            a.tilt_deg[0],
-            a.tilt_deg[1],
-            if a.table_frame { "table coordinates at c = 0" } else { "machine coordinates" }
-        ))?;
-        let header: Vec<&str> = table.header.iter().map(|s| s.as_str()).collect();
-        w.header(&header)?;
-        let mut buf = Vec::new();
-        for (i, r) in input.readings.iter().enumerate() {
-            let fields = table.fields(i, &mut buf).map_err(|e| std::io::Error::other(e.to_string()))?;
-            let mut q = surface_point(&r.p, r.b, &offset, r.dist, &beam);
-            if let (true, Some(o)) = (a.table_frame, table_center) {
-                q = machine_to_table(&q, r.c, &o);
-            }
-            for (k, f) in fields.iter().enumerate() {
-                if k == ix {
-                    w.field_f64(q.x)?;
-                } else if k == iy {
-                    w.field_f64(q.y)?;
-                } else if k == iz {
-                    w.field_f64(q.z)?;
-                } else {
-                    w.field_str(f)?;
-                }
-            }
-            w.end_row()?;
-        }
-        Ok(())
-    };
-    write(&mut file).with_context(|| format!("writing {}", a.output.display()))?;
-    file.flush()?;
-    file.commit().with_context(|| format!("writing {}", a.output.display()))?;
+    truepos_head::file::write_applied(&a.output, &input, &offset, a.tilt_deg, table_center)
+        .with_context(|| format!("writing {}", a.output.display()))?;
     eprintln!("wrote {} points to {}", input.readings.len(), a.output.display());
     Ok(Outcome::Done)
 }
 
 pub fn simulate(args: SimArgs) -> Result<Outcome> {
-    let cfg = HeadOffsetConfig::preset(args.variant.sim(), args.common.seed);
-    let d = sim::simulate(&cfg).map_err(|e| UsageError(e.to_string()))?;
+    let d = truepos_cell::scenarios::head::simulate(args.variant.sim(), args.common.seed)
+        .map_err(|e| UsageError(e.to_string()))?;
     // Where the data set cannot be written is the user's choice of --out: an input error.
     let w = truepos_cell::scenarios::head::write_dataset(&args.common.out, &d)
         .map_err(|e| InputError::in_file(&args.common.out, format!("{e:#}")))?;

@@ -14,10 +14,10 @@ use crate::{Outcome, UsageError};
 use anyhow::{Context, Result};
 use serde_json::json;
 use std::path::PathBuf;
+use truepos_cell::scenarios::latency::{self as latency_scenario, SimRequest};
 use truepos_io::InputError;
 use truepos_latency::file::{input_error, read_stream};
 use truepos_latency::{self as lat, KnownSize, Method, Options, Streams};
-use truepos_sim::scenario::latency as scen;
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MethodArg {
@@ -62,6 +62,7 @@ pub struct Args {
     /// Probe deflections: t_s,a_mm,b_mm,c_mm.
     #[arg(long)]
     pub probe: Option<PathBuf>,
+    /// How the delay is found (auto: chosen from the data and the options given).
     #[arg(long, value_enum, default_value_t = MethodArg::Auto)]
     pub method: MethodArg,
     /// Known sphere (or ring) diameter, mm (artefact method).
@@ -104,10 +105,13 @@ pub struct ApplyArgs {
     /// The system delay (s).
     #[arg(long, allow_hyphen_values = true)]
     pub delay_s: f64,
+    /// Machine positions: t_s,x_mm,y_mm,z_mm (encoder position of the probe body).
     #[arg(long)]
     pub machine: PathBuf,
+    /// Probe deflections: t_s,a_mm,b_mm,c_mm (along the machine axes).
     #[arg(long)]
     pub probe: PathBuf,
+    /// Output CSV: t_s,x_mm,y_mm,z_mm stylus-centre positions at the probe time stamps, then the probe file's other columns.
     #[arg(long)]
     pub output: PathBuf,
     /// Print a JSON summary on stdout.
@@ -168,64 +172,6 @@ fn options(a: &Args) -> Result<Options, UsageError> {
     })
 }
 
-/// The JSON object of an estimate (contract fields plus details).
-pub fn estimate_json(e: &lat::Estimate, opt: &Options) -> serde_json::Value {
-    let mut v = json!({
-        "method": e.method().name(),
-        "delay_s": e.delay,
-        "uncertainty_s": e.u_delay,
-        "n_contacts": e.n_contacts,
-        "rms_mm": e.rms,
-        "residual_delay_s": e.residual_delay,
-        "already_corrected_s": opt.already_corrected,
-        "threshold_mm": opt.threshold,
-        "tip_radius_mm": opt.tip_radius,
-        "warnings": e.warnings,
-    });
-    let o = v.as_object_mut().expect("json object");
-    // Expanded uncertainties with their coverage factor, as every command states them.
-    let k = truepos_fit::evaluate::COVERAGE_FACTOR;
-    let mut expanded = json!({"delay_s": k * e.u_delay});
-    if let Some(u) = e.u_static_size() {
-        expanded["static_size_mm"] = json!(k * u);
-    }
-    o.insert("coverage_factor".into(), json!(k));
-    o.insert("expanded_uncertainty".into(), expanded);
-    if let Some(f) = e.feature() {
-        o.insert("feature".into(), json!(f));
-    }
-    if let Some(s) = e.static_size() {
-        o.insert("static_size_mm".into(), json!(s));
-    }
-    if let Some(u) = e.u_static_size() {
-        o.insert("static_size_uncertainty_mm".into(), json!(u));
-    }
-    if !e.per_speed().is_empty() {
-        o.insert(
-            "per_speed".into(),
-            json!(e
-                .per_speed()
-                .iter()
-                .map(|(s, z)| json!({"speed_mm_s": s, "size_mm": z}))
-                .collect::<Vec<_>>()),
-        );
-    }
-    if let Some(pa) = e.per_axis() {
-        o.insert("per_axis_delay_s".into(), json!(pa.delay));
-        o.insert("per_axis_uncertainty_s".into(), json!(pa.u_delay));
-    }
-    if let Some(sc) = e.scan() {
-        o.insert("scan_rms_before_mm".into(), json!(sc.rms_before));
-        o.insert("scan_rms_after_mm".into(), json!(sc.rms_after));
-        o.insert("scan_steps".into(), json!(sc.n_steps));
-        o.insert("scan_radius_mm".into(), json!(sc.radius));
-    }
-    if !e.inout_each().is_empty() {
-        o.insert("per_contact_delay_s".into(), json!(e.inout_each().iter().map(|p| p.0).collect::<Vec<_>>()));
-    }
-    v
-}
-
 pub fn run(a: Args) -> Result<Outcome> {
     if let Some(Action::Apply(ap)) = a.action {
         return apply(ap);
@@ -245,35 +191,9 @@ pub fn run(a: Args) -> Result<Outcome> {
         eprintln!("warning: {w}");
     }
     if a.json {
-        print_json(&estimate_json(&e, &opt))?;
+        print_json(&truepos_latency::json::estimate(&e, &opt))?;
     } else {
-        println!("method        {}", e.method().name());
-        println!("delay         {:+.3} µs ± {:.3} µs (standard uncertainty)", e.delay * 1e6, e.u_delay * 1e6);
-        if opt.already_corrected != 0.0 {
-            println!(
-                "residual      {:+.3} µs (data already corrected by {:+.3} µs)",
-                e.residual_delay * 1e6,
-                opt.already_corrected * 1e6
-            );
-        }
-        println!("contacts      {}", e.n_contacts);
-        if let Some(s) = e.static_size() {
-            println!("static size   {s:.6} mm");
-        }
-        for (sp, sz) in e.per_speed() {
-            println!("  {sp:8.3} mm/s  size {sz:.6} mm");
-        }
-        if let Some(pa) = e.per_axis() {
-            for (k, name) in ["X", "Y", "Z"].iter().enumerate() {
-                match (pa.delay[k], pa.u_delay[k]) {
-                    (Some(d), Some(u)) => {
-                        println!("delay {name}       {:+.3} µs ± {:.3} µs", d * 1e6, u * 1e6)
-                    }
-                    _ => println!("delay {name}       not observable from these contacts"),
-                }
-            }
-        }
-        println!("rms           {:.3} µm", e.rms * 1e3);
+        print!("{}", truepos_latency::text::estimate(&e, &opt));
     }
     Ok(Outcome::Done)
 }
@@ -332,66 +252,38 @@ pub struct SimArgs {
     /// Contact (or scan) speed, mm/s.
     #[arg(long)]
     pub speed_mm_s: Option<f64>,
-    /// Repeats of the contact pattern (or scan revolutions), 1 to 1000.
+    /// Repeats of the contact pattern (or scan revolutions), 1 to 1000 (default: 24; 8 for
+    /// speeds, 12 for scan: enough contacts for the 10 µs goal).
     #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=1000))]
     pub repeats: Option<usize>,
+    /// Machine position stream rate, Hz (default 1000).
     #[arg(long)]
     pub machine_rate_hz: Option<f64>,
+    /// Probe deflection stream rate, Hz (default 1000; 4000 for multi-rate).
     #[arg(long)]
     pub probe_rate_hz: Option<f64>,
 }
 
-/// The scenario configuration of the command line.
-fn sim_config(a: &SimArgs) -> Result<scen::Config> {
-    let v = scen::Variant::parse(&a.variant).ok_or_else(|| {
-        UsageError(format!(
-            "unknown variant '{}': one of {}",
-            a.variant,
-            scen::Variant::ALL.iter().map(|v| v.name()).collect::<Vec<_>>().join(", ")
-        ))
-    })?;
-    let mut c = scen::Config::preset(v);
-    c.seed = a.common.seed;
-    if let Some(d) = a.delay_s {
-        if !d.is_finite() {
-            return Err(UsageError("--delay-s must be finite".into()).into());
-        }
-        // Keep the probe latency; the machine latencies follow the requested delay (per axis:
-        // shifted so that their mean delay is d).
-        let mean = c.machine_latencies().iter().sum::<f64>() / 3.0 - c.probe_latency_s;
-        if let Some(ax) = &mut c.axis_latency_s {
-            for l in ax.iter_mut() {
-                *l += d - mean;
-            }
-        }
-        c.machine_latency_s = c.probe_latency_s + d;
-    }
-    if let Some(s) = a.speed_mm_s {
-        c.speed_mm_s = s;
-    }
-    if let Some(r) = a.repeats {
-        c.repeats = r;
-    }
-    if let Some(r) = a.machine_rate_hz {
-        c.machine_rate_hz = r;
-    }
-    if let Some(r) = a.probe_rate_hz {
-        c.probe_rate_hz = r;
-    }
-    Ok(c)
-}
-
 pub fn simulate(a: SimArgs) -> Result<Outcome> {
-    let c = sim_config(&a)?;
-    let d = scen::simulate(&c).map_err(|e| UsageError(e.to_string()))?;
-    truepos_cell::scenarios::latency::write_dataset(&a.common.out, &d)?;
+    let request = SimRequest {
+        variant: a.variant.clone(),
+        seed: a.common.seed,
+        delay_s: a.delay_s,
+        speed_mm_s: a.speed_mm_s,
+        repeats: a.repeats,
+        machine_rate_hz: a.machine_rate_hz,
+        probe_rate_hz: a.probe_rate_hz,
+    };
+    let d = latency_scenario::simulate(&request).map_err(|e| UsageError(e.to_string()))?;
+    latency_scenario::write_dataset(&a.common.out, &d)?;
     eprintln!(
-        "latency scenario '{}': {} machine and {} probe samples, delay {} s → {}",
-        a.variant,
+        "latency scenario {}; {} machine and {} probe samples → {}",
+        latency_scenario::key_facts(&d.truth),
         d.machine.len(),
         d.probe.len(),
-        d.truth.delay_s,
         a.common.out.display()
     );
+    eprintln!("next: {}", latency_scenario::suggested_command(&a.common.out, &d.truth));
+    eprintln!("then compare delay_s with the true delay_s in {}", a.common.out.join("truth.json").display());
     Ok(Outcome::Done)
 }

@@ -76,6 +76,7 @@ pub struct MapCmd {
     /// FE element size (mm); default: [bed] element_size_mm, else automatic.
     #[arg(long)]
     pub element_size_mm: Option<f64>,
+    /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
 }
@@ -94,6 +95,7 @@ pub struct CorrectCmd {
     /// Measured points (x_mm,y_mm,z_mm; other columns passed through).
     #[arg(long)]
     pub points: PathBuf,
+    /// Output CSV: the points corrected, with dx_um,dy_um,dz_um (the correction applied) added.
     #[arg(long)]
     pub output: PathBuf,
     /// Also apply a 21-parameter geometric map (combined correction p + E(p) + e(p)).
@@ -108,24 +110,30 @@ pub struct CorrectCmd {
     /// Write numbers with this many decimals (default: shortest round-trip text).
     #[arg(long)]
     pub decimals: Option<u8>,
+    /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
 }
 
 #[derive(clap::Args, Debug)]
 pub struct CurvesCmd {
+    /// Influence map CSV (written by `truepos load map`).
     #[arg(long)]
     pub map: PathBuf,
+    /// Load case TOML: mass_kg or weight_n, cog_mm, rest_points_mm (or [[rest]] with forces).
     #[arg(long)]
     pub load: PathBuf,
+    /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
 }
 
 #[derive(clap::Args, Debug)]
 pub struct DeflectionCmd {
+    /// Bed model TOML: [bed] size, thickness, material, supports.
     #[arg(long)]
     pub bed: PathBuf,
+    /// Load case TOML: mass_kg or weight_n, cog_mm, rest_points_mm (or [[rest]] with forces).
     #[arg(long)]
     pub load: PathBuf,
     /// Points (x_mm,y_mm).
@@ -134,6 +142,7 @@ pub struct DeflectionCmd {
     /// FE element size (mm); default: [bed] element_size_mm, else automatic.
     #[arg(long)]
     pub element_size_mm: Option<f64>,
+    /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
 }
@@ -274,25 +283,9 @@ fn curves_cmd(a: CurvesCmd) -> Result<Outcome> {
     let case = read_load(&a.load)?;
     let c = superpose(&map, &case, &a.map, &a.load)?;
     if a.json {
-        print_json(&json!({
-            "portal_y_mm": c.y(),
-            "pitch_urad": c.pitch.iter().map(|v| v * 1e6).collect::<Vec<_>>(),
-            "roll_urad": c.roll.iter().map(|v| v * 1e6).collect::<Vec<_>>(),
-            "forces_n": case.loads.iter().map(|l| l.2).collect::<Vec<_>>(),
-            "rest_points_mm": case.loads.iter().map(|l| [l.0, l.1]).collect::<Vec<_>>(),
-            "weight_n": case.weight_n,
-            "cog_mm": case.cog,
-            "explicit_forces": case.explicit,
-        }))?;
+        print_json(&truepos_comp::json::curves(&c, &case))?;
     } else {
-        println!("forces (N):");
-        for l in &case.loads {
-            println!("  ({:.1}, {:.1}) mm  {:.3}", l.0, l.1, l.2);
-        }
-        println!("{:>12} {:>12} {:>12}", "portal_y_mm", "pitch_urad", "roll_urad");
-        for ((y, p), r) in c.y().iter().zip(&c.pitch).zip(&c.roll) {
-            println!("{y:12.3} {:12.4} {:12.4}", p * 1e6, r * 1e6);
-        }
+        print!("{}", truepos_comp::json::curves_text(&c, &case));
     }
     Ok(Outcome::Done)
 }
@@ -342,13 +335,21 @@ pub fn simulate(a: SimArgs) -> Result<Outcome> {
         .into());
     }
     let (_, data) =
-        truepos_cell::scenarios::load::write_scenario(&a.common.out, a.common.seed, a.mass_kg, a.noise_um)
-            .map_err(|e| crate::DeviceError(format!("{e:#}")))?;
+        truepos_cell::scenarios::load::write_scenario(&a.common.out, a.common.seed, a.mass_kg, a.noise_um)?;
     eprintln!(
-        "load scenario: {} points, forces {:?} N → {}",
-        data.indicated.len(),
+        "load scenario: a {} kg die on three pads on a granite bed (forces {:?} N), {} points measured with {} µm noise → {}",
+        a.mass_kg,
         data.forces_n.map(|f| (f * 10.0).round() / 10.0),
+        data.indicated.len(),
+        a.noise_um,
         a.common.out.display()
+    );
+    for c in truepos_cell::scenarios::load::suggested_commands(&a.common.out) {
+        eprintln!("next: {c}");
+    }
+    eprintln!(
+        "then compare corrected.csv with true_points_mm in {}",
+        a.common.out.join("truth.json").display()
     );
     Ok(Outcome::Done)
 }

@@ -6,6 +6,7 @@ use crate::Outcome;
 use clap::{Parser, Subcommand};
 
 pub mod align;
+pub mod cli_tree;
 pub mod comp;
 pub mod demo;
 pub mod fit;
@@ -63,6 +64,9 @@ pub enum Command {
     Demo(demo::Args),
     /// I++ DME: the virtual CMM as an I++ DME server (`truepos ippdme serve`).
     Ippdme(ippdme::Args),
+    /// The command line as JSON (every command and argument with its help), for the tests.
+    #[command(name = "__cli-tree", hide = true)]
+    CliTree,
 }
 
 #[derive(clap::Args, Debug)]
@@ -85,6 +89,8 @@ pub enum Scenario {
     Scan(scan::SimArgs),
     /// A wing-spar drilling program on the virtual gantry with trackers.
     Somac(somac::SimArgs),
+    /// A bridge CMM's geometric error map (x, y, z tables, squareness) and measured points.
+    Comp(comp::SimArgs),
 }
 
 /// Options every `truepos simulate` scenario takes.
@@ -118,8 +124,10 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
             Scenario::Load(a) => load::simulate(a),
             Scenario::Scan(a) => scan::simulate(a),
             Scenario::Somac(a) => somac::simulate(a),
+            Scenario::Comp(a) => comp::simulate(a),
         },
         Command::Demo(a) => demo::run(a),
         Command::Ippdme(a) => ippdme::run(a),
+        Command::CliTree => cli_tree::run(),
     }
 }

@@ -59,6 +59,7 @@ pub struct SphereArgs {
     /// Seed of the virtual machine (where its sphere really is relative to the nominal one).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
 }
@@ -133,22 +134,12 @@ fn sphere(a: SphereArgs) -> Result<Outcome> {
     };
     let elapsed = t0.elapsed().as_secs_f64();
     if a.json {
-        let mut j = json!({
-            "center_mm": v3(s.center_mm),
-            "radius_mm": s.radius_mm,
-            "diameter_mm": 2.0 * s.radius_mm,
-            "rms_mm": s.rms_mm,
-            "max_abs_residual_mm": s.max_abs_residual_mm,
-            "n_points": s.points.len(),
-            "points": s.points.iter().map(|p| v3(*p)).collect::<Vec<_>>(),
-            "center_uncertainty_mm": v3(s.center_uncertainty_mm),
-            "radius_uncertainty_mm": s.radius_uncertainty_mm,
-            "tip_diameter_mm": a.tip_diameter_mm,
-            "feed_mm_min": a.feed_mm_min,
-            "clearance_mm": a.clearance_mm,
-            "controller": { "address": info.address, "version": info.version },
-            "elapsed_s": elapsed,
-        });
+        let mut j = s.to_json();
+        j["tip_diameter_mm"] = json!(a.tip_diameter_mm);
+        j["feed_mm_min"] = json!(a.feed_mm_min);
+        j["clearance_mm"] = json!(a.clearance_mm);
+        j["controller"] = json!({ "address": info.address, "version": info.version });
+        j["elapsed_s"] = json!(elapsed);
         if let Some((c, r)) = opened.virtual_truth {
             j["virtual_truth"] = json!({ "center_mm": v3(c), "radius_mm": r });
         }

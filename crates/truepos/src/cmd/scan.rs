@@ -9,13 +9,12 @@
 use crate::output::{parse_pair, print_json};
 use crate::{DeviceError, Outcome, UsageError};
 use anyhow::{Context, Result};
-use serde_json::json;
 use std::path::PathBuf;
 use truepos_cell::scanning_cmm::{read_machine_file, run_scan, CmmConfig};
 use truepos_io::InputError;
-use truepos_scan::execute::{ControlParams, Run as ScanRun};
+use truepos_scan::execute::ControlParams;
 use truepos_scan::file::{read_features, FeaturesError, ParamOverrides};
-use truepos_scan::{plan, Feature, Params, Plan, ScanError, SegmentKind, Style};
+use truepos_scan::{plan, Feature, Params, ScanError, Style};
 
 #[derive(clap::Args, Debug)]
 #[command(
@@ -65,6 +64,7 @@ pub struct Common {
     /// Features and parameters (TOML: [[feature]] tables, top-level parameters).
     #[arg(long)]
     pub features: PathBuf,
+    /// Path style: blended (no stops) or classic (stop, approach along the normal, retract).
     #[arg(long, value_enum, default_value_t = StyleArg::Blended)]
     pub style: StyleArg,
     /// Angle between the approach line and the surface normal, 20 to 60 degrees (default 45).
@@ -164,27 +164,12 @@ fn load(c: &Common) -> Result<(Vec<Feature>, Params)> {
 }
 
 // ------------------------------------------------------------------------------------------
-// machine file
-
-// (the machine file is `truepos_cell::scanning_cmm::read_machine_file`)
-
-// ------------------------------------------------------------------------------------------
-// the true part: `truepos_cell::scan_scenario::read_truth`
-
-// ------------------------------------------------------------------------------------------
 // commands
 
 pub fn run(a: Args) -> Result<Outcome> {
     match a.action {
         Action::Plan(p) => run_plan(p),
         Action::Run(r) => run_run(r),
-    }
-}
-
-fn style_name(s: Style) -> &'static str {
-    match s {
-        Style::Blended => "blended",
-        Style::Classic => "classic",
     }
 }
 
@@ -205,21 +190,14 @@ fn run_plan(a: PlanArgs) -> Result<Outcome> {
         .into());
     }
     let samples = pl.sample(a.dt_s);
-    truepos_scan::file::write_path(&a.output, &pl, &samples, style_name(style))
+    truepos_scan::file::write_path(&a.output, &pl, &samples, style.name())
         .with_context(|| format!("cannot write {}", a.output.display()))?;
-    let per = plan_feature_times(&pl);
     if a.common.json {
-        print_json(&json!({
-            "style": style_name(style),
-            "cycle_time_s": pl.duration(),
-            "stops": pl.stops(),
-            "n_points": samples.len(),
-            "features": per.iter().map(|(id, t)| json!({"id": id, "time_s": t})).collect::<Vec<_>>(),
-        }))?;
+        print_json(&truepos_scan::json::plan(&pl, style, samples.len()))?;
     } else {
         eprintln!(
             "{} style: {} features, planned cycle {:.3} s, {} stops; wrote {} ({} points)",
-            style_name(style),
+            style.name(),
             features.len(),
             pl.duration(),
             pl.stops(),
@@ -228,24 +206,6 @@ fn run_plan(a: PlanArgs) -> Result<Outcome> {
         );
     }
     Ok(Outcome::Done)
-}
-
-/// Planned time of each feature from its approach start to its release end.
-fn plan_feature_times(pl: &Plan) -> Vec<(String, f64)> {
-    pl.features
-        .iter()
-        .enumerate()
-        .map(|(k, f)| {
-            let (mut a, mut b) = (f64::INFINITY, f64::NEG_INFINITY);
-            for (s, &t) in pl.segments.iter().zip(&pl.starts) {
-                if s.feature == k && s.kind != SegmentKind::Transfer {
-                    a = a.min(t);
-                    b = b.max(t + s.duration());
-                }
-            }
-            (f.id.clone(), b - a)
-        })
-        .collect()
 }
 
 fn run_run(a: RunArgs) -> Result<Outcome> {
@@ -267,57 +227,14 @@ fn run_run(a: RunArgs) -> Result<Outcome> {
         ScanError::Invalid(m) => anyhow::Error::new(InputError::in_file(&a.common.features, m)),
         other => anyhow::Error::new(DeviceError(format!("execution failed: {other}"))),
     })?;
-    truepos_scan::file::write_points(&a.output, &r, &features, &params, style_name(style))
+    truepos_scan::file::write_points(&a.output, &r, &features, &params, style.name())
         .with_context(|| format!("cannot write {}", a.output.display()))?;
     if a.common.json {
-        print_json(&run_json(&r, style))?;
+        print_json(&truepos_scan::json::run(&r, style))?;
     } else {
-        eprintln!(
-            "{} style: cycle {:.3} s, {} stops, {} points written to {}",
-            style_name(style),
-            r.cycle_time,
-            r.stops,
-            r.points.len(),
-            a.output.display()
-        );
-        for f in &r.features {
-            eprintln!(
-                "  {:12} {:7.3} s  form {:>7} µm  shift {:+8.3} mm  scan-start vibration {:6.2} µm rms",
-                f.id,
-                f.time,
-                match &f.form_note {
-                    None => format!("{:.2}", f.form_error * 1e3),
-                    Some(_) => "-".to_string(),
-                },
-                f.contact_shift,
-                f.vibration_rms * 1e3
-            );
-        }
+        eprint!("{}", truepos_scan::json::text(&r, style, &a.output));
     }
     Ok(Outcome::Done)
-}
-
-fn run_json(r: &ScanRun, style: Style) -> serde_json::Value {
-    json!({
-        "style": style_name(style),
-        "cycle_time_s": r.cycle_time,
-        "stops": r.stops,
-        "n_points": r.points.len(),
-        "form_error_method": "least-squares element of the scan segment (truepos-fit: 3D circle for bores and bosses, plane for circles on a plane, line for lines), peak-to-valley of the residuals",
-        "features": r.features.iter().map(|f| json!({
-            "id": f.id,
-            "time_s": f.time,
-            "form_error_mm": if f.form_error.is_finite() { json!(f.form_error) } else { serde_json::Value::Null },
-            "form_error_note": f.form_note,
-            "contact_shift_mm": f.contact_shift,
-            "vibration_rms_mm": f.vibration_rms,
-            "vibration_peak_mm": f.vibration_peak,
-            "settle_time_s": f.settle_time,
-            "contact_to_scan_s": f.ready_time,
-            "scan_points": f.scan_points,
-            "quality0_share": f.quality0_share,
-        })).collect::<Vec<_>>(),
-    })
 }
 
 // ------------------------------------------------------------------------------------------

@@ -10,7 +10,7 @@ use truepos_io::InputError;
 use truepos_math::air::{self, AirConditions, Formula};
 use truepos_math::bestfit::{self, BestFitOptions};
 
-use truepos_io::points::{match_by_id, read_id_points, Matched};
+use truepos_io::points::{read_matched, Matched};
 use truepos_somac::scale::ScaleFit;
 
 #[derive(clap::Args, Debug)]
@@ -45,6 +45,7 @@ pub struct AutoscaleArgs {
     /// Reference temperature of the reference file (°C).
     #[arg(long, default_value_t = 20.0)]
     pub reference_temperature_c: f64,
+    /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
 }
@@ -60,8 +61,10 @@ pub struct OrientArgs {
     /// Current measured target positions (machine frame).
     #[arg(long)]
     pub measured: PathBuf,
+    /// The G-code program to re-orient (its coordinates are in the reference frame).
     #[arg(long)]
     pub program: PathBuf,
+    /// Output G-code: the program with its coordinates rewritten in the measured frame.
     #[arg(long)]
     pub output: PathBuf,
     /// Also fit a uniform scale (parts that grew or shrank).
@@ -78,6 +81,7 @@ pub struct OrientArgs {
     /// exact transformed arc is at most this (mm). Without it such arcs are refused.
     #[arg(long, value_name = "MM")]
     pub arc_tolerance_mm: Option<f64>,
+    /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
 }
@@ -93,10 +97,13 @@ pub enum FormulaArg {
     after_help = "Example:\n  truepos air --temperature-c 20 --pressure-pa 101325 --humidity-pct 50 --json\n\nEquations as in NIST's Refractive Index of Air Calculator (Stone & Zimmerman). Inputs outside the\nrange where NIST states the equation valid are refused (exit 2): Ciddor 300-1700 nm, -40-100 °C,\n10000-140000 Pa, 0-100 % RH, 0-2000 ppm CO2; Edlén 300-1700 nm, 0-40 °C, 60000-140000 Pa,\n0-100 % RH, CO2 450 ppm only."
 )]
 pub struct AirArgs {
+    /// Air temperature, °C.
     #[arg(long)]
     pub temperature_c: f64,
+    /// Air pressure, Pa.
     #[arg(long)]
     pub pressure_pa: f64,
+    /// Relative humidity, %.
     #[arg(long)]
     pub humidity_pct: f64,
     /// CO2 mole fraction (µmol/mol); the modified Edlén equation assumes 450.
@@ -105,8 +112,10 @@ pub struct AirArgs {
     /// Vacuum wavelength.
     #[arg(long, default_value_t = 633.0)]
     pub wavelength_nm: f64,
+    /// Equation: ciddor (Ciddor 1996) or edlen (modified Edlén, Birch and Downs 1993/94).
     #[arg(long, value_enum, default_value_t = FormulaArg::Ciddor)]
     pub formula: FormulaArg,
+    /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
 }
@@ -122,20 +131,7 @@ pub fn run(a: Args) -> Result<Outcome> {
 /// Read the two id-point files, match them by id and fit the scale
 /// (`truepos_somac::scale::fit_scale`).
 pub fn fit_scale(reference: &Path, measured: &Path) -> Result<(ScaleFit, truepos_math::Transform3, Matched)> {
-    let r = read_id_points(reference)?;
-    let m = read_id_points(measured)?;
-    let mt = match_by_id(&r, &m);
-    if mt.ids.len() < 2 {
-        return Err(InputError::in_file(
-            measured,
-            format!(
-                "{} ids in common with {}; at least 2 features are needed (two give their distance ratio)",
-                mt.ids.len(),
-                reference.display()
-            ),
-        )
-        .into());
-    }
+    let (_, _, mt) = read_matched(reference, measured, 2, "a scale (two give their distance ratio)")?;
     let (f, t) = truepos_somac::scale::fit_scale(&mt.from, &mt.to)
         .map_err(|e| InputError::in_file(measured, format!("cannot fit a scale: {e}")))?;
     Ok((f, t, mt))
@@ -168,45 +164,16 @@ pub fn autoscale(a: AutoscaleArgs) -> Result<Outcome> {
             "n_points": f.n,
         }))?;
     } else {
-        println!(
-            "scale            {:.9}  ({:+.2} ppm, u = {:.2} ppm)",
-            f.scale,
-            (f.scale - 1.0) * 1e6,
-            f.u_scale * 1e6
-        );
-        if let (Some(e), Some(d)) = (expected, discrepancy) {
-            println!("expected (CTE)   {e:.9}");
-            println!("discrepancy      {d:+.2} ppm");
-        }
-        println!("rms residual     {:.4} mm over {} features", f.rms_mm, f.n);
+        print!("{}", f.text(expected));
     }
     Ok(Outcome::Done)
 }
 
 pub fn orient(a: OrientArgs) -> Result<Outcome> {
-    let r = read_id_points(&a.reference)?;
-    let m = read_id_points(&a.measured)?;
-    let mt = match_by_id(&r, &m);
-    if mt.ids.len() < 3 {
-        return Err(InputError::in_file(
-            &a.measured,
-            format!(
-                "{} targets in common with {}; orientation needs at least 3",
-                mt.ids.len(),
-                a.reference.display()
-            ),
-        )
-        .into());
-    }
+    let (_, _, mt) = read_matched(&a.reference, &a.measured, 3, "orientation")?;
     let measured_from_reference =
         bestfit::best_fit(&mt.from, &mt.to, None, BestFitOptions { with_scale: a.scale })
             .map_err(|e| InputError::in_file(&a.measured, format!("cannot orient: {e}")))?;
-    // Bounded: size limit, line length, no binary data (see truepos_io::limits).
-    let text = truepos_io::limits::read_string(&a.program, "G-code")?;
-    let program = truepos_gcode::Program::parse(&text);
-    let gerr =
-        |e: truepos_gcode::GcodeError| InputError::at(&a.program, e.line(), Some(e.column()), e.detail());
-    program.check().map_err(gerr)?;
     let arc_policy = match a.arc_tolerance_mm {
         None => truepos_gcode::ArcPolicy::Refuse,
         Some(t) if t.is_finite() && t > 0.0 => truepos_gcode::ArcPolicy::Linearize { tolerance_mm: t },
@@ -215,8 +182,23 @@ pub fn orient(a: OrientArgs) -> Result<Outcome> {
         }
     };
     let opts = truepos_gcode::TransformOptions { decimals: a.decimals, arc_policy, start_mm: a.start_mm };
-    let out = program.transform(&measured_from_reference, &opts).map_err(gerr)?;
-    truepos_io::atomic::write_atomic(&a.output, out.as_bytes())?;
+    // Streamed in constant memory (bounded: size limit, line length, no binary data), into an
+    // atomic output: nothing is left at --output unless the whole program was rewritten.
+    let input = truepos_io::limits::open_text(&a.program, "G-code")?;
+    let mut file = truepos_io::atomic::AtomicFile::create(&a.output)?;
+    let program = truepos_gcode::transform_stream(input, &mut file, &measured_from_reference, &opts)
+        .map_err(|e| -> anyhow::Error {
+            match e {
+                truepos_gcode::StreamError::Gcode(e) => {
+                    InputError::at(&a.program, e.line(), Some(e.column()), e.detail()).into()
+                }
+                truepos_gcode::StreamError::Read(e) => truepos_io::limits::read_error(&a.program, e).into(),
+                truepos_gcode::StreamError::Write(source) => {
+                    truepos_io::atomic::OutputError::Io { path: a.output.clone(), source }.into()
+                }
+            }
+        })?;
+    file.commit()?;
     let res = bestfit::residuals(&measured_from_reference, &mt.from, &mt.to);
     let norms: Vec<f64> = res.iter().map(|r| r.norm()).collect();
     let rm = measured_from_reference.rotation;
@@ -227,14 +209,14 @@ pub fn orient(a: OrientArgs) -> Result<Outcome> {
         "scale": measured_from_reference.scale,
         "rms_mm": truepos_math::stats::rms(&norms),
         "residuals": mt.ids.iter().zip(&norms).map(|(id, r)| json!({"id": id, "residual_mm": r})).collect::<Vec<_>>(),
-        "lines": program.lines.len(),
+        "lines": program.lines,
     });
     if a.json {
         print_json(&summary)?;
     } else {
         eprintln!(
             "oriented {} lines through the fit of {} targets (rms {:.4} mm) → {}",
-            program.lines.len(),
+            program.lines,
             mt.ids.len(),
             truepos_math::stats::rms(&norms),
             a.output.display()

@@ -5,39 +5,43 @@
 //! and the loop parameters (`[loop]`, every field optional). A real controller and trackers plug
 //! in behind the same traits (`truepos_somac::device`).
 
-use crate::output::{print_json, v3};
+use crate::output::print_json;
 use crate::{Outcome, UsageError};
 use anyhow::{Context, Result};
 use serde_json::json;
-use std::collections::BTreeMap;
 use std::path::PathBuf;
 use truepos_cell::scenarios::somac::{read_cell_file, run_virtual, write_scenario};
 use truepos_io::InputError;
-use truepos_somac::run::StopStatus;
-use truepos_somac::stats::{capability_ppm, hole_stats};
-use truepos_somac::RunReport;
 
 #[derive(clap::Args, Debug)]
 #[command(
     after_help = "Example:\n  truepos simulate somac --out spar && truepos somac run --program spar/program.nc --cell spar/cell.toml --json\n\nExit code 1 when a stop is not SUCCESS, the run halted, or an alarm other than an\nautomatically recovered beam break fired."
 )]
 pub struct RunArgs {
+    /// The G-code program; measurement blocks carry the loop's keyword comment ([loop] keyword, default `(MSG,Measure SOMaC)`).
     #[arg(long)]
     pub program: PathBuf,
     /// The cell: virtual gantry, trackers, part targets, loop parameters.
     #[arg(long)]
     pub cell: PathBuf,
-    /// Audit trail database (SQLite).
+    /// Audit trail database (SQLite), created if missing; every run is appended to it (one run
+    /// row, one row per stop, alarm and correction). Its path is printed at the end of the run.
     #[arg(long, default_value = "somac-audit.sqlite")]
     pub db: PathBuf,
-    /// Measure and report only, never correct (the machine's native accuracy).
+    /// Measure and report only, never correct. The program is still oriented through the
+    /// measured part targets (placement and thermal scale); add --no-orient for the machine's
+    /// native accuracy (the figure `truepos simulate somac` prints as "native").
     #[arg(long)]
     pub no_correct: bool,
+    /// Do not orient the program through the measured part targets (run it as written).
+    #[arg(long)]
+    pub no_orient: bool,
     /// The NC: `virtual` (the cell's virtual gantry) or `linuxcncrsh://HOST:PORT[?password=…]`
     /// (LinuxCNC moves the axes; the cell's virtual trackers observe its actual position through
     /// the cell's structural error model).
     #[arg(long, default_value = "virtual")]
     pub controller: String,
+    /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
 }
@@ -54,16 +58,13 @@ pub struct SimArgs {
     pub holes_per_row: usize,
 }
 
-fn failing(report: &RunReport) -> bool {
-    report.halted
-        || report.stops.iter().any(|s| s.status != StopStatus::Success)
-        || report.alarms.iter().any(|a| a.kind.fails_run())
-}
-
 pub fn run(a: RunArgs) -> Result<Outcome> {
     let (cfg, targets, mut params) = read_cell_file(&a.cell)?;
     if a.no_correct {
         params.correct = false;
+    }
+    if a.no_orient {
+        params.orient = false;
     }
     let text = std::fs::read_to_string(&a.program)
         .map_err(|e| InputError::in_file(&a.program, format!("cannot read: {e}")))?;
@@ -92,11 +93,11 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         })
     } else {
         audit.set_controller("virtual", "truepos virtual gantry cell")?;
-        run_virtual(&text, cfg, targets, &params, &mut audit)
+        run_virtual(&text, cfg, targets, &params, &mut audit).map_err(anyhow::Error::from)
     };
     // The run row records its end and final status, whatever happened.
     let (status, message) = match &vr {
-        Ok(v) if failing(&v.report) => ("FAILURE", None),
+        Ok(v) if v.report.failed() => ("FAILURE", None),
         Ok(_) => ("SUCCESS", None),
         Err(e) => ("ERROR", Some(format!("{e:#}"))),
     };
@@ -111,39 +112,7 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         Ok(other) => anyhow::Error::from(other),
         Err(e) => e,
     })?;
-    let measured: Vec<f64> =
-        vr.report.stops.iter().filter(|s| s.final_error_mm.is_finite()).map(|s| s.final_error_mm).collect();
-    let hs = hole_stats(&measured);
-    let truth: Vec<f64> = vr.true_errors.iter().map(|e| e.1).collect();
-    let ts = hole_stats(&truth);
-    let true_by_line: BTreeMap<usize, f64> = vr.true_errors.iter().copied().collect();
-    let out = json!({
-        "stops": vr.report.stops.iter().map(|s| json!({
-            "true_error_mm": true_by_line.get(&s.line),
-            "line": s.line,
-            "commanded_mm": v3(s.commanded_mm.coords),
-            "measured_mm": s.measured_mm.map(|m| v3(m.coords)),
-            "corrections": s.corrections.iter().map(|c| v3(*c)).collect::<Vec<_>>(),
-            "iterations": s.iterations,
-            "final_error_mm": if s.final_error_mm.is_finite() { json!(s.final_error_mm) } else { json!(null) },
-            "status": s.status.as_str(),
-            "message": s.message,
-        })).collect::<Vec<_>>(),
-        "alarms": vr.report.alarms.iter().map(|al| json!({"line": al.line, "kind": al.kind.as_str(), "message": al.message, "action": al.action})).collect::<Vec<_>>(),
-        "halted": vr.report.halted,
-        "mean_error_mm": hs.mean_error_mm,
-        "std_error_mm": hs.std_error_mm,
-        "max_error_mm": hs.max_error_mm,
-        "capability_ppm": capability_ppm(hs.max_error_mm, vr.diagonal_mm),
-        "true_mean_error_mm": ts.mean_error_mm,
-        "true_std_error_mm": ts.std_error_mm,
-        "true_max_error_mm": ts.max_error_mm,
-        "true_capability_ppm": capability_ppm(ts.max_error_mm, vr.diagonal_mm),
-        "orientations": vr.report.orientations,
-        "refractive_index_updates": vr.report.refractive_updates,
-        "duration_s": vr.duration_s,
-        "audit_db": a.db.display().to_string(),
-    });
+    let out = vr.to_json(&a.db);
     let mut out = out;
     if let Some(extra) = on_controller {
         for (k, v) in extra.as_object().into_iter().flatten() {
@@ -153,27 +122,21 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
     if a.json {
         print_json(&out)?;
     } else {
-        let n_ok = vr.report.stops.iter().filter(|s| s.status == StopStatus::Success).count();
-        println!(
-            "{} stops: {n_ok} SUCCESS; {} alarms; measured error mean {:.4} σ {:.4} max {:.4} mm",
-            vr.report.stops.len(),
-            vr.report.alarms.len(),
-            hs.mean_error_mm,
-            hs.std_error_mm,
-            hs.max_error_mm
-        );
-        println!(
-            "true hole error (virtual cell): mean {:.4} σ {:.4} max {:.4} mm ({:.1} ppm of the diagonal)",
-            ts.mean_error_mm,
-            ts.std_error_mm,
-            ts.max_error_mm,
-            capability_ppm(ts.max_error_mm, vr.diagonal_mm)
-        );
+        print!("{}", vr.text());
         for al in &vr.report.alarms {
             eprintln!("alarm line {}: {} — {} ({})", al.line, al.kind, al.message, al.action);
         }
+        match (params.correct, params.orient) {
+            (false, true) => eprintln!(
+                "note: --no-correct: holes drilled through the orientation on the part targets, without the correction loop; add --no-orient for the program as written (the native error of `truepos simulate somac`)"
+            ),
+            (false, false) => eprintln!("note: --no-correct --no-orient: the program as written, the machine's native accuracy"),
+            (true, false) => eprintln!("note: --no-orient: corrections without orienting the program on the part targets"),
+            (true, true) => {}
+        }
     }
-    Ok(if failing(&vr.report) { Outcome::OutOfTolerance } else { Outcome::Done })
+    eprintln!("audit trail appended to {} (run with --db FILE to choose another)", a.db.display());
+    Ok(if vr.report.failed() { Outcome::OutOfTolerance } else { Outcome::Done })
 }
 
 /// `somac run --controller linuxcncrsh://…`: LinuxCNC moves the axes, the virtual cell's
@@ -231,11 +194,18 @@ pub fn simulate(a: SimArgs) -> Result<Outcome> {
         return Err(UsageError("--holes-per-row must be at least 1".into()).into());
     }
     let w = write_scenario(&a.common.out, a.common.seed, a.holes_per_row)?;
+    let dir = a.common.out.display();
     eprintln!(
-        "wrote {}/program.nc ({} holes), cell.toml, truth.json; native error mean {:.3} mm",
-        a.common.out.display(),
-        w.holes,
-        w.native_mean_error_mm
+        "somac scenario: a {}-hole wing-spar program on the virtual 12 m gantry with {} laser trackers → {dir}/program.nc, cell.toml (commented), truth.json",
+        w.holes, w.trackers
     );
+    eprintln!(
+        "true mean hole error without end-point control: {:.3} mm as written (native), {:.3} mm oriented on the part targets but not corrected",
+        w.native_mean_error_mm, w.oriented_only_mean_error_mm
+    );
+    eprintln!(
+        "next: truepos somac run --program {dir}/program.nc --cell {dir}/cell.toml --db {dir}/audit.sqlite"
+    );
+    eprintln!("  (compare: add --no-correct for the oriented-only figure, --no-correct --no-orient for the native one)");
     Ok(Outcome::Done)
 }

@@ -1,0 +1,339 @@
+//! Re-orienting a program of any size in constant memory.
+//!
+//! A program is cut into pieces of complete lines (about [`PIECE_BYTES`] each). Each piece is
+//! tokenised and its parameters and expressions evaluated with the settings of the pieces before
+//! it; then the same [`Rewriter`] that [`Program::transform`] uses rewrites it, carrying the
+//! modal state, the last written positions and the incremental accumulators from piece to piece.
+//! So the output is byte for byte what the in-memory transform gives, errors keep the line and
+//! column of the whole program, and only a few pieces are ever in memory.
+//!
+//! Entry points:
+//! - [`transform_stream`]: read a `BufRead`, write a `Write`. A reader thread reads, tokenises
+//!   and evaluates the next pieces (two deep) while the caller's thread rewrites and writes the
+//!   current one, so both cores work.
+//! - [`StreamTransform`]: the same, pushed text by text from the caller's own loop.
+//!
+//! The first thing that cannot be executed or re-oriented, in program order, is the error;
+//! nothing after it is written (callers write into an atomic file and drop it on error).
+
+use crate::expr::Params;
+use crate::rewrite::Rewriter;
+use crate::{GcodeError, Program, TransformOptions};
+use std::io::{BufRead, Write};
+use std::sync::mpsc::{sync_channel, SyncSender};
+use truepos_math::Transform3;
+
+/// Bytes of text per piece.
+pub const PIECE_BYTES: usize = 1 << 20;
+
+/// What a streamed rewrite did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StreamSummary {
+    /// Lines of the program.
+    pub lines: usize,
+}
+
+/// A streamed rewrite that failed: the program (located), reading it, or writing the output.
+#[derive(Debug, thiserror::Error)]
+pub enum StreamError {
+    #[error(transparent)]
+    Gcode(#[from] GcodeError),
+    #[error("cannot read the program: {0}")]
+    Read(#[source] std::io::Error),
+    #[error("cannot write the output: {0}")]
+    Write(#[source] std::io::Error),
+}
+
+/// A tokenised, evaluated piece and the result of its check (line relative to the piece).
+struct Piece {
+    program: Program,
+    checked: Result<(), GcodeError>,
+}
+
+/// Tokenises pieces in order, carrying the parameters set so far.
+#[derive(Default)]
+struct PieceParser {
+    params: Params,
+    started: bool,
+}
+
+impl PieceParser {
+    fn parse(&mut self, text: String, reuse: Option<Program>) -> Piece {
+        let (program, checked) = Program::parse_piece(text, &mut self.params, !self.started, reuse);
+        self.started = true;
+        Piece { program, checked }
+    }
+}
+
+/// Rewrite `piece` (lines up to its first failed check) and report that check, located in the
+/// whole program.
+fn rewrite_piece(rw: &mut Rewriter, piece: &Piece, out: &mut String) -> Result<(), GcodeError> {
+    let base = rw.lines_done();
+    let upto = match &piece.checked {
+        Ok(()) => piece.program.lines.len(),
+        Err(e) => e.line() - 1,
+    };
+    rw.rewrite_lines(&piece.program, upto, out)?;
+    piece.checked.clone().map_err(|e| e.shifted(base))
+}
+
+/// Text that is not UTF-8: an error at the line and column (in characters) of the first bad
+/// byte; `before` lines precede `bytes`.
+fn not_utf8(bytes: &[u8], valid_up_to: usize, before: usize) -> GcodeError {
+    let ok = &bytes[..valid_up_to];
+    let line_start = memchr::memrchr(b'\n', ok).map_or(0, |p| p + 1);
+    let column = std::str::from_utf8(&ok[line_start..]).map_or(1, |s| s.chars().count() + 1);
+    GcodeError::Unsupported {
+        line: before + memchr::memchr_iter(b'\n', ok).count() + 1,
+        column,
+        message: "not valid UTF-8 text: not a G-code file".into(),
+    }
+}
+
+/// A streamed rewrite driven by the caller: [`push`](Self::push) text as it comes (any
+/// split, even inside a line), [`finish`](Self::finish) at the end. Only complete lines are
+/// rewritten at each push; the rest waits for the next one.
+pub struct StreamTransform {
+    parser: PieceParser,
+    rewriter: Rewriter,
+    carry: String,
+}
+
+impl StreamTransform {
+    pub fn new(new_from_old: &Transform3, opts: &TransformOptions) -> Self {
+        Self {
+            parser: PieceParser::default(),
+            rewriter: Rewriter::new(new_from_old, opts),
+            carry: String::new(),
+        }
+    }
+
+    /// Append `text`; the complete lines so far are rewritten into `out`.
+    pub fn push(&mut self, text: &str, out: &mut String) -> Result<(), GcodeError> {
+        self.carry.push_str(text);
+        let Some(nl) = memchr::memrchr(b'\n', self.carry.as_bytes()) else { return Ok(()) };
+        let rest = self.carry.split_off(nl + 1);
+        let piece = self.parser.parse(std::mem::replace(&mut self.carry, rest), None);
+        rewrite_piece(&mut self.rewriter, &piece, out)
+    }
+
+    /// Rewrite what is left (a last line without a line end) and return the number of lines.
+    pub fn finish(mut self, out: &mut String) -> Result<StreamSummary, GcodeError> {
+        if !self.carry.is_empty() {
+            let piece = self.parser.parse(std::mem::take(&mut self.carry), None);
+            rewrite_piece(&mut self.rewriter, &piece, out)?;
+        }
+        Ok(StreamSummary { lines: self.rewriter.lines_done() })
+    }
+}
+
+/// Rewrite the program read from `input` through `new_from_old` (mm) into `output`, piece by
+/// piece (see the module docs): byte for byte what [`Program::transform`] gives, in constant
+/// memory. On an error, what was written before it is an incomplete program: write into a file
+/// that is discarded on error.
+///
+/// The reader runs on a thread of its own; on an error it is not waited for (on a pipe it may be
+/// blocked in a read), it ends at its next hand-over.
+pub fn transform_stream<R, W>(
+    input: R,
+    mut output: W,
+    new_from_old: &Transform3,
+    opts: &TransformOptions,
+) -> Result<StreamSummary, StreamError>
+where
+    R: BufRead + Send + 'static,
+    W: Write,
+{
+    let (tx, rx) = sync_channel::<Result<Piece, StreamError>>(2);
+    // Finished pieces go back to the reader, which reuses their memory.
+    let (back_tx, back_rx) = std::sync::mpsc::channel::<Program>();
+    let reader = std::thread::Builder::new()
+        .name("truepos-gcode-reader".into())
+        .spawn(move || read_pieces(input, tx, back_rx))
+        .map_err(StreamError::Read)?;
+    let mut rw = Rewriter::new(new_from_old, opts);
+    let mut out = String::with_capacity(PIECE_BYTES + PIECE_BYTES / 4);
+    for piece in rx.iter() {
+        let piece = piece?;
+        out.clear();
+        rewrite_piece(&mut rw, &piece, &mut out)?;
+        let _ = back_tx.send(piece.program);
+        output.write_all(out.as_bytes()).map_err(StreamError::Write)?;
+    }
+    output.flush().map_err(StreamError::Write)?;
+    // The channel closed: the reader has returned.
+    let _ = reader.join();
+    Ok(StreamSummary { lines: rw.lines_done() })
+}
+
+/// The reader thread: pieces of complete lines, tokenised and evaluated, in order. Stops after
+/// a piece whose check failed (nothing after it is rewritten), at an error, or when the
+/// receiver is gone.
+fn read_pieces<R: BufRead>(
+    mut input: R,
+    tx: SyncSender<Result<Piece, StreamError>>,
+    back: std::sync::mpsc::Receiver<Program>,
+) {
+    let mut parser = PieceParser::default();
+    let mut carry: Vec<u8> = Vec::new();
+    let mut lines_before = 0usize;
+    loop {
+        let mut reuse = back.try_recv().ok();
+        let mut buf = std::mem::take(&mut carry);
+        if let Some(old) = &mut reuse {
+            // The text of a finished piece: its allocation, with the carried part first.
+            let mut text = std::mem::take(&mut old.source).into_bytes();
+            text.clear();
+            text.extend_from_slice(&buf);
+            buf = text;
+        }
+        buf.reserve(PIECE_BYTES);
+        let mut eof = false;
+        while buf.len() < PIECE_BYTES {
+            let avail = match input.fill_buf() {
+                Ok(b) => b,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(e) => {
+                    let _ = tx.send(Err(StreamError::Read(e)));
+                    return;
+                }
+            };
+            if avail.is_empty() {
+                eof = true;
+                break;
+            }
+            let n = avail.len();
+            buf.extend_from_slice(avail);
+            input.consume(n);
+        }
+        // Cut after the last line end (everything at the end of the input); a line longer than
+        // a piece waits for more.
+        let cut = if eof { buf.len() } else { memchr::memrchr(b'\n', &buf).map_or(0, |p| p + 1) };
+        carry = buf.split_off(cut);
+        if !buf.is_empty() {
+            let text = match String::from_utf8(buf) {
+                Ok(t) => t,
+                Err(e) => {
+                    let at = e.utf8_error().valid_up_to();
+                    let _ = tx.send(Err(not_utf8(e.as_bytes(), at, lines_before).into()));
+                    return;
+                }
+            };
+            let piece = parser.parse(text, reuse);
+            lines_before += piece.program.lines.len();
+            let failed = piece.checked.is_err();
+            if tx.send(Ok(piece)).is_err() || failed {
+                return;
+            }
+        }
+        if eof {
+            return;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use truepos_math::types::{rx, rz};
+    use truepos_math::Vector3;
+
+    fn stream(src: &str, t: &Transform3, opts: &TransformOptions) -> Result<String, StreamError> {
+        let mut out = Vec::new();
+        transform_stream(std::io::Cursor::new(src.as_bytes().to_vec()), &mut out, t, opts)?;
+        Ok(String::from_utf8(out).unwrap())
+    }
+
+    #[test]
+    fn utf8_errors_are_located() {
+        let mut b = b"G0 X1 Y1 Z1\nG1 X2 (caf\xc3\xa9) Y".to_vec();
+        b.extend_from_slice(b"\xff\n");
+        let mut out = Vec::new();
+        let e =
+            transform_stream(std::io::Cursor::new(b), &mut out, &Transform3::identity(), &Default::default())
+                .unwrap_err();
+        let StreamError::Gcode(e) = e else { panic!("{e}") };
+        assert_eq!((e.line(), e.column()), (2, 15), "{e}");
+    }
+
+    /// Pieces split anywhere (inside lines, inside multi-byte characters' lines) give the
+    /// in-memory result; a byte-order mark is accepted at the start only.
+    #[test]
+    fn pushed_pieces_give_the_in_memory_result() {
+        let src = "\u{feff}%\n#1=2\nG21 G90 G17\nG0 X[#1+8] Y0 Z#1 (keep (this) X99)\r\nG1 X20 F100 ; é\nG91 X1 Y1\nG90 G2 X30 Y10 I5 J5\nM30";
+        let t = Transform3::new(1.0001, rz(0.3), Vector3::new(5.0, -2.0, 1.0));
+        let opts = TransformOptions::default();
+        let want = Program::parse(src).transform(&t, &opts).unwrap();
+        for step in [1, 2, 3, 7, 1000] {
+            let mut st = StreamTransform::new(&t, &opts);
+            let mut out = String::new();
+            let chars: Vec<char> = src.chars().collect();
+            for c in chars.chunks(step) {
+                st.push(&c.iter().collect::<String>(), &mut out).unwrap();
+            }
+            let sum = st.finish(&mut out).unwrap();
+            assert_eq!(out, want, "step {step}");
+            assert_eq!(sum.lines, Program::parse(src).lines.len());
+        }
+        assert_eq!(stream(src, &t, &opts).unwrap(), want);
+        // A byte-order mark after the first piece is not G-code.
+        let mut st = StreamTransform::new(&Transform3::identity(), &opts);
+        let mut out = String::new();
+        st.push("G0 X1 Y1 Z1\n", &mut out).unwrap();
+        let e = st.push("\u{feff}G1 X2\n", &mut out).unwrap_err();
+        assert_eq!((e.line(), e.column()), (2, 1), "{e}");
+    }
+
+    /// Errors in later pieces keep their line in the whole program, and the first error in
+    /// program order wins, whether it is a check (malformed word) or a refusal of the rewrite.
+    #[test]
+    fn errors_keep_their_place_in_the_whole_program() {
+        let mut src = String::from("G21 G90\nG0 X0 Y0 Z0\n");
+        for i in 0..200_000 {
+            src.push_str(&format!("G1 X{}.5 Y{}\n", i % 1000, i % 7));
+        }
+        assert!(src.len() > 2 * PIECE_BYTES);
+        let n = 200_002;
+        let t = Transform3::rigid(rx(0.2), Vector3::zeros());
+        let opts = TransformOptions::default();
+        for (tail, col) in [("G1 X1.2.3\n", 4), ("G2 X1 Y1 I1 J0\n", 10)] {
+            let bad = format!("{src}{tail}G1 Xabc\n");
+            let e = stream(&bad, &t, &opts).unwrap_err();
+            let StreamError::Gcode(e) = e else { panic!("{e}") };
+            assert_eq!((e.line(), e.column()), (n + 1, col), "{tail}: {e}");
+            let e = Program::parse(&bad).transform(&t, &opts).unwrap_err();
+            assert_eq!((e.line(), e.column()), (n + 1, col), "{tail}: {e}");
+        }
+    }
+
+    #[test]
+    fn read_and_write_failures_are_reported() {
+        struct Broken;
+        impl std::io::Read for Broken {
+            fn read(&mut self, _: &mut [u8]) -> std::io::Result<usize> {
+                Err(std::io::Error::other("disk on fire"))
+            }
+        }
+        let mut out = Vec::new();
+        let r = std::io::BufReader::new(Broken);
+        let e = transform_stream(r, &mut out, &Transform3::identity(), &Default::default()).unwrap_err();
+        assert!(matches!(e, StreamError::Read(_)) && e.to_string().contains("disk on fire"), "{e}");
+        struct Full;
+        impl Write for Full {
+            fn write(&mut self, _: &[u8]) -> std::io::Result<usize> {
+                Err(std::io::Error::other("no space"))
+            }
+            fn flush(&mut self) -> std::io::Result<()> {
+                Ok(())
+            }
+        }
+        let e = transform_stream(
+            std::io::Cursor::new(b"G0 X1 Y1 Z1\n".to_vec()),
+            Full,
+            &Transform3::identity(),
+            &Default::default(),
+        )
+        .unwrap_err();
+        assert!(matches!(e, StreamError::Write(_)), "{e}");
+    }
+}

@@ -1,0 +1,200 @@
+//! E57 point clouds (ASTM E2807, what laser scanners and trackers export) as point files, chosen
+//! by the `.e57` extension, read with the `e57` crate.
+//!
+//! - [`read_e57`]: every scan (E57 "data3D") of the file, concatenated in file order, in the
+//!   file's common frame (each scan's pose applied), in **mm** (E57 stores metres: converted
+//!   here, at the edge). Scans recorded in spherical coordinates (range, azimuth, elevation) are
+//!   converted to Cartesian ones by the `e57` crate. Points whose coordinates are not valid
+//!   (`cartesianInvalidState` 1 = direction only, 2 = invalid; or the spherical equivalents)
+//!   are skipped and counted. A file that is not a readable E57 is an input error naming it (and
+//!   the scan, when one is broken).
+//! - [`write_e57`]: points in mm as one Cartesian scan of doubles, written atomically (for
+//!   tests and exchange).
+//!
+//! Where E57 points reach the rest of truepos: [`crate::points::read_points`] (fit) and
+//! [`crate::csv::Table::read`] (columns `x_mm,y_mm,z_mm`).
+
+use crate::atomic::OutputError;
+use crate::InputError;
+use e57::{CartesianCoordinate, E57Reader, E57Writer, Record, RecordValue};
+use std::path::Path;
+use truepos_math::Point3;
+
+/// Millimetres per metre.
+const MM_PER_M: f64 = 1000.0;
+
+/// The points of an E57 file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct E57Points {
+    /// Valid points of every scan, in mm, in file order.
+    pub points: Vec<Point3>,
+    /// Points skipped because their coordinates are marked invalid (or direction only).
+    pub skipped_invalid: usize,
+    /// Scans (point clouds) in the file.
+    pub scans: usize,
+}
+
+/// Whether `path` is chosen as E57 (by its extension, any case).
+pub fn is_e57(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("e57"))
+}
+
+fn e57_err(path: &Path, e: impl std::fmt::Display) -> InputError {
+    InputError::in_file(path, format!("not a readable E57 file: {e}"))
+}
+
+/// Read every scan of an E57 file (see the module docs).
+pub fn read_e57(path: &Path) -> Result<E57Points, InputError> {
+    let file =
+        std::fs::File::open(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+    let meta = file.metadata().map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+    if meta.is_dir() {
+        return Err(InputError::in_file(path, "is a directory, not a file"));
+    }
+    crate::limits::check_file_size(path, &meta)?;
+    let mut reader = E57Reader::new(std::io::BufReader::new(file)).map_err(|e| e57_err(path, e))?;
+    let clouds = reader.pointclouds();
+    let mut points =
+        Vec::with_capacity(clouds.iter().map(|c| c.records as usize).sum::<usize>().min(1 << 26));
+    let mut skipped_invalid = 0;
+    for (k, pc) in clouds.iter().enumerate() {
+        let name = pc.name.clone().or_else(|| pc.guid.clone()).unwrap_or_default();
+        let scan = |e: &dyn std::fmt::Display| e57_err(path, format!("scan {} ('{name}'): {e}", k + 1));
+        if !pc.has_cartesian() && !pc.has_spherical() {
+            return Err(scan(&"it has neither Cartesian nor spherical coordinates"));
+        }
+        let mut it = reader.pointcloud_simple(pc).map_err(|e| scan(&e))?;
+        // Defaults of the simple reader, stated: the scan's pose is applied (points in the
+        // file's common frame) and spherical coordinates are converted to Cartesian ones.
+        it.apply_pose(true);
+        it.spherical_to_cartesian(true);
+        for p in it {
+            let p = p.map_err(|e| scan(&e))?;
+            match p.cartesian {
+                CartesianCoordinate::Valid { x, y, z } if x.is_finite() && y.is_finite() && z.is_finite() => {
+                    points.push(Point3::new(x * MM_PER_M, y * MM_PER_M, z * MM_PER_M))
+                }
+                _ => skipped_invalid += 1,
+            }
+        }
+    }
+    Ok(E57Points { points, skipped_invalid, scans: clouds.len() })
+}
+
+/// Write `points_mm` as an E57 file with one Cartesian scan (doubles, metres), atomically.
+pub fn write_e57(path: &Path, points_mm: &[Point3]) -> Result<(), OutputError> {
+    let io = |e: e57::Error| OutputError::Io { path: path.to_path_buf(), source: std::io::Error::other(e) };
+    let mut buf = std::io::Cursor::new(Vec::with_capacity(points_mm.len() * 26 + 4096));
+    {
+        let mut w = E57Writer::new(&mut buf, "truepos-e57").map_err(io)?;
+        let proto = vec![Record::CARTESIAN_X_F64, Record::CARTESIAN_Y_F64, Record::CARTESIAN_Z_F64];
+        let mut pc = w.add_pointcloud("truepos-scan-1", proto).map_err(io)?;
+        for p in points_mm {
+            pc.add_point(vec![
+                RecordValue::Double(p.x / MM_PER_M),
+                RecordValue::Double(p.y / MM_PER_M),
+                RecordValue::Double(p.z / MM_PER_M),
+            ])
+            .map_err(io)?;
+        }
+        pc.finalize().map_err(io)?;
+        w.finalize().map_err(io)?;
+    }
+    crate::atomic::write_atomic(path, &buf.into_inner())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use e57::{Quaternion, RecordDataType, RecordName, Transform, Translation};
+
+    /// Three scans: Cartesian with a pose (a turn of 90° about Z and a shift), spherical, and
+    /// Cartesian with invalid points; read back concatenated, in mm, in the common frame.
+    #[test]
+    fn scans_are_concatenated_in_mm_with_poses_spherical_and_invalid_points() {
+        let d = tempfile::tempdir().unwrap();
+        let path = d.path().join("scan.e57");
+        {
+            let mut w = E57Writer::from_file(&path, "test-guid").unwrap();
+            let cart = vec![Record::CARTESIAN_X_F64, Record::CARTESIAN_Y_F64, Record::CARTESIAN_Z_F64];
+            let mut pc = w.add_pointcloud("a", cart.clone()).unwrap();
+            // Rotation of 90° about Z: q = (cos 45°, 0, 0, sin 45°); then (1, 2, 3) m.
+            let h = std::f64::consts::FRAC_1_SQRT_2;
+            pc.set_transform(Some(Transform {
+                rotation: Quaternion { w: h, x: 0.0, y: 0.0, z: h },
+                translation: Translation { x: 1.0, y: 2.0, z: 3.0 },
+            }));
+            for v in [[0.1, 0.0, 0.0], [0.0, 0.2, 0.5]] {
+                pc.add_point(v.iter().map(|&x| RecordValue::Double(x)).collect()).unwrap();
+            }
+            pc.finalize().unwrap();
+            let sph = vec![
+                Record::SPHERICAL_RANGE_F64,
+                Record::SPHERICAL_AZIMUTH_F64,
+                Record::SPHERICAL_ELEVATION_F64,
+            ];
+            let mut pc = w.add_pointcloud("b", sph).unwrap();
+            // Range 2 m, azimuth 90°, elevation 0 → (0, 2, 0) m; elevation 90° → (0, 0, 2) m.
+            let q = std::f64::consts::FRAC_PI_2;
+            for v in [[2.0, q, 0.0], [2.0, 0.0, q]] {
+                pc.add_point(v.iter().map(|&x| RecordValue::Double(x)).collect()).unwrap();
+            }
+            pc.finalize().unwrap();
+            let mut with_state = cart;
+            with_state.push(Record {
+                name: RecordName::CartesianInvalidState,
+                data_type: RecordDataType::Integer { min: 0, max: 2 },
+            });
+            let mut pc = w.add_pointcloud("c", with_state).unwrap();
+            for (v, state) in
+                [([0.5, 0.25, 0.125], 0), ([9.0, 9.0, 9.0], 2), ([1.0, 0.0, 0.0], 1), ([-0.001, 0.0, 0.0], 0)]
+            {
+                let mut vals: Vec<RecordValue> = v.iter().map(|&x| RecordValue::Double(x)).collect();
+                vals.push(RecordValue::Integer(state));
+                pc.add_point(vals).unwrap();
+            }
+            pc.finalize().unwrap();
+            w.finalize().unwrap();
+        }
+        let r = read_e57(&path).unwrap();
+        assert_eq!((r.scans, r.skipped_invalid), (3, 2));
+        let want = [
+            [1000.0, 2100.0, 3000.0],
+            [800.0, 2000.0, 3500.0],
+            [0.0, 2000.0, 0.0],
+            [0.0, 0.0, 2000.0],
+            [500.0, 250.0, 125.0],
+            [-1.0, 0.0, 0.0],
+        ];
+        assert_eq!(r.points.len(), want.len());
+        for (p, w) in r.points.iter().zip(want) {
+            // Quaternion and trigonometric round-off on metre values: far below 1e-9 mm.
+            assert!((p - Point3::from(w)).norm() < 1e-9, "{p} vs {w:?}");
+        }
+    }
+
+    #[test]
+    fn written_points_read_back_and_corrupt_files_are_named() {
+        let d = tempfile::tempdir().unwrap();
+        let path = d.path().join("pts.E57");
+        assert!(is_e57(&path));
+        let pts: Vec<Point3> =
+            (0..1000).map(|i| Point3::new(i as f64 * 0.37, -(i as f64) / 3.0, 12.5)).collect();
+        write_e57(&path, &pts).unwrap();
+        let r = read_e57(&path).unwrap();
+        assert_eq!((r.scans, r.skipped_invalid, r.points.len()), (1, 0, pts.len()));
+        for (a, b) in r.points.iter().zip(&pts) {
+            // mm → m → mm: at most an ulp or two of a few hundred mm.
+            assert!((a - b).norm() < 1e-12, "{a} vs {b}");
+        }
+        let mut bytes = std::fs::read(&path).unwrap();
+        let bad = d.path().join("bad.e57");
+        let n = bytes.len();
+        bytes[n / 2..].iter_mut().for_each(|b| *b = !*b);
+        std::fs::write(&bad, &bytes).unwrap();
+        let e = read_e57(&bad).unwrap_err();
+        assert!(e.to_string().starts_with(&format!("{}: ", bad.display())), "{e}");
+        std::fs::write(&bad, b"x_mm,y_mm,z_mm\n1,2,3\n").unwrap();
+        assert!(read_e57(&bad).unwrap_err().to_string().contains("not a readable E57 file"));
+    }
+}
