@@ -167,20 +167,6 @@ pub struct SimArgs {
 /// `truepos simulate comp`: the geometric-map data set with its truth.
 pub fn simulate(a: SimArgs) -> Result<Outcome> {
     let w = truepos_cell::scenarios::part::write_comp_dataset(&a.common.out, a.common.seed)?;
-    eprintln!(
-        "comp scenario: bridge CMM map with {} x, {} y and {} z rows, squareness, {} points (uncorrected 3D error RMS {:.2} µm, max {:.2} µm) → {}",
-        w.rows[0],
-        w.rows[1],
-        w.rows[2],
-        w.n_points,
-        w.rms_um,
-        w.max_um,
-        a.common.out.display()
-    );
-    eprintln!("next: {}", w.command);
-    eprintln!(
-        "then compare corrected.csv with true_points_mm in {} (expect within about 0.5 µm)",
-        w.truth.display()
-    );
+    eprint!("{}", w.text(&a.common.out));
     Ok(Outcome::Done)
 }

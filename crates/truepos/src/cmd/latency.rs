@@ -232,14 +232,6 @@ pub fn simulate(a: SimArgs) -> Result<Outcome> {
     };
     let d = latency_scenario::simulate(&request).map_err(|e| UsageError(e.to_string()))?;
     latency_scenario::write_dataset(&a.common.out, &d)?;
-    eprintln!(
-        "latency scenario {}; {} machine and {} probe samples → {}",
-        latency_scenario::key_facts(&d.truth),
-        d.machine.len(),
-        d.probe.len(),
-        a.common.out.display()
-    );
-    eprintln!("next: {}", latency_scenario::suggested_command(&a.common.out, &d.truth));
-    eprintln!("then compare delay_s with the true delay_s in {}", a.common.out.join("truth.json").display());
+    eprint!("{}", latency_scenario::written_text(&a.common.out, &d));
     Ok(Outcome::Done)
 }

@@ -207,29 +207,8 @@ fn map_files(map: &std::path::Path, squareness: &Option<PathBuf>) -> task::MapFi
 // Simulation and demo
 
 pub fn simulate(a: SimArgs) -> Result<Outcome> {
-    if !(a.mass_kg.is_finite() && a.mass_kg > 0.0 && a.noise_um.is_finite() && a.noise_um >= 0.0) {
-        return Err(crate::UsageError(format!(
-            "--mass-kg must be positive and --noise-um non-negative (got {}, {})",
-            a.mass_kg, a.noise_um
-        ))
-        .into());
-    }
-    let (_, data) =
-        truepos_cell::scenarios::load::write_scenario(&a.common.out, a.common.seed, a.mass_kg, a.noise_um)?;
-    eprintln!(
-        "load scenario: a {} kg die on three pads on a granite bed (forces {:?} N), {} points measured with {} µm noise → {}",
-        a.mass_kg,
-        data.forces_n.map(|f| (f * 10.0).round() / 10.0),
-        data.indicated.len(),
-        a.noise_um,
-        a.common.out.display()
-    );
-    for c in truepos_cell::scenarios::load::suggested_commands(&a.common.out) {
-        eprintln!("next: {c}");
-    }
-    eprintln!(
-        "then compare corrected.csv with true_points_mm in {}",
-        a.common.out.join("truth.json").display()
-    );
+    let (out, seed) = (&a.common.out, a.common.seed);
+    let (_, data) = truepos_cell::scenarios::load::write_scenario(out, seed, a.mass_kg, a.noise_um)?;
+    eprint!("{}", truepos_cell::scenarios::load::written_text(out, a.mass_kg, a.noise_um, &data));
     Ok(Outcome::Done)
 }
