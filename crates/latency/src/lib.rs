@@ -14,6 +14,7 @@
 //!   extrapolates each to zero deflection and runs one of the four methods
 //!   ([`Method::Artefact`], [`Method::Speeds`], [`Method::Scan`], [`Method::Inout`]), or picks
 //!   one ([`Method::Auto`]).
+//! - [`task`]: `truepos latency` and `latency apply` as library calls (files in, a `Report` back).
 //! - [`file::read_stream`]: a stream CSV; [`file::input_error`]: stream errors with file and line.
 //! - [`apply`]: stylus-centre positions at the probe stamps for a known delay.
 //! - modules: [`stream`] (checks, interpolation), [`contact`] (segmentation, extrapolation),
@@ -28,6 +29,7 @@ pub mod geom;
 pub mod json;
 pub mod scan;
 pub mod stream;
+pub mod task;
 pub mod text;
 pub mod touch;
 

@@ -739,9 +739,45 @@ mod tests {
 
 mod from_fit {
     use super::*;
-    use truepos_fit::evaluate::{Evaluation, Kind, Method};
-    use truepos_fit::verdict::Verdict;
+    use truepos_fit::evaluate::{Evaluation, Kind, Method, Spec};
+    use truepos_fit::verdict::{check_form_tolerance, DecisionRule, SizeTolerance, Verdict};
     use truepos_math::Vector3;
+
+    impl From<Kind> for FeatureKind {
+        fn from(k: Kind) -> Self {
+            match k {
+                Kind::Line => FeatureKind::Line,
+                Kind::Plane => FeatureKind::Plane,
+                Kind::Circle => FeatureKind::Circle,
+                Kind::Sphere => FeatureKind::Sphere,
+                Kind::Cylinder => FeatureKind::Cylinder,
+                Kind::Cone => FeatureKind::Cone,
+            }
+        }
+    }
+
+    /// The tolerance specification of a plan for a feature of `kind`, with notes for people:
+    /// the plan's ignored elements, and a diameter characteristic given for a feature without a
+    /// size (not used). A tolerance the evaluation cannot use is an error (its text).
+    pub fn plan_spec(plan: &Plan, kind: Kind, rule: DecisionRule) -> Result<(Spec, Vec<String>), String> {
+        let mut notes = plan.ignored.clone();
+        let size = match plan.diameter {
+            Some((n, lo, hi)) if kind.has_size() => {
+                Some(SizeTolerance::new(n, lo, hi).map_err(|e| e.to_string())?)
+            }
+            Some(_) => {
+                notes.push(format!(
+                    "the diameter characteristic does not apply to a {} and is not used",
+                    kind.name()
+                ));
+                None
+            }
+            None => None,
+        };
+        let form_tolerance =
+            plan.form_tolerance.map(check_form_tolerance).transpose().map_err(|e| e.to_string())?;
+        Ok((Spec { size, form_tolerance, rule }, notes))
+    }
 
     fn arr(v: &Vector3) -> [f64; 3] {
         [v.x, v.y, v.z]
@@ -758,14 +794,7 @@ mod from_fit {
     /// The QIF results of a truepos evaluation (feature name `name`, e.g. the input file's
     /// stem). Uncertainties are the standard uncertainties (k = 1) of a least-squares fit.
     pub fn results_from_evaluation(e: &Evaluation, name: &str, application: &str) -> Results {
-        let kind = match e.kind {
-            Kind::Line => FeatureKind::Line,
-            Kind::Plane => FeatureKind::Plane,
-            Kind::Circle => FeatureKind::Circle,
-            Kind::Sphere => FeatureKind::Sphere,
-            Kind::Cylinder => FeatureKind::Cylinder,
-            Kind::Cone => FeatureKind::Cone,
-        };
+        let kind = FeatureKind::from(e.kind);
         let algorithm = match e.method {
             Method::LeastSquares => Algorithm::LeastSquares,
             Method::MinimumZone => Algorithm::MinimumZone,
@@ -816,4 +845,4 @@ mod from_fit {
     }
 }
 
-pub use from_fit::results_from_evaluation;
+pub use from_fit::{plan_spec, results_from_evaluation};
