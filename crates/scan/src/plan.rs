@@ -215,34 +215,43 @@ impl Profile {
     }
 
     /// Jerk-limited profile over `len` from `v0` to `v1` through the highest plateau ≤ `vmax`
-    /// that fits. When `len` is too short to join `v0` and `v1` at these limits, both limits
-    /// are raised together just enough (never needed by the planner's own moves, which are
-    /// long enough by construction).
+    /// that fits (a bisection of 60 steps on closed-form distances). When `len` is too short to
+    /// join `v0` and `v1` at these limits, both limits are raised together just enough (the
+    /// change's distance scales as 1/s when `a → s·a`, `j → s²·j`; never needed by the
+    /// planner's own moves, which are long enough by construction).
     pub fn s_curve(len: f64, v0: f64, vmax: f64, v1: f64, a: f64, j: f64) -> Profile {
         let len = len.max(0.0);
         if len <= 1e-12 {
             return Profile::constant(0.0, v0);
         }
-        let lo = v0.max(v1);
         let (mut a, mut j) = (a, j);
-        while Profile::with_peak(len, v0, lo, v1, a, j).is_none() {
-            a *= 1.05;
-            j *= 1.05 * 1.05;
+        let need = change_dist(v0, v1, a, j);
+        if need > len {
+            let s = need / len * (1.0 + 1e-9);
+            a *= s;
+            j *= s * s;
         }
+        let fits = |vp: f64| change_dist(v0, vp, a, j) + change_dist(vp, v1, a, j) <= len;
+        let lo = v0.max(v1);
         let hi = vmax.max(lo);
-        if let Some(p) = Profile::with_peak(len, v0, hi, v1, a, j) {
-            return p;
+        if fits(hi) {
+            if let Some(p) = Profile::with_peak(len, v0, hi, v1, a, j) {
+                return p;
+            }
         }
         let (mut l, mut h) = (lo, hi);
         for _ in 0..60 {
             let m = 0.5 * (l + h);
-            if Profile::with_peak(len, v0, m, v1, a, j).is_some() {
+            if fits(m) {
                 l = m;
             } else {
                 h = m;
             }
         }
-        Profile::with_peak(len, v0, l, v1, a, j).unwrap_or_else(|| Profile::constant(len, lo))
+        // `l > 0` whenever `len > 0` (any small plateau fits), so the plateau is never empty
+        Profile::with_peak(len, v0, l, v1, a, j)
+            .or_else(|| Profile::with_peak(len, v0, l, v1, a * 1.001, j * 1.002))
+            .unwrap_or_else(|| Profile::constant(len, l.max(1e-9)))
     }
 
     pub fn duration(&self) -> f64 {
@@ -395,6 +404,29 @@ impl CurveGrid {
     }
 }
 
+/// The S-curve along a path of constant curvature `k` (1/mm; a circle, or a line with `k = 0`)
+/// in closed form. With the unit tangent `T` and normal `N`, `a = a_t·T + v²k·N` and
+/// `jerk = (j_t − v³k²)·T + 3·v·a_t·k·N`; the plateau is capped so that `v²k ≤ 0.6·a` and
+/// `v³k² ≤ 0.25·j`, and the tangential limits are what is left of [`MARGIN`]·a and
+/// [`MARGIN`]·j at that plateau speed (the largest `v` of the move, so they hold throughout):
+/// `a_t ≤ √((0.95a)² − (v²k)²)` and `3·v·a_t·k ≤ 0.5·j`, then
+/// `j_t ≤ √((0.95j)² − (3·v·a_t·k)²) − v³k²`.
+fn circle_profile(len: f64, (v0, vmax, v1): (f64, f64, f64), k: f64, a: f64, j: f64) -> Profile {
+    if k <= 1e-12 {
+        return Profile::s_curve(len, v0, vmax, v1, a, j);
+    }
+    let vp = vmax.min((0.6 * a / k).sqrt()).min((0.25 * j / (k * k)).cbrt()).max(v0.max(v1));
+    let (am, jm) = (MARGIN * a, MARGIN * j);
+    let cent = vp * vp * k;
+    let mut at = (am * am - cent * cent).max(0.0).sqrt();
+    if vp > 0.0 {
+        at = at.min(0.5 * j / (3.0 * vp * k));
+    }
+    let lat = 3.0 * vp * at * k;
+    let jt = ((jm * jm - lat * lat).max(0.0).sqrt() - vp.powi(3) * k * k).max(1e-3 * j);
+    Profile::s_curve(len, v0, vp, v1, at.max(1e-3 * a), jt)
+}
+
 /// Profile from (duration, jerk) phases starting at `v0` with zero acceleration.
 fn from_phases(len: f64, v0: f64, v1: f64, phases: &[(f64, f64)]) -> Profile {
     let mut rows = Vec::with_capacity(phases.len() + 1);
@@ -409,7 +441,7 @@ fn from_phases(len: f64, v0: f64, v1: f64, phases: &[(f64, f64)]) -> Profile {
         acc += jk * dt;
         t += dt;
     }
-    rows.push([t, x, v1, 0.0, 0.0]);
+    rows.push([t, x, v, acc, 0.0]);
     Profile { phases: rows, len, v0, v1 }
 }
 
@@ -501,6 +533,7 @@ fn plateaus(
         }
         // assemble the phases
         let mut ph: Vec<(f64, f64)> = Vec::new();
+        let mut short: Option<usize> = None;
         for i in 0..nw {
             let left = if i == 0 { v0 } else { w[i - 1] };
             let right = if i + 1 == nw { v1 } else { w[i + 1] };
@@ -509,6 +542,9 @@ fn plateaus(
             let (pin, din) = if host_in { change(left, w[i], at, jt) } else { (vec![], 0.0) };
             let (pout, dout) = if host_out { change(w[i], right, at, jt) } else { (vec![], 0.0) };
             ph.extend(pin);
+            if lw - din - dout < -1e-9 * lw && short.is_none() {
+                short = Some(i);
+            }
             let c = (lw - din - dout).max(0.0);
             if c > 0.0 && w[i] > 0.0 {
                 ph.push((c / w[i], 0.0));
@@ -516,7 +552,12 @@ fn plateaus(
             ph.extend(pout);
         }
         let pr = from_phases(len, v0, v1, &ph);
-        match g.violation(&pr, vmax, a, j) {
+        // a window whose changes do not fit (the feasibility passes ran out) counts as a
+        // violation there, as does a profile whose phases do not add up to the length
+        let end = pr.phases.last().map_or(0.0, |r| r[1]);
+        let off = (end - len).abs() > 1e-7 * len.max(1.0);
+        let bad = short.map(|i| (i as f64 + 0.5) * lw).or_else(|| off.then_some(0.5 * len));
+        match bad.or_else(|| g.violation(&pr, vmax, a, j)) {
             None => return Some(pr),
             Some(sf) => {
                 let i = ((sf / lw).floor() as usize).min(nw - 1);
@@ -534,16 +575,17 @@ fn plateaus(
 }
 
 /// The fastest jerk-limited profile along a curve from `v0` to `v1` whose plateau is at most
-/// `vmax` and at least half the slower non-zero end speed (a tight bend slows the move, it never
-/// stops it), keeping |v|, |a| (tangential and centripetal together) and |jerk| within the
+/// `vmax` and at least `floor` times the slower non-zero end speed (a tight bend slows the move,
+/// it never stops it; the planner asks for half, and less only where no transfer shape allows
+/// that), keeping |v|, |a| (tangential and centripetal together) and |jerk| within the
 /// limits; tried with several shares of the limits for the tangential part. `None` when no
 /// plateau in that range keeps the limits.
 fn curve_profile(
     g: &CurveGrid,
     len: f64,
     (v0, vmax, v1): (f64, f64, f64),
-    a: f64,
-    j: f64,
+    (a, j): (f64, f64),
+    floor: f64,
 ) -> Option<Profile> {
     let slow = match (v0 > 0.0, v1 > 0.0) {
         (true, true) => v0.min(v1),
@@ -551,7 +593,7 @@ fn curve_profile(
         (false, true) => v1,
         (false, false) => 0.0,
     };
-    let vlo = if slow > 0.0 { 0.5 * slow } else { 1e-3 * vmax };
+    let vlo = if slow > 0.0 { floor * slow } else { 1e-3 * vmax };
     if let Some(pr) = plateau_profile(g, len, (v0, vmax, v1), vlo, a, j) {
         return Some(pr);
     }
@@ -648,12 +690,19 @@ impl Segment {
         self
     }
 
-    fn profile_for(
+    fn profile_for(&self, f: &Feature, tip: f64, speeds: (f64, f64, f64), p: &Params) -> Option<Profile> {
+        self.profile_with_floor(f, tip, speeds, p, 0.5)
+    }
+
+    /// [`Segment::profile_for`] with the least plateau speed of a curve as a share of the slower
+    /// non-zero end speed (see [`curve_profile`]).
+    fn profile_with_floor(
         &self,
         f: &Feature,
         tip: f64,
         (v0, vmax, v1): (f64, f64, f64),
         p: &Params,
+        floor: f64,
     ) -> Option<Profile> {
         if matches!(self.geom, Geom::Hold { .. }) || self.len <= 1e-12 {
             return Some(Profile::constant(0.0, v0));
@@ -664,8 +713,15 @@ impl Segment {
         if matches!(self.geom, Geom::Line { .. }) {
             return Some(Profile::s_curve(self.len, v0, vmax, v1, p.accel, p.jerk));
         }
+        if let Geom::Along { pen: Penetration::Const(d), .. } = self.geom {
+            let k = match f.geometry {
+                crate::Geometry::Circle { .. } => 1.0 / f.metric(tip - d).max(1e-9),
+                crate::Geometry::Line { .. } => 0.0,
+            };
+            return Some(circle_profile(self.len, (v0, vmax, v1), k, p.accel, p.jerk));
+        }
         let g = self.grid(f, tip);
-        curve_profile(&g, self.len, (v0, vmax, v1), p.accel, p.jerk)
+        curve_profile(&g, self.len, (v0, vmax, v1), (p.accel, p.jerk), floor)
     }
 
     /// Tangent, curvature vector and its derivative on [`GRID_N`] equal arc-length steps (finite
@@ -690,10 +746,16 @@ impl Segment {
             tan.push(t);
             k.push(d2 - t * t.dot(&d2));
         }
+        // the three-point stencils at the ends are centred one step inside: extrapolate the
+        // curvature to the end points (the joins, where a transfer ends straight), and take
+        // one-sided second-order differences there
+        k[0] = k[1] * 2.0 - k[2];
+        k[n] = k[n - 1] * 2.0 - k[n - 2];
         let dk = (0..=n)
-            .map(|i| {
-                let (a, c) = (i.saturating_sub(1), (i + 1).min(n));
-                (k[c] - k[a]) / (ds * (c - a) as f64)
+            .map(|i| match i {
+                0 => (k[1] * 4.0 - k[0] * 3.0 - k[2]) / (2.0 * ds),
+                i if i == n => (k[n] * 3.0 - k[n - 1] * 4.0 + k[n - 2]) / (2.0 * ds),
+                i => (k[i + 1] - k[i - 1]) / (2.0 * ds),
             })
             .collect();
         CurveGrid { ds, tan, k, dk }
@@ -870,7 +932,8 @@ pub fn plan(features: &[Feature], params: &Params, style: Style) -> Plan {
     Plan { style, features: features.to_vec(), params: params.clone(), segments, starts }
 }
 
-/// Home (start and end) point: above the first feature's scan start on its normal.
+/// Home point of the classic style (its start): above the first feature's scan start on its
+/// normal. The blended style starts from rest on the extension of its first approach line.
 pub fn home(features: &[Feature], p: &Params) -> Point3 {
     features[0].point(0.0, p.tip_radius + p.clearance + 10.0)
 }
@@ -901,24 +964,31 @@ fn transfer(
     let chord = (b - a).norm().max(1.0);
     let mut best: Option<Segment> = None;
     let mut fallback: Option<Segment> = None;
-    for stretch in [0.5, 0.8, 1.2, 1.8, 2.7, 4.0, 6.0] {
-        if stretch > 2.0 && best.is_some() {
-            break;
-        }
-        let seg = Segment::new(
-            SegmentKind::Transfer,
-            i,
-            quintic_between(a, da, ka, b, db, chord * stretch),
-            f,
-            tip,
-        );
-        match seg.profile_for(f, tip, speeds, p) {
-            Some(pr) if best.as_ref().is_none_or(|s| pr.duration() < s.duration()) => {
-                best = Some(Segment { profile: pr, ..seg });
+    // at limits too low for the geometry (a tight turn at a low jerk) the bend is taken slower:
+    // first down to half the slower end speed, then to a tenth, then to 1 %
+    'floors: for floor in [0.5, 0.1, 0.01] {
+        for stretch in [0.5, 0.8, 1.2, 1.8, 2.7, 4.0, 6.0] {
+            if stretch > 2.0 && best.is_some() {
+                break 'floors;
             }
-            Some(_) => {}
-            None if fallback.is_none() => fallback = Some(seg),
-            None => {}
+            let seg = Segment::new(
+                SegmentKind::Transfer,
+                i,
+                quintic_between(a, da, ka, b, db, chord * stretch),
+                f,
+                tip,
+            );
+            match seg.profile_with_floor(f, tip, speeds, p, floor) {
+                Some(pr) if best.as_ref().is_none_or(|s| pr.duration() < s.duration()) => {
+                    best = Some(Segment { profile: pr, ..seg });
+                }
+                Some(_) => {}
+                None if fallback.is_none() => fallback = Some(seg),
+                None => {}
+            }
+        }
+        if best.is_some() {
+            break;
         }
     }
     best.or_else(|| fallback.map(|s| s.timed(f, tip, speeds, p))).unwrap_or_else(|| {
@@ -956,11 +1026,17 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
         let a = c0 - w * (p.clearance / ca);
         // transfer into the approach
         let tr = match prev_end {
+            // from rest on the approach line's extension, far enough back to reach scanning
+            // speed straight on (a curve from rest into the approach would have to be taken
+            // at a fraction of the scanning speed at low limits)
             None => {
-                let h = home(features, p);
-                let d = (a - h).norm();
-                let dir = if d > 1e-9 { (a - h) / d } else { w };
-                transfer(i, f, p, (h, dir, Vector3::zeros()), (a, w), (0.0, p.move_speed, v))
+                let h = a - w * (2.0 * stop_distance(v, p) + 1.0);
+                Segment::new(SegmentKind::Transfer, i, Geom::Line { a: h, b: a }, f, tip).timed(
+                    f,
+                    tip,
+                    (0.0, p.move_speed, v),
+                    p,
+                )
             }
             Some(start) => transfer(i, f, p, start, (a, w), (v, p.move_speed, v)),
         };

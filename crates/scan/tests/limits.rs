@@ -20,11 +20,34 @@ fn maxima(pl: &Plan, dt: f64) -> (f64, f64, f64) {
 
 /// [`maxima`] with the time and segment index where the jerk is largest.
 fn maxima_at(pl: &Plan, dt: f64) -> (f64, f64, f64, (f64, usize)) {
+    let m = by_kind(pl, dt);
+    let checked: Vec<&Max> = m
+        .iter()
+        .filter(|(k, _)| pl.style == Style::Classic || *k == SegmentKind::Transfer)
+        .map(|(_, m)| m)
+        .collect();
+    let v = checked.iter().map(|m| m.v).fold(0.0, f64::max);
+    let a = checked.iter().map(|m| m.a.0).fold(0.0, f64::max);
+    let j = checked.iter().map(|m| m.j.0).fold(0.0, f64::max);
+    let at = checked.iter().find(|m| m.j.0 == j).map_or((0.0, 0), |m| (m.j.1, m.j.2));
+    (v, a, j, at)
+}
+
+/// Largest speed, and |acceleration| and |jerk| with the time and segment where they occur.
+#[derive(Clone, Copy, Debug, Default)]
+struct Max {
+    v: f64,
+    a: (f64, f64, usize),
+    j: (f64, f64, usize),
+}
+
+/// [`Max`] of every segment kind over the stencils that touch a segment of that kind (a join
+/// counts for both kinds it joins).
+fn by_kind(pl: &Plan, dt: f64) -> Vec<(SegmentKind, Max)> {
     let tip = pl.params.tip_radius;
     let total = pl.duration();
     let n = (total / dt).floor() as usize;
     let mut pos = Vec::with_capacity(n + 1);
-    let mut checked = Vec::with_capacity(n + 1);
     let mut seg = 0;
     let mut segs = Vec::with_capacity(n + 1);
     for k in 0..=n {
@@ -34,25 +57,36 @@ fn maxima_at(pl: &Plan, dt: f64) -> (f64, f64, f64, (f64, usize)) {
         }
         let s = &pl.segments[seg];
         pos.push(s.eval(t - pl.starts[seg], &pl.features[s.feature], tip).position);
-        checked.push(pl.style == Style::Classic || s.kind == SegmentKind::Transfer);
         segs.push(seg);
     }
-    let (mut vm, mut am, mut jm) = (0.0f64, 0.0f64, 0.0f64);
-    let mut at = (0.0, 0);
+    let kinds = [
+        SegmentKind::Transfer,
+        SegmentKind::Approach,
+        SegmentKind::Settle,
+        SegmentKind::Scan,
+        SegmentKind::Release,
+    ];
+    let mut out: Vec<(SegmentKind, Max)> = kinds.iter().map(|&k| (k, Max::default())).collect();
     for k in 0..pos.len().saturating_sub(3) {
-        if !(k..k + 4).any(|i| checked[i]) {
-            continue;
-        }
         let (p0, p1, p2, p3) = (pos[k].coords, pos[k + 1].coords, pos[k + 2].coords, pos[k + 3].coords);
-        vm = vm.max((p1 - p0).norm() / dt);
-        am = am.max((p2 - p1 * 2.0 + p0).norm() / (dt * dt));
+        let v = (p1 - p0).norm() / dt;
+        let a = (p2 - p1 * 2.0 + p0).norm() / (dt * dt);
         let j = (p3 - p2 * 3.0 + p1 * 3.0 - p0).norm() / (dt * dt * dt);
-        if j > jm {
-            jm = j;
-            at = ((k + 1) as f64 * dt, segs[k + 1]);
+        let t = (k + 1) as f64 * dt;
+        for (kind, m) in out.iter_mut() {
+            if !(k..k + 4).any(|i| pl.segments[segs[i]].kind == *kind) {
+                continue;
+            }
+            m.v = m.v.max(v);
+            if a > m.a.0 {
+                m.a = (a, t, segs[k + 1]);
+            }
+            if j > m.j.0 {
+                m.j = (j, t, segs[k + 1]);
+            }
         }
     }
-    (vm, am, jm, at)
+    out
 }
 
 /// A finite difference of order k divided by dtᵏ is a weighted mean of the k-th derivative over
@@ -62,6 +96,11 @@ fn maxima_at(pl: &Plan, dt: f64) -> (f64, f64, f64, (f64, usize)) {
 fn check(pl: &Plan, p: &Params, dt: f64) -> Result<(), TestCaseError> {
     let (v, a, j) = maxima(pl, dt);
     let style = pl.style;
+    if a > p.accel * 1.01 || j > p.jerk * 1.01 {
+        for (k, m) in by_kind(pl, dt) {
+            eprintln!("{style:?} {k:?}: {m:?}");
+        }
+    }
     prop_assert!(v <= p.move_speed * 1.01, "{style:?}: speed {v} > {}", p.move_speed);
     prop_assert!(a <= p.accel * 1.01, "{style:?}: acceleration {a} > {}", p.accel);
     prop_assert!(j <= p.jerk * 1.01, "{style:?}: jerk {j} > {}", p.jerk);
