@@ -427,6 +427,69 @@ fn circle_profile(len: f64, (v0, vmax, v1): (f64, f64, f64), k: f64, a: f64, j: 
     Profile::s_curve(len, v0, vp, v1, at.max(1e-3 * a), jt)
 }
 
+/// Profiles run one after the other (each ends at the speed the next starts with).
+fn concat(parts: &[Profile]) -> Profile {
+    let mut rows = Vec::new();
+    let (mut t, mut x) = (0.0, 0.0);
+    for pr in parts {
+        for r in &pr.phases[..pr.phases.len() - 1] {
+            rows.push([r[0] + t, r[1] + x, r[2], r[3], r[4]]);
+        }
+        t += pr.duration();
+        x += pr.len;
+    }
+    let v1 = parts.last().map_or(0.0, |p| p.v1);
+    rows.push([t, x, v1, 0.0, 0.0]);
+    Profile { phases: rows, len: x, v0: parts.first().map_or(0.0, |p| p.v0), v1 }
+}
+
+/// A transfer that turns near its ends and runs nearly straight in between: the first and last
+/// share `end` of the length at a bend speed `u`, the middle through the highest plateau that fits
+/// (tangential limits 0.8·a, 0.8·j); the highest `u` the full check admits (12 steps down from
+/// `vmax`, then 8 bisection steps).
+fn three_level(
+    g: &CurveGrid,
+    len: f64,
+    (v0, vmax, v1): (f64, f64, f64),
+    vlo: f64,
+    (a, j): (f64, f64),
+    end: f64,
+) -> Option<Profile> {
+    let (at, jt) = (0.8 * a, 0.8 * j);
+    let (l1, l2) = (end * len, (1.0 - 2.0 * end) * len);
+    let build = |u: f64| {
+        concat(&[
+            Profile::s_curve(l1, v0, u, u, at, jt),
+            Profile::s_curve(l2, u, vmax, u, at, jt),
+            Profile::s_curve(l1, u, u, v1, at, jt),
+        ])
+    };
+    let ok = |u: f64| Some(build(u)).filter(|pr| g.admits(pr, vmax, a, j));
+    let steps = 12;
+    let mut prev_bad = None;
+    for k in 0..=steps {
+        let u = vmax - (vmax - vlo) * k as f64 / steps as f64;
+        if let Some(pr) = ok(u) {
+            let (mut l, mut best) = (u, pr);
+            if let Some(mut h) = prev_bad {
+                for _ in 0..8 {
+                    let m = 0.5 * (l + h);
+                    match ok(m) {
+                        Some(p) => {
+                            best = p;
+                            l = m;
+                        }
+                        None => h = m,
+                    }
+                }
+            }
+            return Some(best);
+        }
+        prev_bad = Some(u);
+    }
+    None
+}
+
 /// Profile from (duration, jerk) phases starting at `v0` with zero acceleration.
 fn from_phases(len: f64, v0: f64, v1: f64, phases: &[(f64, f64)]) -> Profile {
     let mut rows = Vec::with_capacity(phases.len() + 1);
@@ -594,18 +657,25 @@ fn curve_profile(
         (false, false) => 0.0,
     };
     let vlo = if slow > 0.0 { floor * slow } else { 1e-3 * vmax };
-    if let Some(pr) = plateau_profile(g, len, (v0, vmax, v1), vlo, a, j) {
-        return Some(pr);
+    // windowed plateaus follow the curvature closely but change speed window by window; one
+    // plateau over the whole move reaches a much higher top speed on a long transfer whose
+    // bends are near its ends: the faster of the two
+    let mut best = plateau_profile(g, len, (v0, vmax, v1), vlo, a, j);
+    for end in [0.12, 0.25] {
+        if let Some(pr) = three_level(g, len, (v0, vmax, v1), vlo, (a, j), end) {
+            if best.as_ref().is_none_or(|b| pr.duration() < b.duration()) {
+                best = Some(pr);
+            }
+        }
     }
-    let mut best: Option<Profile> = None;
-    for share in [0.9, 0.7, 0.5, 0.3] {
+    for share in [0.9, 0.6, 0.3] {
         let (at, jt) = (a * share, j * share);
         let ok = |vp: f64| Profile::with_peak(len, v0, vp, v1, at, jt).filter(|pr| g.admits(pr, vmax, a, j));
         let found = match ok(vmax) {
             Some(pr) => Some(pr),
             None => {
                 // the highest admissible plateau: from the lowest one that is admitted
-                let steps = 24;
+                let steps = 12;
                 let mut lo_ok = None;
                 let mut hi_bad = vmax;
                 for k in 0..=steps {
@@ -621,7 +691,7 @@ fn curve_profile(
                 }
                 lo_ok.map(|(mut l, mut pr)| {
                     let mut h = hi_bad;
-                    for _ in 0..20 {
+                    for _ in 0..12 {
                         let m = 0.5 * (l + h);
                         match ok(m) {
                             Some(p) => {
@@ -967,7 +1037,7 @@ fn transfer(
     // at limits too low for the geometry (a tight turn at a low jerk) the bend is taken slower:
     // first down to half the slower end speed, then to a tenth, then to 1 %
     'floors: for floor in [0.5, 0.1, 0.01] {
-        for stretch in [0.5, 0.8, 1.2, 1.8, 2.7, 4.0, 6.0] {
+        for stretch in [0.25, 0.5, 0.8, 1.2, 1.8, 2.7, 4.0, 6.0] {
             if stretch > 2.0 && best.is_some() {
                 break 'floors;
             }
