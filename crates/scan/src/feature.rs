@@ -110,6 +110,11 @@ impl Default for Params {
 /// in 75 ms — a gentle value for a bridge CMM; files written before the key existed get it.
 pub const DEFAULT_JERK: f64 = 20_000.0;
 
+/// Largest centripetal acceleration of a circle scan as a share of `accel_mm_s2`.
+pub const MAX_SCAN_ACCEL_SHARE: f64 = 0.6;
+/// Largest centripetal jerk (v³/r²) of a circle scan as a share of `jerk_mm_s3`.
+pub const MAX_SCAN_JERK_SHARE: f64 = 0.25;
+
 /// Tolerance on |axis| − 1 and |normal| − 1.
 pub const UNIT_TOL: f64 = 1e-6;
 
@@ -199,6 +204,22 @@ impl Feature {
                     return Err(bad(format!(
                         "bore radius {radius} mm is not larger than the tip radius {} mm",
                         p.tip_radius
+                    )));
+                }
+                // the scan runs at constant speed on a circle of this radius: its centripetal
+                // acceleration and jerk must leave room within the limits for the bends that join
+                // it (the planner's own share of the limits for constant-curvature moves)
+                let r = self.metric(p.tip_radius - p.deflection);
+                let (v, k) = (p.scan_speed, 1.0 / r.max(1e-9));
+                let (acc, jerk) = (v * v * k, v.powi(3) * k * k);
+                if acc > MAX_SCAN_ACCEL_SHARE * p.accel || jerk > MAX_SCAN_JERK_SHARE * p.jerk {
+                    return Err(bad(format!(
+                        "scan_speed_mm_s {v} is too fast for this circle: on its {r:.3} mm scan path \
+                         the centripetal acceleration is {acc:.0} mm/s² (at most {:.0}, 60 % of \
+                         accel_mm_s2) and the jerk {jerk:.0} mm/s³ (at most {:.0}, 25 % of \
+                         jerk_mm_s3); lower the scan speed",
+                        MAX_SCAN_ACCEL_SHARE * p.accel,
+                        MAX_SCAN_JERK_SHARE * p.jerk
                     )));
                 }
             }

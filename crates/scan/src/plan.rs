@@ -657,9 +657,10 @@ fn curve_profile(
         (false, false) => 0.0,
     };
     let vlo = if slow > 0.0 { floor * slow } else { 1e-3 * vmax };
-    // windowed plateaus follow the curvature closely but change speed window by window; one
-    // plateau over the whole move reaches a much higher top speed on a long transfer whose
-    // bends are near its ends: the faster of the two
+    // windowed plateaus follow the curvature closely but change speed window by window; three
+    // levels (bend, straight middle, bend) reach a much higher top speed on a long transfer
+    // whose bends are near its ends: the faster of the two; one plateau over the whole move
+    // when neither keeps the limits
     let mut best = plateau_profile(g, len, (v0, vmax, v1), vlo, a, j);
     for end in [0.12, 0.25] {
         if let Some(pr) = three_level(g, len, (v0, vmax, v1), vlo, (a, j), end) {
@@ -667,6 +668,9 @@ fn curve_profile(
                 best = Some(pr);
             }
         }
+    }
+    if best.is_some() {
+        return best;
     }
     for share in [0.9, 0.6, 0.3] {
         let (at, jt) = (a * share, j * share);
@@ -1048,6 +1052,11 @@ fn transfer(
                 f,
                 tip,
             );
+            // a carrier that nearly stalls (|dP/dλ| far below its mean) has a kink narrower than
+            // the curvature grid resolves: not a candidate
+            if (0..=256).any(|k| seg.rate(k as f64 / 256.0, f, tip) < 0.1 * seg.len) {
+                continue;
+            }
             match seg.profile_with_floor(f, tip, speeds, p, floor) {
                 Some(pr) if best.as_ref().is_none_or(|s| pr.duration() < s.duration()) => {
                     best = Some(Segment { profile: pr, ..seg });

@@ -247,7 +247,7 @@ fn the_check_catches_a_plan_above_the_limits() {
 /// release run at scanning speed on the surface, and the settle path bends the motion from the
 /// approach line into the surface within the penetration `deflection + overshoot`.
 #[test]
-#[ignore = "known gap: the settle and release bends exceed the limits at 40 mm/s (see docs/scanning.md)"]
+#[ignore = "known gap: the settle and release bends exceed the limits at 40 mm/s (docs/performance-scan.md)"]
 fn every_blended_segment_keeps_the_limits() {
     let s = truepos_sim::scenario::scan::scenario(11, 8);
     let (fs, _, p) = truepos_cell::scan_scenario::program(&s);
