@@ -206,6 +206,13 @@ impl Feature {
                         p.tip_radius
                     )));
                 }
+                if *side == Side::Inside && *radius <= p.tip_radius + p.clearance {
+                    return Err(bad(format!(
+                        "bore radius {radius} mm is not larger than tip_radius_mm + clearance_mm ({} mm): \
+                         the approach would start and the release end beyond the bore's axis",
+                        p.tip_radius + p.clearance
+                    )));
+                }
                 // the scan runs at constant speed on a circle of this radius: its centripetal
                 // acceleration and jerk must leave room within the limits for the bends that join
                 // it (the planner's own share of the limits for constant-curvature moves)

@@ -376,7 +376,11 @@ impl CurveGrid {
     /// The distance along the curve of the first sample where `pr` breaks a limit.
     fn violation(&self, pr: &Profile, vmax: f64, a: f64, j: f64) -> Option<f64> {
         let dur = pr.duration();
-        let n = ((dur / 1e-3).ceil() as usize).clamp(200, 20_000);
+        // 1 ms, or one grid step at the profile's top speed when that is shorter (a fast move
+        // passes the curvature's narrow peaks between 1 ms samples)
+        let vtop = pr.phases.iter().map(|r| r[2]).fold(pr.v0.max(pr.v1), f64::max);
+        let step = if vtop > 0.0 { (self.ds / vtop).min(1e-3) } else { 1e-3 };
+        let n = ((dur / step).ceil() as usize).clamp(200, 40_000);
         let mut times: Vec<f64> = (0..=n).map(|k| dur * k as f64 / n as f64).collect();
         for r in &pr.phases {
             times.push(r[0]);
@@ -453,18 +457,22 @@ fn three_level(
     (v0, vmax, v1): (f64, f64, f64),
     vlo: f64,
     (a, j): (f64, f64),
-    end: f64,
+    (end, early): (f64, bool),
 ) -> Option<Profile> {
     let (at, jt) = (0.8 * a, 0.8 * j);
     let (l1, l2) = (end * len, (1.0 - 2.0 * end) * len);
+    // `early`: into the bend speed right away and out of it only at the very end (where the
+    // transfer straightens into the approach); otherwise each end part keeps the faster of its
+    // two speeds as long as it can
     let build = |u: f64| {
-        concat(&[
-            Profile::s_curve(l1, v0, u, u, at, jt),
-            Profile::s_curve(l2, u, vmax, u, at, jt),
-            Profile::s_curve(l1, u, u, v1, at, jt),
-        ])
+        let ends = if early {
+            (Profile::with_peak(l1, v0, u, u, at, jt)?, Profile::with_peak(l1, u, u, v1, at, jt)?)
+        } else {
+            (Profile::s_curve(l1, v0, u, u, at, jt), Profile::s_curve(l1, u, u, v1, at, jt))
+        };
+        Some(concat(&[ends.0, Profile::s_curve(l2, u, vmax, u, at, jt), ends.1]))
     };
-    let ok = |u: f64| Some(build(u)).filter(|pr| g.admits(pr, vmax, a, j));
+    let ok = |u: f64| build(u).filter(|pr| g.admits(pr, vmax, a, j));
     let steps = 12;
     let mut prev_bad = None;
     for k in 0..=steps {
@@ -659,20 +667,19 @@ fn curve_profile(
     let vlo = if slow > 0.0 { floor * slow } else { 1e-3 * vmax };
     // windowed plateaus follow the curvature closely but change speed window by window; three
     // levels (bend, straight middle, bend) reach a much higher top speed on a long transfer
-    // whose bends are near its ends: the faster of the two; one plateau over the whole move
-    // when neither keeps the limits
+    // whose bends are near its ends; one plateau over the whole move suits short transfers:
+    // the fastest of them
     let mut best = plateau_profile(g, len, (v0, vmax, v1), vlo, a, j);
-    for end in [0.12, 0.25] {
-        if let Some(pr) = three_level(g, len, (v0, vmax, v1), vlo, (a, j), end) {
+    for shape in [(0.12, true), (0.25, true), (0.12, false), (0.25, false)] {
+        if let Some(pr) = three_level(g, len, (v0, vmax, v1), vlo, (a, j), shape) {
             if best.as_ref().is_none_or(|b| pr.duration() < b.duration()) {
                 best = Some(pr);
             }
         }
     }
-    if best.is_some() {
-        return best;
-    }
-    for share in [0.9, 0.6, 0.3] {
+    // (with fewer shares of the limits when one of the others already keeps them)
+    let shares: &[f64] = if best.is_some() { &[0.9, 0.5] } else { &[0.9, 0.6, 0.3] };
+    for &share in shares {
         let (at, jt) = (a * share, j * share);
         let ok = |vp: f64| Profile::with_peak(len, v0, vp, v1, at, jt).filter(|pr| g.admits(pr, vmax, a, j));
         let found = match ok(vmax) {
@@ -1038,9 +1045,10 @@ fn transfer(
     let chord = (b - a).norm().max(1.0);
     let mut best: Option<Segment> = None;
     let mut fallback: Option<Segment> = None;
+    let mut kinked: Option<(f64, Segment)> = None;
     // at limits too low for the geometry (a tight turn at a low jerk) the bend is taken slower:
-    // first down to half the slower end speed, then to a tenth, then to 1 %
-    'floors: for floor in [0.5, 0.1, 0.01] {
+    // first down to half the slower end speed, then to a tenth, 1 %, 0.1 %
+    'floors: for floor in [0.5, 0.1, 0.01, 0.001] {
         for stretch in [0.25, 0.5, 0.8, 1.2, 1.8, 2.7, 4.0, 6.0] {
             if stretch > 2.0 && best.is_some() {
                 break 'floors;
@@ -1052,9 +1060,14 @@ fn transfer(
                 f,
                 tip,
             );
-            // a carrier that nearly stalls (|dP/dλ| far below its mean) has a kink narrower than
-            // the curvature grid resolves: not a candidate
-            if (0..=256).any(|k| seg.rate(k as f64 / 256.0, f, tip) < 0.1 * seg.len) {
+            // a carrier that nearly stalls (|dP/dλ| far below its mean) or bends tighter than
+            // 1 mm radius has a kink narrower than the curvature grid resolves: not a candidate
+            let kmax = max_curvature(&seg.geom);
+            if (0..=256).any(|k| seg.rate(k as f64 / 256.0, f, tip) < 0.1 * seg.len) || kmax > 1.0 {
+                // the least kinked one is kept for the case that no candidate keeps the limits
+                if kinked.as_ref().is_none_or(|(k, _)| kmax < *k) {
+                    kinked = Some((kmax, seg));
+                }
                 continue;
             }
             match seg.profile_with_floor(f, tip, speeds, p, floor) {
@@ -1070,9 +1083,34 @@ fn transfer(
             break;
         }
     }
+    // no candidate keeps the limits (a known gap, see docs/performance-scan.md): the first
+    // smooth carrier, else the least kinked one, timed as well as the curve allows
+    let fallback = fallback.or(kinked.map(|(_, s)| s));
     best.or_else(|| fallback.map(|s| s.timed(f, tip, speeds, p))).unwrap_or_else(|| {
         Segment::new(SegmentKind::Transfer, i, Geom::Line { a, b }, f, tip).timed(f, tip, speeds, p)
     })
+}
+
+/// Largest curvature (1/mm) of a quintic carrier, from its exact derivatives at 1024 steps of λ
+/// (0 for other carriers).
+fn max_curvature(g: &Geom) -> f64 {
+    let Geom::Quintic { p, m, c } = g else {
+        return 0.0;
+    };
+    let q = quintic_coeffs(p, m, c);
+    (0..=1024)
+        .map(|k| {
+            let l = k as f64 / 1024.0;
+            let d1 = q[1] + (q[2] * 2.0 + (q[3] * 3.0 + (q[4] * 4.0 + q[5] * (5.0 * l)) * l) * l) * l;
+            let d2 = q[2] * 2.0 + (q[3] * 6.0 + (q[4] * 12.0 + q[5] * (20.0 * l)) * l) * l;
+            let r = d1.norm();
+            if r > 1e-12 {
+                d1.cross(&d2).norm() / r.powi(3)
+            } else {
+                f64::INFINITY
+            }
+        })
+        .fold(0.0, f64::max)
 }
 
 /// Distance a jerk-limited stop from `v` needs at half the limits (room for the final stop).

@@ -236,10 +236,13 @@ mod props {
 #[test]
 fn a_circle_too_tight_for_the_scan_speed_is_refused() {
     let p = Params { scan_speed: 48.0, accel: 300.0, jerk: 2000.0, ..Params::default() };
-    // 4 mm bore: scan path radius 4 − 1.5 + 0.3 = 2.8 mm, 48²/2.8 = 823 mm/s² > 0.6 · 300
-    let e = validate(&[circle("b0", 4.0, Vector3::z(), Side::Inside)], &p).unwrap_err().to_string();
+    // 5 mm bore: scan path radius 5 − 1.5 + 0.3 = 3.8 mm, 48²/3.8 = 606 mm/s² > 0.6 · 300
+    let e = validate(&[circle("b0", 5.0, Vector3::z(), Side::Inside)], &p).unwrap_err().to_string();
     assert!(e.contains("b0") && e.contains("scan_speed_mm_s") && e.contains("centripetal"), "{e}");
-    // the same bore at 10 mm/s: 35.7 mm/s² and 127 mm/s³, within both shares
-    let slow = Params { scan_speed: 10.0, ..p };
-    validate(&[circle("b0", 4.0, Vector3::z(), Side::Inside)], &slow).unwrap();
+    // the same bore at 10 mm/s: 26 mm/s² and 69 mm/s³, within both shares
+    let slow = Params { scan_speed: 10.0, ..p.clone() };
+    validate(&[circle("b0", 5.0, Vector3::z(), Side::Inside)], &slow).unwrap();
+    // a 4 mm bore: the approach would start (3 mm clearance from the 1.5 mm tip) past its axis
+    let e = validate(&[circle("b0", 4.0, Vector3::z(), Side::Inside)], &slow).unwrap_err().to_string();
+    assert!(e.contains("b0") && e.contains("clearance_mm"), "{e}");
 }
