@@ -1023,9 +1023,16 @@ pub fn home(features: &[Feature], p: &Params) -> Point3 {
 /// (arriving along `db` on a straight line, zero curvature): a quintic Hermite with end
 /// derivatives of length `k`, so position, direction and curvature — and with them velocity and
 /// acceleration — are continuous at both joins.
-fn quintic_between(a: Point3, da: Vector3, ka: Vector3, b: Point3, db: Vector3, k: f64) -> Geom {
+fn quintic_between(
+    a: Point3,
+    da: Vector3,
+    ka: Vector3,
+    b: Point3,
+    db: Vector3,
+    (k0, k1): (f64, f64),
+) -> Geom {
     // d²P/dλ² = κ·|dP/dλ|² along the curvature vector (no tangential part) at the start.
-    Geom::Quintic { p: [a, b], m: [da * k, db * k], c: [ka * (k * k), Vector3::zeros()] }
+    Geom::Quintic { p: [a, b], m: [da * k0, db * k1], c: [ka * (k0 * k0), Vector3::zeros()] }
 }
 
 /// The fastest transfer from `start` = (point, direction, curvature vector) to `end` = (point,
@@ -1049,14 +1056,29 @@ fn transfer(
     // at limits too low for the geometry (a tight turn at a low jerk) the bend is taken slower:
     // first down to half the slower end speed, then to a tenth, 1 %, 0.1 %
     'floors: for floor in [0.5, 0.1, 0.01, 0.001] {
-        for stretch in [0.25, 0.5, 0.8, 1.2, 1.8, 2.7, 4.0, 6.0] {
-            if stretch > 2.0 && best.is_some() {
+        // end-derivative lengths in chords (start, end); the unequal pairs swing wider at one
+        // end only (a reversal into an approach that faces back), tried when the equal ones fail
+        for (s0, s1) in [
+            (0.25f64, 0.25f64),
+            (0.5, 0.5),
+            (0.8, 0.8),
+            (1.2, 1.2),
+            (1.8, 1.8),
+            (2.7, 2.7),
+            (0.5, 2.5),
+            (2.5, 0.5),
+            (1.0, 4.0),
+            (4.0, 1.0),
+            (4.0, 4.0),
+            (6.0, 6.0),
+        ] {
+            if s0.max(s1) > 2.0 && best.is_some() {
                 break 'floors;
             }
             let seg = Segment::new(
                 SegmentKind::Transfer,
                 i,
-                quintic_between(a, da, ka, b, db, chord * stretch),
+                quintic_between(a, da, ka, b, db, (chord * s0, chord * s1)),
                 f,
                 tip,
             );
