@@ -7,8 +7,11 @@
 //! the e-stop, switch on, home) — truepos itself never does.
 //!
 //! Only one LinuxCNC can run on a machine (a second start kills the first): every
-//! [`SimLinuxCnc`] holds a process-wide lock for its lifetime, and dropping it (also on a
-//! panic) stops LinuxCNC: SIGTERM to its `linuxcncrsh` (the `linuxcnc` script then runs its own
+//! [`SimLinuxCnc`] holds, for its lifetime, a process-wide mutex and a cross-process
+//! [`MachineLock`] (an exclusive `flock` on `truepos-linuxcnc.lock` in the system temp
+//! directory), so test binaries that cargo runs in parallel start LinuxCNC one after the other;
+//! the lock is released when the holder ends, even when it is killed. Dropping a [`SimLinuxCnc`]
+//! (also on a panic) stops LinuxCNC: SIGTERM to its `linuxcncrsh` (the `linuxcnc` script then runs its own
 //! cleanup), then SIGTERM/SIGKILL to the process group it was started in.
 //!
 //! When LinuxCNC is not installed or cannot start, [`SimLinuxCnc::start`] returns
@@ -28,6 +31,71 @@ const HAL: &str = include_str!("../tests/lcnc/truepos_sim.hal");
 const TBL: &str = include_str!("../tests/lcnc/sim_mm.tbl");
 
 static ONE_LINUXCNC: Mutex<()> = Mutex::new(());
+
+/// How long [`SimLinuxCnc::start`] waits for another test process's LinuxCNC to finish.
+pub const LOCK_WAIT: Duration = Duration::from_secs(1200);
+
+/// The cross-process lock file every [`SimLinuxCnc`] holds while its LinuxCNC runs.
+pub fn lock_path() -> PathBuf {
+    std::env::temp_dir().join("truepos-linuxcnc.lock")
+}
+
+/// An exclusive advisory lock (`flock(LOCK_EX)`) on a file, held until dropped. The kernel
+/// releases it when the holder's file is closed, also when the process dies, so a killed test
+/// never leaves it behind.
+#[derive(Debug)]
+pub struct MachineLock {
+    _file: fs::File,
+    path: PathBuf,
+}
+
+impl MachineLock {
+    /// Take the lock on `path` (created if missing, readable and writable by everyone so that
+    /// test runs as different users share it), polling every 50 ms for at most `timeout`.
+    /// `on_wait` is called once if the lock is busy at the first attempt.
+    pub fn acquire(path: &Path, timeout: Duration, on_wait: impl FnOnce()) -> Result<MachineLock, String> {
+        use std::os::unix::fs::OpenOptionsExt;
+        use std::os::unix::io::AsRawFd;
+        let file = fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .mode(0o666)
+            .open(path)
+            .map_err(|e| format!("cannot open the lock file {}: {e}", path.display()))?;
+        // The mode above is filtered by the umask: widen it (best effort; the owner may differ).
+        let _ = fs::set_permissions(path, std::os::unix::fs::PermissionsExt::from_mode(0o666));
+        let t = Instant::now();
+        let mut on_wait = Some(on_wait);
+        loop {
+            // SAFETY: flock on a file descriptor this function owns (open for its lifetime).
+            let r = unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) };
+            if r == 0 {
+                return Ok(MachineLock { _file: file, path: path.to_path_buf() });
+            }
+            let err = std::io::Error::last_os_error();
+            if err.raw_os_error() != Some(libc::EWOULDBLOCK) && err.raw_os_error() != Some(libc::EINTR) {
+                return Err(format!("cannot lock {}: {err}", path.display()));
+            }
+            if let Some(f) = on_wait.take() {
+                f();
+            }
+            if t.elapsed() >= timeout {
+                return Err(format!(
+                    "{} is still locked by another process after {:.0} s",
+                    path.display(),
+                    timeout.as_secs_f64()
+                ));
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+}
 
 /// Why the simulated LinuxCNC is not available (the test is skipped, loudly).
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -63,6 +131,9 @@ pub struct SimLinuxCnc {
     sphere: SphereTruth,
     /// The user and the runuser program when running as root.
     run_as: Option<(String, PathBuf)>,
+    // Dropped after `Drop::drop` has stopped LinuxCNC: fields drop in declaration order, the
+    // cross-process lock before the in-process mutex.
+    _machine_lock: MachineLock,
     _exclusive: MutexGuard<'static, ()>,
 }
 
@@ -233,7 +304,8 @@ impl Operator {
 
 impl SimLinuxCnc {
     /// Start LinuxCNC with the test configuration and the given sphere; waits (≤ 30 s) until
-    /// linuxcncrsh greets. Blocks while another [`SimLinuxCnc`] of this process runs.
+    /// linuxcncrsh greets. Blocks while another [`SimLinuxCnc`] of this process, or of another
+    /// process ([`MachineLock`] on [`lock_path`], at most [`LOCK_WAIT`]), runs.
     pub fn start(sphere: SphereTruth) -> Result<SimLinuxCnc, Unavailable> {
         let guard = ONE_LINUXCNC.lock().unwrap_or_else(|p| p.into_inner());
         let un = |s: String| Unavailable(s);
@@ -254,6 +326,14 @@ impl SimLinuxCnc {
         } else {
             None
         };
+        let path = lock_path();
+        let machine_lock = MachineLock::acquire(&path, LOCK_WAIT, || {
+            eprintln!(
+                "harness: another test process runs LinuxCNC ({} is locked): waiting for it",
+                path.display()
+            )
+        })
+        .map_err(un)?;
         reap_orphans();
         // Another LinuxCNC (not ours) would be killed by our start: wait for it, then give up.
         let lock = std::env::temp_dir().join("linuxcnc.lock");
@@ -312,7 +392,15 @@ impl SimLinuxCnc {
             .stderr(Stdio::from(log2));
         let child = cmd.spawn().map_err(|e| un(format!("cannot start linuxcnc: {e}")))?;
         let run_as = run_as.map(|(user, _, _, runuser)| (user, runuser));
-        let mut sim = SimLinuxCnc { child: Some(child), dir, port, sphere, run_as, _exclusive: guard };
+        let mut sim = SimLinuxCnc {
+            child: Some(child),
+            dir,
+            port,
+            sphere,
+            run_as,
+            _machine_lock: machine_lock,
+            _exclusive: guard,
+        };
         sim.wait_for_greeting()?;
         Ok(sim)
     }
@@ -466,5 +554,108 @@ mod tests {
         let t = set_key("[A]\nDISPLAY = x\nDISPLAY_X = 3\nOFFSET_X = 1\n", "DISPLAY", "linuxcncrsh --port 9");
         assert_eq!(t, "[A]\nDISPLAY = linuxcncrsh --port 9\nDISPLAY_X = 3\nOFFSET_X = 1\n");
         assert!(INI.contains("TRIP_RADIUS") && HAL.contains("motion.probe-input") && TBL.starts_with("T1"));
+    }
+
+    /// Not a test on its own: the other process of the lock tests (run by them with
+    /// `TRUEPOS_TEST_LOCK_HOLD` set; without it, it returns at once).
+    #[test]
+    fn lock_holder_child() {
+        let Some(path) = std::env::var_os("TRUEPOS_TEST_LOCK_HOLD") else { return };
+        let path = PathBuf::from(path);
+        let lock = MachineLock::acquire(&path, Duration::from_secs(30), || {}).unwrap();
+        fs::write(path.with_extension("held"), "").unwrap();
+        std::thread::sleep(Duration::from_millis(1500));
+        fs::write(path.with_extension("releasing"), "").unwrap();
+        drop(lock);
+    }
+
+    fn spawn_holder(path: &Path) -> Child {
+        Command::new(std::env::current_exe().unwrap())
+            .args(["--exact", "harness::tests::lock_holder_child", "--nocapture", "--test-threads=1"])
+            .env("TRUEPOS_TEST_LOCK_HOLD", path)
+            .stdout(Stdio::null())
+            .spawn()
+            .unwrap()
+    }
+
+    fn wait_for(file: &Path) {
+        let t = Instant::now();
+        while !file.exists() {
+            assert!(t.elapsed() < Duration::from_secs(30), "the other process never took the lock");
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    #[test]
+    fn a_second_process_waits_for_the_lock_until_the_first_releases_it() {
+        let dir = std::env::temp_dir().join(format!("truepos-lock-test-{}-a", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("lcnc.lock");
+        let mut child = spawn_holder(&path);
+        wait_for(&path.with_extension("held"));
+        // Busy: a short attempt fails and says so.
+        let e = MachineLock::acquire(&path, Duration::from_millis(200), || {}).unwrap_err();
+        assert!(e.contains("still locked"), "{e}");
+        // A patient one waits until the other process has released it.
+        let t = Instant::now();
+        let mut waited = false;
+        let lock = MachineLock::acquire(&path, Duration::from_secs(30), || waited = true).unwrap();
+        let secs = t.elapsed().as_secs_f64();
+        assert!(waited);
+        assert!(path.with_extension("releasing").exists(), "lock granted while the other process held it");
+        // The holder keeps it 1.5 s after signalling; 0.2 s of it already spent above.
+        assert!(secs > 0.5, "waited only {secs} s");
+        eprintln!("lock test: second process waited {secs:.2} s for the first to release the lock");
+        drop(lock);
+        assert!(child.wait().unwrap().success());
+        let _ = fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_killed_holder_releases_the_lock() {
+        let dir = std::env::temp_dir().join(format!("truepos-lock-test-{}-b", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("lcnc.lock");
+        let mut child = spawn_holder(&path);
+        wait_for(&path.with_extension("held"));
+        assert!(MachineLock::acquire(&path, Duration::from_millis(100), || {}).is_err());
+        child.kill().unwrap();
+        child.wait().unwrap();
+        let t = Instant::now();
+        let lock = MachineLock::acquire(&path, Duration::from_secs(5), || {}).unwrap();
+        assert!(t.elapsed() < Duration::from_secs(1), "{:?}", t.elapsed());
+        assert!(!path.with_extension("releasing").exists());
+        drop(lock);
+        let _ = fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn threads_contending_for_the_lock_are_never_inside_together() {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        use std::sync::Arc;
+        let dir = std::env::temp_dir().join(format!("truepos-lock-test-{}-c", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("lcnc.lock");
+        let inside = Arc::new(AtomicUsize::new(0));
+        let max = Arc::new(AtomicUsize::new(0));
+        let hs: Vec<_> = (0..4)
+            .map(|_| {
+                let (path, inside, max) = (path.clone(), inside.clone(), max.clone());
+                std::thread::spawn(move || {
+                    for _ in 0..3 {
+                        let _l = MachineLock::acquire(&path, Duration::from_secs(30), || {}).unwrap();
+                        let n = inside.fetch_add(1, Ordering::SeqCst) + 1;
+                        max.fetch_max(n, Ordering::SeqCst);
+                        std::thread::sleep(Duration::from_millis(20));
+                        inside.fetch_sub(1, Ordering::SeqCst);
+                    }
+                })
+            })
+            .collect();
+        for h in hs {
+            h.join().unwrap();
+        }
+        assert_eq!(max.load(Ordering::SeqCst), 1);
+        let _ = fs::remove_dir_all(&dir);
     }
 }
