@@ -11,12 +11,16 @@
 //! move that touches anything stops at the trigger and is an error, as on a CNC ("probe tripped
 //! during non-probe move").
 //!
+//! Besides spheres, the table can carry plates with bores ([`truepos_sim::artefact::Part`]), the
+//! holes that in-spindle inspection probes ([`MachineToolConfig::with_holes`]).
+//!
 //! Entry points: [`MachineToolConfig`] (`Default`: a 25 mm sphere at (120, 45, 30) and a 3 mm
-//! ball), [`VirtualMachineTool::new`], [`VirtualMachineTool::truth`].
+//! ball), [`MachineToolConfig::near`], [`MachineToolConfig::with_holes`],
+//! [`VirtualMachineTool::new`], [`VirtualMachineTool::truth`].
 
 use truepos_device::{DeviceError, DeviceInfo, ProbeHit, ProbeRequest, ProbingMachine};
 use truepos_math::{Point3, Vector3};
-use truepos_sim::artefact::{Artefact, Sphere};
+use truepos_sim::artefact::{Artefact, ConvexPolyhedron, Cylinder, Part, Sphere};
 use truepos_sim::noise::{self, ParamError, SimRng};
 use truepos_sim::touch::TouchProbe;
 
@@ -28,6 +32,8 @@ pub struct MachineToolConfig {
     pub seed: u64,
     /// Reference spheres: centre (machine frame, mm) and radius (mm).
     pub spheres: Vec<(Point3, f64)>,
+    /// Plates with bores (blocks minus cylindrical holes).
+    pub parts: Vec<Part>,
     /// The real stylus ball radius (the radius a request gives is only the plan's).
     pub tip_radius_mm: f64,
     pub pretravel_mm: f64,
@@ -48,6 +54,7 @@ impl Default for MachineToolConfig {
         MachineToolConfig {
             seed: 1,
             spheres: vec![(Point3::new(120.0, 45.0, 30.0), 12.5)],
+            parts: vec![],
             tip_radius_mm: 1.5,
             pretravel_mm: 0.0005,
             lobing_mm: 0.0,
@@ -78,6 +85,101 @@ impl MachineToolConfig {
             start_mm: centre + Vector3::new(0.0, 0.0, radius + tip_radius + 50.0),
             ..MachineToolConfig::default()
         }
+    }
+}
+
+/// A bore of [`MachineToolConfig::with_holes`] as it really is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrueHole {
+    /// Centre of the hole's top (mm).
+    pub top_mm: Point3,
+    pub diameter_mm: f64,
+}
+
+impl MachineToolConfig {
+    /// A machine with the given holes (nominal top centre, nominal diameter) as a real part has
+    /// them: each bore displaced by a seeded error of σ = 20 µm in X and Y, its diameter
+    /// σ = 5 µm off nominal, in a 30 mm thick plate (one per hole-top height, covering the holes
+    /// with a margin) whose top is at the hole tops. No sphere; the stylus ball has
+    /// `tip_radius`; the machine starts 50 mm above the first hole. Plates of different heights
+    /// that overlap in X and Y are refused (one would fill the other's holes).
+    pub fn with_holes(
+        seed: u64,
+        holes: &[(Point3, f64)],
+        tip_radius: f64,
+    ) -> Result<(MachineToolConfig, Vec<TrueHole>), String> {
+        let Some(first) = holes.first() else { return Err("no holes".into()) };
+        let mut rng = noise::stream(seed, 78);
+        let truth: Vec<TrueHole> = holes
+            .iter()
+            .map(|(c, d)| {
+                let e = noise::gaussian3(&mut rng, 0.02);
+                let dd = noise::gaussian(&mut rng, 0.005);
+                TrueHole { top_mm: Point3::new(c.x + e.x, c.y + e.y, c.z), diameter_mm: d + dd }
+            })
+            .collect();
+        // One plate per hole-top height (to 1 µm).
+        let mut levels: Vec<f64> = vec![];
+        for t in &truth {
+            if !levels.iter().any(|z| (z - t.top_mm.z).abs() < 1e-3) {
+                levels.push(t.top_mm.z);
+            }
+        }
+        let thickness = 30.0;
+        let mut parts = vec![];
+        let mut rects: Vec<(f64, f64, f64, f64)> = vec![];
+        for z in levels {
+            let mine: Vec<&TrueHole> = truth.iter().filter(|t| (t.top_mm.z - z).abs() < 1e-3).collect();
+            let margin = mine.iter().map(|t| t.diameter_mm).fold(0.0, f64::max) + 10.0;
+            let lo = |f: fn(&Point3) -> f64| {
+                mine.iter().map(|t| f(&t.top_mm)).fold(f64::INFINITY, f64::min) - margin
+            };
+            let hi = |f: fn(&Point3) -> f64| {
+                mine.iter().map(|t| f(&t.top_mm)).fold(f64::NEG_INFINITY, f64::max) + margin
+            };
+            let r = (lo(|p| p.x), hi(|p| p.x), lo(|p| p.y), hi(|p| p.y));
+            if rects.iter().any(|q| r.0 < q.1 && q.0 < r.1 && r.2 < q.3 && q.2 < r.3) {
+                return Err(format!(
+                    "holes at different heights (top z {z} mm and another) are too close in X and Y for one plate each"
+                ));
+            }
+            rects.push(r);
+            let block = ConvexPolyhedron::cuboid(
+                Point3::new(0.5 * (r.0 + r.1), 0.5 * (r.2 + r.3), z - 0.5 * thickness),
+                Vector3::new(0.5 * (r.1 - r.0), 0.5 * (r.3 - r.2), 0.5 * thickness),
+                truepos_math::Matrix3::identity(),
+            )
+            .map_err(|e| e.to_string())?;
+            let bores = mine
+                .iter()
+                .map(|t| {
+                    // Through the plate and beyond both faces.
+                    Cylinder::new(
+                        Point3::new(t.top_mm.x, t.top_mm.y, z - 0.5 * thickness),
+                        Vector3::z(),
+                        0.5 * t.diameter_mm,
+                        thickness + 20.0,
+                    )
+                })
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(|e| e.to_string())?;
+            parts.push(Part { block, bosses: vec![], bores });
+        }
+        let (lo, hi) = holes.iter().fold(
+            (Point3::from(Vector3::repeat(f64::INFINITY)), Point3::from(Vector3::repeat(f64::NEG_INFINITY))),
+            |(lo, hi), (c, _)| (lo.inf(c), hi.sup(c)),
+        );
+        let cfg = MachineToolConfig {
+            seed,
+            spheres: vec![],
+            parts,
+            tip_radius_mm: tip_radius,
+            travel_min_mm: lo - Vector3::repeat(500.0),
+            travel_max_mm: hi + Vector3::repeat(500.0),
+            start_mm: first.0 + Vector3::new(0.0, 0.0, 50.0),
+            ..MachineToolConfig::default()
+        };
+        Ok((cfg, truth))
     }
 }
 
@@ -117,12 +219,38 @@ impl VirtualMachineTool {
         &self.cfg
     }
 
-    /// First trigger on the straight move from `from` along unit `u` within `len`.
-    fn first_trigger(&self, from: &Point3, u: &Vector3, len: f64) -> Option<f64> {
+    fn artefacts(&self) -> impl Iterator<Item = &dyn Artefact> {
         self.spheres
             .iter()
-            .filter_map(|s| self.probe.probe_along(s as &dyn Artefact, from, u, len))
-            .map(|t| t.travel_mm)
+            .map(|s| s as &dyn Artefact)
+            .chain(self.cfg.parts.iter().map(|p| p as &dyn Artefact))
+    }
+
+    /// First trigger on the straight move from `from` along unit `u` within `len`.
+    ///
+    /// The probe's own search steps a fraction of its pre-travel at a time, far too fine for a
+    /// long positioning move: first sphere-trace (step by the clearance between the ball and
+    /// the nearest material, a lower bound of the distance for every artefact here) until the
+    /// ball is within a few µm of something, then let the probe search from there.
+    fn first_trigger(&self, from: &Point3, u: &Vector3, len: f64) -> Option<f64> {
+        let margin = self.cfg.pretravel_mm + self.cfg.lobing_mm.abs() + 0.002;
+        let r = self.cfg.tip_radius_mm;
+        let mut s0 = 0.0;
+        for _ in 0..1_000_000 {
+            let p = from + u * s0;
+            let gap = self.artefacts().map(|a| a.distance(&p) - r).fold(f64::INFINITY, f64::min);
+            if gap <= margin || s0 >= len {
+                break;
+            }
+            s0 += gap - 0.5 * margin;
+        }
+        if s0 >= len {
+            return None;
+        }
+        let start = from + u * s0;
+        self.artefacts()
+            .filter_map(|a| self.probe.probe_along(a, &start, u, len - s0))
+            .map(|t| s0 + t.travel_mm)
             .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.min(t))))
     }
 

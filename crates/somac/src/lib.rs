@@ -17,6 +17,8 @@
 //! - [`scale`]: the part's scale factor from its targets, with its uncertainty.
 //! - [`fusion`]: weighted fusion of several trackers' readings.
 //! - [`stats`]: hole true-position statistics and capability in ppm of the diagonal.
+//! - [`inspect`]: in-spindle probe inspection of the holes through any `ProbingMachine`
+//!   (position error and diameter per hole; `truepos somac inspect`).
 //!
 //! The virtual large gantry with trackers that implements these traits on the simulator lives
 //! in `truepos-cell` (`truepos_cell::gantry`); this crate never depends on the simulator.
@@ -24,6 +26,7 @@
 pub mod audit;
 pub mod device;
 pub mod fusion;
+pub mod inspect;
 pub mod params;
 pub mod run;
 pub mod scale;
