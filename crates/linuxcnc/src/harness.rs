@@ -1,6 +1,7 @@
 //! A simulated LinuxCNC for tests: [`SimLinuxCnc::start`] copies the test configuration
-//! (`tests/lcnc/`: a 3-axis machine with an ideal servo loop, a 1 ms servo period and a virtual
-//! reference sphere on the probe input) into a temporary directory owned by an unprivileged user
+//! (`tests/lcnc/`: a 3-axis machine with an ideal servo loop, a 1 ms servo period and, on the
+//! probe input, a virtual reference sphere ([`SphereTruth`]) and a plate with four bores
+//! ([`PlateTruth`])) into a temporary directory owned by an unprivileged user
 //! (LinuxCNC refuses to run as root; `TRUEPOS_LINUXCNC_USER`, default `lcnc`), picks a free
 //! loopback port for linuxcncrsh, starts `linuxcnc` headless in its own session and waits for
 //! linuxcncrsh to greet. [`SimLinuxCnc::arm`] does what an operator does at the machine (release
@@ -123,12 +124,54 @@ impl Default for SphereTruth {
     }
 }
 
+/// One vertical through bore of the virtual plate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoreTruth {
+    /// Axis position X, Y (mm).
+    pub center_xy_mm: [f64; 2],
+    pub diameter_mm: f64,
+}
+
+/// The virtual plate with four bores wired to the probe input (the HAL truth): the probe trips
+/// while the tip centre is inside the plate's box grown by the tip radius and not within
+/// `radius − tip radius` of a bore's axis. The HAL model has exactly four bores.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlateTruth {
+    /// The plate's material box (mm): X, Y extents and bottom, top Z.
+    pub x_mm: [f64; 2],
+    pub y_mm: [f64; 2],
+    pub z_mm: [f64; 2],
+    pub bores: [BoreTruth; 4],
+}
+
+impl Default for PlateTruth {
+    /// A 30 mm plate at X 200…320, Y −150…−50, top at Z 0 (clear of the sphere, of the machine's
+    /// home at the origin and of the somac test program's moves), with four nominally 10 mm
+    /// bores a few µm to tens of µm off the round nominal positions (230, −120), (260, −120),
+    /// (290, −80), (230, −80).
+    fn default() -> Self {
+        let b = |x: f64, y: f64, d: f64| BoreTruth { center_xy_mm: [x, y], diameter_mm: d };
+        PlateTruth {
+            x_mm: [200.0, 320.0],
+            y_mm: [-150.0, -50.0],
+            z_mm: [-30.0, 0.0],
+            bores: [
+                b(230.012, -119.991, 10.0),
+                b(260.0, -120.015, 10.012),
+                b(290.008, -80.0, 9.99),
+                b(229.985, -80.01, 10.004),
+            ],
+        }
+    }
+}
+
 /// A running simulated LinuxCNC (stopped on drop).
 pub struct SimLinuxCnc {
     child: Option<Child>,
     dir: PathBuf,
     port: u16,
     sphere: SphereTruth,
+    plate: PlateTruth,
     /// The user and the runuser program when running as root.
     run_as: Option<(String, PathBuf)>,
     // Dropped after `Drop::drop` has stopped LinuxCNC: fields drop in declaration order, the
@@ -307,6 +350,11 @@ impl SimLinuxCnc {
     /// linuxcncrsh greets. Blocks while another [`SimLinuxCnc`] of this process, or of another
     /// process ([`MachineLock`] on [`lock_path`], at most [`LOCK_WAIT`]), runs.
     pub fn start(sphere: SphereTruth) -> Result<SimLinuxCnc, Unavailable> {
+        SimLinuxCnc::start_with(sphere, PlateTruth::default())
+    }
+
+    /// [`SimLinuxCnc::start`] with another plate (the tip radius is the sphere's).
+    pub fn start_with(sphere: SphereTruth, plate: PlateTruth) -> Result<SimLinuxCnc, Unavailable> {
         let guard = ONE_LINUXCNC.lock().unwrap_or_else(|p| p.into_inner());
         let un = |s: String| Unavailable(s);
         let linuxcnc = find_program("linuxcnc")
@@ -364,6 +412,23 @@ impl SimLinuxCnc {
         ] {
             ini = set_key(&ini, k, &format!("{v}"));
         }
+        let tip = sphere.tip_radius_mm;
+        let mut plate_keys = vec![
+            ("TRIP_X_MIN".to_string(), plate.x_mm[0] - tip),
+            ("TRIP_X_MAX".to_string(), plate.x_mm[1] + tip),
+            ("TRIP_Y_MIN".to_string(), plate.y_mm[0] - tip),
+            ("TRIP_Y_MAX".to_string(), plate.y_mm[1] + tip),
+            ("TRIP_Z_MIN".to_string(), plate.z_mm[0] - tip),
+            ("TRIP_Z_MAX".to_string(), plate.z_mm[1] + tip),
+        ];
+        for (i, b) in plate.bores.iter().enumerate() {
+            plate_keys.push((format!("BORE{i}_OFFSET_X"), -b.center_xy_mm[0]));
+            plate_keys.push((format!("BORE{i}_OFFSET_Y"), -b.center_xy_mm[1]));
+            plate_keys.push((format!("BORE{i}_FREE_RADIUS"), 0.5 * b.diameter_mm - tip));
+        }
+        for (k, v) in plate_keys {
+            ini = set_key(&ini, &k, &format!("{v}"));
+        }
         fs::create_dir_all(&dir)
             .and_then(|_| write("truepos_sim.ini", &ini))
             .and_then(|_| write("truepos_sim.hal", HAL))
@@ -397,6 +462,7 @@ impl SimLinuxCnc {
             dir,
             port,
             sphere,
+            plate,
             run_as,
             _machine_lock: machine_lock,
             _exclusive: guard,
@@ -443,6 +509,10 @@ impl SimLinuxCnc {
 
     pub fn sphere(&self) -> SphereTruth {
         self.sphere
+    }
+
+    pub fn plate(&self) -> PlateTruth {
+        self.plate
     }
 
     /// The operator's part: release the e-stop, switch on, home every joint where it stands,
@@ -554,6 +624,31 @@ mod tests {
         let t = set_key("[A]\nDISPLAY = x\nDISPLAY_X = 3\nOFFSET_X = 1\n", "DISPLAY", "linuxcncrsh --port 9");
         assert_eq!(t, "[A]\nDISPLAY = linuxcncrsh --port 9\nDISPLAY_X = 3\nOFFSET_X = 1\n");
         assert!(INI.contains("TRIP_RADIUS") && HAL.contains("motion.probe-input") && TBL.starts_with("T1"));
+    }
+
+    #[test]
+    fn every_ini_value_the_hal_reads_exists_and_the_harness_rewrites_it() {
+        let mut n = 0;
+        for section in ["[PROBE_SPHERE]", "[PROBE_PLATE]"] {
+            for (at, _) in HAL.match_indices(section) {
+                let key: String = HAL[at + section.len()..]
+                    .chars()
+                    .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+                    .collect();
+                if key.is_empty() {
+                    continue; // the section named in a comment
+                }
+                assert!(
+                    INI.lines().any(|l| l.starts_with(&format!("{key} = "))),
+                    "{section}{key} not in the INI"
+                );
+                // The harness rewrites it: a changed value shows up.
+                assert_ne!(set_key(INI, &key, "12345.5"), INI, "{key}");
+                n += 1;
+            }
+        }
+        // 4 sphere values; 6 box limits and 3 values per bore.
+        assert_eq!(n, 4 + 6 + 4 * 3);
     }
 
     /// Not a test on its own: the other process of the lock tests (run by them with
