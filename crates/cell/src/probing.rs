@@ -11,6 +11,11 @@
 //! move that touches anything stops at the trigger and is an error, as on a CNC ("probe tripped
 //! during non-probe move").
 //!
+//! With rotary axes (`rotary`: a B swivel head, a C table) the machine is the head-offset
+//! contract's: positions are the NC's head reference point P, the tip centre is at
+//! `P + Ry(b)·R` (`head_offset_mm`), and what is on the table at `A` (C = 0) is at
+//! `O + Rz(c)·(A − O)` (`table_center_mm`).
+//!
 //! Besides spheres, the table can carry plates with bores ([`truepos_sim::artefact::Part`]), the
 //! holes that in-spindle inspection probes ([`MachineToolConfig::with_holes`]).
 //!
@@ -18,9 +23,10 @@
 //! ball), [`MachineToolConfig::near`], [`MachineToolConfig::with_holes`],
 //! [`VirtualMachineTool::new`], [`VirtualMachineTool::truth`].
 
-use truepos_device::{DeviceError, DeviceInfo, ProbeHit, ProbeRequest, ProbingMachine};
+use truepos_device::{DeviceError, DeviceInfo, ProbeHit, ProbeRequest, ProbingMachine, RotaryAxes};
+use truepos_math::{ry, rz, Matrix3};
 use truepos_math::{Point3, Vector3};
-use truepos_sim::artefact::{Artefact, ConvexPolyhedron, Cylinder, Part, Sphere};
+use truepos_sim::artefact::{Artefact, ConvexPolyhedron, Cylinder, Part, Sphere, SurfacePoint};
 use truepos_sim::noise::{self, ParamError, SimRng};
 use truepos_sim::touch::TouchProbe;
 
@@ -47,6 +53,13 @@ pub struct MachineToolConfig {
     pub travel_max_mm: Point3,
     /// Where the tip centre is at start.
     pub start_mm: Point3,
+    /// Rotary axes the machine has (default none).
+    pub rotary: RotaryAxes,
+    /// The head offset R: tip centre = P + Ry(b)·R, with P the position the machine reports
+    /// (default zero: P is the tip centre).
+    pub head_offset_mm: Vector3,
+    /// A point of the table's C axis (parallel to Z).
+    pub table_center_mm: Point3,
 }
 
 impl Default for MachineToolConfig {
@@ -63,6 +76,9 @@ impl Default for MachineToolConfig {
             travel_min_mm: Point3::new(-500.0, -500.0, -300.0),
             travel_max_mm: Point3::new(1000.0, 800.0, 500.0),
             start_mm: Point3::new(0.0, 0.0, 100.0),
+            rotary: RotaryAxes::default(),
+            head_offset_mm: Vector3::zeros(),
+            table_center_mm: Point3::origin(),
         }
     }
 }
@@ -183,6 +199,29 @@ impl MachineToolConfig {
     }
 }
 
+/// An artefact on the table as the reported position P sees it: the tip is at
+/// `P + shift` (the rotated head offset), the table turned by `turn` about the axis through `o`.
+#[derive(Debug, Clone, Copy)]
+struct Placed<'a> {
+    inner: &'a dyn Artefact,
+    shift: Vector3,
+    turn: Matrix3,
+    o: Point3,
+}
+
+impl Artefact for Placed<'_> {
+    fn closest(&self, p: &Point3) -> SurfacePoint {
+        // Into the table frame at C = 0, and the answer back.
+        let q = self.o + self.turn.transpose() * (p + self.shift - self.o);
+        let s = self.inner.closest(&q);
+        SurfacePoint {
+            distance: s.distance,
+            point: self.o + self.turn * (s.point - self.o) - self.shift,
+            normal: self.turn * s.normal,
+        }
+    }
+}
+
 /// The virtual machine tool behind [`ProbingMachine`].
 #[derive(Debug)]
 pub struct VirtualMachineTool {
@@ -191,6 +230,9 @@ pub struct VirtualMachineTool {
     probe: TouchProbe,
     rng: SimRng,
     pos: Point3,
+    /// Head and table angles (rad).
+    b: f64,
+    c: f64,
     /// Probing moves made (for tests and reports).
     pub probings: usize,
 }
@@ -207,7 +249,7 @@ impl VirtualMachineTool {
         noise::check_nonneg("position sigma", cfg.position_sigma_mm)?;
         let rng = noise::stream(cfg.seed, 31);
         let pos = cfg.start_mm;
-        Ok(VirtualMachineTool { cfg, spheres, probe, rng, pos, probings: 0 })
+        Ok(VirtualMachineTool { cfg, spheres, probe, rng, pos, b: 0.0, c: 0.0, probings: 0 })
     }
 
     /// The reference spheres (truth).
@@ -219,11 +261,17 @@ impl VirtualMachineTool {
         &self.cfg
     }
 
-    fn artefacts(&self) -> impl Iterator<Item = &dyn Artefact> {
+    /// Everything on the table, as seen by the position the machine reports (P) at the current
+    /// head and table angles.
+    fn artefacts(&self) -> impl Iterator<Item = Placed<'_>> {
+        let shift = ry(self.b) * self.cfg.head_offset_mm;
+        let turn = rz(self.c);
+        let o = self.cfg.table_center_mm;
         self.spheres
             .iter()
             .map(|s| s as &dyn Artefact)
             .chain(self.cfg.parts.iter().map(|p| p as &dyn Artefact))
+            .map(move |inner| Placed { inner, shift, turn, o })
     }
 
     /// First trigger on the straight move from `from` along unit `u` within `len`.
@@ -249,7 +297,7 @@ impl VirtualMachineTool {
         }
         let start = from + u * s0;
         self.artefacts()
-            .filter_map(|a| self.probe.probe_along(a, &start, u, len - s0))
+            .filter_map(|a| self.probe.probe_along(&a, &start, u, len - s0))
             .map(|t| s0 + t.travel_mm)
             .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.min(t))))
     }
@@ -363,6 +411,39 @@ impl ProbingMachine for VirtualMachineTool {
     }
 
     fn abort(&mut self) -> Result<(), DeviceError> {
+        Ok(())
+    }
+
+    fn rotary_axes(&self) -> RotaryAxes {
+        self.cfg.rotary
+    }
+
+    /// Turns the axes at once; a ball that ends up in the material is an error (the angles are
+    /// then left as they were).
+    fn orient(&mut self, b_deg: f64, c_deg: f64) -> Result<(), DeviceError> {
+        let what = format!("orienting the head to B = {b_deg}°, C = {c_deg}°");
+        let reject =
+            |message: String| DeviceError::Rejected { address: ADDRESS.into(), what: what.clone(), message };
+        if !(b_deg.is_finite() && c_deg.is_finite()) {
+            return Err(reject("the angles must be finite".into()));
+        }
+        if b_deg != 0.0 && !self.cfg.rotary.head_b {
+            return Err(reject(format!("this machine has no B axis ({})", self.cfg.rotary.describe())));
+        }
+        if c_deg != 0.0 && !self.cfg.rotary.table_c {
+            return Err(reject(format!("this machine has no C axis ({})", self.cfg.rotary.describe())));
+        }
+        let (b0, c0) = (self.b, self.c);
+        (self.b, self.c) = (b_deg.to_radians(), c_deg.to_radians());
+        let r = self.cfg.tip_radius_mm;
+        if self.artefacts().any(|a| a.distance(&self.pos) - r <= 0.0) {
+            (self.b, self.c) = (b0, c0);
+            return Err(DeviceError::Controller {
+                address: ADDRESS.into(),
+                what,
+                message: format!("the probe would collide at {}: move it clear first", fmt_point(&self.pos)),
+            });
+        }
         Ok(())
     }
 }
