@@ -104,6 +104,11 @@ impl MachineToolConfig {
     }
 }
 
+/// A seeded error of σ per axis (e.g. how far a virtual head offset is from its nominal).
+pub fn seeded_offset_error(seed: u64, sigma_mm: f64) -> Vector3 {
+    noise::gaussian3(&mut noise::stream(seed, 79), sigma_mm)
+}
+
 /// A bore of [`MachineToolConfig::with_holes`] as it really is.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrueHole {
