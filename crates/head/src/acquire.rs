@@ -95,6 +95,9 @@ pub enum AcquireError {
     /// The points do not determine a sphere.
     #[error("sphere fit of the probed points: {0}")]
     Fit(#[from] FitError),
+    /// The points file could not be written.
+    #[error(transparent)]
+    Output(#[from] truepos_io::atomic::OutputError),
 }
 
 /// `n` unit directions over the upper hemisphere: the pole first, then a golden-angle spiral of
@@ -407,4 +410,99 @@ pub fn points_csv(acquired: &[AcquiredOrientation]) -> String {
         }
     }
     s
+}
+
+/// What `truepos head-offset acquire` hands back: the orientations probed, the points file
+/// written, and for a virtual machine its truth (head offset, sphere centre at C = 0, radius).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AcquireReport {
+    pub acquired: Vec<AcquiredOrientation>,
+    pub output: std::path::PathBuf,
+    pub device: DeviceInfo,
+    pub elapsed_s: f64,
+    /// The command that computes the offset from the file.
+    pub next: String,
+    pub truth: Option<(Vector3, Point3, f64)>,
+}
+
+/// Acquire ([`acquire_head_offset`]) and write the points file atomically to `output` (checked
+/// before the machine moves). `next` is the head-offset command to suggest.
+pub fn acquire_to_file<M: ProbingMachine + ?Sized>(
+    m: &mut M,
+    a: &HeadAcquisition,
+    output: &std::path::Path,
+    next: String,
+) -> Result<AcquireReport, AcquireError> {
+    a.check()?;
+    truepos_io::atomic::check_output_path(output)?;
+    let t0 = std::time::Instant::now();
+    let acquired = acquire_head_offset(m, a)?;
+    let elapsed_s = t0.elapsed().as_secs_f64();
+    truepos_io::atomic::write_atomic(output, points_csv(&acquired).as_bytes())?;
+    Ok(AcquireReport {
+        acquired,
+        output: output.to_path_buf(),
+        device: m.info(),
+        elapsed_s,
+        next,
+        truth: None,
+    })
+}
+
+impl truepos_io::report::Report for AcquireReport {
+    fn to_json(&self) -> serde_json::Value {
+        let v3 = |p: &Point3| serde_json::json!([p.x, p.y, p.z]);
+        let mut j = serde_json::json!({
+            "output": self.output.display().to_string(),
+            "n_points": self.acquired.iter().map(|o| o.sphere.points.len()).sum::<usize>(),
+            "orientations": self.acquired.iter().map(|o| serde_json::json!({
+                "b_deg": o.b_deg,
+                "c_deg": o.c_deg,
+                "apparent_center_mm": v3(&o.sphere.center_mm),
+                "radius_mm": o.sphere.radius_mm,
+                "rms_mm": o.sphere.rms_mm,
+                "n_points": o.sphere.points.len(),
+            })).collect::<Vec<_>>(),
+            "controller": { "address": self.device.address, "version": self.device.version },
+            "elapsed_s": self.elapsed_s,
+            "next": self.next,
+        });
+        if let Some((off, c, r)) = &self.truth {
+            j["virtual_truth"] = serde_json::json!({
+                "head_offset_mm": [off.x, off.y, off.z],
+                "sphere_center_mm": v3(c),
+                "sphere_radius_mm": r,
+            });
+        }
+        j
+    }
+
+    fn text(&self) -> String {
+        let n: usize = self.acquired.iter().map(|o| o.sphere.points.len()).sum();
+        let mut s = format!(
+            "head-offset acquisition on {} ({}): {} orientations, {n} points in {:.1} s → {}\n",
+            self.device.address,
+            self.device.version,
+            self.acquired.len(),
+            self.elapsed_s,
+            self.output.display()
+        );
+        for o in &self.acquired {
+            let c = o.sphere.center_mm;
+            s += &format!(
+                "  B {:>7.3}° C {:>7.3}°: sphere seen at {:.4} {:.4} {:.4} mm, radius {:.4} mm, rms {:.4} mm\n",
+                o.b_deg, o.c_deg, c.x, c.y, c.z, o.sphere.radius_mm, o.sphere.rms_mm
+            );
+        }
+        s += &format!("next: {}\n", self.next);
+        if self.acquired.len() < 2 {
+            s += "note: one orientation determines no head offset; head-offset will say so\n";
+        }
+        s
+    }
+
+    /// The result is the points file; the text summarises it.
+    fn text_on_stderr(&self) -> bool {
+        true
+    }
 }

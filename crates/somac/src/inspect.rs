@@ -307,6 +307,67 @@ fn probe_hole(
     Ok(points)
 }
 
+/// What `truepos somac inspect` prints: the inspection, the position tolerance it was judged
+/// against, and for a virtual machine the truth of its holes (top centre, diameter).
+#[derive(Debug, Clone, PartialEq)]
+pub struct InspectReport {
+    pub inspection: Inspection,
+    pub tolerance_mm: Option<f64>,
+    pub truth: Option<Vec<(Point3, f64)>>,
+}
+
+impl InspectReport {
+    /// Ids of the holes whose position error exceeds the tolerance.
+    pub fn out_of_tolerance(&self) -> Vec<&str> {
+        match self.tolerance_mm {
+            Some(t) => self
+                .inspection
+                .holes
+                .iter()
+                .filter(|h| h.position_error_mm > t)
+                .map(|h| h.hole.id.as_str())
+                .collect(),
+            None => vec![],
+        }
+    }
+}
+
+impl truepos_io::report::Report for InspectReport {
+    fn to_json(&self) -> serde_json::Value {
+        let mut j = self.inspection.to_json();
+        if let Some(t) = self.tolerance_mm {
+            j["tolerance_mm"] = serde_json::json!(t);
+            j["out_of_tolerance"] = serde_json::json!(self.out_of_tolerance());
+        }
+        if let Some(truth) = &self.truth {
+            j["virtual_truth"] = truth
+                .iter()
+                .zip(&self.inspection.holes)
+                .map(|((top, d), h)| serde_json::json!({ "id": h.hole.id, "top_mm": [top.x, top.y, top.z], "diameter_mm": d }))
+                .collect();
+        }
+        j
+    }
+
+    fn text(&self) -> String {
+        let mut s = self.inspection.text();
+        if let Some(t) = self.tolerance_mm {
+            let over = self.out_of_tolerance();
+            let n = self.inspection.holes.len();
+            if over.is_empty() {
+                s += &format!("all {n} holes within the position tolerance {t} mm\n");
+            } else {
+                s += &format!(
+                    "{} of {n} holes beyond the position tolerance {t} mm: {}\n",
+                    over.len(),
+                    over.join(", ")
+                );
+            }
+        }
+        s
+    }
+}
+
 /// JSON of `truepos somac inspect --json` (every length in mm, as the contract's other objects).
 impl Inspection {
     pub fn to_json(&self) -> serde_json::Value {

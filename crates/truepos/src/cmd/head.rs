@@ -315,11 +315,8 @@ fn apply(a: ApplyArgs) -> Result<Outcome> {
 }
 
 fn acquire(a: AcquireArgs) -> Result<Outcome> {
-    use serde_json::json;
     use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
-    use truepos_head::acquire::{
-        acquire_head_offset, points_csv, AcquireError, HeadAcquisition, SphereProbing,
-    };
+    use truepos_head::acquire::{acquire_to_file, AcquireError, HeadAcquisition, SphereProbing};
     let c_varies = a.orientations.iter().any(|o| o[1] != 0.0);
     let table_center = match a.table_center_mm {
         Some(t) => Point3::from(t),
@@ -347,8 +344,6 @@ fn acquire(a: AcquireArgs) -> Result<Outcome> {
     if let Err(e) = acq.check() {
         return Err(UsageError(e.to_string()).into());
     }
-    truepos_io::atomic::check_output_path(&a.output)
-        .map_err(|e| InputError::in_file(&a.output, e.to_string()))?;
     let mut truth = None;
     let mut machine: Box<dyn truepos_device::ProbingMachine> = if a.controller == "virtual" {
         let r = 0.5 * a.diameter_mm;
@@ -368,17 +363,6 @@ fn acquire(a: AcquireArgs) -> Result<Outcome> {
     } else {
         super::probe::open_probing_machine(&a.controller, None, a.seed)?.machine
     };
-    let info = machine.info();
-    let t0 = std::time::Instant::now();
-    let got = match acquire_head_offset(machine.as_mut(), &acq) {
-        Ok(g) => g,
-        Err(AcquireError::Plan(m)) => return Err(UsageError(m).into()),
-        Err(e) => return Err(crate::DeviceError(e.to_string()).into()),
-    };
-    let elapsed = t0.elapsed().as_secs_f64();
-    truepos_io::atomic::write_atomic(&a.output, points_csv(&got).as_bytes())
-        .with_context(|| format!("writing {}", a.output.display()))?;
-    let n: usize = got.iter().map(|o| o.sphere.points.len()).sum();
     let next = format!(
         "truepos head-offset --points {}{} --tip-radius-mm {}",
         a.output.display(),
@@ -387,51 +371,14 @@ fn acquire(a: AcquireArgs) -> Result<Outcome> {
             .unwrap_or_default(),
         acq.sphere.tip_radius_mm
     );
-    if a.json {
-        let v3 = |p: &Point3| json!([p.x, p.y, p.z]);
-        let mut j = json!({
-            "output": a.output.display().to_string(),
-            "n_points": n,
-            "orientations": got.iter().map(|o| json!({
-                "b_deg": o.b_deg,
-                "c_deg": o.c_deg,
-                "apparent_center_mm": v3(&o.sphere.center_mm),
-                "radius_mm": o.sphere.radius_mm,
-                "rms_mm": o.sphere.rms_mm,
-                "n_points": o.sphere.points.len(),
-            })).collect::<Vec<_>>(),
-            "controller": { "address": info.address, "version": info.version },
-            "elapsed_s": elapsed,
-            "next": next,
-        });
-        if let Some((off, (c, r))) = truth {
-            j["virtual_truth"] = json!({
-                "head_offset_mm": [off.x, off.y, off.z],
-                "sphere_center_mm": v3(&c),
-                "sphere_radius_mm": r,
-            });
-        }
-        print_json(&j)?;
-    } else {
-        println!(
-            "head-offset acquisition on {} ({}): {} orientations, {n} points in {elapsed:.1} s → {}",
-            info.address,
-            info.version,
-            got.len(),
-            a.output.display()
-        );
-        for o in &got {
-            let c = o.sphere.center_mm;
-            println!(
-                "  B {:>7.3}° C {:>7.3}°: sphere seen at {:.4} {:.4} {:.4} mm, radius {:.4} mm, rms {:.4} mm",
-                o.b_deg, o.c_deg, c.x, c.y, c.z, o.sphere.radius_mm, o.sphere.rms_mm
-            );
-        }
-    }
-    eprintln!("next: {next}");
-    if got.len() < 2 {
-        eprintln!("note: one orientation determines no head offset; head-offset will say which components it cannot determine");
-    }
+    let mut report = match acquire_to_file(machine.as_mut(), &acq, &a.output, next) {
+        Ok(r) => r,
+        Err(AcquireError::Plan(m)) => return Err(UsageError(m).into()),
+        Err(AcquireError::Output(e)) => return Err(e.into()),
+        Err(e) => return Err(crate::DeviceError(e.to_string()).into()),
+    };
+    report.truth = truth.map(|(off, (c, r))| (off, c, r));
+    crate::output::emit(&report, a.json)?;
     Ok(Outcome::Done)
 }
 

@@ -5,15 +5,13 @@
 //! (`--program`) or from a hole list (`--holes`); the procedure is
 //! `truepos_somac::inspect::inspect`, through the same `--controller` URLs as `probe sphere`.
 
-use crate::output::{print_json, v3};
 use crate::{DeviceError, Outcome, UsageError};
 use anyhow::Result;
-use serde_json::json;
 use std::path::PathBuf;
 use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
 use truepos_io::InputError;
 use truepos_math::Point3;
-use truepos_somac::inspect::{holes_from_program, inspect, Hole, InspectError, InspectPlan};
+use truepos_somac::inspect::{holes_from_program, inspect, Hole, InspectError, InspectPlan, InspectReport};
 
 #[derive(clap::Args, Debug)]
 #[command(
@@ -153,38 +151,12 @@ pub fn run(a: InspectArgs) -> Result<Outcome> {
         Err(InspectError::Plan(m)) => return Err(UsageError(m).into()),
         Err(e) => return Err(DeviceError(e.to_string()).into()),
     };
-    let over: Vec<&str> = match a.tolerance_mm {
-        Some(t) => r.holes.iter().filter(|h| h.position_error_mm > t).map(|h| h.hole.id.as_str()).collect(),
-        None => vec![],
+    let report = InspectReport {
+        inspection: r,
+        tolerance_mm: a.tolerance_mm,
+        truth: truth.map(|t| t.iter().map(|t| (t.top_mm, t.diameter_mm)).collect()),
     };
-    if a.json {
-        let mut j = r.to_json();
-        if let Some(t) = a.tolerance_mm {
-            j["tolerance_mm"] = json!(t);
-            j["out_of_tolerance"] = json!(over);
-        }
-        if let Some(t) = &truth {
-            j["virtual_truth"] = t
-                .iter()
-                .zip(&holes)
-                .map(|(t, h)| json!({ "id": h.id, "top_mm": v3(t.top_mm), "diameter_mm": t.diameter_mm }))
-                .collect();
-        }
-        print_json(&j)?;
-    } else {
-        print!("{}", r.text());
-    }
-    if let Some(t) = a.tolerance_mm {
-        if over.is_empty() {
-            eprintln!("all {} holes within the position tolerance {t} mm", r.holes.len());
-        } else {
-            eprintln!(
-                "{} of {} holes beyond the position tolerance {t} mm: {}",
-                over.len(),
-                r.holes.len(),
-                over.join(", ")
-            );
-        }
-    }
+    crate::output::emit(&report, a.json)?;
+    let over = report.out_of_tolerance();
     Ok(if over.is_empty() { Outcome::Done } else { Outcome::OutOfTolerance })
 }
