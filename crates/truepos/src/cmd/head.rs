@@ -59,7 +59,7 @@ pub enum Action {
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Examples:\n  truepos head-offset acquire --near=600,250,30 --diameter-mm 25 --tip-diameter-mm 3 \\\n      --orientation 0,0 --orientation 0,120 --orientation 0,240 --orientation 90,0 --orientation 90,120 \\\n      --orientation 90,240 --nominal-offset-mm=42,-18,-165 --table-center-mm 500,250,0 --output points.csv\n  truepos head-offset --points points.csv --table-center-mm 500,250,0 --json\n\n\
+    after_help = "Examples:\n  truepos head-offset acquire --near=600,250,30 --diameter-mm 25 --tip-diameter-mm 3 \\\n      --orientation 0,0 --orientation 0,120 --orientation 0,240 \\\n      --orientation 90,0 --orientation 90,120 --orientation 90,240 \\\n      --nominal-offset-mm=42,-18,-165 --table-center-mm 500,250,0 --output points.csv\n  truepos head-offset --points points.csv --table-center-mm 500,250,0 --json\n\n\
 At each orientation (B swivels the head about Y, C turns the table about the axis through\n\
 --table-center-mm parallel to Z) the sphere is probed over its upper hemisphere as `truepos probe\n\
 sphere` does, around where it appears to the NC: O + Rz(c)·(S − O) − Ry(b)·R with S = --near and\n\
