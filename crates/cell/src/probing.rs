@@ -510,4 +510,35 @@ mod tests {
         assert!((m.position().unwrap().z - (44.0 - 0.0005)).abs() < 1e-6);
         assert!(m.move_to(Point3::new(5000.0, 0.0, 0.0)).is_err());
     }
+
+    #[test]
+    fn plates_of_different_heights_that_overlap_are_refused() {
+        let a = (Point3::new(0.0, 0.0, 0.0), 10.0);
+        let b = (Point3::new(30.0, 0.0, -5.0), 10.0);
+        assert!(MachineToolConfig::with_holes(1, &[a, b], 1.5).unwrap_err().contains("too close"));
+        let far = (Point3::new(300.0, 0.0, -5.0), 10.0);
+        let (cfg, truth) = MachineToolConfig::with_holes(1, &[a, far], 1.5).unwrap();
+        assert_eq!((cfg.parts.len(), truth.len()), (2, 2));
+        assert_eq!(truth[1].top_mm.z, -5.0);
+    }
+
+    #[test]
+    fn orienting_needs_the_axes_and_a_clear_probe() {
+        let mut m = machine();
+        let e = m.orient(90.0, 0.0).unwrap_err();
+        assert!(matches!(e, DeviceError::Rejected { .. }) && e.to_string().contains("no B axis"), "{e}");
+        let cfg = MachineToolConfig {
+            rotary: RotaryAxes { head_b: true, table_c: true },
+            head_offset_mm: Vector3::new(0.0, 0.0, -30.0),
+            // P 20 mm above the sphere's top: the tip (30 mm below P at B = 0) is inside it.
+            start_mm: Point3::new(120.0, 45.0, 30.0 + 12.5 + 20.0),
+            ..MachineToolConfig::default()
+        };
+        let mut m = VirtualMachineTool::new(cfg).unwrap();
+        m.orient(180.0, 0.0).unwrap(); // tip 30 mm above P: clear
+        let e = m.orient(0.0, 0.0).unwrap_err();
+        assert!(matches!(e, DeviceError::Controller { .. }) && e.to_string().contains("collide"), "{e}");
+        // Still at B = 180°: moving P down 10 mm keeps the tip clear.
+        m.move_to(Point3::new(120.0, 45.0, 52.5)).unwrap();
+    }
 }
