@@ -104,6 +104,40 @@ impl MachineToolConfig {
     }
 }
 
+/// The truth of [`MachineToolConfig::for_head_offset`]: the head offset the machine really
+/// has, and the sphere (centre at C = 0, radius) on its table.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeadOffsetTruth {
+    pub offset_mm: Vector3,
+    pub sphere_centre_mm: Point3,
+    pub sphere_radius_mm: f64,
+}
+
+impl MachineToolConfig {
+    /// A machine tool with a B head and a C table for head-offset acquisition `acq`: the sphere
+    /// set up near its nominal place ([`MachineToolConfig::near`]), the head offset off its
+    /// nominal by a seeded error of σ = 0.2 mm per axis, the C axis through the acquisition's
+    /// table centre, travel widened by the offset and the sphere's distance from that axis, and
+    /// the tip starting 50 mm above the sphere at B = 0.
+    pub fn for_head_offset(
+        seed: u64,
+        acq: &truepos_head::acquire::HeadAcquisition,
+    ) -> (MachineToolConfig, HeadOffsetTruth) {
+        let (near, r, tip) = (acq.sphere.near_mm, 0.5 * acq.sphere.diameter_mm, acq.sphere.tip_radius_mm);
+        let mut cfg = MachineToolConfig::near(seed, near, r, tip);
+        let offset = acq.nominal_offset_mm + seeded_offset_error(seed, 0.2);
+        let reach = offset.norm() + (near - acq.table_center_mm).norm();
+        cfg.rotary = RotaryAxes { head_b: true, table_c: true };
+        cfg.head_offset_mm = offset;
+        cfg.table_center_mm = acq.table_center_mm;
+        cfg.travel_min_mm -= Vector3::repeat(reach);
+        cfg.travel_max_mm += Vector3::repeat(reach);
+        cfg.start_mm = near + Vector3::new(0.0, 0.0, r + tip + 50.0) - offset;
+        let (c, radius) = cfg.spheres[0];
+        (cfg, HeadOffsetTruth { offset_mm: offset, sphere_centre_mm: c, sphere_radius_mm: radius })
+    }
+}
+
 /// A seeded error of σ per axis (e.g. how far a virtual head offset is from its nominal).
 pub fn seeded_offset_error(seed: u64, sigma_mm: f64) -> Vector3 {
     noise::gaussian3(&mut noise::stream(seed, 79), sigma_mm)

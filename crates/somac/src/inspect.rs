@@ -14,17 +14,22 @@
 //! without contact or a trip during a positioning move (both errors naming the move, the
 //! machine retracted).
 //!
+//! The holes come from a program file ([`read_program_holes`]) or a hole list
+//! ([`read_hole_list`]).
+//!
 //! The latched tip centres of a hole are fitted with the least-squares circle
 //! (`truepos_fit::circle`); the hole's diameter is the fitted tip-centre circle's plus the tip
 //! diameter. The position error is the measured centre minus the nominal one in XY (the hole
 //! axis is taken along Z); `true_position_mm` is twice its length (the diameter of the
 //! ASME Y14.5 / ISO 1101 position zone the centre lies on).
 
+use std::path::Path;
 use std::time::Instant;
 use thiserror::Error;
 use truepos_device::{DeviceError, DeviceInfo, ProbeRequest, ProbingMachine};
 use truepos_fit::FitError;
 use truepos_gcode::Program;
+use truepos_io::InputError;
 use truepos_math::{Point3, Vector3};
 
 use crate::stats::{hole_stats, HoleStats};
@@ -149,6 +154,50 @@ pub fn holes_from_program(program: &Program, keyword: &str, diameter_mm: f64) ->
             })
         })
         .collect()
+}
+
+/// The holes of a G-code program file ([`holes_from_program`]); a program that does not parse,
+/// or has no hole, is an input error naming the file (and line and column).
+pub fn read_program_holes(path: &Path, keyword: &str, diameter_mm: f64) -> Result<Vec<Hole>, InputError> {
+    let text =
+        std::fs::read_to_string(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+    let program = Program::parse(&text);
+    program.check().map_err(|e| InputError::at(path, e.line(), Some(e.column()), e.detail()))?;
+    let holes = holes_from_program(&program, keyword, diameter_mm);
+    if holes.is_empty() {
+        let why =
+            format!("no hole: no motion block with a complete target has the keyword comment '{keyword}'");
+        return Err(InputError::in_file(path, why));
+    }
+    Ok(holes)
+}
+
+/// A hole list (`id,x_mm,y_mm,z_mm` and an optional `diameter_mm` column; `diameter_mm` is used
+/// where the column is absent). An empty list, a missing diameter or one that is not positive is
+/// an input error naming the file (and line and column).
+pub fn read_hole_list(path: &Path, diameter_mm: Option<f64>) -> Result<Vec<Hole>, InputError> {
+    let pts = truepos_io::points::read_id_points(path)?;
+    let column = pts.table.column("diameter_mm");
+    let diameters = match column {
+        Some(_) => pts.table.f64_columns(&["diameter_mm"])?,
+        None => {
+            let d = diameter_mm
+                .ok_or_else(|| InputError::in_file(path, "no diameter_mm column: give --diameter-mm"))?;
+            vec![d; pts.ids.len()]
+        }
+    };
+    if pts.ids.is_empty() {
+        return Err(InputError::in_file(path, "no holes in the list"));
+    }
+    let mut holes = Vec::with_capacity(pts.ids.len());
+    for (i, ((id, p), d)) in pts.ids.iter().zip(&pts.points).zip(diameters).enumerate() {
+        if !(d.is_finite() && d > 0.0) {
+            let why = format!("hole {id}: the diameter must be > 0, got {d}");
+            return Err(InputError::at(path, pts.table.line_number(i), column.map(|c| c + 1), why));
+        }
+        holes.push(Hole { id: id.clone(), line: None, nominal_mm: *p, diameter_mm: d });
+    }
+    Ok(holes)
 }
 
 impl InspectPlan {

@@ -6,14 +6,14 @@
 //! simulate head-offset`: the virtual cell's data set and its truth), [`demo_section`]. The
 //! numerics are in `truepos-head`; this module reads and writes the contract's files.
 
-use crate::output::{parse_pair, parse_triple, print_json};
+use crate::output::{emit, parse_pair, parse_triple};
 use crate::{Outcome, UsageError};
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 use truepos_cell::scenarios::head::Variant;
-use truepos_head::file::{head_error, read_input};
-use truepos_head::{solve, Params, Reference};
-use truepos_io::InputError;
+use truepos_head::file::read_input;
+use truepos_head::task::{calibrate_file, Calibration};
+use truepos_head::Reference;
 use truepos_math::{Point3, Vector3};
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -247,55 +247,26 @@ pub fn run(args: Args) -> Result<Outcome> {
     if !(a.tip_radius_mm.is_finite() && a.tip_radius_mm >= 0.0) {
         return Err(UsageError(format!("--tip-radius-mm {}: must be ≥ 0", a.tip_radius_mm)).into());
     }
-    let tilt = tilt_rad(a.tilt_deg, "--tilt-deg")?;
-    let input = read_input(&points, true)?;
-    if input.table.n_rows() == 0 {
-        return Err(InputError::in_file(
-            &points,
-            "no readings: head-offset needs the reference measured in at least two orientations",
-        )
-        .into());
-    }
-    if a.beam_through_reference && input.table.column("dist_mm").is_none() {
-        return Err(UsageError(
-            "--beam-through-reference is for laser heads: the points file needs a dist_mm column".into(),
-        )
-        .into());
-    }
-    let table_turns = input.readings.iter().any(|r| r.c != input.readings[0].c);
-    let table_center =
-        match a.table_center_mm {
-            Some(t) => Point3::from(t),
-            None if table_turns => return Err(UsageError(
-                "the readings have several table angles (c_deg): --table-center-mm X,Y,Z (a point of the C \
-                 axis) is needed"
-                    .into(),
-            )
-            .into()),
-            None => Point3::origin(),
-        };
     let reference = match a.reference {
         RefKind::Sphere => {
             Reference::Sphere { radius: a.sphere_diameter_mm.map(|d| 0.5 * d + a.tip_radius_mm) }
         }
         RefKind::Vertex => Reference::Vertex { tip_radius: a.tip_radius_mm },
     };
-    let setup = Params {
+    let c = Calibration {
         reference,
-        table_center,
-        tilt,
-        prior: Vector3::from(a.prior_offset_mm),
+        table_center_mm: a.table_center_mm.map(Point3::from),
+        tilt: tilt_rad(a.tilt_deg, "--tilt-deg")?,
+        prior_offset_mm: Vector3::from(a.prior_offset_mm),
         beam_through_reference: a.beam_through_reference,
+        tip_radius_mm: a.tip_radius_mm,
+        sphere_diameter_mm: a.sphere_diameter_mm,
     };
-    let r = solve(&input.readings, &setup).map_err(|e| head_error(&input.table, e))?;
-    for note in truepos_head::json::notes(&r, &setup.prior) {
+    let r = calibrate_file(&points, &c)?;
+    for note in r.notes() {
         eprintln!("{note}");
     }
-    if a.json {
-        print_json(&truepos_head::json::result(&r, &setup, a.tip_radius_mm, a.sphere_diameter_mm, &input))?;
-    } else {
-        print!("{}", truepos_head::json::text(&r, a.tip_radius_mm));
-    }
+    emit(&r, a.json)?;
     Ok(Outcome::Done)
 }
 
@@ -346,19 +317,8 @@ fn acquire(a: AcquireArgs) -> Result<Outcome> {
     }
     let mut truth = None;
     let mut machine: Box<dyn truepos_device::ProbingMachine> = if a.controller == "virtual" {
-        let r = 0.5 * a.diameter_mm;
-        let tip = acq.sphere.tip_radius_mm;
-        let mut cfg = MachineToolConfig::near(a.seed, acq.sphere.near_mm, r, tip);
-        let offset = acq.nominal_offset_mm + truepos_cell::probing::seeded_offset_error(a.seed, 0.2);
-        let reach = offset.norm();
-        cfg.rotary = truepos_device::RotaryAxes { head_b: true, table_c: true };
-        cfg.head_offset_mm = offset;
-        cfg.table_center_mm = table_center;
-        cfg.travel_min_mm -= Vector3::repeat(reach + (acq.sphere.near_mm - table_center).norm());
-        cfg.travel_max_mm += Vector3::repeat(reach + (acq.sphere.near_mm - table_center).norm());
-        // The tip 50 mm above the sphere at B = 0.
-        cfg.start_mm = acq.sphere.near_mm + Vector3::new(0.0, 0.0, r + tip + 50.0) - offset;
-        truth = Some((offset, cfg.spheres[0]));
+        let (cfg, t) = MachineToolConfig::for_head_offset(a.seed, &acq);
+        truth = Some(t);
         Box::new(VirtualMachineTool::new(cfg).map_err(|e| UsageError(format!("virtual machine: {e}")))?)
     } else {
         super::probe::open_probing_machine(&a.controller, None, a.seed)?.machine
@@ -377,7 +337,7 @@ fn acquire(a: AcquireArgs) -> Result<Outcome> {
         Err(AcquireError::Output(e)) => return Err(e.into()),
         Err(e) => return Err(crate::DeviceError(e.to_string()).into()),
     };
-    report.truth = truth.map(|(off, (c, r))| (off, c, r));
+    report.truth = truth.map(|t| (t.offset_mm, t.sphere_centre_mm, t.sphere_radius_mm));
     crate::output::emit(&report, a.json)?;
     Ok(Outcome::Done)
 }
@@ -387,7 +347,7 @@ pub fn simulate(args: SimArgs) -> Result<Outcome> {
         .map_err(|e| UsageError(e.to_string()))?;
     // Where the data set cannot be written is the user's choice of --out: an input error.
     let w = truepos_cell::scenarios::head::write_dataset(&args.common.out, &d)
-        .map_err(|e| InputError::in_file(&args.common.out, format!("{e:#}")))?;
+        .map_err(|e| truepos_io::InputError::in_file(&args.common.out, format!("{e:#}")))?;
     eprint!("{}", w.text(d.rows.len()));
     Ok(Outcome::Done)
 }

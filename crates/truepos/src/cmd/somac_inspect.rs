@@ -9,9 +9,10 @@ use crate::{DeviceError, Outcome, UsageError};
 use anyhow::Result;
 use std::path::PathBuf;
 use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
-use truepos_io::InputError;
 use truepos_math::Point3;
-use truepos_somac::inspect::{holes_from_program, inspect, Hole, InspectError, InspectPlan, InspectReport};
+use truepos_somac::inspect::{
+    inspect, read_hole_list, read_program_holes, Hole, InspectError, InspectPlan, InspectReport,
+};
 
 #[derive(clap::Args, Debug)]
 #[command(
@@ -65,55 +66,14 @@ pub struct InspectArgs {
 }
 
 fn read_holes(a: &InspectArgs) -> Result<Vec<Hole>> {
-    if let Some(path) = &a.program {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
-        let program = truepos_gcode::Program::parse(&text);
-        program.check().map_err(|e| InputError::at(path, e.line(), Some(e.column()), e.detail()))?;
-        let d = a.diameter_mm.ok_or_else(|| UsageError("--program needs --diameter-mm".into()))?;
-        let holes = holes_from_program(&program, &a.keyword, d);
-        if holes.is_empty() {
-            return Err(InputError::in_file(
-                path,
-                format!(
-                    "no hole: no motion block with a complete target has the keyword comment '{}'",
-                    a.keyword
-                ),
-            )
-            .into());
+    Ok(match (&a.program, &a.holes) {
+        (Some(path), _) => {
+            let d = a.diameter_mm.ok_or_else(|| UsageError("--program needs --diameter-mm".into()))?;
+            read_program_holes(path, &a.keyword, d)?
         }
-        return Ok(holes);
-    }
-    let Some(path) = &a.holes else { return Err(UsageError("give --program or --holes".into()).into()) };
-    let pts = truepos_io::points::read_id_points(path)?;
-    let diameters = match pts.table.column("diameter_mm") {
-        Some(_) => Some(pts.table.f64_columns(&["diameter_mm"])?),
-        None => None,
-    };
-    if diameters.is_none() && a.diameter_mm.is_none() {
-        return Err(InputError::in_file(path, "no diameter_mm column: give --diameter-mm").into());
-    }
-    if pts.ids.is_empty() {
-        return Err(InputError::in_file(path, "no holes in the list").into());
-    }
-    let mut holes = vec![];
-    for (i, (id, p)) in pts.ids.iter().zip(&pts.points).enumerate() {
-        let d = match &diameters {
-            Some(ds) => ds[i],
-            None => a.diameter_mm.unwrap_or_default(),
-        };
-        if !(d.is_finite() && d > 0.0) {
-            return Err(InputError::at(
-                path,
-                pts.table.line_number(i),
-                pts.table.column("diameter_mm").map(|c| c + 1),
-                format!("hole {id}: the diameter must be > 0, got {d}"),
-            )
-            .into());
-        }
-        holes.push(Hole { id: id.clone(), line: None, nominal_mm: *p, diameter_mm: d });
-    }
-    Ok(holes)
+        (None, Some(path)) => read_hole_list(path, a.diameter_mm)?,
+        (None, None) => return Err(UsageError("give --program or --holes".into()).into()),
+    })
 }
 
 pub fn run(a: InspectArgs) -> Result<Outcome> {
