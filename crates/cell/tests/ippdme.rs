@@ -18,8 +18,12 @@ use truepos_ippdme::protocol::{parse_data_items, Body, Response};
 use truepos_ippdme::{MachineConfig, Server, ServerHandle};
 use truepos_math::{Point3, Vector3};
 
+/// A server on the default (realistic) virtual CMM.
 fn start(part: Option<&str>, log: Option<&Path>) -> ServerHandle<IppdmeCmm> {
-    let config = MachineConfig::default();
+    start_with(MachineConfig::default(), part, log)
+}
+
+fn start_with(config: MachineConfig, part: Option<&str>, log: Option<&Path>) -> ServerHandle<IppdmeCmm> {
     let part = part.map(|t| Part::from_toml("test-part.toml", t).unwrap());
     let log = log.map(|p| truepos_ippdme::server::Log::open(p).unwrap());
     Server::bind("127.0.0.1:0", IppdmeCmm::new(&config, part), &config, log).unwrap().spawn().unwrap()
@@ -320,7 +324,7 @@ const SPHERE_PART: &str = "[[sphere]]\nid = \"ref\"\ncenter_mm = [100.0, 50.0, 2
 
 #[test]
 fn ptmeas_on_a_known_sphere_against_truth() {
-    let h = start(Some(SPHERE_PART), None);
+    let h = start_with(MachineConfig::ideal(), Some(SPHERE_PART), None);
     let mut c = Raw::connect(&h);
     for l in [
         "00001 StartSession()",
@@ -371,7 +375,7 @@ fn ptmeas_on_a_known_sphere_against_truth() {
 
 #[test]
 fn scan_on_circle_in_a_bore_lies_on_the_true_circle() {
-    let h = start(Some(SPHERE_PART), None);
+    let h = start_with(MachineConfig::ideal(), Some(SPHERE_PART), None);
     let mut c = Raw::connect(&h);
     for l in [
         "00001 StartSession()",
@@ -569,7 +573,7 @@ fn move_reports_come_with_the_daemon_tag() {
 
 #[test]
 fn client_probes_a_sphere_that_fits_to_truth() {
-    let h = start(Some(SPHERE_PART), None);
+    let h = start_with(MachineConfig::ideal(), Some(SPHERE_PART), None);
     {
         // Prepare the machine as an operator would: homed, Probe1 in the spindle.
         let mut c = Raw::connect(&h);
