@@ -35,7 +35,9 @@
 
 use std::sync::Arc;
 use truepos_ippdme::part::{CylinderSide, Part, Solid};
-use truepos_ippdme::{Cmm, Contact, Guide, MachineConfig, MachineError, ModelConfig, ScanPath, ScanPoint, Stop};
+use truepos_ippdme::{
+    Cmm, Contact, Guide, MachineConfig, MachineError, ModelConfig, ScanPath, ScanPoint, Stop,
+};
 use truepos_math::{Point3, Vector3};
 use truepos_scan::execute::ControlParams;
 use truepos_scan::{Feature, Geometry, Params, SegmentKind, Side, Style};
@@ -93,6 +95,9 @@ struct Models {
     rng_touch: SimRng,
     /// Scans so far (each scan's dynamic noise is drawn from its own seeded stream).
     scans: u64,
+    /// Stylus deflection left by the last trigger (mm): the body stopped past the contact by
+    /// the pre-travel, so the next move may start with the ball that far "in" the material.
+    deflected_mm: f64,
 }
 
 /// The virtual CMM.
@@ -129,7 +134,14 @@ impl IppdmeCmm {
             part: part.map(Arc::new),
             volume: (lo, hi),
             position: home_of(lo, hi),
-            models: Models { config: m.clone(), errors, probe, rng_touch: noise::stream(m.seed, 11), scans: 0 },
+            models: Models {
+                config: m.clone(),
+                errors,
+                probe,
+                rng_touch: noise::stream(m.seed, 11),
+                scans: 0,
+                deflected_mm: 0.0,
+            },
             counters: Counters::default(),
         }
     }
@@ -492,37 +504,37 @@ struct PartSurface {
     errors: Option<Arc<ErrorField>>,
 }
 
-impl PartSurface {
-    fn closest_actual(&self, p: &Point3) -> (f64, Vector3) {
-        let mut best = (f64::INFINITY, Vector3::z());
-        for (_, s) in &self.part.solids {
-            if !matches!(s, Solid::Cylinder { side: CylinderSide::Inside, .. }) {
-                let d = gap(s, p, 0.0);
-                if d < best.0 {
-                    best = (d, outward(s, p));
-                }
+/// Signed distance of `p` to the part's surface (positive outside the material) and the outward
+/// normal there: union of the solids minus the bores, exact near a single face.
+fn part_distance(part: &Part, p: &Point3) -> (f64, Vector3) {
+    let mut best = (f64::INFINITY, Vector3::z());
+    for (_, s) in &part.solids {
+        if !matches!(s, Solid::Cylinder { side: CylinderSide::Inside, .. }) {
+            let d = gap(s, p, 0.0);
+            if d < best.0 {
+                best = (d, outward(s, p));
             }
         }
-        for (_, s) in &self.part.solids {
-            if matches!(s, Solid::Cylinder { side: CylinderSide::Inside, .. }) {
-                // Inside the free cylinder `gap` is negative: the material's distance is −gap.
-                let d = -gap(s, p, 0.0);
-                if d > best.0 {
-                    best = (d, outward(s, p));
-                }
-            }
-        }
-        if !best.0.is_finite() {
-            best.0 = 1e9;
-        }
-        best
     }
+    for (_, s) in &part.solids {
+        if matches!(s, Solid::Cylinder { side: CylinderSide::Inside, .. }) {
+            // Inside the free cylinder `gap` is negative: the material's distance is −gap.
+            let d = -gap(s, p, 0.0);
+            if d > best.0 {
+                best = (d, outward(s, p));
+            }
+        }
+    }
+    if !best.0.is_finite() {
+        best.0 = 1e9;
+    }
+    best
 }
 
 impl Artefact for PartSurface {
     fn closest(&self, p: &Point3) -> SurfacePoint {
         let e = self.errors.as_ref().map(|e| e.at(p)).unwrap_or_else(Vector3::zeros);
-        let (distance, normal) = self.closest_actual(&(p + e));
+        let (distance, normal) = part_distance(&self.part, &(p + e));
         SurfacePoint { distance, point: p - normal * distance, normal }
     }
 }
@@ -539,11 +551,34 @@ impl Artefact for Nominal {
 }
 
 impl IppdmeCmm {
-    /// First contact of a probing or positioning move, in scale coordinates: the move runs
-    /// between the actual positions of its ends (the error field is smooth: straight to
-    /// < 1 nm over a probing move).
+    /// First contact of a probing or positioning move, as the fraction of the move in scale
+    /// coordinates: found on the straight segment between the actual positions of its ends,
+    /// then refined on the actual (slightly curved: the short-wave errors bend a 6 mm move by
+    /// a few tenths of a µm) path `actual(from + t·(to − from))`.
     fn contact_on_move(&self, from: &Point3, to: &Point3, r: f64) -> Option<(f64, Vector3)> {
-        self.first_contact(&self.actual(from), &self.actual(to), r)
+        let (mut t, mut n) = self.first_contact(&self.actual(from), &self.actual(to), r)?;
+        let (Some(part), Some(_)) = (&self.part, &self.models.errors) else { return Some((t, n)) };
+        let d = to - from;
+        let gap_at = |t: f64| part_distance(part, &self.actual(&(from + d * t))).0 - r;
+        let len = d.norm();
+        if len <= 0.0 {
+            return Some((t, n));
+        }
+        // Secant steps on the gap along the actual path (its slope is −|d|·cos of the approach).
+        let h = 1e-4 / len;
+        for _ in 0..4 {
+            let g = gap_at(t);
+            if g.abs() < 1e-10 {
+                break;
+            }
+            let slope = (gap_at(t + h) - g) / h;
+            if slope.abs() < 1e-12 {
+                break;
+            }
+            t = (t - g / slope).clamp(0.0, 1.0);
+        }
+        n = part_distance(part, &self.actual(&(from + d * t))).1;
+        Some((t, n))
     }
 
     /// Execute a circle or line scan with the blended planner on the scanning dynamics; the
@@ -571,7 +606,10 @@ impl IppdmeCmm {
         };
         let plan = truepos_scan::plan(std::slice::from_ref(&feature), &params, Style::Blended);
         let cmm = CmmConfig {
-            servo: truepos_sim::motion::Servo { bandwidth_hz: m.servo_bandwidth_hz, ..CmmConfig::default().servo },
+            servo: truepos_sim::motion::Servo {
+                bandwidth_hz: m.servo_bandwidth_hz,
+                ..CmmConfig::default().servo
+            },
             encoder_noise_mm: m.encoder_noise_mm,
             probe_noise_mm: m.scan_probe_noise_mm,
             ..CmmConfig::default()
@@ -621,7 +659,11 @@ impl IppdmeCmm {
             let p = samples[k].1;
             let n = surface.closest(&p.position).normal;
             self.counters.scan_points += 1;
-            out.push(ScanPoint { tip_center_mm: p.position, normal: n, quality: 10.0 * f64::from(p.quality) });
+            out.push(ScanPoint {
+                tip_center_mm: p.position,
+                normal: n,
+                quality: 10.0 * f64::from(p.quality),
+            });
         }
         if let Some(last) = run.points.last() {
             self.position = last.commanded;
@@ -682,7 +724,9 @@ impl Cmm for IppdmeCmm {
             return Err(MachineError::OutOfVolume);
         }
         self.counters.moves += 1;
-        if let Some((t, n)) = self.contact_on_move(&self.position, &target_mm, tip_radius_mm) {
+        // Leaving a trigger position: the deflected stylus springs back as the move starts.
+        let r = (tip_radius_mm - std::mem::take(&mut self.models.deflected_mm)).max(0.0);
+        if let Some((t, n)) = self.contact_on_move(&self.position, &target_mm, r) {
             // Stop at the touch, backed off by 1 µm along the normal.
             let stopped = self.position + (target_mm - self.position) * t + n * 1e-3;
             self.position = stopped;
@@ -703,7 +747,7 @@ impl Cmm for IppdmeCmm {
         self.counters.probes += 1;
         let (a, b) = (self.actual(&from_mm), self.actual(&to_mm));
         let hit = match &self.part {
-            Some(_) => self.first_contact(&a, &b, tip_radius_mm),
+            Some(_) => self.contact_on_move(&from_mm, &to_mm, tip_radius_mm),
             None => {
                 // The ideal plane through the nominal point, normal to the probing direction:
                 // the ball centre touches it where the actual move reaches the plane offset by r.
@@ -717,6 +761,7 @@ impl Cmm for IppdmeCmm {
                 (0.0..=1.0).contains(&t).then_some((t, n))
             }
         };
+        self.models.deflected_mm = 0.0;
         let Some((t, n)) = hit else {
             self.position = to_mm;
             return Ok(None);
@@ -740,6 +785,7 @@ impl Cmm for IppdmeCmm {
         }
         let trigger = from_mm + d * t_trig;
         self.position = trigger;
+        self.models.deflected_mm = if over > 0.0 { over + 1e-6 } else { 0.0 };
         let mut reported = trigger;
         if self.models.config.pretravel_compensated {
             reported += n * mean;
@@ -807,7 +853,8 @@ impl Cmm for IppdmeCmm {
                     id: "ScanOnLine".into(),
                     geometry: Geometry::Line { start: s0, end: s0 + dir * length_mm, normal: start.normal },
                 };
-                let targets: Vec<f64> = (0..=n_steps).map(|k| length_mm * k as f64 / n_steps as f64).collect();
+                let targets: Vec<f64> =
+                    (0..=n_steps).map(|k| length_mm * k as f64 / n_steps as f64).collect();
                 self.scan_planned(feature, &targets, r, out)
             }
             ScanPath::Contour { guide, toward, step_mm, stop, max_length_mm } => {

@@ -142,7 +142,11 @@ impl VirtualCmm {
 
     /// A CMM whose feature `k` touches the artefact `truth[k]` (any surface: the I++ DME
     /// server's part, displaced by the machine's geometric errors).
-    pub fn with_surfaces(config: CmmConfig, truth: Vec<Arc<dyn Artefact>>, seed: u64) -> Result<Self, ScanError> {
+    pub fn with_surfaces(
+        config: CmmConfig,
+        truth: Vec<Arc<dyn Artefact>>,
+        seed: u64,
+    ) -> Result<Self, ScanError> {
         config.check()?;
         Ok(VirtualCmm {
             config,

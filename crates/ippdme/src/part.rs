@@ -405,7 +405,8 @@ impl RawModel {
         if let Some(v) = self.scan_deflection_mm {
             m.scan_deflection_mm = positive(file, &k("scan_deflection_mm"), v)?;
         }
-        if m.pretravel_mm > 0.0 && m.lobing_mm >= m.pretravel_mm || m.pretravel_mm == 0.0 && m.lobing_mm > 0.0 {
+        if m.pretravel_mm > 0.0 && m.lobing_mm >= m.pretravel_mm || m.pretravel_mm == 0.0 && m.lobing_mm > 0.0
+        {
             return Err(PartError::Value {
                 file: file.into(),
                 key: k("lobing_um"),
