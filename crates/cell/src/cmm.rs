@@ -38,7 +38,7 @@ use truepos_ippdme::part::{CylinderSide, Part, Solid};
 use truepos_ippdme::{
     Cmm, Contact, Guide, MachineConfig, MachineError, ModelConfig, ScanPath, ScanPoint, Stop,
 };
-use truepos_math::{Point3, Vector3};
+use truepos_math::{rz, Matrix3, Point3, Vector3};
 use truepos_scan::execute::ControlParams;
 use truepos_scan::{Feature, Geometry, Params, SegmentKind, Side, Style};
 use truepos_sim::artefact::{Artefact, SurfacePoint};
@@ -103,7 +103,15 @@ struct Models {
 /// The virtual CMM.
 #[derive(Debug, Clone)]
 pub struct IppdmeCmm {
+    /// The part where it is now (its file's solids moved by `mount` and the table).
     part: Option<Arc<Part>>,
+    /// The part as its file describes it.
+    part_file: Option<Arc<Part>>,
+    /// The rotary table: its axis point (axis parallel to Z), `None` for a CartCMM.
+    table: Option<Point3>,
+    table_angle: f64,
+    /// How the part sits on the table at angle 0: file coordinates `a` ↦ `R·a + t`.
+    mount: (Matrix3, Vector3),
     volume: (Point3, Point3),
     position: Point3,
     models: Models,
@@ -131,7 +139,11 @@ impl IppdmeCmm {
         // Pre-travel 0 is an ideal probe; the machine file checks lobing < pre-travel.
         let probe = TouchProbe::new(0.0, m.pretravel_mm, m.lobing_mm).ok();
         IppdmeCmm {
-            part: part.map(Arc::new),
+            part: part.clone().map(Arc::new),
+            part_file: part.map(Arc::new),
+            table: config.rotary_table,
+            table_angle: 0.0,
+            mount: (Matrix3::identity(), Vector3::zeros()),
             volume: (lo, hi),
             position: home_of(lo, hi),
             models: Models {
@@ -146,8 +158,38 @@ impl IppdmeCmm {
         }
     }
 
+    /// The part where it is now (moved by the rotary table and by `move_part`).
     pub fn part(&self) -> Option<&Part> {
         self.part.as_deref()
+    }
+
+    /// Re-pose the part's solids: file coordinates → mount → table rotation.
+    fn pose_part(&mut self) {
+        let Some(file) = &self.part_file else { return };
+        let o = self.table.unwrap_or_else(Point3::origin);
+        let rt = rz(self.table_angle);
+        let (rm, tm) = self.mount;
+        let point = |a: &Point3| o + rt * (rm * a.coords + tm - o.coords);
+        let dir = |v: &Vector3| rt * (rm * v);
+        let solids = file
+            .solids
+            .iter()
+            .map(|(id, s)| {
+                let s = match s {
+                    Solid::Sphere { center, radius } => {
+                        Solid::Sphere { center: point(center), radius: *radius }
+                    }
+                    Solid::HalfSpace { point: p, normal } => {
+                        Solid::HalfSpace { point: point(p), normal: dir(normal) }
+                    }
+                    Solid::Cylinder { point: p, axis, radius, side } => {
+                        Solid::Cylinder { point: point(p), axis: dir(axis), radius: *radius, side: *side }
+                    }
+                };
+                (id.clone(), s)
+            })
+            .collect();
+        self.part = Some(Arc::new(Part { solids }));
     }
 
     /// The error models' configuration.
@@ -871,6 +913,48 @@ impl Cmm for IppdmeCmm {
 
     fn stop(&mut self) {
         self.counters.stops += 1;
+    }
+
+    fn rotary_axis(&self) -> Option<(Point3, Vector3)> {
+        self.table.map(|o| (o, Vector3::z()))
+    }
+
+    fn table_angle(&self) -> f64 {
+        self.table_angle
+    }
+
+    fn set_table_angle(&mut self, angle_rad: f64) -> Result<(), MachineError> {
+        if self.table.is_none() {
+            return Err(MachineError::Unable("this CMM has no rotary table".into()));
+        }
+        if !angle_rad.is_finite() {
+            return Err(MachineError::Unable(format!("table angle {angle_rad}")));
+        }
+        // The table turns by the shortest way to the angle, kept in (−180°, 180°].
+        let mut a = angle_rad.rem_euclid(2.0 * std::f64::consts::PI);
+        if a > std::f64::consts::PI {
+            a -= 2.0 * std::f64::consts::PI;
+        }
+        self.table_angle = a;
+        self.counters.moves += 1;
+        self.pose_part();
+        Ok(())
+    }
+
+    fn move_part(&mut self, rotation: Matrix3, about: Point3, shift: Vector3) -> Result<(), MachineError> {
+        // In the table frame at angle 0: x0 ↦ O + Rz(−c)·(b + Q·(O + Rz(c)·(x0 − O) − b) + s − O).
+        let o = self.table.unwrap_or_else(Point3::origin);
+        let (rc, rci) = (rz(self.table_angle), rz(-self.table_angle));
+        let f = |x0: Vector3| -> Vector3 {
+            let x = o.coords + rc * (x0 - o.coords);
+            let moved = about.coords + rotation * (x - about.coords) + shift;
+            o.coords + rci * (moved - o.coords)
+        };
+        let (rm, tm) = self.mount;
+        self.mount = (rci * rotation * rc * rm, f(tm));
+        self.counters.moves += 1;
+        self.pose_part();
+        Ok(())
     }
 }
 

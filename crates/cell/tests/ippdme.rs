@@ -270,7 +270,7 @@ fn nist_conformance_files() {
     // shows its own server's quirks, and the rotary-table commands of a CartCMM). Anything
     // beyond them is a regression.
     assert!(names.len() >= 40, "only {} .prg/.res pairs found", names.len());
-    assert!(pass >= 638, "{pass}/{judged} transactions pass");
+    assert!(pass >= 692, "{pass}/{judged} transactions pass");
 }
 
 #[test]
@@ -577,6 +577,72 @@ fn scan_on_circle_in_a_bore_lies_on_the_true_circle() {
         .collect();
     assert!((119..=123).contains(&n_line), "{n_line}");
     assert!(zs.iter().all(|z| (z - 1.5).abs() < 1e-6), "{zs:?}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Rotary table (spec 12, 13)
+
+/// PtMeas straight down at `(x, y)` onto a surface expected near height `z`: the tip centre's
+/// height.
+fn top_of_sphere(c: &mut Raw, x: f64, y: f64, z: f64) -> Option<f64> {
+    c.ok("00020 GoTo(Z(80))");
+    c.ok(&format!("00021 GoTo(X({x}), Y({y}))"));
+    let out = c.cmd(&format!("00022 PtMeas(X({x}), Y({y}), Z({z}), IJK(0, 0, 1))"));
+    if out.iter().any(|l| l.contains(" ! ")) {
+        c.ok("00023 ClearAllErrors()");
+        return None;
+    }
+    Some(item(&data_items(&out), "Z")[0])
+}
+
+#[test]
+fn rotary_table_turns_centres_and_tilts_the_part() {
+    // A Ø20 sphere on the table 50 mm from its axis (the Z axis through the origin).
+    let part = "[[sphere]]\ncenter_mm = [50, 0, 20]\ndiameter_mm = 20\n";
+    let h = start_with(MachineConfig::ideal(), Some(part), None);
+    let mut c = Raw::connect(&h);
+    for l in ["00001 StartSession()", "00002 Home()", "00003 ChangeTool(\"Probe1\")"] {
+        c.ok(l);
+    }
+    assert!(c.ok("00004 GetMachineClass()").iter().any(|l| l.contains("CartCMMWithRotaryTable")));
+    // Exact machine: the top of the sphere (tip centre at z = 20 + 10 + 1.5) to the 6 decimals.
+    let z = top_of_sphere(&mut c, 50.0, 0.0, 30.0).unwrap();
+    assert!((z - 31.5).abs() < 1e-6, "{z}");
+    // Turn the part's +X onto machine +Y: the sphere goes to (0, 50).
+    let out = c.ok("00005 AlignPart(1, 0, 0, 0, 1, 0, 0.01)");
+    assert!(out.iter().any(|l| l.contains("# (0.000000, 1.000000, 0.000000)")), "{out:?}");
+    let r = item(&data_items(&c.ok("00006 Get(R())")), "R")[0];
+    assert!((r - 90.0).abs() < 1e-6, "R {r}");
+    assert!(top_of_sphere(&mut c, 50.0, 0.0, 30.0).is_none(), "the sphere left (50, 0)");
+    let z = top_of_sphere(&mut c, 0.0, 50.0, 30.0).unwrap();
+    assert!((z - 31.5).abs() < 1e-6, "{z}");
+    // Centre it: 50 mm off the axis ≥ limit → moved (0); then on the axis (1).
+    assert!(c.ok("00007 CenterPart(0, 50, 20, 0.01)").iter().any(|l| l.contains("# CenterPart(0)")));
+    let z = top_of_sphere(&mut c, 0.0, 0.0, 30.0).unwrap();
+    assert!((z - 31.5).abs() < 1e-6, "{z}");
+    assert!(c.ok("00008 CenterPart(0, 0, 20, 0.01)").iter().any(|l| l.contains("# CenterPart(1)")));
+    // Tilt the part so that its direction (1, 0, 1)/√2 becomes the axis: about the table
+    // centre (0, 0, 0) the sphere centre (0, 0, 20) goes to 20·(−1, 0, 1)/√2.
+    assert!(c.ok("00009 TiltPart(0.70710678, 0, 0.70710678, 1)").iter().any(|l| l.contains("# TiltPart(0)")));
+    let k = 20.0 / 2f64.sqrt();
+    let z = top_of_sphere(&mut c, -k, 0.0, k + 10.0).unwrap();
+    assert!((z - (k + 11.5)).abs() < 1e-6, "{z}");
+    assert!(c.ok("00010 TiltPart(0, 0, 1, 1)").iter().any(|l| l.contains("# TiltPart(1)")));
+    // Tilt and centre on two points of the part's new vertical line through the sphere:
+    // (−k, 0, k) and (−k + 1, 0, k + 10) → that line becomes the axis, the first point on it.
+    let out = c.ok(&format!("00011 TiltCenterPart({}, 0, {}, {}, 0, {}, 0.01)", -k, k, -k + 1.0, k + 10.0));
+    assert!(out.iter().any(|l| l.contains("# TiltCenterPart(0)")), "{out:?}");
+    // The sphere centre was the first point: now on the axis at height k.
+    let z = top_of_sphere(&mut c, 0.0, 0.0, k + 10.0).unwrap();
+    assert!((z - (k + 11.5)).abs() < 1e-6, "{z}");
+    // A CartCMM refuses them.
+    let mut cart = MachineConfig::ideal();
+    cart.rotary_table = None;
+    let h2 = start_with(cart, Some(part), None);
+    let mut c2 = Raw::connect(&h2);
+    c2.ok("00001 StartSession()");
+    c2.ok("00002 Home()");
+    assert!(c2.cmd("00003 AlignPart(1, 0, 0, 0, 1, 0, 0)").iter().any(|l| l.contains("Error(3, 0501")));
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -8,7 +8,8 @@
 //! `[[plane]]` and an inside `[[cylinder]]`); each with an optional `id`. Cylinders are infinite.
 //!
 //! Machine file: `[ippdme] volume_min_mm, volume_max_mm` (default ±1000 mm),
-//! `[[ippdme.tool]] name, tip_diameter_mm`, and `[ippdme.model]`, the error models of the virtual
+//! `[[ippdme.tool]] name, tip_diameter_mm`, `rotary_table` (default true: a table turning about
+//! machine Z through `rotary_table_centre_mm`, default the origin), and `[ippdme.model]`, the error models of the virtual
 //! CMM ([`ModelConfig`]; every key optional, the defaults are a realistic bridge CMM with a
 //! touch-trigger probe). Other top-level tables are left to other readers.
 //!
@@ -291,6 +292,9 @@ pub struct MachineConfig {
     pub volume_max_mm: Point3,
     pub tools: Vec<ToolConfig>,
     pub model: ModelConfig,
+    /// The rotary table's axis point (axis parallel to machine Z), `None` without a table
+    /// (`rotary_table = false`). Default: a table turning about the Z axis through the origin.
+    pub rotary_table: Option<Point3>,
 }
 
 impl Default for MachineConfig {
@@ -300,6 +304,7 @@ impl Default for MachineConfig {
             volume_max_mm: Point3::new(1000.0, 1000.0, 1000.0),
             tools: Vec::new(),
             model: ModelConfig::default(),
+            rotary_table: Some(Point3::origin()),
         }
     }
 }
@@ -324,6 +329,8 @@ struct RawIppdme {
     #[serde(default)]
     tool: Vec<RawTool>,
     model: Option<RawModel>,
+    rotary_table: Option<bool>,
+    rotary_table_centre_mm: Option<[f64; 3]>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -449,6 +456,12 @@ impl MachineConfig {
         }
         if let Some(m) = ipp.model {
             m.apply(file, &mut cfg.model)?;
+        }
+        if let Some(c) = ipp.rotary_table_centre_mm {
+            cfg.rotary_table = Some(Point3::from(finite3(file, "ippdme.rotary_table_centre_mm", c)?));
+        }
+        if ipp.rotary_table == Some(false) {
+            cfg.rotary_table = None;
         }
         for (k, t) in ipp.tool.into_iter().enumerate() {
             let key = format!("ippdme.tool[{k}]");
