@@ -693,19 +693,25 @@ impl IppdmeCmm {
         if samples.is_empty() {
             return Err(MachineError::Unable("scan: no point was measured in contact".into()));
         }
+        // Each requested point is interpolated between the two measured samples around its
+        // parameter (the control loop samples at 1 kHz; a step finer than the sample spacing
+        // would otherwise repeat samples); outside the scanned range the end sample is used.
         let mut k = 0;
         for &t in targets {
-            while k + 1 < samples.len() && (samples[k + 1].0 - t).abs() <= (samples[k].0 - t).abs() {
+            while k + 2 < samples.len() && samples[k + 1].0 < t {
                 k += 1;
             }
-            let p = samples[k].1;
-            let n = surface.closest(&p.position).normal;
+            let (ua, a) = samples[k];
+            let (pos, quality) = match samples.get(k + 1) {
+                Some(&(ub, b)) if ub > ua => {
+                    let w = ((t - ua) / (ub - ua)).clamp(0.0, 1.0);
+                    (a.position + (b.position - a.position) * w, a.quality.max(b.quality))
+                }
+                _ => (a.position, a.quality),
+            };
+            let n = surface.closest(&pos).normal;
             self.counters.scan_points += 1;
-            out.push(ScanPoint {
-                tip_center_mm: p.position,
-                normal: n,
-                quality: 10.0 * f64::from(p.quality),
-            });
+            out.push(ScanPoint { tip_center_mm: pos, normal: n, quality: 10.0 * f64::from(quality) });
         }
         if let Some(last) = run.points.last() {
             self.position = last.commanded;
