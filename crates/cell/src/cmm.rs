@@ -48,6 +48,9 @@ use truepos_sim::touch::TouchProbe;
 
 use crate::scanning_cmm::{CmmConfig, VirtualCmm};
 
+/// How far (mm along the surface) a scan runs beyond its last requested point.
+const OVERSCAN_MM: f64 = 0.5;
+
 /// Contacts closer than this (mm) to the start of a move count as "already touching".
 const TOUCH_EPS: f64 = 1e-9;
 
@@ -885,7 +888,11 @@ impl Cmm for IppdmeCmm {
                         radius,
                         side,
                         start: radial.dot(&v).atan2(radial.dot(&u)),
-                        sweep: delta,
+                        // Overscan by 0.5 mm of arc (at most to ±720°): the planner's scan
+                        // segment hands over to the release a few samples before its nominal
+                        // end, and the last requested point must lie inside the scanned range.
+                        sweep: (delta.abs() + OVERSCAN_MM / radius).min(4.0 * std::f64::consts::PI)
+                            * delta.signum(),
                     },
                 };
                 let targets: Vec<f64> =
@@ -899,7 +906,11 @@ impl Cmm for IppdmeCmm {
                 let n_steps = ((length_mm / step_mm.max(1e-9)).round() as usize).max(1);
                 let feature = Feature {
                     id: "ScanOnLine".into(),
-                    geometry: Geometry::Line { start: s0, end: s0 + dir * length_mm, normal: start.normal },
+                    geometry: Geometry::Line {
+                        start: s0,
+                        end: s0 + dir * (length_mm + OVERSCAN_MM),
+                        normal: start.normal,
+                    },
                 };
                 let targets: Vec<f64> =
                     (0..=n_steps).map(|k| length_mm * k as f64 / n_steps as f64).collect();

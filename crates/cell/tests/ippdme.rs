@@ -499,6 +499,43 @@ fn scan_on_the_realistic_machine_against_truth() {
     // Deterministic for the seed.
     let (again, _) = scan_bore(MachineConfig::default());
     assert_eq!(pts, again);
+    // A line on the table plane (Z = 0): tip centres at Z = r = 1.5 against truth.
+    let h = start(Some(SPHERE_PART), None);
+    let mut c = Raw::connect(&h);
+    for l in [
+        "00001 StartSession()",
+        "00002 Home()",
+        "00003 ChangeTool(\"Probe1\")",
+        "00004 OnScanReport(X(), Y(), Z(), IJK())",
+        "00005 GoTo(X(200), Y(200), Z(50))",
+    ] {
+        c.ok(l);
+    }
+    let out = c.ok("00006 ScanOnLine(200, 200, 0.2, 260, 200, 0.2, 0, 0, 1, 0.5)");
+    let mut dz = Vec::new();
+    let mut xs = Vec::new();
+    for l in &out {
+        if let Ok(Response { body: Body::Data(d), .. }) = Response::parse(l) {
+            let v: Vec<f64> = d.split(',').map(|s| s.trim().parse().unwrap()).collect();
+            for p in v.chunks(6) {
+                dz.push(p[2] - 1.5);
+                xs.push(p[0]);
+            }
+        }
+    }
+    let worst_line = dz.iter().fold(0.0f64, |w, e| w.max(e.abs()));
+    eprintln!(
+        "ippdme ScanOnLine on the table plane, realistic machine: {} points, height error rms {:.3} µm, worst {:.3} µm, x from {:.3} to {:.3}",
+        dz.len(),
+        rms(&dz) * 1e3,
+        worst_line * 1e3,
+        xs[0],
+        xs[xs.len() - 1]
+    );
+    // 60 mm / 0.5 mm + 1 points; errors of the realistic machine: not exact, within 10 µm.
+    assert_eq!(dz.len(), 121);
+    assert!(rms(&dz) > 0.05e-3 && worst_line < 10e-3, "{worst_line}");
+    assert!((xs[0] - 200.0).abs() < 0.01 && (xs[120] - 260.0).abs() < 0.01, "{} {}", xs[0], xs[120]);
     // The points are spread over the whole circle (the planner's scan segment, resampled at
     // the requested 1° step): consecutive points 1° ± 0.5° apart.
     for w in pts.windows(2) {
