@@ -48,6 +48,11 @@ use truepos_sim::touch::TouchProbe;
 
 use crate::scanning_cmm::{CmmConfig, VirtualCmm};
 
+/// Most points one scan may return (bounds the memory of a session).
+const MAX_SCAN_POINTS: usize = 1_000_000;
+/// Most machine time (s) one scan may take (bounds the simulation's work per command).
+const MAX_SCAN_TIME_S: f64 = 300.0;
+
 /// How far (mm along the surface) a scan runs beyond its last requested point.
 const OVERSCAN_MM: f64 = 0.5;
 
@@ -645,6 +650,13 @@ impl IppdmeCmm {
         };
         truepos_scan::validate(std::slice::from_ref(&feature), &params)
             .map_err(|e| MachineError::Unable(format!("scan: {e}")))?;
+        let length = feature.extent() * feature.metric(r - params.deflection);
+        if length / params.scan_speed > MAX_SCAN_TIME_S {
+            return Err(MachineError::Unable(format!(
+                "scan: {length:.0} mm at {} mm/s is more than {MAX_SCAN_TIME_S} s of machine time",
+                params.scan_speed
+            )));
+        }
         let surface: Arc<dyn Artefact> = match &self.part {
             Some(p) => Arc::new(PartSurface { part: p.clone(), errors: self.models.errors.clone() }),
             None => Arc::new(Nominal(feature.clone())),
@@ -721,6 +733,18 @@ impl IppdmeCmm {
         }
         Ok(())
     }
+}
+
+/// The number of steps of a scan (at least 1), at most [`MAX_SCAN_POINTS`] − 1.
+fn steps(ratio: f64) -> Result<usize, MachineError> {
+    let n = ratio.round().max(1.0);
+    if !(n < MAX_SCAN_POINTS as f64) {
+        return Err(MachineError::Unable(format!(
+            "scan: {n:.0} steps; at most {} points per scan",
+            MAX_SCAN_POINTS
+        )));
+    }
+    Ok(n as usize)
 }
 
 /// The scan parameter of a measured tip centre: the angle from the start (rad, in the sweep's
@@ -859,7 +883,7 @@ impl Cmm for IppdmeCmm {
                 let mut axis =
                     axis.try_normalize(1e-15).ok_or_else(|| MachineError::Unable("zero scan axis".into()))?;
                 let mut delta = delta_rad;
-                let n_steps = ((delta_rad.abs() / step_rad.max(1e-9)).round() as usize).max(1);
+                let n_steps = steps(delta_rad.abs() / step_rad.max(1e-12))?;
                 let c = center + axis * (s0 - center).dot(&axis);
                 let radial = s0 - c;
                 let radius = radial.norm();
@@ -903,7 +927,7 @@ impl Cmm for IppdmeCmm {
                 let dir = (direction - start.normal * start.normal.dot(&direction))
                     .try_normalize(1e-9)
                     .ok_or_else(|| MachineError::Unable("the scan line runs along the normal".into()))?;
-                let n_steps = ((length_mm / step_mm.max(1e-9)).round() as usize).max(1);
+                let n_steps = steps(length_mm / step_mm.max(1e-12))?;
                 let feature = Feature {
                     id: "ScanOnLine".into(),
                     geometry: Geometry::Line {
@@ -917,6 +941,7 @@ impl Cmm for IppdmeCmm {
                 self.scan_planned(feature, &targets, r, out)
             }
             ScanPath::Contour { guide, toward, step_mm, stop, max_length_mm } => {
+                steps(max_length_mm / step_mm.max(1e-12))?;
                 let first = out.len();
                 self.follow(start, &guide, &toward, step_mm, &stop, max_length_mm, tip_radius_mm, out)?;
                 for p in &mut out[first..] {
@@ -1028,4 +1053,36 @@ pub fn bind_virtual(opts: &ServeOptions) -> Result<truepos_ippdme::Server<Ippdme
     };
     truepos_ippdme::Server::bind(&address, IppdmeCmm::new(&config, part), &config, log)
         .map_err(|source| ServeError::Bind { address, source })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scans_are_bounded_in_points_and_machine_time() {
+        let part = Part::from_toml("p", "[[plane]]\npoint_mm = [0, 0, 0]\nnormal = [0, 0, 1]\n").unwrap();
+        let mut m = IppdmeCmm::new(&MachineConfig::default(), Some(part));
+        let start = Contact { tip_center_mm: Point3::new(800.0, 0.0, 1.5), normal: Vector3::z() };
+        let mut out = Vec::new();
+        // Two turns of a 1.6 m circle: 10 km at 20 mm/s.
+        let long = ScanPath::Circle {
+            center: Point3::origin(),
+            axis: Vector3::z(),
+            delta_rad: 4.0 * std::f64::consts::PI,
+            step_rad: 0.01,
+        };
+        let e = m.scan(start, &long, 1.5, &mut out).unwrap_err();
+        assert!(e.to_string().contains("machine time"), "{e}");
+        let fine = ScanPath::Line { direction: Vector3::x(), length_mm: 10.0, step_mm: 1e-9 };
+        let e = m.scan(start, &fine, 1.5, &mut out).unwrap_err();
+        assert!(e.to_string().contains("points per scan"), "{e}");
+        assert!(out.is_empty());
+        // Within the bounds: a 10 mm line in 1 mm steps on the plane, 11 points at z ≈ r.
+        let ok = ScanPath::Line { direction: Vector3::x(), length_mm: 10.0, step_mm: 1.0 };
+        m.scan(start, &ok, 1.5, &mut out).unwrap();
+        assert_eq!(out.len(), 11);
+        // The realistic machine: within 10 µm of the true plane (geometric map and noise).
+        assert!(out.iter().all(|p| (p.tip_center_mm.z - 1.5).abs() < 10e-3), "{out:?}");
+    }
 }

@@ -616,6 +616,31 @@ fn scan_on_circle_in_a_bore_lies_on_the_true_circle() {
     assert!(zs.iter().all(|z| (z - 1.5).abs() < 1e-6), "{zs:?}");
 }
 
+#[test]
+fn scans_beyond_the_bounds_are_refused_and_the_session_goes_on() {
+    let h = start(Some(SPHERE_PART), None);
+    let mut c = Raw::connect(&h);
+    for l in ["00001 StartSession()", "00002 Home()", "00003 ChangeTool(\"Probe1\")"] {
+        c.ok(l);
+    }
+    c.ok("00004 GoTo(X(-100), Y(0), Z(50))");
+    c.ok("00005 GoTo(Z(-10))");
+    // A 1e-7° step would be 3.6e9 points: refused before any memory is taken.
+    let t0 = Instant::now();
+    let out = c.cmd("00006 ScanOnCircle(-100, 0, -10, -85.4, 0, -10, 0, 0, 1, 360, 180, 0.0000001)");
+    assert!(out.iter().any(|l| l.contains("Error(2, 1011")), "{out:?}");
+    c.ok("00007 ClearAllErrors()");
+    // Two turns of a 1.6 m circle on the table plane: 20 km, 1000 s of machine time at 20 mm/s.
+    c.ok("00008 GoTo(Z(50))");
+    c.ok("00009 GoTo(X(800), Y(0))");
+    let out = c.cmd("00010 ScanOnCircle(0, 0, 0, 800, 0, 0, 0, 0, 1, 720, 90, 1)");
+    assert!(out.iter().any(|l| l.contains("Error(2, 1011")), "{out:?}");
+    // Refusals are quick (bounded work per command).
+    assert!(t0.elapsed() < Duration::from_secs(5), "{:?}", t0.elapsed());
+    c.ok("00011 ClearAllErrors()");
+    c.ok("00012 Get(X(), Y(), Z())");
+}
+
 // ---------------------------------------------------------------------------------------------
 // Rotary table (spec 12, 13)
 
