@@ -738,7 +738,7 @@ impl IppdmeCmm {
 /// The number of steps of a scan (at least 1), at most [`MAX_SCAN_POINTS`] − 1.
 fn steps(ratio: f64) -> Result<usize, MachineError> {
     let n = ratio.round().max(1.0);
-    if !(n < MAX_SCAN_POINTS as f64) {
+    if n >= MAX_SCAN_POINTS as f64 {
         return Err(MachineError::Unable(format!(
             "scan: {n:.0} steps; at most {} points per scan",
             MAX_SCAN_POINTS
