@@ -14,7 +14,7 @@ use crate::protocol::{parse_data_items, Body, Response, Tag};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
 use std::time::{Duration, Instant};
-use truepos_device::{DeviceError, DeviceInfo, ProbeHit, ProbeRequest, ProbingMachine};
+use truepos_device::{DeviceError, DeviceInfo, ProbeHit, ProbeRequest, ProbingMachine, RotaryAxes};
 use truepos_math::{Point3, Vector3};
 
 /// Default I++ DME port.
@@ -72,6 +72,8 @@ pub struct IppClient {
     /// PtMeasPar values last set: approach, search, retract, speed.
     ptmeas_set: Option<[f64; 4]>,
     in_session: bool,
+    /// The CMM reported a rotary table (`GetMachineClass`).
+    rotary_table: bool,
 }
 
 /// Connect to `ippdme://HOST:PORT` with the default timeouts.
@@ -125,6 +127,7 @@ impl IppClient {
             tip_radius_mm: 0.0,
             ptmeas_set: None,
             in_session: false,
+            rotary_table: false,
         };
         c.transact_raw(&Command::StartSession.to_call_string(), "starting the session", false).map_err(
             |e| match e {
@@ -143,6 +146,8 @@ impl IppClient {
             .and_then(|d| d.split('"').nth(1))
             .map(|s| format!("I++ DME {s}"))
             .unwrap_or_else(|| "I++ DME (version not reported)".into());
+        let class = c.transact("GetMachineClass()", "reading the machine class")?;
+        c.rotary_table = class.first().is_some_and(|d| d.contains("CartCMMWithRotaryTable"));
         let homed = c.transact("IsHomed()", "asking whether the machine is homed")?;
         if !homed.first().is_some_and(|d| d.replace(' ', "").contains("IsHomed(1)")) {
             return Err(DeviceError::NotReady {
@@ -446,6 +451,60 @@ impl ProbingMachine for IppClient {
         let d = self.transact_raw(&cmd.to_call_string(), &what, true)?;
         let (p, normal) = self.xyz(&d, &what)?;
         Ok(ProbeHit { tip_center_mm: p, normal })
+    }
+
+    /// A CMM with a rotary table (`GetMachineClass` answers `CartCMMWithRotaryTable`) turns its
+    /// table (C); no CMM of this client swivels its stylus (B).
+    fn rotary_axes(&self) -> RotaryAxes {
+        RotaryAxes { head_b: false, table_c: self.rotary_table }
+    }
+
+    /// Turn the table to `c_deg` (B must be 0): the table's angle is read with `Get(R())` and the
+    /// table turned by the difference with `AlignPart` (the machine X axis as the part vector,
+    /// turned by the difference about Z as the machine vector) — the specification's only command
+    /// that turns a rotary table.
+    fn orient(&mut self, b_deg: f64, c_deg: f64) -> Result<(), DeviceError> {
+        let refuse = |m: &str| DeviceError::Rejected {
+            address: self.address.clone(),
+            what: format!("orienting to B = {b_deg}°, C = {c_deg}°"),
+            message: m.into(),
+        };
+        if !(b_deg.is_finite() && c_deg.is_finite()) {
+            return Err(refuse("angles not finite"));
+        }
+        if b_deg != 0.0 {
+            return Err(refuse("this CMM has no swivelling head (B)"));
+        }
+        if !self.rotary_table {
+            return if c_deg == 0.0 { Ok(()) } else { Err(refuse("this CMM has no rotary table (C)")) };
+        }
+        let what = "reading the table angle";
+        let d = self.transact("Get(R())", what)?;
+        let bad = |m: String| DeviceError::Protocol {
+            address: self.address.clone(),
+            what: what.into(),
+            message: m,
+        };
+        let items = parse_data_items(d.first().ok_or_else(|| bad("no data".into()))?).map_err(bad)?;
+        let now =
+            items.iter().find(|(k, _)| k == "R").and_then(|(_, v)| v.first().copied()).ok_or_else(|| {
+                DeviceError::Protocol {
+                    address: self.address.clone(),
+                    what: what.into(),
+                    message: format!("no R() in {d:?}"),
+                }
+            })?;
+        let turn = (c_deg - now).to_radians();
+        if turn.abs() < 1e-12 {
+            return Ok(());
+        }
+        let (s, c) = turn.sin_cos();
+        let cmd = format!(
+            "AlignPart(1, 0, 0, {}, {}, 0, 0)",
+            crate::protocol::fmt_num(c),
+            crate::protocol::fmt_num(s)
+        );
+        self.transact_raw(&cmd, &format!("turning the table to C = {c_deg}°"), true).map(|_| ())
     }
 
     fn abort(&mut self) -> Result<(), DeviceError> {
