@@ -134,9 +134,9 @@ fn probe_sphere_through_linuxcnc() {
     assert!(err.contains("G38.2") && err.contains("without contact") && err.contains(&sim.url()), "{err}");
     assert!(out.stdout.is_empty());
     // The delay of LinuxCNC's probe latch by the feeds method (`latency probe`): its probe input
-    // is sampled in the 1 ms servo thread and the HAL sphere model sees the commanded position of
-    // the same period, so a latch is 0…1 period late at a random phase: 0.5 ms on average (one
-    // run measured 500.7 ± 2.2 µs). Allowed: 5 u plus 50 µs for the finite sample of phases.
+    // is sampled in the 1 ms servo thread, so a latch is 0…1 period late at a random phase:
+    // 0.5 ms on average (one run measured 500.7 ± 2.2 µs). Allowed: 5 u plus 50 µs for the
+    // finite sample of phases.
     let out = bin()
         .args(["latency", "probe", "--controller", &sim.url(), "--near=120,45,30", "--diameter-mm", "25"])
         .args(["--tip-diameter-mm", "3", "--feeds-mm-min", "50,100,200,400", "--points", "12"])
