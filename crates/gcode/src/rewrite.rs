@@ -51,13 +51,60 @@ const MIX_EPS: f64 = 1e-12;
 const AXES: [u8; 3] = [b'X', b'Y', b'Z'];
 const CENTRE: [u8; 3] = [b'I', b'J', b'K'];
 
+/// Replacement text of a word: inline (no allocation) up to 31 bytes, which every fixed-point
+/// number below 10^15 is; longer text on the heap.
+#[derive(Clone)]
+enum Txt {
+    Inline { len: u8, buf: [u8; 31] },
+    Heap(String),
+}
+
+impl From<&str> for Txt {
+    fn from(s: &str) -> Self {
+        if s.len() <= 31 {
+            let mut buf = [0u8; 31];
+            buf[..s.len()].copy_from_slice(s.as_bytes());
+            Txt::Inline { len: s.len() as u8, buf }
+        } else {
+            Txt::Heap(s.to_string())
+        }
+    }
+}
+
+impl From<String> for Txt {
+    fn from(s: String) -> Self {
+        if s.len() <= 31 {
+            Txt::from(s.as_str())
+        } else {
+            Txt::Heap(s)
+        }
+    }
+}
+
+impl std::ops::Deref for Txt {
+    type Target = str;
+    fn deref(&self) -> &str {
+        match self {
+            // Built from a whole `&str` only, so always valid.
+            Txt::Inline { len, buf } => std::str::from_utf8(&buf[..*len as usize]).unwrap_or_default(),
+            Txt::Heap(s) => s,
+        }
+    }
+}
+
+impl std::fmt::Display for Txt {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self)
+    }
+}
+
 /// Fixed-point text of `v` with `dec` decimals (no "-0.000"). Integer arithmetic: much faster
 /// than float formatting, exact for |v|·10^dec below 2^53.
-fn fmt_num(v: f64, dec: u8) -> String {
+fn fmt_num(v: f64, dec: u8) -> Txt {
     let scale = 10i64.pow(dec as u32);
     let scaled = (v * scale as f64).round();
     if !scaled.is_finite() || scaled.abs() >= 9.0e15 {
-        return format!("{:.*}", dec as usize, v);
+        return Txt::from(format!("{:.*}", dec as usize, v));
     }
     let n = scaled as i64;
     // At most 16 digits, a point and a sign.
@@ -86,7 +133,7 @@ fn fmt_num(v: f64, dec: u8) -> String {
         buf[i] = b'-';
     }
     // ASCII digits, point and sign only.
-    std::str::from_utf8(&buf[i..]).map(str::to_owned).unwrap_or_default()
+    Txt::from(std::str::from_utf8(&buf[i..]).unwrap_or_default())
 }
 
 /// 10^dec (a table for the usual decimals: this is on every rewritten word).
@@ -104,7 +151,7 @@ fn round_to(v: f64, dec: u8) -> f64 {
 /// Edits of one line.
 #[derive(Default)]
 struct Edits {
-    replace: Vec<(usize, String)>,
+    replace: Vec<(usize, Txt)>,
     insert_after: Vec<(usize, String)>,
     insert_before: Vec<(usize, String)>,
 }
@@ -150,6 +197,8 @@ pub(crate) struct Rewriter {
     mixes: [bool; 3],
     /// Lines rewritten so far (in earlier chunks): added to the line numbers of errors.
     base: usize,
+    /// The edits of the current line (kept from line to line: no allocation per line).
+    edits: Edits,
 }
 
 impl Rewriter {
@@ -174,6 +223,7 @@ impl Rewriter {
             exact_inc: [0.0; 3],
             mixes,
             base: 0,
+            edits: Edits::default(),
         }
     }
 
@@ -291,7 +341,10 @@ impl Rewriter {
                 return Ok(());
             }
         }
-        let mut edits = Edits::default();
+        let mut edits = std::mem::take(&mut self.edits);
+        edits.replace.clear();
+        edits.insert_after.clear();
+        edits.insert_before.clear();
         if let MotionMode::Cycle(_) = blk.after.motion {
             if (r[(2, 2)] - 1.0).abs() > MIX_EPS || r[(0, 2)].abs() > MIX_EPS || r[(1, 2)].abs() > MIX_EPS {
                 return Err(err(
@@ -401,7 +454,7 @@ impl Rewriter {
                     Some(gi) => {
                         let txt = p.text(&toks[gi]);
                         let swapped: String = txt.chars().map(|c| match c { '2' => '3', '3' => '2', c => c }).collect();
-                        edits.replace.push((gi, swapped[1..].to_string()));
+                        edits.replace.push((gi, Txt::from(&swapped[1..])));
                     }
                     None => return Err(err(None, "the transform turns the arc plane over, which swaps G2 and G3, but the arc's G2/G3 word is modal (not on this line)".into())),
                 }
@@ -442,6 +495,7 @@ impl Rewriter {
         } else {
             p.emit_line(i, &edits, out);
         }
+        self.edits = edits;
         self.old = blk.after;
         Ok(())
     }
@@ -593,7 +647,7 @@ impl Program {
         });
         for letter in [b'I', b'J', b'K', b'R'] {
             if let Some(k) = find(letter) {
-                edits.replace.push((k, String::new()));
+                edits.replace.push((k, Txt::from("")));
             }
         }
         let axis_pos: Vec<usize> = (0..3).filter_map(|k| find(AXES[k])).collect();
@@ -606,7 +660,7 @@ impl Program {
             written[k] = Some(round_to(v, dec));
         }
         match g {
-            Some(gi) => edits.replace.push((gi, "1".into())),
+            Some(gi) => edits.replace.push((gi, Txt::from("1"))),
             None => {
                 let first = axis_pos.first().copied().unwrap_or(0);
                 edits.insert_before.push((first, "G1 ".into()));
@@ -681,7 +735,7 @@ mod tests {
             (0.05, 1, "0.1"),
             (1e300, 2, &format!("{:.2}", 1e300)),
         ] {
-            assert_eq!(fmt_num(v, dec), want, "{v} {dec}");
+            assert_eq!(&*fmt_num(v, dec), want, "{v} {dec}");
         }
     }
 

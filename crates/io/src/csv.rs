@@ -134,7 +134,9 @@ fn map_large_file(path: &Path) -> Result<Option<memmap2::Mmap>, InputError> {
     }
     // SAFETY: a private read-only map; the input file is not expected to change while truepos
     // reads it (as with any reader, a file truncated meanwhile is an error the OS reports).
-    Ok(unsafe { memmap2::Mmap::map(&file).ok() })
+    // `populate`: the page tables are filled in one go (the file is about to be read whole),
+    // instead of one page fault per few pages.
+    Ok(unsafe { memmap2::MmapOptions::new().populate().map(&file).ok() })
 }
 
 /// Read a whole file with the bounds of [`crate::limits`] (size, line length, no NUL bytes).
@@ -558,11 +560,12 @@ impl Rows<'_> {
             let mut buf = Vec::with_capacity(width);
             let first = c * CHUNK;
             for row in first..(first + CHUNK).min(n) {
-                let line = self.line(row);
                 let d = &mut dst[(row - first) * k..(row - first + 1) * k];
-                if parse_row_fast(line, &slots, d) {
+                // The fast path finds the row's end itself (no search for it first).
+                if parse_row_fast(&self.text[self.rows[row]..], &slots, d) {
                     continue;
                 }
+                let line = self.line(row);
                 let text = std::str::from_utf8(line).unwrap_or("");
                 if !split_fields_fast(line, &mut buf) {
                     split_fields(text, &mut buf);
@@ -600,62 +603,71 @@ impl Rows<'_> {
 
 pub use crate::num::parse_f64;
 
-/// One pass over a quote-free row: wanted columns are parsed while the row is split. Returns
-/// `false` on anything else (quotes, bad text, a wrong field count, a column wanted twice), and
-/// the caller then takes the general path, which also produces the error message.
+/// One pass over a quote-free row: wanted columns are parsed while the row is split. `text`
+/// starts at the row and may go on past it: the row ends at `\n`, `\r\n` or the end of `text`.
+/// Returns `false` on anything else (quotes, bad text, a wrong field count, a column wanted
+/// twice), and the caller then takes the general path, which also produces the error message.
 #[inline]
-fn parse_row_fast(line: &[u8], slots: &[usize], d: &mut [f64]) -> bool {
+fn parse_row_fast(text: &[u8], slots: &[usize], d: &mut [f64]) -> bool {
     let mut i = 0;
-    let n = line.len();
+    let n = text.len();
+    let line_end =
+        |i: usize| i >= n || text[i] == b'\n' || (text[i] == b'\r' && (i + 1 >= n || text[i + 1] == b'\n'));
     let mut filled = 0;
     for (col, &slot) in slots.iter().enumerate() {
         if col > 0 {
             // The previous field ended at a comma.
-            if i >= n || line[i] != b',' {
+            if i >= n || text[i] != b',' {
                 return false;
             }
             i += 1;
         }
         if slot == usize::MAX {
-            while i < n && line[i] != b',' {
-                if line[i] == b'"' {
+            while i < n && text[i] != b',' && text[i] != b'\n' {
+                if text[i] == b'"' {
                     return false;
                 }
                 i += 1;
             }
+            // A field that ends the row keeps its `\r` out (as the row's text does).
+            if i < n && text[i] == b'\n' && i > 0 && text[i - 1] == b'\r' {
+                i -= 1;
+            }
             continue;
         }
-        while i < n && (line[i] == b' ' || line[i] == b'\t') {
+        while i < n && (text[i] == b' ' || text[i] == b'\t') {
             i += 1;
         }
-        let Some((v, used)) = crate::num::parse_f64_prefix(&line[i..]) else {
+        let Some((v, used)) = crate::num::parse_f64_prefix(&text[i..]) else {
             return false;
         };
         i += used;
-        while i < n && (line[i] == b' ' || line[i] == b'\t') {
+        while i < n && (text[i] == b' ' || text[i] == b'\t') {
             i += 1;
         }
-        if i < n && line[i] != b',' {
+        if !line_end(i) && text[i] != b',' {
             return false;
         }
         d[slot] = v;
         filled += 1;
     }
-    i == n && filled == d.len()
+    line_end(i) && filled == d.len()
 }
 
 /// Write CSV rows with a header; floats in shortest round-trip form (or a fixed number of
-/// decimals, [`CsvWriter::with_format`]).
+/// decimals, [`CsvWriter::with_format`]). The fields of a row are gathered in memory and written
+/// with one call at [`end_row`](CsvWriter::end_row) (an unfinished row at
+/// [`into_inner`](CsvWriter::into_inner)).
 pub struct CsvWriter<W: Write> {
     w: W,
     first: bool,
     fmt: NumFormat,
-    num: Vec<u8>,
+    row: Vec<u8>,
 }
 
 impl<W: Write> CsvWriter<W> {
     pub fn new(w: W) -> Self {
-        Self { w, first: true, fmt: NumFormat::Shortest, num: Vec::with_capacity(32) }
+        Self { w, first: true, fmt: NumFormat::Shortest, row: Vec::with_capacity(256) }
     }
     /// How numbers are written.
     pub fn with_format(mut self, fmt: NumFormat) -> Self {
@@ -672,39 +684,43 @@ impl<W: Write> CsvWriter<W> {
     pub fn header(&mut self, names: &[&str]) -> std::io::Result<()> {
         writeln!(self.w, "{}", names.join(","))
     }
-    /// Append one field to the current row.
-    pub fn field_str(&mut self, s: &str) -> std::io::Result<()> {
+    #[inline]
+    fn sep(&mut self) {
         if !self.first {
-            self.w.write_all(b",")?;
+            self.row.push(b',');
         }
         self.first = false;
+    }
+    /// Append one field to the current row.
+    pub fn field_str(&mut self, s: &str) -> std::io::Result<()> {
+        self.sep();
         if s.contains(',') || s.contains('"') {
-            write!(self.w, "\"{}\"", s.replace('"', "\"\""))
+            self.row.push(b'"');
+            self.row.extend_from_slice(s.replace('"', "\"\"").as_bytes());
+            self.row.push(b'"');
         } else {
-            self.w.write_all(s.as_bytes())
+            self.row.extend_from_slice(s.as_bytes());
         }
+        Ok(())
     }
     #[inline]
     pub fn field_f64(&mut self, v: f64) -> std::io::Result<()> {
-        self.num.clear();
-        if !self.first {
-            self.num.push(b',');
-        }
-        self.first = false;
-        self.fmt.write(v, &mut self.num);
-        self.w.write_all(&self.num)
+        self.sep();
+        self.fmt.write(v, &mut self.row);
+        Ok(())
     }
     /// Append a raw, already formatted CSV fragment (e.g. a passed-through row).
     pub fn raw(&mut self, s: &str) -> std::io::Result<()> {
-        if !self.first {
-            self.w.write_all(b",")?;
-        }
-        self.first = false;
-        self.w.write_all(s.as_bytes())
+        self.sep();
+        self.row.extend_from_slice(s.as_bytes());
+        Ok(())
     }
     pub fn end_row(&mut self) -> std::io::Result<()> {
         self.first = true;
-        self.w.write_all(b"\n")
+        self.row.push(b'\n');
+        let r = self.w.write_all(&self.row);
+        self.row.clear();
+        r
     }
     pub fn row_f64(&mut self, v: &[f64]) -> std::io::Result<()> {
         for x in v {
@@ -712,7 +728,12 @@ impl<W: Write> CsvWriter<W> {
         }
         self.end_row()
     }
-    pub fn into_inner(self) -> W {
+    /// The inner writer (after writing the fields of an unfinished row, if any; a failure of
+    /// that last write shows when the caller flushes or writes next).
+    pub fn into_inner(mut self) -> W {
+        if !self.row.is_empty() {
+            let _ = self.w.write_all(&self.row);
+        }
         self.w
     }
 }
