@@ -150,8 +150,10 @@ pub fn read_file(path: &Path) -> Result<Vec<u8>, InputError> {
 pub(crate) fn index_rows(text: &str, from: usize, to: usize, out: &mut Vec<usize>) -> Option<usize> {
     let bytes = text.as_bytes();
     let mut pos = from;
+    // One search over the whole range (rows are short: a call per row would cost more than it finds).
+    let mut ends = memchr::memchr_iter(b'\n', &bytes[from..to]).map(|p| from + p);
     while pos < to {
-        let end = memchr::memchr(b'\n', &bytes[pos..to]).map_or(to, |p| pos + p);
+        let end = ends.next().unwrap_or(to);
         if end - pos > crate::limits::MAX_LINE_BYTES {
             return Some(pos);
         }

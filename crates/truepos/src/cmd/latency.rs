@@ -16,7 +16,7 @@ use serde_json::json;
 use std::path::PathBuf;
 use truepos_cell::scenarios::latency::{self as latency_scenario, SimRequest};
 use truepos_io::InputError;
-use truepos_latency::file::{input_error, read_stream};
+use truepos_latency::file::{input_error, read_streams};
 use truepos_latency::{self as lat, KnownSize, Method, Options, Streams};
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -183,8 +183,7 @@ pub fn run(a: Args) -> Result<Outcome> {
         .into());
     };
     let opt = options(&a)?;
-    let machine = read_stream(mpath, ["x_mm", "y_mm", "z_mm"])?;
-    let probe = read_stream(ppath, ["a_mm", "b_mm", "c_mm"])?;
+    let (machine, probe) = read_streams(mpath, ppath)?;
     let s = Streams { machine_t: &machine.t, machine: &machine.v, probe_t: &probe.t, probe: &probe.v };
     let e = lat::estimate(&s, &opt).map_err(|err| input_error(err, &machine, &probe))?;
     for w in &e.warnings {
@@ -202,8 +201,7 @@ fn apply(a: ApplyArgs) -> Result<Outcome> {
     if !a.delay_s.is_finite() {
         return Err(UsageError("--delay-s must be a finite number".into()).into());
     }
-    let machine = read_stream(&a.machine, ["x_mm", "y_mm", "z_mm"])?;
-    let probe = read_stream(&a.probe, ["a_mm", "b_mm", "c_mm"])?;
+    let (machine, probe) = read_streams(&a.machine, &a.probe)?;
     let s = Streams { machine_t: &machine.t, machine: &machine.v, probe_t: &probe.t, probe: &probe.v };
     s.check().map_err(|e| input_error(e, &machine, &probe))?;
     let mut out = Vec::new();
