@@ -59,12 +59,21 @@ enum Txt {
     Heap(String),
 }
 
+impl Txt {
+    /// Inline text from bytes that are a whole UTF-8 string (a `&str`'s bytes, or ASCII) of at
+    /// most 31 bytes; the invariant [`Deref`](std::ops::Deref) relies on.
+    fn inline(b: &[u8]) -> Self {
+        debug_assert!(b.len() <= 31 && std::str::from_utf8(b).is_ok());
+        let mut buf = [0u8; 31];
+        buf[..b.len()].copy_from_slice(b);
+        Txt::Inline { len: b.len() as u8, buf }
+    }
+}
+
 impl From<&str> for Txt {
     fn from(s: &str) -> Self {
         if s.len() <= 31 {
-            let mut buf = [0u8; 31];
-            buf[..s.len()].copy_from_slice(s.as_bytes());
-            Txt::Inline { len: s.len() as u8, buf }
+            Txt::inline(s.as_bytes())
         } else {
             Txt::Heap(s.to_string())
         }
@@ -85,8 +94,9 @@ impl std::ops::Deref for Txt {
     type Target = str;
     fn deref(&self) -> &str {
         match self {
-            // Built from a whole `&str` only, so always valid.
-            Txt::Inline { len, buf } => std::str::from_utf8(&buf[..*len as usize]).unwrap_or_default(),
+            // SAFETY: `Txt::inline` is the only constructor of `Inline`, from the bytes of a whole
+            // `&str` or from ASCII, so `buf[..len]` is valid UTF-8 (checked in debug builds).
+            Txt::Inline { len, buf } => unsafe { std::str::from_utf8_unchecked(&buf[..*len as usize]) },
             Txt::Heap(s) => s,
         }
     }
@@ -107,11 +117,21 @@ fn fmt_num(v: f64, dec: u8) -> Txt {
         return Txt::from(format!("{:.*}", dec as usize, v));
     }
     let n = scaled as i64;
-    // At most 16 digits, a point and a sign.
+    // At most 16 digits, a point and a sign; digits two at a time from a table.
+    const PAIRS: &[u8; 200] = b"00010203040506070809101112131415161718192021222324252627282930313233343536373839\
+404142434445464748495051525354555657585960616263646566676869707172737475767778798081828384858687888990919293949596979899";
     let mut buf = [0u8; 24];
     let mut i = buf.len();
     let mut a = n.unsigned_abs();
-    for _ in 0..dec {
+    let mut left = dec as usize;
+    while left >= 2 {
+        let r = (a % 100) as usize * 2;
+        a /= 100;
+        i -= 2;
+        buf[i..i + 2].copy_from_slice(&PAIRS[r..r + 2]);
+        left -= 2;
+    }
+    if left == 1 {
         i -= 1;
         buf[i] = b'0' + (a % 10) as u8;
         a /= 10;
@@ -120,20 +140,22 @@ fn fmt_num(v: f64, dec: u8) -> Txt {
         i -= 1;
         buf[i] = b'.';
     }
-    loop {
+    while a >= 10 {
+        let r = (a % 100) as usize * 2;
+        a /= 100;
+        i -= 2;
+        buf[i..i + 2].copy_from_slice(&PAIRS[r..r + 2]);
+    }
+    if a > 0 || i == buf.len() || buf[i] == b'.' {
         i -= 1;
-        buf[i] = b'0' + (a % 10) as u8;
-        a /= 10;
-        if a == 0 {
-            break;
-        }
+        buf[i] = b'0' + a as u8;
     }
     if n < 0 {
         i -= 1;
         buf[i] = b'-';
     }
     // ASCII digits, point and sign only.
-    Txt::from(std::str::from_utf8(&buf[i..]).unwrap_or_default())
+    Txt::inline(&buf[i..])
 }
 
 /// 10^dec (a table for the usual decimals: this is on every rewritten word).
@@ -721,6 +743,23 @@ mod tests {
 
     fn tr(prog: &str, t: Transform3) -> Result<String, GcodeError> {
         Program::parse(prog).transform(&t, &TransformOptions::default())
+    }
+
+    proptest::proptest! {
+        /// The pairwise digit writer gives the text of the plain one: the scaled, rounded
+        /// integer's digits with the point `dec` places from the right (no `-0`); below the
+        /// 9e15 bound where `fmt_num` hands over to `format!`.
+        #[test]
+        fn fixed_point_digits_match_the_integer(v in -1e8f64..1e8, dec in 0u8..8) {
+            let n = (v * 10f64.powi(dec as i32)).round() as i64;
+            let digits = format!("{:0width$}", n.unsigned_abs(), width = dec as usize + 1);
+            let (int, frac) = digits.split_at(digits.len() - dec as usize);
+            let mut want = if n < 0 { format!("-{int}") } else { int.to_string() };
+            if dec > 0 {
+                want = format!("{want}.{frac}");
+            }
+            proptest::prop_assert_eq!(&*fmt_num(v, dec), want);
+        }
     }
 
     #[test]
