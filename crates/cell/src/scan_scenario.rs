@@ -221,6 +221,20 @@ pub struct Written {
     pub n_features: usize,
 }
 
+impl Written {
+    /// What `truepos simulate scan` prints: the files and the command that scans the part.
+    pub fn text(&self) -> String {
+        format!(
+            "wrote {} and {} ({} features)\nscan with: truepos scan run --features {} --part {} --output points.csv --json\n",
+            self.features.display(),
+            self.truth.display(),
+            self.n_features,
+            self.features.display(),
+            self.truth.display()
+        )
+    }
+}
+
 /// Write the `scan` scenario of `seed` with `n` features: `features.toml` (nominal) and
 /// `truth.json` (nominal and actual geometry of every feature).
 pub fn write_scenario(dir: &Path, seed: u64, n: usize) -> std::io::Result<Written> {

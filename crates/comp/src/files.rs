@@ -202,6 +202,7 @@ pub struct RestToml {
 }
 
 /// A resolved load case: point loads `(x, y, F)` (F downwards, N), weight and CoG.
+#[derive(Clone, Debug)]
 pub struct LoadCase {
     pub loads: Vec<(f64, f64, f64)>,
     pub weight_n: f64,

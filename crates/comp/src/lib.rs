@@ -16,6 +16,8 @@
 //!   contract's correction `p − θ × (p − o)`.
 //! - [`fe_map`]: influence maps computed with the plate model of `truepos-fe`.
 //! - [`files`]: the influence map CSV (read and write).
+//! - [`task`]: the commands of `truepos comp` and `truepos load` as library calls (files in,
+//!   outputs written, a `Report` back).
 //! - [`grid1`]: O(1)/binary-search interval lookup shared by all tables.
 
 pub mod correct;
@@ -28,6 +30,7 @@ pub mod json;
 pub mod load;
 pub mod statics;
 pub mod stream;
+pub mod task;
 
 pub use correct::{CompError, Corrector};
 pub use fe_map::{BedModel, LoadGrid};

@@ -221,6 +221,216 @@ fn diameter(name: &'static str, value: Option<f64>, default: f64) -> Result<f64,
     }
 }
 
+/// Equation numbers of the degrees of freedom (3 per node: w, ψx, ψy): `FREE_NONE` for a
+/// constrained one (simply supported edges), and the reaction row of each constrained w.
+struct Dofs {
+    eq: Vec<usize>,
+    n_eq: usize,
+    reaction_index: Vec<usize>,
+    n_reactions: usize,
+}
+
+impl Dofs {
+    fn number(bed: &Bed, mesh: &Mesh) -> Result<Dofs, FeError> {
+        let n_dof = 3 * mesh.n_nodes();
+        let mut constrained = vec![false; n_dof];
+        if let Supports::SimplySupportedEdges = bed.supports {
+            // Hard simple support: w = 0 and the tangential rotation = 0 on each edge.
+            let (nx, ny) = (mesh.nx(), mesh.ny());
+            for j in 0..ny {
+                for i in 0..nx {
+                    let n = mesh.node_index(i, j);
+                    if i == 0 || i == nx - 1 {
+                        constrained[3 * n] = true;
+                        constrained[3 * n + 2] = true; // ψy along the edge x = const
+                    }
+                    if j == 0 || j == ny - 1 {
+                        constrained[3 * n] = true;
+                        constrained[3 * n + 1] = true; // ψx along the edge y = const
+                    }
+                }
+            }
+        }
+        let mut eq = vec![FREE_NONE; n_dof];
+        let mut n_eq = 0;
+        for d in 0..n_dof {
+            if !constrained[d] {
+                eq[d] = n_eq;
+                n_eq += 1;
+            }
+        }
+        if n_eq == 0 {
+            return Err(FeError::Singular("no free degrees of freedom".into()));
+        }
+        let mut reaction_index = vec![FREE_NONE; n_dof];
+        let mut n_reactions = 0;
+        for d in (0..n_dof).step_by(3) {
+            if constrained[d] {
+                reaction_index[d] = n_reactions;
+                n_reactions += 1;
+            }
+        }
+        Ok(Dofs { eq, n_eq, reaction_index, n_reactions })
+    }
+}
+
+/// The pads with their footprint weights; rigid pads get a constraint each (coincident ones
+/// share). Returns the pads and the number of rigid constraints.
+fn pads(
+    bed: &Bed,
+    mesh: &Mesh,
+    pad_xy: &[[f64; 2]],
+    pad_radius: f64,
+    h: f64,
+) -> Result<(Vec<Pad>, usize), FeError> {
+    let mut pads: Vec<Pad> = Vec::new();
+    let mut constraint_centres: Vec<[f64; 2]> = Vec::new();
+    if let Supports::Points { stiffness_n_per_mm, .. } = &bed.supports {
+        let tol = 1e-6 * bed.size_x.max(bed.size_y);
+        for p in pad_xy {
+            let weights = patch_weights(mesh, p[0], p[1], pad_radius, h).ok_or_else(|| {
+                FeError::Singular(format!("internal: pad ({}, {}) not on the mesh", p[0], p[1]))
+            })?;
+            let constraint = if stiffness_n_per_mm.is_none() {
+                let found = constraint_centres
+                    .iter()
+                    .position(|c| (c[0] - p[0]).abs() <= tol && (c[1] - p[1]).abs() <= tol);
+                Some(found.unwrap_or_else(|| {
+                    constraint_centres.push(*p);
+                    constraint_centres.len() - 1
+                }))
+            } else {
+                None
+            };
+            pads.push(Pad { weights, stiffness: *stiffness_n_per_mm, constraint });
+        }
+    }
+    Ok((pads, constraint_centres.len()))
+}
+
+/// A reaction row: the constrained w and its (dof, stiffness) entries.
+type ReactionRow = (usize, Vec<(usize, f64)>);
+
+/// Assembly: the upper triangle of the free-free block as (row, col, value) entries (element
+/// stiffnesses and the pad springs, `k_aux` for rigid pads), and the rows of the constrained
+/// w for the reactions (entries not yet merged).
+fn assemble(
+    mesh: &Mesh,
+    material: &PlateMaterial,
+    dofs: &Dofs,
+    pads: &[Pad],
+    k_aux: f64,
+) -> (Vec<(usize, usize, f64)>, Vec<ReactionRow>) {
+    let (eq, reaction_index) = (&dofs.eq, &dofs.reaction_index);
+    let mut reaction_rows: Vec<ReactionRow> = Vec::with_capacity(dofs.n_reactions);
+    for (d, &r) in reaction_index.iter().enumerate() {
+        if r != FREE_NONE {
+            reaction_rows.push((d, Vec::new()));
+        }
+    }
+    let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(mesh.n_elements() * 78);
+    for j in 0..mesh.ny() - 1 {
+        for i in 0..mesh.nx() - 1 {
+            let lx = mesh.xs[i + 1] - mesh.xs[i];
+            let ly = mesh.ys[j + 1] - mesh.ys[j];
+            let ke = element::stiffness(lx, ly, material);
+            let nodes = mesh.element_nodes(i, j);
+            let el_dofs: [usize; 12] = std::array::from_fn(|k| 3 * nodes[k / 3] + k % 3);
+            for r in 0..12 {
+                let (dr, er) = (el_dofs[r], eq[el_dofs[r]]);
+                for c in 0..12 {
+                    let dc = el_dofs[c];
+                    let ec = eq[dc];
+                    if er != FREE_NONE && ec != FREE_NONE && er <= ec {
+                        entries.push((er, ec, ke[r][c]));
+                    }
+                    if reaction_index[dr] != FREE_NONE {
+                        reaction_rows[reaction_index[dr]].1.push((dc, ke[r][c]));
+                    }
+                }
+            }
+        }
+    }
+    for pad in pads {
+        let k = pad.stiffness.unwrap_or(k_aux);
+        for &(na, wa) in &pad.weights {
+            for &(nb, wb) in &pad.weights {
+                let (ea, eb) = (eq[3 * na], eq[3 * nb]);
+                if ea <= eb {
+                    entries.push((ea, eb, k * wa * wb));
+                }
+            }
+        }
+    }
+    (entries, reaction_rows)
+}
+
+/// The sparse Cholesky factor of the assembled entries (duplicates summed).
+fn factorise(mut entries: Vec<(usize, usize, f64)>, n_eq: usize) -> Result<Llt<usize, f64>, FeError> {
+    // Merge duplicates (sorted by column then row).
+    entries.sort_unstable_by_key(|&(r, c, _)| (c, r));
+    let mut triplets: Vec<Triplet<usize, usize, f64>> = Vec::with_capacity(entries.len() / 3);
+    for (r, c, v) in entries {
+        match triplets.last_mut() {
+            Some(t) if t.row == r && t.col == c => t.val += v,
+            _ => triplets.push(Triplet::new(r, c, v)),
+        }
+    }
+    let k = SparseColMat::<usize, f64>::try_new_from_triplets(n_eq, n_eq, &triplets)
+        .map_err(|e| FeError::Factorisation(format!("{e:?}")))?;
+    k.sp_cholesky(Side::Upper).map_err(|e| match e {
+        faer::sparse::linalg::LltError::Numeric(_) => FeError::Singular(
+            "the stiffness matrix is not positive definite: the supports cannot hold the bed".into(),
+        ),
+        other => FeError::Factorisation(format!("{other:?}")),
+    })
+}
+
+/// Sort (dof, value) entries by dof and sum the duplicates.
+fn merge_sorted(row: &mut Vec<(usize, f64)>) {
+    row.sort_unstable_by_key(|&(d, _)| d);
+    let mut merged: Vec<(usize, f64)> = Vec::with_capacity(row.len());
+    for &(d, v) in row.iter() {
+        match merged.last_mut() {
+            Some(m) if m.0 == d => m.1 += v,
+            _ => merged.push((d, v)),
+        }
+    }
+    *row = merged;
+}
+
+/// Rigid pads: Z = K_s⁻¹ C and the Cholesky factor of S = CᵀZ (none without rigid pads).
+fn rigid_pads(
+    pads: &[Pad],
+    m: usize,
+    dofs: &Dofs,
+    llt: &Llt<usize, f64>,
+) -> Result<Option<RigidPads>, FeError> {
+    if m == 0 {
+        return Ok(None);
+    }
+    let mut c: Vec<Vec<(usize, f64)>> = vec![Vec::new(); m];
+    for pad in pads {
+        if let Some(ci) = pad.constraint {
+            if c[ci].is_empty() {
+                c[ci] = pad.weights.iter().map(|&(n, w)| (dofs.eq[3 * n], w)).collect();
+            }
+        }
+    }
+    let mut z = Mat::<f64>::zeros(dofs.n_eq, m);
+    for (ci, cv) in c.iter().enumerate() {
+        for &(e, w) in cv {
+            z[(e, ci)] = w;
+        }
+    }
+    llt.solve_in_place(z.as_mut());
+    let s = nalgebra::DMatrix::from_fn(m, m, |a, b| c[a].iter().map(|&(e, w)| w * z[(e, b)]).sum());
+    let s = 0.5 * (&s + s.transpose());
+    let s_chol = nalgebra::Cholesky::new(s)
+        .ok_or_else(|| FeError::Singular("the rigid pads' constraints are dependent".into()))?;
+    Ok(Some(RigidPads { c, z, s_chol }))
+}
+
 impl PlateModel {
     /// Validate the bed, mesh it, assemble the stiffness matrix and factorise it (sparse
     /// Cholesky), with the default [`ModelOptions`] (loads and pads spread over a disc of
@@ -266,166 +476,20 @@ impl PlateModel {
             Supports::SimplySupportedEdges => Vec::new(),
         };
         let mesh = Mesh::build(bed.size_x, bed.size_y, h, &pad_xy)?;
-        let n_dof = 3 * mesh.n_nodes();
-
-        // Edge constraints (eliminated DOFs).
-        let mut constrained = vec![false; n_dof];
-        if let Supports::SimplySupportedEdges = bed.supports {
-            // Hard simple support: w = 0 and the tangential rotation = 0 on each edge.
-            let (nx, ny) = (mesh.nx(), mesh.ny());
-            for j in 0..ny {
-                for i in 0..nx {
-                    let n = mesh.node_index(i, j);
-                    if i == 0 || i == nx - 1 {
-                        constrained[3 * n] = true;
-                        constrained[3 * n + 2] = true; // ψy along the edge x = const
-                    }
-                    if j == 0 || j == ny - 1 {
-                        constrained[3 * n] = true;
-                        constrained[3 * n + 1] = true; // ψx along the edge y = const
-                    }
-                }
-            }
-        }
-        let mut eq = vec![FREE_NONE; n_dof];
-        let mut n_eq = 0;
-        for d in 0..n_dof {
-            if !constrained[d] {
-                eq[d] = n_eq;
-                n_eq += 1;
-            }
-        }
-        if n_eq == 0 {
-            return Err(FeError::Singular("no free degrees of freedom".into()));
-        }
-        let mut reaction_index = vec![FREE_NONE; n_dof];
-        let mut reaction_rows: Vec<(usize, Vec<(usize, f64)>)> = Vec::new();
-        for d in (0..n_dof).step_by(3) {
-            if constrained[d] {
-                reaction_index[d] = reaction_rows.len();
-                reaction_rows.push((d, Vec::new()));
-            }
-        }
-
-        // Pads: footprint weights; rigid pads get a constraint each (coincident ones share).
+        let dofs = Dofs::number(bed, &mesh)?;
         let material =
             PlateMaterial { d: bed.flexural_rigidity(), nu: bed.poisson, shear: bed.shear_rigidity() };
-        let mut pads: Vec<Pad> = Vec::new();
-        let mut constraint_centres: Vec<[f64; 2]> = Vec::new();
-        if let Supports::Points { stiffness_n_per_mm, .. } = &bed.supports {
-            let tol = 1e-6 * bed.size_x.max(bed.size_y);
-            for p in &pad_xy {
-                let weights = patch_weights(&mesh, p[0], p[1], pad_radius, h).ok_or_else(|| {
-                    FeError::Singular(format!("internal: pad ({}, {}) not on the mesh", p[0], p[1]))
-                })?;
-                let constraint = if stiffness_n_per_mm.is_none() {
-                    let found = constraint_centres
-                        .iter()
-                        .position(|c| (c[0] - p[0]).abs() <= tol && (c[1] - p[1]).abs() <= tol);
-                    Some(found.unwrap_or_else(|| {
-                        constraint_centres.push(*p);
-                        constraint_centres.len() - 1
-                    }))
-                } else {
-                    None
-                };
-                pads.push(Pad { weights, stiffness: *stiffness_n_per_mm, constraint });
-            }
-        }
+        let (pads, n_constraints) = pads(bed, &mesh, &pad_xy, pad_radius, h)?;
         // Auxiliary spring of rigid pads (its force vanishes once the constraint holds; it only
         // makes K_s positive definite): of the order of the plate's own point stiffness.
         let k_aux = 16.0 * material.d / (bed.size_x * bed.size_y);
-
-        // Assembly: upper triangle of the free-free block, as (row, col, value) entries.
-        let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(mesh.n_elements() * 78);
-        for j in 0..mesh.ny() - 1 {
-            for i in 0..mesh.nx() - 1 {
-                let lx = mesh.xs[i + 1] - mesh.xs[i];
-                let ly = mesh.ys[j + 1] - mesh.ys[j];
-                let ke = element::stiffness(lx, ly, &material);
-                let nodes = mesh.element_nodes(i, j);
-                let dofs: [usize; 12] = std::array::from_fn(|k| 3 * nodes[k / 3] + k % 3);
-                for r in 0..12 {
-                    let (dr, er) = (dofs[r], eq[dofs[r]]);
-                    for c in 0..12 {
-                        let dc = dofs[c];
-                        let ec = eq[dc];
-                        if er != FREE_NONE && ec != FREE_NONE && er <= ec {
-                            entries.push((er, ec, ke[r][c]));
-                        }
-                        if reaction_index[dr] != FREE_NONE {
-                            reaction_rows[reaction_index[dr]].1.push((dc, ke[r][c]));
-                        }
-                    }
-                }
-            }
-        }
-        for pad in &pads {
-            let k = pad.stiffness.unwrap_or(k_aux);
-            for &(na, wa) in &pad.weights {
-                for &(nb, wb) in &pad.weights {
-                    let (ea, eb) = (eq[3 * na], eq[3 * nb]);
-                    if ea <= eb {
-                        entries.push((ea, eb, k * wa * wb));
-                    }
-                }
-            }
-        }
-        // Merge duplicates (sorted by column then row).
-        entries.sort_unstable_by_key(|&(r, c, _)| (c, r));
-        let mut triplets: Vec<Triplet<usize, usize, f64>> = Vec::with_capacity(entries.len() / 3);
-        for (r, c, v) in entries {
-            match triplets.last_mut() {
-                Some(t) if t.row == r && t.col == c => t.val += v,
-                _ => triplets.push(Triplet::new(r, c, v)),
-            }
-        }
-        let k = SparseColMat::<usize, f64>::try_new_from_triplets(n_eq, n_eq, &triplets)
-            .map_err(|e| FeError::Factorisation(format!("{e:?}")))?;
-        let llt = k.sp_cholesky(Side::Upper).map_err(|e| match e {
-            faer::sparse::linalg::LltError::Numeric(_) => FeError::Singular(
-                "the stiffness matrix is not positive definite: the supports cannot hold the bed".into(),
-            ),
-            other => FeError::Factorisation(format!("{other:?}")),
-        })?;
+        let (entries, mut reaction_rows) = assemble(&mesh, &material, &dofs, &pads, k_aux);
+        let llt = factorise(entries, dofs.n_eq)?;
         for row in &mut reaction_rows {
-            row.1.sort_unstable_by_key(|&(d, _)| d);
-            let mut merged: Vec<(usize, f64)> = Vec::with_capacity(row.1.len());
-            for &(d, v) in &row.1 {
-                match merged.last_mut() {
-                    Some(m) if m.0 == d => m.1 += v,
-                    _ => merged.push((d, v)),
-                }
-            }
-            row.1 = merged;
+            merge_sorted(&mut row.1);
         }
-
-        // Rigid pads: Z = K_s⁻¹ C and the Cholesky factor of S = CᵀZ.
-        let m = constraint_centres.len();
-        let rigid = if m > 0 {
-            let mut c: Vec<Vec<(usize, f64)>> = vec![Vec::new(); m];
-            for pad in &pads {
-                if let Some(ci) = pad.constraint {
-                    if c[ci].is_empty() {
-                        c[ci] = pad.weights.iter().map(|&(n, w)| (eq[3 * n], w)).collect();
-                    }
-                }
-            }
-            let mut z = Mat::<f64>::zeros(n_eq, m);
-            for (ci, cv) in c.iter().enumerate() {
-                for &(e, w) in cv {
-                    z[(e, ci)] = w;
-                }
-            }
-            llt.solve_in_place(z.as_mut());
-            let s = nalgebra::DMatrix::from_fn(m, m, |a, b| c[a].iter().map(|&(e, w)| w * z[(e, b)]).sum());
-            let s = 0.5 * (&s + s.transpose());
-            let s_chol = nalgebra::Cholesky::new(s)
-                .ok_or_else(|| FeError::Singular("the rigid pads' constraints are dependent".into()))?;
-            Some(RigidPads { c, z, s_chol })
-        } else {
-            None
-        };
+        let rigid = rigid_pads(&pads, n_constraints, &dofs, &llt)?;
+        let Dofs { eq, n_eq, .. } = dofs;
         Ok(PlateModel {
             bed: bed.clone(),
             mesh: Arc::new(mesh),

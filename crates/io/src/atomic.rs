@@ -42,6 +42,22 @@ impl OutputError {
     pub fn is_path(&self) -> bool {
         matches!(self, OutputError::Path(_))
     }
+
+    /// The output error of a writer that returns `std::io::Result` for `path`: the
+    /// [`OutputError`] riding inside the `io::Error` when there is one, else a failed write.
+    pub fn from_io(path: &Path, e: io::Error) -> OutputError {
+        if !e.get_ref().is_some_and(|i| i.is::<OutputError>()) {
+            return OutputError::Io { path: path.to_path_buf(), source: e };
+        }
+        let kind = e.kind();
+        match e.into_inner().map(|i| i.downcast::<OutputError>()) {
+            Some(Ok(o)) => *o,
+            Some(Err(other)) => {
+                OutputError::Io { path: path.to_path_buf(), source: io::Error::new(kind, other) }
+            }
+            None => OutputError::Io { path: path.to_path_buf(), source: kind.into() },
+        }
+    }
 }
 
 /// For callers that return `std::io::Result`: the output error rides inside the `io::Error`

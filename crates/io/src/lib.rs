@@ -20,6 +20,8 @@
 //! - [`parquet_file`]: Parquet point and stream files (same column names), read and written.
 //! - [`e57_file`]: E57 point clouds (ASTM E2807) as point files: every scan, in mm, invalid
 //!   points skipped and counted.
+//! - [`report::Report`]: a command's result as the contract's JSON and as human text (what
+//!   the binary prints).
 //! - [`limits`]: bounds on every input (file size, line length, binary data); [`limits::open_text`]
 //!   for readers that stream text themselves.
 
@@ -32,6 +34,7 @@ pub mod limits;
 pub mod num;
 pub mod parquet_file;
 pub mod points;
+pub mod report;
 pub mod stream;
 
 pub use error::InputError;

@@ -35,8 +35,8 @@ pub fn read_stream(path: &Path, cols: [&str; 3]) -> Result<StreamFile, InputErro
 /// parts: mapping, header, allocation). A bad machine file is reported before a bad probe file.
 pub fn read_streams(machine: &Path, probe: &Path) -> Result<(StreamFile, StreamFile), InputError> {
     let (m, p) = rayon::join(
-        || read_stream(machine, ["x_mm", "y_mm", "z_mm"]),
-        || read_stream(probe, ["a_mm", "b_mm", "c_mm"]),
+        || read_stream(machine, crate::task::MACHINE_COLUMNS),
+        || read_stream(probe, crate::task::PROBE_COLUMNS),
     );
     Ok((m?, p?))
 }

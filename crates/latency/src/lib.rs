@@ -14,6 +14,7 @@
 //!   extrapolates each to zero deflection and runs one of the four methods
 //!   ([`Method::Artefact`], [`Method::Speeds`], [`Method::Scan`], [`Method::Inout`]), or picks
 //!   one ([`Method::Auto`]).
+//! - [`task`]: `truepos latency` and `latency apply` as library calls (files in, a `Report` back).
 //! - [`file::read_stream`]: a stream CSV; [`file::input_error`]: stream errors with file and line.
 //! - [`apply`]: stylus-centre positions at the probe stamps for a known delay.
 //! - modules: [`stream`] (checks, interpolation), [`contact`] (segmentation, extrapolation),
@@ -28,6 +29,7 @@ pub mod geom;
 pub mod json;
 pub mod scan;
 pub mod stream;
+pub mod task;
 pub mod text;
 pub mod touch;
 
@@ -270,9 +272,39 @@ fn stylus_centre_size(k: KnownSize, outer: bool, tip_radius: f64) -> f64 {
     }
 }
 
-/// Run the calibration.
+/// Run the calibration: check the options, find the contacts, choose the method (when
+/// [`Method::Auto`]), measure the delay with it, and check the result's plausibility.
 pub fn estimate(s: &Streams, opt: &Options) -> Result<Estimate, LatencyError> {
     s.check()?;
+    check_options(opt)?;
+    let mut mi = Vec::new();
+    stream::machine_at(s.machine_t, s.machine, s.probe_t, 0.0, &mut mi);
+    let copt = contact::ContactOptions { threshold: opt.threshold, ..Default::default() };
+    let contacts = contact::extract_contacts(s, &mi, &copt, 0.5);
+    let method = choose_method(s, opt, &contacts)?;
+    let mut warnings = Vec::new();
+    let m = if method == Method::Scan {
+        let r = scan::scan_delay(s, opt.threshold, opt.max_delay)?;
+        if opt.per_axis {
+            warnings
+                .push("--per-axis is not available with the scan method; use touches along each axis".into());
+        }
+        Measured {
+            delay: r.delay,
+            u_delay: r.u_delay,
+            rms: r.rms_after,
+            n_contacts: 1,
+            contacts,
+            evidence: Evidence::Scan(r),
+        }
+    } else {
+        touch_delay(s, opt, method, contacts, &copt, &mut mi, &mut warnings)?
+    };
+    finish(opt, m, warnings)
+}
+
+/// Option values the methods cannot work with.
+fn check_options(opt: &Options) -> Result<(), LatencyError> {
     if !(opt.threshold > 0.0) {
         return Err(LatencyError::Options("the contact threshold must be positive".into()));
     }
@@ -281,142 +313,169 @@ pub fn estimate(s: &Streams, opt: &Options) -> Result<Estimate, LatencyError> {
             return Err(LatencyError::Options("the known artefact size must be positive".into()));
         }
     }
-    let mut mi = Vec::new();
-    stream::machine_at(s.machine_t, s.machine, s.probe_t, 0.0, &mut mi);
-    let copt = contact::ContactOptions { threshold: opt.threshold, ..Default::default() };
-    let mut contacts = contact::extract_contacts(s, &mi, &copt, 0.5);
-    let scan_like = contacts.is_empty() && scan::scan_samples(s, opt.threshold, 0.5).len() >= 50;
-    let method = match opt.method {
-        Method::Auto => {
-            if scan_like {
-                Method::Scan
-            } else if contacts.is_empty() {
-                return Err(no_contact(s, opt.threshold));
-            } else if opt.known_size.is_some() {
-                Method::Artefact
-            } else if touch::speed_groups(&contacts).len() >= 2 {
-                Method::Speeds
-            } else if contacts.iter().all(in_out_symmetric) {
-                Method::Inout
-            } else {
-                return Err(LatencyError::Underdetermined(
-                    "all contacts are at one speed and no artefact size is given (--sphere-diameter-mm or --gap-mm), and their approach and retract speeds differ so in-out does not apply".into(),
-                ));
-            }
-        }
-        m => m,
-    };
-    let mut warnings = Vec::new();
-    let (residual_delay, u_delay, rms, n_contacts, evidence) = if method == Method::Scan {
-        let r = scan::scan_delay(s, opt.threshold, opt.max_delay)?;
-        if opt.per_axis {
-            warnings
-                .push("--per-axis is not available with the scan method; use touches along each axis".into());
-        }
-        (r.delay, r.u_delay, r.rms_after, 1, Evidence::Scan(r))
+    Ok(())
+}
+
+/// The method asked for, or for [`Method::Auto`] the one the data allow: scan when there are no
+/// contacts but a long deflected run, the artefact with a known size, speeds with two or more
+/// speed groups, in-out when every contact approaches and retracts at the same speed.
+fn choose_method(s: &Streams, opt: &Options, contacts: &[Contact]) -> Result<Method, LatencyError> {
+    if opt.method != Method::Auto {
+        return Ok(opt.method);
+    }
+    if contacts.is_empty() && scan::scan_samples(s, opt.threshold, 0.5).len() >= 50 {
+        Ok(Method::Scan)
+    } else if contacts.is_empty() {
+        Err(no_contact(s, opt.threshold))
+    } else if opt.known_size.is_some() {
+        Ok(Method::Artefact)
+    } else if touch::speed_groups(contacts).len() >= 2 {
+        Ok(Method::Speeds)
+    } else if contacts.iter().all(in_out_symmetric) {
+        Ok(Method::Inout)
     } else {
-        if contacts.is_empty() {
-            return Err(no_contact(s, opt.threshold));
+        Err(LatencyError::Underdetermined(
+            "all contacts are at one speed and no artefact size is given (--sphere-diameter-mm or --gap-mm), and their approach and retract speeds differ so in-out does not apply".into(),
+        ))
+    }
+}
+
+/// What one method measured, before the already-applied delay is added back.
+struct Measured {
+    /// Residual delay (s) and its standard uncertainty.
+    delay: f64,
+    u_delay: f64,
+    rms: f64,
+    n_contacts: usize,
+    contacts: Vec<Contact>,
+    evidence: Evidence,
+}
+
+/// The delay from touches (artefact, speeds or in-out), with warnings about deflection runs
+/// that gave no point and contacts extrapolated on approach data.
+fn touch_delay(
+    s: &Streams,
+    opt: &Options,
+    method: Method,
+    contacts: Vec<Contact>,
+    copt: &contact::ContactOptions,
+    mi: &mut Vec<[f64; 3]>,
+    warnings: &mut Vec<String>,
+) -> Result<Measured, LatencyError> {
+    if contacts.is_empty() {
+        return Err(no_contact(s, opt.threshold));
+    }
+    let runs = contact::find_runs(s.probe, opt.threshold, copt.min_band).len();
+    if runs > contacts.len() {
+        warnings.push(format!(
+            "{} of {runs} deflection runs gave no surface point (stylus ringing after a contact, too few samples at constant speed, or a scan)",
+            runs - contacts.len()
+        ));
+    }
+    let approach = contacts.iter().filter(|c| c.phase == Phase::Approach).count();
+    if approach > 0 {
+        warnings.push(format!(
+            "{approach} contact(s) without usable retract data: extrapolated on approach data"
+        ));
+    }
+    let (r, contacts, feature, per_contact) = match method {
+        Method::Inout => {
+            let (r, each) = touch::inout(s, &contacts, opt.per_axis)?;
+            (r, contacts, "", each)
         }
-        let mut n_contacts = contacts.len();
-        let runs = contact::find_runs(s.probe, opt.threshold, copt.min_band).len();
-        if runs > contacts.len() {
-            warnings.push(format!(
-                "{} of {runs} deflection runs gave no surface point (stylus ringing after a contact, too few samples at constant speed, or a scan)",
-                runs - contacts.len()
-            ));
+        Method::Artefact | Method::Speeds => {
+            let (r, contacts, feature) = feature_fit_refined(s, opt, method, contacts, copt, mi)?;
+            (r, contacts, feature, Vec::new())
         }
-        let approach = contacts.iter().filter(|c| c.phase == Phase::Approach).count();
-        if approach > 0 {
-            warnings.push(format!(
-                "{approach} contact(s) without usable retract data: extrapolated on approach data"
-            ));
+        Method::Scan | Method::Auto => (unreachable_method(), contacts, "", Vec::new()),
+    };
+    warnings.extend(r.warnings);
+    let evidence = match method {
+        Method::Artefact => {
+            Evidence::Artefact { feature, size_mm: r.static_size.unwrap_or(f64::NAN), per_axis: r.per_axis }
         }
-        let mut feature = "";
-        let mut per_contact = Vec::new();
-        let r = match method {
-            Method::Inout => {
-                let (r, each) = touch::inout(s, &contacts, opt.per_axis)?;
-                per_contact = each;
-                r
-            }
-            Method::Artefact | Method::Speeds => {
-                let (r0, f0) = feature_fit(method, &contacts, opt)?;
-                feature = f0;
-                // The fits correct each point with its velocity at the zero-deflection instant,
-                // a linearisation: where the servo is still settling as the tip leaves (fast
-                // retracts), the velocity a whole delay away differs and the size-speed line
-                // bends (at 40 mm/s and +2.5 ms, −1 µm on the size). So the machine stamps are
-                // moved by the delay found and the contacts extracted and fitted again; what
-                // remains is a residual delay of microseconds, where the linearisation is exact
-                // to nanometres.
-                let shift = r0.delay;
-                if shift.is_finite() && shift.abs() <= opt.max_delay {
-                    let mt: Vec<f64> = s.machine_t.iter().map(|t| t - shift).collect();
-                    let s2 =
-                        Streams { machine_t: &mt, machine: s.machine, probe_t: s.probe_t, probe: s.probe };
-                    stream::machine_at(s2.machine_t, s2.machine, s2.probe_t, 0.0, &mut mi);
-                    let contacts2 = contact::extract_contacts(&s2, &mi, &copt, 0.5);
-                    match feature_fit(method, &contacts2, opt) {
-                        Ok((mut r, f)) => {
-                            r.delay += shift;
-                            // The sizes as measured (no correction), as the size-speed plot shows.
-                            r.per_speed = r0.per_speed;
-                            if let Some(pa) = &mut r.per_axis {
-                                for d in pa.delay.iter_mut().flatten() {
-                                    *d += shift;
-                                }
-                            }
-                            feature = f;
-                            n_contacts = contacts2.len();
-                            contacts = contacts2;
-                            r
-                        }
-                        // The first pass stands when the second cannot be fitted; say so.
-                        Err(e) => {
-                            let mut r0 = r0;
-                            r0.warnings.push(format!(
-                                "the refit on the delay-corrected data failed ({e}); the delay is from the first pass, whose velocity correction is linearised"
-                            ));
-                            r0
-                        }
-                    }
-                } else {
-                    r0
+        Method::Speeds => Evidence::Speeds {
+            feature,
+            static_size_mm: r.static_size.unwrap_or(f64::NAN),
+            u_static_size_mm: r.u_static_size.unwrap_or(f64::NAN),
+            per_speed: r.per_speed,
+            per_axis: r.per_axis,
+        },
+        _ => Evidence::Inout { per_contact, per_axis: r.per_axis },
+    };
+    Ok(Measured {
+        delay: r.delay,
+        u_delay: r.u_delay,
+        rms: r.rms,
+        n_contacts: contacts.len(),
+        contacts,
+        evidence,
+    })
+}
+
+/// The artefact or speeds fit, then a second pass on the delay-corrected data.
+///
+/// The fits correct each point with its velocity at the zero-deflection instant, a
+/// linearisation: where the servo is still settling as the tip leaves (fast retracts), the
+/// velocity a whole delay away differs and the size-speed line bends (at 40 mm/s and +2.5 ms,
+/// −1 µm on the size). So the machine stamps are moved by the delay found and the contacts
+/// extracted and fitted again; what remains is a residual delay of microseconds, where the
+/// linearisation is exact to nanometres. The first pass stands (with a warning) when the second
+/// cannot be fitted.
+fn feature_fit_refined(
+    s: &Streams,
+    opt: &Options,
+    method: Method,
+    contacts: Vec<Contact>,
+    copt: &contact::ContactOptions,
+    mi: &mut Vec<[f64; 3]>,
+) -> Result<(touch::TouchResult, Vec<Contact>, &'static str), LatencyError> {
+    let (r0, f0) = feature_fit(method, &contacts, opt)?;
+    let shift = r0.delay;
+    if !(shift.is_finite() && shift.abs() <= opt.max_delay) {
+        return Ok((r0, contacts, f0));
+    }
+    let mt: Vec<f64> = s.machine_t.iter().map(|t| t - shift).collect();
+    let s2 = Streams { machine_t: &mt, machine: s.machine, probe_t: s.probe_t, probe: s.probe };
+    stream::machine_at(s2.machine_t, s2.machine, s2.probe_t, 0.0, mi);
+    let contacts2 = contact::extract_contacts(&s2, mi, copt, 0.5);
+    match feature_fit(method, &contacts2, opt) {
+        Ok((mut r, f)) => {
+            r.delay += shift;
+            // The sizes as measured (no correction), as the size-speed plot shows.
+            r.per_speed = r0.per_speed;
+            if let Some(pa) = &mut r.per_axis {
+                for d in pa.delay.iter_mut().flatten() {
+                    *d += shift;
                 }
             }
-            Method::Scan | Method::Auto => unreachable_method(),
-        };
-        warnings.extend(r.warnings);
-        let evidence = match method {
-            Method::Artefact => Evidence::Artefact {
-                feature,
-                size_mm: r.static_size.unwrap_or(f64::NAN),
-                per_axis: r.per_axis,
-            },
-            Method::Speeds => Evidence::Speeds {
-                feature,
-                static_size_mm: r.static_size.unwrap_or(f64::NAN),
-                u_static_size_mm: r.u_static_size.unwrap_or(f64::NAN),
-                per_speed: r.per_speed,
-                per_axis: r.per_axis,
-            },
-            _ => Evidence::Inout { per_contact, per_axis: r.per_axis },
-        };
-        (r.delay, r.u_delay, r.rms, n_contacts, evidence)
-    };
-    if !(u_delay.is_finite()) || !(residual_delay.is_finite()) {
+            Ok((r, contacts2, f))
+        }
+        Err(e) => {
+            let mut r0 = r0;
+            r0.warnings.push(format!(
+                "the refit on the delay-corrected data failed ({e}); the delay is from the first pass, whose velocity correction is linearised"
+            ));
+            Ok((r0, contacts, f0))
+        }
+    }
+}
+
+/// The estimate: the already-applied delay added back, a finite result required, and a warning
+/// when the delay is beyond the plausible range.
+fn finish(opt: &Options, m: Measured, warnings: Vec<String>) -> Result<Estimate, LatencyError> {
+    if !(m.u_delay.is_finite()) || !(m.delay.is_finite()) {
         return Err(LatencyError::Underdetermined("the fit gives no finite delay".into()));
     }
     let mut est = Estimate {
-        delay: opt.already_corrected + residual_delay,
-        residual_delay,
-        u_delay,
-        n_contacts,
-        rms,
+        delay: opt.already_corrected + m.delay,
+        residual_delay: m.delay,
+        u_delay: m.u_delay,
+        n_contacts: m.n_contacts,
+        rms: m.rms,
         warnings,
-        contacts,
-        evidence,
+        contacts: m.contacts,
+        evidence: m.evidence,
     };
     if let Some(pa) = est.per_axis_mut() {
         for d in pa.delay.iter_mut().flatten() {

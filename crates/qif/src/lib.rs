@@ -292,8 +292,35 @@ fn qpid(content: &str) -> String {
     )
 }
 
-/// The QIF 3.0 document for `r`.
+/// The QIF 3.0 document for `r`: every value checked, the characteristics (definition,
+/// nominal, item, measurement) numbered after the standard (1), the results (2) and the feature
+/// measurement (3), then the document assembled around them.
 pub fn write_results(r: &Results) -> Result<String, WriteError> {
+    check_values(r)?;
+    let f = &r.feature;
+    let alg = format!(
+        "<SubstituteFeatureAlgorithm><SubstituteFeatureAlgorithmEnum>{}</SubstituteFeatureAlgorithmEnum></SubstituteFeatureAlgorithm>",
+        f.algorithm.qif()
+    );
+    let mut chars = Characteristics { next: 4, ..Default::default() };
+    if let Some(d) = &r.diameter {
+        chars.add_diameter(d, &f.name, &alg);
+    }
+    if let Some(fc) = &r.form {
+        chars.add_form(fc, f, &alg);
+    }
+    let body = feature_measurement(f, &alg);
+    Ok(document(r, &chars, &body))
+}
+
+/// Ids of the standard, the measurement results and the feature measurement.
+const STD_ID: usize = 1;
+const RES_ID: usize = 2;
+const FEAT_ID: usize = 3;
+
+/// Every number that goes into the document is finite, and a diameter characteristic belongs
+/// to a feature with a diameter.
+fn check_values(r: &Results) -> Result<(), WriteError> {
     let f = &r.feature;
     for v in f.location.value.iter().chain(f.location.uncertainty.iter().flatten()) {
         check(*v, "the feature location")?;
@@ -326,86 +353,111 @@ pub fn write_results(r: &Results) -> Result<String, WriteError> {
         check(fc.tolerance, "the form tolerance")?;
         check(fc.actual, "the form value")?;
     }
+    Ok(())
+}
 
-    // Ids: 1 standard, 2 results, 3 feature measurement, then 4 per characteristic.
-    let (std_id, res_id, feat_id) = (1, 2, 3);
-    let mut next = 4;
-    let mut chars: Vec<(String, usize, usize, usize, usize)> = Vec::new(); // (type, def, nom, item, meas)
-    let mut defs = String::new();
-    let mut noms = String::new();
-    let mut items = String::new();
-    let mut meas = String::new();
-    let alg = format!(
-        "<SubstituteFeatureAlgorithm><SubstituteFeatureAlgorithmEnum>{}</SubstituteFeatureAlgorithmEnum></SubstituteFeatureAlgorithm>",
-        f.algorithm.qif()
-    );
-    let mut statuses = Vec::new();
-    if let Some(d) = &r.diameter {
-        let (def, nom, item, m) = (next, next + 1, next + 2, next + 3);
-        next += 4;
-        chars.push(("Diameter".into(), def, nom, item, m));
+/// The characteristics of a document, each as four elements (definition, nominal, item,
+/// measurement) with consecutive ids, and their statuses.
+#[derive(Default)]
+struct Characteristics {
+    next: usize,
+    count: usize,
+    defs: String,
+    noms: String,
+    items: String,
+    meas: String,
+    statuses: Vec<Status>,
+}
+
+impl Characteristics {
+    /// Ids for the next characteristic's definition, nominal, item and measurement.
+    fn ids(&mut self) -> (usize, usize, usize, usize) {
+        let n = self.next;
+        self.next += 4;
+        self.count += 1;
+        (n, n + 1, n + 2, n + 3)
+    }
+
+    fn add_diameter(&mut self, d: &DiameterCharacteristic, name: &str, alg: &str) {
+        let (def, nom, item, m) = self.ids();
         let _ = write!(
-            defs,
+            self.defs,
             "      <DiameterCharacteristicDefinition id=\"{def}\">\n        <Tolerance><MaxValue>{}</MaxValue><MinValue>{}</MinValue><DefinedAsLimit>false</DefinedAsLimit></Tolerance>\n      </DiameterCharacteristicDefinition>\n",
             dec(d.upper),
             dec(d.lower)
         );
         let _ = write!(
-            noms,
+            self.noms,
             "      <DiameterCharacteristicNominal id=\"{nom}\">\n        <CharacteristicDefinitionId>{def}</CharacteristicDefinitionId>\n        <TargetValue>{}</TargetValue>\n      </DiameterCharacteristicNominal>\n",
             dec(d.nominal)
         );
         let _ = write!(
-            items,
+            self.items,
             "      <DiameterCharacteristicItem id=\"{item}\">\n        <Name>{} diameter</Name>\n        {alg}\n        <CharacteristicNominalId>{nom}</CharacteristicNominalId>\n      </DiameterCharacteristicItem>\n",
-            token(&f.name)
+            token(name)
         );
         let _ = write!(
-            meas,
-            "            <DiameterCharacteristicMeasurement id=\"{m}\">\n              <Status><CharacteristicStatusEnum>{}</CharacteristicStatusEnum></Status>\n              <CharacteristicItemId>{item}</CharacteristicItemId>\n              <FeatureMeasurementIds n=\"1\"><Id>{feat_id}</Id></FeatureMeasurementIds>\n              <Value{}>{}</Value>\n            </DiameterCharacteristicMeasurement>\n",
+            self.meas,
+            "            <DiameterCharacteristicMeasurement id=\"{m}\">\n              <Status><CharacteristicStatusEnum>{}</CharacteristicStatusEnum></Status>\n              <CharacteristicItemId>{item}</CharacteristicItemId>\n              <FeatureMeasurementIds n=\"1\"><Id>{FEAT_ID}</Id></FeatureMeasurementIds>\n              <Value{}>{}</Value>\n            </DiameterCharacteristicMeasurement>\n",
             d.status.characteristic(),
             scalar_unc(&d.actual.uncertainty),
             dec(d.actual.value)
         );
-        statuses.push(d.status);
+        self.statuses.push(d.status);
     }
-    if let Some(fc) = &r.form {
+
+    fn add_form(&mut self, fc: &FormCharacteristic, f: &MeasuredFeature, alg: &str) {
         let t = f.kind.form_characteristic();
-        let (def, nom, item, m) = (next, next + 1, next + 2, next + 3);
-        next += 4;
-        chars.push((t.into(), def, nom, item, m));
+        let (def, nom, item, m) = self.ids();
         let zone = if f.kind == FeatureKind::Line {
             "\n        <ZoneShape><DiametricalZone/></ZoneShape>"
         } else {
             ""
         };
         let _ = write!(
-            defs,
+            self.defs,
             "      <{t}CharacteristicDefinition id=\"{def}\">\n        <ToleranceValue>{}</ToleranceValue>{zone}\n      </{t}CharacteristicDefinition>\n",
             dec(fc.tolerance)
         );
         let _ = write!(
-            noms,
+            self.noms,
             "      <{t}CharacteristicNominal id=\"{nom}\">\n        <CharacteristicDefinitionId>{def}</CharacteristicDefinitionId>\n      </{t}CharacteristicNominal>\n"
         );
         let _ = write!(
-            items,
+            self.items,
             "      <{t}CharacteristicItem id=\"{item}\">\n        <Name>{} form</Name>\n        {alg}\n        <CharacteristicNominalId>{nom}</CharacteristicNominalId>\n      </{t}CharacteristicItem>\n",
             token(&f.name)
         );
         let _ = write!(
-            meas,
-            "            <{t}CharacteristicMeasurement id=\"{m}\">\n              <Status><CharacteristicStatusEnum>{}</CharacteristicStatusEnum></Status>\n              <CharacteristicItemId>{item}</CharacteristicItemId>\n              <FeatureMeasurementIds n=\"1\"><Id>{feat_id}</Id></FeatureMeasurementIds>\n              <Value>{}</Value>\n            </{t}CharacteristicMeasurement>\n",
+            self.meas,
+            "            <{t}CharacteristicMeasurement id=\"{m}\">\n              <Status><CharacteristicStatusEnum>{}</CharacteristicStatusEnum></Status>\n              <CharacteristicItemId>{item}</CharacteristicItemId>\n              <FeatureMeasurementIds n=\"1\"><Id>{FEAT_ID}</Id></FeatureMeasurementIds>\n              <Value>{}</Value>\n            </{t}CharacteristicMeasurement>\n",
             fc.status.characteristic(),
             dec(fc.actual)
         );
-        statuses.push(fc.status);
+        self.statuses.push(fc.status);
     }
-    let id_max = next - 1;
 
+    /// The measurement results' inspection status: FAIL if any fails, UNKNOWN if any is
+    /// undecided, NOT_CALCULATED without characteristics, else PASS.
+    fn inspection(&self) -> &'static str {
+        if self.statuses.contains(&Status::Fail) {
+            "FAIL"
+        } else if self.statuses.contains(&Status::Undecided) {
+            "UNKNOWN"
+        } else if self.statuses.is_empty() {
+            "NOT_CALCULATED"
+        } else {
+            "PASS"
+        }
+    }
+}
+
+/// The `XxxFeatureMeasurement` element: name, algorithm, the kind's geometry with its
+/// uncertainties, and the form.
+fn feature_measurement(f: &MeasuredFeature, alg: &str) -> String {
     let mut body = String::new();
     let k = f.kind.qif();
-    let _ = writeln!(body, "          <{k}FeatureMeasurement id=\"{feat_id}\">");
+    let _ = writeln!(body, "          <{k}FeatureMeasurement id=\"{FEAT_ID}\">");
     let _ = writeln!(body, "            <FeatureName>{}</FeatureName>", token(&f.name));
     let _ = writeln!(body, "            {alg}");
     let loc = format!("{}>{}", vec_unc(&f.location.uncertainty), vec3(&f.location.value));
@@ -457,17 +509,12 @@ pub fn write_results(r: &Results) -> Result<String, WriteError> {
     }
     let _ = writeln!(body, "            <Form>{}</Form>", dec(f.form));
     let _ = writeln!(body, "          </{k}FeatureMeasurement>");
+    body
+}
 
-    let inspection = if statuses.contains(&Status::Fail) {
-        "FAIL"
-    } else if statuses.contains(&Status::Undecided) {
-        "UNKNOWN"
-    } else if statuses.is_empty() {
-        "NOT_CALCULATED"
-    } else {
-        "PASS"
-    };
-
+/// The whole document: header, standard, units, the characteristics, the results around the
+/// feature measurement `body`, and the QPId (a digest of the content).
+fn document(r: &Results, chars: &Characteristics, body: &str) -> String {
     let mut doc = String::new();
     let _ = writeln!(
         doc,
@@ -476,38 +523,41 @@ pub fn write_results(r: &Results) -> Result<String, WriteError> {
     );
     let _ = writeln!(
         doc,
-        "  <StandardsDefinitions n=\"1\">\n    <Standard id=\"{std_id}\">\n      <Organization><StandardsOrganizationEnum>ISO</StandardsOrganizationEnum></Organization>\n      <Designator>1101</Designator>\n      <Year>2017</Year>\n    </Standard>\n  </StandardsDefinitions>"
+        "  <StandardsDefinitions n=\"1\">\n    <Standard id=\"{STD_ID}\">\n      <Organization><StandardsOrganizationEnum>ISO</StandardsOrganizationEnum></Organization>\n      <Designator>1101</Designator>\n      <Year>2017</Year>\n    </Standard>\n  </StandardsDefinitions>"
     );
     let _ = writeln!(
         doc,
         "  <FileUnits>\n    <PrimaryUnits>\n      <AngularUnit><SIUnitName>radian</SIUnitName><UnitName>degree</UnitName><UnitConversion><Factor>0.017453292519943295</Factor></UnitConversion></AngularUnit>\n      <LinearUnit><SIUnitName>meter</SIUnitName><UnitName>mm</UnitName><UnitConversion><Factor>0.001</Factor></UnitConversion></LinearUnit>\n    </PrimaryUnits>\n  </FileUnits>"
     );
-    if !chars.is_empty() {
-        let n = chars.len();
+    let n = chars.count;
+    if n > 0 {
+        let Characteristics { defs, noms, items, .. } = chars;
         let _ = write!(
             doc,
-            "  <Characteristics>\n    <FormalStandardId>{std_id}</FormalStandardId>\n    <CharacteristicDefinitions n=\"{n}\">\n{defs}    </CharacteristicDefinitions>\n    <CharacteristicNominals n=\"{n}\">\n{noms}    </CharacteristicNominals>\n    <CharacteristicItems n=\"{n}\">\n{items}    </CharacteristicItems>\n  </Characteristics>\n"
+            "  <Characteristics>\n    <FormalStandardId>{STD_ID}</FormalStandardId>\n    <CharacteristicDefinitions n=\"{n}\">\n{defs}    </CharacteristicDefinitions>\n    <CharacteristicNominals n=\"{n}\">\n{noms}    </CharacteristicNominals>\n    <CharacteristicItems n=\"{n}\">\n{items}    </CharacteristicItems>\n  </Characteristics>\n"
         );
     }
     let _ = write!(
         doc,
-        "  <Results>\n    <MeasurementResultsSet n=\"1\">\n      <MeasurementResults id=\"{res_id}\">\n        <MeasuredFeatures n=\"1\">\n{body}        </MeasuredFeatures>\n"
+        "  <Results>\n    <MeasurementResultsSet n=\"1\">\n      <MeasurementResults id=\"{RES_ID}\">\n        <MeasuredFeatures n=\"1\">\n{body}        </MeasuredFeatures>\n"
     );
-    if !chars.is_empty() {
+    if n > 0 {
         let _ = write!(
             doc,
-            "        <MeasuredCharacteristics>\n          <CharacteristicMeasurements n=\"{}\">\n{meas}          </CharacteristicMeasurements>\n        </MeasuredCharacteristics>\n",
-            chars.len()
+            "        <MeasuredCharacteristics>\n          <CharacteristicMeasurements n=\"{n}\">\n{}          </CharacteristicMeasurements>\n        </MeasuredCharacteristics>\n",
+            chars.meas
         );
     }
     let _ = write!(
         doc,
-        "        <InspectionStatus><InspectionStatusEnum>{inspection}</InspectionStatusEnum></InspectionStatus>\n      </MeasurementResults>\n    </MeasurementResultsSet>\n  </Results>\n"
+        "        <InspectionStatus><InspectionStatusEnum>{}</InspectionStatusEnum></InspectionStatus>\n      </MeasurementResults>\n    </MeasurementResultsSet>\n  </Results>\n",
+        chars.inspection()
     );
     let id = qpid(&doc);
-    Ok(format!(
+    let id_max = chars.next - 1;
+    format!(
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<QIFDocument xmlns=\"http://qifstandards.org/xsd/qif3\" xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\" xsi:schemaLocation=\"http://qifstandards.org/xsd/qif3 ../QIFApplications/QIFDocument.xsd\" versionQIF=\"3.0.0\" idMax=\"{id_max}\">\n  <QPId>{id}</QPId>\n{doc}</QIFDocument>\n"
-    ))
+    )
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -739,9 +789,45 @@ mod tests {
 
 mod from_fit {
     use super::*;
-    use truepos_fit::evaluate::{Evaluation, Kind, Method};
-    use truepos_fit::verdict::Verdict;
+    use truepos_fit::evaluate::{Evaluation, Kind, Method, Spec};
+    use truepos_fit::verdict::{check_form_tolerance, DecisionRule, SizeTolerance, Verdict};
     use truepos_math::Vector3;
+
+    impl From<Kind> for FeatureKind {
+        fn from(k: Kind) -> Self {
+            match k {
+                Kind::Line => FeatureKind::Line,
+                Kind::Plane => FeatureKind::Plane,
+                Kind::Circle => FeatureKind::Circle,
+                Kind::Sphere => FeatureKind::Sphere,
+                Kind::Cylinder => FeatureKind::Cylinder,
+                Kind::Cone => FeatureKind::Cone,
+            }
+        }
+    }
+
+    /// The tolerance specification of a plan for a feature of `kind`, with notes for people:
+    /// the plan's ignored elements, and a diameter characteristic given for a feature without a
+    /// size (not used). A tolerance the evaluation cannot use is an error (its text).
+    pub fn plan_spec(plan: &Plan, kind: Kind, rule: DecisionRule) -> Result<(Spec, Vec<String>), String> {
+        let mut notes = plan.ignored.clone();
+        let size = match plan.diameter {
+            Some((n, lo, hi)) if kind.has_size() => {
+                Some(SizeTolerance::new(n, lo, hi).map_err(|e| e.to_string())?)
+            }
+            Some(_) => {
+                notes.push(format!(
+                    "the diameter characteristic does not apply to a {} and is not used",
+                    kind.name()
+                ));
+                None
+            }
+            None => None,
+        };
+        let form_tolerance =
+            plan.form_tolerance.map(check_form_tolerance).transpose().map_err(|e| e.to_string())?;
+        Ok((Spec { size, form_tolerance, rule }, notes))
+    }
 
     fn arr(v: &Vector3) -> [f64; 3] {
         [v.x, v.y, v.z]
@@ -758,14 +844,7 @@ mod from_fit {
     /// The QIF results of a truepos evaluation (feature name `name`, e.g. the input file's
     /// stem). Uncertainties are the standard uncertainties (k = 1) of a least-squares fit.
     pub fn results_from_evaluation(e: &Evaluation, name: &str, application: &str) -> Results {
-        let kind = match e.kind {
-            Kind::Line => FeatureKind::Line,
-            Kind::Plane => FeatureKind::Plane,
-            Kind::Circle => FeatureKind::Circle,
-            Kind::Sphere => FeatureKind::Sphere,
-            Kind::Cylinder => FeatureKind::Cylinder,
-            Kind::Cone => FeatureKind::Cone,
-        };
+        let kind = FeatureKind::from(e.kind);
         let algorithm = match e.method {
             Method::LeastSquares => Algorithm::LeastSquares,
             Method::MinimumZone => Algorithm::MinimumZone,
@@ -816,4 +895,4 @@ mod from_fit {
     }
 }
 
-pub use from_fit::results_from_evaluation;
+pub use from_fit::{plan_spec, results_from_evaluation};

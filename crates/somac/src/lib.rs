@@ -8,22 +8,28 @@
 //! threshold or the iteration limit is reached, within the single- and total-correction limits.
 //!
 //! Entry points:
+//! - [`align::align_files`]: the best-fit transform between two point files (`truepos align`).
 //! - [`params::Params`]: the user parameters and alarm set points.
 //! - [`device`]: the [`device::Controller`], [`device::Tracker`] and [`device::Cell`] traits a
 //!   real installation or the virtual cell implements.
 //! - [`run::run_program`]: the measure / compare / correct loop with alarms, real-time
 //!   orientation, auto-scaling, refractive-index updates, multi-tracker fusion and beam-break
 //!   recovery; it reports every event to an [`audit::AuditSink`].
-//! - [`scale`]: the part's scale factor from its targets, with its uncertainty.
+//! - [`scale`]: the part's scale factor from its targets, with its uncertainty
+//!   ([`scale::autoscale_files`]: `truepos autoscale`).
+//! - [`orient::orient_file`]: a G-code program rewritten through the fit of measured targets
+//!   (`truepos orient`).
 //! - [`fusion`]: weighted fusion of several trackers' readings.
 //! - [`stats`]: hole true-position statistics and capability in ppm of the diagonal.
 //!
 //! The virtual large gantry with trackers that implements these traits on the simulator lives
 //! in `truepos-cell` (`truepos_cell::gantry`); this crate never depends on the simulator.
 
+pub mod align;
 pub mod audit;
 pub mod device;
 pub mod fusion;
+pub mod orient;
 pub mod params;
 pub mod run;
 pub mod scale;

@@ -1,8 +1,15 @@
 //! The scale factor of a part from its targets: reference (nominal) positions against measured
 //! ones, by a similarity best fit, with the standard uncertainty of the scale from the residual
-//! scatter ([`fit_scale`]). Used by `truepos autoscale` and the loop's auto-scaling.
+//! scatter ([`fit_scale`]). Used by the loop's auto-scaling and by `truepos autoscale`
+//! ([`autoscale_files`], with the scale expected from thermal expansion, [`Expansion`]).
 
+use serde_json::{json, Value};
+use std::path::Path;
+use truepos_io::points::read_matched;
+use truepos_io::report::Report;
+use truepos_io::InputError;
 use truepos_math::bestfit::{self, BestFitError};
+use truepos_math::stats::COVERAGE_FACTOR;
 use truepos_math::{Point3, Transform3};
 
 /// Scale factor of the measured points relative to the reference ones, with its standard
@@ -57,6 +64,70 @@ pub fn fit_scale(reference: &[Point3], measured: &[Point3]) -> Result<(ScaleFit,
     let spread: f64 = reference.iter().map(|p| (p - c).norm_squared()).sum();
     let u_scale = sigma / spread.sqrt();
     Ok((ScaleFit { scale: t.scale, u_scale, rms_mm: (ssr / n as f64).sqrt(), n }, t))
+}
+
+/// The part's thermal expansion: the scale expected at `temperature_c`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Expansion {
+    pub cte_ppm_per_c: f64,
+    pub temperature_c: f64,
+    /// Temperature of the reference positions (usually 20 °C).
+    pub reference_temperature_c: f64,
+}
+
+impl Expansion {
+    /// `1 + CTE · (T − T_ref)`; non-finite inputs are an input error.
+    pub fn expected_scale(&self) -> Result<f64, InputError> {
+        let Expansion { cte_ppm_per_c: k, temperature_c: t, reference_temperature_c: t0 } = *self;
+        if !(k.is_finite() && t.is_finite() && t0.is_finite()) {
+            return Err(InputError::new("the CTE and the temperatures must be finite numbers"));
+        }
+        Ok(1.0 + k * 1e-6 * (t - t0))
+    }
+}
+
+/// The result of `truepos autoscale`: the fitted scale and, with an [`Expansion`], the scale
+/// expected from it.
+#[derive(Clone, Copy, Debug)]
+pub struct Autoscale {
+    pub fit: ScaleFit,
+    pub expected: Option<f64>,
+}
+
+impl Report for Autoscale {
+    fn to_json(&self) -> Value {
+        let f = &self.fit;
+        let u = f.u_scale.is_finite().then_some(f.u_scale);
+        json!({
+            "scale": f.scale,
+            "scale_uncertainty": u,
+            "coverage_factor": COVERAGE_FACTOR,
+            "expanded_uncertainty": {"scale": u.map(|u| COVERAGE_FACTOR * u)},
+            "scale_ppm": (f.scale - 1.0) * 1e6,
+            "expected_scale": self.expected,
+            "discrepancy_ppm": self.expected.map(|e| (f.scale / e - 1.0) * 1e6),
+            "rms_mm": f.rms_mm,
+            "n_points": f.n,
+        })
+    }
+
+    fn text(&self) -> String {
+        self.fit.text(self.expected)
+    }
+}
+
+/// Fit the scale of the features of `measured` against `reference` (`id,x_mm,y_mm,z_mm`,
+/// matched by id, at least two).
+pub fn autoscale_files(
+    reference: &Path,
+    measured: &Path,
+    expansion: Option<Expansion>,
+) -> Result<Autoscale, InputError> {
+    let expected = expansion.map(|e| e.expected_scale()).transpose()?;
+    let (_, _, mt) = read_matched(reference, measured, 2, "a scale (two give their distance ratio)")?;
+    let (fit, _) = fit_scale(&mt.from, &mt.to)
+        .map_err(|e| InputError::in_file(measured, format!("cannot fit a scale: {e}")))?;
+    Ok(Autoscale { fit, expected })
 }
 
 #[cfg(test)]

@@ -47,6 +47,19 @@ fn exit_code(err: &anyhow::Error) -> u8 {
         if cause.downcast_ref::<truepos_io::atomic::OutputError>().is_some_and(|o| o.is_path()) {
             return 2;
         }
+        // Input or output of a task that reads and writes (transparent: its cause is skipped).
+        if let Some(e) = cause.downcast_ref::<truepos_io::stream::RewriteError>() {
+            return match e {
+                truepos_io::stream::RewriteError::Input(_) => 2,
+                truepos_io::stream::RewriteError::Output(o) => {
+                    if o.is_path() {
+                        2
+                    } else {
+                        3
+                    }
+                }
+            };
+        }
         // An output error carried inside an io::Error by a library that returns io::Result.
         if let Some(io) = cause.downcast_ref::<std::io::Error>() {
             if io

@@ -12,6 +12,23 @@ pub fn print_json(value: &serde_json::Value) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Print a command's result: its JSON object on stdout with `--json`, else its human text (on
+/// stderr when the text only summarises files written, so stdout stays clean).
+pub fn emit(report: &impl truepos_io::report::Report, json: bool) -> anyhow::Result<()> {
+    if json {
+        return print_json(&report.to_json());
+    }
+    let text = report.text();
+    if report.text_on_stderr() {
+        eprint!("{text}");
+    } else {
+        let mut out = std::io::stdout().lock();
+        out.write_all(text.as_bytes())?;
+        out.flush()?;
+    }
+    Ok(())
+}
+
 /// A point or vector as a JSON array of three numbers.
 pub fn v3(v: impl Into<[f64; 3]>) -> serde_json::Value {
     serde_json::json!(v.into())

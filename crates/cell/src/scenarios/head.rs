@@ -92,6 +92,18 @@ pub struct Written {
 }
 
 /// Write `points.csv` and `truth.json` of a simulated data set into `dir`.
+impl Written {
+    /// What `truepos simulate head-offset` prints: the files and the command that calibrates.
+    pub fn text(&self, n_readings: usize) -> String {
+        format!(
+            "wrote {} and {} ({n_readings} readings)\ncalibrate with: {}\n",
+            self.points.display(),
+            self.truth.display(),
+            self.command
+        )
+    }
+}
+
 pub fn write_dataset(dir: &Path, d: &HeadOffsetData) -> Result<Written> {
     std::fs::create_dir_all(dir).map_err(|e| CellError::io(dir, e))?;
     let points = dir.join("points.csv");

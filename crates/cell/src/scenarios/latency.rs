@@ -360,6 +360,19 @@ pub fn suggested_command(dir: &Path, t: &scen::Truth) -> String {
     }
 }
 
+/// What `truepos simulate latency` prints: the key facts, the command and what to compare.
+pub fn written_text(dir: &Path, d: &scen::Dataset) -> String {
+    format!(
+        "latency scenario {}; {} machine and {} probe samples → {}\nnext: {}\nthen compare delay_s with the true delay_s in {}\n",
+        key_facts(&d.truth),
+        d.machine.len(),
+        d.probe.len(),
+        dir.display(),
+        suggested_command(dir, &d.truth),
+        dir.join("truth.json").display()
+    )
+}
+
 /// The scenario's key facts in one line: artefact and its size, tip, contacts and speeds,
 /// stream rates and noise.
 pub fn key_facts(t: &scen::Truth) -> String {

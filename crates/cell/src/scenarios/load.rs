@@ -230,6 +230,21 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
     Ok(())
 }
 
+/// What `truepos simulate load` prints: the scenario's facts, the commands to run next and
+/// what to compare with `truth.json`.
+pub fn written_text(dir: &Path, mass_kg: f64, noise_um: f64, data: &LoadData) -> String {
+    let mut out = format!(
+        "load scenario: a {mass_kg} kg die on three pads on a granite bed (forces {:?} N), {} points measured with {noise_um} µm noise → {}\n",
+        data.forces_n.map(|f| (f * 10.0).round() / 10.0),
+        data.indicated.len(),
+        dir.display()
+    );
+    for c in suggested_commands(dir) {
+        out += &format!("next: {c}\n");
+    }
+    out + &format!("then compare corrected.csv with true_points_mm in {}\n", dir.join("truth.json").display())
+}
+
 /// The commands that correct a `load` data set written to `dir`: the influence map from the
 /// bed, then the correction of the points.
 pub fn suggested_commands(dir: &Path) -> [String; 2] {

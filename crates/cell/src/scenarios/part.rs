@@ -99,6 +99,17 @@ pub struct CompWritten {
     pub max_um: f64,
 }
 
+impl CompWritten {
+    /// What `truepos simulate comp` prints: the data set, the command and what to compare.
+    pub fn text(&self, dir: &Path) -> String {
+        format!(
+            "comp scenario: bridge CMM map with {} x, {} y and {} z rows, squareness, {} points (uncorrected 3D error RMS {:.2} µm, max {:.2} µm) → {}\nnext: {}\nthen compare corrected.csv with true_points_mm in {} (expect within about 0.5 µm)\n",
+            self.rows[0], self.rows[1], self.rows[2], self.n_points, self.rms_um, self.max_um,
+            dir.display(), self.command, self.truth.display()
+        )
+    }
+}
+
 /// Write the `comp` data set (`truepos simulate comp`) into `dir`: `map.csv` (the contract's map
 /// columns, one table per axis), `squareness.toml`, `points.csv` (indicated tip points with ids)
 /// and `truth.json` (the true points, the probe offset, the chain), every file commented.

@@ -634,6 +634,21 @@ pub struct Written {
     pub trackers: usize,
 }
 
+impl Written {
+    /// What `truepos simulate somac` prints: the scenario, the true error without end-point
+    /// control (native and oriented only), the command to run and how to compare.
+    pub fn text(&self, dir: &Path) -> String {
+        let dir = dir.display();
+        format!(
+            "somac scenario: a {}-hole wing-spar program on the virtual 12 m gantry with {} laser trackers → {dir}/program.nc, cell.toml (commented), truth.json\n\
+             true mean hole error without end-point control: {:.3} mm as written (native), {:.3} mm oriented on the part targets but not corrected\n\
+             next: truepos somac run --program {dir}/program.nc --cell {dir}/cell.toml --db {dir}/audit.sqlite\n  \
+             (compare: add --no-correct for the oriented-only figure, --no-correct --no-orient for the native one)\n",
+            self.holes, self.trackers, self.native_mean_error_mm, self.oriented_only_mean_error_mm
+        )
+    }
+}
+
 /// Write `program.nc`, `cell.toml` and `truth.json` (the holes, the part placement and the
 /// native error of this cell: the same run without corrections) into `dir`.
 pub fn write_scenario(dir: &Path, seed: u64, holes_per_row: usize) -> Result<Written> {

@@ -7,16 +7,14 @@
 //! and one row. Component definitions and rotation axes: `truepos_comp::geometric` and the
 //! `--help` text below.
 
-use crate::output::{parse_triple, print_json};
+use crate::output::{emit, parse_triple};
 use crate::Outcome;
-use anyhow::{Context, Result};
-use serde_json::json;
-use std::path::{Path, PathBuf};
-use truepos_comp::correct::CompError;
-use truepos_comp::{Chain, Corrector, GeometricMap};
-use truepos_io::csv::Table;
-use truepos_io::InputError;
-use truepos_math::{Point3, Vector3};
+use anyhow::Result;
+use std::path::PathBuf;
+use truepos_comp::stream::Mode;
+use truepos_comp::{task, Chain};
+use truepos_io::num::NumFormat;
+use truepos_math::Vector3;
 
 pub const COMPONENTS_HELP: &str = "\
 Map components (errors of motion, actual − nominal; µm and µrad in files):
@@ -122,115 +120,36 @@ pub struct ErrorArgs {
     pub json: bool,
 }
 
-use truepos_comp::files::{read_map, read_squareness};
-
-/// The full map from the command-line options.
-pub fn load_map(a: &MapArgs) -> Result<GeometricMap, InputError> {
-    let mut map = read_map(&a.map)?;
-    if let Some(s) = &a.squareness {
-        map.squareness = read_squareness(s)?;
+impl MapArgs {
+    /// The map files and options of the command line.
+    pub fn files(&self) -> task::MapFiles {
+        task::MapFiles {
+            map: self.map.clone(),
+            squareness: self.squareness.clone(),
+            chain: match self.chain {
+                ChainArg::Bridge => Chain::BridgeYXZ,
+                ChainArg::Gantry => Chain::GantryXYZ,
+            },
+            clamp: self.clamp,
+        }
     }
-    map.chain = match a.chain {
-        ChainArg::Bridge => Chain::BridgeYXZ,
-        ChainArg::Gantry => Chain::GantryXYZ,
-    };
-    map.clamp = a.clamp;
-    Ok(map)
-}
 
-/// Points of a CSV table as `Point3`.
-pub fn table_points(t: &Table) -> Result<Vec<Point3>, InputError> {
-    let v = t.f64_columns(&["x_mm", "y_mm", "z_mm"])?;
-    Ok(v.chunks_exact(3).map(|c| Point3::new(c[0], c[1], c[2])).collect())
-}
-
-/// Turn a batch error into an input error on the line of the point.
-pub fn batch_error(t: &Table, e: CompError) -> InputError {
-    InputError::at(&t.path, t.line_number(e.index()), None, e.to_string())
+    fn probe_offset(&self) -> Vector3 {
+        Vector3::from(self.probe_offset_mm)
+    }
 }
 
 pub fn run(a: Args) -> Result<Outcome> {
     match a.command {
-        Sub::Correct(c) => correct(c),
-        Sub::Error(e) => error(e),
-    }
-}
-
-/// Correct (or, `commanded`, compensate) the points of `input` into `output`, streamed
-/// (`truepos_comp::stream`); `--decimals` checked first.
-pub fn correct_streamed(
-    corr: &Corrector,
-    input: &Path,
-    output: &Path,
-    commanded: bool,
-    decimals: Option<u8>,
-    hint: &str,
-) -> Result<truepos_comp::stream::Summary> {
-    let fmt = truepos_io::num::NumFormat::from_decimals(decimals).map_err(crate::UsageError)?;
-    let mode =
-        if commanded { truepos_comp::stream::Mode::Commanded } else { truepos_comp::stream::Mode::Measured };
-    truepos_comp::stream::correct_file(corr, input, output, mode, fmt, hint).map_err(|e| match e {
-        truepos_io::stream::RewriteError::Input(i) => anyhow::Error::from(i),
-        truepos_io::stream::RewriteError::Output(o) => anyhow::Error::from(o),
-    })
-}
-
-fn correct(a: CorrectArgs) -> Result<Outcome> {
-    let map = load_map(&a.map)?;
-    let [ox, oy, oz] = a.map.probe_offset_mm;
-    let corr = Corrector { geometric: Some(&map), load: None, probe_offset: Vector3::new(ox, oy, oz) };
-    let r = correct_streamed(&corr, &a.points, &a.output, a.commanded, a.decimals, "")?;
-    let (rms, max) = (r.rms_um, r.max_um);
-    if a.json {
-        let mut j = json!({
-            "n_points": r.n_points,
-            "output": a.output.display().to_string(),
-            "mode": if a.commanded { "commanded" } else { "measured" },
-            "rms_correction_um": rms,
-            "max_correction_um": max,
-        });
-        if a.commanded {
-            j["max_iterations"] = json!(r.iterations);
+        Sub::Correct(a) => {
+            let map = a.map.files().read()?;
+            let fmt = NumFormat::from_decimals(a.decimals).map_err(crate::UsageError)?;
+            let mode = if a.commanded { Mode::Commanded } else { Mode::Measured };
+            emit(&task::correct(&map, a.map.probe_offset(), &a.points, &a.output, mode, fmt)?, a.json)?
         }
-        print_json(&j)?;
-    } else {
-        eprintln!(
-            "{} points {}; correction rms {rms:.3} µm, max {max:.3} µm → {}",
-            r.n_points,
-            if a.commanded { "compensated" } else { "corrected" },
-            a.output.display()
-        );
-    }
-    Ok(Outcome::Done)
-}
-
-fn error(a: ErrorArgs) -> Result<Outcome> {
-    let map = load_map(&a.map)?;
-    let t = Table::read(&a.at)?;
-    let pts = table_points(&t)?;
-    let [ox, oy, oz] = a.map.probe_offset_mm;
-    let corr = Corrector { geometric: Some(&map), load: None, probe_offset: Vector3::new(ox, oy, oz) };
-    let e = corr.displacements(&pts).map_err(|err| batch_error(&t, err))?;
-    if let Some(out) = &a.output {
-        truepos_comp::files::write_errors(out, &pts, &e)
-            .with_context(|| format!("writing {}", out.display()))?;
-    }
-    if a.json {
-        print_json(&json!({
-            "n_points": pts.len(),
-            "error_um": e.iter().map(|v| [v.x * 1e3, v.y * 1e3, v.z * 1e3]).collect::<Vec<_>>(),
-        }))?;
-    } else if a.output.is_none() {
-        for (p, v) in pts.iter().zip(&e) {
-            println!(
-                "{:.4} {:.4} {:.4}  →  {:+.4} {:+.4} {:+.4} µm",
-                p.x,
-                p.y,
-                p.z,
-                v.x * 1e3,
-                v.y * 1e3,
-                v.z * 1e3
-            );
+        Sub::Error(a) => {
+            let map = a.map.files().read()?;
+            emit(&task::errors_at(&map, a.map.probe_offset(), &a.at, a.output.as_deref())?, a.json)?
         }
     }
     Ok(Outcome::Done)
@@ -248,20 +167,6 @@ pub struct SimArgs {
 /// `truepos simulate comp`: the geometric-map data set with its truth.
 pub fn simulate(a: SimArgs) -> Result<Outcome> {
     let w = truepos_cell::scenarios::part::write_comp_dataset(&a.common.out, a.common.seed)?;
-    eprintln!(
-        "comp scenario: bridge CMM map with {} x, {} y and {} z rows, squareness, {} points (uncorrected 3D error RMS {:.2} µm, max {:.2} µm) → {}",
-        w.rows[0],
-        w.rows[1],
-        w.rows[2],
-        w.n_points,
-        w.rms_um,
-        w.max_um,
-        a.common.out.display()
-    );
-    eprintln!("next: {}", w.command);
-    eprintln!(
-        "then compare corrected.csv with true_points_mm in {} (expect within about 0.5 µm)",
-        w.truth.display()
-    );
+    eprint!("{}", w.text(&a.common.out));
     Ok(Outcome::Done)
 }

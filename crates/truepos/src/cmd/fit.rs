@@ -140,31 +140,13 @@ fn spec(a: &Args) -> Result<Spec> {
     if let Some(plan_path) = &a.qif_plan {
         let text = std::fs::read_to_string(plan_path)
             .map_err(|e| InputError::in_file(plan_path, format!("cannot read the QIF plan: {e}")))?;
-        let plan = truepos_qif::read_plan(&text, qif_kind(a.kind))
-            .map_err(|e| InputError::in_file(plan_path, e.to_string()))?;
-        for i in &plan.ignored {
-            eprintln!("note: {}: {i}", plan_path.display());
+        let in_plan = |e: String| InputError::in_file(plan_path, e);
+        let plan = truepos_qif::read_plan(&text, a.kind.lib().into()).map_err(|e| in_plan(e.to_string()))?;
+        let (spec, notes) = truepos_qif::plan_spec(&plan, a.kind.lib(), rule).map_err(in_plan)?;
+        for n in notes {
+            eprintln!("note: {}: {n}", plan_path.display());
         }
-        let size = match plan.diameter {
-            Some((n, lo, hi)) if a.kind.lib().has_size() => Some(
-                SizeTolerance::new(n, lo, hi).map_err(|e| InputError::in_file(plan_path, e.to_string()))?,
-            ),
-            Some(_) => {
-                eprintln!(
-                    "note: {}: the diameter characteristic does not apply to a {} and is not used",
-                    plan_path.display(),
-                    a.kind.name()
-                );
-                None
-            }
-            None => None,
-        };
-        let form_tolerance = plan
-            .form_tolerance
-            .map(verdict::check_form_tolerance)
-            .transpose()
-            .map_err(|e| InputError::in_file(plan_path, e.to_string()))?;
-        return Ok(Spec { size, form_tolerance, rule });
+        return Ok(spec);
     }
     let size = match (a.nominal_diameter_mm, &a.tolerance_mm) {
         (Some(n), Some(t)) => Some(SizeTolerance::parse(t, n).map_err(|e| match e {
@@ -181,17 +163,6 @@ fn spec(a: &Args) -> Result<Spec> {
         .transpose()
         .map_err(|e| UsageError(format!("--form-tolerance-mm: {e}")))?;
     Ok(Spec { size, form_tolerance, rule })
-}
-
-fn qif_kind(k: Kind) -> truepos_qif::FeatureKind {
-    match k {
-        Kind::Line => truepos_qif::FeatureKind::Line,
-        Kind::Plane => truepos_qif::FeatureKind::Plane,
-        Kind::Circle => truepos_qif::FeatureKind::Circle,
-        Kind::Sphere => truepos_qif::FeatureKind::Sphere,
-        Kind::Cylinder => truepos_qif::FeatureKind::Cylinder,
-        Kind::Cone => truepos_qif::FeatureKind::Cone,
-    }
 }
 
 pub fn run(a: Args) -> Result<Outcome> {

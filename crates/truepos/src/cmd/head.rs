@@ -258,7 +258,6 @@ pub fn simulate(args: SimArgs) -> Result<Outcome> {
     // Where the data set cannot be written is the user's choice of --out: an input error.
     let w = truepos_cell::scenarios::head::write_dataset(&args.common.out, &d)
         .map_err(|e| InputError::in_file(&args.common.out, format!("{e:#}")))?;
-    eprintln!("wrote {} and {} ({} readings)", w.points.display(), w.truth.display(), d.rows.len());
-    eprintln!("calibrate with: {}", w.command);
+    eprint!("{}", w.text(d.rows.len()));
     Ok(Outcome::Done)
 }

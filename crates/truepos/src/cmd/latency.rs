@@ -9,15 +9,13 @@
 //! `truepos-latency`; this module reads the CSV files, maps errors to file/line messages and
 //! writes JSON, CSV and the report.
 
-use crate::output::print_json;
+use crate::output::emit;
 use crate::{Outcome, UsageError};
-use anyhow::{Context, Result};
-use serde_json::json;
+use anyhow::Result;
 use std::path::PathBuf;
 use truepos_cell::scenarios::latency::{self as latency_scenario, SimRequest};
-use truepos_io::InputError;
-use truepos_latency::file::{input_error, read_streams};
-use truepos_latency::{self as lat, KnownSize, Method, Options, Streams};
+use truepos_latency::task;
+use truepos_latency::{KnownSize, Method, Options};
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MethodArg {
@@ -174,63 +172,23 @@ fn options(a: &Args) -> Result<Options, UsageError> {
 
 pub fn run(a: Args) -> Result<Outcome> {
     if let Some(Action::Apply(ap)) = a.action {
-        return apply(ap);
+        if !ap.delay_s.is_finite() {
+            return Err(UsageError("--delay-s must be a finite number".into()).into());
+        }
+        emit(&task::apply_files(&ap.machine, &ap.probe, ap.delay_s, &ap.output)?, ap.json)?;
+        return Ok(Outcome::Done);
     }
-    let (Some(mpath), Some(ppath)) = (a.machine.as_ref(), a.probe.as_ref()) else {
+    let (Some(machine), Some(probe)) = (a.machine.as_ref(), a.probe.as_ref()) else {
         return Err(UsageError(
             "truepos latency needs --machine FILE and --probe FILE (or the apply subcommand)".into(),
         )
         .into());
     };
-    let opt = options(&a)?;
-    let (machine, probe) = read_streams(mpath, ppath)?;
-    let s = Streams { machine_t: &machine.t, machine: &machine.v, probe_t: &probe.t, probe: &probe.v };
-    let e = lat::estimate(&s, &opt).map_err(|err| input_error(err, &machine, &probe))?;
-    for w in &e.warnings {
+    let r = task::estimate_files(machine, probe, options(&a)?)?;
+    for w in &r.estimate.warnings {
         eprintln!("warning: {w}");
     }
-    if a.json {
-        print_json(&truepos_latency::json::estimate(&e, &opt))?;
-    } else {
-        print!("{}", truepos_latency::text::estimate(&e, &opt));
-    }
-    Ok(Outcome::Done)
-}
-
-fn apply(a: ApplyArgs) -> Result<Outcome> {
-    if !a.delay_s.is_finite() {
-        return Err(UsageError("--delay-s must be a finite number".into()).into());
-    }
-    let (machine, probe) = read_streams(&a.machine, &a.probe)?;
-    let s = Streams { machine_t: &machine.t, machine: &machine.v, probe_t: &probe.t, probe: &probe.v };
-    s.check().map_err(|e| input_error(e, &machine, &probe))?;
-    let mut out = Vec::new();
-    lat::apply(&s, a.delay_s, &mut out);
-    let n_ok = out.iter().filter(|p| !p[0].is_nan()).count();
-    if n_ok == 0 {
-        return Err(InputError::in_file(
-            &a.probe,
-            format!(
-                "the machine data ({}) covers none of the probe time stamps shifted by {} s",
-                a.machine.display(),
-                a.delay_s
-            ),
-        )
-        .into());
-    }
-    truepos_latency::file::write_centres(&a.output, a.delay_s, &probe, &out)
-        .with_context(|| format!("cannot write {}", a.output.display()))?;
-    let skipped = out.len() - n_ok;
-    if skipped > 0 {
-        eprintln!("warning: {skipped} probe row(s) skipped: the machine data does not cover t + delay there");
-    }
-    if a.json {
-        print_json(
-            &json!({"delay_s": a.delay_s, "n_points": n_ok, "n_skipped": skipped, "output": a.output.display().to_string()}),
-        )?;
-    } else {
-        eprintln!("{n_ok} stylus-centre positions written to {}", a.output.display());
-    }
+    emit(&r, a.json)?;
     Ok(Outcome::Done)
 }
 
@@ -274,14 +232,6 @@ pub fn simulate(a: SimArgs) -> Result<Outcome> {
     };
     let d = latency_scenario::simulate(&request).map_err(|e| UsageError(e.to_string()))?;
     latency_scenario::write_dataset(&a.common.out, &d)?;
-    eprintln!(
-        "latency scenario {}; {} machine and {} probe samples → {}",
-        latency_scenario::key_facts(&d.truth),
-        d.machine.len(),
-        d.probe.len(),
-        a.common.out.display()
-    );
-    eprintln!("next: {}", latency_scenario::suggested_command(&a.common.out, &d.truth));
-    eprintln!("then compare delay_s with the true delay_s in {}", a.common.out.join("truth.json").display());
+    eprint!("{}", latency_scenario::written_text(&a.common.out, &d));
     Ok(Outcome::Done)
 }

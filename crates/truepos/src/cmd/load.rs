@@ -7,19 +7,12 @@
 //! CSV (`load_x_mm,load_y_mm,portal_y_mm,pitch_urad,roll_urad`, `# unit_load_n = …`).
 //! Physics and the sign of pitch/roll: `truepos_comp::load`.
 
-use crate::cmd::comp::{load_map, ChainArg, MapArgs};
-use crate::output::{parse_triple, print_json, progress};
+use crate::output::{emit, parse_triple, progress};
 use crate::Outcome;
-use anyhow::{Context, Result};
-use serde_json::json;
-use std::path::{Path, PathBuf};
-use truepos_comp::fe_map;
-use truepos_comp::files::{read_bed, read_influence, read_load, write_influence, LoadCase};
-use truepos_comp::influence::InfluenceMap;
-use truepos_comp::{Corrector, LoadCorrection, PortalCurves};
-use truepos_fe::MeshOptions;
-use truepos_io::csv::Table;
-use truepos_io::InputError;
+use anyhow::Result;
+use std::path::PathBuf;
+use truepos_comp::{task, Chain};
+use truepos_io::num::NumFormat;
 use truepos_math::Vector3;
 
 const SIGN_HELP: &str = "\
@@ -163,193 +156,59 @@ pub struct SimArgs {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Files: `truepos_comp::files` (bed TOML, load case TOML, influence map CSV)
-
-fn superpose(
-    map: &InfluenceMap,
-    case: &LoadCase,
-    map_path: &Path,
-    load_path: &Path,
-) -> Result<PortalCurves, InputError> {
-    map.superpose(&case.loads)
-        .map_err(|e| InputError::in_file(load_path, format!("{e} ({})", map_path.display())))
-}
-
-fn mesh_for(cli: Option<f64>, file: Option<f64>) -> Result<MeshOptions, crate::UsageError> {
-    let s = cli.or(file).unwrap_or(0.0);
-    if !(s.is_finite() && s >= 0.0) {
-        return Err(crate::UsageError(format!("element size must be a positive number of mm (got {s})")));
-    }
-    Ok(MeshOptions::with_element_size(s))
-}
-
-// ---------------------------------------------------------------------------------------------
-// Commands
+// Commands: `truepos_comp::task`
 
 pub fn run(a: Args) -> Result<Outcome> {
     match a.command {
-        Sub::Map(m) => map_cmd(m),
-        Sub::Correct(c) => correct_cmd(c),
-        Sub::Curves(c) => curves_cmd(c),
-        Sub::Deflection(d) => deflection_cmd(d),
-    }
-}
-
-fn map_cmd(a: MapCmd) -> Result<Outcome> {
-    let info = read_bed(&a.bed)?;
-    let (model, es) = info.into_model(&a.bed)?;
-    let mesh = mesh_for(a.element_size_mm, es)?;
-    let (xs, ys) = fe_map::load_grid(&model).map_err(|e| InputError::in_file(&a.bed, e.to_string()))?;
-    let n = xs.len() * ys.len();
-    let pb = progress(n as u64, "influence map");
-    let t0 = std::time::Instant::now();
-    let map = fe_map::influence_map(&model, &mesh, &|k| pb.set_position(k as u64))
-        .map_err(|e| InputError::in_file(&a.bed, e.to_string()))?;
-    pb.finish_and_clear();
-    write_influence(
-        &map,
-        &a.output,
-        &format!(
-            "plate FE of {} (element size {})",
-            a.bed.display(),
-            if mesh.element_size > 0.0 { format!("{} mm", mesh.element_size) } else { "automatic".into() }
-        ),
-    )
-    .with_context(|| format!("cannot write {}", a.output.display()))?;
-    let secs = t0.elapsed().as_secs_f64();
-    if a.json {
-        print_json(&json!({
-            "output": a.output.display().to_string(),
-            "n_loads": n,
-            "n_portal_positions": map.portal_y().len(),
-            "unit_load_n": map.unit_load_n,
-            "seconds": secs,
-        }))?;
-    } else {
-        eprintln!(
-            "{n} unit loads × {} portal positions in {secs:.1} s → {}",
-            map.portal_y().len(),
-            a.output.display()
-        );
-    }
-    Ok(Outcome::Done)
-}
-
-fn correct_cmd(a: CorrectCmd) -> Result<Outcome> {
-    let map = read_influence(&a.map)?;
-    let case = read_load(&a.load)?;
-    let info = read_bed(&a.bed)?;
-    let portal = info.portal.ok_or_else(|| {
-        InputError::in_file(&a.bed, "[portal] section (rail_x_mm, rail_height_mm, …) is required")
-    })?;
-    let curves = superpose(&map, &case, &a.map, &a.load)?;
-    let lc = LoadCorrection::new(curves, &portal);
-    let geo = match &a.geometric_map {
-        Some(m) => Some(load_map(&MapArgs {
-            map: m.clone(),
-            squareness: a.squareness.clone(),
-            probe_offset_mm: a.probe_offset_mm,
-            chain: ChainArg::Bridge,
-            clamp: false,
-        })?),
-        None => None,
-    };
-    let [ox, oy, oz] = a.probe_offset_mm;
-    let corr = Corrector { geometric: geo.as_ref(), load: Some(&lc), probe_offset: Vector3::new(ox, oy, oz) };
-    let hint = format!(" (the influence map {} covers portal y only over this range)", a.map.display());
-    let r = super::comp::correct_streamed(&corr, &a.points, &a.output, false, a.decimals, &hint)?;
-    let (rms, max) = (r.rms_um, r.max_um);
-    if a.json {
-        print_json(&json!({
-            "n_points": r.n_points,
-            "output": a.output.display().to_string(),
-            "forces_n": case.loads.iter().map(|l| l.2).collect::<Vec<_>>(),
-            "weight_n": case.weight_n,
-            "rms_correction_um": rms,
-            "max_correction_um": max,
-        }))?;
-    } else {
-        eprintln!(
-            "{} points corrected; correction rms {rms:.3} µm, max {max:.3} µm → {}",
-            r.n_points,
-            a.output.display()
-        );
-    }
-    Ok(Outcome::Done)
-}
-
-fn curves_cmd(a: CurvesCmd) -> Result<Outcome> {
-    let map = read_influence(&a.map)?;
-    let case = read_load(&a.load)?;
-    let c = superpose(&map, &case, &a.map, &a.load)?;
-    if a.json {
-        print_json(&truepos_comp::json::curves(&c, &case))?;
-    } else {
-        print!("{}", truepos_comp::json::curves_text(&c, &case));
-    }
-    Ok(Outcome::Done)
-}
-
-fn deflection_cmd(a: DeflectionCmd) -> Result<Outcome> {
-    let info = read_bed(&a.bed)?;
-    let (bed, es) = info.bed.ok_or_else(|| InputError::in_file(&a.bed, "[bed] section is required"))?;
-    let case = read_load(&a.load)?;
-    let mesh = mesh_for(a.element_size_mm, es)?;
-    let t = Table::read(&a.at)?;
-    let xy = t.f64_columns(&["x_mm", "y_mm"])?;
-    let at: Vec<[f64; 2]> = xy.chunks_exact(2).map(|c| [c[0], c[1]]).collect();
-    let uz = fe_map::deflection_at(&bed, &mesh, &case.loads, &at).map_err(|e| match e {
-        truepos_fe::FeError::InvalidLoad { .. } => InputError::in_file(&a.load, format!("{e}")),
-        _ => InputError::in_file(&a.bed, format!("plate model: {e}")),
-    })?;
-    let mut out = Vec::with_capacity(uz.len());
-    for (i, u) in uz.iter().enumerate() {
-        out.push(u.ok_or_else(|| {
-            InputError::at(
-                &a.at,
-                t.line_number(i),
-                None,
-                format!("point ({}, {}) mm is outside the bed", at[i][0], at[i][1]),
-            )
-        })?);
-    }
-    if a.json {
-        print_json(&json!({ "uz_mm": out, "forces_n": case.loads.iter().map(|l| l.2).collect::<Vec<_>>() }))?;
-    } else {
-        for (p, u) in at.iter().zip(&out) {
-            println!("{:.3} {:.3}  uz {:+.6} mm", p[0], p[1], u);
+        Sub::Map(a) => {
+            let pb = progress(0, "influence map");
+            let r = task::influence_map(&a.bed, &a.output, a.element_size_mm, &|k, n| {
+                pb.set_length(n as u64);
+                pb.set_position(k as u64)
+            });
+            pb.finish_and_clear();
+            emit(&r?, a.json)?
         }
+        Sub::Correct(a) => {
+            let geometric = match &a.geometric_map {
+                Some(m) => Some(map_files(m, &a.squareness).read()?),
+                None => None,
+            };
+            let fmt = NumFormat::from_decimals(a.decimals).map_err(crate::UsageError)?;
+            let r = task::load_correct(
+                &a.map,
+                &a.load,
+                &a.bed,
+                geometric.as_ref(),
+                Vector3::from(a.probe_offset_mm),
+                &a.points,
+                &a.output,
+                fmt,
+            )?;
+            emit(&r, a.json)?
+        }
+        Sub::Curves(a) => emit(&task::curves(&a.map, &a.load)?, a.json)?,
+        Sub::Deflection(a) => emit(&task::deflection(&a.bed, &a.load, &a.at, a.element_size_mm)?, a.json)?,
     }
     Ok(Outcome::Done)
+}
+
+/// The geometric map of `load correct --geometric-map` (bridge chain, no clamping).
+fn map_files(map: &std::path::Path, squareness: &Option<PathBuf>) -> task::MapFiles {
+    task::MapFiles {
+        map: map.to_path_buf(),
+        squareness: squareness.clone(),
+        chain: Chain::BridgeYXZ,
+        clamp: false,
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
 // Simulation and demo
 
 pub fn simulate(a: SimArgs) -> Result<Outcome> {
-    if !(a.mass_kg.is_finite() && a.mass_kg > 0.0 && a.noise_um.is_finite() && a.noise_um >= 0.0) {
-        return Err(crate::UsageError(format!(
-            "--mass-kg must be positive and --noise-um non-negative (got {}, {})",
-            a.mass_kg, a.noise_um
-        ))
-        .into());
-    }
-    let (_, data) =
-        truepos_cell::scenarios::load::write_scenario(&a.common.out, a.common.seed, a.mass_kg, a.noise_um)?;
-    eprintln!(
-        "load scenario: a {} kg die on three pads on a granite bed (forces {:?} N), {} points measured with {} µm noise → {}",
-        a.mass_kg,
-        data.forces_n.map(|f| (f * 10.0).round() / 10.0),
-        data.indicated.len(),
-        a.noise_um,
-        a.common.out.display()
-    );
-    for c in truepos_cell::scenarios::load::suggested_commands(&a.common.out) {
-        eprintln!("next: {c}");
-    }
-    eprintln!(
-        "then compare corrected.csv with true_points_mm in {}",
-        a.common.out.join("truth.json").display()
-    );
+    let (out, seed) = (&a.common.out, a.common.seed);
+    let (_, data) = truepos_cell::scenarios::load::write_scenario(out, seed, a.mass_kg, a.noise_um)?;
+    eprint!("{}", truepos_cell::scenarios::load::written_text(out, a.mass_kg, a.noise_um, &data));
     Ok(Outcome::Done)
 }

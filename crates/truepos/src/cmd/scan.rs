@@ -253,11 +253,6 @@ pub fn simulate(a: SimArgs) -> Result<Outcome> {
         return Err(UsageError(format!("--features {} must be between 1 and 10000", a.features)).into());
     }
     let w = truepos_cell::scan_scenario::write_scenario(&a.common.out, a.common.seed, a.features)?;
-    eprintln!("wrote {} and {} ({} features)", w.features.display(), w.truth.display(), w.n_features);
-    eprintln!(
-        "scan with: truepos scan run --features {} --part {} --output points.csv --json",
-        w.features.display(),
-        w.truth.display()
-    );
+    eprint!("{}", w.text());
     Ok(Outcome::Done)
 }

@@ -1,17 +1,14 @@
 //! Laser-tracker end-point control commands: `truepos autoscale`, `orient`, `air`, and
 //! `somac run` (the measure / compare / correct loop).
 
-use crate::output::print_json;
+use crate::output::{emit, print_json};
 use crate::{Outcome, UsageError};
 use anyhow::Result;
 use serde_json::json;
-use std::path::{Path, PathBuf};
-use truepos_io::InputError;
+use std::path::PathBuf;
 use truepos_math::air::{self, AirConditions, Formula};
-use truepos_math::bestfit::{self, BestFitOptions};
-
-use truepos_io::points::{read_matched, Matched};
-use truepos_somac::scale::ScaleFit;
+use truepos_somac::orient::orient_file;
+use truepos_somac::scale::{autoscale_files, Expansion};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -128,52 +125,17 @@ pub fn run(a: Args) -> Result<Outcome> {
     }
 }
 
-/// Read the two id-point files, match them by id and fit the scale
-/// (`truepos_somac::scale::fit_scale`).
-pub fn fit_scale(reference: &Path, measured: &Path) -> Result<(ScaleFit, truepos_math::Transform3, Matched)> {
-    let (_, _, mt) = read_matched(reference, measured, 2, "a scale (two give their distance ratio)")?;
-    let (f, t) = truepos_somac::scale::fit_scale(&mt.from, &mt.to)
-        .map_err(|e| InputError::in_file(measured, format!("cannot fit a scale: {e}")))?;
-    Ok((f, t, mt))
-}
-
 pub fn autoscale(a: AutoscaleArgs) -> Result<Outcome> {
-    let (f, _, _) = fit_scale(&a.reference, &a.measured)?;
-    let expected = match (a.cte_ppm_per_c, a.temperature_c) {
-        (Some(k), Some(t)) => {
-            if !k.is_finite() || !t.is_finite() {
-                return Err(
-                    UsageError("--cte-ppm-per-c and --temperature-c must be finite numbers".into()).into()
-                );
-            }
-            Some(1.0 + k * 1e-6 * (t - a.reference_temperature_c))
-        }
-        _ => None,
-    };
-    let discrepancy = expected.map(|e| (f.scale / e - 1.0) * 1e6);
-    if a.json {
-        print_json(&json!({
-            "scale": f.scale,
-            "scale_uncertainty": f.u_scale.is_finite().then_some(f.u_scale),
-            "coverage_factor": truepos_fit::evaluate::COVERAGE_FACTOR,
-            "expanded_uncertainty": {"scale": f.u_scale.is_finite().then_some(truepos_fit::evaluate::COVERAGE_FACTOR * f.u_scale)},
-            "scale_ppm": (f.scale - 1.0) * 1e6,
-            "expected_scale": expected,
-            "discrepancy_ppm": discrepancy,
-            "rms_mm": f.rms_mm,
-            "n_points": f.n,
-        }))?;
-    } else {
-        print!("{}", f.text(expected));
-    }
+    let expansion = a.cte_ppm_per_c.zip(a.temperature_c).map(|(k, t)| Expansion {
+        cte_ppm_per_c: k,
+        temperature_c: t,
+        reference_temperature_c: a.reference_temperature_c,
+    });
+    emit(&autoscale_files(&a.reference, &a.measured, expansion)?, a.json)?;
     Ok(Outcome::Done)
 }
 
 pub fn orient(a: OrientArgs) -> Result<Outcome> {
-    let (_, _, mt) = read_matched(&a.reference, &a.measured, 3, "orientation")?;
-    let measured_from_reference =
-        bestfit::best_fit(&mt.from, &mt.to, None, BestFitOptions { with_scale: a.scale })
-            .map_err(|e| InputError::in_file(&a.measured, format!("cannot orient: {e}")))?;
     let arc_policy = match a.arc_tolerance_mm {
         None => truepos_gcode::ArcPolicy::Refuse,
         Some(t) if t.is_finite() && t > 0.0 => truepos_gcode::ArcPolicy::Linearize { tolerance_mm: t },
@@ -182,46 +144,7 @@ pub fn orient(a: OrientArgs) -> Result<Outcome> {
         }
     };
     let opts = truepos_gcode::TransformOptions { decimals: a.decimals, arc_policy, start_mm: a.start_mm };
-    // Streamed in constant memory (bounded: size limit, line length, no binary data), into an
-    // atomic output: nothing is left at --output unless the whole program was rewritten.
-    let input = truepos_io::limits::open_text(&a.program, "G-code")?;
-    let mut file = truepos_io::atomic::AtomicFile::create(&a.output)?;
-    let program = truepos_gcode::transform_stream(input, &mut file, &measured_from_reference, &opts)
-        .map_err(|e| -> anyhow::Error {
-            match e {
-                truepos_gcode::StreamError::Gcode(e) => {
-                    InputError::at(&a.program, e.line(), Some(e.column()), e.detail()).into()
-                }
-                truepos_gcode::StreamError::Read(e) => truepos_io::limits::read_error(&a.program, e).into(),
-                truepos_gcode::StreamError::Write(source) => {
-                    truepos_io::atomic::OutputError::Io { path: a.output.clone(), source }.into()
-                }
-            }
-        })?;
-    file.commit()?;
-    let res = bestfit::residuals(&measured_from_reference, &mt.from, &mt.to);
-    let norms: Vec<f64> = res.iter().map(|r| r.norm()).collect();
-    let rm = measured_from_reference.rotation;
-    let summary = json!({
-        "n_targets": mt.ids.len(),
-        "rotation": [[rm[(0,0)], rm[(0,1)], rm[(0,2)]], [rm[(1,0)], rm[(1,1)], rm[(1,2)]], [rm[(2,0)], rm[(2,1)], rm[(2,2)]]],
-        "translation_mm": crate::output::v3(measured_from_reference.translation),
-        "scale": measured_from_reference.scale,
-        "rms_mm": truepos_math::stats::rms(&norms),
-        "residuals": mt.ids.iter().zip(&norms).map(|(id, r)| json!({"id": id, "residual_mm": r})).collect::<Vec<_>>(),
-        "lines": program.lines,
-    });
-    if a.json {
-        print_json(&summary)?;
-    } else {
-        eprintln!(
-            "oriented {} lines through the fit of {} targets (rms {:.4} mm) → {}",
-            program.lines,
-            mt.ids.len(),
-            truepos_math::stats::rms(&norms),
-            a.output.display()
-        );
-    }
+    emit(&orient_file(&a.reference, &a.measured, &a.program, &a.output, a.scale, &opts)?, a.json)?;
     Ok(Outcome::Done)
 }
 

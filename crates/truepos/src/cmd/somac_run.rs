@@ -194,18 +194,6 @@ pub fn simulate(a: SimArgs) -> Result<Outcome> {
         return Err(UsageError("--holes-per-row must be at least 1".into()).into());
     }
     let w = write_scenario(&a.common.out, a.common.seed, a.holes_per_row)?;
-    let dir = a.common.out.display();
-    eprintln!(
-        "somac scenario: a {}-hole wing-spar program on the virtual 12 m gantry with {} laser trackers → {dir}/program.nc, cell.toml (commented), truth.json",
-        w.holes, w.trackers
-    );
-    eprintln!(
-        "true mean hole error without end-point control: {:.3} mm as written (native), {:.3} mm oriented on the part targets but not corrected",
-        w.native_mean_error_mm, w.oriented_only_mean_error_mm
-    );
-    eprintln!(
-        "next: truepos somac run --program {dir}/program.nc --cell {dir}/cell.toml --db {dir}/audit.sqlite"
-    );
-    eprintln!("  (compare: add --no-correct for the oriented-only figure, --no-correct --no-orient for the native one)");
+    eprint!("{}", w.text(&a.common.out));
     Ok(Outcome::Done)
 }
