@@ -44,6 +44,10 @@ pub struct Table {
     pub comments: Vec<String>,
     /// Byte offset of the start of each data row.
     rows: Vec<usize>,
+    /// Points of an E57 file left out because the file marks them invalid
+    /// (`cartesianInvalidState`); 0 for every other format. Commands that read points through
+    /// a table can report it as `truepos fit` does.
+    pub skipped_invalid: usize,
 }
 
 /// Split one CSV line into field byte ranges (relative to the line), honouring double quotes.
@@ -248,10 +252,12 @@ impl Table {
             let col =
                 |k: usize| crate::parquet_file::ColumnData::F64(e.points.iter().map(|p| p[k]).collect());
             let names = ["x_mm", "y_mm", "z_mm"].map(String::from).to_vec();
-            return Self::from_columns(
+            let mut t = Self::from_columns(
                 path,
                 crate::parquet_file::Columns { names, data: vec![col(0), col(1), col(2)] },
-            );
+            )?;
+            t.skipped_invalid = e.skipped_invalid;
+            return Ok(t);
         }
         if let Some(map) = map_large_file(path)? {
             return Self::from_text(path, Self::check_bytes(path, &map[..]).map(|_| Text::Mapped(map))?);
@@ -366,7 +372,7 @@ impl Table {
         let Some(header) = header else {
             return Err(InputError::in_file(&path, "empty file: no header row"));
         };
-        Ok(Self { path, text, header, comments, rows })
+        Ok(Self { path, text, header, comments, rows, skipped_invalid: 0 })
     }
 
     pub fn n_rows(&self) -> usize {
