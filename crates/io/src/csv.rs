@@ -148,6 +148,25 @@ pub fn read_file(path: &Path) -> Result<Vec<u8>, InputError> {
     crate::limits::read_text(path, "CSV")
 }
 
+/// Boundaries `[0, …, len]` of segments of `bytes` cut just after line ends, about
+/// 4 × the worker threads of them when `bytes` is at least `min_len` long (else one segment).
+fn line_segments(bytes: &[u8], min_len: usize) -> Vec<usize> {
+    let len = bytes.len();
+    let mut bounds = vec![0];
+    if len >= min_len {
+        let parts = 4 * rayon::current_num_threads();
+        for k in 1..parts {
+            let b = len * k / parts;
+            let b = memchr::memchr(b'\n', &bytes[b..]).map_or(len, |p| b + p + 1);
+            if b > *bounds.last().unwrap_or(&0) && b < len {
+                bounds.push(b);
+            }
+        }
+    }
+    bounds.push(len);
+    bounds
+}
+
 /// Start offsets of the data rows in `text[from..to]` (`from` at a line start): lines that are
 /// blank or start with `#` (after leading whitespace) are skipped.
 /// Returns the offset of the first line longer than [`crate::limits::MAX_LINE_BYTES`], if any.
@@ -296,14 +315,27 @@ impl Table {
         Self::from_bytes(path, w.into_inner())
     }
 
-    /// NUL bytes and invalid UTF-8 are input errors (a binary file is not a CSV file).
+    /// NUL bytes and invalid UTF-8 are input errors (a binary file is not a CSV file): the first
+    /// NUL byte if there is one, else the first invalid UTF-8. Large inputs are checked in
+    /// parallel segments cut after line ends (a line end is never inside a UTF-8 character, so
+    /// each segment validates on its own and finds the same first bad byte).
     fn check_bytes(path: &Path, bytes: &[u8]) -> Result<(), InputError> {
-        if let Some(p) = memchr::memchr(0, bytes) {
+        let segments = line_segments(bytes, 1 << 22);
+        let (nul, utf8) = segments
+            .par_windows(2)
+            .map(|w| {
+                let seg = &bytes[w[0]..w[1]];
+                let nul = memchr::memchr(0, seg).map(|p| w[0] + p);
+                let utf8 = std::str::from_utf8(seg).err().map(|e| w[0] + e.valid_up_to());
+                (nul, utf8)
+            })
+            .reduce(|| (None, None), |a, b| (a.0.or(b.0), a.1.or(b.1)));
+        if let Some(p) = nul {
             let line = memchr::memchr_iter(b'\n', &bytes[..p]).count() + 1;
             return Err(crate::limits::binary(path, line, "CSV"));
         }
-        if let Err(e) = std::str::from_utf8(bytes) {
-            let line = memchr::memchr_iter(b'\n', &bytes[..e.valid_up_to()]).count() + 1;
+        if let Some(p) = utf8 {
+            let line = memchr::memchr_iter(b'\n', &bytes[..p]).count() + 1;
             return Err(InputError::at(path, line, None, "not valid UTF-8 text: not a CSV file"));
         }
         Ok(())
@@ -843,11 +875,23 @@ mod tests {
         std::fs::write(&p, &bad).unwrap();
         let e = Table::read(&p).unwrap().f64_columns(&["x_mm"]).unwrap_err();
         assert_eq!(e.line, Some(123456 + 3));
-        // A NUL byte: not a text file.
+        // A NUL byte: not a text file, named at its line (segments are checked in parallel).
         let mut bin = text.into_bytes();
+        let line_at = |b: &[u8], at: usize| b[..at].iter().filter(|&&c| c == b'\n').count() + 1;
+        let mut bad_utf8 = bin.clone();
+        bad_utf8[7_000_000] = 0xff;
+        bad_utf8[9_000_000] = 0xff;
+        std::fs::write(&p, &bad_utf8).unwrap();
+        let e = Table::read(&p).unwrap_err();
+        assert!(e.to_string().contains("UTF-8"), "{e}");
+        assert_eq!(e.line, Some(line_at(&bad_utf8, 7_000_000)));
+        bin[9_500_000] = 0;
         bin[5_000_000] = 0;
+        bin[6_000_000] = 0xff;
         std::fs::write(&p, &bin).unwrap();
-        assert!(Table::read(&p).unwrap_err().to_string().contains("binary"));
+        let e = Table::read(&p).unwrap_err();
+        assert!(e.to_string().contains("binary"), "{e}");
+        assert_eq!(e.line, Some(line_at(&bin, 5_000_000)));
     }
 
     #[test]
