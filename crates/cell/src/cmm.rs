@@ -1,36 +1,128 @@
-//! The virtual CMM behind `truepos ippdme serve`: a bridge CMM with instant moves, a spherical
-//! stylus and a part made of exact solids (the part file of `truepos-ippdme`: union of spheres,
+//! The virtual CMM behind `truepos ippdme serve`: the cell's bridge CMM with its error models
+//! (instant moves), a touch-trigger probe, a scanning probe driven by the blended scanning
+//! planner, and a part made of exact solids (the part file of `truepos-ippdme`: union of spheres,
 //! half-spaces, pins and bores).
 //!
-//! Contacts are exact: a probing move of the ball centre along a segment latches the first
-//! parameter at which the ball touches any solid (the ball-centre surface is the part's surface
-//! offset by the tip radius, which for a union is the union of the offset solids), and the normal
-//! there. Without a part, every probing touches the ideal plane through the nominal point, normal
-//! to the probing direction (contract). Positioning moves that would touch the part stop at the
-//! touch and fail (`MachineError::IllegalTouch`).
+//! **Error models** (configured by the machine file's `[ippdme.model]`,
+//! [`truepos_ippdme::ModelConfig`]; one implementation each, from `truepos-sim`):
+//! - geometric: the ISO 230-1 map of a realistic bridge CMM (`truepos_sim::machine::Machine`,
+//!   seeded), its axis travels stretched over the server's volume, evaluated for a stylus of
+//!   `stylus_length_mm` below the ram. The tip is at `actual(p) = p + E(p)` when the scales read
+//!   `p`; every contact happens at the actual position and is reported at the scale reading, so
+//!   the residual geometric error (a few µm) is in the reported points as on a real CMM.
+//! - touch-trigger probe (`truepos_sim::touch::TouchProbe`): the probe triggers once the
+//!   stylus deflection (pre-travel, which includes the stylus bending up to the trigger force)
+//!   reaches `pretravel + lobing·cos 3φ`; the machine reports the scale position at the trigger.
+//!   The probe calibration (`pretravel_compensated`) removes the mean pre-travel along the
+//!   contact normal (the effective tip radius), so the lobing remains.
+//! - probing noise (`truepos_sim::noise`, seeded streams): Gaussian, σ per axis, on every touch.
+//! - scanning: `ScanOnCircle`/`ScanOnLine` (and their hint variants) are planned by the blended,
+//!   stop-free planner of `truepos-scan` and executed on the servo/stylus dynamics of
+//!   [`crate::scanning_cmm::VirtualCmm`] against the part (displaced by `E`), with its encoder
+//!   and deflection noise; the points reported are the measured tip centres at the requested
+//!   step. Unknown-contour scans (11.3) step along the surface with exact contacts plus the
+//!   touch noise.
 //!
-//! Scanning follows the path of the I++ DME scan commands in contact: each point is probed
-//! exactly on the actual surface along the nominal normal of the path at that point (the circle's
-//! cone shell rotated about its axis, or the line's plane), so a scan of a true circle returns
-//! points on it to floating-point precision. Moves are instant (contract), so the dynamic
-//! execution of `truepos-scan` (servo, stylus dynamics, blended stop-free paths in time) is not
-//! involved here; the geometric result is the same for an ideal machine.
+//! With [`truepos_ippdme::ModelConfig::ideal`] contacts are exact: a probing move of the ball
+//! centre along a segment latches the first parameter at which the ball touches any solid (the
+//! ball-centre surface is the part's surface offset by the tip radius, which for a union is the
+//! union of the offset solids), and the normal there. Without a part, every probing touches the
+//! ideal plane through the nominal point, normal to the probing direction (contract).
+//! Positioning moves that would touch the part stop at the touch and fail
+//! (`MachineError::IllegalTouch`).
 //!
 //! Entry point: [`IppdmeCmm::new`]; it implements [`truepos_ippdme::Cmm`].
 
+use std::sync::Arc;
 use truepos_ippdme::part::{CylinderSide, Part, Solid};
-use truepos_ippdme::{Cmm, Contact, Guide, MachineConfig, MachineError, ScanPath, ScanPoint, Stop};
-use truepos_math::{Point3, Vector3};
+use truepos_ippdme::{
+    Cmm, Contact, Guide, MachineConfig, MachineError, ModelConfig, ScanPath, ScanPoint, Stop,
+};
+use truepos_math::{rz, Matrix3, Point3, Vector3};
+use truepos_scan::execute::ControlParams;
+use truepos_scan::{Feature, Geometry, Params, SegmentKind, Side, Style};
+use truepos_sim::artefact::{Artefact, SurfacePoint};
+use truepos_sim::machine::{Machine, MachineKind};
+use truepos_sim::noise::{self, SimRng};
+use truepos_sim::touch::TouchProbe;
+
+use crate::scanning_cmm::{CmmConfig, VirtualCmm};
+
+/// Most points one scan may return (bounds the memory of a session).
+const MAX_SCAN_POINTS: usize = 1_000_000;
+/// Most machine time (s) one scan may take (bounds the simulation's work per command).
+const MAX_SCAN_TIME_S: f64 = 300.0;
+
+/// How far (mm along the surface) a scan runs beyond its last requested point.
+const OVERSCAN_MM: f64 = 0.5;
 
 /// Contacts closer than this (mm) to the start of a move count as "already touching".
 const TOUCH_EPS: f64 = 1e-9;
 
+/// The geometric error field of the machine: `E(p)`, actual − nominal tip position when the
+/// scales read `p`.
+#[derive(Debug, Clone)]
+pub struct ErrorField {
+    machine: Machine,
+    lo: Point3,
+    hi: Point3,
+    tool: Vector3,
+    scale: f64,
+}
+
+impl ErrorField {
+    /// The seeded realistic bridge CMM of `truepos-sim`, its travels stretched over `lo..hi`.
+    pub fn bridge_cmm(model: &ModelConfig, lo: Point3, hi: Point3) -> ErrorField {
+        ErrorField {
+            machine: Machine::realistic(MachineKind::BridgeCmm, model.seed),
+            lo,
+            hi,
+            tool: Vector3::new(0.0, 0.0, -model.stylus_length_mm),
+            scale: model.geometric_error_scale,
+        }
+    }
+
+    /// `E(p)` (mm): the error of the chain at the axis positions of `p` (clamped to the travel).
+    pub fn at(&self, p: &Point3) -> Vector3 {
+        let t = self.machine.travel;
+        let axes = Point3::new(
+            ((p.x - self.lo.x) / (self.hi.x - self.lo.x)).clamp(0.0, 1.0) * t[0],
+            ((p.y - self.lo.y) / (self.hi.y - self.lo.y)).clamp(0.0, 1.0) * t[1],
+            ((p.z - self.lo.z) / (self.hi.z - self.lo.z)).clamp(0.0, 1.0) * t[2],
+        );
+        (self.machine.tip(&axes, &self.tool) - self.machine.nominal_tip(&axes, &self.tool)) * self.scale
+    }
+}
+
+/// The error models of the machine, built from [`ModelConfig`].
+#[derive(Debug, Clone)]
+struct Models {
+    config: ModelConfig,
+    errors: Option<Arc<ErrorField>>,
+    probe: Option<TouchProbe>,
+    rng_touch: SimRng,
+    /// Scans so far (each scan's dynamic noise is drawn from its own seeded stream).
+    scans: u64,
+    /// Stylus deflection left by the last trigger (mm): the body stopped past the contact by
+    /// the pre-travel, so the next move may start with the ball that far "in" the material.
+    deflected_mm: f64,
+}
+
 /// The virtual CMM.
 #[derive(Debug, Clone)]
 pub struct IppdmeCmm {
-    part: Option<Part>,
+    /// The part where it is now (its file's solids moved by `mount` and the table).
+    part: Option<Arc<Part>>,
+    /// The part as its file describes it.
+    part_file: Option<Arc<Part>>,
+    /// The rotary table: its axis point (axis parallel to Z), `None` for a CartCMM.
+    table: Option<Point3>,
+    table_angle: f64,
+    /// How the part sits on the table at angle 0: file coordinates `a` ↦ `R·a + t`.
+    mount: (Matrix3, Vector3),
     volume: (Point3, Point3),
     position: Point3,
+    models: Models,
     /// Number of probing moves, positioning moves and scan points so far (for tests).
     pub counters: Counters,
 }
@@ -45,15 +137,90 @@ pub struct Counters {
 }
 
 impl IppdmeCmm {
-    /// A machine with the volume of `config` and optionally a part. It starts un-homed at its
-    /// home position.
+    /// A machine with the volume and error models of `config` and optionally a part. It starts
+    /// un-homed at its home position. The error models are deterministic for the model's seed.
     pub fn new(config: &MachineConfig, part: Option<Part>) -> IppdmeCmm {
         let (lo, hi) = (config.volume_min_mm, config.volume_max_mm);
-        IppdmeCmm { part, volume: (lo, hi), position: home_of(lo, hi), counters: Counters::default() }
+        let m = &config.model;
+        let errors = (m.geometric_errors && m.geometric_error_scale > 0.0)
+            .then(|| Arc::new(ErrorField::bridge_cmm(m, lo, hi)));
+        // Pre-travel 0 is an ideal probe; the machine file checks lobing < pre-travel.
+        let probe = TouchProbe::new(0.0, m.pretravel_mm, m.lobing_mm).ok();
+        IppdmeCmm {
+            part: part.clone().map(Arc::new),
+            part_file: part.map(Arc::new),
+            table: config.rotary_table,
+            table_angle: 0.0,
+            mount: (Matrix3::identity(), Vector3::zeros()),
+            volume: (lo, hi),
+            position: home_of(lo, hi),
+            models: Models {
+                config: m.clone(),
+                errors,
+                probe,
+                rng_touch: noise::stream(m.seed, 11),
+                scans: 0,
+                deflected_mm: 0.0,
+            },
+            counters: Counters::default(),
+        }
     }
 
+    /// The part where it is now (moved by the rotary table and by `move_part`).
     pub fn part(&self) -> Option<&Part> {
-        self.part.as_ref()
+        self.part.as_deref()
+    }
+
+    /// Re-pose the part's solids: file coordinates → mount → table rotation.
+    fn pose_part(&mut self) {
+        let Some(file) = &self.part_file else { return };
+        let o = self.table.unwrap_or_else(Point3::origin);
+        let rt = rz(self.table_angle);
+        let (rm, tm) = self.mount;
+        let point = |a: &Point3| o + rt * (rm * a.coords + tm - o.coords);
+        let dir = |v: &Vector3| rt * (rm * v);
+        let solids = file
+            .solids
+            .iter()
+            .map(|(id, s)| {
+                let s = match s {
+                    Solid::Sphere { center, radius } => {
+                        Solid::Sphere { center: point(center), radius: *radius }
+                    }
+                    Solid::HalfSpace { point: p, normal } => {
+                        Solid::HalfSpace { point: point(p), normal: dir(normal) }
+                    }
+                    Solid::Cylinder { point: p, axis, radius, side } => {
+                        Solid::Cylinder { point: point(p), axis: dir(axis), radius: *radius, side: *side }
+                    }
+                };
+                (id.clone(), s)
+            })
+            .collect();
+        self.part = Some(Arc::new(Part { solids }));
+    }
+
+    /// The error models' configuration.
+    pub fn model(&self) -> &ModelConfig {
+        &self.models.config
+    }
+
+    /// Where the tip actually is when the scales read `p`.
+    pub fn actual(&self, p: &Point3) -> Point3 {
+        match &self.models.errors {
+            Some(e) => p + e.at(p),
+            None => *p,
+        }
+    }
+
+    /// Touch noise (σ per axis of the model).
+    fn touch_noise(&mut self) -> Vector3 {
+        let s = self.models.config.probe_noise_mm;
+        if s > 0.0 {
+            noise::gaussian3(&mut self.models.rng_touch, s)
+        } else {
+            Vector3::zeros()
+        }
     }
 
     /// Whether a ball of radius `r` centred at `c` overlaps the material (touching is not
@@ -377,15 +544,239 @@ fn crossings(s: &Solid, a: &Point3, d: &Vector3, r: f64, out: &mut Vec<f64>) {
     }
 }
 
-fn rotate(v: &Vector3, axis: &Vector3, angle: f64) -> Vector3 {
-    let (s, c) = angle.sin_cos();
-    v * c + axis.cross(v) * s + axis * axis.dot(v) * (1.0 - c)
+/// The part's surface for the stylus model: signed distance of the union of its solids minus its
+/// bores (constructive-solid-geometry distance: exact near a single face), displaced by the
+/// machine's geometric errors so that the machine, working in scale coordinates, touches where
+/// the actual tip meets the part.
+#[derive(Debug)]
+struct PartSurface {
+    part: Arc<Part>,
+    errors: Option<Arc<ErrorField>>,
+}
+
+/// Signed distance of `p` to the part's surface (positive outside the material) and the outward
+/// normal there: union of the solids minus the bores, exact near a single face.
+fn part_distance(part: &Part, p: &Point3) -> (f64, Vector3) {
+    let mut best = (f64::INFINITY, Vector3::z());
+    for (_, s) in &part.solids {
+        if !matches!(s, Solid::Cylinder { side: CylinderSide::Inside, .. }) {
+            let d = gap(s, p, 0.0);
+            if d < best.0 {
+                best = (d, outward(s, p));
+            }
+        }
+    }
+    for (_, s) in &part.solids {
+        if matches!(s, Solid::Cylinder { side: CylinderSide::Inside, .. }) {
+            // Inside the free cylinder `gap` is negative: the material's distance is −gap.
+            let d = -gap(s, p, 0.0);
+            if d > best.0 {
+                best = (d, outward(s, p));
+            }
+        }
+    }
+    if !best.0.is_finite() {
+        best.0 = 1e9;
+    }
+    best
+}
+
+impl Artefact for PartSurface {
+    fn closest(&self, p: &Point3) -> SurfacePoint {
+        let e = self.errors.as_ref().map(|e| e.at(p)).unwrap_or_else(Vector3::zeros);
+        let (distance, normal) = part_distance(&self.part, &(p + e));
+        SurfacePoint { distance, point: p - normal * distance, normal }
+    }
+}
+
+/// A nominal scan feature as the true surface (no part: the ideal surface through the start).
+#[derive(Debug)]
+struct Nominal(Feature);
+
+impl Artefact for Nominal {
+    fn closest(&self, p: &Point3) -> SurfacePoint {
+        let (distance, normal) = self.0.signed_distance(p);
+        SurfacePoint { distance, point: p - normal * distance, normal }
+    }
+}
+
+impl IppdmeCmm {
+    /// First contact of a probing or positioning move, as the fraction of the move in scale
+    /// coordinates: found on the straight segment between the actual positions of its ends,
+    /// then refined on the actual (slightly curved: the short-wave errors bend a 6 mm move by
+    /// a few tenths of a µm) path `actual(from + t·(to − from))`.
+    fn contact_on_move(&self, from: &Point3, to: &Point3, r: f64) -> Option<(f64, Vector3)> {
+        let (mut t, mut n) = self.first_contact(&self.actual(from), &self.actual(to), r)?;
+        let (Some(part), Some(_)) = (&self.part, &self.models.errors) else { return Some((t, n)) };
+        let d = to - from;
+        let gap_at = |t: f64| part_distance(part, &self.actual(&(from + d * t))).0 - r;
+        let len = d.norm();
+        if len <= 0.0 {
+            return Some((t, n));
+        }
+        // Secant steps on the gap along the actual path (its slope is −|d|·cos of the approach).
+        let h = 1e-4 / len;
+        for _ in 0..4 {
+            let g = gap_at(t);
+            if g.abs() < 1e-10 {
+                break;
+            }
+            let slope = (gap_at(t + h) - g) / h;
+            if slope.abs() < 1e-12 {
+                break;
+            }
+            t = (t - g / slope).clamp(0.0, 1.0);
+        }
+        n = part_distance(part, &self.actual(&(from + d * t))).1;
+        Some((t, n))
+    }
+
+    /// Execute a circle or line scan with the blended planner on the scanning dynamics; the
+    /// points at the requested parameters `targets` (rad or mm from the start) are appended.
+    fn scan_planned(
+        &mut self,
+        feature: Feature,
+        targets: &[f64],
+        r: f64,
+        out: &mut Vec<ScanPoint>,
+    ) -> Result<(), MachineError> {
+        let m = self.models.config.clone();
+        let params = Params {
+            tip_radius: r,
+            scan_speed: m.scan_speed_mm_s,
+            deflection: m.scan_deflection_mm,
+            overshoot: (m.scan_deflection_mm / 3.0).min(0.1),
+            ..Params::default()
+        };
+        truepos_scan::validate(std::slice::from_ref(&feature), &params)
+            .map_err(|e| MachineError::Unable(format!("scan: {e}")))?;
+        let length = feature.extent() * feature.metric(r - params.deflection);
+        if length / params.scan_speed > MAX_SCAN_TIME_S {
+            return Err(MachineError::Unable(format!(
+                "scan: {length:.0} mm at {} mm/s is more than {MAX_SCAN_TIME_S} s of machine time",
+                params.scan_speed
+            )));
+        }
+        let surface: Arc<dyn Artefact> = match &self.part {
+            Some(p) => Arc::new(PartSurface { part: p.clone(), errors: self.models.errors.clone() }),
+            None => Arc::new(Nominal(feature.clone())),
+        };
+        let plan = truepos_scan::plan(std::slice::from_ref(&feature), &params, Style::Blended);
+        let cmm = CmmConfig {
+            servo: truepos_sim::motion::Servo {
+                bandwidth_hz: m.servo_bandwidth_hz,
+                ..CmmConfig::default().servo
+            },
+            encoder_noise_mm: m.encoder_noise_mm,
+            probe_noise_mm: m.scan_probe_noise_mm,
+            ..CmmConfig::default()
+        };
+        self.models.scans += 1;
+        let seed = m.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(self.models.scans);
+        let mut machine = VirtualCmm::with_surfaces(cmm, vec![surface.clone()], seed)
+            .map_err(|e| MachineError::Unable(format!("scan: {e}")))?;
+        let run = truepos_scan::execute::execute(&plan, &mut machine, &ControlParams::default())
+            .map_err(|e| MachineError::Unable(format!("scan: {e}")))?;
+        // The scan segment's samples with their parameter along the feature.
+        let samples: Vec<(f64, &truepos_scan::execute::Point)> = {
+            let mut v = Vec::new();
+            let mut unwrap = 0.0;
+            let mut prev: Option<f64> = None;
+            for p in run.points.iter().filter(|p| p.segment == SegmentKind::Scan && p.feature == 0) {
+                let u = feature_param(&feature, &p.position);
+                let u = match prev {
+                    // Circles: unwrap the angle along the scan.
+                    Some(q) if matches!(feature.geometry, Geometry::Circle { .. }) => {
+                        let mut d = u + unwrap - q;
+                        while d > std::f64::consts::PI {
+                            unwrap -= 2.0 * std::f64::consts::PI;
+                            d -= 2.0 * std::f64::consts::PI;
+                        }
+                        while d < -std::f64::consts::PI {
+                            unwrap += 2.0 * std::f64::consts::PI;
+                            d += 2.0 * std::f64::consts::PI;
+                        }
+                        q + d
+                    }
+                    _ => u,
+                };
+                prev = Some(u);
+                v.push((u, p));
+            }
+            v
+        };
+        if samples.is_empty() {
+            return Err(MachineError::Unable("scan: no point was measured in contact".into()));
+        }
+        // Each requested point is interpolated between the two measured samples around its
+        // parameter (the control loop samples at 1 kHz; a step finer than the sample spacing
+        // would otherwise repeat samples); outside the scanned range the end sample is used.
+        let mut k = 0;
+        for &t in targets {
+            while k + 2 < samples.len() && samples[k + 1].0 < t {
+                k += 1;
+            }
+            let (ua, a) = samples[k];
+            let (pos, quality) = match samples.get(k + 1) {
+                Some(&(ub, b)) if ub > ua => {
+                    let w = ((t - ua) / (ub - ua)).clamp(0.0, 1.0);
+                    (a.position + (b.position - a.position) * w, a.quality.max(b.quality))
+                }
+                _ => (a.position, a.quality),
+            };
+            let n = surface.closest(&pos).normal;
+            self.counters.scan_points += 1;
+            out.push(ScanPoint { tip_center_mm: pos, normal: n, quality: 10.0 * f64::from(quality) });
+        }
+        if let Some(last) = run.points.last() {
+            self.position = last.commanded;
+        }
+        Ok(())
+    }
+}
+
+/// The number of steps of a scan (at least 1), at most [`MAX_SCAN_POINTS`] − 1.
+fn steps(ratio: f64) -> Result<usize, MachineError> {
+    let n = ratio.round().max(1.0);
+    if n >= MAX_SCAN_POINTS as f64 {
+        return Err(MachineError::Unable(format!(
+            "scan: {n:.0} steps; at most {} points per scan",
+            MAX_SCAN_POINTS
+        )));
+    }
+    Ok(n as usize)
+}
+
+/// The scan parameter of a measured tip centre: the angle from the start (rad, in the sweep's
+/// sense) for circles, the distance along the line for lines.
+fn feature_param(f: &Feature, p: &Point3) -> f64 {
+    match &f.geometry {
+        Geometry::Circle { center, axis, start, sweep, .. } => {
+            let (u, v) = Feature::basis(axis);
+            let d = p - center;
+            let a = d.dot(&v).atan2(d.dot(&u));
+            let mut x = (a - start) * sweep.signum();
+            x = x.rem_euclid(2.0 * std::f64::consts::PI);
+            if x > 1.5 * std::f64::consts::PI {
+                x -= 2.0 * std::f64::consts::PI;
+            }
+            x
+        }
+        Geometry::Line { start, end, .. } => (p - start).dot(&(end - start).normalize()),
+    }
 }
 
 impl Cmm for IppdmeCmm {
     fn describe(&self) -> String {
         let solids = self.part.as_ref().map(|p| p.solids.len()).unwrap_or(0);
-        format!("truepos virtual CMM (exact contacts, instant moves, {solids} part solids)")
+        let m = &self.models.config;
+        format!(
+            "truepos virtual CMM (instant moves, {solids} part solids, geometric errors {}, pre-travel {:.1} µm, lobing {:.1} µm, touch noise {:.2} µm, scans on the blended planner)",
+            if self.models.errors.is_some() { "on" } else { "off" },
+            m.pretravel_mm * 1e3,
+            m.lobing_mm * 1e3,
+            m.probe_noise_mm * 1e3
+        )
     }
 
     fn volume(&self) -> (Point3, Point3) {
@@ -408,7 +799,9 @@ impl Cmm for IppdmeCmm {
             return Err(MachineError::OutOfVolume);
         }
         self.counters.moves += 1;
-        if let Some((t, n)) = self.first_contact(&self.position, &target_mm, tip_radius_mm) {
+        // Leaving a trigger position: the deflected stylus springs back as the move starts.
+        let r = (tip_radius_mm - std::mem::take(&mut self.models.deflected_mm)).max(0.0);
+        if let Some((t, n)) = self.contact_on_move(&self.position, &target_mm, r) {
             // Stop at the touch, backed off by 1 µm along the normal.
             let stopped = self.position + (target_mm - self.position) * t + n * 1e-3;
             self.position = stopped;
@@ -427,25 +820,53 @@ impl Cmm for IppdmeCmm {
         nominal_normal: Vector3,
     ) -> Result<Option<Contact>, MachineError> {
         self.counters.probes += 1;
-        let c = match &self.part {
-            Some(_) => self.probe_exact(&from_mm, &to_mm, tip_radius_mm),
+        let (a, b) = (self.actual(&from_mm), self.actual(&to_mm));
+        let hit = match &self.part {
+            Some(_) => self.contact_on_move(&from_mm, &to_mm, tip_radius_mm),
             None => {
                 // The ideal plane through the nominal point, normal to the probing direction:
-                // the ball centre touches it where the move reaches the plane offset by r
-                // (nominal + r·n when the move runs along the normal).
+                // the ball centre touches it where the actual move reaches the plane offset by r.
                 let n = nominal_normal
                     .try_normalize(1e-15)
                     .ok_or_else(|| MachineError::Unable("zero probing direction".into()))?;
-                // The segment meets the plane offset by r at fraction t.
                 let touch = nominal_mm + n * tip_radius_mm;
-                let d = to_mm - from_mm;
+                let d = b - a;
                 let dn = d.dot(&n);
-                let t = if dn.abs() > 1e-300 { (touch - from_mm).dot(&n) / dn } else { f64::NAN };
-                (0.0..=1.0).contains(&t).then(|| Contact { tip_center_mm: from_mm + d * t, normal: n })
+                let t = if dn.abs() > 1e-300 { (touch - a).dot(&n) / dn } else { f64::NAN };
+                (0.0..=1.0).contains(&t).then_some((t, n))
             }
         };
-        self.position = c.map(|c| c.tip_center_mm).unwrap_or(to_mm);
-        Ok(c)
+        self.models.deflected_mm = 0.0;
+        let Some((t, n)) = hit else {
+            self.position = to_mm;
+            return Ok(None);
+        };
+        let d = to_mm - from_mm;
+        let len = d.norm();
+        // The probe triggers when the deflection along the normal reaches the pre-travel: the
+        // machine runs on by pretravel / cos(angle between the move and the normal).
+        let (over, mean) = match &self.models.probe {
+            Some(p) if len > 0.0 => {
+                let cos = (-(d / len).dot(&n)).max(0.05);
+                (p.pretravel(&n) / cos, p.pretravel_mm)
+            }
+            _ => (0.0, 0.0),
+        };
+        let t_trig = if len > 0.0 { t + over / len } else { t };
+        if t_trig > 1.0 {
+            // The move ended before the deflection reached the trigger.
+            self.position = to_mm;
+            return Ok(None);
+        }
+        let trigger = from_mm + d * t_trig;
+        self.position = trigger;
+        self.models.deflected_mm = if over > 0.0 { over + 1e-6 } else { 0.0 };
+        let mut reported = trigger;
+        if self.models.config.pretravel_compensated {
+            reported += n * mean;
+        }
+        reported += self.touch_noise();
+        Ok(Some(Contact { tip_center_mm: reported, normal: n }))
     }
 
     fn scan(
@@ -455,65 +876,127 @@ impl Cmm for IppdmeCmm {
         tip_radius_mm: f64,
         out: &mut Vec<ScanPoint>,
     ) -> Result<(), MachineError> {
-        let window = 2.0 + tip_radius_mm;
-        let mut push = |me: &mut Self, q: Point3, n: Vector3| -> bool {
-            let c = if me.part.is_none() {
-                Some(Contact { tip_center_mm: q, normal: n })
-            } else {
-                me.probe_exact(&(q + n * window), &(q - n * window), tip_radius_mm)
-            };
-            match c {
-                Some(c) => {
-                    me.position = c.tip_center_mm;
-                    me.counters.scan_points += 1;
-                    out.push(ScanPoint { tip_center_mm: c.tip_center_mm, normal: c.normal, quality: 0.0 });
-                    true
-                }
-                None => false,
-            }
-        };
+        let r = tip_radius_mm;
+        let s0 = start.tip_center_mm - start.normal * r;
         match *path {
             ScanPath::Circle { center, axis, delta_rad, step_rad } => {
-                let axis =
+                let mut axis =
                     axis.try_normalize(1e-15).ok_or_else(|| MachineError::Unable("zero scan axis".into()))?;
-                let n_steps = ((delta_rad.abs() / step_rad.max(1e-9)).round() as usize).max(1);
-                let arm = start.tip_center_mm - center;
-                for k in 0..=n_steps {
-                    let ang = delta_rad * k as f64 / n_steps as f64;
-                    let q = center + rotate(&arm, &axis, ang);
-                    let n = rotate(&start.normal, &axis, ang);
-                    if !push(self, q, n) {
-                        break;
+                let mut delta = delta_rad;
+                let n_steps = steps(delta_rad.abs() / step_rad.max(1e-12))?;
+                let c = center + axis * (s0 - center).dot(&axis);
+                let radial = s0 - c;
+                let radius = radial.norm();
+                let side = if start.normal.dot(&axis).abs() > 0.9 {
+                    if start.normal.dot(&axis) < 0.0 {
+                        // The plane's outward normal is the feature's axis: turn it over and
+                        // keep the sense of rotation.
+                        axis = -axis;
+                        delta = -delta;
                     }
+                    Side::Plane
+                } else if start.normal.dot(&radial) > 0.0 {
+                    Side::Outside
+                } else {
+                    Side::Inside
+                };
+                if radius < 1e-6 {
+                    return Err(MachineError::Unable("the scan circle has no radius".into()));
                 }
-            }
-            ScanPath::Contour { guide, toward, step_mm, stop, max_length_mm } => {
-                return self.follow(
-                    start,
-                    &guide,
-                    &toward,
-                    step_mm,
-                    &stop,
-                    max_length_mm,
-                    tip_radius_mm,
-                    out,
-                );
+                let (u, v) = Feature::basis(&axis);
+                let feature = Feature {
+                    id: "ScanOnCircle".into(),
+                    geometry: Geometry::Circle {
+                        center: c,
+                        axis,
+                        radius,
+                        side,
+                        start: radial.dot(&v).atan2(radial.dot(&u)),
+                        // Overscan by 0.5 mm of arc (at most to ±720°): the planner's scan
+                        // segment hands over to the release a few samples before its nominal
+                        // end, and the last requested point must lie inside the scanned range.
+                        sweep: (delta.abs() + OVERSCAN_MM / radius).min(4.0 * std::f64::consts::PI)
+                            * delta.signum(),
+                    },
+                };
+                let targets: Vec<f64> =
+                    (0..=n_steps).map(|k| delta.abs() * k as f64 / n_steps as f64).collect();
+                self.scan_planned(feature, &targets, r, out)
             }
             ScanPath::Line { direction, length_mm, step_mm } => {
-                let n_steps = ((length_mm / step_mm.max(1e-9)).round() as usize).max(1);
-                for k in 0..=n_steps {
-                    let q = start.tip_center_mm + direction * (length_mm * k as f64 / n_steps as f64);
-                    if !push(self, q, start.normal) {
-                        break;
-                    }
+                let dir = (direction - start.normal * start.normal.dot(&direction))
+                    .try_normalize(1e-9)
+                    .ok_or_else(|| MachineError::Unable("the scan line runs along the normal".into()))?;
+                let n_steps = steps(length_mm / step_mm.max(1e-12))?;
+                let feature = Feature {
+                    id: "ScanOnLine".into(),
+                    geometry: Geometry::Line {
+                        start: s0,
+                        end: s0 + dir * (length_mm + OVERSCAN_MM),
+                        normal: start.normal,
+                    },
+                };
+                let targets: Vec<f64> =
+                    (0..=n_steps).map(|k| length_mm * k as f64 / n_steps as f64).collect();
+                self.scan_planned(feature, &targets, r, out)
+            }
+            ScanPath::Contour { guide, toward, step_mm, stop, max_length_mm } => {
+                steps(max_length_mm / step_mm.max(1e-12))?;
+                let first = out.len();
+                self.follow(start, &guide, &toward, step_mm, &stop, max_length_mm, tip_radius_mm, out)?;
+                for p in &mut out[first..] {
+                    let e = self.touch_noise();
+                    p.tip_center_mm += e;
                 }
+                Ok(())
             }
         }
-        Ok(())
     }
 
     fn stop(&mut self) {
         self.counters.stops += 1;
+    }
+
+    fn rotary_axis(&self) -> Option<(Point3, Vector3)> {
+        self.table.map(|o| (o, Vector3::z()))
+    }
+
+    fn table_angle(&self) -> f64 {
+        self.table_angle
+    }
+
+    fn set_table_angle(&mut self, angle_rad: f64) -> Result<(), MachineError> {
+        if self.table.is_none() {
+            return Err(MachineError::Unable("this CMM has no rotary table".into()));
+        }
+        if !angle_rad.is_finite() {
+            return Err(MachineError::Unable(format!("table angle {angle_rad}")));
+        }
+        // The table turns by the shortest way to the angle, kept in (−180°, 180°].
+        let mut a = angle_rad.rem_euclid(2.0 * std::f64::consts::PI);
+        if a > std::f64::consts::PI {
+            a -= 2.0 * std::f64::consts::PI;
+        }
+        self.table_angle = a;
+        self.counters.moves += 1;
+        self.pose_part();
+        Ok(())
+    }
+
+    fn move_part(&mut self, rotation: Matrix3, about: Point3, shift: Vector3) -> Result<(), MachineError> {
+        // In the table frame at angle 0: x0 ↦ O + Rz(−c)·(b + Q·(O + Rz(c)·(x0 − O) − b) + s − O).
+        let o = self.table.unwrap_or_else(Point3::origin);
+        let (rc, rci) = (rz(self.table_angle), rz(-self.table_angle));
+        let f = |x0: Vector3| -> Vector3 {
+            let x = o.coords + rc * (x0 - o.coords);
+            let moved = about.coords + rotation * (x - about.coords) + shift;
+            o.coords + rci * (moved - o.coords)
+        };
+        let (rm, tm) = self.mount;
+        self.mount = (rci * rotation * rc * rm, f(tm));
+        self.counters.moves += 1;
+        self.pose_part();
+        Ok(())
     }
 }
 
@@ -570,4 +1053,36 @@ pub fn bind_virtual(opts: &ServeOptions) -> Result<truepos_ippdme::Server<Ippdme
     };
     truepos_ippdme::Server::bind(&address, IppdmeCmm::new(&config, part), &config, log)
         .map_err(|source| ServeError::Bind { address, source })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scans_are_bounded_in_points_and_machine_time() {
+        let part = Part::from_toml("p", "[[plane]]\npoint_mm = [0, 0, 0]\nnormal = [0, 0, 1]\n").unwrap();
+        let mut m = IppdmeCmm::new(&MachineConfig::default(), Some(part));
+        let start = Contact { tip_center_mm: Point3::new(800.0, 0.0, 1.5), normal: Vector3::z() };
+        let mut out = Vec::new();
+        // Two turns of a 1.6 m circle: 10 km at 20 mm/s.
+        let long = ScanPath::Circle {
+            center: Point3::origin(),
+            axis: Vector3::z(),
+            delta_rad: 4.0 * std::f64::consts::PI,
+            step_rad: 0.01,
+        };
+        let e = m.scan(start, &long, 1.5, &mut out).unwrap_err();
+        assert!(e.to_string().contains("machine time"), "{e}");
+        let fine = ScanPath::Line { direction: Vector3::x(), length_mm: 10.0, step_mm: 1e-9 };
+        let e = m.scan(start, &fine, 1.5, &mut out).unwrap_err();
+        assert!(e.to_string().contains("points per scan"), "{e}");
+        assert!(out.is_empty());
+        // Within the bounds: a 10 mm line in 1 mm steps on the plane, 11 points at z ≈ r.
+        let ok = ScanPath::Line { direction: Vector3::x(), length_mm: 10.0, step_mm: 1.0 };
+        m.scan(start, &ok, 1.5, &mut out).unwrap();
+        assert_eq!(out.len(), 11);
+        // The realistic machine: within 10 µm of the true plane (geometric map and noise).
+        assert!(out.iter().all(|p| (p.tip_center_mm.z - 1.5).abs() < 10e-3), "{out:?}");
+    }
 }

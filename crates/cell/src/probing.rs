@@ -11,12 +11,22 @@
 //! move that touches anything stops at the trigger and is an error, as on a CNC ("probe tripped
 //! during non-probe move").
 //!
+//! With rotary axes (`rotary`: a B swivel head, a C table) the machine is the head-offset
+//! contract's: positions are the NC's head reference point P, the tip centre is at
+//! `P + Ry(b)·R` (`head_offset_mm`), and what is on the table at `A` (C = 0) is at
+//! `O + Rz(c)·(A − O)` (`table_center_mm`).
+//!
+//! Besides spheres, the table can carry plates with bores ([`truepos_sim::artefact::Part`]), the
+//! holes that in-spindle inspection probes ([`MachineToolConfig::with_holes`]).
+//!
 //! Entry points: [`MachineToolConfig`] (`Default`: a 25 mm sphere at (120, 45, 30) and a 3 mm
-//! ball), [`VirtualMachineTool::new`], [`VirtualMachineTool::truth`].
+//! ball), [`MachineToolConfig::near`], [`MachineToolConfig::with_holes`],
+//! [`VirtualMachineTool::new`], [`VirtualMachineTool::truth`].
 
-use truepos_device::{DeviceError, DeviceInfo, ProbeHit, ProbeRequest, ProbingMachine};
+use truepos_device::{DeviceError, DeviceInfo, ProbeHit, ProbeRequest, ProbingMachine, RotaryAxes};
+use truepos_math::{ry, rz, Matrix3};
 use truepos_math::{Point3, Vector3};
-use truepos_sim::artefact::{Artefact, Sphere};
+use truepos_sim::artefact::{Artefact, ConvexPolyhedron, Cylinder, Part, Sphere, SurfacePoint};
 use truepos_sim::noise::{self, ParamError, SimRng};
 use truepos_sim::touch::TouchProbe;
 
@@ -28,6 +38,8 @@ pub struct MachineToolConfig {
     pub seed: u64,
     /// Reference spheres: centre (machine frame, mm) and radius (mm).
     pub spheres: Vec<(Point3, f64)>,
+    /// Plates with bores (blocks minus cylindrical holes).
+    pub parts: Vec<Part>,
     /// The real stylus ball radius (the radius a request gives is only the plan's).
     pub tip_radius_mm: f64,
     pub pretravel_mm: f64,
@@ -41,6 +53,13 @@ pub struct MachineToolConfig {
     pub travel_max_mm: Point3,
     /// Where the tip centre is at start.
     pub start_mm: Point3,
+    /// Rotary axes the machine has (default none).
+    pub rotary: RotaryAxes,
+    /// The head offset R: tip centre = P + Ry(b)·R, with P the position the machine reports
+    /// (default zero: P is the tip centre).
+    pub head_offset_mm: Vector3,
+    /// A point of the table's C axis (parallel to Z).
+    pub table_center_mm: Point3,
 }
 
 impl Default for MachineToolConfig {
@@ -48,6 +67,7 @@ impl Default for MachineToolConfig {
         MachineToolConfig {
             seed: 1,
             spheres: vec![(Point3::new(120.0, 45.0, 30.0), 12.5)],
+            parts: vec![],
             tip_radius_mm: 1.5,
             pretravel_mm: 0.0005,
             lobing_mm: 0.0,
@@ -56,6 +76,9 @@ impl Default for MachineToolConfig {
             travel_min_mm: Point3::new(-500.0, -500.0, -300.0),
             travel_max_mm: Point3::new(1000.0, 800.0, 500.0),
             start_mm: Point3::new(0.0, 0.0, 100.0),
+            rotary: RotaryAxes::default(),
+            head_offset_mm: Vector3::zeros(),
+            table_center_mm: Point3::origin(),
         }
     }
 }
@@ -81,6 +104,163 @@ impl MachineToolConfig {
     }
 }
 
+/// The truth of [`MachineToolConfig::for_head_offset`]: the head offset the machine really
+/// has, and the sphere (centre at C = 0, radius) on its table.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeadOffsetTruth {
+    pub offset_mm: Vector3,
+    pub sphere_centre_mm: Point3,
+    pub sphere_radius_mm: f64,
+}
+
+impl MachineToolConfig {
+    /// A machine tool with a B head and a C table for head-offset acquisition `acq`: the sphere
+    /// set up near its nominal place ([`MachineToolConfig::near`]), the head offset off its
+    /// nominal by a seeded error of σ = 0.2 mm per axis, the C axis through the acquisition's
+    /// table centre, travel widened by the offset and the sphere's distance from that axis, and
+    /// the tip starting 50 mm above the sphere at B = 0.
+    pub fn for_head_offset(
+        seed: u64,
+        acq: &truepos_head::acquire::HeadAcquisition,
+    ) -> (MachineToolConfig, HeadOffsetTruth) {
+        let (near, r, tip) = (acq.sphere.near_mm, 0.5 * acq.sphere.diameter_mm, acq.sphere.tip_radius_mm);
+        let mut cfg = MachineToolConfig::near(seed, near, r, tip);
+        let offset = acq.nominal_offset_mm + seeded_offset_error(seed, 0.2);
+        let reach = offset.norm() + (near - acq.table_center_mm).norm();
+        cfg.rotary = RotaryAxes { head_b: true, table_c: true };
+        cfg.head_offset_mm = offset;
+        cfg.table_center_mm = acq.table_center_mm;
+        cfg.travel_min_mm -= Vector3::repeat(reach);
+        cfg.travel_max_mm += Vector3::repeat(reach);
+        cfg.start_mm = near + Vector3::new(0.0, 0.0, r + tip + 50.0) - offset;
+        let (c, radius) = cfg.spheres[0];
+        (cfg, HeadOffsetTruth { offset_mm: offset, sphere_centre_mm: c, sphere_radius_mm: radius })
+    }
+}
+
+/// A seeded error of σ per axis (e.g. how far a virtual head offset is from its nominal).
+pub fn seeded_offset_error(seed: u64, sigma_mm: f64) -> Vector3 {
+    noise::gaussian3(&mut noise::stream(seed, 79), sigma_mm)
+}
+
+/// A bore of [`MachineToolConfig::with_holes`] as it really is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrueHole {
+    /// Centre of the hole's top (mm).
+    pub top_mm: Point3,
+    pub diameter_mm: f64,
+}
+
+impl MachineToolConfig {
+    /// A machine with the given holes (nominal top centre, nominal diameter) as a real part has
+    /// them: each bore displaced by a seeded error of σ = 20 µm in X and Y, its diameter
+    /// σ = 5 µm off nominal, in a 30 mm thick plate (one per hole-top height, covering the holes
+    /// with a margin) whose top is at the hole tops. No sphere; the stylus ball has
+    /// `tip_radius`; the machine starts 50 mm above the first hole. Plates of different heights
+    /// that overlap in X and Y are refused (one would fill the other's holes).
+    pub fn with_holes(
+        seed: u64,
+        holes: &[(Point3, f64)],
+        tip_radius: f64,
+    ) -> Result<(MachineToolConfig, Vec<TrueHole>), String> {
+        let Some(first) = holes.first() else { return Err("no holes".into()) };
+        let mut rng = noise::stream(seed, 78);
+        let truth: Vec<TrueHole> = holes
+            .iter()
+            .map(|(c, d)| {
+                let e = noise::gaussian3(&mut rng, 0.02);
+                let dd = noise::gaussian(&mut rng, 0.005);
+                TrueHole { top_mm: Point3::new(c.x + e.x, c.y + e.y, c.z), diameter_mm: d + dd }
+            })
+            .collect();
+        // One plate per hole-top height (to 1 µm).
+        let mut levels: Vec<f64> = vec![];
+        for t in &truth {
+            if !levels.iter().any(|z| (z - t.top_mm.z).abs() < 1e-3) {
+                levels.push(t.top_mm.z);
+            }
+        }
+        let thickness = 30.0;
+        let mut parts = vec![];
+        let mut rects: Vec<(f64, f64, f64, f64)> = vec![];
+        for z in levels {
+            let mine: Vec<&TrueHole> = truth.iter().filter(|t| (t.top_mm.z - z).abs() < 1e-3).collect();
+            let margin = mine.iter().map(|t| t.diameter_mm).fold(0.0, f64::max) + 10.0;
+            let lo = |f: fn(&Point3) -> f64| {
+                mine.iter().map(|t| f(&t.top_mm)).fold(f64::INFINITY, f64::min) - margin
+            };
+            let hi = |f: fn(&Point3) -> f64| {
+                mine.iter().map(|t| f(&t.top_mm)).fold(f64::NEG_INFINITY, f64::max) + margin
+            };
+            let r = (lo(|p| p.x), hi(|p| p.x), lo(|p| p.y), hi(|p| p.y));
+            if rects.iter().any(|q| r.0 < q.1 && q.0 < r.1 && r.2 < q.3 && q.2 < r.3) {
+                return Err(format!(
+                    "holes at different heights (top z {z} mm and another) are too close in X and Y for one plate each"
+                ));
+            }
+            rects.push(r);
+            let block = ConvexPolyhedron::cuboid(
+                Point3::new(0.5 * (r.0 + r.1), 0.5 * (r.2 + r.3), z - 0.5 * thickness),
+                Vector3::new(0.5 * (r.1 - r.0), 0.5 * (r.3 - r.2), 0.5 * thickness),
+                truepos_math::Matrix3::identity(),
+            )
+            .map_err(|e| e.to_string())?;
+            let bores = mine
+                .iter()
+                .map(|t| {
+                    // Through the plate and beyond both faces.
+                    Cylinder::new(
+                        Point3::new(t.top_mm.x, t.top_mm.y, z - 0.5 * thickness),
+                        Vector3::z(),
+                        0.5 * t.diameter_mm,
+                        thickness + 20.0,
+                    )
+                })
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(|e| e.to_string())?;
+            parts.push(Part { block, bosses: vec![], bores });
+        }
+        let (lo, hi) = holes.iter().fold(
+            (Point3::from(Vector3::repeat(f64::INFINITY)), Point3::from(Vector3::repeat(f64::NEG_INFINITY))),
+            |(lo, hi), (c, _)| (lo.inf(c), hi.sup(c)),
+        );
+        let cfg = MachineToolConfig {
+            seed,
+            spheres: vec![],
+            parts,
+            tip_radius_mm: tip_radius,
+            travel_min_mm: lo - Vector3::repeat(500.0),
+            travel_max_mm: hi + Vector3::repeat(500.0),
+            start_mm: first.0 + Vector3::new(0.0, 0.0, 50.0),
+            ..MachineToolConfig::default()
+        };
+        Ok((cfg, truth))
+    }
+}
+
+/// An artefact on the table as the reported position P sees it: the tip is at
+/// `P + shift` (the rotated head offset), the table turned by `turn` about the axis through `o`.
+#[derive(Debug, Clone, Copy)]
+struct Placed<'a> {
+    inner: &'a dyn Artefact,
+    shift: Vector3,
+    turn: Matrix3,
+    o: Point3,
+}
+
+impl Artefact for Placed<'_> {
+    fn closest(&self, p: &Point3) -> SurfacePoint {
+        // Into the table frame at C = 0, and the answer back.
+        let q = self.o + self.turn.transpose() * (p + self.shift - self.o);
+        let s = self.inner.closest(&q);
+        SurfacePoint {
+            distance: s.distance,
+            point: self.o + self.turn * (s.point - self.o) - self.shift,
+            normal: self.turn * s.normal,
+        }
+    }
+}
+
 /// The virtual machine tool behind [`ProbingMachine`].
 #[derive(Debug)]
 pub struct VirtualMachineTool {
@@ -89,6 +269,9 @@ pub struct VirtualMachineTool {
     probe: TouchProbe,
     rng: SimRng,
     pos: Point3,
+    /// Head and table angles (rad).
+    b: f64,
+    c: f64,
     /// Probing moves made (for tests and reports).
     pub probings: usize,
 }
@@ -105,7 +288,7 @@ impl VirtualMachineTool {
         noise::check_nonneg("position sigma", cfg.position_sigma_mm)?;
         let rng = noise::stream(cfg.seed, 31);
         let pos = cfg.start_mm;
-        Ok(VirtualMachineTool { cfg, spheres, probe, rng, pos, probings: 0 })
+        Ok(VirtualMachineTool { cfg, spheres, probe, rng, pos, b: 0.0, c: 0.0, probings: 0 })
     }
 
     /// The reference spheres (truth).
@@ -117,12 +300,44 @@ impl VirtualMachineTool {
         &self.cfg
     }
 
-    /// First trigger on the straight move from `from` along unit `u` within `len`.
-    fn first_trigger(&self, from: &Point3, u: &Vector3, len: f64) -> Option<f64> {
+    /// Everything on the table, as seen by the position the machine reports (P) at the current
+    /// head and table angles.
+    fn artefacts(&self) -> impl Iterator<Item = Placed<'_>> {
+        let shift = ry(self.b) * self.cfg.head_offset_mm;
+        let turn = rz(self.c);
+        let o = self.cfg.table_center_mm;
         self.spheres
             .iter()
-            .filter_map(|s| self.probe.probe_along(s as &dyn Artefact, from, u, len))
-            .map(|t| t.travel_mm)
+            .map(|s| s as &dyn Artefact)
+            .chain(self.cfg.parts.iter().map(|p| p as &dyn Artefact))
+            .map(move |inner| Placed { inner, shift, turn, o })
+    }
+
+    /// First trigger on the straight move from `from` along unit `u` within `len`.
+    ///
+    /// The probe's own search steps a fraction of its pre-travel at a time, far too fine for a
+    /// long positioning move: first sphere-trace (step by the clearance between the ball and
+    /// the nearest material, a lower bound of the distance for every artefact here) until the
+    /// ball is within a few µm of something, then let the probe search from there.
+    fn first_trigger(&self, from: &Point3, u: &Vector3, len: f64) -> Option<f64> {
+        let margin = self.cfg.pretravel_mm + self.cfg.lobing_mm.abs() + 0.002;
+        let r = self.cfg.tip_radius_mm;
+        let mut s0 = 0.0;
+        for _ in 0..1_000_000 {
+            let p = from + u * s0;
+            let gap = self.artefacts().map(|a| a.distance(&p) - r).fold(f64::INFINITY, f64::min);
+            if gap <= margin || s0 >= len {
+                break;
+            }
+            s0 += gap - 0.5 * margin;
+        }
+        if s0 >= len {
+            return None;
+        }
+        let start = from + u * s0;
+        self.artefacts()
+            .filter_map(|a| self.probe.probe_along(&a, &start, u, len - s0))
+            .map(|t| s0 + t.travel_mm)
             .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.min(t))))
     }
 
@@ -237,6 +452,39 @@ impl ProbingMachine for VirtualMachineTool {
     fn abort(&mut self) -> Result<(), DeviceError> {
         Ok(())
     }
+
+    fn rotary_axes(&self) -> RotaryAxes {
+        self.cfg.rotary
+    }
+
+    /// Turns the axes at once; a ball that ends up in the material is an error (the angles are
+    /// then left as they were).
+    fn orient(&mut self, b_deg: f64, c_deg: f64) -> Result<(), DeviceError> {
+        let what = format!("orienting the head to B = {b_deg}°, C = {c_deg}°");
+        let reject =
+            |message: String| DeviceError::Rejected { address: ADDRESS.into(), what: what.clone(), message };
+        if !(b_deg.is_finite() && c_deg.is_finite()) {
+            return Err(reject("the angles must be finite".into()));
+        }
+        if b_deg != 0.0 && !self.cfg.rotary.head_b {
+            return Err(reject(format!("this machine has no B axis ({})", self.cfg.rotary.describe())));
+        }
+        if c_deg != 0.0 && !self.cfg.rotary.table_c {
+            return Err(reject(format!("this machine has no C axis ({})", self.cfg.rotary.describe())));
+        }
+        let (b0, c0) = (self.b, self.c);
+        (self.b, self.c) = (b_deg.to_radians(), c_deg.to_radians());
+        let r = self.cfg.tip_radius_mm;
+        if self.artefacts().any(|a| a.distance(&self.pos) - r <= 0.0) {
+            (self.b, self.c) = (b0, c0);
+            return Err(DeviceError::Controller {
+                address: ADDRESS.into(),
+                what,
+                message: format!("the probe would collide at {}: move it clear first", fmt_point(&self.pos)),
+            });
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]
@@ -295,5 +543,36 @@ mod tests {
         assert!(e.to_string().contains("probe tripped"), "{e}");
         assert!((m.position().unwrap().z - (44.0 - 0.0005)).abs() < 1e-6);
         assert!(m.move_to(Point3::new(5000.0, 0.0, 0.0)).is_err());
+    }
+
+    #[test]
+    fn plates_of_different_heights_that_overlap_are_refused() {
+        let a = (Point3::new(0.0, 0.0, 0.0), 10.0);
+        let b = (Point3::new(30.0, 0.0, -5.0), 10.0);
+        assert!(MachineToolConfig::with_holes(1, &[a, b], 1.5).unwrap_err().contains("too close"));
+        let far = (Point3::new(300.0, 0.0, -5.0), 10.0);
+        let (cfg, truth) = MachineToolConfig::with_holes(1, &[a, far], 1.5).unwrap();
+        assert_eq!((cfg.parts.len(), truth.len()), (2, 2));
+        assert_eq!(truth[1].top_mm.z, -5.0);
+    }
+
+    #[test]
+    fn orienting_needs_the_axes_and_a_clear_probe() {
+        let mut m = machine();
+        let e = m.orient(90.0, 0.0).unwrap_err();
+        assert!(matches!(e, DeviceError::Rejected { .. }) && e.to_string().contains("no B axis"), "{e}");
+        let cfg = MachineToolConfig {
+            rotary: RotaryAxes { head_b: true, table_c: true },
+            head_offset_mm: Vector3::new(0.0, 0.0, -30.0),
+            // P 20 mm above the sphere's top: the tip (30 mm below P at B = 0) is inside it.
+            start_mm: Point3::new(120.0, 45.0, 30.0 + 12.5 + 20.0),
+            ..MachineToolConfig::default()
+        };
+        let mut m = VirtualMachineTool::new(cfg).unwrap();
+        m.orient(180.0, 0.0).unwrap(); // tip 30 mm above P: clear
+        let e = m.orient(0.0, 0.0).unwrap_err();
+        assert!(matches!(e, DeviceError::Controller { .. }) && e.to_string().contains("collide"), "{e}");
+        // Still at B = 180°: moving P down 10 mm keeps the tip clear.
+        m.move_to(Point3::new(120.0, 45.0, 52.5)).unwrap();
     }
 }

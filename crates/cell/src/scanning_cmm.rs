@@ -15,6 +15,7 @@
 
 use serde::Deserialize;
 use std::path::Path;
+use std::sync::Arc;
 use truepos_device::{DeviceError, DeviceInfo, ScanCommand, ScanSample, ScanningMachine};
 use truepos_io::InputError;
 use truepos_math::{Point3, Vector3};
@@ -30,9 +31,9 @@ const ADDRESS: &str = "virtual";
 /// A true feature as an artefact for the stylus model: its unbounded surface (exact nearest
 /// point for planes and cylinders).
 #[derive(Debug)]
-struct Surface<'a>(&'a Feature);
+struct Surface(Feature);
 
-impl Artefact for Surface<'_> {
+impl Artefact for Surface {
     fn closest(&self, p: &Point3) -> SurfacePoint {
         let (distance, normal) = self.0.signed_distance(p);
         SurfacePoint { distance, point: p - normal * distance, normal }
@@ -126,7 +127,7 @@ struct Motion {
 /// The virtual CMM measuring a true part (one surface per planned feature, same order).
 pub struct VirtualCmm {
     config: CmmConfig,
-    truth: Vec<Feature>,
+    truth: Vec<Arc<dyn Artefact>>,
     rng_encoder: SimRng,
     rng_probe: SimRng,
     motion: Option<Motion>,
@@ -135,6 +136,17 @@ pub struct VirtualCmm {
 impl VirtualCmm {
     /// A CMM measuring `truth`, its noise deterministic for `seed`.
     pub fn new(config: CmmConfig, truth: Vec<Feature>, seed: u64) -> Result<Self, ScanError> {
+        let truth = truth.into_iter().map(|f| Arc::new(Surface(f)) as Arc<dyn Artefact>).collect();
+        Self::with_surfaces(config, truth, seed)
+    }
+
+    /// A CMM whose feature `k` touches the artefact `truth[k]` (any surface: the I++ DME
+    /// server's part, displaced by the machine's geometric errors).
+    pub fn with_surfaces(
+        config: CmmConfig,
+        truth: Vec<Arc<dyn Artefact>>,
+        seed: u64,
+    ) -> Result<Self, ScanError> {
         config.check()?;
         Ok(VirtualCmm {
             config,
@@ -192,13 +204,13 @@ impl ScanningMachine for VirtualCmm {
         let (w2, two_zw, gain) =
             (w * w, 2.0 * self.config.servo.damping * w, 1.0 - self.config.servo.accel_feedforward);
         let surface = match command.feature {
-            Some(k) => Some(Surface(self.truth.get(k).ok_or_else(|| {
+            Some(k) => Some(self.truth.get(k).cloned().ok_or_else(|| {
                 Self::rejected("scan", format!("feature {k} of a part with {} features", self.truth.len()))
-            })?)),
+            })?),
             None => None,
         };
         let art: &dyn Artefact = match &surface {
-            Some(s) => s,
+            Some(s) => s.as_ref(),
             None => &Clear,
         };
         let m = self.motion.as_mut().ok_or_else(|| Self::rejected("scan", "follow before begin".into()))?;

@@ -115,8 +115,31 @@ pub struct ProbeHit {
     pub normal: Option<Vector3>,
 }
 
+/// The rotary axes a probing machine orients its head and table with
+/// ([`ProbingMachine::rotary_axes`]), as the head-offset contract defines them: B swivels the
+/// head about Y, C turns the table about an axis parallel to Z.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct RotaryAxes {
+    pub head_b: bool,
+    pub table_c: bool,
+}
+
+impl RotaryAxes {
+    /// "B and C", "B", "C" or "none", for messages.
+    pub fn describe(&self) -> &'static str {
+        match (self.head_b, self.table_c) {
+            (true, true) => "B (head) and C (table)",
+            (true, false) => "B (head) only",
+            (false, true) => "C (table) only",
+            (false, false) => "no rotary axes",
+        }
+    }
+}
+
 /// A machine with a touch-trigger (or scanning) probe: a CMM, or a machine tool with a
-/// spindle probe. Positions are tip-centre positions in the machine frame (mm).
+/// spindle probe. Positions are tip-centre positions in the machine frame (mm) — as the NC
+/// knows them: with a head whose offset is being calibrated, they are the NC's head reference
+/// point P (the head-offset contract's x, y, z), not the physical tip centre.
 ///
 /// Implementations must never release an e-stop or switch a machine on; opening one checks that
 /// the machine is on, homed and idle and returns [`DeviceError::NotReady`] otherwise. Every wait
@@ -134,6 +157,23 @@ pub trait ProbingMachine {
     fn probe(&mut self, request: &ProbeRequest) -> Result<ProbeHit, DeviceError>;
     /// Stop all motion now (best effort; also used on the way out of a failure).
     fn abort(&mut self) -> Result<(), DeviceError>;
+    /// The rotary axes this machine can orient (default: none, a 3-axis machine).
+    fn rotary_axes(&self) -> RotaryAxes {
+        RotaryAxes::default()
+    }
+    /// Swivel the head to `b_deg` and turn the table to `c_deg` (degrees), where the machine has
+    /// those axes. The caller first moves the probe clear of everything. The default (no rotary
+    /// axes) accepts only B = C = 0, the one orientation a 3-axis machine has.
+    fn orient(&mut self, b_deg: f64, c_deg: f64) -> Result<(), DeviceError> {
+        if b_deg == 0.0 && c_deg == 0.0 {
+            return Ok(());
+        }
+        Err(DeviceError::Rejected {
+            address: self.info().address,
+            what: format!("orienting the head to B = {b_deg}°, C = {c_deg}°"),
+            message: "this machine has no rotary axes (B, C)".into(),
+        })
+    }
 }
 
 /// One position command of servo-rate scanning ([`ScanningMachine::follow`]).

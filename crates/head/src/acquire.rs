@@ -13,6 +13,10 @@
 //! (otherwise a probe misses, or trips during a positioning move: both are errors naming the
 //! move, with the machine retracted).
 //!
+//! [`acquire_head_offset`] repeats this at several head (B) and table (C) orientations, where
+//! the machine has those axes, and [`points_csv`] writes the head-offset points file
+//! (`truepos head-offset acquire`); a machine without them is refused before it moves.
+//!
 //! The latched tip centres are fitted with the least-squares sphere (`truepos_fit::sphere`,
 //! orthogonal distances); the sphere's radius is the fitted radius minus the tip radius.
 
@@ -91,6 +95,9 @@ pub enum AcquireError {
     /// The points do not determine a sphere.
     #[error("sphere fit of the probed points: {0}")]
     Fit(#[from] FitError),
+    /// The points file could not be written.
+    #[error(transparent)]
+    Output(#[from] truepos_io::atomic::OutputError),
 }
 
 /// `n` unit directions over the upper hemisphere: the pole first, then a golden-angle spiral of
@@ -266,5 +273,236 @@ mod tests {
             assert!((d - (12.5 + 1.5 + 2.0)).abs() < 1e-9);
             assert!(r.start_mm().z <= ok.safe_z_mm());
         }
+    }
+}
+
+/// Head-offset acquisition through a controller: the reference sphere probed at several head
+/// (B) and table (C) orientations ([`acquire_head_offset`]), written as the head-offset
+/// contract's points file ([`points_csv`]).
+///
+/// At each orientation the machine positions the NC's head reference point P; the probe tip is
+/// at `P + Ry(b)·R`, the sphere (centre `S` at C = 0) at `O + Rz(c)·(S − O)`. So in P
+/// coordinates the sphere appears centred at `O + Rz(c)·(S − O) − Ry(b)·R`: the plan probes
+/// it there with the nominal offset R, which must therefore be known to better than the
+/// clearance (a head drawing's value). The latched points are P positions, exactly the x, y, z
+/// of the points file; `truepos head-offset` then finds R from them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeadAcquisition {
+    /// The sphere as it sits on the table at C = 0 (nominal centre, diameter) and how to probe
+    /// it at every orientation.
+    pub sphere: SphereProbing,
+    /// The orientations (B, C) in degrees, in order.
+    pub orientations: Vec<[f64; 2]>,
+    /// The head offset as far as it is known.
+    pub nominal_offset_mm: Vector3,
+    /// A point of the table's C axis (parallel to Z).
+    pub table_center_mm: Point3,
+}
+
+/// The sphere probed at one orientation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AcquiredOrientation {
+    pub b_deg: f64,
+    pub c_deg: f64,
+    pub sphere: ProbedSphere,
+}
+
+impl HeadAcquisition {
+    /// Check the request (before any machine moves).
+    pub fn check(&self) -> Result<(), AcquireError> {
+        self.sphere.check()?;
+        if self.orientations.is_empty() {
+            return Err(AcquireError::Plan("no orientations".into()));
+        }
+        if self.orientations.iter().flatten().any(|a| !a.is_finite()) {
+            return Err(AcquireError::Plan("the orientation angles must be finite".into()));
+        }
+        if !self.nominal_offset_mm.iter().chain(self.table_center_mm.iter()).all(|v| v.is_finite()) {
+            return Err(AcquireError::Plan("the nominal offset and table centre must be finite".into()));
+        }
+        Ok(())
+    }
+
+    /// Refuse, before anything moves, orientations that need an axis the machine does not have.
+    pub fn check_axes<M: ProbingMachine + ?Sized>(&self, machine: &M) -> Result<(), AcquireError> {
+        let axes = machine.rotary_axes();
+        let need_b = self.orientations.iter().any(|o| o[0] != 0.0);
+        let need_c = self.orientations.iter().any(|o| o[1] != 0.0);
+        let mut missing = vec![];
+        if need_b && !axes.head_b {
+            missing.push("B (head swivel)");
+        }
+        if need_c && !axes.table_c {
+            missing.push("C (rotary table)");
+        }
+        if missing.is_empty() {
+            return Ok(());
+        }
+        Err(AcquireError::Device(DeviceError::Rejected {
+            address: machine.info().address,
+            what: "head-offset acquisition".into(),
+            message: format!(
+                "the requested orientations need {}, and this machine has {}; a machine without \
+                 rotary axes has only B = 0, C = 0, and one orientation determines no head offset",
+                missing.join(" and "),
+                axes.describe()
+            ),
+        }))
+    }
+
+    /// Where the sphere appears in P coordinates at `(b, c)` degrees with the nominal offset.
+    pub fn apparent_center_mm(&self, b_deg: f64, c_deg: f64) -> Point3 {
+        let o = self.table_center_mm;
+        let s = self.sphere.near_mm;
+        o + truepos_math::rz(c_deg.to_radians()) * (s - o)
+            - truepos_math::ry(b_deg.to_radians()) * self.nominal_offset_mm
+    }
+
+    /// The height (P coordinates) at which the head turns: above the sphere's safe height at
+    /// every orientation by twice the offset's length (the tip moves by at most that).
+    pub fn turn_z_mm(&self) -> f64 {
+        let top = self
+            .orientations
+            .iter()
+            .map(|o| {
+                SphereProbing { near_mm: self.apparent_center_mm(o[0], o[1]), ..self.sphere }.safe_z_mm()
+            })
+            .fold(f64::NEG_INFINITY, f64::max);
+        top + 2.0 * self.nominal_offset_mm.norm() + self.sphere.clearance_mm
+    }
+}
+
+/// Probe the sphere at every orientation: up to the turning height, orient, probe
+/// ([`probe_sphere`] around the apparent centre). Orientations the machine cannot reach are
+/// refused before anything moves ([`HeadAcquisition::check_axes`]).
+pub fn acquire_head_offset<M: ProbingMachine + ?Sized>(
+    m: &mut M,
+    a: &HeadAcquisition,
+) -> Result<Vec<AcquiredOrientation>, AcquireError> {
+    a.check()?;
+    a.check_axes(m)?;
+    let turn_z = a.turn_z_mm();
+    let mut out = Vec::with_capacity(a.orientations.len());
+    for &[b, c] in &a.orientations {
+        let p = m.position()?;
+        if p.z < turn_z {
+            m.move_to(Point3::new(p.x, p.y, turn_z))?;
+        }
+        m.orient(b, c)?;
+        let plan = SphereProbing { near_mm: a.apparent_center_mm(b, c), ..a.sphere };
+        let sphere = probe_sphere(m, &plan)?;
+        out.push(AcquiredOrientation { b_deg: b, c_deg: c, sphere });
+    }
+    let p = m.position()?;
+    if p.z < turn_z {
+        m.move_to(Point3::new(p.x, p.y, turn_z))?;
+    }
+    Ok(out)
+}
+
+/// The head-offset points file (`b_deg,c_deg,x_mm,y_mm,z_mm,group`, one row per latched point,
+/// group = orientation index; numbers in shortest round-trip form).
+pub fn points_csv(acquired: &[AcquiredOrientation]) -> String {
+    let mut s = String::from("b_deg,c_deg,x_mm,y_mm,z_mm,group\n");
+    for (g, o) in acquired.iter().enumerate() {
+        for p in &o.sphere.points {
+            s += &format!("{},{},{},{},{},{g}\n", o.b_deg, o.c_deg, p.x, p.y, p.z);
+        }
+    }
+    s
+}
+
+/// What `truepos head-offset acquire` hands back: the orientations probed, the points file
+/// written, and for a virtual machine its truth (head offset, sphere centre at C = 0, radius).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AcquireReport {
+    pub acquired: Vec<AcquiredOrientation>,
+    pub output: std::path::PathBuf,
+    pub device: DeviceInfo,
+    pub elapsed_s: f64,
+    /// The command that computes the offset from the file.
+    pub next: String,
+    pub truth: Option<(Vector3, Point3, f64)>,
+}
+
+/// Acquire ([`acquire_head_offset`]) and write the points file atomically to `output` (checked
+/// before the machine moves). `next` is the head-offset command to suggest.
+pub fn acquire_to_file<M: ProbingMachine + ?Sized>(
+    m: &mut M,
+    a: &HeadAcquisition,
+    output: &std::path::Path,
+    next: String,
+) -> Result<AcquireReport, AcquireError> {
+    a.check()?;
+    truepos_io::atomic::check_output_path(output)?;
+    let t0 = std::time::Instant::now();
+    let acquired = acquire_head_offset(m, a)?;
+    let elapsed_s = t0.elapsed().as_secs_f64();
+    truepos_io::atomic::write_atomic(output, points_csv(&acquired).as_bytes())?;
+    Ok(AcquireReport {
+        acquired,
+        output: output.to_path_buf(),
+        device: m.info(),
+        elapsed_s,
+        next,
+        truth: None,
+    })
+}
+
+impl truepos_io::report::Report for AcquireReport {
+    fn to_json(&self) -> serde_json::Value {
+        let v3 = |p: &Point3| serde_json::json!([p.x, p.y, p.z]);
+        let mut j = serde_json::json!({
+            "output": self.output.display().to_string(),
+            "n_points": self.acquired.iter().map(|o| o.sphere.points.len()).sum::<usize>(),
+            "orientations": self.acquired.iter().map(|o| serde_json::json!({
+                "b_deg": o.b_deg,
+                "c_deg": o.c_deg,
+                "apparent_center_mm": v3(&o.sphere.center_mm),
+                "radius_mm": o.sphere.radius_mm,
+                "rms_mm": o.sphere.rms_mm,
+                "n_points": o.sphere.points.len(),
+            })).collect::<Vec<_>>(),
+            "controller": { "address": self.device.address, "version": self.device.version },
+            "elapsed_s": self.elapsed_s,
+            "next": self.next,
+        });
+        if let Some((off, c, r)) = &self.truth {
+            j["virtual_truth"] = serde_json::json!({
+                "head_offset_mm": [off.x, off.y, off.z],
+                "sphere_center_mm": v3(c),
+                "sphere_radius_mm": r,
+            });
+        }
+        j
+    }
+
+    fn text(&self) -> String {
+        let n: usize = self.acquired.iter().map(|o| o.sphere.points.len()).sum();
+        let mut s = format!(
+            "head-offset acquisition on {} ({}): {} orientations, {n} points in {:.1} s → {}\n",
+            self.device.address,
+            self.device.version,
+            self.acquired.len(),
+            self.elapsed_s,
+            self.output.display()
+        );
+        for o in &self.acquired {
+            let c = o.sphere.center_mm;
+            s += &format!(
+                "  B {:>7.3}° C {:>7.3}°: sphere seen at {:.4} {:.4} {:.4} mm, radius {:.4} mm, rms {:.4} mm\n",
+                o.b_deg, o.c_deg, c.x, c.y, c.z, o.sphere.radius_mm, o.sphere.rms_mm
+            );
+        }
+        s += &format!("next: {}\n", self.next);
+        if self.acquired.len() < 2 {
+            s += "note: one orientation determines no head offset; head-offset will say so\n";
+        }
+        s
+    }
+
+    /// The result is the points file; the text summarises it.
+    fn text_on_stderr(&self) -> bool {
+        true
     }
 }

@@ -20,6 +20,7 @@
 //!   depend on where the reference is or how large the offset is. Components of `R` that the data
 //!   cannot determine (null space of the column-scaled normal matrix) are held at the prior and
 //!   reported as not observable.
+//! - [`task::calibrate_file`]: `truepos head-offset` as a library call (a `Report` back).
 //! - [`file::read_input`]: the points file as [`Reading`]s.
 //! - [`surface_point`] / [`beam_direction`]: the contract's forward model, used by
 //!   `truepos head-offset apply`.
@@ -35,6 +36,7 @@ pub mod acquire;
 pub mod file;
 pub mod init;
 pub mod json;
+pub mod task;
 
 use init::{algebraic_sphere, intersect_planes, linear_solve, plane_fit, Apparent};
 use std::collections::BTreeMap;

@@ -357,6 +357,33 @@ pub enum Command {
     },
     ReQualify,
     ScanUnknown(UnknownScan, Vec<f64>),
+    /// Rotary table (specification 12.1): turn the table so that the part direction `part`
+    /// (active csy) points, projected into the table plane, along the machine direction
+    /// `machine`, within `alpha_deg` (0: no check); the second pair is for a second rotary axis.
+    AlignPart {
+        part: [f64; 3],
+        machine: [f64; 3],
+        alpha_deg: f64,
+        second: Option<([f64; 3], [f64; 3], f64)>,
+    },
+    /// Form tester (13.1): move the part so that a circle centre lies on the rotation axis when
+    /// it is `limit` mm or more away from it.
+    CenterPart {
+        point: [f64; 3],
+        limit: f64,
+    },
+    /// Form tester (13.2): tilt the part so that a direction is parallel to the rotation axis
+    /// when it deviates by `limit` mm or more over 100 mm.
+    TiltPart {
+        dir: [f64; 3],
+        limit: f64,
+    },
+    /// Form tester (13.3): tilt and centre the part so that two circle centres lie on the axis.
+    TiltCenterPart {
+        first: [f64; 3],
+        second: [f64; 3],
+        limit: f64,
+    },
 }
 
 /// Why a call is not a valid command.
@@ -690,6 +717,36 @@ impl Command {
                     }
                 }
             }
+            "AlignPart" => {
+                let v = numbers(c, &[7, 14])?;
+                if v.len() == 7 {
+                    Command::AlignPart {
+                        part: vec3(&v[0..3]),
+                        machine: vec3(&v[3..6]),
+                        alpha_deg: v[6],
+                        second: None,
+                    }
+                } else {
+                    Command::AlignPart {
+                        part: vec3(&v[0..3]),
+                        machine: vec3(&v[3..6]),
+                        alpha_deg: v[12],
+                        second: Some((vec3(&v[6..9]), vec3(&v[9..12]), v[13])),
+                    }
+                }
+            }
+            "CenterPart" => {
+                let v = numbers(c, &[4])?;
+                Command::CenterPart { point: vec3(&v[0..3]), limit: v[3] }
+            }
+            "TiltPart" => {
+                let v = numbers(c, &[4])?;
+                Command::TiltPart { dir: vec3(&v[0..3]), limit: v[3] }
+            }
+            "TiltCenterPart" => {
+                let v = numbers(c, &[7])?;
+                Command::TiltCenterPart { first: vec3(&v[0..3]), second: vec3(&v[3..6]), limit: v[6] }
+            }
             "ScanInPlaneEndIsSphere" => {
                 Command::ScanUnknown(UnknownScan::InPlaneEndIsSphere, numbers(c, &[17, 21])?)
             }
@@ -917,6 +974,10 @@ pub const KNOWN: &[&str] = &[
     "ScanInPlaneEndIsCyl",
     "ScanInCylEndIsSphere",
     "ScanInCylEndIsPlane",
+    "AlignPart",
+    "CenterPart",
+    "TiltPart",
+    "TiltCenterPart",
 ];
 
 #[cfg(test)]

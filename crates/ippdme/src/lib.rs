@@ -27,5 +27,5 @@ pub mod server;
 
 pub use client::{connect, IppClient};
 pub use machine::{Cmm, Contact, Guide, MachineError, ScanPath, ScanPoint, Stop};
-pub use part::{MachineConfig, Part, PartError};
+pub use part::{MachineConfig, ModelConfig, Part, PartError};
 pub use server::{Server, ServerHandle, Session};

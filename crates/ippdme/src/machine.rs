@@ -5,7 +5,7 @@
 //! specification; the machine moves, reports contacts and follows surfaces.
 
 use thiserror::Error;
-use truepos_math::{Point3, Vector3};
+use truepos_math::{Matrix3, Point3, Vector3};
 
 /// A failure inside the machine, mapped by the server to the specification's error numbers.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -116,4 +116,23 @@ pub trait Cmm: Send {
     /// Stop all motion now (client gone, AbortE). Moves are instant on the virtual machine, so
     /// this only has to leave it in a defined, stopped state.
     fn stop(&mut self);
+    /// The rotary table, if the machine has one: a point on its axis and the axis' unit
+    /// direction (machine frame). `None`: a `CartCMM` (the default).
+    fn rotary_axis(&self) -> Option<(Point3, Vector3)> {
+        None
+    }
+    /// The rotary table's angle (rad, counter-clockwise about its axis), 0 without a table.
+    fn table_angle(&self) -> f64 {
+        0.0
+    }
+    /// Turn the rotary table to `angle_rad` (the part on it turns with it).
+    fn set_table_angle(&mut self, _angle_rad: f64) -> Result<(), MachineError> {
+        Err(MachineError::Unable("this CMM has no rotary table".into()))
+    }
+    /// Move the part on the machine rigidly (form-tester centring and tilting, specification
+    /// 13.1–13.3): rotate it by `rotation` (a rotation matrix, machine frame) about `about`, then
+    /// shift it by `shift`.
+    fn move_part(&mut self, _rotation: Matrix3, _about: Point3, _shift: Vector3) -> Result<(), MachineError> {
+        Err(MachineError::Unable("this CMM cannot move the part".into()))
+    }
 }

@@ -8,7 +8,10 @@
 //! `[[plane]]` and an inside `[[cylinder]]`); each with an optional `id`. Cylinders are infinite.
 //!
 //! Machine file: `[ippdme] volume_min_mm, volume_max_mm` (default ±1000 mm),
-//! `[[ippdme.tool]] name, tip_diameter_mm`. Other top-level tables are left to other readers.
+//! `[[ippdme.tool]] name, tip_diameter_mm`, `rotary_table` (default true: a table turning about
+//! machine Z through `rotary_table_centre_mm`, default the origin), and `[ippdme.model]`, the error models of the virtual
+//! CMM ([`ModelConfig`]; every key optional, the defaults are a realistic bridge CMM with a
+//! touch-trigger probe). Other top-level tables are left to other readers.
 //!
 //! Entry points: [`Part::from_toml`], [`Part::load`], [`MachineConfig::from_toml`],
 //! [`MachineConfig::load`].
@@ -208,12 +211,90 @@ pub struct ToolConfig {
     pub tip_diameter_mm: f64,
 }
 
+/// The error models of the virtual CMM behind the server (`[ippdme.model]`), plain numbers: the
+/// machine that uses them (`truepos_cell::cmm`) builds the models of `truepos-sim` from them.
+///
+/// Keys (all optional): `seed` (noise and error map, default 1), `geometric_errors`
+/// (`"bridge_cmm"`: a seeded realistic ISO 230-1 map of a bridge CMM stretched over the volume,
+/// or `"none"`), `geometric_error_scale` (factor on that map, default 1), `stylus_length_mm`
+/// (Abbe arm of the angular errors, default 50), `pretravel_um` (touch-trigger pre-travel including
+/// the stylus bending up to the trigger force, default 8; 0 = none), `lobing_um` (its 3-lobe
+/// variation, default 0.5), `pretravel_compensated` (the probe calibration removes the mean
+/// pre-travel, default true), `probe_noise_um` (σ per axis of a touch, default 0.25),
+/// `encoder_noise_um` / `scan_probe_noise_um` (σ of the scale and deflection readings while
+/// scanning, default 0.1 / 0.2), `servo_bandwidth_hz` (position loop, default 15),
+/// `scan_speed_mm_s` (default 20), `scan_deflection_mm` (target deflection, default 0.3).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelConfig {
+    pub seed: u64,
+    pub geometric_errors: bool,
+    pub geometric_error_scale: f64,
+    pub stylus_length_mm: f64,
+    pub pretravel_mm: f64,
+    pub lobing_mm: f64,
+    pub pretravel_compensated: bool,
+    pub probe_noise_mm: f64,
+    pub encoder_noise_mm: f64,
+    pub scan_probe_noise_mm: f64,
+    pub servo_bandwidth_hz: f64,
+    pub scan_speed_mm_s: f64,
+    pub scan_deflection_mm: f64,
+}
+
+impl Default for ModelConfig {
+    fn default() -> Self {
+        ModelConfig {
+            seed: 1,
+            geometric_errors: true,
+            geometric_error_scale: 1.0,
+            stylus_length_mm: 50.0,
+            pretravel_mm: 8e-3,
+            lobing_mm: 0.5e-3,
+            pretravel_compensated: true,
+            probe_noise_mm: 0.25e-3,
+            encoder_noise_mm: 0.1e-3,
+            scan_probe_noise_mm: 0.2e-3,
+            servo_bandwidth_hz: 15.0,
+            scan_speed_mm_s: 20.0,
+            scan_deflection_mm: 0.3,
+        }
+    }
+}
+
+impl ModelConfig {
+    /// The ideal machine: no geometric errors, no pre-travel, no noise (scans still run through
+    /// the scanning planner with servo and stylus dynamics).
+    pub fn ideal() -> ModelConfig {
+        ModelConfig {
+            geometric_errors: false,
+            pretravel_mm: 0.0,
+            lobing_mm: 0.0,
+            probe_noise_mm: 0.0,
+            encoder_noise_mm: 0.0,
+            scan_probe_noise_mm: 0.0,
+            ..ModelConfig::default()
+        }
+    }
+
+    /// The realistic machine without any random noise (geometric errors and pre-travel kept).
+    pub fn without_noise(mut self) -> ModelConfig {
+        self.probe_noise_mm = 0.0;
+        self.encoder_noise_mm = 0.0;
+        self.scan_probe_noise_mm = 0.0;
+        self
+    }
+}
+
 /// The `[ippdme]` section of the machine file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MachineConfig {
     pub volume_min_mm: Point3,
     pub volume_max_mm: Point3,
     pub tools: Vec<ToolConfig>,
+    pub model: ModelConfig,
+    /// The rotary table's axis point (axis parallel to machine Z), `None` without a table
+    /// (`rotary_table = false`). Default: a table turning about the Z axis through the origin.
+    pub rotary_table: Option<Point3>,
 }
 
 impl Default for MachineConfig {
@@ -222,7 +303,16 @@ impl Default for MachineConfig {
             volume_min_mm: Point3::new(-1000.0, -1000.0, -1000.0),
             volume_max_mm: Point3::new(1000.0, 1000.0, 1000.0),
             tools: Vec::new(),
+            model: ModelConfig::default(),
+            rotary_table: Some(Point3::origin()),
         }
+    }
+}
+
+impl MachineConfig {
+    /// The default volume and tools on the ideal machine ([`ModelConfig::ideal`]).
+    pub fn ideal() -> MachineConfig {
+        MachineConfig { model: ModelConfig::ideal(), ..MachineConfig::default() }
     }
 }
 
@@ -238,6 +328,100 @@ struct RawIppdme {
     volume_max_mm: Option<[f64; 3]>,
     #[serde(default)]
     tool: Vec<RawTool>,
+    model: Option<RawModel>,
+    rotary_table: Option<bool>,
+    rotary_table_centre_mm: Option<[f64; 3]>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawModel {
+    seed: Option<u64>,
+    geometric_errors: Option<GeometricKind>,
+    geometric_error_scale: Option<f64>,
+    stylus_length_mm: Option<f64>,
+    pretravel_um: Option<f64>,
+    lobing_um: Option<f64>,
+    pretravel_compensated: Option<bool>,
+    probe_noise_um: Option<f64>,
+    encoder_noise_um: Option<f64>,
+    scan_probe_noise_um: Option<f64>,
+    servo_bandwidth_hz: Option<f64>,
+    scan_speed_mm_s: Option<f64>,
+    scan_deflection_mm: Option<f64>,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum GeometricKind {
+    BridgeCmm,
+    None,
+}
+
+fn nonneg(file: &str, key: &str, v: f64) -> Result<f64, PartError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(PartError::Value {
+            file: file.into(),
+            key: key.into(),
+            message: format!("must be a finite number ≥ 0, got {v}"),
+        })
+    }
+}
+
+impl RawModel {
+    fn apply(self, file: &str, m: &mut ModelConfig) -> Result<(), PartError> {
+        let k = |n: &str| format!("ippdme.model.{n}");
+        if let Some(v) = self.seed {
+            m.seed = v;
+        }
+        if let Some(v) = self.geometric_errors {
+            m.geometric_errors = matches!(v, GeometricKind::BridgeCmm);
+        }
+        if let Some(v) = self.geometric_error_scale {
+            m.geometric_error_scale = nonneg(file, &k("geometric_error_scale"), v)?;
+        }
+        if let Some(v) = self.stylus_length_mm {
+            m.stylus_length_mm = nonneg(file, &k("stylus_length_mm"), v)?;
+        }
+        if let Some(v) = self.pretravel_um {
+            m.pretravel_mm = nonneg(file, &k("pretravel_um"), v)? * 1e-3;
+        }
+        if let Some(v) = self.lobing_um {
+            m.lobing_mm = nonneg(file, &k("lobing_um"), v)? * 1e-3;
+        }
+        if let Some(v) = self.pretravel_compensated {
+            m.pretravel_compensated = v;
+        }
+        if let Some(v) = self.probe_noise_um {
+            m.probe_noise_mm = nonneg(file, &k("probe_noise_um"), v)? * 1e-3;
+        }
+        if let Some(v) = self.encoder_noise_um {
+            m.encoder_noise_mm = nonneg(file, &k("encoder_noise_um"), v)? * 1e-3;
+        }
+        if let Some(v) = self.scan_probe_noise_um {
+            m.scan_probe_noise_mm = nonneg(file, &k("scan_probe_noise_um"), v)? * 1e-3;
+        }
+        if let Some(v) = self.servo_bandwidth_hz {
+            m.servo_bandwidth_hz = positive(file, &k("servo_bandwidth_hz"), v)?;
+        }
+        if let Some(v) = self.scan_speed_mm_s {
+            m.scan_speed_mm_s = positive(file, &k("scan_speed_mm_s"), v)?;
+        }
+        if let Some(v) = self.scan_deflection_mm {
+            m.scan_deflection_mm = positive(file, &k("scan_deflection_mm"), v)?;
+        }
+        if m.pretravel_mm > 0.0 && m.lobing_mm >= m.pretravel_mm || m.pretravel_mm == 0.0 && m.lobing_mm > 0.0
+        {
+            return Err(PartError::Value {
+                file: file.into(),
+                key: k("lobing_um"),
+                message: "must be smaller than pretravel_um".into(),
+            });
+        }
+        Ok(())
+    }
 }
 
 #[derive(Debug, Deserialize)]
@@ -269,6 +453,15 @@ impl MachineConfig {
                     message: "every component must exceed volume_min_mm's".into(),
                 });
             }
+        }
+        if let Some(m) = ipp.model {
+            m.apply(file, &mut cfg.model)?;
+        }
+        if let Some(c) = ipp.rotary_table_centre_mm {
+            cfg.rotary_table = Some(Point3::from(finite3(file, "ippdme.rotary_table_centre_mm", c)?));
+        }
+        if ipp.rotary_table == Some(false) {
+            cfg.rotary_table = None;
         }
         for (k, t) in ipp.tool.into_iter().enumerate() {
             let key = format!("ippdme.tool[{k}]");
@@ -337,5 +530,22 @@ mod tests {
         )
         .unwrap();
         assert_eq!(m.tools[0].name, "Star1");
+        assert_eq!(m.model, ModelConfig::default());
+        let m = MachineConfig::from_toml(
+            "m.toml",
+            "[ippdme.model]\nseed = 7\ngeometric_errors = \"none\"\nprobe_noise_um = 0.5\n",
+        )
+        .unwrap();
+        assert_eq!(m.model.seed, 7);
+        assert!(!m.model.geometric_errors);
+        assert!((m.model.probe_noise_mm - 0.5e-3).abs() < 1e-15);
+        let e = MachineConfig::from_toml("m.toml", "[ippdme.model]\nseed = 7\n\nprobe_noize_um = 0.5\n")
+            .unwrap_err();
+        assert!(e.to_string().starts_with("m.toml:4:"), "{e}");
+        assert!(e.to_string().contains("probe_noize_um"), "{e}");
+        let e = MachineConfig::from_toml("m.toml", "[ippdme.model]\nlobing_um = 20\n").unwrap_err();
+        assert!(e.to_string().contains("ippdme.model.lobing_um"), "{e}");
+        let e = MachineConfig::from_toml("m.toml", "[ippdme.model]\nprobe_noise_um = -1\n").unwrap_err();
+        assert!(e.to_string().contains("ippdme.model.probe_noise_um"), "{e}");
     }
 }

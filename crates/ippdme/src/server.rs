@@ -257,6 +257,47 @@ fn dir_to_machine<M>(st: &MachineState<M>, v: &Vector3) -> Vector3 {
     csy_transform(st).0.transpose() * v
 }
 
+/// The rotary table's angle in degrees (0 without a table).
+fn table_deg<M: Cmm>(st: &MachineState<M>) -> f64 {
+    st.machine.table_angle().to_degrees()
+}
+
+/// Rotation by `angle` (rad) about the unit `axis` (Rodrigues).
+fn axis_rotation(axis: &Vector3, angle: f64) -> Matrix3 {
+    let (s, c) = angle.sin_cos();
+    let k = Matrix3::new(0.0, -axis.z, axis.y, axis.z, 0.0, -axis.x, -axis.y, axis.x, 0.0);
+    Matrix3::identity() + k * s + k * k * (1.0 - c)
+}
+
+/// The rotation that turns unit `a` onto unit `b` (about `a × b`; a half turn about any
+/// perpendicular when they are opposite).
+fn rotation_between(a: &Vector3, b: &Vector3) -> Matrix3 {
+    let axis = a.cross(b);
+    let angle = a.dot(b).clamp(-1.0, 1.0).acos();
+    match axis.try_normalize(1e-12) {
+        Some(k) => axis_rotation(&k, angle),
+        None if a.dot(b) > 0.0 => Matrix3::identity(),
+        None => {
+            let e = if a.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+            axis_rotation(&a.cross(&e).normalize(), std::f64::consts::PI)
+        }
+    }
+}
+
+/// The rotary table's axis or the specification's error for a machine without one.
+fn table_axis<M: Cmm>(st: &MachineState<M>, what: &str) -> Result<(Point3, Vector3), (ErrorCode, String)> {
+    st.machine
+        .rotary_axis()
+        .ok_or((ErrorCode::UNSUPPORTED_COMMAND, format!("{what}: this CMM has no rotary table")))
+}
+
+/// Distance of `p` from the line through `o` along unit `a`, and the offset from the line.
+fn off_axis(p: &Point3, o: &Point3, a: &Vector3) -> (f64, Vector3) {
+    let rel = p - o;
+    let radial = rel - a * rel.dot(a);
+    (radial.norm(), radial)
+}
+
 fn in_volume<M: Cmm>(st: &MachineState<M>, p: &Point3) -> bool {
     let (lo, hi) = st.machine.volume();
     (0..3).all(|k| p[k] >= lo[k] - 1e-9 && p[k] <= hi[k] + 1e-9)
@@ -277,7 +318,18 @@ fn unit(v: [f64; 3]) -> Option<Vector3> {
 }
 
 /// One point's values in report order.
-fn report_values(keys: &[Key], p: &Point3, n: &Vector3, er: f64, q: f64, named: bool, out: &mut String) {
+/// `r_deg` is the rotary table's angle (`R()`, degrees).
+#[allow(clippy::too_many_arguments)]
+fn report_values(
+    keys: &[Key],
+    p: &Point3,
+    n: &Vector3,
+    er: f64,
+    q: f64,
+    r_deg: f64,
+    named: bool,
+    out: &mut String,
+) {
     for (i, k) in keys.iter().enumerate() {
         if i > 0 {
             out.push_str(if named { ", " } else { "," });
@@ -286,7 +338,8 @@ fn report_values(keys: &[Key], p: &Point3, n: &Vector3, er: f64, q: f64, named: 
             Key::X => &[p.x],
             Key::Y => &[p.y],
             Key::Z => &[p.z],
-            Key::R | Key::ToolA | Key::ToolB | Key::ToolC => &[0.0],
+            Key::R => &[r_deg],
+            Key::ToolA | Key::ToolB | Key::ToolC => &[0.0],
             Key::Ijk => &[n.x, n.y, n.z],
             Key::Er => &[er],
             Key::Q => &[q],
@@ -443,7 +496,14 @@ impl<M: Cmm> Session<M> {
                 self.error_state = false;
             }
             Command::GetDMEVersion => out.push(data(format!("DMEVersion(\"{DME_VERSION}\")"))),
-            Command::GetMachineClass => out.push(data("GetMachineClass(CartCMM)".into())),
+            Command::GetMachineClass => out.push(data(
+                if st.machine.rotary_axis().is_some() {
+                    "GetMachineClass(CartCMMWithRotaryTable)"
+                } else {
+                    "GetMachineClass(CartCMM)"
+                }
+                .into(),
+            )),
             Command::GetErrStatusE => out.push(data(format!("ErrStatus({})", self.error_state as u8))),
             Command::GetXtdErrStatus => {
                 out.push(data(format!("IsHomed({})", st.homed as u8)));
@@ -486,7 +546,7 @@ impl<M: Cmm> Session<M> {
             Command::Get(keys) => {
                 let p = to_csy(&st, &st.machine.position());
                 let mut s = String::new();
-                report_values(keys, &p, &Vector3::zeros(), 0.0, 0.0, true, &mut s);
+                report_values(keys, &p, &Vector3::zeros(), 0.0, 0.0, table_deg(&st), true, &mut s);
                 out.push(data(s));
             }
             Command::GoTo { x, y, z } => {
@@ -539,7 +599,7 @@ impl<M: Cmm> Session<M> {
                 let mut s = String::new();
                 let tc = to_csy(&st, &c.tip_center_mm);
                 let nc = dir_to_csy(&st, &c.normal);
-                report_values(&self.ptmeas_keys, &tc, &nc, tool.radius_mm, 0.0, true, &mut s);
+                report_values(&self.ptmeas_keys, &tc, &nc, tool.radius_mm, 0.0, table_deg(&st), true, &mut s);
                 out.push(data(s));
             }
             Command::OnPtMeasReport(keys) => self.ptmeas_keys = keys.clone(),
@@ -563,7 +623,16 @@ impl<M: Cmm> Session<M> {
                 // The first report comes right after the daemon started (as the NIST server does).
                 if !d.keys.is_empty() {
                     let mut s = String::new();
-                    report_values(&d.keys, &to_csy(&st, &pos), &Vector3::zeros(), 0.0, 0.0, true, &mut s);
+                    report_values(
+                        &d.keys,
+                        &to_csy(&st, &pos),
+                        &Vector3::zeros(),
+                        0.0,
+                        0.0,
+                        table_deg(&st),
+                        true,
+                        &mut s,
+                    );
                     after.push(Response::data(tag, s));
                 }
                 self.daemon = Some(d);
@@ -713,6 +782,92 @@ impl<M: Cmm> Session<M> {
                 }
                 s.push(')');
                 out.push(data(s));
+            }
+            Command::AlignPart { part, machine, alpha_deg, second } => {
+                self.check_homed(&st)?;
+                let (_, axis) = table_axis(&st, "AlignPart")?;
+                // Both vectors projected into the table plane; they must not lie along the axis.
+                let project = |v: Vector3, what: &str| {
+                    (v - axis * v.dot(&axis)).try_normalize(1e-9).ok_or((
+                        ErrorCode::VECTOR_HAS_NO_NORM,
+                        format!("AlignPart: the {what} vector lies along the table axis"),
+                    ))
+                };
+                let p = project(dir_to_machine(&st, &Vector3::from(*part)), "part")?;
+                let m = project(Vector3::from(*machine), "machine")?;
+                let turn = p.cross(&m).dot(&axis).atan2(p.dot(&m));
+                let angle = st.machine.table_angle() + turn;
+                st.machine.set_table_angle(angle).map_err(machine_error)?;
+                let reached = axis_rotation(&axis, turn) * p;
+                let err_deg = reached.dot(&m).clamp(-1.0, 1.0).acos().to_degrees();
+                if *alpha_deg != 0.0 && err_deg > alpha_deg.abs() {
+                    return fail(
+                        ErrorCode::PART_NOT_ALIGNED,
+                        format!("AlignPart: {err_deg:.4}° from the target"),
+                    );
+                }
+                let mut s =
+                    format!("({}, {}, {}", fmt_num(reached.x), fmt_num(reached.y), fmt_num(reached.z));
+                if let Some((p2, _, _)) = second {
+                    // A single rotary table: the second pair (a second, perpendicular rotary axis)
+                    // cannot be acted on; its part vector is reported where the table put it.
+                    let v = axis_rotation(&axis, turn) * dir_to_machine(&st, &Vector3::from(*p2));
+                    let _ = write!(s, ", {}, {}, {}", fmt_num(v.x), fmt_num(v.y), fmt_num(v.z));
+                }
+                s.push(')');
+                out.push(data(s));
+            }
+            Command::CenterPart { point, limit } => {
+                self.check_homed(&st)?;
+                let (o, axis) = table_axis(&st, "CenterPart")?;
+                let (d, radial) = off_axis(&to_machine(&st, &Point3::from(*point)), &o, &axis);
+                let moved = d >= *limit;
+                if moved {
+                    st.machine.move_part(Matrix3::identity(), o, -radial).map_err(machine_error)?;
+                }
+                out.push(data(format!("CenterPart({})", (!moved) as u8)));
+            }
+            Command::TiltPart { dir, limit } => {
+                self.check_homed(&st)?;
+                let (o, axis) = table_axis(&st, "TiltPart")?;
+                let d =
+                    unit(*dir).ok_or((ErrorCode::VECTOR_HAS_NO_NORM, "TiltPart direction".to_string()))?;
+                let mut d = dir_to_machine(&st, &d);
+                if d.dot(&axis) < 0.0 {
+                    d = -d;
+                }
+                // Deviation over a base length of 100 mm.
+                let dev = 100.0 * d.cross(&axis).norm();
+                let moved = dev >= *limit;
+                if moved {
+                    st.machine
+                        .move_part(rotation_between(&d, &axis), o, Vector3::zeros())
+                        .map_err(machine_error)?;
+                }
+                out.push(data(format!("TiltPart({})", (!moved) as u8)));
+            }
+            Command::TiltCenterPart { first, second, limit } => {
+                self.check_homed(&st)?;
+                let (o, axis) = table_axis(&st, "TiltCenterPart")?;
+                let p1 = to_machine(&st, &Point3::from(*first));
+                let p2 = to_machine(&st, &Point3::from(*second));
+                let mut d = (p2 - p1).try_normalize(1e-9).ok_or((
+                    ErrorCode::INCORRECT_ARGUMENTS,
+                    "TiltCenterPart: the two centres coincide".to_string(),
+                ))?;
+                if d.dot(&axis) < 0.0 {
+                    d = -d;
+                }
+                let (d1, _) = off_axis(&p1, &o, &axis);
+                let (d2, _) = off_axis(&p2, &o, &axis);
+                let moved = d1.max(d2) >= *limit;
+                if moved {
+                    // Tilt about the first centre until the centres' line is parallel to the
+                    // axis, then shift the first centre onto the axis.
+                    let (_, radial) = off_axis(&p1, &o, &axis);
+                    st.machine.move_part(rotation_between(&d, &axis), p1, -radial).map_err(machine_error)?;
+                }
+                out.push(data(format!("TiltCenterPart({})", (!moved) as u8)));
             }
             Command::ScanOnCircle { center, start, normal, delta_deg, sfa_deg, step_deg } => {
                 self.check_homed(&st)?;
@@ -869,7 +1024,16 @@ impl<M: Cmm> Session<M> {
                 }
                 let pc = Point3::from(r * p.tip_center_mm.coords + t);
                 let nc = r * p.normal;
-                report_values(&self.scan_keys, &pc, &nc, tool.radius_mm, p.quality, false, &mut line);
+                report_values(
+                    &self.scan_keys,
+                    &pc,
+                    &nc,
+                    tool.radius_mm,
+                    p.quality,
+                    table_deg(st),
+                    false,
+                    &mut line,
+                );
             }
             out.push(Response::data(tag, line.clone()));
         }
@@ -903,7 +1067,7 @@ impl<M: Cmm> Session<M> {
             return;
         }
         let mut s = String::new();
-        report_values(&d.keys, &to_csy(st, &pos), &Vector3::zeros(), 0.0, 0.0, true, &mut s);
+        report_values(&d.keys, &to_csy(st, &pos), &Vector3::zeros(), 0.0, 0.0, table_deg(st), true, &mut s);
         out.push(Response::data(d.tag, s));
         d.last_report = Instant::now();
         d.last_pos = pos;

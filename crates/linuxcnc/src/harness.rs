@@ -1,14 +1,18 @@
 //! A simulated LinuxCNC for tests: [`SimLinuxCnc::start`] copies the test configuration
-//! (`tests/lcnc/`: a 3-axis machine with an ideal servo loop, a 1 ms servo period and a virtual
-//! reference sphere on the probe input) into a temporary directory owned by an unprivileged user
+//! (`tests/lcnc/`: a 3-axis machine with an ideal servo loop, a 1 ms servo period and, on the
+//! probe input, a virtual reference sphere ([`SphereTruth`]) and a plate with four bores
+//! ([`PlateTruth`])) into a temporary directory owned by an unprivileged user
 //! (LinuxCNC refuses to run as root; `TRUEPOS_LINUXCNC_USER`, default `lcnc`), picks a free
 //! loopback port for linuxcncrsh, starts `linuxcnc` headless in its own session and waits for
 //! linuxcncrsh to greet. [`SimLinuxCnc::arm`] does what an operator does at the machine (release
 //! the e-stop, switch on, home) — truepos itself never does.
 //!
 //! Only one LinuxCNC can run on a machine (a second start kills the first): every
-//! [`SimLinuxCnc`] holds a process-wide lock for its lifetime, and dropping it (also on a
-//! panic) stops LinuxCNC: SIGTERM to its `linuxcncrsh` (the `linuxcnc` script then runs its own
+//! [`SimLinuxCnc`] holds, for its lifetime, a process-wide mutex and a cross-process
+//! [`MachineLock`] (an exclusive `flock` on `truepos-linuxcnc.lock` in the system temp
+//! directory), so test binaries that cargo runs in parallel start LinuxCNC one after the other;
+//! the lock is released when the holder ends, even when it is killed. Dropping a [`SimLinuxCnc`]
+//! (also on a panic) stops LinuxCNC: SIGTERM to its `linuxcncrsh` (the `linuxcnc` script then runs its own
 //! cleanup), then SIGTERM/SIGKILL to the process group it was started in.
 //!
 //! When LinuxCNC is not installed or cannot start, [`SimLinuxCnc::start`] returns
@@ -28,6 +32,71 @@ const HAL: &str = include_str!("../tests/lcnc/truepos_sim.hal");
 const TBL: &str = include_str!("../tests/lcnc/sim_mm.tbl");
 
 static ONE_LINUXCNC: Mutex<()> = Mutex::new(());
+
+/// How long [`SimLinuxCnc::start`] waits for another test process's LinuxCNC to finish.
+pub const LOCK_WAIT: Duration = Duration::from_secs(1200);
+
+/// The cross-process lock file every [`SimLinuxCnc`] holds while its LinuxCNC runs.
+pub fn lock_path() -> PathBuf {
+    std::env::temp_dir().join("truepos-linuxcnc.lock")
+}
+
+/// An exclusive advisory lock (`flock(LOCK_EX)`) on a file, held until dropped. The kernel
+/// releases it when the holder's file is closed, also when the process dies, so a killed test
+/// never leaves it behind.
+#[derive(Debug)]
+pub struct MachineLock {
+    _file: fs::File,
+    path: PathBuf,
+}
+
+impl MachineLock {
+    /// Take the lock on `path` (created if missing, readable and writable by everyone so that
+    /// test runs as different users share it), polling every 50 ms for at most `timeout`.
+    /// `on_wait` is called once if the lock is busy at the first attempt.
+    pub fn acquire(path: &Path, timeout: Duration, on_wait: impl FnOnce()) -> Result<MachineLock, String> {
+        use std::os::unix::fs::OpenOptionsExt;
+        use std::os::unix::io::AsRawFd;
+        let file = fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .mode(0o666)
+            .open(path)
+            .map_err(|e| format!("cannot open the lock file {}: {e}", path.display()))?;
+        // The mode above is filtered by the umask: widen it (best effort; the owner may differ).
+        let _ = fs::set_permissions(path, std::os::unix::fs::PermissionsExt::from_mode(0o666));
+        let t = Instant::now();
+        let mut on_wait = Some(on_wait);
+        loop {
+            // SAFETY: flock on a file descriptor this function owns (open for its lifetime).
+            let r = unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) };
+            if r == 0 {
+                return Ok(MachineLock { _file: file, path: path.to_path_buf() });
+            }
+            let err = std::io::Error::last_os_error();
+            if err.raw_os_error() != Some(libc::EWOULDBLOCK) && err.raw_os_error() != Some(libc::EINTR) {
+                return Err(format!("cannot lock {}: {err}", path.display()));
+            }
+            if let Some(f) = on_wait.take() {
+                f();
+            }
+            if t.elapsed() >= timeout {
+                return Err(format!(
+                    "{} is still locked by another process after {:.0} s",
+                    path.display(),
+                    timeout.as_secs_f64()
+                ));
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+}
 
 /// Why the simulated LinuxCNC is not available (the test is skipped, loudly).
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -55,14 +124,59 @@ impl Default for SphereTruth {
     }
 }
 
+/// One vertical through bore of the virtual plate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoreTruth {
+    /// Axis position X, Y (mm).
+    pub center_xy_mm: [f64; 2],
+    pub diameter_mm: f64,
+}
+
+/// The virtual plate with four bores wired to the probe input (the HAL truth): the probe trips
+/// while the tip centre is inside the plate's box grown by the tip radius and not within
+/// `radius − tip radius` of a bore's axis. The HAL model has exactly four bores.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlateTruth {
+    /// The plate's material box (mm): X, Y extents and bottom, top Z.
+    pub x_mm: [f64; 2],
+    pub y_mm: [f64; 2],
+    pub z_mm: [f64; 2],
+    pub bores: [BoreTruth; 4],
+}
+
+impl Default for PlateTruth {
+    /// A 30 mm plate at X 200…320, Y −150…−50, top at Z 0 (clear of the sphere, of the machine's
+    /// home at the origin and of the somac test program's moves), with four nominally 10 mm
+    /// bores a few µm to tens of µm off the round nominal positions (230, −120), (260, −120),
+    /// (290, −80), (230, −80).
+    fn default() -> Self {
+        let b = |x: f64, y: f64, d: f64| BoreTruth { center_xy_mm: [x, y], diameter_mm: d };
+        PlateTruth {
+            x_mm: [200.0, 320.0],
+            y_mm: [-150.0, -50.0],
+            z_mm: [-30.0, 0.0],
+            bores: [
+                b(230.012, -119.991, 10.0),
+                b(260.0, -120.015, 10.012),
+                b(290.008, -80.0, 9.99),
+                b(229.985, -80.01, 10.004),
+            ],
+        }
+    }
+}
+
 /// A running simulated LinuxCNC (stopped on drop).
 pub struct SimLinuxCnc {
     child: Option<Child>,
     dir: PathBuf,
     port: u16,
     sphere: SphereTruth,
+    plate: PlateTruth,
     /// The user and the runuser program when running as root.
     run_as: Option<(String, PathBuf)>,
+    // Dropped after `Drop::drop` has stopped LinuxCNC: fields drop in declaration order, the
+    // cross-process lock before the in-process mutex.
+    _machine_lock: MachineLock,
     _exclusive: MutexGuard<'static, ()>,
 }
 
@@ -233,8 +347,14 @@ impl Operator {
 
 impl SimLinuxCnc {
     /// Start LinuxCNC with the test configuration and the given sphere; waits (≤ 30 s) until
-    /// linuxcncrsh greets. Blocks while another [`SimLinuxCnc`] of this process runs.
+    /// linuxcncrsh greets. Blocks while another [`SimLinuxCnc`] of this process, or of another
+    /// process ([`MachineLock`] on [`lock_path`], at most [`LOCK_WAIT`]), runs.
     pub fn start(sphere: SphereTruth) -> Result<SimLinuxCnc, Unavailable> {
+        SimLinuxCnc::start_with(sphere, PlateTruth::default())
+    }
+
+    /// [`SimLinuxCnc::start`] with another plate (the tip radius is the sphere's).
+    pub fn start_with(sphere: SphereTruth, plate: PlateTruth) -> Result<SimLinuxCnc, Unavailable> {
         let guard = ONE_LINUXCNC.lock().unwrap_or_else(|p| p.into_inner());
         let un = |s: String| Unavailable(s);
         let linuxcnc = find_program("linuxcnc")
@@ -254,6 +374,14 @@ impl SimLinuxCnc {
         } else {
             None
         };
+        let path = lock_path();
+        let machine_lock = MachineLock::acquire(&path, LOCK_WAIT, || {
+            eprintln!(
+                "harness: another test process runs LinuxCNC ({} is locked): waiting for it",
+                path.display()
+            )
+        })
+        .map_err(un)?;
         reap_orphans();
         // Another LinuxCNC (not ours) would be killed by our start: wait for it, then give up.
         let lock = std::env::temp_dir().join("linuxcnc.lock");
@@ -284,6 +412,23 @@ impl SimLinuxCnc {
         ] {
             ini = set_key(&ini, k, &format!("{v}"));
         }
+        let tip = sphere.tip_radius_mm;
+        let mut plate_keys = vec![
+            ("TRIP_X_MIN".to_string(), plate.x_mm[0] - tip),
+            ("TRIP_X_MAX".to_string(), plate.x_mm[1] + tip),
+            ("TRIP_Y_MIN".to_string(), plate.y_mm[0] - tip),
+            ("TRIP_Y_MAX".to_string(), plate.y_mm[1] + tip),
+            ("TRIP_Z_MIN".to_string(), plate.z_mm[0] - tip),
+            ("TRIP_Z_MAX".to_string(), plate.z_mm[1] + tip),
+        ];
+        for (i, b) in plate.bores.iter().enumerate() {
+            plate_keys.push((format!("BORE{i}_OFFSET_X"), -b.center_xy_mm[0]));
+            plate_keys.push((format!("BORE{i}_OFFSET_Y"), -b.center_xy_mm[1]));
+            plate_keys.push((format!("BORE{i}_FREE_RADIUS"), 0.5 * b.diameter_mm - tip));
+        }
+        for (k, v) in plate_keys {
+            ini = set_key(&ini, &k, &format!("{v}"));
+        }
         fs::create_dir_all(&dir)
             .and_then(|_| write("truepos_sim.ini", &ini))
             .and_then(|_| write("truepos_sim.hal", HAL))
@@ -312,7 +457,16 @@ impl SimLinuxCnc {
             .stderr(Stdio::from(log2));
         let child = cmd.spawn().map_err(|e| un(format!("cannot start linuxcnc: {e}")))?;
         let run_as = run_as.map(|(user, _, _, runuser)| (user, runuser));
-        let mut sim = SimLinuxCnc { child: Some(child), dir, port, sphere, run_as, _exclusive: guard };
+        let mut sim = SimLinuxCnc {
+            child: Some(child),
+            dir,
+            port,
+            sphere,
+            plate,
+            run_as,
+            _machine_lock: machine_lock,
+            _exclusive: guard,
+        };
         sim.wait_for_greeting()?;
         Ok(sim)
     }
@@ -355,6 +509,10 @@ impl SimLinuxCnc {
 
     pub fn sphere(&self) -> SphereTruth {
         self.sphere
+    }
+
+    pub fn plate(&self) -> PlateTruth {
+        self.plate
     }
 
     /// The operator's part: release the e-stop, switch on, home every joint where it stands,
@@ -466,5 +624,133 @@ mod tests {
         let t = set_key("[A]\nDISPLAY = x\nDISPLAY_X = 3\nOFFSET_X = 1\n", "DISPLAY", "linuxcncrsh --port 9");
         assert_eq!(t, "[A]\nDISPLAY = linuxcncrsh --port 9\nDISPLAY_X = 3\nOFFSET_X = 1\n");
         assert!(INI.contains("TRIP_RADIUS") && HAL.contains("motion.probe-input") && TBL.starts_with("T1"));
+    }
+
+    #[test]
+    fn every_ini_value_the_hal_reads_exists_and_the_harness_rewrites_it() {
+        let mut n = 0;
+        for section in ["[PROBE_SPHERE]", "[PROBE_PLATE]"] {
+            for (at, _) in HAL.match_indices(section) {
+                let key: String = HAL[at + section.len()..]
+                    .chars()
+                    .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+                    .collect();
+                if key.is_empty() {
+                    continue; // the section named in a comment
+                }
+                assert!(
+                    INI.lines().any(|l| l.starts_with(&format!("{key} = "))),
+                    "{section}{key} not in the INI"
+                );
+                // The harness rewrites it: a changed value shows up.
+                assert_ne!(set_key(INI, &key, "12345.5"), INI, "{key}");
+                n += 1;
+            }
+        }
+        // 4 sphere values; 6 box limits and 3 values per bore.
+        assert_eq!(n, 4 + 6 + 4 * 3);
+    }
+
+    /// Not a test on its own: the other process of the lock tests (run by them with
+    /// `TRUEPOS_TEST_LOCK_HOLD` set; without it, it returns at once).
+    #[test]
+    fn lock_holder_child() {
+        let Some(path) = std::env::var_os("TRUEPOS_TEST_LOCK_HOLD") else { return };
+        let path = PathBuf::from(path);
+        let lock = MachineLock::acquire(&path, Duration::from_secs(30), || {}).unwrap();
+        fs::write(path.with_extension("held"), "").unwrap();
+        std::thread::sleep(Duration::from_millis(1500));
+        fs::write(path.with_extension("releasing"), "").unwrap();
+        drop(lock);
+    }
+
+    fn spawn_holder(path: &Path) -> Child {
+        Command::new(std::env::current_exe().unwrap())
+            .args(["--exact", "harness::tests::lock_holder_child", "--nocapture", "--test-threads=1"])
+            .env("TRUEPOS_TEST_LOCK_HOLD", path)
+            .stdout(Stdio::null())
+            .spawn()
+            .unwrap()
+    }
+
+    fn wait_for(file: &Path) {
+        let t = Instant::now();
+        while !file.exists() {
+            assert!(t.elapsed() < Duration::from_secs(30), "the other process never took the lock");
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    #[test]
+    fn a_second_process_waits_for_the_lock_until_the_first_releases_it() {
+        let dir = std::env::temp_dir().join(format!("truepos-lock-test-{}-a", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("lcnc.lock");
+        let mut child = spawn_holder(&path);
+        wait_for(&path.with_extension("held"));
+        // Busy: a short attempt fails and says so.
+        let e = MachineLock::acquire(&path, Duration::from_millis(200), || {}).unwrap_err();
+        assert!(e.contains("still locked"), "{e}");
+        // A patient one waits until the other process has released it.
+        let t = Instant::now();
+        let mut waited = false;
+        let lock = MachineLock::acquire(&path, Duration::from_secs(30), || waited = true).unwrap();
+        let secs = t.elapsed().as_secs_f64();
+        assert!(waited);
+        assert!(path.with_extension("releasing").exists(), "lock granted while the other process held it");
+        // The holder keeps it 1.5 s after signalling; 0.2 s of it already spent above.
+        assert!(secs > 0.5, "waited only {secs} s");
+        eprintln!("lock test: second process waited {secs:.2} s for the first to release the lock");
+        drop(lock);
+        assert!(child.wait().unwrap().success());
+        let _ = fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_killed_holder_releases_the_lock() {
+        let dir = std::env::temp_dir().join(format!("truepos-lock-test-{}-b", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("lcnc.lock");
+        let mut child = spawn_holder(&path);
+        wait_for(&path.with_extension("held"));
+        assert!(MachineLock::acquire(&path, Duration::from_millis(100), || {}).is_err());
+        child.kill().unwrap();
+        child.wait().unwrap();
+        let t = Instant::now();
+        let lock = MachineLock::acquire(&path, Duration::from_secs(5), || {}).unwrap();
+        assert!(t.elapsed() < Duration::from_secs(1), "{:?}", t.elapsed());
+        assert!(!path.with_extension("releasing").exists());
+        drop(lock);
+        let _ = fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn threads_contending_for_the_lock_are_never_inside_together() {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        use std::sync::Arc;
+        let dir = std::env::temp_dir().join(format!("truepos-lock-test-{}-c", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("lcnc.lock");
+        let inside = Arc::new(AtomicUsize::new(0));
+        let max = Arc::new(AtomicUsize::new(0));
+        let hs: Vec<_> = (0..4)
+            .map(|_| {
+                let (path, inside, max) = (path.clone(), inside.clone(), max.clone());
+                std::thread::spawn(move || {
+                    for _ in 0..3 {
+                        let _l = MachineLock::acquire(&path, Duration::from_secs(30), || {}).unwrap();
+                        let n = inside.fetch_add(1, Ordering::SeqCst) + 1;
+                        max.fetch_max(n, Ordering::SeqCst);
+                        std::thread::sleep(Duration::from_millis(20));
+                        inside.fetch_sub(1, Ordering::SeqCst);
+                    }
+                })
+            })
+            .collect();
+        for h in hs {
+            h.join().unwrap();
+        }
+        assert_eq!(max.load(Ordering::SeqCst), 1);
+        let _ = fs::remove_dir_all(&dir);
     }
 }

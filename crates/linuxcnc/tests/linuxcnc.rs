@@ -8,7 +8,7 @@ use std::net::TcpListener;
 use std::time::{Duration, Instant};
 use truepos_device::{DeviceError, ProbingMachine};
 use truepos_head::acquire::{probe_sphere, AcquireError, SphereProbing};
-use truepos_linuxcnc::harness::{SimLinuxCnc, SphereTruth};
+use truepos_linuxcnc::harness::{PlateTruth, SimLinuxCnc, SphereTruth};
 use truepos_linuxcnc::{Address, LinuxCnc, Options};
 use truepos_math::Point3;
 
@@ -83,6 +83,91 @@ fn probe_sphere_through_linuxcnc_matches_the_hal_sphere_at_two_feeds() {
     // The machine ends above the sphere at the safe height.
     let p = m.position().unwrap();
     assert!(p.z >= plan(&truth, 50.0, 10).safe_z_mm() - 1e-6, "{p}");
+}
+
+/// The HAL plate's bores at their round nominal positions (the truth is µm to tens of µm off).
+fn nominal_holes(plate: &PlateTruth) -> Vec<truepos_somac::inspect::Hole> {
+    plate
+        .bores
+        .iter()
+        .enumerate()
+        .map(|(i, b)| truepos_somac::inspect::Hole {
+            id: format!("B{i}"),
+            line: None,
+            nominal_mm: Point3::new(b.center_xy_mm[0].round(), b.center_xy_mm[1].round(), plate.z_mm[1]),
+            diameter_mm: 10.0,
+        })
+        .collect()
+}
+
+#[test]
+fn inspect_holes_through_linuxcnc_matches_the_hal_plate_at_two_feeds() {
+    use truepos_somac::inspect::{inspect, InspectPlan};
+    let Some(sim) = start() else { return };
+    sim.arm().expect("arming the simulated machine");
+    let (plate, tip) = (sim.plate(), sim.sphere().tip_radius_mm);
+    let holes = nominal_holes(&plate);
+    let fast = Options { positioning_feed_mm_min: 12000.0, ..Options::default() };
+    let mut m = LinuxCnc::open_address(&Address::parse(&sim.url()).unwrap(), fast).expect("open");
+    for feed in [50.0, 200.0] {
+        let plan = InspectPlan { tip_radius_mm: tip, feed_mm_s: feed / 60.0, ..InspectPlan::default() };
+        let r = inspect(&mut m, &holes, &plan).expect("inspect");
+        let step = feed / 60.0 * 1e-3;
+        for (h, b) in r.holes.iter().zip(&plate.bores) {
+            let ce = (h.measured_mm.x - b.center_xy_mm[0]).hypot(h.measured_mm.y - b.center_xy_mm[1]);
+            let de = h.diameter_mm - b.diameter_mm;
+            eprintln!(
+                "LinuxCNC inspect F{feed} {}: position error vs nominal {:.1} µm (truth {:.1} µm); measured vs HAL truth: centre {:.3} µm, diameter {:.3} µm; roundness {:.3} µm; {:.1} s",
+                h.hole.id,
+                h.position_error_mm * 1e3,
+                (b.center_xy_mm[0] - h.hole.nominal_mm.x).hypot(b.center_xy_mm[1] - h.hole.nominal_mm.y) * 1e3,
+                ce * 1e3,
+                de * 1e3,
+                h.roundness_mm * 1e3,
+                h.elapsed_s
+            );
+            // Each latch is the first 1 ms servo sample outside the bore's free circle: 0 … one
+            // step (feed × 1 ms) beyond it, radially. With 8 points at 45° the fitted centre moves
+            // by at most 0.65 step; allow one step, plus 2 nm for the 6-decimal read-back.
+            assert!(ce <= step + 2e-6, "centre error {ce} mm, step {step} mm");
+            // The diameter reads large by 0 … 2 steps.
+            assert!(de >= -2e-6 && de <= 2.0 * step + 2e-6, "diameter error {de} mm, step {step} mm");
+            // All points at the probing depth exactly (no Z motion while probing).
+            assert!((h.measured_mm.z - (plate.z_mm[1] - plan.depth_mm)).abs() < 2e-6);
+        }
+        eprintln!(
+            "LinuxCNC inspect F{feed}: {} holes in {:.1} s ({:.1} s per hole, {} points each)",
+            r.holes.len(),
+            r.elapsed_s,
+            r.elapsed_s / r.holes.len() as f64,
+            plan.points
+        );
+    }
+}
+
+#[test]
+fn inspect_on_linuxcnc_reports_a_hole_far_off_its_nominal_with_the_machine_up() {
+    use truepos_somac::inspect::{inspect, InspectError, InspectPlan};
+    let Some(sim) = start() else { return };
+    sim.arm().unwrap();
+    let (plate, tip) = (sim.plate(), sim.sphere().tip_radius_mm);
+    let mut holes = nominal_holes(&plate);
+    holes[1].nominal_mm.y += 1.0; // 1 mm off: beyond the 0.5 mm clearance
+    let fast = Options { positioning_feed_mm_min: 12000.0, ..Options::default() };
+    let mut m = LinuxCnc::open_address(&Address::parse(&sim.url()).unwrap(), fast).unwrap();
+    let plan = InspectPlan { tip_radius_mm: tip, feed_mm_s: 200.0 / 60.0, ..InspectPlan::default() };
+    match inspect(&mut m, &holes, &plan) {
+        Err(InspectError::Device { hole, error }) => {
+            let s = error.to_string();
+            eprintln!("hole far off on LinuxCNC: hole {hole}: {s}");
+            assert_eq!(hole, "B1");
+            assert!(s.contains(&sim.url()), "{s}");
+            assert!(matches!(error, DeviceError::NoContact { .. } | DeviceError::Controller { .. }), "{s}");
+        }
+        other => panic!("{other:?}"),
+    }
+    let at = m.position().unwrap();
+    assert!((at.z - plan.safe_z_mm(&holes)).abs() < 1e-3, "{at}");
 }
 
 #[test]

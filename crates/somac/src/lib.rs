@@ -21,6 +21,8 @@
 //!   (`truepos orient`).
 //! - [`fusion`]: weighted fusion of several trackers' readings.
 //! - [`stats`]: hole true-position statistics and capability in ppm of the diagonal.
+//! - [`inspect`]: in-spindle probe inspection of the holes through any `ProbingMachine`
+//!   (position error and diameter per hole; `truepos somac inspect`).
 //!
 //! The virtual large gantry with trackers that implements these traits on the simulator lives
 //! in `truepos-cell` (`truepos_cell::gantry`); this crate never depends on the simulator.
@@ -29,6 +31,7 @@ pub mod align;
 pub mod audit;
 pub mod device;
 pub mod fusion;
+pub mod inspect;
 pub mod orient;
 pub mod params;
 pub mod run;

@@ -149,3 +149,113 @@ fn somac_on_linuxcnc_corrects_and_stops_on_estop() {
     assert!(failed >= 1);
     assert!(stops < 20);
 }
+
+/// `truepos somac inspect --controller linuxcncrsh://…` on the HAL plate's four bores (listed at
+/// their round nominal positions), and `truepos head-offset acquire` on a machine without rotary
+/// axes: refused before it moves, or one orientation that head-offset then refuses.
+#[test]
+fn somac_inspect_and_head_offset_acquire_on_linuxcnc() {
+    let sim = match SimLinuxCnc::start(SphereTruth::default()) {
+        Ok(s) => s,
+        Err(why) => {
+            eprintln!("SKIPPED: somac inspect on LinuxCNC: {why}");
+            return;
+        }
+    };
+    sim.arm().unwrap();
+    let url = sim.url();
+    let plate = sim.plate();
+    let tip = sim.sphere().tip_radius_mm;
+    let tmp = tempfile::tempdir().unwrap();
+    let mut csv = String::from("id,x_mm,y_mm,z_mm\n");
+    for (i, b) in plate.bores.iter().enumerate() {
+        csv +=
+            &format!("B{i},{},{},{}\n", b.center_xy_mm[0].round(), b.center_xy_mm[1].round(), plate.z_mm[1]);
+    }
+    let holes = common::write(tmp.path(), "holes.csv", csv);
+    let t = Instant::now();
+    let out = bin()
+        .args(["somac", "inspect", "--controller", &url, "--holes"])
+        .arg(&holes)
+        .args([
+            "--diameter-mm",
+            "10",
+            "--tip-diameter-mm",
+            &format!("{}", 2.0 * tip),
+            "--feed-mm-min",
+            "50",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    let secs = t.elapsed().as_secs_f64();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(j["controller"]["version"].as_str().unwrap().starts_with("LinuxCNC 2.9"));
+    let step = 50.0 / 60.0 * 1e-3;
+    for (h, b) in j["holes"].as_array().unwrap().iter().zip(&plate.bores) {
+        let m: Vec<f64> = serde_json::from_value(h["measured_mm"].clone()).unwrap();
+        let ce = (m[0] - b.center_xy_mm[0]).hypot(m[1] - b.center_xy_mm[1]);
+        let de = h["diameter_mm"].as_f64().unwrap() - b.diameter_mm;
+        eprintln!(
+            "somac inspect on LinuxCNC {}: position error {:.1} µm; vs HAL truth centre {:.3} µm, diameter {:.3} µm; {:.1} s",
+            h["id"],
+            h["position_error_mm"].as_f64().unwrap() * 1e3,
+            ce * 1e3,
+            de * 1e3,
+            h["elapsed_s"].as_f64().unwrap()
+        );
+        // One servo step (F50 × 1 ms) on the centre and 0 … 2 steps on the diameter, + 2 nm read-back.
+        assert!(ce <= step + 2e-6, "{ce}");
+        assert!(de >= -2e-6 && de <= 2.0 * step + 2e-6, "{de}");
+    }
+    eprintln!("somac inspect on LinuxCNC: 4 holes in {secs:.1} s (process wall time)");
+
+    // Head-offset acquisition needs B/C: refused at once, naming the address, nothing moved.
+    let before = sim_position(&url);
+    let t = Instant::now();
+    let out = bin()
+        .args(["head-offset", "acquire", "--controller", &url, "--near=120,45,30", "--diameter-mm", "25"])
+        .args(["--tip-diameter-mm", "3", "--orientation", "0,0", "--orientation", "90,0", "--output"])
+        .arg(tmp.path().join("h.csv"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    eprintln!("head-offset acquire with B on LinuxCNC ({:.1} s): {err}", t.elapsed().as_secs_f64());
+    assert_eq!(out.status.code(), Some(3), "{err}");
+    assert!(err.contains(&url) && err.contains("B (head swivel)") && err.contains("no rotary axes"), "{err}");
+    assert!(!tmp.path().join("h.csv").exists());
+    assert_eq!(sim_position(&url), before);
+    // The one orientation it has: acquired, and head-offset says what that cannot determine.
+    let out = bin()
+        .args(["head-offset", "acquire", "--controller", &url, "--near=120,45,30", "--diameter-mm", "25"])
+        .args([
+            "--tip-diameter-mm",
+            "3",
+            "--points",
+            "8",
+            "--feed-mm-min",
+            "200",
+            "--orientation",
+            "0,0",
+            "--output",
+        ])
+        .arg(tmp.path().join("h.csv"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = bin().args(["head-offset", "--points"]).arg(tmp.path().join("h.csv")).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    eprintln!("head-offset on one LinuxCNC orientation: {err}");
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("one orientation"), "{err}");
+}
+
+/// The machine's position through a fresh linuxcncrsh session (the CLI's sessions have ended).
+fn sim_position(url: &str) -> [f64; 3] {
+    use truepos_device::ProbingMachine;
+    let mut m = truepos_linuxcnc::LinuxCnc::open(url).unwrap();
+    let p = m.position().unwrap();
+    [p.x, p.y, p.z]
+}

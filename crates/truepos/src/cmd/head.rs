@@ -6,14 +6,14 @@
 //! simulate head-offset`: the virtual cell's data set and its truth), [`demo_section`]. The
 //! numerics are in `truepos-head`; this module reads and writes the contract's files.
 
-use crate::output::{parse_pair, parse_triple, print_json};
+use crate::output::{emit, parse_pair, parse_triple};
 use crate::{Outcome, UsageError};
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 use truepos_cell::scenarios::head::Variant;
-use truepos_head::file::{head_error, read_input};
-use truepos_head::{solve, Params, Reference};
-use truepos_io::InputError;
+use truepos_head::file::read_input;
+use truepos_head::task::{calibrate_file, Calibration};
+use truepos_head::Reference;
 use truepos_math::{Point3, Vector3};
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -52,6 +52,66 @@ pub struct Args {
 pub enum Action {
     /// Turn raw head data into measured points in machine coordinates with a known offset.
     Apply(ApplyArgs),
+    /// Probe the reference sphere through a controller at several head (B) / table (C)
+    /// orientations and write the points file (then `truepos head-offset --points FILE`).
+    Acquire(AcquireArgs),
+}
+
+#[derive(clap::Args, Debug)]
+#[command(
+    after_help = "Examples:\n  truepos head-offset acquire --near=600,250,30 --diameter-mm 25 --tip-diameter-mm 3 \\\n      --orientation 0,0 --orientation 0,120 --orientation 0,240 \\\n      --orientation 90,0 --orientation 90,120 --orientation 90,240 \\\n      --nominal-offset-mm=42,-18,-165 --table-center-mm 500,250,0 --output points.csv\n  truepos head-offset --points points.csv --table-center-mm 500,250,0 --json\n\n\
+At each orientation (B swivels the head about Y, C turns the table about the axis through\n\
+--table-center-mm parallel to Z) the sphere is probed over its upper hemisphere as `truepos probe\n\
+sphere` does, around where it appears to the NC: O + Rz(c)·(S − O) − Ry(b)·R with S = --near and\n\
+R = --nominal-offset-mm, both of which must be known to better than --clearance-mm. The head turns\n\
+at a height clear of the sphere at every orientation. The output has one row per latched point:\n\
+b_deg,c_deg,x_mm,y_mm,z_mm (the NC's head reference point P) and group (orientation index).\n\n\
+Orientations need the axes: a machine without B or C (the LinuxCNC test machine is XYZ) is\n\
+refused before it moves (exit 3, naming the address and the missing axes). One orientation\n\
+(--orientation 0,0) can be acquired anywhere, but determines no head offset: head-offset then says\n\
+so. --controller virtual is a machine tool with B and C whose sphere and head offset are off the\n\
+nominal ones by seeded errors (σ 0.1 mm and 0.2 mm per axis); the JSON has that truth."
+)]
+pub struct AcquireArgs {
+    /// `virtual`, `linuxcncrsh://HOST:PORT[?password=…]` or `ippdme://HOST:PORT`.
+    #[arg(long, default_value = "virtual")]
+    pub controller: String,
+    /// Nominal sphere centre at C = 0 (X,Y,Z mm, machine frame); negative values as `--near=-1,2,3`.
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
+    pub near: [f64; 3],
+    /// Sphere diameter (mm).
+    #[arg(long)]
+    pub diameter_mm: f64,
+    /// One orientation B,C (degrees); repeat for each, in the order to measure.
+    #[arg(long = "orientation", value_parser = parse_pair, allow_hyphen_values = true, required = true)]
+    pub orientations: Vec<[f64; 2]>,
+    /// The head offset R as far as it is known (X,Y,Z mm, head frame at B = 0).
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true, default_value = "0,0,0")]
+    pub nominal_offset_mm: [f64; 3],
+    /// A point of the table's C axis (X,Y,Z mm); needed when C varies.
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
+    pub table_center_mm: Option<[f64; 3]>,
+    /// Points per orientation (≥ 5).
+    #[arg(long, default_value_t = 12)]
+    pub points: usize,
+    /// Probing feed (mm/min).
+    #[arg(long, default_value_t = 50.0)]
+    pub feed_mm_min: f64,
+    /// Distance from the nominal surface where each probing move starts (mm).
+    #[arg(long, default_value_t = 2.0)]
+    pub clearance_mm: f64,
+    /// Stylus ball diameter (mm).
+    #[arg(long, default_value_t = 0.0)]
+    pub tip_diameter_mm: f64,
+    /// The points file to write (atomically).
+    #[arg(long)]
+    pub output: PathBuf,
+    /// Seed of the virtual machine.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(clap::Args, Debug)]
@@ -164,8 +224,10 @@ fn tilt_rad(t: [f64; 2], name: &str) -> Result<[f64; 2], UsageError> {
 }
 
 pub fn run(args: Args) -> Result<Outcome> {
-    if let Some(Action::Apply(a)) = args.action {
-        return apply(a);
+    match args.action {
+        Some(Action::Apply(a)) => return apply(a),
+        Some(Action::Acquire(a)) => return acquire(a),
+        None => {}
     }
     let a = args.calibrate;
     let Some(points) = a.points.clone() else {
@@ -185,55 +247,26 @@ pub fn run(args: Args) -> Result<Outcome> {
     if !(a.tip_radius_mm.is_finite() && a.tip_radius_mm >= 0.0) {
         return Err(UsageError(format!("--tip-radius-mm {}: must be ≥ 0", a.tip_radius_mm)).into());
     }
-    let tilt = tilt_rad(a.tilt_deg, "--tilt-deg")?;
-    let input = read_input(&points, true)?;
-    if input.table.n_rows() == 0 {
-        return Err(InputError::in_file(
-            &points,
-            "no readings: head-offset needs the reference measured in at least two orientations",
-        )
-        .into());
-    }
-    if a.beam_through_reference && input.table.column("dist_mm").is_none() {
-        return Err(UsageError(
-            "--beam-through-reference is for laser heads: the points file needs a dist_mm column".into(),
-        )
-        .into());
-    }
-    let table_turns = input.readings.iter().any(|r| r.c != input.readings[0].c);
-    let table_center =
-        match a.table_center_mm {
-            Some(t) => Point3::from(t),
-            None if table_turns => return Err(UsageError(
-                "the readings have several table angles (c_deg): --table-center-mm X,Y,Z (a point of the C \
-                 axis) is needed"
-                    .into(),
-            )
-            .into()),
-            None => Point3::origin(),
-        };
     let reference = match a.reference {
         RefKind::Sphere => {
             Reference::Sphere { radius: a.sphere_diameter_mm.map(|d| 0.5 * d + a.tip_radius_mm) }
         }
         RefKind::Vertex => Reference::Vertex { tip_radius: a.tip_radius_mm },
     };
-    let setup = Params {
+    let c = Calibration {
         reference,
-        table_center,
-        tilt,
-        prior: Vector3::from(a.prior_offset_mm),
+        table_center_mm: a.table_center_mm.map(Point3::from),
+        tilt: tilt_rad(a.tilt_deg, "--tilt-deg")?,
+        prior_offset_mm: Vector3::from(a.prior_offset_mm),
         beam_through_reference: a.beam_through_reference,
+        tip_radius_mm: a.tip_radius_mm,
+        sphere_diameter_mm: a.sphere_diameter_mm,
     };
-    let r = solve(&input.readings, &setup).map_err(|e| head_error(&input.table, e))?;
-    for note in truepos_head::json::notes(&r, &setup.prior) {
+    let r = calibrate_file(&points, &c)?;
+    for note in r.notes() {
         eprintln!("{note}");
     }
-    if a.json {
-        print_json(&truepos_head::json::result(&r, &setup, a.tip_radius_mm, a.sphere_diameter_mm, &input))?;
-    } else {
-        print!("{}", truepos_head::json::text(&r, a.tip_radius_mm));
-    }
+    emit(&r, a.json)?;
     Ok(Outcome::Done)
 }
 
@@ -252,12 +285,69 @@ fn apply(a: ApplyArgs) -> Result<Outcome> {
     Ok(Outcome::Done)
 }
 
+fn acquire(a: AcquireArgs) -> Result<Outcome> {
+    use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
+    use truepos_head::acquire::{acquire_to_file, AcquireError, HeadAcquisition, SphereProbing};
+    let c_varies = a.orientations.iter().any(|o| o[1] != 0.0);
+    let table_center = match a.table_center_mm {
+        Some(t) => Point3::from(t),
+        None if c_varies => {
+            return Err(UsageError(
+                "orientations with C ≠ 0 need --table-center-mm X,Y,Z (a point of the C axis)".into(),
+            )
+            .into())
+        }
+        None => Point3::origin(),
+    };
+    let acq = HeadAcquisition {
+        sphere: SphereProbing {
+            near_mm: Point3::from(a.near),
+            diameter_mm: a.diameter_mm,
+            points: a.points,
+            feed_mm_s: a.feed_mm_min / 60.0,
+            clearance_mm: a.clearance_mm,
+            tip_radius_mm: 0.5 * a.tip_diameter_mm,
+        },
+        orientations: a.orientations.clone(),
+        nominal_offset_mm: Vector3::from(a.nominal_offset_mm),
+        table_center_mm: table_center,
+    };
+    if let Err(e) = acq.check() {
+        return Err(UsageError(e.to_string()).into());
+    }
+    let mut truth = None;
+    let mut machine: Box<dyn truepos_device::ProbingMachine> = if a.controller == "virtual" {
+        let (cfg, t) = MachineToolConfig::for_head_offset(a.seed, &acq);
+        truth = Some(t);
+        Box::new(VirtualMachineTool::new(cfg).map_err(|e| UsageError(format!("virtual machine: {e}")))?)
+    } else {
+        super::probe::open_probing_machine(&a.controller, None, a.seed)?.machine
+    };
+    let next = format!(
+        "truepos head-offset --points {}{} --tip-radius-mm {}",
+        a.output.display(),
+        a.table_center_mm
+            .map(|t| format!(" --table-center-mm {},{},{}", t[0], t[1], t[2]))
+            .unwrap_or_default(),
+        acq.sphere.tip_radius_mm
+    );
+    let mut report = match acquire_to_file(machine.as_mut(), &acq, &a.output, next) {
+        Ok(r) => r,
+        Err(AcquireError::Plan(m)) => return Err(UsageError(m).into()),
+        Err(AcquireError::Output(e)) => return Err(e.into()),
+        Err(e) => return Err(crate::DeviceError(e.to_string()).into()),
+    };
+    report.truth = truth.map(|t| (t.offset_mm, t.sphere_centre_mm, t.sphere_radius_mm));
+    crate::output::emit(&report, a.json)?;
+    Ok(Outcome::Done)
+}
+
 pub fn simulate(args: SimArgs) -> Result<Outcome> {
     let d = truepos_cell::scenarios::head::simulate(args.variant.sim(), args.common.seed)
         .map_err(|e| UsageError(e.to_string()))?;
     // Where the data set cannot be written is the user's choice of --out: an input error.
     let w = truepos_cell::scenarios::head::write_dataset(&args.common.out, &d)
-        .map_err(|e| InputError::in_file(&args.common.out, format!("{e:#}")))?;
+        .map_err(|e| truepos_io::InputError::in_file(&args.common.out, format!("{e:#}")))?;
     eprint!("{}", w.text(d.rows.len()));
     Ok(Outcome::Done)
 }

@@ -17,6 +17,7 @@ pub mod load;
 pub mod probe;
 pub mod scan;
 pub mod somac;
+pub mod somac_inspect;
 pub mod somac_run;
 
 /// truepos: calibrate, compensate and control probe-equipped machine tools and CMMs.

@@ -1,5 +1,6 @@
 //! Laser-tracker end-point control commands: `truepos autoscale`, `orient`, `air`, and
-//! `somac run` (the measure / compare / correct loop).
+//! `somac run` (the measure / compare / correct loop), `somac inspect` (in-spindle probe
+//! inspection of the holes, `somac_inspect`).
 
 use crate::output::{emit, print_json};
 use crate::{Outcome, UsageError};
@@ -20,6 +21,9 @@ pub struct Args {
 pub enum SomacCommand {
     /// Run a program with the measure / compare / correct loop (virtual gantry and trackers).
     Run(super::somac_run::RunArgs),
+    /// In-spindle probe inspection: probe the program's holes (or a hole list) on the same
+    /// controller and report each hole's position error and diameter.
+    Inspect(super::somac_inspect::InspectArgs),
 }
 
 #[derive(clap::Args, Debug)]
@@ -122,6 +126,7 @@ pub use super::somac_run::{simulate, SimArgs};
 pub fn run(a: Args) -> Result<Outcome> {
     match a.command {
         SomacCommand::Run(r) => super::somac_run::run(r),
+        SomacCommand::Inspect(i) => super::somac_inspect::run(i),
     }
 }
 

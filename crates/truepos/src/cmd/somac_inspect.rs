@@ -1,0 +1,122 @@
+//! `truepos somac inspect`: the in-spindle probe inspection mode of end-point control. After the
+//! holes of a program are made, the same controller probes each one with the spindle probe
+//! (single points on the bore wall at a depth, least-squares circle) and reports every hole's
+//! position error and diameter. The holes come from the program's measurement blocks
+//! (`--program`) or from a hole list (`--holes`); the procedure is
+//! `truepos_somac::inspect::inspect`, through the same `--controller` URLs as `probe sphere`.
+
+use crate::{DeviceError, Outcome, UsageError};
+use anyhow::Result;
+use std::path::PathBuf;
+use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
+use truepos_math::Point3;
+use truepos_somac::inspect::{
+    inspect, read_hole_list, read_program_holes, Hole, InspectError, InspectPlan, InspectReport,
+};
+
+#[derive(clap::Args, Debug)]
+#[command(
+    after_help = "Examples:\n  truepos somac inspect --program spar/program.nc --diameter-mm 8 --tip-diameter-mm 3 --json\n  truepos somac inspect --controller linuxcncrsh://127.0.0.1:5007 --holes holes.csv \\\n      --diameter-mm 10 --tip-diameter-mm 3 --feed-mm-min 50\n\nA hole is the nominal centre of its top (machine frame, mm): the target of each program block\nwith the measurement keyword comment (--program), or a row of --holes (id,x_mm,y_mm,z_mm and an\noptional diameter_mm column). Each hole is probed at --depth-mm below its top with --points\nsingle-point probings on the bore wall (G38.2 on LinuxCNC, PtMeas on I++ DME), each starting\n--clearance-mm inside the nominal wall; the machine travels between holes at --safe-height-mm\nabove the highest top. The machine must be on, homed and idle (truepos never releases an\ne-stop). Reported per hole: measured centre, position error (X, Y and its length),\ntrue position (twice the length), diameter and its error, roundness, time.\nExit 3 naming the hole, the address and the move when the controller fails or a probe move\nends without contact (the machine is sent up to the safe height); exit 1 when --tolerance-mm is\ngiven and a hole's position error exceeds it.\n\nWith --controller virtual the holes are bored in a plate on the virtual machine tool, each off\nits nominal by a seeded error (σ = 20 µm per axis, 5 µm on the diameter); the JSON then has\nthe truth per hole (virtual_truth)."
+)]
+pub struct InspectArgs {
+    /// `virtual` (the built-in virtual machine tool), `linuxcncrsh://HOST:PORT[?password=…]`,
+    /// `ippdme://HOST:PORT`.
+    #[arg(long, default_value = "virtual")]
+    pub controller: String,
+    /// The program whose holes to inspect (its measurement blocks' targets).
+    #[arg(long, conflicts_with = "holes", required_unless_present = "holes")]
+    pub program: Option<PathBuf>,
+    /// A hole list: CSV id,x_mm,y_mm,z_mm[,diameter_mm] (hole top centres).
+    #[arg(long)]
+    pub holes: Option<PathBuf>,
+    /// Nominal hole diameter (mm); required unless the hole list has a diameter_mm column.
+    #[arg(long)]
+    pub diameter_mm: Option<f64>,
+    /// The measurement keyword comment that marks the program's hole blocks.
+    #[arg(long, default_value = "(MSG,Measure SOMaC)")]
+    pub keyword: String,
+    /// Probing depth below each hole's top (mm).
+    #[arg(long, default_value_t = 3.0)]
+    pub depth_mm: f64,
+    /// Points per hole (≥ 4), at equal angles.
+    #[arg(long, default_value_t = 8)]
+    pub points: usize,
+    /// Probing feed (mm/min).
+    #[arg(long, default_value_t = 50.0)]
+    pub feed_mm_min: f64,
+    /// Distance from the nominal wall where each probing move starts and beyond which it gives
+    /// up (mm): the hole positions must be known to better than this.
+    #[arg(long, default_value_t = 0.5)]
+    pub clearance_mm: f64,
+    /// Stylus ball diameter (mm).
+    #[arg(long, default_value_t = 0.0)]
+    pub tip_diameter_mm: f64,
+    /// Travel height above the highest hole top (mm).
+    #[arg(long, default_value_t = 5.0)]
+    pub safe_height_mm: f64,
+    /// Position tolerance (mm, length of the XY error): exit 1 when a hole exceeds it.
+    #[arg(long)]
+    pub tolerance_mm: Option<f64>,
+    /// Seed of the virtual machine (where its holes really are).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print one JSON object on stdout (human text goes to stderr).
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn read_holes(a: &InspectArgs) -> Result<Vec<Hole>> {
+    Ok(match (&a.program, &a.holes) {
+        (Some(path), _) => {
+            let d = a.diameter_mm.ok_or_else(|| UsageError("--program needs --diameter-mm".into()))?;
+            read_program_holes(path, &a.keyword, d)?
+        }
+        (None, Some(path)) => read_hole_list(path, a.diameter_mm)?,
+        (None, None) => return Err(UsageError("give --program or --holes".into()).into()),
+    })
+}
+
+pub fn run(a: InspectArgs) -> Result<Outcome> {
+    let holes = read_holes(&a)?;
+    let plan = InspectPlan {
+        depth_mm: a.depth_mm,
+        points: a.points,
+        feed_mm_s: a.feed_mm_min / 60.0,
+        clearance_mm: a.clearance_mm,
+        tip_radius_mm: 0.5 * a.tip_diameter_mm,
+        safe_height_mm: a.safe_height_mm,
+        start_angle_deg: 0.0,
+    };
+    if let Some(t) = a.tolerance_mm {
+        if !(t.is_finite() && t > 0.0) {
+            return Err(UsageError(format!("--tolerance-mm must be > 0, got {t}")).into());
+        }
+    }
+    // Check everything before touching a machine.
+    if let Err(e) = plan.check(&holes) {
+        return Err(UsageError(e.to_string()).into());
+    }
+    let mut truth = None;
+    let mut machine: Box<dyn truepos_device::ProbingMachine> = if a.controller == "virtual" {
+        let nominal: Vec<(Point3, f64)> = holes.iter().map(|h| (h.nominal_mm, h.diameter_mm)).collect();
+        let (cfg, t) = MachineToolConfig::with_holes(a.seed, &nominal, plan.tip_radius_mm)
+            .map_err(|e| UsageError(format!("virtual machine: {e}")))?;
+        truth = Some(t);
+        Box::new(VirtualMachineTool::new(cfg).map_err(|e| UsageError(format!("virtual machine: {e}")))?)
+    } else {
+        super::probe::open_probing_machine(&a.controller, None, a.seed)?.machine
+    };
+    let r = match inspect(machine.as_mut(), &holes, &plan) {
+        Ok(r) => r,
+        Err(InspectError::Plan(m)) => return Err(UsageError(m).into()),
+        Err(e) => return Err(DeviceError(e.to_string()).into()),
+    };
+    let report = InspectReport {
+        inspection: r,
+        tolerance_mm: a.tolerance_mm,
+        truth: truth.map(|t| t.iter().map(|t| (t.top_mm, t.diameter_mm)).collect()),
+    };
+    crate::output::emit(&report, a.json)?;
+    let over = report.out_of_tolerance();
+    Ok(if over.is_empty() { Outcome::Done } else { Outcome::OutOfTolerance })
+}
