@@ -5,6 +5,10 @@
 #
 #   scripts/bench_process.sh [REPS] [--big]
 #
+# TRUEPOS_BASELINE=path/to/other/truepos adds a "baseline" column: the same commands run by that
+# binary, alternated with `wc -l` and truepos in the same loop, so a before/after comparison sees
+# the same machine load (this 2-core machine is shared; separate runs are not comparable).
+#
 # REPS (default 5) runs of each command; the medians are reported with the ratio
 # median(truepos) / median(wc -l). `--big` adds the 10M-point / 10M-line (and 5M-line) peak
 # memory rows (about 1.5 GB of inputs under $TRUEPOS_BENCH_DIR, default /tmp/truepos-bench-proc).
@@ -100,18 +104,22 @@ bench() {
     while [ "$1" != "--" ]; do inputs+=("$1"); shift; done
     shift
     cat "${inputs[@]}" > /dev/null   # page cache warm for both
-    local tw=() tt=()
+    local tw=() tt=() tb=()
     for _ in $(seq "$REPS"); do
         tw+=("$(run_once wc -l "${inputs[@]}")")
         tt+=("$(run_once "$@")")
+        [ -z "${TRUEPOS_BASELINE:-}" ] || tb+=("$(run_once "$TRUEPOS_BASELINE" "${@:2}")")
     done
-    local mw mt
+    local mw mt mbase=0
     mw=$(printf '%s\n' "${tw[@]}" | median)
     mt=$(printf '%s\n' "${tt[@]}" | median)
+    [ -z "${TRUEPOS_BASELINE:-}" ] || mbase=$(printf '%s\n' "${tb[@]}" | median)
     local mb
     mb=$(du -cm "${inputs[@]}" | tail -1 | cut -f1)
-    awk -v n="$name" -v t="$mt" -v w="$mw" -v mb="$mb" 'BEGIN {
-        printf "| %-28s | %5d MB | %8.3f s | %8.4f s | %6.1f× |\n", n, mb, t/1e6, w/1e6, t/w }'
+    awk -v n="$name" -v t="$mt" -v w="$mw" -v mb="$mb" -v b="$mbase" 'BEGIN {
+        printf "| %-28s | %5d MB | %8.3f s | %8.4f s | %6.1f× |", n, mb, t/1e6, w/1e6, t/w;
+        if (b > 0) printf " %8.3f s | %6.1f× |", b/1e6, b/w;
+        printf "\n" }'
 }
 # peak NAME CMD...: maximum resident set size of one run.
 peak() {
@@ -128,8 +136,15 @@ ORIENT=(orient --reference "$WORK/nominal.csv" --measured "$WORK/measured.csv" -
 CORRECT=(comp correct --map "$WORK/map.csv" --probe-offset-mm 0,0,-100)
 echo "truepos $(git rev-parse --short HEAD) $(date -u +%FT%TZ); $(nproc) cores; load $(cut -d' ' -f1-3 /proc/loadavg); $REPS runs, medians"
 echo
-echo "| task | input | truepos | wc -l | ratio |"
-echo "|---|---|---|---|---|"
+if [ -n "${TRUEPOS_BASELINE:-}" ]; then
+    echo "baseline: $TRUEPOS_BASELINE"
+    echo
+    echo "| task | input | truepos | wc -l | ratio | baseline | baseline ratio |"
+    echo "|---|---|---|---|---|---|---|"
+else
+    echo "| task | input | truepos | wc -l | ratio |"
+    echo "|---|---|---|---|---|"
+fi
 bench "fit sphere, 1M points" "$WORK/sphere_1M.csv" -- "$BIN" fit sphere "$WORK/sphere_1M.csv" --json
 bench "orient, 1M lines" "$WORK/prog_1M.nc" -- "$BIN" "${ORIENT[@]}" --program "$WORK/prog_1M.nc" --output "$WORK/out_1M.nc"
 bench "comp correct, 1M points" "$WORK/points_1M.csv" -- "$BIN" "${CORRECT[@]}" --points "$WORK/points_1M.csv" --output "$WORK/corr_1M.csv"

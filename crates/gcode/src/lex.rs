@@ -355,17 +355,11 @@ fn lex_number(b: &[u8], start: usize, end: usize) -> Option<(usize, f64, Option<
     if j > i {
         return Some((j, f64::NAN, None, false));
     }
-    // Up to 15 digits: the integer of all digits and one division by an exact power of ten,
-    // both exact, so the quotient is the correctly rounded value (Clinger's fast path).
-    if n_int + n_frac <= 15 {
-        const POW10: [f64; 16] =
-            [1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15];
-        let m = b[int_start..i]
-            .iter()
-            .filter(|c| c.is_ascii_digit())
-            .fold(0u64, |m, c| m * 10 + (c - b'0') as u64);
-        let v = m as f64 / POW10[n_frac];
-        return Some((i, if b[start] == b'-' { -v } else { v }, decimals, true));
+    // Up to 15 digits: Clinger's exact fast path, the one every number reader of truepos shares.
+    if let Ok((v, n)) = truepos_math::decimal::decimal_prefix(&b[start..i]) {
+        if start + n == i {
+            return Some((i, v, decimals, true));
+        }
     }
     // Safe: the range holds only ASCII sign, digits and one point.
     let text = std::str::from_utf8(&b[start..i]).ok()?;

@@ -51,20 +51,87 @@ const MIX_EPS: f64 = 1e-12;
 const AXES: [u8; 3] = [b'X', b'Y', b'Z'];
 const CENTRE: [u8; 3] = [b'I', b'J', b'K'];
 
+/// Replacement text of a word: inline (no allocation) up to 31 bytes, which every fixed-point
+/// number below 10^15 is; longer text on the heap.
+#[derive(Clone)]
+enum Txt {
+    Inline { len: u8, buf: [u8; 31] },
+    Heap(String),
+}
+
+impl Txt {
+    /// Inline text from bytes that are a whole UTF-8 string (a `&str`'s bytes, or ASCII) of at
+    /// most 31 bytes; the invariant [`Deref`](std::ops::Deref) relies on.
+    fn inline(b: &[u8]) -> Self {
+        debug_assert!(b.len() <= 31 && std::str::from_utf8(b).is_ok());
+        let mut buf = [0u8; 31];
+        buf[..b.len()].copy_from_slice(b);
+        Txt::Inline { len: b.len() as u8, buf }
+    }
+}
+
+impl From<&str> for Txt {
+    fn from(s: &str) -> Self {
+        if s.len() <= 31 {
+            Txt::inline(s.as_bytes())
+        } else {
+            Txt::Heap(s.to_string())
+        }
+    }
+}
+
+impl From<String> for Txt {
+    fn from(s: String) -> Self {
+        if s.len() <= 31 {
+            Txt::from(s.as_str())
+        } else {
+            Txt::Heap(s)
+        }
+    }
+}
+
+impl std::ops::Deref for Txt {
+    type Target = str;
+    fn deref(&self) -> &str {
+        match self {
+            // SAFETY: `Txt::inline` is the only constructor of `Inline`, from the bytes of a whole
+            // `&str` or from ASCII, so `buf[..len]` is valid UTF-8 (checked in debug builds).
+            Txt::Inline { len, buf } => unsafe { std::str::from_utf8_unchecked(&buf[..*len as usize]) },
+            Txt::Heap(s) => s,
+        }
+    }
+}
+
+impl std::fmt::Display for Txt {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self)
+    }
+}
+
 /// Fixed-point text of `v` with `dec` decimals (no "-0.000"). Integer arithmetic: much faster
 /// than float formatting, exact for |v|·10^dec below 2^53.
-fn fmt_num(v: f64, dec: u8) -> String {
+fn fmt_num(v: f64, dec: u8) -> Txt {
     let scale = 10i64.pow(dec as u32);
     let scaled = (v * scale as f64).round();
     if !scaled.is_finite() || scaled.abs() >= 9.0e15 {
-        return format!("{:.*}", dec as usize, v);
+        return Txt::from(format!("{:.*}", dec as usize, v));
     }
     let n = scaled as i64;
-    // At most 16 digits, a point and a sign.
+    // At most 16 digits, a point and a sign; digits two at a time from a table.
+    const PAIRS: &[u8; 200] = b"00010203040506070809101112131415161718192021222324252627282930313233343536373839\
+404142434445464748495051525354555657585960616263646566676869707172737475767778798081828384858687888990919293949596979899";
     let mut buf = [0u8; 24];
     let mut i = buf.len();
     let mut a = n.unsigned_abs();
-    for _ in 0..dec {
+    let mut left = dec as usize;
+    while left >= 2 {
+        let r = (a % 100) as usize * 2;
+        a /= 100;
+        i -= 2;
+        buf[i..i + 2].copy_from_slice(&PAIRS[r..r + 2]);
+        left -= 2;
+    }
+    if left == 1 {
         i -= 1;
         buf[i] = b'0' + (a % 10) as u8;
         a /= 10;
@@ -73,20 +140,22 @@ fn fmt_num(v: f64, dec: u8) -> String {
         i -= 1;
         buf[i] = b'.';
     }
-    loop {
+    while a >= 10 {
+        let r = (a % 100) as usize * 2;
+        a /= 100;
+        i -= 2;
+        buf[i..i + 2].copy_from_slice(&PAIRS[r..r + 2]);
+    }
+    if a > 0 || i == buf.len() || buf[i] == b'.' {
         i -= 1;
-        buf[i] = b'0' + (a % 10) as u8;
-        a /= 10;
-        if a == 0 {
-            break;
-        }
+        buf[i] = b'0' + a as u8;
     }
     if n < 0 {
         i -= 1;
         buf[i] = b'-';
     }
     // ASCII digits, point and sign only.
-    std::str::from_utf8(&buf[i..]).map(str::to_owned).unwrap_or_default()
+    Txt::inline(&buf[i..])
 }
 
 /// 10^dec (a table for the usual decimals: this is on every rewritten word).
@@ -104,7 +173,7 @@ fn round_to(v: f64, dec: u8) -> f64 {
 /// Edits of one line.
 #[derive(Default)]
 struct Edits {
-    replace: Vec<(usize, String)>,
+    replace: Vec<(usize, Txt)>,
     insert_after: Vec<(usize, String)>,
     insert_before: Vec<(usize, String)>,
 }
@@ -150,6 +219,8 @@ pub(crate) struct Rewriter {
     mixes: [bool; 3],
     /// Lines rewritten so far (in earlier chunks): added to the line numbers of errors.
     base: usize,
+    /// The edits of the current line (kept from line to line: no allocation per line).
+    edits: Edits,
 }
 
 impl Rewriter {
@@ -174,6 +245,7 @@ impl Rewriter {
             exact_inc: [0.0; 3],
             mixes,
             base: 0,
+            edits: Edits::default(),
         }
     }
 
@@ -291,7 +363,10 @@ impl Rewriter {
                 return Ok(());
             }
         }
-        let mut edits = Edits::default();
+        let mut edits = std::mem::take(&mut self.edits);
+        edits.replace.clear();
+        edits.insert_after.clear();
+        edits.insert_before.clear();
         if let MotionMode::Cycle(_) = blk.after.motion {
             if (r[(2, 2)] - 1.0).abs() > MIX_EPS || r[(0, 2)].abs() > MIX_EPS || r[(1, 2)].abs() > MIX_EPS {
                 return Err(err(
@@ -401,7 +476,7 @@ impl Rewriter {
                     Some(gi) => {
                         let txt = p.text(&toks[gi]);
                         let swapped: String = txt.chars().map(|c| match c { '2' => '3', '3' => '2', c => c }).collect();
-                        edits.replace.push((gi, swapped[1..].to_string()));
+                        edits.replace.push((gi, Txt::from(&swapped[1..])));
                     }
                     None => return Err(err(None, "the transform turns the arc plane over, which swaps G2 and G3, but the arc's G2/G3 word is modal (not on this line)".into())),
                 }
@@ -442,6 +517,7 @@ impl Rewriter {
         } else {
             p.emit_line(i, &edits, out);
         }
+        self.edits = edits;
         self.old = blk.after;
         Ok(())
     }
@@ -593,7 +669,7 @@ impl Program {
         });
         for letter in [b'I', b'J', b'K', b'R'] {
             if let Some(k) = find(letter) {
-                edits.replace.push((k, String::new()));
+                edits.replace.push((k, Txt::from("")));
             }
         }
         let axis_pos: Vec<usize> = (0..3).filter_map(|k| find(AXES[k])).collect();
@@ -606,7 +682,7 @@ impl Program {
             written[k] = Some(round_to(v, dec));
         }
         match g {
-            Some(gi) => edits.replace.push((gi, "1".into())),
+            Some(gi) => edits.replace.push((gi, Txt::from("1"))),
             None => {
                 let first = axis_pos.first().copied().unwrap_or(0);
                 edits.insert_before.push((first, "G1 ".into()));
@@ -669,6 +745,23 @@ mod tests {
         Program::parse(prog).transform(&t, &TransformOptions::default())
     }
 
+    proptest::proptest! {
+        /// The pairwise digit writer gives the text of the plain one: the scaled, rounded
+        /// integer's digits with the point `dec` places from the right (no `-0`); below the
+        /// 9e15 bound where `fmt_num` hands over to `format!`.
+        #[test]
+        fn fixed_point_digits_match_the_integer(v in -1e8f64..1e8, dec in 0u8..8) {
+            let n = (v * 10f64.powi(dec as i32)).round() as i64;
+            let digits = format!("{:0width$}", n.unsigned_abs(), width = dec as usize + 1);
+            let (int, frac) = digits.split_at(digits.len() - dec as usize);
+            let mut want = if n < 0 { format!("-{int}") } else { int.to_string() };
+            if dec > 0 {
+                want = format!("{want}.{frac}");
+            }
+            proptest::prop_assert_eq!(&*fmt_num(v, dec), want);
+        }
+    }
+
     #[test]
     fn fixed_point_text() {
         for (v, dec, want) in [
@@ -681,7 +774,7 @@ mod tests {
             (0.05, 1, "0.1"),
             (1e300, 2, &format!("{:.2}", 1e300)),
         ] {
-            assert_eq!(fmt_num(v, dec), want, "{v} {dec}");
+            assert_eq!(&*fmt_num(v, dec), want, "{v} {dec}");
         }
     }
 

@@ -44,6 +44,10 @@ pub struct Table {
     pub comments: Vec<String>,
     /// Byte offset of the start of each data row.
     rows: Vec<usize>,
+    /// Points of an E57 file left out because the file marks them invalid
+    /// (`cartesianInvalidState`); 0 for every other format. Commands that read points through
+    /// a table can report it as `truepos fit` does.
+    pub skipped_invalid: usize,
 }
 
 /// Split one CSV line into field byte ranges (relative to the line), honouring double quotes.
@@ -134,12 +138,33 @@ fn map_large_file(path: &Path) -> Result<Option<memmap2::Mmap>, InputError> {
     }
     // SAFETY: a private read-only map; the input file is not expected to change while truepos
     // reads it (as with any reader, a file truncated meanwhile is an error the OS reports).
-    Ok(unsafe { memmap2::Mmap::map(&file).ok() })
+    // `populate`: the page tables are filled in one go (the file is about to be read whole),
+    // instead of one page fault per few pages.
+    Ok(unsafe { memmap2::MmapOptions::new().populate().map(&file).ok() })
 }
 
 /// Read a whole file with the bounds of [`crate::limits`] (size, line length, no NUL bytes).
 pub fn read_file(path: &Path) -> Result<Vec<u8>, InputError> {
     crate::limits::read_text(path, "CSV")
+}
+
+/// Boundaries `[0, …, len]` of segments of `bytes` cut just after line ends, about
+/// 4 × the worker threads of them when `bytes` is at least `min_len` long (else one segment).
+fn line_segments(bytes: &[u8], min_len: usize) -> Vec<usize> {
+    let len = bytes.len();
+    let mut bounds = vec![0];
+    if len >= min_len {
+        let parts = 4 * rayon::current_num_threads();
+        for k in 1..parts {
+            let b = len * k / parts;
+            let b = memchr::memchr(b'\n', &bytes[b..]).map_or(len, |p| b + p + 1);
+            if b > *bounds.last().unwrap_or(&0) && b < len {
+                bounds.push(b);
+            }
+        }
+    }
+    bounds.push(len);
+    bounds
 }
 
 /// Start offsets of the data rows in `text[from..to]` (`from` at a line start): lines that are
@@ -148,8 +173,10 @@ pub fn read_file(path: &Path) -> Result<Vec<u8>, InputError> {
 pub(crate) fn index_rows(text: &str, from: usize, to: usize, out: &mut Vec<usize>) -> Option<usize> {
     let bytes = text.as_bytes();
     let mut pos = from;
+    // One search over the whole range (rows are short: a call per row would cost more than it finds).
+    let mut ends = memchr::memchr_iter(b'\n', &bytes[from..to]).map(|p| from + p);
     while pos < to {
-        let end = memchr::memchr(b'\n', &bytes[pos..to]).map_or(to, |p| pos + p);
+        let end = ends.next().unwrap_or(to);
         if end - pos > crate::limits::MAX_LINE_BYTES {
             return Some(pos);
         }
@@ -244,10 +271,12 @@ impl Table {
             let col =
                 |k: usize| crate::parquet_file::ColumnData::F64(e.points.iter().map(|p| p[k]).collect());
             let names = ["x_mm", "y_mm", "z_mm"].map(String::from).to_vec();
-            return Self::from_columns(
+            let mut t = Self::from_columns(
                 path,
                 crate::parquet_file::Columns { names, data: vec![col(0), col(1), col(2)] },
-            );
+            )?;
+            t.skipped_invalid = e.skipped_invalid;
+            return Ok(t);
         }
         if let Some(map) = map_large_file(path)? {
             return Self::from_text(path, Self::check_bytes(path, &map[..]).map(|_| Text::Mapped(map))?);
@@ -286,14 +315,27 @@ impl Table {
         Self::from_bytes(path, w.into_inner())
     }
 
-    /// NUL bytes and invalid UTF-8 are input errors (a binary file is not a CSV file).
+    /// NUL bytes and invalid UTF-8 are input errors (a binary file is not a CSV file): the first
+    /// NUL byte if there is one, else the first invalid UTF-8. Large inputs are checked in
+    /// parallel segments cut after line ends (a line end is never inside a UTF-8 character, so
+    /// each segment validates on its own and finds the same first bad byte).
     fn check_bytes(path: &Path, bytes: &[u8]) -> Result<(), InputError> {
-        if let Some(p) = memchr::memchr(0, bytes) {
+        let segments = line_segments(bytes, 1 << 22);
+        let (nul, utf8) = segments
+            .par_windows(2)
+            .map(|w| {
+                let seg = &bytes[w[0]..w[1]];
+                let nul = memchr::memchr(0, seg).map(|p| w[0] + p);
+                let utf8 = std::str::from_utf8(seg).err().map(|e| w[0] + e.valid_up_to());
+                (nul, utf8)
+            })
+            .reduce(|| (None, None), |a, b| (a.0.or(b.0), a.1.or(b.1)));
+        if let Some(p) = nul {
             let line = memchr::memchr_iter(b'\n', &bytes[..p]).count() + 1;
             return Err(crate::limits::binary(path, line, "CSV"));
         }
-        if let Err(e) = std::str::from_utf8(bytes) {
-            let line = memchr::memchr_iter(b'\n', &bytes[..e.valid_up_to()]).count() + 1;
+        if let Some(p) = utf8 {
+            let line = memchr::memchr_iter(b'\n', &bytes[..p]).count() + 1;
             return Err(InputError::at(path, line, None, "not valid UTF-8 text: not a CSV file"));
         }
         Ok(())
@@ -362,7 +404,7 @@ impl Table {
         let Some(header) = header else {
             return Err(InputError::in_file(&path, "empty file: no header row"));
         };
-        Ok(Self { path, text, header, comments, rows })
+        Ok(Self { path, text, header, comments, rows, skipped_invalid: 0 })
     }
 
     pub fn n_rows(&self) -> usize {
@@ -558,11 +600,12 @@ impl Rows<'_> {
             let mut buf = Vec::with_capacity(width);
             let first = c * CHUNK;
             for row in first..(first + CHUNK).min(n) {
-                let line = self.line(row);
                 let d = &mut dst[(row - first) * k..(row - first + 1) * k];
-                if parse_row_fast(line, &slots, d) {
+                // The fast path finds the row's end itself (no search for it first).
+                if parse_row_fast(&self.text[self.rows[row]..], &slots, d) {
                     continue;
                 }
+                let line = self.line(row);
                 let text = std::str::from_utf8(line).unwrap_or("");
                 if !split_fields_fast(line, &mut buf) {
                     split_fields(text, &mut buf);
@@ -600,62 +643,71 @@ impl Rows<'_> {
 
 pub use crate::num::parse_f64;
 
-/// One pass over a quote-free row: wanted columns are parsed while the row is split. Returns
-/// `false` on anything else (quotes, bad text, a wrong field count, a column wanted twice), and
-/// the caller then takes the general path, which also produces the error message.
+/// One pass over a quote-free row: wanted columns are parsed while the row is split. `text`
+/// starts at the row and may go on past it: the row ends at `\n`, `\r\n` or the end of `text`.
+/// Returns `false` on anything else (quotes, bad text, a wrong field count, a column wanted
+/// twice), and the caller then takes the general path, which also produces the error message.
 #[inline]
-fn parse_row_fast(line: &[u8], slots: &[usize], d: &mut [f64]) -> bool {
+fn parse_row_fast(text: &[u8], slots: &[usize], d: &mut [f64]) -> bool {
     let mut i = 0;
-    let n = line.len();
+    let n = text.len();
+    let line_end =
+        |i: usize| i >= n || text[i] == b'\n' || (text[i] == b'\r' && (i + 1 >= n || text[i + 1] == b'\n'));
     let mut filled = 0;
     for (col, &slot) in slots.iter().enumerate() {
         if col > 0 {
             // The previous field ended at a comma.
-            if i >= n || line[i] != b',' {
+            if i >= n || text[i] != b',' {
                 return false;
             }
             i += 1;
         }
         if slot == usize::MAX {
-            while i < n && line[i] != b',' {
-                if line[i] == b'"' {
+            while i < n && text[i] != b',' && text[i] != b'\n' {
+                if text[i] == b'"' {
                     return false;
                 }
                 i += 1;
             }
+            // A field that ends the row keeps its `\r` out (as the row's text does).
+            if i < n && text[i] == b'\n' && i > 0 && text[i - 1] == b'\r' {
+                i -= 1;
+            }
             continue;
         }
-        while i < n && (line[i] == b' ' || line[i] == b'\t') {
+        while i < n && (text[i] == b' ' || text[i] == b'\t') {
             i += 1;
         }
-        let Some((v, used)) = crate::num::parse_f64_prefix(&line[i..]) else {
+        let Some((v, used)) = crate::num::parse_f64_prefix(&text[i..]) else {
             return false;
         };
         i += used;
-        while i < n && (line[i] == b' ' || line[i] == b'\t') {
+        while i < n && (text[i] == b' ' || text[i] == b'\t') {
             i += 1;
         }
-        if i < n && line[i] != b',' {
+        if !line_end(i) && text[i] != b',' {
             return false;
         }
         d[slot] = v;
         filled += 1;
     }
-    i == n && filled == d.len()
+    line_end(i) && filled == d.len()
 }
 
 /// Write CSV rows with a header; floats in shortest round-trip form (or a fixed number of
-/// decimals, [`CsvWriter::with_format`]).
+/// decimals, [`CsvWriter::with_format`]). The fields of a row are gathered in memory and written
+/// with one call at [`end_row`](CsvWriter::end_row) (an unfinished row at
+/// [`into_inner`](CsvWriter::into_inner)).
 pub struct CsvWriter<W: Write> {
     w: W,
     first: bool,
     fmt: NumFormat,
-    num: Vec<u8>,
+    row: Vec<u8>,
 }
 
 impl<W: Write> CsvWriter<W> {
     pub fn new(w: W) -> Self {
-        Self { w, first: true, fmt: NumFormat::Shortest, num: Vec::with_capacity(32) }
+        Self { w, first: true, fmt: NumFormat::Shortest, row: Vec::with_capacity(256) }
     }
     /// How numbers are written.
     pub fn with_format(mut self, fmt: NumFormat) -> Self {
@@ -672,39 +724,43 @@ impl<W: Write> CsvWriter<W> {
     pub fn header(&mut self, names: &[&str]) -> std::io::Result<()> {
         writeln!(self.w, "{}", names.join(","))
     }
-    /// Append one field to the current row.
-    pub fn field_str(&mut self, s: &str) -> std::io::Result<()> {
+    #[inline]
+    fn sep(&mut self) {
         if !self.first {
-            self.w.write_all(b",")?;
+            self.row.push(b',');
         }
         self.first = false;
+    }
+    /// Append one field to the current row.
+    pub fn field_str(&mut self, s: &str) -> std::io::Result<()> {
+        self.sep();
         if s.contains(',') || s.contains('"') {
-            write!(self.w, "\"{}\"", s.replace('"', "\"\""))
+            self.row.push(b'"');
+            self.row.extend_from_slice(s.replace('"', "\"\"").as_bytes());
+            self.row.push(b'"');
         } else {
-            self.w.write_all(s.as_bytes())
+            self.row.extend_from_slice(s.as_bytes());
         }
+        Ok(())
     }
     #[inline]
     pub fn field_f64(&mut self, v: f64) -> std::io::Result<()> {
-        self.num.clear();
-        if !self.first {
-            self.num.push(b',');
-        }
-        self.first = false;
-        self.fmt.write(v, &mut self.num);
-        self.w.write_all(&self.num)
+        self.sep();
+        self.fmt.write(v, &mut self.row);
+        Ok(())
     }
     /// Append a raw, already formatted CSV fragment (e.g. a passed-through row).
     pub fn raw(&mut self, s: &str) -> std::io::Result<()> {
-        if !self.first {
-            self.w.write_all(b",")?;
-        }
-        self.first = false;
-        self.w.write_all(s.as_bytes())
+        self.sep();
+        self.row.extend_from_slice(s.as_bytes());
+        Ok(())
     }
     pub fn end_row(&mut self) -> std::io::Result<()> {
         self.first = true;
-        self.w.write_all(b"\n")
+        self.row.push(b'\n');
+        let r = self.w.write_all(&self.row);
+        self.row.clear();
+        r
     }
     pub fn row_f64(&mut self, v: &[f64]) -> std::io::Result<()> {
         for x in v {
@@ -712,7 +768,12 @@ impl<W: Write> CsvWriter<W> {
         }
         self.end_row()
     }
-    pub fn into_inner(self) -> W {
+    /// The inner writer (after writing the fields of an unfinished row, if any; a failure of
+    /// that last write shows when the caller flushes or writes next).
+    pub fn into_inner(mut self) -> W {
+        if !self.row.is_empty() {
+            let _ = self.w.write_all(&self.row);
+        }
         self.w
     }
 }
@@ -814,11 +875,23 @@ mod tests {
         std::fs::write(&p, &bad).unwrap();
         let e = Table::read(&p).unwrap().f64_columns(&["x_mm"]).unwrap_err();
         assert_eq!(e.line, Some(123456 + 3));
-        // A NUL byte: not a text file.
+        // A NUL byte: not a text file, named at its line (segments are checked in parallel).
         let mut bin = text.into_bytes();
+        let line_at = |b: &[u8], at: usize| b[..at].iter().filter(|&&c| c == b'\n').count() + 1;
+        let mut bad_utf8 = bin.clone();
+        bad_utf8[7_000_000] = 0xff;
+        bad_utf8[9_000_000] = 0xff;
+        std::fs::write(&p, &bad_utf8).unwrap();
+        let e = Table::read(&p).unwrap_err();
+        assert!(e.to_string().contains("UTF-8"), "{e}");
+        assert_eq!(e.line, Some(line_at(&bad_utf8, 7_000_000)));
+        bin[9_500_000] = 0;
         bin[5_000_000] = 0;
+        bin[6_000_000] = 0xff;
         std::fs::write(&p, &bin).unwrap();
-        assert!(Table::read(&p).unwrap_err().to_string().contains("binary"));
+        let e = Table::read(&p).unwrap_err();
+        assert!(e.to_string().contains("binary"), "{e}");
+        assert_eq!(e.line, Some(line_at(&bin, 5_000_000)));
     }
 
     #[test]

@@ -171,6 +171,9 @@ mod tests {
             // Quaternion and trigonometric round-off on metre values: far below 1e-9 mm.
             assert!((p - Point3::from(w)).norm() < 1e-9, "{p} vs {w:?}");
         }
+        // Read as a table (every command but fit): the same points, the same count skipped.
+        let t = crate::csv::Table::read(&path).unwrap();
+        assert_eq!((t.n_rows(), t.skipped_invalid), (want.len(), 2));
     }
 
     #[test]

@@ -2,19 +2,13 @@
 //!
 //! - [`parse_f64`] / [`parse_f64_prefix`]: correctly rounded decimal → `f64` (every input gives
 //!   the nearest double, as `str::parse` does). Plain decimals of at most 15 significant digits
-//!   take Clinger's fast path inline (one exact integer, one correctly rounded division by an
-//!   exact power of ten); everything else goes to the `fast-float2` crate (Eisel–Lemire with an
-//!   exact big-decimal fallback), which parses straight from bytes.
+//!   take Clinger's fast path ([`truepos_math::decimal`], digits eight at a time, the same code
+//!   the G-code reader uses); everything else goes to the `fast-float2` crate (Eisel–Lemire with
+//!   an exact big-decimal fallback), which parses straight from bytes.
 //! - [`NumFormat`]: how written numbers look. `Shortest` (the default) writes the shortest text
 //!   that parses back to the same `f64` (the `zmij` crate: Schubfach/yy, already in the tree
 //!   through serde_json), so every written number round-trips bit for bit; `Fixed(n)` writes `n`
 //!   decimals (what `--decimals N` asks for), by integer arithmetic when exact.
-
-/// Exact powers of ten representable in an f64 (10^0 … 10^22).
-pub(crate) const POW10: [f64; 23] = [
-    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18,
-    1e19, 1e20, 1e21, 1e22,
-];
 
 /// Parse a finite float (surrounding spaces already trimmed): the whole text must be a number.
 /// `None` for malformed text and for values that are not finite (`inf`, `nan`, `1e999`).
@@ -37,46 +31,21 @@ pub fn parse_f64_bytes(b: &[u8]) -> Option<f64> {
 /// (`[+-]digits[.digits][e[+-]digits]`, `.5`, `1.`); `inf`/`nan` words are refused.
 #[inline]
 pub fn parse_f64_prefix(b: &[u8]) -> Option<(f64, usize)> {
-    // Clinger's fast path for `[+-]digits[.digits]` with ≤ 15 significant digits, not followed
-    // by an exponent.
-    let mut i = 0;
-    let neg = match b.first() {
-        Some(b'-') => {
-            i = 1;
-            true
-        }
-        Some(b'+') => {
-            i = 1;
-            false
-        }
-        _ => false,
-    };
-    let mut mant: u64 = 0;
-    let s0 = i;
-    while i < b.len() && b[i].is_ascii_digit() {
-        mant = mant.wrapping_mul(10).wrapping_add((b[i] - b'0') as u64);
-        i += 1;
-    }
-    let mut digits = i - s0;
-    let mut frac = 0usize;
-    if i < b.len() && b[i] == b'.' {
-        i += 1;
-        let f0 = i;
-        while i < b.len() && b[i].is_ascii_digit() {
-            mant = mant.wrapping_mul(10).wrapping_add((b[i] - b'0') as u64);
-            i += 1;
-        }
-        frac = i - f0;
-        digits += frac;
-    }
-    if digits > 0 && digits <= 15 && frac <= 22 && !(i < b.len() && (b[i] | 0x20) == b'e') {
-        let v = mant as f64 / POW10[frac];
-        return Some((if neg { -v } else { v }, i));
-    }
-    if digits == 0 {
+    // Clinger's fast path (shared with the G-code reader) for `[+-]digits[.digits]` with ≤ 15
+    // significant digits, not followed by an exponent.
+    match truepos_math::decimal::decimal_prefix(b) {
+        Ok(r) => Some(r),
         // No digits: not a number in our syntax (this also refuses `inf`, `nan`, `infinity`).
-        return None;
+        Err(0) => None,
+        Err(_) => parse_f64_prefix_slow(b),
     }
+}
+
+/// Longer mantissas and exponents: Eisel–Lemire with its exact fallback (`fast-float2`). Kept
+/// out of line so the fast path above stays small where it is inlined.
+#[cold]
+#[inline(never)]
+fn parse_f64_prefix_slow(b: &[u8]) -> Option<(f64, usize)> {
     let (v, n) = fast_float2::parse_partial::<f64, _>(b).ok()?;
     v.is_finite().then_some((v, n))
 }

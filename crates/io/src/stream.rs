@@ -68,6 +68,12 @@ impl Chunk {
     }
     /// The fields of data row `r`, checked against the header width.
     pub fn fields<'a>(&'a self, r: usize, buf: &mut Vec<(usize, usize)>) -> Result<Vec<&'a str>, InputError> {
+        let line = self.split_row(r, buf)?;
+        Ok(buf.iter().map(|&(a, b)| &line[a..b]).collect())
+    }
+    /// The text of data row `r` and its field ranges in `buf` (no allocation), checked against
+    /// the header width.
+    pub fn split_row<'a>(&'a self, r: usize, buf: &mut Vec<(usize, usize)>) -> Result<&'a str, InputError> {
         let line = self.row_text(r);
         split_fields(line, buf);
         if buf.len() != self.header.len() {
@@ -78,7 +84,7 @@ impl Chunk {
                 format!("ragged row: {} fields, the header has {}", buf.len(), self.header.len()),
             ));
         }
-        Ok(buf.iter().map(|&(a, b)| &line[a..b]).collect())
+        Ok(line)
     }
     /// Parse columns `idx` of every row (row-major), in parallel.
     pub fn f64_columns_at(&self, idx: &[usize]) -> Result<Vec<f64>, InputError> {
@@ -400,6 +406,11 @@ impl Drop for BackgroundWriter {
     }
 }
 
+thread_local! {
+    /// Field ranges of the row being formatted, one buffer per thread.
+    static FIELDS: std::cell::RefCell<Vec<(usize, usize)>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
 /// What [`rewrite_points`] did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct RewriteSummary {
@@ -481,17 +492,20 @@ where
         f(chunk.first_row(), &mut pts, &mut ex)
             .map_err(|(r, msg)| InputError::at(input, chunk.line_number(r), None, msg))?;
         let pieces = crate::csv::format_rows_parallel(chunk.n_rows(), fmt, |r, cw| {
-            let mut buf = Vec::with_capacity(width);
-            let fields = chunk.fields(r, &mut buf)?;
-            let io = |e: std::io::Error| InputError::new(format!("formatting: {e}"));
-            for src in &plan {
-                match *src {
-                    Src::Point(k) => cw.field_f64(pts[r][k]).map_err(io)?,
-                    Src::Extra(k) => cw.field_f64(ex[r][k]).map_err(io)?,
-                    Src::Pass(c) => cw.field_str(fields[c]).map_err(io)?,
+            // Field ranges of the row (no allocation per row: one buffer per thread).
+            FIELDS.with_borrow_mut(|buf| -> Result<(), InputError> {
+                let line = chunk.split_row(r, buf)?;
+                let io = |e: std::io::Error| InputError::new(format!("formatting: {e}"));
+                for src in &plan {
+                    match *src {
+                        Src::Point(k) => cw.field_f64(pts[r][k]).map_err(io)?,
+                        Src::Extra(k) => cw.field_f64(ex[r][k]).map_err(io)?,
+                        Src::Pass(c) => cw.field_str(&line[buf[c].0..buf[c].1]).map_err(io)?,
+                    }
                 }
-            }
-            cw.end_row().map_err(io)
+                Ok(())
+            })?;
+            cw.end_row().map_err(|e| InputError::new(format!("formatting: {e}")))
         })?;
         for p in pieces {
             w.send(p)?;

@@ -1,5 +1,5 @@
 //! The stream files of delay calibration, defined once: [`read_stream`] reads `t_s` and three
-//! value columns of a CSV; [`input_error`] turns a [`LatencyError`] about a stream into an input
+//! value columns of a CSV ([`read_streams`]: the machine and probe files at once); [`input_error`] turns a [`LatencyError`] about a stream into an input
 //! error naming the file and line; [`write_centres`] writes the stylus centres of
 //! `truepos latency apply`.
 
@@ -28,6 +28,17 @@ pub fn read_stream(path: &Path, cols: [&str; 3]) -> Result<StreamFile, InputErro
         v.push([c[1], c[2], c[3]]);
     }
     Ok(StreamFile { table, t, v })
+}
+
+/// Read the machine stream (`t_s,x_mm,y_mm,z_mm`) and the probe stream (`t_s,a_mm,b_mm,c_mm`)
+/// at the same time (each read is itself parallel; reading both at once overlaps their serial
+/// parts: mapping, header, allocation). A bad machine file is reported before a bad probe file.
+pub fn read_streams(machine: &Path, probe: &Path) -> Result<(StreamFile, StreamFile), InputError> {
+    let (m, p) = rayon::join(
+        || read_stream(machine, crate::task::MACHINE_COLUMNS),
+        || read_stream(probe, crate::task::PROBE_COLUMNS),
+    );
+    Ok((m?, p?))
 }
 
 /// Turn a library error into an input error naming the file and line where there is one.

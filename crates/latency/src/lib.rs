@@ -14,6 +14,8 @@
 //!   extrapolates each to zero deflection and runs one of the four methods
 //!   ([`Method::Artefact`], [`Method::Speeds`], [`Method::Scan`], [`Method::Inout`]), or picks
 //!   one ([`Method::Auto`]).
+//! - [`probing::delay_by_feeds`]: the delay through a controller, a sphere probed at several
+//!   feeds (radius against feed).
 //! - [`task`]: `truepos latency` and `latency apply` as library calls (files in, a `Report` back).
 //! - [`file::read_stream`]: a stream CSV; [`file::input_error`]: stream errors with file and line.
 //! - [`apply`]: stylus-centre positions at the probe stamps for a known delay.
@@ -27,6 +29,7 @@ pub mod contact;
 pub mod file;
 pub mod geom;
 pub mod json;
+pub mod probing;
 pub mod scan;
 pub mod stream;
 pub mod task;

@@ -4,7 +4,7 @@
 //! Entry points: [`estimate_files`] (`truepos latency`), [`apply_files`] (`truepos latency
 //! apply`). Errors about a stream name its file and line ([`crate::file::input_error`]).
 
-use crate::file::{input_error, read_stream, write_centres};
+use crate::file::{input_error, read_streams, write_centres};
 use crate::{Estimate, Options, Streams};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -37,8 +37,7 @@ impl Report for Estimated {
 /// `truepos latency`: the system delay from the machine stream (`t_s,x_mm,y_mm,z_mm`) and the
 /// probe stream (`t_s,a_mm,b_mm,c_mm`). The estimate's warnings are in `estimate.warnings`.
 pub fn estimate_files(machine: &Path, probe: &Path, options: Options) -> Result<Estimated, InputError> {
-    let m = read_stream(machine, MACHINE_COLUMNS)?;
-    let p = read_stream(probe, PROBE_COLUMNS)?;
+    let (m, p) = read_streams(machine, probe)?;
     let s = Streams { machine_t: &m.t, machine: &m.v, probe_t: &p.t, probe: &p.v };
     let estimate = crate::estimate(&s, &options).map_err(|e| input_error(e, &m, &p))?;
     Ok(Estimated { estimate, options })
@@ -86,8 +85,7 @@ pub fn apply_files(
     if !delay_s.is_finite() {
         return Err(InputError::new("the delay must be a finite number of seconds").into());
     }
-    let m = read_stream(machine, MACHINE_COLUMNS)?;
-    let p = read_stream(probe, PROBE_COLUMNS)?;
+    let (m, p) = read_streams(machine, probe)?;
     let s = Streams { machine_t: &m.t, machine: &m.v, probe_t: &p.t, probe: &p.v };
     s.check().map_err(|e| input_error(e, &m, &p))?;
     let mut out = Vec::new();

@@ -17,9 +17,11 @@
 //!   uncertainties.
 //! - [`interp`]: piecewise-linear interpolation on sorted abscissae.
 //! - [`air`]: refractive index of air (Ciddor, modified Edlén) as NIST computes it.
+//! - [`decimal`]: the exact fast path from decimal text to `f64` that every number reader shares.
 
 pub mod air;
 pub mod bestfit;
+pub mod decimal;
 pub mod interp;
 pub mod lsq;
 pub mod stats;

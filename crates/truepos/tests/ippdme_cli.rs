@@ -225,3 +225,26 @@ fn head_offset_acquisition_through_ippdme_turns_the_rotary_table() {
         assert!(v.abs() < 1e-4, "offset[{k}] = {v} mm: {j}");
     }
 }
+
+/// `latency probe` over `ippdme://`: the virtual CMM latches the contact itself (its reports carry
+/// no delay, whatever the PtMeas speed), so the feeds method must find zero within three of its
+/// standard uncertainties (plus 5 µs), on the realistic machine with its touch noise and errors.
+#[test]
+fn latency_probe_through_ippdme_finds_no_delay_on_a_cmm_that_latches_exactly() {
+    let dir = tempfile::tempdir().unwrap();
+    let part = dir.path().join("part.toml");
+    std::fs::write(&part, "[[sphere]]\ncenter_mm = [10, -5, 20]\ndiameter_mm = 25\n").unwrap();
+    let (mut child, addr) = spawn_server(&part, &[]);
+    home_with_probe1(&addr);
+    let out = truepos()
+        .args(["latency", "probe", "--controller", &format!("ippdme://{addr}"), "--near=10,-5,20"])
+        .args(["--diameter-mm", "25", "--tip-diameter-mm", "3", "--feeds-mm-min", "60,240,960", "--json"])
+        .output()
+        .unwrap();
+    let _ = child.kill();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let (d, u) = (j["delay_s"].as_f64().unwrap(), j["uncertainty_s"].as_f64().unwrap());
+    eprintln!("latency probe through ippdme (realistic CMM): {:.2} µs ± {:.2} µs", d * 1e6, u * 1e6);
+    assert!(u > 0.0 && d.abs() < 3.0 * u + 5e-6, "delay {d} s ± {u}: {j}");
+}

@@ -308,3 +308,30 @@ fn implausible_delay_is_flagged() {
     assert!(!v["warnings"].to_string().contains("implausible"));
     assert!((v["delay_s"].as_f64().unwrap() - 0.0025).abs() < 0.0001, "{v}");
 }
+
+/// `latency probe` on the virtual machine tool: it latches at the first 1 ms servo sample after
+/// the trigger, at a random phase, so its true mean delay is 0.5 ms. The sphere probed at four
+/// feeds gives the delay as minus the slope of radius against feed; the estimate must agree with
+/// 0.5 ms within three of its own standard uncertainties (plus 20 µs for the finite sample of
+/// phases), and its uncertainty must be a real one (neither zero nor larger than the delay).
+#[test]
+fn latency_probe_finds_the_virtual_latch_delay() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_truepos"))
+        .args(["latency", "probe", "--near=120,45,30", "--diameter-mm", "25", "--tip-diameter-mm", "3"])
+        .args(["--feeds-mm-min", "60,240,960,1920", "--points", "50", "--json"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let (d, u) = (j["delay_s"].as_f64().unwrap(), j["uncertainty_s"].as_f64().unwrap());
+    let truth = j["virtual_truth_delay_s"].as_f64().unwrap();
+    assert_eq!(truth, 0.0005);
+    assert!(u > 1e-6 && u < truth, "u = {u} s: {j}");
+    assert!((d - truth).abs() < 3.0 * u + 20e-6, "delay {d} s ± {u} against {truth} s: {j}");
+    // One feed cannot give a slope: refused before any motion.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_truepos"))
+        .args(["latency", "probe", "--near=120,45,30", "--diameter-mm", "25", "--feeds-mm-min", "60"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
+}

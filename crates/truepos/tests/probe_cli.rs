@@ -133,4 +133,23 @@ fn probe_sphere_through_linuxcnc() {
     assert_eq!(out.status.code(), Some(3), "{err}");
     assert!(err.contains("G38.2") && err.contains("without contact") && err.contains(&sim.url()), "{err}");
     assert!(out.stdout.is_empty());
+    // The delay of LinuxCNC's probe latch by the feeds method (`latency probe`): its probe input
+    // is sampled in the 1 ms servo thread, so a latch is 0…1 period late at a random phase:
+    // 0.5 ms on average (one run measured 500.7 ± 2.2 µs). Allowed: 5 u plus 50 µs for the
+    // finite sample of phases.
+    let out = bin()
+        .args(["latency", "probe", "--controller", &sim.url(), "--near=120,45,30", "--diameter-mm", "25"])
+        .args(["--tip-diameter-mm", "3", "--feeds-mm-min", "50,100,200,400", "--points", "12"])
+        .args(["--clearance-mm", "0.5", "--json"])
+        .output()
+        .unwrap();
+    let j = json(&out);
+    let (d, u) = (j["delay_s"].as_f64().unwrap(), j["uncertainty_s"].as_f64().unwrap());
+    eprintln!(
+        "latency probe through LinuxCNC (F50…F400, 12 points each): delay {:.1} µs ± {:.1} µs",
+        d * 1e6,
+        u * 1e6
+    );
+    assert!(u > 1e-7 && u < 1e-4, "u {u} s: {j}");
+    assert!((d - 0.0005).abs() < 5.0 * u + 50e-6, "delay {d} s ± {u}: {j}");
 }

@@ -9,7 +9,7 @@
 //! `truepos-latency`; this module reads the CSV files, maps errors to file/line messages and
 //! writes JSON, CSV and the report.
 
-use crate::output::emit;
+use crate::output::{emit, parse_triple};
 use crate::{Outcome, UsageError};
 use anyhow::Result;
 use std::path::PathBuf;
@@ -93,6 +93,50 @@ pub struct Args {
 pub enum Action {
     /// Stylus-centre positions machine(t + delay) + deflection(t) at the probe time stamps.
     Apply(ApplyArgs),
+    /// The delay through a controller: a reference sphere probed at several feeds, radius
+    /// against feed (a late latch makes a sphere probed from outside smaller by feed × delay).
+    Probe(ProbeArgs),
+}
+
+#[derive(clap::Args, Debug)]
+#[command(after_help = "Example:
+  truepos latency probe --controller linuxcncrsh://127.0.0.1:5007 --near=120,45,30 --diameter-mm 25 \\
+      --tip-diameter-mm 3 --feeds-mm-min 60,120,240,480 --json
+
+The sphere is probed over its upper hemisphere at every feed (as `truepos probe sphere` does) and
+fitted; the slope of the fitted radius against the feed is minus the delay, with its standard
+uncertainty from the sphere fits (scaled up by the line's scatter when that is larger). A
+controller that samples its probe input every servo period T latches 0…T late: expect about T/2.
+With --controller virtual (servo period 1 ms) the JSON has the virtual machine's true mean
+latch delay, 0.5 ms.")]
+pub struct ProbeArgs {
+    /// The machine: virtual, linuxcncrsh://HOST:PORT[?password=…] or ippdme://HOST:PORT.
+    #[arg(long, default_value = "virtual")]
+    pub controller: String,
+    /// Nominal centre of the reference sphere X,Y,Z (mm; known to better than --clearance-mm).
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
+    pub near: [f64; 3],
+    /// Nominal sphere diameter (mm).
+    #[arg(long)]
+    pub diameter_mm: f64,
+    /// Probing feeds (mm/min), comma-separated; at least two, the highest ≥ 1.5 × the lowest.
+    #[arg(long, value_delimiter = ',', default_value = "60,120,240,480")]
+    pub feeds_mm_min: Vec<f64>,
+    /// Points per sphere.
+    #[arg(long, default_value_t = 25)]
+    pub points: usize,
+    /// Distance from the nominal surface at which each probing move starts (mm).
+    #[arg(long, default_value_t = 2.0)]
+    pub clearance_mm: f64,
+    /// Stylus ball diameter (mm).
+    #[arg(long, default_value_t = 0.0)]
+    pub tip_diameter_mm: f64,
+    /// Seed of the virtual machine's errors.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(clap::Args, Debug)]
@@ -178,6 +222,9 @@ pub fn run(a: Args) -> Result<Outcome> {
         emit(&task::apply_files(&ap.machine, &ap.probe, ap.delay_s, &ap.output)?, ap.json)?;
         return Ok(Outcome::Done);
     }
+    if let Some(Action::Probe(p)) = a.action {
+        return probe_feeds(p);
+    }
     let (Some(machine), Some(probe)) = (a.machine.as_ref(), a.probe.as_ref()) else {
         return Err(UsageError(
             "truepos latency needs --machine FILE and --probe FILE (or the apply subcommand)".into(),
@@ -187,6 +234,34 @@ pub fn run(a: Args) -> Result<Outcome> {
     let r = task::estimate_files(machine, probe, options(&a)?)?;
     for w in &r.estimate.warnings {
         eprintln!("warning: {w}");
+    }
+    emit(&r, a.json)?;
+    Ok(Outcome::Done)
+}
+
+/// `truepos latency probe`: the delay by feeds through `--controller`.
+fn probe_feeds(a: ProbeArgs) -> Result<Outcome> {
+    let plan = truepos_head::acquire::SphereProbing {
+        near_mm: truepos_math::Point3::from(a.near),
+        diameter_mm: a.diameter_mm,
+        points: a.points,
+        feed_mm_s: 1.0,
+        clearance_mm: a.clearance_mm,
+        tip_radius_mm: 0.5 * a.tip_diameter_mm,
+    };
+    let feeds: Vec<f64> = a.feeds_mm_min.iter().map(|f| f / 60.0).collect();
+    let nominal = Some((plan.near_mm, 0.5 * a.diameter_mm, plan.tip_radius_mm));
+    let mut opened = super::probe::open_probing_machine(&a.controller, nominal, a.seed)?;
+    use truepos_head::acquire::AcquireError;
+    let mut r = match truepos_latency::probing::delay_by_feeds(opened.machine.as_mut(), &plan, &feeds) {
+        Ok(r) => r,
+        Err(AcquireError::Plan(m)) => return Err(UsageError(m).into()),
+        Err(e) => return Err(crate::DeviceError(e.to_string()).into()),
+    };
+    if opened.virtual_truth.is_some() {
+        // The virtual machine tool latches at the first servo sample after the trigger, at a
+        // random phase: on average half a servo period late.
+        r.virtual_truth_s = Some(0.5 * truepos_cell::probing::MachineToolConfig::default().servo_period_s);
     }
     emit(&r, a.json)?;
     Ok(Outcome::Done)
