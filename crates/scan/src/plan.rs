@@ -842,6 +842,18 @@ impl Segment {
         CurveGrid { ds, tan, k, dk }
     }
 
+    /// Whether the carrier run at constant speed `v` keeps the acceleration (v²·|K|) and jerk
+    /// (v³·|dK/ds|) limits, with [`MARGIN`], beyond the share `from` of its parameter (plus
+    /// three grid steps, clear of a curvature step at `from`).
+    fn tail_keeps_limits(&self, f: &Feature, tip: f64, from: f64, v: f64, p: &Params) -> bool {
+        let g = self.grid(f, tip);
+        let n = g.k.len() - 1;
+        let i0 = ((from * n as f64).ceil() as usize + 3).min(n);
+        (i0..=n).all(|i| {
+            g.k[i].norm() * v * v <= MARGIN * p.accel && g.dk[i].norm() * v.powi(3) <= MARGIN * p.jerk
+        })
+    }
+
     fn hold(kind: SegmentKind, feature: usize, p: Point3, duration: f64) -> Segment {
         Segment {
             kind,
@@ -1040,6 +1052,7 @@ fn quintic_between(
 /// close features needs a wider swing, a long transfer a nearly straight one) are each given the
 /// fastest profile within the limits ([`curve_profile`]); the shortest in time wins. When none
 /// keeps the limits (a U-turn between close neighbours), wider swings up to 6 chords are tried.
+/// `Err` holds the best carrier found when none keeps the limits (timed above them).
 fn transfer(
     i: usize,
     f: &Feature,
@@ -1047,7 +1060,7 @@ fn transfer(
     (a, da, ka): (Point3, Vector3, Vector3),
     (b, db): (Point3, Vector3),
     speeds: (f64, f64, f64),
-) -> Segment {
+) -> Result<Segment, Box<Segment>> {
     let tip = p.tip_radius;
     let chord = (b - a).norm().max(1.0);
     let mut best: Option<Segment> = None;
@@ -1108,9 +1121,67 @@ fn transfer(
     // no candidate keeps the limits (a known gap, see docs/performance-scan.md): the first
     // smooth carrier, else the least kinked one, timed as well as the curve allows
     let fallback = fallback.or(kinked.map(|(_, s)| s));
-    best.or_else(|| fallback.map(|s| s.timed(f, tip, speeds, p))).unwrap_or_else(|| {
-        Segment::new(SegmentKind::Transfer, i, Geom::Line { a, b }, f, tip).timed(f, tip, speeds, p)
+    best.ok_or_else(|| {
+        Box::new(fallback.map(|s| s.timed(f, tip, speeds, p)).unwrap_or_else(|| {
+            Segment::new(SegmentKind::Transfer, i, Geom::Line { a, b }, f, tip).timed(f, tip, speeds, p)
+        }))
     })
+}
+
+/// The transfer as one or three moves. When no single curve from `start` to `end` keeps the
+/// limits at the end speeds (a high scanning speed with a low jerk limit: the curvature may grow
+/// by at most 0.95·j/v³ per mm, too little for a tight turn), the transfer slows down before it
+/// turns: a lead-out that straightens from the release's curvature (a quintic ending straight
+/// along the release direction, curvature-continuous at both ends) while slowing to a bend speed
+/// `u`, the turn at `u` ([`transfer`]), and a straight lead-in on the approach line's extension
+/// back up to the end speed. Bend speeds from half to a twentieth of the start speed, lead-out
+/// lengths from one to eight times the least one are tried; the first that keeps the limits is
+/// taken. When none does, the single best carrier is returned (timed above the limits).
+fn transfer_moves(
+    i: usize,
+    f: &Feature,
+    p: &Params,
+    start: (Point3, Vector3, Vector3),
+    end: (Point3, Vector3),
+    speeds: (f64, f64, f64),
+) -> Vec<Segment> {
+    let fallback = match transfer(i, f, p, start, end, speeds) {
+        Ok(s) => return vec![s],
+        Err(s) => *s,
+    };
+    let tip = p.tip_radius;
+    let (a, da, ka) = start;
+    let (b, db) = end;
+    let (v0, vmax, v1) = speeds;
+    if v0 <= 0.0 || da.norm() < 0.5 || db.norm() < 0.5 {
+        return vec![fallback];
+    }
+    let straighten = straighten_len(ka, v0, p);
+    for share in [0.5, 0.25, 0.1, 0.05] {
+        let u = share * v0;
+        let l3 = change_dist(u, v1, p.accel, p.jerk) + 0.5;
+        let c = b - db * l3;
+        for mul in [1.0, 2.0, 4.0, 8.0] {
+            let l1 = mul * (straighten + change_dist(v0, u, 0.5 * p.accel, 0.5 * p.jerk) + 0.5);
+            let m = a + da * l1;
+            let out =
+                Segment::new(SegmentKind::Transfer, i, quintic_between(a, da, ka, m, da, (l1, l1)), f, tip);
+            let Some(pr) = out.profile_with_floor(f, tip, (v0, v0, u), p, 1.0) else {
+                continue;
+            };
+            let Ok(turn) = transfer(i, f, p, (m, da, Vector3::zeros()), (c, db), (u, vmax, u)) else {
+                continue;
+            };
+            let lead_in = Segment::new(SegmentKind::Transfer, i, Geom::Line { a: c, b }, f, tip).timed(
+                f,
+                tip,
+                (u, u.max(v1), v1),
+                p,
+            );
+            return vec![Segment { profile: pr, ..out }, turn, lead_in];
+        }
+    }
+    vec![fallback]
 }
 
 /// Largest curvature (1/mm) of a quintic carrier, from its exact derivatives at 1024 steps of λ
@@ -1135,6 +1206,14 @@ fn max_curvature(g: &Geom) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// Length over which a curvature `k` (1/mm) can fall to zero at speed `v` with the curvature
+/// term of the jerk, v³·|dK/ds|, within half the jerk limit, on a quintic Hermite with end
+/// derivatives as long as the move (its curvature falls as κ·(1 − 9λ + 18λ² − 10λ³), at most
+/// 9 times faster than on average).
+fn straighten_len(k: Vector3, v: f64, p: &Params) -> f64 {
+    9.0 * k.norm() * v.powi(3) / (0.5 * p.jerk)
+}
+
 /// Distance a jerk-limited stop from `v` needs at half the limits (room for the final stop).
 fn stop_distance(v: f64, p: &Params) -> f64 {
     let (a, j) = (0.5 * p.accel, 0.5 * p.jerk);
@@ -1148,10 +1227,9 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
     let peak = p.deflection + p.overshoot;
     let x1 = 1.5 * peak / cot;
     let settle_len = settle_extension(p);
-    let lift = p.clearance;
     let xr = 0.5;
     let k = cot / (3.0 * xr * xr);
-    let rel_len = xr + ((p.deflection + lift) - k * xr.powi(3)) / cot;
+    let rel_len = |lift: f64| xr + ((p.deflection + lift) - k * xr.powi(3)) / cot;
     let v = p.scan_speed;
     let mut segs: Vec<Segment> = Vec::new();
     let mut prev_end: Option<(Point3, Vector3, Vector3)> = None;
@@ -1170,16 +1248,19 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
             // at a fraction of the scanning speed at low limits)
             None => {
                 let h = a - w * (2.0 * stop_distance(v, p) + 1.0);
-                Segment::new(SegmentKind::Transfer, i, Geom::Line { a: h, b: a }, f, tip).timed(
+                Some(Segment::new(SegmentKind::Transfer, i, Geom::Line { a: h, b: a }, f, tip).timed(
                     f,
                     tip,
                     (0.0, p.move_speed, v),
                     p,
-                )
+                ))
             }
-            Some(start) => transfer(i, f, p, start, (a, w), (v, p.move_speed, v)),
+            Some(start) => {
+                segs.extend(transfer_moves(i, f, p, start, (a, w), (v, p.move_speed, v)));
+                None
+            }
         };
-        segs.push(tr);
+        segs.extend(tr);
         let mut ap = Segment::new(SegmentKind::Approach, i, Geom::Line { a, b: c0 }, f, tip).timed(
             f,
             tip,
@@ -1216,15 +1297,27 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
         .timed(f, tip, (v, v, v), p);
         sc.feedback = true;
         segs.push(sc);
+        // The release lifts by `clearance`, less where its straight-sloped tail would bend too
+        // tightly for the limits at scanning speed (in a small bore the tail spirals towards the
+        // axis and its curvature grows without bound): the transfer, checked against the
+        // limits, takes over from where the tail still keeps them (at least 0.2 mm off).
         let pen = Penetration::Release { d: p.deflection, k, xr, c: cot };
-        let rl = Segment::new(
-            SegmentKind::Release,
-            i,
-            Geom::Along { u0: ext, u1: ext + rel_len / m, pen, x_len: rel_len },
-            f,
-            tip,
-        )
-        .timed(f, tip, (v, v, v), p);
+        let mut lift = p.clearance;
+        let rl = loop {
+            let len = rel_len(lift);
+            let rl = Segment::new(
+                SegmentKind::Release,
+                i,
+                Geom::Along { u0: ext, u1: ext + len / m, pen: pen.clone(), x_len: len },
+                f,
+                tip,
+            )
+            .timed(f, tip, (v, v, v), p);
+            if lift <= 0.2 || rl.tail_keeps_limits(f, tip, xr / len, v, p) {
+                break rl;
+            }
+            lift = (0.8 * lift).max(0.2);
+        };
         let end = rl.end_state(f, tip);
         segs.push(rl);
         prev_end = Some(end);
@@ -1233,8 +1326,9 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
     if let Some((e, de, ke)) = prev_end {
         let last = features.len() - 1;
         let f = &features[last];
-        let d = 2.0 * stop_distance(v, p) + 1.0;
-        segs.push(transfer(last, f, p, (e, de, ke), (e + de * d, de), (v, v, 0.0)));
+        // room to straighten out of the release's curvature, then to stop
+        let d = 2.0 * stop_distance(v, p) + 1.0 + straighten_len(ke, v, p);
+        segs.extend(transfer_moves(last, f, p, (e, de, ke), (e + de * d, de), (v, v, 0.0)));
     }
     segs
 }

@@ -266,3 +266,92 @@ fn every_blended_segment_keeps_the_limits() {
         "{worst:?}"
     );
 }
+
+/// The stored proptest case that broke the acceleration limit (5.0 vs 4.1 m/s²): a bore, then a
+/// line, scanned at 46.5 mm/s with a low jerk limit (14 m/s³) at a 20° approach.
+#[test]
+fn bore_then_line_at_high_scan_speed_and_low_jerk() {
+    let z = Vector3::z();
+    let fs = vec![
+        Feature {
+            id: "f0".into(),
+            geometry: Geometry::Circle {
+                center: Point3::new(42.32731732521271, -28.84798800303543, 17.747238745265605),
+                axis: z,
+                radius: 9.326779010507353,
+                side: Side::Inside,
+                start: 0.0,
+                sweep: 5.802800755181947,
+            },
+        },
+        Feature {
+            id: "f1".into(),
+            geometry: Geometry::Line {
+                start: Point3::new(32.72334316653007, -28.787454419442536, 23.48161078345263),
+                end: Point3::new(21.88231535477807, -25.25607776594899, 27.22346793144483),
+                normal: Vector3::new(0.32626900522420815, 0.0, 0.9452769627098745),
+            },
+        },
+    ];
+    let p = Params {
+        approach_angle: 0.3490658503988659,
+        scan_speed: 46.53284097979764,
+        accel: 4142.081579453729,
+        jerk: 14356.5290755361,
+        ..Params::default()
+    };
+    report_and_check(&fs, &p);
+}
+
+/// A small bore scanned over half a radian at 38 mm/s (3.4 m/s², 43 m/s³): the stop after its
+/// release (a stored proptest case).
+#[test]
+fn stop_after_a_small_bore() {
+    let fs = vec![Feature {
+        id: "f0".into(),
+        geometry: Geometry::Circle {
+            center: Point3::origin(),
+            axis: Vector3::z(),
+            radius: 5.355506820638347,
+            side: Side::Inside,
+            start: 0.0,
+            sweep: 0.5,
+        },
+    }];
+    let p = Params {
+        approach_angle: 0.8701117926700492,
+        scan_speed: 38.20477225885898,
+        move_speed: 50.0,
+        accel: 3410.8607086807283,
+        jerk: 42939.9217216702,
+        ..Params::default()
+    };
+    report_and_check(&fs, &p);
+}
+
+/// Print the segments and the measured maxima of both styles, then [`check`] them.
+fn report_and_check(fs: &[Feature], p: &Params) {
+    validate(fs, p).unwrap();
+    for style in [Style::Blended, Style::Classic] {
+        let pl = plan(fs, p, style);
+        for (k, s) in pl.segments.iter().enumerate() {
+            eprintln!(
+                "{k} {:?} start {:.4} dur {:.4} v0 {:.1} v1 {:.1}",
+                s.kind,
+                pl.starts[k],
+                s.duration(),
+                s.start_speed(),
+                s.end_speed()
+            );
+        }
+        let (v, a, j, (t, k)) = maxima_at(&pl, 2e-4);
+        eprintln!(
+            "{style:?}: max v {v:.1} mm/s, |a| {a:.1} mm/s², |j| {j:.0} mm/s³ (at {t:.4} s, segment {k})"
+        );
+        for (kind, m) in by_kind(&pl, 2e-4) {
+            eprintln!("  {kind:?}: {m:?}");
+        }
+        // see `check` for the 1 %
+        check(&pl, p, 5e-4).unwrap();
+    }
+}
