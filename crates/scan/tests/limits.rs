@@ -296,6 +296,7 @@ fn bore_then_line_at_high_scan_speed_and_low_jerk() {
     let p = Params {
         approach_angle: 0.3490658503988659,
         scan_speed: 46.53284097979764,
+        move_speed: 50.0,
         accel: 4142.081579453729,
         jerk: 14356.5290755361,
         ..Params::default()
