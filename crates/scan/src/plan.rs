@@ -1136,7 +1136,9 @@ fn transfer(
 /// `u`, the turn at `u` ([`transfer`]), and a straight lead-in on the approach line's extension
 /// back up to the end speed. Bend speeds from half to a twentieth of the start speed, lead-out
 /// lengths from one to eight times the least one are tried; the first that keeps the limits is
-/// taken. When none does, the single best carrier is returned (timed above the limits).
+/// taken. When none does, the single best carrier is returned (timed above the limits). When a
+/// single curve keeps the limits, two turns joined by a straight line ([`corner_turns`]) replace
+/// it if they are faster.
 fn transfer_moves(
     i: usize,
     f: &Feature,
@@ -1145,23 +1147,91 @@ fn transfer_moves(
     end: (Point3, Vector3),
     speeds: (f64, f64, f64),
 ) -> Vec<Segment> {
-    let fallback = match transfer(i, f, p, start, end, speeds) {
-        Ok(s) => return vec![s],
-        Err(s) => *s,
-    };
+    let total = |v: &[Segment]| v.iter().map(Segment::duration).sum::<f64>();
+    match transfer(i, f, p, start, end, speeds) {
+        // slowing down for a sharp turn can also beat a single curve taken at the end speeds
+        Ok(s) => match corner_turns(i, f, p, start, end, speeds) {
+            Some(v) if total(&v) < s.duration() => v,
+            _ => vec![s],
+        },
+        Err(s) => slow_turn(i, f, p, start, end, speeds, &[0.5, 0.25, 0.1, 0.05], &[1.0, 2.0, 4.0, 8.0])
+            .unwrap_or_else(|| vec![*s]),
+    }
+}
+
+/// A long transfer as two turns joined by a straight line run up to the positioning speed: the
+/// first turn from the release into the direction between the two turns, the second from that
+/// direction into the approach, each a quintic of [`transfer`] ending (starting) straight at a
+/// join speed `u`. Turn legs of 0.15 to 0.3 chords, join speeds of 1.5 and 2 times the faster
+/// end speed (at most the positioning speed); the fastest that keeps the limits. Only for
+/// chords of 20 mm and more between moving ends.
+fn corner_turns(
+    i: usize,
+    f: &Feature,
+    p: &Params,
+    start: (Point3, Vector3, Vector3),
+    (b, db): (Point3, Vector3),
+    (v0, vmax, v1): (f64, f64, f64),
+) -> Option<Vec<Segment>> {
     let tip = p.tip_radius;
-    let (a, da, ka) = start;
-    let (b, db) = end;
-    let (v0, vmax, v1) = speeds;
+    let (a, da, _) = start;
+    let chord = (b - a).norm();
+    if chord < 20.0 || v0 <= 0.0 || v1 <= 0.0 {
+        return None;
+    }
+    let mut best: Option<(f64, Vec<Segment>)> = None;
+    for (share, mul) in [(0.15, 2.0), (0.2, 2.0), (0.25, 2.0), (0.3, 2.0), (0.2, 1.5), (0.3, 1.5)] {
+        let h = share * chord;
+        let (qa, qb) = (a + da * h, b - db * h);
+        if (qb - qa).norm() < 2.2 * h {
+            continue;
+        }
+        let dm = (qb - qa).normalize();
+        let (p1, p2) = (qa + dm * h, qb - dm * h);
+        let u = (mul * v0.max(v1)).min(vmax);
+        let Ok(t1) = transfer(i, f, p, start, (p1, dm), (v0, vmax, u)) else {
+            continue;
+        };
+        let Ok(t2) = transfer(i, f, p, (p2, dm, Vector3::zeros()), (b, db), (u, vmax, v1)) else {
+            continue;
+        };
+        let line = Segment::new(SegmentKind::Transfer, i, Geom::Line { a: p1, b: p2 }, f, tip).timed(
+            f,
+            tip,
+            (u, vmax, u),
+            p,
+        );
+        let t = t1.duration() + line.duration() + t2.duration();
+        if best.as_ref().is_none_or(|(bt, _)| t < *bt) {
+            best = Some((t, vec![t1, line, t2]));
+        }
+    }
+    best.map(|(_, v)| v)
+}
+
+/// Lead-out, turn at a bend speed and straight lead-in of [`transfer_moves`]: the first bend
+/// speed share (of the start speed) and lead-out length multiple that keep the limits.
+#[allow(clippy::too_many_arguments)]
+fn slow_turn(
+    i: usize,
+    f: &Feature,
+    p: &Params,
+    (a, da, ka): (Point3, Vector3, Vector3),
+    (b, db): (Point3, Vector3),
+    (v0, vmax, v1): (f64, f64, f64),
+    shares: &[f64],
+    muls: &[f64],
+) -> Option<Vec<Segment>> {
+    let tip = p.tip_radius;
     if v0 <= 0.0 || da.norm() < 0.5 || db.norm() < 0.5 {
-        return vec![fallback];
+        return None;
     }
     let straighten = straighten_len(ka, v0, p);
-    for share in [0.5, 0.25, 0.1, 0.05] {
+    for &share in shares {
         let u = share * v0;
         let l3 = change_dist(u, v1, p.accel, p.jerk) + 0.5;
         let c = b - db * l3;
-        for mul in [1.0, 2.0, 4.0, 8.0] {
+        for &mul in muls {
             let l1 = mul * (straighten + change_dist(v0, u, 0.5 * p.accel, 0.5 * p.jerk) + 0.5);
             let m = a + da * l1;
             let out =
@@ -1178,10 +1248,10 @@ fn transfer_moves(
                 (u, u.max(v1), v1),
                 p,
             );
-            return vec![Segment { profile: pr, ..out }, turn, lead_in];
+            return Some(vec![Segment { profile: pr, ..out }, turn, lead_in]);
         }
     }
-    vec![fallback]
+    None
 }
 
 /// Largest curvature (1/mm) of a quintic carrier, from its exact derivatives at 1024 steps of λ
