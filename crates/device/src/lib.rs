@@ -96,6 +96,26 @@ pub struct ProbeRequest {
 }
 
 impl ProbeRequest {
+    /// A probing that starts `clearance_mm` before the nominal surface point (along `approach`,
+    /// out of the material), searches as far beyond it, and retracts back to its start.
+    pub fn with_clearance(
+        nominal_mm: Point3,
+        approach: Vector3,
+        tip_radius_mm: f64,
+        clearance_mm: f64,
+        feed_mm_s: f64,
+    ) -> ProbeRequest {
+        ProbeRequest {
+            nominal_mm,
+            approach,
+            tip_radius_mm,
+            approach_mm: clearance_mm,
+            search_mm: clearance_mm,
+            retract_mm: clearance_mm,
+            feed_mm_s,
+        }
+    }
+
     /// Tip-centre position where the probing move starts.
     pub fn start_mm(&self) -> Point3 {
         self.nominal_mm + self.approach * (self.approach_mm + self.tip_radius_mm)

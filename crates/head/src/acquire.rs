@@ -155,14 +155,14 @@ impl SphereProbing {
         let r = 0.5 * self.diameter_mm;
         hemisphere_directions(self.points, MAX_POLAR_DEG.to_radians())
             .into_iter()
-            .map(|d| ProbeRequest {
-                nominal_mm: self.near_mm + d * r,
-                approach: d,
-                tip_radius_mm: self.tip_radius_mm,
-                approach_mm: self.clearance_mm,
-                search_mm: self.clearance_mm,
-                retract_mm: self.clearance_mm,
-                feed_mm_s: self.feed_mm_s,
+            .map(|d| {
+                ProbeRequest::with_clearance(
+                    self.near_mm + d * r,
+                    d,
+                    self.tip_radius_mm,
+                    self.clearance_mm,
+                    self.feed_mm_s,
+                )
             })
             .collect()
     }

@@ -35,8 +35,16 @@ pub fn read_points(path: impl AsRef<Path>) -> Result<PointSet, InputError> {
         let points = x.iter().zip(y).zip(z).map(|((&x, &y), &z)| Point3::new(x, y, z)).collect();
         return Ok(PointSet { points, ids: c.strings("id"), skipped_invalid: 0 });
     }
-    let t = Table::read(path)?;
-    // `[f64; 3]` and `Point3` have the same layout: this collect reuses the allocation.
+    // The plain case (no `id`, no quotes, all values good) is parsed straight from the text;
+    // anything else comes back as a table and takes the general path (exact errors).
+    let t = match Table::read_rows_direct(path, &["x_mm", "y_mm", "z_mm"])? {
+        Ok(rows) => {
+            // `[f64; 3]` and `Point3` have the same layout: this collect reuses the allocation.
+            let points = rows.into_iter().map(Point3::from).collect();
+            return Ok(PointSet { points, ids: None, skipped_invalid: 0 });
+        }
+        Err(t) => t,
+    };
     let points = t.f64_rows(&["x_mm", "y_mm", "z_mm"])?.into_iter().map(Point3::from).collect();
     let ids = match t.column("id") {
         Some(_) => Some(t.str_column("id")?),

@@ -262,17 +262,15 @@ impl InspectPlan {
                 let a =
                     self.start_angle_deg.to_radians() + std::f64::consts::TAU * k as f64 / self.points as f64;
                 let e = Vector3::new(a.cos(), a.sin(), 0.0);
-                ProbeRequest {
-                    nominal_mm: c + e * r,
-                    // Out of the material: towards the hole's axis.
-                    approach: -e,
-                    tip_radius_mm: self.tip_radius_mm,
-                    approach_mm: self.clearance_mm,
-                    search_mm: self.clearance_mm,
-                    // Back to where the move started (inside the bore, clear of the wall).
-                    retract_mm: self.clearance_mm,
-                    feed_mm_s: self.feed_mm_s,
-                }
+                // Out of the material: towards the hole's axis; the retract ends where the move
+                // started (inside the bore, clear of the wall).
+                ProbeRequest::with_clearance(
+                    c + e * r,
+                    -e,
+                    self.tip_radius_mm,
+                    self.clearance_mm,
+                    self.feed_mm_s,
+                )
             })
             .collect()
     }

@@ -35,12 +35,7 @@ fn serve_runs_a_session_logs_it_and_ends_on_sigterm() {
     std::fs::write(&part, "[[sphere]]\ncenter_mm = [0, 0, 0]\ndiameter_mm = 20\n").unwrap();
     let log = dir.path().join("ippdme.log");
     // The ideal machine (every error model off) answers exactly.
-    let machine = dir.path().join("cmm.toml");
-    std::fs::write(
-        &machine,
-        "[ippdme.model]\ngeometric_errors = \"none\"\npretravel_um = 0\nlobing_um = 0\nprobe_noise_um = 0\n",
-    )
-    .unwrap();
+    let machine = ideal_machine(dir.path());
     let (mut child, addr) =
         spawn_server(&part, &["--log".as_ref(), log.as_os_str(), "--machine".as_ref(), machine.as_os_str()]);
     let s = TcpStream::connect(&addr).unwrap();
@@ -88,6 +83,17 @@ fn home_with_probe1(addr: &str) {
         last.clear();
         assert!(r.read_line(&mut last).unwrap() > 0);
     }
+}
+
+/// A machine file with every error model off: the virtual CMM then answers exactly.
+fn ideal_machine(dir: &std::path::Path) -> std::path::PathBuf {
+    let machine = dir.join("cmm.toml");
+    std::fs::write(
+        &machine,
+        "[ippdme.model]\ngeometric_errors = \"none\"\npretravel_um = 0\nlobing_um = 0\nprobe_noise_um = 0\n",
+    )
+    .unwrap();
+    machine
 }
 
 fn unsafe_kill(pid: u32) {
@@ -184,12 +190,7 @@ fn head_offset_acquisition_through_ippdme_turns_the_rotary_table() {
     let dir = tempfile::tempdir().unwrap();
     let part = dir.path().join("part.toml");
     std::fs::write(&part, "[[sphere]]\ncenter_mm = [200, 0, 50]\ndiameter_mm = 25\n").unwrap();
-    let machine = dir.path().join("cmm.toml");
-    std::fs::write(
-        &machine,
-        "[ippdme.model]\ngeometric_errors = \"none\"\npretravel_um = 0\nlobing_um = 0\nprobe_noise_um = 0\n",
-    )
-    .unwrap();
+    let machine = ideal_machine(dir.path());
     let (mut child, addr) = spawn_server(&part, &["--machine".as_ref(), machine.as_os_str()]);
     home_with_probe1(&addr);
     let points = dir.path().join("points.csv");

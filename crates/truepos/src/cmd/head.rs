@@ -73,15 +73,8 @@ so. --controller virtual is a machine tool with B and C whose sphere and head of
 nominal ones by seeded errors (σ 0.1 mm and 0.2 mm per axis); the JSON has that truth."
 )]
 pub struct AcquireArgs {
-    /// `virtual`, `linuxcncrsh://HOST:PORT[?password=…]` or `ippdme://HOST:PORT`.
-    #[arg(long, default_value = "virtual")]
-    pub controller: String,
-    /// Nominal sphere centre at C = 0 (X,Y,Z mm, machine frame); negative values as `--near=-1,2,3`.
-    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
-    pub near: [f64; 3],
-    /// Sphere diameter (mm).
-    #[arg(long)]
-    pub diameter_mm: f64,
+    #[command(flatten)]
+    pub sphere: super::probe::SphereTarget,
     /// One orientation B,C (degrees); repeat for each, in the order to measure.
     #[arg(long = "orientation", value_parser = parse_pair, allow_hyphen_values = true, required = true)]
     pub orientations: Vec<[f64; 2]>,
@@ -97,18 +90,9 @@ pub struct AcquireArgs {
     /// Probing feed (mm/min).
     #[arg(long, default_value_t = 50.0)]
     pub feed_mm_min: f64,
-    /// Distance from the nominal surface where each probing move starts (mm).
-    #[arg(long, default_value_t = 2.0)]
-    pub clearance_mm: f64,
-    /// Stylus ball diameter (mm).
-    #[arg(long, default_value_t = 0.0)]
-    pub tip_diameter_mm: f64,
     /// The points file to write (atomically).
     #[arg(long)]
     pub output: PathBuf,
-    /// Seed of the virtual machine.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
     /// Print one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
@@ -287,7 +271,7 @@ fn apply(a: ApplyArgs) -> Result<Outcome> {
 
 fn acquire(a: AcquireArgs) -> Result<Outcome> {
     use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
-    use truepos_head::acquire::{acquire_to_file, AcquireError, HeadAcquisition, SphereProbing};
+    use truepos_head::acquire::{acquire_to_file, AcquireError, HeadAcquisition};
     let c_varies = a.orientations.iter().any(|o| o[1] != 0.0);
     let table_center = match a.table_center_mm {
         Some(t) => Point3::from(t),
@@ -300,14 +284,7 @@ fn acquire(a: AcquireArgs) -> Result<Outcome> {
         None => Point3::origin(),
     };
     let acq = HeadAcquisition {
-        sphere: SphereProbing {
-            near_mm: Point3::from(a.near),
-            diameter_mm: a.diameter_mm,
-            points: a.points,
-            feed_mm_s: a.feed_mm_min / 60.0,
-            clearance_mm: a.clearance_mm,
-            tip_radius_mm: 0.5 * a.tip_diameter_mm,
-        },
+        sphere: a.sphere.plan(a.points, a.feed_mm_min),
         orientations: a.orientations.clone(),
         nominal_offset_mm: Vector3::from(a.nominal_offset_mm),
         table_center_mm: table_center,
@@ -316,12 +293,12 @@ fn acquire(a: AcquireArgs) -> Result<Outcome> {
         return Err(UsageError(e.to_string()).into());
     }
     let mut truth = None;
-    let mut machine: Box<dyn truepos_device::ProbingMachine> = if a.controller == "virtual" {
-        let (cfg, t) = MachineToolConfig::for_head_offset(a.seed, &acq);
+    let mut machine: Box<dyn truepos_device::ProbingMachine> = if a.sphere.controller == "virtual" {
+        let (cfg, t) = MachineToolConfig::for_head_offset(a.sphere.seed, &acq);
         truth = Some(t);
         Box::new(VirtualMachineTool::new(cfg).map_err(|e| UsageError(format!("virtual machine: {e}")))?)
     } else {
-        super::probe::open_probing_machine(&a.controller, None, a.seed)?.machine
+        super::probe::open_probing_machine(&a.sphere.controller, None, a.sphere.seed)?.machine
     };
     let next = format!(
         "truepos head-offset --points {}{} --tip-radius-mm {}",

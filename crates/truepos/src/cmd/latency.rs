@@ -9,7 +9,7 @@
 //! `truepos-latency`; this module reads the CSV files, maps errors to file/line messages and
 //! writes JSON, CSV and the report.
 
-use crate::output::{emit, parse_triple};
+use crate::output::emit;
 use crate::{Outcome, UsageError};
 use anyhow::Result;
 use std::path::PathBuf;
@@ -110,30 +110,14 @@ controller that samples its probe input every servo period T latches 0…T late:
 With --controller virtual (servo period 1 ms) the JSON has the virtual machine's true mean
 latch delay, 0.5 ms.")]
 pub struct ProbeArgs {
-    /// The machine: virtual, linuxcncrsh://HOST:PORT[?password=…] or ippdme://HOST:PORT.
-    #[arg(long, default_value = "virtual")]
-    pub controller: String,
-    /// Nominal centre of the reference sphere X,Y,Z (mm; known to better than --clearance-mm).
-    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
-    pub near: [f64; 3],
-    /// Nominal sphere diameter (mm).
-    #[arg(long)]
-    pub diameter_mm: f64,
+    #[command(flatten)]
+    pub sphere: super::probe::SphereTarget,
     /// Probing feeds (mm/min), comma-separated; at least two, the highest ≥ 1.5 × the lowest.
     #[arg(long, value_delimiter = ',', default_value = "60,120,240,480")]
     pub feeds_mm_min: Vec<f64>,
     /// Points per sphere.
     #[arg(long, default_value_t = 25)]
     pub points: usize,
-    /// Distance from the nominal surface at which each probing move starts (mm).
-    #[arg(long, default_value_t = 2.0)]
-    pub clearance_mm: f64,
-    /// Stylus ball diameter (mm).
-    #[arg(long, default_value_t = 0.0)]
-    pub tip_diameter_mm: f64,
-    /// Seed of the virtual machine's errors.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
     /// Print one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
@@ -241,17 +225,9 @@ pub fn run(a: Args) -> Result<Outcome> {
 
 /// `truepos latency probe`: the delay by feeds through `--controller`.
 fn probe_feeds(a: ProbeArgs) -> Result<Outcome> {
-    let plan = truepos_head::acquire::SphereProbing {
-        near_mm: truepos_math::Point3::from(a.near),
-        diameter_mm: a.diameter_mm,
-        points: a.points,
-        feed_mm_s: 1.0,
-        clearance_mm: a.clearance_mm,
-        tip_radius_mm: 0.5 * a.tip_diameter_mm,
-    };
+    let plan = a.sphere.plan(a.points, 60.0);
     let feeds: Vec<f64> = a.feeds_mm_min.iter().map(|f| f / 60.0).collect();
-    let nominal = Some((plan.near_mm, 0.5 * a.diameter_mm, plan.tip_radius_mm));
-    let mut opened = super::probe::open_probing_machine(&a.controller, nominal, a.seed)?;
+    let mut opened = a.sphere.open()?;
     use truepos_head::acquire::AcquireError;
     let mut r = match truepos_latency::probing::delay_by_feeds(opened.machine.as_mut(), &plan, &feeds) {
         Ok(r) => r,

@@ -33,35 +33,64 @@ pub enum What {
     after_help = "Example:\n  truepos probe sphere --controller linuxcncrsh://127.0.0.1:5007 --near=120,45,30 --diameter-mm 25 --tip-diameter-mm 3 --points 25 --feed-mm-min 50 --json\n\nThe machine must be on, homed and idle (truepos never releases an e-stop or switches a machine\non). It first rises to the safe height (nominal top + tip radius + 2 × clearance), then visits\neach point from above. The nominal centre must be known to better than the clearance.\nExit code 3 (naming the address and the move) when the controller cannot be reached, reports\nan error, or a probing move ends without contact (the machine is left retracted)."
 )]
 pub struct SphereArgs {
-    /// `virtual` (the built-in virtual machine tool), `linuxcncrsh://HOST:PORT[?password=…]`,
-    /// `ippdme://HOST:PORT` (a CMM through its I++ DME server).
-    #[arg(long, default_value = "virtual")]
-    pub controller: String,
-    /// Nominal centre X,Y,Z (mm, machine frame); negative values as `--near=-1,2,3`.
-    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
-    pub near: [f64; 3],
-    /// Nominal sphere diameter (mm).
-    #[arg(long)]
-    pub diameter_mm: f64,
+    #[command(flatten)]
+    pub sphere: SphereTarget,
     /// Number of points (≥ 5).
     #[arg(long, default_value_t = 25)]
     pub points: usize,
     /// Probing feed (mm/min).
     #[arg(long, default_value_t = 50.0)]
     pub feed_mm_min: f64,
+    /// Print one JSON object on stdout (human text goes to stderr).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The options every command that probes a reference sphere through a controller shares
+/// (`probe sphere`, `head-offset acquire`, `latency probe`).
+#[derive(clap::Args, Debug)]
+pub struct SphereTarget {
+    /// `virtual` (the built-in virtual machine tool), `linuxcncrsh://HOST:PORT[?password=…]`,
+    /// `ippdme://HOST:PORT` (a CMM through its I++ DME server).
+    #[arg(long, default_value = "virtual")]
+    pub controller: String,
+    /// Nominal sphere centre X,Y,Z (mm, machine frame; at C = 0 when the table turns); negative
+    /// values as `--near=-1,2,3`.
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
+    pub near: [f64; 3],
+    /// Nominal sphere diameter (mm).
+    #[arg(long)]
+    pub diameter_mm: f64,
     /// Distance from the nominal surface where each probing move starts and beyond which it
     /// gives up (mm).
     #[arg(long, default_value_t = 2.0)]
     pub clearance_mm: f64,
-    /// Stylus ball diameter (mm); the reported radius is the tip-centre sphere's minus half this.
+    /// Stylus ball diameter (mm); a reported radius is the tip-centre sphere's minus half this.
     #[arg(long, default_value_t = 0.0)]
     pub tip_diameter_mm: f64,
     /// Seed of the virtual machine (where its sphere really is relative to the nominal one).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Print one JSON object on stdout (human text goes to stderr).
-    #[arg(long)]
-    pub json: bool,
+}
+
+impl SphereTarget {
+    /// The sphere probing with `points` points at `feed_mm_min`.
+    pub fn plan(&self, points: usize, feed_mm_min: f64) -> SphereProbing {
+        SphereProbing {
+            near_mm: Point3::from(self.near),
+            diameter_mm: self.diameter_mm,
+            points,
+            feed_mm_s: feed_mm_min / 60.0,
+            clearance_mm: self.clearance_mm,
+            tip_radius_mm: 0.5 * self.tip_diameter_mm,
+        }
+    }
+
+    /// The machine behind `--controller` (the virtual one set up around this sphere).
+    pub fn open(&self) -> Result<Opened> {
+        let nominal = (Point3::from(self.near), 0.5 * self.diameter_mm, 0.5 * self.tip_diameter_mm);
+        open_probing_machine(&self.controller, Some(nominal), self.seed)
+    }
 }
 
 /// A probing machine opened from a `--controller` URL, with what a report says about it.
@@ -111,20 +140,12 @@ pub fn run(a: Args) -> Result<Outcome> {
 }
 
 fn sphere(a: SphereArgs) -> Result<Outcome> {
-    let plan = SphereProbing {
-        near_mm: Point3::from(a.near),
-        diameter_mm: a.diameter_mm,
-        points: a.points,
-        feed_mm_s: a.feed_mm_min / 60.0,
-        clearance_mm: a.clearance_mm,
-        tip_radius_mm: 0.5 * a.tip_diameter_mm,
-    };
+    let plan = a.sphere.plan(a.points, a.feed_mm_min);
     // Check the plan before touching a machine.
     if let Err(e) = plan.check() {
         return Err(UsageError(e.to_string()).into());
     }
-    let nominal = (plan.near_mm, 0.5 * plan.diameter_mm, plan.tip_radius_mm);
-    let mut opened = open_probing_machine(&a.controller, Some(nominal), a.seed)?;
+    let mut opened = a.sphere.open()?;
     let info = opened.machine.info();
     let t0 = std::time::Instant::now();
     let s = match probe_sphere(opened.machine.as_mut(), &plan) {
@@ -135,9 +156,9 @@ fn sphere(a: SphereArgs) -> Result<Outcome> {
     let elapsed = t0.elapsed().as_secs_f64();
     if a.json {
         let mut j = s.to_json();
-        j["tip_diameter_mm"] = json!(a.tip_diameter_mm);
+        j["tip_diameter_mm"] = json!(a.sphere.tip_diameter_mm);
         j["feed_mm_min"] = json!(a.feed_mm_min);
-        j["clearance_mm"] = json!(a.clearance_mm);
+        j["clearance_mm"] = json!(a.sphere.clearance_mm);
         j["controller"] = json!({ "address": info.address, "version": info.version });
         j["elapsed_s"] = json!(elapsed);
         if let Some((c, r)) = opened.virtual_truth {
