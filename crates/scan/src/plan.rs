@@ -19,6 +19,7 @@
 //! requested path.
 
 use crate::feature::{Feature, Params};
+use crate::motion::{self, Limits, Motion};
 use truepos_math::{Point3, Vector3};
 
 /// The segment tags of the contract.
@@ -130,6 +131,11 @@ pub enum Geom {
     /// Standing still.
     Hold {
         p: Point3,
+    },
+    /// A motion given directly in time (phases of constant jerk vector; see [`crate::motion`]):
+    /// the blended transfers and the final stop. Its duration is the motion's.
+    Timed {
+        motion: Motion,
     },
 }
 
@@ -744,6 +750,18 @@ impl Segment {
         };
         match &s.geom {
             Geom::Hold { .. } => {}
+            Geom::Timed { motion } => {
+                // path length (for reporting; the motion is evaluated in time)
+                let n = 256;
+                let d = motion.duration();
+                s.len = (0..n)
+                    .map(|k| {
+                        (motion.state(d * (k + 1) as f64 / n as f64).p
+                            - motion.state(d * k as f64 / n as f64).p)
+                            .norm()
+                    })
+                    .sum();
+            }
             Geom::Line { a, b } => s.len = (b - a).norm(),
             Geom::Along { pen: Penetration::Const(_), .. } => s.len = s.arc_piece(0.0, 1.0, f, tip),
             _ => {
@@ -881,6 +899,7 @@ impl Segment {
             }
             Geom::Along { u0, u1, pen, x_len } => f.point(u0 + (u1 - u0) * l, tip - pen.at(l * x_len)),
             Geom::Hold { p } => *p,
+            Geom::Timed { motion } => motion.state(l * motion.duration()).p,
         }
     }
 
@@ -905,23 +924,26 @@ impl Segment {
     }
 
     pub fn duration(&self) -> f64 {
-        match self.geom {
+        match &self.geom {
             Geom::Hold { .. } => self.hold,
+            Geom::Timed { motion } => motion.duration(),
             _ => self.profile.duration(),
         }
     }
 
     /// Speed at the end (0 for holds).
     pub fn end_speed(&self) -> f64 {
-        match self.geom {
+        match &self.geom {
             Geom::Hold { .. } => 0.0,
+            Geom::Timed { motion } => motion.end().v.norm(),
             _ => self.profile.v1,
         }
     }
 
     pub fn start_speed(&self) -> f64 {
-        match self.geom {
+        match &self.geom {
             Geom::Hold { .. } => 0.0,
+            Geom::Timed { motion } => motion.start().v.norm(),
             _ => self.profile.v0,
         }
     }
@@ -954,6 +976,10 @@ impl Segment {
 
     /// What the segment commands at local time `t`.
     pub fn eval(&self, t: f64, f: &Feature, tip: f64) -> Command {
+        if let Geom::Timed { motion } = &self.geom {
+            let st = motion.state(t);
+            return Command { position: st.p, speed: st.v.norm(), normal: None, deflection: 0.0 };
+        }
         let (s, v) = self.profile.at(t);
         let l = self.lambda(s, f, tip);
         let position = self.carrier(l, f, tip);
@@ -1326,7 +1352,7 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
                 ))
             }
             Some(start) => {
-                segs.extend(transfer_moves(i, f, p, start, (a, w), (v, p.move_speed, v)));
+                segs.extend(velocity_transfer(i, f, p, start, (a, w), v));
                 None
             }
         };
@@ -1392,15 +1418,38 @@ fn blended(features: &[Feature], p: &Params) -> Vec<Segment> {
         segs.push(rl);
         prev_end = Some(end);
     }
-    // come to rest straight on from the last release (curvature-continuous out of it)
+    // come to rest straight on from the last release (its curvature's acceleration ramped to
+    // zero first)
     if let Some((e, de, ke)) = prev_end {
         let last = features.len() - 1;
-        let f = &features[last];
-        // room to straighten out of the release's curvature, then to stop
-        let d = 2.0 * stop_distance(v, p) + 1.0 + straighten_len(ke, v, p);
-        segs.extend(transfer_moves(last, f, p, (e, de, ke), (e + de * d, de), (v, v, 0.0)));
+        let m = motion::stop((e, de * v, ke * (v * v)), limits(p));
+        segs.push(Segment::new(SegmentKind::Transfer, last, Geom::Timed { motion: m }, &features[last], tip));
     }
     segs
+}
+
+/// The planner's share ([`MARGIN`]) of the positioning limits, for motions planned in time.
+fn limits(p: &Params) -> Limits {
+    Limits { v: p.move_speed, a: MARGIN * p.accel, j: MARGIN * p.jerk }
+}
+
+/// The transfer from a release's end `start` = (point, unit direction, curvature vector) at
+/// scanning speed `v` into the approach starting at `b` along `db`: planned in velocity space
+/// ([`motion::transfer`], never slower than a twentieth of the scanning speed); when that family
+/// has no motion for the geometry (a reversal on the spot), the curve-first transfer of
+/// [`transfer_moves`].
+fn velocity_transfer(
+    i: usize,
+    f: &Feature,
+    p: &Params,
+    (a, da, ka): (Point3, Vector3, Vector3),
+    (b, db): (Point3, Vector3),
+    v: f64,
+) -> Vec<Segment> {
+    match motion::transfer((a, da * v, ka * (v * v)), (b, db * v), limits(p), 0.5 * v) {
+        Some(m) => vec![Segment::new(SegmentKind::Transfer, i, Geom::Timed { motion: m }, f, p.tip_radius)],
+        None => transfer_moves(i, f, p, (a, da, ka), (b, db), (v, p.move_speed, v)),
+    }
 }
 
 fn classic(features: &[Feature], p: &Params) -> Vec<Segment> {
