@@ -16,7 +16,8 @@ fn main() {
         SegmentKind::Release,
     ];
     for n in ns {
-        let s = truepos_sim::scenario::scan::scenario(11, n);
+        let seed = std::env::var("SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(11);
+        let s = truepos_sim::scenario::scan::scenario(seed, n);
         let (fs, _, p) = truepos_cell::scan_scenario::program(&s);
         for style in [Style::Blended, Style::Classic] {
             let t0 = Instant::now();
@@ -36,6 +37,15 @@ fn main() {
                 pl.duration(),
                 by.join(", ")
             );
+            let curve_first = pl
+                .segments
+                .iter()
+                .filter(|s| {
+                    s.kind == SegmentKind::Transfer
+                        && matches!(s.geom, truepos_scan::plan::Geom::Quintic { .. })
+                })
+                .count();
+            println!("    curve-first (fallback) transfer segments: {curve_first}");
             if std::env::var_os("TRANSFERS").is_some() {
                 groups(&pl);
             }

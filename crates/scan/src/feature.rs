@@ -321,9 +321,15 @@ impl Feature {
     /// normal (`h = tip radius − deflection` while scanning).
     pub fn point(&self, u: f64, h: f64) -> Point3 {
         match &self.geometry {
-            Geometry::Circle { center, radius, .. } => {
+            Geometry::Circle { center, radius, axis, side, .. } => {
                 let (r, _) = self.circle_frame(u).unwrap_or((Vector3::x(), Vector3::y()));
-                center + r * *radius + self.normal(u) * h
+                // the normal of [`Feature::normal`], from the same frame
+                let n = match side {
+                    Side::Inside => -r,
+                    Side::Outside => r,
+                    Side::Plane => *axis,
+                };
+                center + r * *radius + n * h
             }
             Geometry::Line { start, end, normal } => start + (end - start).normalize() * u + normal * h,
         }

@@ -158,23 +158,58 @@ fn least_speed(x: Vector3, y: Vector3) -> f64 {
     (x + d * s).norm()
 }
 
+/// How the velocity turns at one end of the cruise: straight from the end velocity to the
+/// cruise, or through a midway velocity at the end's speed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Turn {
+    Straight,
+    /// On the bisector of the two directions.
+    Bisector,
+    /// Perpendicular to the end velocity, towards this (fixed) side: for turns within 30° of a
+    /// reversal, where the bisector would swing with every small change of the cruise direction.
+    Side(Vector3),
+}
+
+impl Turn {
+    /// The turn at the end moving along `end` for a move whose chord is `chord`: through a midway
+    /// velocity when the end direction and the chord are more than 90° apart.
+    fn for_end(end: Vector3, chord: Vector3, hint: Vector3) -> Turn {
+        let (Some(e), Some(c)) = (end.try_normalize(1e-12), chord.try_normalize(1e-12)) else {
+            return Turn::Straight;
+        };
+        if e.dot(&c) >= 0.0 {
+            return Turn::Straight;
+        }
+        if (e + c).norm() >= 0.5 {
+            return Turn::Bisector;
+        }
+        [chord, hint, Vector3::z(), Vector3::x()]
+            .into_iter()
+            .map(|h| h - e * h.dot(&e))
+            .find(|p| p.norm() > 1e-6)
+            .map_or(Turn::Straight, |p| Turn::Side(p.normalize()))
+    }
+
+    /// The midway velocity between `x` and `y` at speed `s`, if any.
+    fn midway(self, x: Vector3, y: Vector3, s: f64) -> Option<Option<Vector3>> {
+        match self {
+            Turn::Straight => Some(None),
+            Turn::Bisector => {
+                Some(Some((x.try_normalize(1e-12)? + y.try_normalize(1e-12)?).try_normalize(1e-9)? * s))
+            }
+            Turn::Side(d) => Some(Some(d * s)),
+        }
+    }
+}
+
 /// The velocities the motion passes through for a cruise velocity `vc`: from the start `u0`
-/// through `vc` to the end `v1`; with `mids`, a turn of more than 90° between an end velocity
-/// and the cruise goes through a midway velocity (the end speed, on the bisecting direction), so
-/// the speed does not dip towards zero in a reversal.
-fn corners(u0: Vector3, vc: Vector3, v1: Vector3, mids: bool) -> Option<Vec<Vector3>> {
+/// through `vc` to the end `v1`, with a midway velocity at either end where `turns` say so (so
+/// the speed does not dip towards zero in a reversal).
+fn corners(u0: Vector3, vc: Vector3, v1: Vector3, turns: (Turn, Turn)) -> Option<Vec<Vector3>> {
     let mut c = vec![u0];
-    let mid = |x: Vector3, y: Vector3, s: f64| -> Option<Vector3> {
-        let (xn, yn) = (x.try_normalize(1e-12)?, y.try_normalize(1e-12)?);
-        Some((xn + yn).try_normalize(1e-9)? * s)
-    };
-    if mids && u0.norm() > 0.0 && u0.dot(&vc) < 0.0 {
-        c.push(mid(u0, vc, u0.norm())?);
-    }
+    c.extend(turns.0.midway(u0, vc, u0.norm())?);
     c.push(vc);
-    if mids && v1.norm() > 0.0 && v1.dot(&vc) < 0.0 {
-        c.push(mid(vc, v1, v1.norm())?);
-    }
+    c.extend(turns.1.midway(vc, v1, v1.norm())?);
     c.push(v1);
     Some(c)
 }
@@ -198,11 +233,11 @@ fn cruise(
     w: f64,
     lim: Limits,
     floor: f64,
-    mids: bool,
+    turns: (Turn, Turn),
 ) -> Option<Candidate> {
     let mut dir = if d.norm() > 1e-12 { d.normalize() } else { (u0 + v1).try_normalize(1e-12)? };
     for k in 0..200 {
-        let c = corners(u0, dir * w, v1, mids)?;
+        let c = corners(u0, dir * w, v1, turns)?;
         let ic = c.iter().position(|x| *x == dir * w)?;
         // displacement of each change (x → y over τ): (x + y)·τ/2; the cruise's share of its two
         // neighbouring changes is w·dir·τ/2 each, moved to the left-hand side
@@ -245,9 +280,15 @@ fn cruise(
 
 /// The fastest candidate over cruise speeds from `lim.v` down to `lo`: the first admissible
 /// one of a descending scan, refined by bisection towards the edge of admissibility.
-fn fastest(d: Vector3, ends: (Vector3, Vector3), lim: Limits, floor: f64, mids: bool) -> Option<Candidate> {
+fn fastest(
+    d: Vector3,
+    ends: (Vector3, Vector3),
+    lim: Limits,
+    floor: f64,
+    turns: (Turn, Turn),
+) -> Option<Candidate> {
     let lo = floor.max(1e-3 * lim.v);
-    let ok = |w: f64| cruise(d, ends, w, lim, floor, mids);
+    let ok = |w: f64| cruise(d, ends, w, lim, floor, turns);
     let mut above: Option<f64> = None;
     let mut w = lim.v;
     let mut found = None;
@@ -305,7 +346,17 @@ pub fn transfer(
         return None;
     }
     let d = p1 - q0;
-    let c = fastest(d, (u0, v1), lim, floor, false).or_else(|| fastest(d, (u0, v1), lim, floor, true))?;
+    let straight = (Turn::Straight, Turn::Straight);
+    let c = fastest(d, (u0, v1), lim, floor, straight).or_else(|| {
+        // through midway velocities where an end turns back against the chord: the fastest
+        // of those combinations that keeps the floor
+        let (t0, t1) = (Turn::for_end(u0, d, v1), Turn::for_end(-v1, -d, -u0));
+        [(t0, Turn::Straight), (Turn::Straight, t1), (t0, t1)]
+            .into_iter()
+            .filter(|t| *t != straight)
+            .filter_map(|t| fastest(d, (u0, v1), lim, floor, t))
+            .min_by(|a, b| a.total.total_cmp(&b.total))
+    })?;
     for (i, pair) in c.corners.windows(2).enumerate() {
         let dv = pair[1] - pair[0];
         if dv.norm() > 0.0 {

@@ -12,11 +12,16 @@
 //! (commanded deflection) that starts with slope `cot α` (tangent-continuous with the approach),
 //! rises to `deflection + overshoot` and falls back to `deflection` along a half cosine; the scan
 //! holds `deflection`; the release lifts off with a cubic that reaches slope `−cot α` and then
-//! climbs straight to the clearance; the transfer is a cubic Bézier tangent to the release at one
-//! end and to the next approach at the other (no corners), on a trapezoidal speed profile from
-//! scanning speed up to positioning speed and back. The settle path lies *before* the scan start
-//! (for a line, on the extension of the line before `start_mm`), so the scan covers the whole
-//! requested path.
+//! climbs straight to the clearance; the transfer leaves the release with its velocity and
+//! acceleration and enters the next approach at scanning speed along it, planned in velocity
+//! space by [`crate::motion::transfer`] (the velocity vector moves on straight lines, each change
+//! a jerk-limited S-curve, so |v|, |a| and |j| keep `move_speed`, `accel` and `jerk` by
+//! construction; a curve-first quintic transfer checked on a dense grid is the fallback where
+//! that family has no motion); the program ends with a straight jerk-limited stop. The settle
+//! path lies *before* the scan start (for a line, on the extension of the line before
+//! `start_mm`), so the scan covers the whole requested path.
+//!
+//! The classic style runs every positioning move as a rest-to-rest S-curve on a straight line.
 
 use crate::feature::{Feature, Params};
 use crate::motion::{self, Limits, Motion};
@@ -1435,7 +1440,7 @@ fn limits(p: &Params) -> Limits {
 
 /// The transfer from a release's end `start` = (point, unit direction, curvature vector) at
 /// scanning speed `v` into the approach starting at `b` along `db`: planned in velocity space
-/// ([`motion::transfer`], never slower than a twentieth of the scanning speed); when that family
+/// ([`motion::transfer`], never slower than half the scanning speed); when that family
 /// has no motion for the geometry (a reversal on the spot), the curve-first transfer of
 /// [`transfer_moves`].
 fn velocity_transfer(
