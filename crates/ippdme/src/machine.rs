@@ -116,6 +116,11 @@ pub trait Cmm: Send {
     /// Stop all motion now (client gone, AbortE). Moves are instant on the virtual machine, so
     /// this only has to leave it in a defined, stopped state.
     fn stop(&mut self);
+    /// A note about the last command for the session log (e.g. how a scan was executed), taken
+    /// once. Default: none.
+    fn take_note(&mut self) -> Option<String> {
+        None
+    }
     /// The rotary table, if the machine has one: a point on its axis and the axis' unit
     /// direction (machine frame). `None`: a `CartCMM` (the default).
     fn rotary_axis(&self) -> Option<(Point3, Vector3)> {
