@@ -964,13 +964,22 @@ impl Cmm for IppdmeCmm {
                                 // The end point itself (grid points within 1 % of a step
                                 // before it are left out).
                                 targets.push(end);
-                                self.scan_planned(feature, &targets, r, out)?;
-                                self.note = Some(format!(
-                                    "unknown contour planned as {what} (blended planner on the scanning dynamics): {} points, {:.3} mm to the stop",
-                                    targets.len(),
-                                    end * metric
-                                ));
-                                return Ok(());
+                                let first = out.len();
+                                match self.scan_planned(feature, &targets, r, out) {
+                                    Ok(()) => {
+                                        self.note = Some(format!(
+                                            "unknown contour planned as {what} (blended planner on the scanning dynamics): {} points, {:.3} mm to the stop",
+                                            targets.len(),
+                                            end * metric
+                                        ));
+                                        return Ok(());
+                                    }
+                                    Err(e) => {
+                                        // E.g. a bore too narrow for the planner: step instead.
+                                        out.truncate(first);
+                                        format!("the planned scan ({what}) failed: {e}")
+                                    }
+                                }
                             }
                             Err(why) => why,
                         }
