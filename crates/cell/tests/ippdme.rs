@@ -677,6 +677,32 @@ fn contour_cases() -> Vec<ContourCase> {
             note: "planned as a circle about the axis of the pin `pin`",
             ideal_path_tol: 1e-5,
         },
+        // A great circle of the sphere in the plane Y = 50 from its top towards +X, down to the
+        // plane Z = 20 (the equator): a quarter of the 14 mm tip circle.
+        ContourCase {
+            kind: "ScanInPlaneEndIsPlane",
+            at: &[[100.0, 50.0, 50.0]],
+            scan: "ScanInPlaneEndIsPlane(100, 50, 32.5, 0, 0, 1, 101, 50, 32.5, 0.5, 0, 0, 20, 0, 0, 1, 1, 1, 0, 0)",
+            truth: |p| (p - Vector3::new(100.0, 50.0, 20.0)).norm() - 14.0,
+            guide: |p| p.y - 50.0,
+            n_points: 45,
+            end: [114.0, 50.0, 20.0],
+            note: "planned as a great circle of the sphere `ball`",
+            ideal_path_tol: 1e-5,
+        },
+        // Up the pin along its axis in the plane Y = −100, to the stop sphere about
+        // (220, −100, 30).
+        ContourCase {
+            kind: "ScanInPlaneEndIsSphere",
+            at: &[[230.0, -60.0, 50.0], [230.0, -100.0, 10.0]],
+            scan: "ScanInPlaneEndIsSphere(220, -100, 10, 1, 0, 0, 220, -100, 20, 0.5, 220, -100, 30, 2, 1, 0, 0)",
+            truth: |p| radial(p, 200.0, -100.0) - 21.5,
+            guide: |p| p.y + 100.0,
+            n_points: 41,
+            end: [221.5, -100.0, 30.0],
+            note: "planned as a line along the pin `pin`",
+            ideal_path_tol: 1e-5,
+        },
         // A diagonal line on the table towards the 4 mm stop cylinder about (30, −270).
         ContourCase {
             kind: "ScanInPlaneEndIsCyl",

@@ -50,6 +50,11 @@ const DIR_EPS: f64 = 1e-6;
 /// A start contact within this of a solid's offset surface is on that solid (mm): far above the
 /// machine's µm errors, far below any feature size.
 const FACE_TOL_MM: f64 = 0.02;
+/// A sphere's centre this close to the scan plane (or to the scan axis, the start this close to
+/// its equator), or a cylinder's axis this close to the scan axis, counts as on it (mm): the
+/// measured start contact and a client's measured axis are µm off; the planner's deflection
+/// takes up the rest.
+const POS_TOL_MM: f64 = FACE_TOL_MM;
 /// Normals closer than this cosine (about 1.8°) are the same face.
 const FACE_COS: f64 = 0.9995;
 /// Largest marching step along the planned path (mm of tip-centre travel).
@@ -292,7 +297,7 @@ impl IppdmeCmm {
                         }
                     }
                     Solid::Sphere { center, .. } => {
-                        if (center - c0).dot(&g).abs() < 1e-6 {
+                        if (center - c0).dot(&g).abs() < POS_TOL_MM {
                             circle(center, g, Side::Outside, format!("a great circle of {label}"))
                         } else {
                             Ok(Route::Stepped(format!(
@@ -323,7 +328,7 @@ impl IppdmeCmm {
                             )));
                         }
                         let off = point - gp;
-                        if (off - ga * off.dot(&ga)).norm() > 1e-6 {
+                        if (off - ga * off.dot(&ga)).norm() > POS_TOL_MM {
                             return line(ga, format!("a line along {label}, parallel to the scan axis"));
                         }
                         // Coaxial: the tip centre is free on the scan cylinder; the direction
@@ -348,8 +353,8 @@ impl IppdmeCmm {
                     }
                     Solid::Sphere { center, .. } => {
                         let off = center - gp;
-                        let on_axis = (off - ga * off.dot(&ga)).norm() < 1e-6;
-                        if on_axis && (c0 - center).dot(&ga).abs() < 1e-6 {
+                        let on_axis = (off - ga * off.dot(&ga)).norm() < POS_TOL_MM;
+                        if on_axis && (c0 - center).dot(&ga).abs() < POS_TOL_MM {
                             circle(
                                 center,
                                 ga,
