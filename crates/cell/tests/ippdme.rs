@@ -15,7 +15,7 @@ use truepos_cell::cmm::IppdmeCmm;
 use truepos_device::{ProbeRequest, ProbingMachine};
 use truepos_ippdme::part::Part;
 use truepos_ippdme::protocol::{parse_data_items, Body, Response};
-use truepos_ippdme::{MachineConfig, Server, ServerHandle};
+use truepos_ippdme::{Cmm, Contact, Guide, MachineConfig, ScanPath, Server, ServerHandle, Stop};
 use truepos_math::{Point3, Vector3};
 
 /// A server on the default (realistic) virtual CMM.
@@ -880,6 +880,50 @@ fn an_unknown_contour_the_planner_cannot_plan_is_stepped_and_logged() {
         // Ideal: exact contacts; realistic: touch noise σ 0.25 µm per axis.
         assert!(worst < if machine == "ideal" { 1e-6 } else { 3e-3 }, "{worst}");
     }
+}
+
+#[test]
+fn a_planned_contour_that_runs_off_its_face_is_stepped() {
+    // A line on the table towards +X across the 30 mm bore (X −115 … −85), stop plane X = −50:
+    // the planned line leaves the table at the bore's edge, so it is stepped, and the stepping
+    // loses the surface over the hole (1011) as a real scan would.
+    let h = start_with(MachineConfig::ideal(), Some(CONTOUR_PART), None);
+    let mut c = Raw::connect(&h);
+    for l in ["00001 StartSession()", "00002 Home()", "00003 ChangeTool(\"Probe1\")", "00004 GoTo(Z(50))"] {
+        c.ok(l);
+    }
+    c.ok("00005 GoTo(X(-140), Y(0))");
+    let out = c.cmd(
+        "00006 ScanInPlaneEndIsPlane(-140, 0, 0, 0, 0, 1, -130, 0, 0, 0.5, -50, 0, 0, 1, 0, 0, 1, 0, 0, 1)",
+    );
+    assert!(out.iter().any(|l| l.contains("Error(2, 1011")), "{out:?}");
+    let notes = h.shared.with_machine(|m| m.take_note());
+    // The note was taken by the session for its log: the machine has none left.
+    assert_eq!(notes, None);
+    drop(c);
+    // The same on the machine directly: the route and the reason.
+    let part = Part::from_toml("p", CONTOUR_PART).unwrap();
+    let mut m = IppdmeCmm::new(&MachineConfig::ideal(), Some(part));
+    let start = Contact { tip_center_mm: Point3::new(-140.0, 0.0, 1.5), normal: Vector3::z() };
+    let path = ScanPath::Contour {
+        guide: Guide::Plane { normal: Vector3::y() },
+        toward: Vector3::x(),
+        step_mm: 0.5,
+        stop: Stop::Plane {
+            point: Point3::new(-50.0, 0.0, 0.0),
+            normal: Vector3::x(),
+            count: 1,
+            arm_mm: 1.0,
+        },
+        max_length_mm: 1000.0,
+    };
+    let mut pts = Vec::new();
+    let e = m.scan(start, &path, 1.5, &mut pts).unwrap_err();
+    let note = m.take_note().unwrap();
+    assert!(note.contains("stepped") && note.contains("leaves the face after 2"), "{note}");
+    assert!(e.to_string().contains("lost the surface"), "{e}");
+    // Up to the edge the stepping ran on the table in 0.5 mm steps from X = −140.
+    assert!(pts.len() > 40 && pts.iter().all(|p| (p.tip_center_mm.z - 1.5).abs() < 1e-9), "{pts:?}");
 }
 
 #[test]
