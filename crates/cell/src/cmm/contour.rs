@@ -500,6 +500,184 @@ mod tests {
         assert_eq!(run(c(3), &p, 0.05, 20.0), None);
     }
 
+    const PART: &str = "[[plane]]\nid = \"table\"\npoint_mm = [0, 0, 0]\nnormal = [0, 0, 1]\n\n[[cylinder]]\nid = \"pin\"\npoint_mm = [200, -100, 0]\naxis = [0, 0, 1]\ndiameter_mm = 40\nside = \"outside\"\n\n[[cylinder]]\nid = \"bore\"\npoint_mm = [-100, 0, 0]\naxis = [0, 0, 1]\ndiameter_mm = 30\nside = \"inside\"\n\n[[sphere]]\nid = \"ball\"\ncenter_mm = [100, 50, 20]\ndiameter_mm = 25\n";
+
+    /// The route of a scan from the contact at tip centre `tip` with normal `n`: "line", "circle"
+    /// or "stepped", with the log text.
+    fn route(
+        part: Option<&str>,
+        tip: [f64; 3],
+        n: [f64; 3],
+        guide: Guide,
+        toward: [f64; 3],
+    ) -> (String, String) {
+        let part = part.map(|t| Part::from_toml("p", t).unwrap());
+        let m = IppdmeCmm::new(&truepos_ippdme::MachineConfig::ideal(), part);
+        let start = Contact { tip_center_mm: Point3::from(tip), normal: Vector3::from(n).normalize() };
+        match m.contour_route(&start, &guide, &Vector3::from(toward), 1.5) {
+            Ok(Route::Planned(f, what)) => {
+                let kind = match f.geometry {
+                    Geometry::Line { .. } => "line",
+                    Geometry::Circle { .. } => "circle",
+                };
+                (kind.to_string(), what)
+            }
+            Ok(Route::Stepped(why)) => ("stepped".into(), why),
+            Err(e) => ("error".into(), e.to_string()),
+        }
+    }
+
+    #[test]
+    fn every_row_of_the_route_table() {
+        let p = Some(PART);
+        let plane = |v: [f64; 3]| Guide::Plane { normal: Vector3::from(v).normalize() };
+        let cyl = |o: [f64; 3], a: [f64; 3]| Guide::Cylinder {
+            point: Point3::from(o),
+            axis: Vector3::from(a).normalize(),
+        };
+        let table = [0.0, -200.0, 1.5];
+        let pin = [221.5, -100.0, 10.0];
+        let bore = [-86.5, 0.0, -10.0];
+        let cases: Vec<(&str, (String, String), &str, &str)> = vec![
+            (
+                "plane · table",
+                route(p, table, [0., 0., 1.], plane([0., 1., 0.]), [1., 0., 0.]),
+                "line",
+                "line on the plane face `table`",
+            ),
+            (
+                "plane ∥ table",
+                route(p, table, [0., 0., 1.], plane([0., 0., 1.]), [1., 0., 0.]),
+                "stepped",
+                "parallel",
+            ),
+            (
+                "plane ⊥ pin",
+                route(p, pin, [1., 0., 0.], plane([0., 0., 1.]), [0., 1., 0.]),
+                "circle",
+                "circle about the axis of the pin `pin`",
+            ),
+            (
+                "plane ∋ pin axis",
+                route(p, pin, [1., 0., 0.], plane([0., 1., 0.]), [0., 0., 1.]),
+                "line",
+                "line along the pin `pin`",
+            ),
+            (
+                "plane oblique to pin",
+                route(p, pin, [1., 0., 0.], plane([0., 1., 1.]), [0., 1., -1.]),
+                "stepped",
+                "ellipse",
+            ),
+            (
+                "plane ⊥ bore",
+                route(p, bore, [-1., 0., 0.], plane([0., 0., 1.]), [0., 1., 0.]),
+                "circle",
+                "circle about the axis of the bore `bore`",
+            ),
+            (
+                "plane through ball centre",
+                route(p, [100., 50., 34.], [0., 0., 1.], plane([0., 1., 0.]), [1., 0., 0.]),
+                "circle",
+                "great circle of the sphere `ball`",
+            ),
+            (
+                "plane off ball centre",
+                route(p, [100., 55.6, 32.84], [0., 0.4, 0.9165], plane([0., 1., 0.]), [1., 0., 0.]),
+                "stepped",
+                "off its centre",
+            ),
+            (
+                "cylinder ⊥ table",
+                route(p, [10., -400., 1.5], [0., 0., 1.], cyl([0., -400., 0.], [0., 0., 1.]), [0., 1., 0.]),
+                "circle",
+                "circle about the scan axis on the plane face",
+            ),
+            (
+                "cylinder ∥ table",
+                route(p, [10., -400., 1.5], [0., 0., 1.], cyl([0., -400., 20.], [1., 0., 0.]), [1., 0., 0.]),
+                "line",
+                "line along the scan axis on the plane face",
+            ),
+            (
+                "cylinder oblique to table",
+                route(p, [10., -400., 1.5], [0., 0., 1.], cyl([0., -400., 0.], [1., 0., 1.]), [0., 1., 0.]),
+                "stepped",
+                "ellipse",
+            ),
+            (
+                "coaxial bore, around",
+                route(p, bore, [-1., 0., 0.], cyl([-100., 0., 0.], [0., 0., 1.]), [0., 1., 0.]),
+                "circle",
+                "circle on the bore `bore`, coaxial",
+            ),
+            (
+                "coaxial bore, along",
+                route(p, bore, [-1., 0., 0.], cyl([-100., 0., 0.], [0., 0., 1.]), [0., 0., -1.]),
+                "line",
+                "coaxial",
+            ),
+            (
+                "coaxial bore, helix",
+                route(p, bore, [-1., 0., 0.], cyl([-100., 0., 0.], [0., 0., 1.]), [0., 1., 1.]),
+                "stepped",
+                "helix",
+            ),
+            (
+                "pin parallel, off axis",
+                route(p, pin, [1., 0., 0.], cyl([300., -100., 0.], [0., 0., 1.]), [0., 0., 1.]),
+                "line",
+                "parallel to the scan axis",
+            ),
+            (
+                "pin oblique",
+                route(p, pin, [1., 0., 0.], cyl([200., -100., 0.], [1., 0., 1.]), [0., 1., 0.]),
+                "stepped",
+                "space curve",
+            ),
+            (
+                "ball equator",
+                route(p, [114., 50., 20.], [1., 0., 0.], cyl([100., 50., 0.], [0., 0., 1.]), [0., 1., 0.]),
+                "circle",
+                "equator of the sphere `ball`",
+            ),
+            (
+                "ball off equator",
+                route(
+                    p,
+                    [109.9, 50., 29.9],
+                    [0.7071, 0., 0.7071],
+                    cyl([100., 50., 0.], [0., 0., 1.]),
+                    [0., 1., 0.],
+                ),
+                "stepped",
+                "off its equator",
+            ),
+            (
+                "no part: ideal plane",
+                route(None, [0., 0., 1.5], [0., 0., 1.], plane([0., 1., 0.]), [1., 0., 0.]),
+                "line",
+                "ideal plane",
+            ),
+            (
+                "direction across the only path",
+                route(p, table, [0., 0., 1.], plane([0., 1., 0.]), [0., 0., 1.]),
+                "error",
+                "undefined",
+            ),
+            (
+                "edge: nothing under the start",
+                route(p, [0., 0., 30.], [0., 0., 1.], plane([0., 1., 0.]), [1., 0., 0.]),
+                "stepped",
+                "no single face",
+            ),
+        ];
+        for (name, (kind, what), want, words) in cases {
+            assert_eq!(kind, want, "{name}: {what}");
+            assert!(what.contains(words), "{name}: {what}");
+        }
+    }
+
     #[test]
     fn a_sphere_entered_on_the_second_turn_of_a_circle() {
         // A circle of radius 5 about Z, the stop sphere on it at 90°: count 2 is one turn later.
