@@ -24,6 +24,9 @@ use std::sync::Arc;
 /// Rows per row group when writing.
 pub const ROW_GROUP: usize = 1 << 20;
 
+/// Most values reserved ahead of reading one column (more grow as they are decoded).
+const RESERVE: usize = 1 << 20;
+
 /// Values of one column.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ColumnData {
@@ -93,6 +96,12 @@ fn row_err(path: &Path, name: &str, row: usize, msg: &str) -> InputError {
 
 /// Read every numeric and text column of a Parquet file.
 pub fn read_columns(path: &Path) -> Result<Columns, InputError> {
+    read_columns_within(path, crate::limits::max_input_bytes())
+}
+
+/// [`read_columns`] with the decoded values (8 bytes a number, the bytes of the text) held to
+/// `limit` bytes.
+fn read_columns_within(path: &Path, limit: u64) -> Result<Columns, InputError> {
     let file =
         std::fs::File::open(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
     let meta = file.metadata().map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
@@ -103,7 +112,28 @@ pub fn read_columns(path: &Path) -> Result<Columns, InputError> {
     let cols = schema.columns();
     let mut names = Vec::with_capacity(cols.len());
     let mut data: Vec<ColumnData> = Vec::with_capacity(cols.len());
-    let total = usize::try_from(md.file_metadata().num_rows()).unwrap_or(0);
+    // Row counts come from the file's footer: checked before anything is reserved or decoded.
+    // Encoded values can be far smaller than decoded ones (run lengths, dictionaries), so a few
+    // kilobytes can announce billions of rows; the decoded numbers are held to the input limit
+    // (8 bytes each), like a CSV file of that size, and reservations to what is certainly there.
+    let mut rows: u64 = 0;
+    for g in 0..reader.num_row_groups() {
+        let n = md.row_group(g).num_rows();
+        let n = u64::try_from(n).map_err(|_| pq_err(path, format!("row group {}: {n} rows", g + 1)))?;
+        rows = rows.saturating_add(n);
+    }
+    let mut decoded = rows.saturating_mul(cols.len() as u64).saturating_mul(8);
+    if decoded > limit {
+        return Err(InputError::in_file(
+            path,
+            format!(
+                "{rows} rows of {} columns: more values than truepos reads ({} as 8-byte numbers; set TRUEPOS_MAX_INPUT_MB to change the limit)",
+                cols.len(),
+                crate::limits::human(limit)
+            ),
+        ));
+    }
+    let total = usize::try_from(rows).unwrap_or(usize::MAX).min(RESERVE);
     for c in cols {
         if c.max_rep_level() > 0 {
             return Err(InputError::in_file(
@@ -119,17 +149,18 @@ pub fn read_columns(path: &Path) -> Result<Columns, InputError> {
     }
     for g in 0..reader.num_row_groups() {
         let rg = reader.get_row_group(g).map_err(|e| pq_err(path, e))?;
+        // Not negative and within the limit: checked above.
         let n = usize::try_from(rg.metadata().num_rows()).unwrap_or(0);
         for (i, c) in cols.iter().enumerate() {
             let name = c.name();
             let first_row = data[i].len();
-            let mut defs: Vec<i16> = Vec::with_capacity(n);
+            let mut defs: Vec<i16> = Vec::with_capacity(n.min(RESERVE));
             let want_defs = c.max_def_level() > 0;
             let reader = rg.get_column_reader(i).map_err(|e| pq_err(path, e))?;
             macro_rules! numeric {
                 ($r:expr, $conv:expr) => {{
                     let mut r = $r;
-                    let mut vals = Vec::with_capacity(n);
+                    let mut vals = Vec::with_capacity(n.min(RESERVE));
                     let (recs, _, _) = r
                         .read_records(n, if want_defs { Some(&mut defs) } else { None }, None, &mut vals)
                         .map_err(|e| pq_err(path, e))?;
@@ -163,7 +194,7 @@ pub fn read_columns(path: &Path) -> Result<Columns, InputError> {
                 ColumnReader::Int32ColumnReader(r) => numeric!(r, |v: i32| v as f64),
                 ColumnReader::Int64ColumnReader(r) => numeric!(r, |v: i64| v as f64),
                 ColumnReader::ByteArrayColumnReader(mut r) => {
-                    let mut vals: Vec<ByteArray> = Vec::with_capacity(n);
+                    let mut vals: Vec<ByteArray> = Vec::with_capacity(n.min(RESERVE));
                     let (recs, _, _) = r
                         .read_records(n, if want_defs { Some(&mut defs) } else { None }, None, &mut vals)
                         .map_err(|e| pq_err(path, e))?;
@@ -173,6 +204,20 @@ pub fn read_columns(path: &Path) -> Result<Columns, InputError> {
                     }
                     let ColumnData::Str(out) = &mut data[i] else { unreachable!() };
                     for (k, v) in vals.into_iter().enumerate() {
+                        // Dictionary entries are shared when decoded but copied here: the text is
+                        // held to the input limit too.
+                        decoded = decoded.saturating_add(v.data().len() as u64);
+                        if decoded > limit {
+                            return Err(row_err(
+                                path,
+                                name,
+                                first_row + k + 1,
+                                &format!(
+                                    "more text than truepos reads ({}; set TRUEPOS_MAX_INPUT_MB to change the limit)",
+                                    crate::limits::human(limit)
+                                ),
+                            ));
+                        }
                         match std::str::from_utf8(v.data()) {
                             Ok(s) => out.push(s.to_string()),
                             Err(_) => {
@@ -294,5 +339,33 @@ mod tests {
         // Not Parquet at all.
         std::fs::write(&p, b"x_mm,y_mm\n1,2\n").unwrap();
         assert!(read_columns(&p).unwrap_err().to_string().contains("Parquet"));
+    }
+
+    /// Run lengths make decoded values far larger than the file: 200 000 equal rows of three
+    /// columns take about a kilobyte. The row count is checked against the limit before anything
+    /// is decoded; the text of the `id` column counts too.
+    #[test]
+    fn announced_rows_are_held_to_the_input_limit() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("runs.parquet");
+        let n = 200_000;
+        let c = Columns {
+            names: vec!["id".into(), "x_mm".into(), "y_mm".into()],
+            data: vec![
+                ColumnData::Str(vec!["point".into(); n]),
+                ColumnData::F64(vec![1.5; n]),
+                ColumnData::F64(vec![-2.0; n]),
+            ],
+        };
+        write_columns(&p, &c).unwrap();
+        let size = std::fs::metadata(&p).unwrap().len();
+        assert!(size < 20_000, "{size} bytes");
+        // 200 000 rows × 3 columns × 8 bytes = 4.8 MB: refused under 4 MB, naming the file.
+        let e = read_columns_within(&p, 4_000_000).unwrap_err().to_string();
+        assert!(e.starts_with(&format!("{}: 200000 rows of 3 columns", p.display())), "{e}");
+        // 4.8 MB within 5 MB, but the text adds 5 bytes a row: past 5 MB at row 40 001.
+        let e = read_columns_within(&p, 5_000_000).unwrap_err().to_string();
+        assert!(e.contains("row 40001") && e.contains("more text than truepos reads"), "{e}");
+        assert_eq!(read_columns_within(&p, 6_000_000).unwrap(), c);
     }
 }
