@@ -65,7 +65,7 @@ fuzz_target!(|data: &[u8]| {
             }
         }
         Err(e) => {
-            assert!(e.to_string().starts_with(&format!("{name}: ")), "E57 error without the file: {e}");
+            assert!(e.to_string().starts_with(&format!("{name}:")), "E57 error without the file: {e}");
         }
     }
 });

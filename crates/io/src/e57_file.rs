@@ -5,8 +5,8 @@
 //!   file's common frame (each scan's pose applied), in **mm** (E57 stores metres: converted
 //!   here, at the edge). Scans recorded in spherical coordinates (range, azimuth, elevation) are
 //!   converted to Cartesian ones by the `e57` crate. Points whose coordinates are not valid
-//!   (`cartesianInvalidState` 1 = direction only, 2 = invalid; or the spherical equivalents)
-//!   are skipped and counted. A file that is not a readable E57 is an input error naming it (and
+//!   (`cartesianInvalidState` 1 = direction only, 2 = invalid; or the spherical equivalents),
+//!   or not finite numbers once in mm, are skipped and counted. A file that is not a readable E57 is an input error naming it (and
 //!   the scan, when one is broken).
 //! - [`write_e57`]: points in mm as one Cartesian scan of doubles, written atomically (for
 //!   tests and exchange).
@@ -84,9 +84,17 @@ pub fn read_e57(path: &Path) -> Result<E57Points, InputError> {
         it.spherical_to_cartesian(true);
         for p in it {
             let p = p.map_err(|e| scan(&e))?;
+            // Finite in mm, not only in metres: beyond ±1.8e305 m the conversion overflows to
+            // infinity (found by the `e57_points` fuzz target), and an infinite point would go
+            // into the fit. Such points are skipped and counted like the ones marked invalid.
             match p.cartesian {
-                CartesianCoordinate::Valid { x, y, z } if x.is_finite() && y.is_finite() && z.is_finite() => {
-                    points.push(Point3::new(x * MM_PER_M, y * MM_PER_M, z * MM_PER_M))
+                CartesianCoordinate::Valid { x, y, z } => {
+                    let q = Point3::new(x * MM_PER_M, y * MM_PER_M, z * MM_PER_M);
+                    if q.x.is_finite() && q.y.is_finite() && q.z.is_finite() {
+                        points.push(q);
+                    } else {
+                        skipped_invalid += 1;
+                    }
                 }
                 _ => skipped_invalid += 1,
             }
@@ -267,6 +275,27 @@ mod hostile {
         edited(&path, 10, |x| x.replace("recordCount=\"10\"", "recordCount=\"9\""));
         let r = read_e57(&path).unwrap();
         assert_eq!(r.points.len(), 9);
+    }
+
+    /// Coordinates finite in metres but not in mm (the ×1000 overflows): skipped and counted,
+    /// never an infinite point.
+    #[test]
+    fn coordinates_that_overflow_in_mm_are_skipped() {
+        let d = tempfile::tempdir().unwrap();
+        let path = d.path().join("far.e57");
+        {
+            let mut w = E57Writer::from_file(&path, "far").unwrap();
+            let cart = vec![Record::CARTESIAN_X_F64, Record::CARTESIAN_Y_F64, Record::CARTESIAN_Z_F64];
+            let mut pc = w.add_pointcloud("far", cart).unwrap();
+            for v in [[1.0, 2.0, 3.0], [1e306, 0.0, 0.0], [0.0, -1e306, 0.0], [4.0, 5.0, 6.0]] {
+                pc.add_point(v.iter().map(|&x| RecordValue::Double(x)).collect()).unwrap();
+            }
+            pc.finalize().unwrap();
+            w.finalize().unwrap();
+        }
+        let r = read_e57(&path).unwrap();
+        assert_eq!(r.skipped_invalid, 2);
+        assert_eq!(r.points, vec![Point3::new(1000.0, 2000.0, 3000.0), Point3::new(4000.0, 5000.0, 6000.0)]);
     }
 
     /// A point count far beyond what the file can hold (the XML says 10^12 points, or two scans

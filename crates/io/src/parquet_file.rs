@@ -106,6 +106,27 @@ fn read_columns_within(path: &Path, limit: u64) -> Result<Columns, InputError> {
         std::fs::File::open(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
     let meta = file.metadata().map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
     crate::limits::check_file_size(path, &meta)?;
+    // `parquet` asserts instead of returning an error on some malformed data, e.g. a dictionary
+    // page whose text lengths run past its end (`bit_util::read_num_bytes`, found by the
+    // `parquet_points` fuzz target). That cannot be checked without decoding the page, so a
+    // panic in the decoder is contained here and becomes the input error naming the file
+    // (exit 2, not 3). Nothing outlives the call but its result. (The process's panic hook
+    // still prints the decoder's message to stderr before the error.)
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| decode(path, file, limit))) {
+        Ok(r) => r,
+        Err(p) => {
+            let msg = p
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_default();
+            Err(pq_err(path, format!("malformed data (the Parquet decoder failed: {msg})")))
+        }
+    }
+}
+
+/// The columns of the open file (see [`read_columns_within`]).
+fn decode(path: &Path, file: std::fs::File, limit: u64) -> Result<Columns, InputError> {
     let reader = SerializedFileReader::new(file).map_err(|e| pq_err(path, e))?;
     let md = reader.metadata();
     let schema = md.file_metadata().schema_descr();
@@ -118,9 +139,26 @@ fn read_columns_within(path: &Path, limit: u64) -> Result<Columns, InputError> {
     // (8 bytes each), like a CSV file of that size, and reservations to what is certainly there.
     let mut rows: u64 = 0;
     for g in 0..reader.num_row_groups() {
-        let n = md.row_group(g).num_rows();
+        let rg = md.row_group(g);
+        let n = rg.num_rows();
         let n = u64::try_from(n).map_err(|_| pq_err(path, format!("row group {}: {n} rows", g + 1)))?;
         rows = rows.saturating_add(n);
+        // `parquet` panics on a negative column chunk offset or size (`byte_range`, found by
+        // the `parquet_points` fuzz target): refused here, before the row group is opened.
+        for c in rg.columns() {
+            let start = c.dictionary_page_offset().unwrap_or(c.data_page_offset());
+            if start < 0 || c.compressed_size() < 0 {
+                return Err(pq_err(
+                    path,
+                    format!(
+                        "row group {}, column '{}': chunk at offset {start} of {} bytes",
+                        g + 1,
+                        c.column_path(),
+                        c.compressed_size()
+                    ),
+                ));
+            }
+        }
     }
     let mut decoded = rows.saturating_mul(cols.len() as u64).saturating_mul(8);
     if decoded > limit {

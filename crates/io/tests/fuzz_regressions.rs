@@ -1,0 +1,35 @@
+//! Files found by the fuzz targets (`fuzz/`, see its README) that once panicked or gave a wrong
+//! answer, kept as they were found (`tests/fuzz/`): each is now an input error that names the
+//! file, through the entry points the CLI uses (`points::read_points`, `csv::Table::read`).
+
+use std::path::{Path, PathBuf};
+use truepos_io::csv::Table;
+use truepos_io::points::read_points;
+
+fn case(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz").join(name)
+}
+
+/// Both entry points refuse the file with an error that starts with its path and contains `what`.
+fn refused(name: &str, what: &str) {
+    let path = case(name);
+    let prefix = format!("{}:", path.display());
+    let errors = [read_points(&path).err(), Table::read(&path).err()];
+    for e in errors {
+        let e = e.expect("refused").to_string();
+        assert!(e.starts_with(&prefix) && e.contains(what), "{name}: {e}");
+    }
+}
+
+/// `parquet_points`: a column chunk at a negative offset made `parquet` panic (`byte_range`).
+#[test]
+fn parquet_negative_chunk_offset() {
+    refused("negative_chunk_offset.parquet", "chunk at offset -");
+}
+
+/// `parquet_points`: a dictionary page whose text lengths run past its end made `parquet`'s
+/// decoder assert (`bit_util::read_num_bytes`); contained at the reader, an input error.
+#[test]
+fn parquet_dictionary_text_past_page_end() {
+    refused("dictionary_text_past_page_end.parquet", "the Parquet decoder failed");
+}
