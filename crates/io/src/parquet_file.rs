@@ -153,7 +153,7 @@ fn decode(path: &Path, file: std::fs::File, limit: u64) -> Result<Columns, Input
                     format!(
                         "row group {}, column '{}': chunk at offset {start} of {} bytes",
                         g + 1,
-                        c.column_path(),
+                        c.column_path().string(),
                         c.compressed_size()
                     ),
                 ));

@@ -24,7 +24,7 @@ fn refused(name: &str, what: &str) {
 /// `parquet_points`: a column chunk at a negative offset made `parquet` panic (`byte_range`).
 #[test]
 fn parquet_negative_chunk_offset() {
-    refused("negative_chunk_offset.parquet", "chunk at offset -");
+    refused("negative_chunk_offset.parquet", "row group 1, column 't_s': chunk at offset -33");
 }
 
 /// `parquet_points`: a dictionary page whose text lengths run past its end made `parquet`'s
@@ -32,4 +32,13 @@ fn parquet_negative_chunk_offset() {
 #[test]
 fn parquet_dictionary_text_past_page_end() {
     refused("dictionary_text_past_page_end.parquet", "the Parquet decoder failed");
+}
+
+/// `parquet_points`: a column named `z_,m` was written into the table's CSV header as is and
+/// split in two (a header of five names over rows of four fields).
+#[test]
+fn parquet_comma_in_column_name() {
+    let path = case("comma_in_column_name.parquet");
+    let e = Table::read(&path).expect_err("refused").to_string();
+    assert!(e.starts_with(&format!("{}: column 4: the name 'z_,m'", path.display())), "{e}");
 }
