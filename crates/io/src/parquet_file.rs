@@ -164,7 +164,12 @@ impl ::parquet::file::reader::ChunkReader for StrictFile {
 
 /// The columns of the open file (see [`read_columns_within`]).
 fn decode(path: &Path, file: std::fs::File, limit: u64) -> Result<Columns, InputError> {
+    let map_source = file.try_clone().map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
     let reader = SerializedFileReader::new(StrictFile(file)).map_err(|e| pq_err(path, e))?;
+    // SAFETY: a private read-only map, as in `csv::map_large_file`; the input file is not
+    // expected to change while truepos reads it. Only the page headers are touched.
+    let map = unsafe { memmap2::Mmap::map(&map_source) }
+        .map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
     let md = reader.metadata();
     let schema = md.file_metadata().schema_descr();
     let cols = schema.columns();
@@ -195,6 +200,15 @@ fn decode(path: &Path, file: std::fs::File, limit: u64) -> Result<Columns, Input
                     ),
                 ));
             }
+            let chunk = usize::try_from(start)
+                .ok()
+                .zip(usize::try_from(c.compressed_size()).ok())
+                .and_then(|(a, n)| map.get(a..a.checked_add(n)?));
+            let at = |msg: String| {
+                pq_err(path, format!("row group {}, column '{}': {msg}", g + 1, c.column_path().string()))
+            };
+            let chunk = chunk.ok_or_else(|| at("the column chunk runs past the end of the file".into()))?;
+            check_page_headers(chunk).map_err(at)?;
         }
     }
     let mut decoded = rows.saturating_mul(cols.len() as u64).saturating_mul(8);
@@ -314,6 +328,123 @@ fn decode(path: &Path, file: std::fs::File, limit: u64) -> Result<Columns, Input
         }
     }
     Ok(Columns { names, data })
+}
+
+/// Walk the page headers (Thrift compact protocol) of one column chunk before `parquet` reads
+/// them: every list, set or map must fit in the bytes that remain (each element takes at least
+/// one byte). `parquet` skips unknown header fields element by element without reading bools,
+/// so a list of 2³¹ bools took 4 s per header, and a file can hold many such headers. Here the
+/// walk always advances through the bytes, so it costs at most the size of the headers.
+fn check_page_headers(chunk: &[u8]) -> Result<(), String> {
+    let mut pos = 0;
+    while pos < chunk.len() {
+        let mut r = Compact { buf: chunk, pos, page_size: None };
+        r.structure(64, true).map_err(|e| format!("page header at chunk byte {pos}: {e}"))?;
+        let size = r.page_size.ok_or_else(|| format!("page header at chunk byte {pos}: no page size"))?;
+        pos = usize::try_from(size)
+            .ok()
+            .and_then(|n| r.pos.checked_add(n))
+            .ok_or_else(|| format!("page header at chunk byte {pos}: page size {size}"))?;
+    }
+    Ok(())
+}
+
+/// A reader of the Thrift compact protocol that only checks and skips (see [`check_page_headers`]).
+struct Compact<'a> {
+    buf: &'a [u8],
+    pos: usize,
+    /// Field 3 of the top-level structure (`PageHeader.compressed_page_size`).
+    page_size: Option<i64>,
+}
+
+impl Compact<'_> {
+    fn byte(&mut self) -> Result<u8, String> {
+        let b = *self.buf.get(self.pos).ok_or("it runs past the end of the column chunk")?;
+        self.pos += 1;
+        Ok(b)
+    }
+    fn varint(&mut self) -> Result<u64, String> {
+        let mut v = 0_u64;
+        for shift in (0..70).step_by(7) {
+            let b = self.byte()?;
+            v |= u64::from(b & 0x7f).checked_shl(shift).unwrap_or(0);
+            if b & 0x80 == 0 {
+                return Ok(v);
+            }
+        }
+        Err("a variable-length integer of more than 10 bytes".into())
+    }
+    fn zigzag(&mut self) -> Result<i64, String> {
+        let v = self.varint()?;
+        Ok((v >> 1) as i64 ^ -((v & 1) as i64))
+    }
+    fn skip(&mut self, n: u64) -> Result<(), String> {
+        let end =
+            usize::try_from(n).ok().and_then(|n| self.pos.checked_add(n)).filter(|&e| e <= self.buf.len());
+        self.pos = end.ok_or("it runs past the end of the column chunk")?;
+        Ok(())
+    }
+    /// Elements of a list, set or map: no more than the bytes left.
+    fn count(&self, n: u64) -> Result<u64, String> {
+        if n > (self.buf.len() - self.pos) as u64 {
+            return Err(format!("{n} elements announced in {} bytes", self.buf.len() - self.pos));
+        }
+        Ok(n)
+    }
+    /// One value of compact type `ty`; `element`: inside a list, set or map (bools take a byte).
+    fn value(&mut self, ty: u8, depth: u8, element: bool) -> Result<(), String> {
+        match ty {
+            1 | 2 if element => self.skip(1),
+            1 | 2 => Ok(()),
+            3 => self.skip(1),
+            4..=6 => self.varint().map(|_| ()),
+            7 => self.skip(8),
+            8 => {
+                let n = self.varint()?;
+                self.skip(n)
+            }
+            9 | 10 => {
+                let h = self.byte()?;
+                let n = if h >> 4 == 15 { self.varint()? } else { u64::from(h >> 4) };
+                for _ in 0..self.count(n)? {
+                    self.value(h & 15, depth.checked_sub(1).ok_or("nested too deep")?, true)?;
+                }
+                Ok(())
+            }
+            11 => {
+                let n = self.varint()?;
+                if n > 0 {
+                    let kv = self.byte()?;
+                    let d = depth.checked_sub(1).ok_or("nested too deep")?;
+                    for _ in 0..self.count(n)? {
+                        self.value(kv >> 4, d, true)?;
+                        self.value(kv & 15, d, true)?;
+                    }
+                }
+                Ok(())
+            }
+            12 => self.structure(depth.checked_sub(1).ok_or("nested too deep")?, false),
+            13 => self.skip(16),
+            _ => Err(format!("unknown Thrift type {ty}")),
+        }
+    }
+    fn structure(&mut self, depth: u8, top: bool) -> Result<(), String> {
+        let mut last: i64 = 0;
+        loop {
+            let h = self.byte()?;
+            if h == 0 {
+                return Ok(());
+            }
+            let (delta, ty) = (h >> 4, h & 15);
+            let id = if delta != 0 { last + i64::from(delta) } else { self.zigzag()? };
+            last = id;
+            if top && id == 3 && ty == 5 {
+                self.page_size = Some(self.zigzag()?);
+            } else {
+                self.value(ty, depth, false)?;
+            }
+        }
+    }
 }
 
 /// Write `columns` (all of one length) to `path` atomically: numbers as required DOUBLE, text as
