@@ -112,7 +112,7 @@ impl std::fmt::Display for Txt {
 /// than float formatting, exact for |v|·10^dec below 2^53.
 fn fmt_num(v: f64, dec: u8) -> Txt {
     let scale = 10i64.pow(dec as u32);
-    let scaled = (v * scale as f64).round();
+    let scaled = round(v * scale as f64);
     if !scaled.is_finite() || scaled.abs() >= 9.0e15 {
         return Txt::from(format!("{:.*}", dec as usize, v));
     }
@@ -167,7 +167,27 @@ fn pow10(dec: u8) -> f64 {
 
 fn round_to(v: f64, dec: u8) -> f64 {
     let f = pow10(dec);
-    (v * f).round() / f
+    round(v * f) / f
+}
+
+/// `v.round()` (half away from zero, the sign of zero kept) without the call into libm that
+/// `f64::round` is on the x86-64 baseline (no rounding instruction before SSE4.1): truncation
+/// by the integer conversion, and the difference `v − trunc(v)`, exact below 2^52.
+#[inline(always)]
+fn round(v: f64) -> f64 {
+    if v.is_nan() || v.abs() >= 4.0e15 {
+        return v.round();
+    }
+    let t = (v as i64) as f64;
+    let d = v - t;
+    let r = if d >= 0.5 {
+        t + 1.0
+    } else if d <= -0.5 {
+        t - 1.0
+    } else {
+        t
+    };
+    r.copysign(v)
 }
 
 /// Edits of one line.
@@ -759,6 +779,17 @@ mod tests {
                 want = format!("{want}.{frac}");
             }
             proptest::prop_assert_eq!(&*fmt_num(v, dec), want);
+        }
+    }
+
+    proptest::proptest! {
+        /// The inline rounding is `f64::round`, bit for bit (sign of zero included).
+        #[test]
+        fn round_matches_std(v in proptest::num::f64::ANY, k in 0i32..8) {
+            let v = v / 10f64.powi(k);
+            proptest::prop_assert_eq!(round(v).to_bits(), v.round().to_bits(), "{}", v);
+            let h = (v * 2.0).trunc() / 2.0;
+            proptest::prop_assert_eq!(round(h).to_bits(), h.round().to_bits(), "{}", h);
         }
     }
 
