@@ -52,10 +52,11 @@ const AXES: [u8; 3] = [b'X', b'Y', b'Z'];
 const CENTRE: [u8; 3] = [b'I', b'J', b'K'];
 
 /// Replacement text of a word: inline (no allocation) up to 31 bytes, which every fixed-point
-/// number below 10^15 is; longer text on the heap.
+/// number below 10^15 is; longer text on the heap. Inline text is kept at the end of its
+/// buffer (`buf[start..]`), where [`fmt_num`] writes its digits: no copy to build one.
 #[derive(Clone)]
 enum Txt {
-    Inline { len: u8, buf: [u8; 31] },
+    Inline { start: u8, buf: [u8; 31] },
     Heap(String),
 }
 
@@ -65,8 +66,9 @@ impl Txt {
     fn inline(b: &[u8]) -> Self {
         debug_assert!(b.len() <= 31 && std::str::from_utf8(b).is_ok());
         let mut buf = [0u8; 31];
-        buf[..b.len()].copy_from_slice(b);
-        Txt::Inline { len: b.len() as u8, buf }
+        let start = 31 - b.len();
+        buf[start..].copy_from_slice(b);
+        Txt::Inline { start: start as u8, buf }
     }
 }
 
@@ -94,9 +96,10 @@ impl std::ops::Deref for Txt {
     type Target = str;
     fn deref(&self) -> &str {
         match self {
-            // SAFETY: `Txt::inline` is the only constructor of `Inline`, from the bytes of a whole
-            // `&str` or from ASCII, so `buf[..len]` is valid UTF-8 (checked in debug builds).
-            Txt::Inline { len, buf } => unsafe { std::str::from_utf8_unchecked(&buf[..*len as usize]) },
+            // SAFETY: `Inline` is built by `Txt::inline`, from the bytes of a whole `&str` or
+            // from ASCII, and by `fmt_num`, from ASCII digits, point and sign only, so
+            // `buf[start..]` is valid UTF-8 (checked in debug builds).
+            Txt::Inline { start, buf } => unsafe { std::str::from_utf8_unchecked(&buf[*start as usize..]) },
             Txt::Heap(s) => s,
         }
     }
@@ -111,7 +114,18 @@ impl std::fmt::Display for Txt {
 /// Fixed-point text of `v` with `dec` decimals (no "-0.000"). Integer arithmetic: much faster
 /// than float formatting, exact for |v|·10^dec below 2^53.
 fn fmt_num(v: f64, dec: u8) -> Txt {
-    let scale = 10i64.pow(dec as u32);
+    const SCALE: [i64; 19] = {
+        let mut t = [1i64; 19];
+        let mut k = 1;
+        while k < 19 {
+            t[k] = t[k - 1] * 10;
+            k += 1;
+        }
+        t
+    };
+    let Some(&scale) = SCALE.get(dec as usize) else {
+        return Txt::from(format!("{:.*}", dec as usize, v));
+    };
     let scaled = round(v * scale as f64);
     if !scaled.is_finite() || scaled.abs() >= 9.0e15 {
         return Txt::from(format!("{:.*}", dec as usize, v));
@@ -120,7 +134,7 @@ fn fmt_num(v: f64, dec: u8) -> Txt {
     // At most 16 digits, a point and a sign; digits two at a time from a table.
     const PAIRS: &[u8; 200] = b"00010203040506070809101112131415161718192021222324252627282930313233343536373839\
 404142434445464748495051525354555657585960616263646566676869707172737475767778798081828384858687888990919293949596979899";
-    let mut buf = [0u8; 24];
+    let mut buf = [0u8; 31];
     let mut i = buf.len();
     let mut a = n.unsigned_abs();
     let mut left = dec as usize;
@@ -154,8 +168,9 @@ fn fmt_num(v: f64, dec: u8) -> Txt {
         i -= 1;
         buf[i] = b'-';
     }
-    // ASCII digits, point and sign only.
-    Txt::inline(&buf[i..])
+    // ASCII digits, point and sign only, at the end of the buffer (at most 18 bytes).
+    debug_assert!(std::str::from_utf8(&buf[i..]).is_ok());
+    Txt::Inline { start: i as u8, buf }
 }
 
 /// 10^dec (a table for the usual decimals: this is on every rewritten word).
@@ -734,24 +749,32 @@ impl Program {
     fn emit_line(&self, i: usize, edits: &Edits, out: &mut String) {
         let line = &self.lines[i];
         let toks = &self.tokens[line.tokens.clone()];
+        // The tokens tile the line: runs of untouched tokens are copied in one piece, from
+        // `from` (the first source byte not yet written) up to the next edit.
+        let mut from = line.start;
         for (ti, tk) in toks.iter().enumerate() {
             for (_, s) in edits.insert_before.iter().filter(|(j, _)| *j == ti) {
+                out.push_str(&self.source[from..tk.start]);
+                from = tk.start;
                 out.push_str(s);
             }
-            match edits.replace.iter().find(|(j, _)| *j == ti) {
-                Some((_, v)) if v.is_empty() => {}
-                Some((_, v)) => {
-                    // Keep the letter as written (its case), replace the number.
+            if let Some((_, v)) = edits.replace.iter().find(|(j, _)| *j == ti) {
+                out.push_str(&self.source[from..tk.start]);
+                // Keep the letter as written (its case), replace the number; empty text
+                // removes the word.
+                if !v.is_empty() {
                     out.push_str(&self.source[tk.start..tk.start + 1]);
                     out.push_str(v);
                 }
-                None => out.push_str(&self.source[tk.start..tk.end]),
+                from = tk.end;
             }
             for (_, s) in edits.insert_after.iter().filter(|(j, _)| *j == ti) {
+                out.push_str(&self.source[from..tk.end]);
+                from = tk.end;
                 out.push_str(s);
             }
         }
-        out.push_str(&self.source[line.end..line.next]);
+        out.push_str(&self.source[from..line.next]);
     }
 }
 
