@@ -121,8 +121,10 @@ fn parse_range(source: &str, from: usize, to: usize, tokens: &mut Vec<Token>, li
     tokens.reserve((to - from) / 4);
     lines.reserve((to - from) / 16 + 1);
     let mut pos = from;
+    // One search over the whole range (lines are short: a call per line costs more).
+    let mut ends = memchr::memchr_iter(b'\n', &b[from..]).map(|p| from + p);
     while pos < b.len() {
-        let nl = memchr_nl(&b[pos..]).map(|p| pos + p);
+        let nl = ends.next();
         let (end, next) = match nl {
             Some(n) if n > pos && b[n - 1] == b'\r' => (n - 1, n + 1),
             Some(n) => (n, n + 1),

@@ -143,7 +143,7 @@ pub fn decimal_prefix(b: &[u8]) -> Result<(f64, usize), usize> {
 
 /// [`decimal_prefix`] that also gives the count of decimals (digits after the point; `None`
 /// without a point): `Ok((value, bytes used, decimals))`.
-#[inline]
+#[inline(always)]
 pub fn decimal_prefix_decimals(b: &[u8]) -> Result<(f64, usize, Option<usize>), usize> {
     let (neg, s0) = match b.first() {
         Some(b'-') => (true, 1),
