@@ -20,8 +20,11 @@
 //!   stop-free planner of `truepos-scan` and executed on the servo/stylus dynamics of
 //!   [`crate::scanning_cmm::VirtualCmm`] against the part (displaced by `E`), with its encoder
 //!   and deflection noise; the points reported are the measured tip centres at the requested
-//!   step. Unknown-contour scans (11.3) step along the surface with exact contacts plus the
-//!   touch noise.
+//!   step. Unknown-contour scans (11.3, the `ScanIn…` family) go the same way wherever the
+//!   surface under them is a line or circle the planner can plan ([`contour`]: a plane face,
+//!   a pin, a bore or a sphere cut in a line or a circle), ending where the stop criterion is
+//!   met on the planned path; elsewhere (an ellipse, a helix, a path across several faces) they
+//!   step along the surface with exact contacts plus the touch noise, and say so in the log.
 //!
 //! With [`truepos_ippdme::ModelConfig::ideal`] contacts are exact: a probing move of the ball
 //! centre along a segment latches the first parameter at which the ball touches any solid (the
@@ -47,6 +50,8 @@ use truepos_sim::noise::{self, SimRng};
 use truepos_sim::touch::TouchProbe;
 
 use crate::scanning_cmm::{CmmConfig, VirtualCmm};
+
+mod contour;
 
 /// Most points one scan may return (bounds the memory of a session).
 const MAX_SCAN_POINTS: usize = 1_000_000;
@@ -123,6 +128,8 @@ pub struct IppdmeCmm {
     volume: (Point3, Point3),
     position: Point3,
     models: Models,
+    /// How the last unknown-contour scan ran (for the session log).
+    note: Option<String>,
     /// Number of probing moves, positioning moves and scan points so far (for tests).
     pub counters: Counters,
 }
@@ -162,6 +169,7 @@ impl IppdmeCmm {
                 scans: 0,
                 deflected_mm: 0.0,
             },
+            note: None,
             counters: Counters::default(),
         }
     }
@@ -942,6 +950,45 @@ impl Cmm for IppdmeCmm {
             }
             ScanPath::Contour { guide, toward, step_mm, stop, max_length_mm } => {
                 steps(max_length_mm / step_mm.max(1e-12))?;
+                let why = match self.contour_route(&start, &guide, &toward, r)? {
+                    contour::Route::Planned(feature, what) => {
+                        match self.contour_end(&feature, &stop, step_mm, max_length_mm, r)? {
+                            Ok((feature, end)) => {
+                                let metric = feature.metric(r);
+                                let n_steps = steps(end * metric / step_mm.max(1e-12))?;
+                                let du = step_mm / metric;
+                                let mut targets: Vec<f64> = (0..=n_steps)
+                                    .map(|k| k as f64 * du)
+                                    .take_while(|u| *u < end - 0.01 * du)
+                                    .collect();
+                                // The end point itself (grid points within 1 % of a step
+                                // before it are left out).
+                                targets.push(end);
+                                let first = out.len();
+                                match self.scan_planned(feature, &targets, r, out) {
+                                    Ok(()) => {
+                                        self.note = Some(format!(
+                                            "unknown contour planned as {what} (blended planner on the scanning dynamics): {} points, {:.3} mm to the stop",
+                                            targets.len(),
+                                            end * metric
+                                        ));
+                                        return Ok(());
+                                    }
+                                    Err(e) => {
+                                        // E.g. a bore too narrow for the planner: step instead.
+                                        out.truncate(first);
+                                        format!("the planned scan ({what}) failed: {e}")
+                                    }
+                                }
+                            }
+                            Err(why) => why,
+                        }
+                    }
+                    contour::Route::Stepped(why) => why,
+                };
+                self.note = Some(format!(
+                    "unknown contour stepped along the surface (exact contacts plus touch noise): {why}"
+                ));
                 let first = out.len();
                 self.follow(start, &guide, &toward, step_mm, &stop, max_length_mm, tip_radius_mm, out)?;
                 for p in &mut out[first..] {
@@ -955,6 +1002,10 @@ impl Cmm for IppdmeCmm {
 
     fn stop(&mut self) {
         self.counters.stops += 1;
+    }
+
+    fn take_note(&mut self) -> Option<String> {
+        self.note.take()
     }
 
     fn rotary_axis(&self) -> Option<(Point3, Vector3)> {

@@ -15,7 +15,7 @@ use truepos_cell::cmm::IppdmeCmm;
 use truepos_device::{ProbeRequest, ProbingMachine};
 use truepos_ippdme::part::Part;
 use truepos_ippdme::protocol::{parse_data_items, Body, Response};
-use truepos_ippdme::{MachineConfig, Server, ServerHandle};
+use truepos_ippdme::{Cmm, Contact, Guide, MachineConfig, ScanPath, Server, ServerHandle, Stop};
 use truepos_math::{Point3, Vector3};
 
 /// A server on the default (realistic) virtual CMM.
@@ -614,6 +614,316 @@ fn scan_on_circle_in_a_bore_lies_on_the_true_circle() {
         .collect();
     assert!((119..=123).contains(&n_line), "{n_line}");
     assert!(zs.iter().all(|z| (z - 1.5).abs() < 1e-6), "{zs:?}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Unknown-contour scans (ScanIn…, spec 11.3) on the blended planner
+
+/// A table plane Z = 0, a 40 mm pin about (200, −100) and a 30 mm bore about (−100, 0), both
+/// along Z, and a 25 mm sphere at (100, 50, 20).
+const CONTOUR_PART: &str = "[[plane]]\nid = \"table\"\npoint_mm = [0, 0, 0]\nnormal = [0, 0, 1]\n\n[[cylinder]]\nid = \"pin\"\npoint_mm = [200, -100, 0]\naxis = [0, 0, 1]\ndiameter_mm = 40\nside = \"outside\"\n\n[[cylinder]]\nid = \"bore\"\npoint_mm = [-100, 0, 0]\naxis = [0, 0, 1]\ndiameter_mm = 30\nside = \"inside\"\n\n[[sphere]]\nid = \"ball\"\ncenter_mm = [100, 50, 20]\ndiameter_mm = 25\n";
+
+/// One unknown-contour case: where to go first, the scan, the truth of its tip centres.
+struct ContourCase {
+    kind: &'static str,
+    /// Tip-centre positions before the scan (each: X, Y, then down to Z; the pin is infinite in Z).
+    at: &'static [[f64; 3]],
+    scan: &'static str,
+    /// Error of a tip centre against the true surface along its normal (mm).
+    truth: fn(&Vector3) -> f64,
+    /// Distance of a tip centre from the scan plane or cylinder (mm).
+    guide: fn(&Vector3) -> f64,
+    /// Expected number of points and the expected end point (tip centre).
+    n_points: usize,
+    end: [f64; 3],
+    /// Words the log's note must contain (how the scan ran).
+    note: &'static str,
+    /// Ideal machine: how far the tip centres may be off the guide and the end (mm). Zero
+    /// error models leave the servo: on a plane the in-plane path is not held by the contact.
+    ideal_path_tol: f64,
+}
+
+/// Distance of `p` from the Z-parallel axis through (cx, cy).
+fn radial(p: &Vector3, cx: f64, cy: f64) -> f64 {
+    Vector3::new(p.x - cx, p.y - cy, 0.0).norm()
+}
+
+fn contour_cases() -> Vec<ContourCase> {
+    let table = |p: &Vector3| p.z - 1.5;
+    vec![
+        // A line on the table in the plane Y = −200 towards +X, stopping at the sphere about
+        // (40, −200, 0): 0 to 40 mm in 0.5 mm steps.
+        ContourCase {
+            kind: "ScanInPlaneEndIsSphere",
+            at: &[[0.0, -200.0, 50.0]],
+            scan: "ScanInPlaneEndIsSphere(0, -200, 0, 0, 0, 1, 10, -200, 0, 0.5, 40, -200, 0, 2, 0, 0, 1)",
+            truth: table,
+            guide: |p| p.y + 200.0,
+            n_points: 81,
+            end: [40.0, -200.0, 1.5],
+            note: "planned as a line on the plane face `table`",
+            ideal_path_tol: 1e-5,
+        },
+        // Half a turn around the pin in the plane Z = 10 (the tip on a 21.5 mm circle), from +X
+        // counter-clockwise until it crosses the plane Y = −100 again (after the 10 mm arm).
+        ContourCase {
+            kind: "ScanInPlaneEndIsPlane",
+            at: &[[230.0, -60.0, 50.0], [230.0, -100.0, 10.0]],
+            scan: "ScanInPlaneEndIsPlane(220, -100, 10, 1, 0, 0, 220, -90, 10, 1, 200, -100, 10, 0, -1, 0, 1, 0, 0, 1)",
+            truth: |p| radial(p, 200.0, -100.0) - 21.5,
+            guide: |p| p.z - 10.0,
+            n_points: 69,
+            end: [178.5, -100.0, 10.0],
+            note: "planned as a circle about the axis of the pin `pin`",
+            ideal_path_tol: 1e-5,
+        },
+        // A great circle of the sphere in the plane Y = 50 from its top towards +X, down to the
+        // plane Z = 20 (the equator): a quarter of the 14 mm tip circle.
+        ContourCase {
+            kind: "ScanInPlaneEndIsPlane",
+            at: &[[100.0, 50.0, 50.0]],
+            scan: "ScanInPlaneEndIsPlane(100, 50, 32.5, 0, 0, 1, 101, 50, 32.5, 0.5, 0, 0, 20, 0, 0, 1, 1, 1, 0, 0)",
+            truth: |p| (p - Vector3::new(100.0, 50.0, 20.0)).norm() - 14.0,
+            guide: |p| p.y - 50.0,
+            n_points: 45,
+            end: [114.0, 50.0, 20.0],
+            note: "planned as a great circle of the sphere `ball`",
+            ideal_path_tol: 1e-5,
+        },
+        // Up the pin along its axis in the plane Y = −100, to the stop sphere about
+        // (220, −100, 30).
+        ContourCase {
+            kind: "ScanInPlaneEndIsSphere",
+            at: &[[230.0, -60.0, 50.0], [230.0, -100.0, 10.0]],
+            scan: "ScanInPlaneEndIsSphere(220, -100, 10, 1, 0, 0, 220, -100, 20, 0.5, 220, -100, 30, 2, 1, 0, 0)",
+            truth: |p| radial(p, 200.0, -100.0) - 21.5,
+            guide: |p| p.y + 100.0,
+            n_points: 41,
+            end: [221.5, -100.0, 30.0],
+            note: "planned as a line along the pin `pin`",
+            ideal_path_tol: 1e-5,
+        },
+        // A diagonal line on the table towards the 4 mm stop cylinder about (30, −270).
+        ContourCase {
+            kind: "ScanInPlaneEndIsCyl",
+            at: &[[0.0, -300.0, 50.0]],
+            scan: "ScanInPlaneEndIsCyl(0, -300, 0, 0, 0, 1, 10, -290, 0, 0.5, 30, -270, 0, 0, 0, 1, 4, 1, 0, 0, 1)",
+            truth: table,
+            guide: |p| (p.x - (p.y + 300.0)) / 2f64.sqrt(),
+            n_points: 82,
+            end: [30.0 - 2.0 / 2f64.sqrt(), -270.0 - 2.0 / 2f64.sqrt(), 1.5],
+            note: "planned as a line on the plane face `table`",
+            ideal_path_tol: 1e-5,
+        },
+        // A quarter circle of radius 10 on the table about the scan cylinder's axis (0, −400),
+        // until it crosses the plane X = 0.
+        ContourCase {
+            kind: "ScanInCylEndIsPlane",
+            at: &[[10.0, -400.0, 50.0]],
+            scan: "ScanInCylEndIsPlane(0, -400, 0, 0, 0, 1, 10, -400, 0, 0, 0, 1, 10, -399, 0, 1, 0, -400, 0, 1, 0, 0, 1, 0, 0, 1)",
+            truth: table,
+            guide: |p| radial(p, 0.0, -400.0) - 10.0,
+            n_points: 17,
+            end: [0.0, -390.0, 1.5],
+            note: "planned as a circle about the scan axis on the plane face `table`",
+            // The 15 Hz position loop lags a 10 mm circle at 20 mm/s by about 2 µm radially
+            // (the contact holds only the height).
+            ideal_path_tol: 3e-3,
+        },
+        // A quarter turn inside the bore, the scan cylinder coaxial with it, up to the stop
+        // sphere on the wall at 90°.
+        ContourCase {
+            kind: "ScanInCylEndIsSphere",
+            at: &[[-100.0, 0.0, -10.0]],
+            scan: "ScanInCylEndIsSphere(-100, 0, 0, 0, 0, 1, -85, 0, -10, -1, 0, 0, -85, 1, -10, 0.5, -100, 15, -10, 2, 0, 0, 1)",
+            truth: |p| 13.5 - radial(p, -100.0, 0.0),
+            guide: |p| p.z + 10.0,
+            n_points: 44,
+            end: [-100.0, 13.5, -10.0],
+            note: "planned as a circle on the bore `bore`, coaxial with the scan cylinder",
+            ideal_path_tol: 1e-5,
+        },
+    ]
+}
+
+/// Run one unknown-contour scan on a fresh server of `config` with [`CONTOUR_PART`]: the tip
+/// centres and normals, and the session log.
+fn contour_scan(config: MachineConfig, at: &[[f64; 3]], scan: &str) -> (Vec<(Vector3, Vector3)>, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("contour.log");
+    let h = start_with(config, Some(CONTOUR_PART), Some(&log));
+    let mut c = Raw::connect(&h);
+    for l in [
+        "00001 StartSession()",
+        "00002 Home()",
+        "00003 ChangeTool(\"Probe1\")",
+        "00004 OnScanReport(X(), Y(), Z(), IJK())",
+        "00005 GoTo(Z(50))",
+    ] {
+        c.ok(l);
+    }
+    for a in at {
+        c.ok(&format!("00006 GoTo(X({}), Y({}))", a[0], a[1]));
+        c.ok(&format!("00007 GoTo(Z({}))", a[2]));
+    }
+    let out = c.ok(&format!("00008 {scan}"));
+    c.ok("00009 EndSession()");
+    drop(c);
+    // The log is flushed when the server has seen the disconnect.
+    let deadline = Instant::now() + Duration::from_secs(5);
+    let text = loop {
+        let text = std::fs::read_to_string(&log).unwrap_or_default();
+        if text.contains("# disconnected") || Instant::now() > deadline {
+            break text;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    h.shutdown();
+    let mut pts = Vec::new();
+    for l in &out {
+        if let Ok(Response { body: Body::Data(d), .. }) = Response::parse(l) {
+            let v: Vec<f64> = d.split(',').map(|s| s.trim().parse().unwrap()).collect();
+            assert_eq!(v.len() % 6, 0);
+            pts.extend(v.chunks(6).map(|c| (Vector3::new(c[0], c[1], c[2]), Vector3::new(c[3], c[4], c[5]))));
+        }
+    }
+    (pts, text)
+}
+
+#[test]
+fn unknown_contour_scans_run_on_the_planner_against_truth() {
+    for case in contour_cases() {
+        for (machine, config) in [("ideal", MachineConfig::ideal()), ("realistic", MachineConfig::default())]
+        {
+            let (pts, log) = contour_scan(config.clone(), case.at, case.scan);
+            let errors: Vec<f64> = pts.iter().map(|(p, _)| (case.truth)(p)).collect();
+            let off_guide = pts.iter().fold(0.0f64, |w, (p, _)| w.max((case.guide)(p).abs()));
+            let worst = errors.iter().fold(0.0f64, |w, e| w.max(e.abs()));
+            let mean = errors.iter().sum::<f64>() / errors.len().max(1) as f64;
+            let last = pts.last().map(|(p, _)| *p).unwrap_or_default();
+            let end_error = (last - Vector3::from(case.end)).norm();
+            eprintln!(
+                "ippdme {} ({machine} machine): {} points, error against the true surface rms {:.3} µm, mean {:+.3} µm, worst {:.3} µm; off the scan guide worst {:.3} µm; end point off by {:.3} µm",
+                case.kind,
+                pts.len(),
+                rms(&errors) * 1e3,
+                mean * 1e3,
+                worst * 1e3,
+                off_guide * 1e3,
+                end_error * 1e3
+            );
+            assert!(log.contains(case.note), "{}: {log}", case.kind);
+            assert_eq!(pts.len(), case.n_points, "{} {machine}", case.kind);
+            // Normals of the true surface: out of the material, against the truth's gradient
+            // direction within 0.1° (realistic: the error map tilts nothing visibly).
+            for (p, n) in &pts {
+                let eps = 1e-4;
+                let g = Vector3::new(
+                    (case.truth)(&(p + Vector3::x() * eps)) - (case.truth)(&(p - Vector3::x() * eps)),
+                    (case.truth)(&(p + Vector3::y() * eps)) - (case.truth)(&(p - Vector3::y() * eps)),
+                    (case.truth)(&(p + Vector3::z() * eps)) - (case.truth)(&(p - Vector3::z() * eps)),
+                )
+                .normalize();
+                assert!(n.dot(&g) > 0.9999985, "{}: normal {n:?} against {g:?}", case.kind);
+            }
+            if machine == "ideal" {
+                // Exact to the 6 printed decimals (circles: chords between the 1 kHz samples
+                // below 0.01 µm).
+                assert!(worst < 1e-5, "{}: {worst}", case.kind);
+                assert!(off_guide < case.ideal_path_tol, "{}: {off_guide}", case.kind);
+                assert!(end_error < case.ideal_path_tol, "{}: end {last:?}", case.kind);
+            } else {
+                // Encoder, deflection noise and the geometric map's few µm: not exact, within
+                // 10 µm; the end where the stop is met on the path planned from the measured
+                // start (µm off).
+                assert!(rms(&errors) > 0.05e-3 && worst < 10e-3, "{}: {worst}", case.kind);
+                assert!(off_guide < 10e-3 && end_error < 10e-3, "{}: {off_guide} {end_error}", case.kind);
+            }
+        }
+    }
+}
+
+#[test]
+fn an_unknown_contour_the_planner_cannot_plan_is_stepped_and_logged() {
+    // The plane Y = 55 cuts the 25 mm sphere 5 mm off its centre: a small circle whose surface
+    // normal leaves the scan plane. Stepped from the top towards +X, down to the plane Z = 20.
+    let s = Vector3::new(100.0, 55.0, 20.0 + (12.5f64 * 12.5 - 25.0).sqrt());
+    let n = (s - Vector3::new(100.0, 50.0, 20.0)) / 12.5;
+    let scan = format!(
+        "ScanInPlaneEndIsPlane({:.9}, {:.9}, {:.9}, {:.9}, {:.9}, {:.9}, 0, 1, 0, {:.9}, {:.9}, {:.9}, 0.5, 0, 0, 20, 0, 0, 1, 1, 0, 0, 1)",
+        s.x,
+        s.y,
+        s.z,
+        n.x,
+        n.y,
+        n.z,
+        s.x + 1.0,
+        s.y,
+        s.z
+    );
+    for (machine, config) in [("ideal", MachineConfig::ideal()), ("realistic", MachineConfig::default())] {
+        let (pts, log) = contour_scan(config, &[[100.0, 55.0, 50.0]], &scan);
+        assert!(log.contains("stepped along the surface"), "{log}");
+        assert!(log.contains("off its centre"), "{log}");
+        let errors: Vec<f64> =
+            pts.iter().map(|(p, _)| (p - Vector3::new(100.0, 50.0, 20.0)).norm() - 14.0).collect();
+        let worst = errors.iter().fold(0.0f64, |w, e| w.max(e.abs()));
+        eprintln!(
+            "ippdme ScanInPlaneEndIsPlane stepped on a small circle of a sphere ({machine} machine): {} points, radial error rms {:.3} µm, worst {:.3} µm",
+            pts.len(),
+            rms(&errors) * 1e3,
+            worst * 1e3
+        );
+        // A quarter of the 12.8 mm tip circle in 0.5 mm steps: about 40 points.
+        assert!((35..=45).contains(&pts.len()), "{}", pts.len());
+        assert!(pts.iter().all(|(p, _)| (p.y - 55.6).abs() < 5e-3), "{pts:?}");
+        // Ideal: exact contacts; realistic: touch noise σ 0.25 µm per axis.
+        assert!(worst < if machine == "ideal" { 1e-6 } else { 3e-3 }, "{worst}");
+    }
+}
+
+#[test]
+fn a_planned_contour_that_runs_off_its_face_is_stepped() {
+    // A line on the table towards +X across the 30 mm bore (X −115 … −85), stop plane X = −50:
+    // the planned line leaves the table at the bore's edge, so it is stepped, and the stepping
+    // loses the surface over the hole (1011) as a real scan would.
+    let h = start_with(MachineConfig::ideal(), Some(CONTOUR_PART), None);
+    let mut c = Raw::connect(&h);
+    for l in ["00001 StartSession()", "00002 Home()", "00003 ChangeTool(\"Probe1\")", "00004 GoTo(Z(50))"] {
+        c.ok(l);
+    }
+    c.ok("00005 GoTo(X(-140), Y(0))");
+    let out = c.cmd(
+        "00006 ScanInPlaneEndIsPlane(-140, 0, 0, 0, 0, 1, -130, 0, 0, 0.5, -50, 0, 0, 1, 0, 0, 1, 0, 0, 1)",
+    );
+    assert!(out.iter().any(|l| l.contains("Error(2, 1011")), "{out:?}");
+    let notes = h.shared.with_machine(|m| m.take_note());
+    // The note was taken by the session for its log: the machine has none left.
+    assert_eq!(notes, None);
+    drop(c);
+    // The same on the machine directly: the route and the reason.
+    let part = Part::from_toml("p", CONTOUR_PART).unwrap();
+    let mut m = IppdmeCmm::new(&MachineConfig::ideal(), Some(part));
+    let start = Contact { tip_center_mm: Point3::new(-140.0, 0.0, 1.5), normal: Vector3::z() };
+    let path = ScanPath::Contour {
+        guide: Guide::Plane { normal: Vector3::y() },
+        toward: Vector3::x(),
+        step_mm: 0.5,
+        stop: Stop::Plane {
+            point: Point3::new(-50.0, 0.0, 0.0),
+            normal: Vector3::x(),
+            count: 1,
+            arm_mm: 1.0,
+        },
+        max_length_mm: 1000.0,
+    };
+    let mut pts = Vec::new();
+    let e = m.scan(start, &path, 1.5, &mut pts).unwrap_err();
+    let note = m.take_note().unwrap();
+    assert!(note.contains("stepped") && note.contains("leaves the face after 2"), "{note}");
+    assert!(e.to_string().contains("lost the surface"), "{e}");
+    // Up to the edge the stepping ran on the table in 0.5 mm steps from X = −140.
+    assert!(pts.len() > 40 && pts.iter().all(|p| (p.tip_center_mm.z - 1.5).abs() < 1e-9), "{pts:?}");
 }
 
 #[test]

@@ -40,10 +40,11 @@ pub enum ScanPath {
     /// Straight line in the plane through the start contact spanned by `direction` and the start
     /// normal; points every `step_mm` until `length_mm` from the start contact.
     Line { direction: Vector3, length_mm: f64, step_mm: f64 },
-    /// Unknown contour (specification 11.3): from the start contact, step `step_mm` along the
-    /// surface, the tip centre staying on `guide`, first towards `toward`, until `stop` is met
-    /// (evaluated on the surface points, tip centre − r·normal) or `max_length_mm` is travelled
-    /// (an error).
+    /// Unknown contour (specification 11.3): from the start contact along the surface, the tip
+    /// centre staying on `guide`, first towards `toward`, a point every `step_mm` of tip-centre
+    /// travel, until `stop` is met (evaluated on the surface points, tip centre − r·normal; the
+    /// point where it is met is the last) or `max_length_mm` is travelled (an error). How the
+    /// machine follows the contour (planned or stepped) is its own; [`Cmm::take_note`] may say.
     Contour { guide: Guide, toward: Vector3, step_mm: f64, stop: Stop, max_length_mm: f64 },
 }
 
@@ -116,6 +117,11 @@ pub trait Cmm: Send {
     /// Stop all motion now (client gone, AbortE). Moves are instant on the virtual machine, so
     /// this only has to leave it in a defined, stopped state.
     fn stop(&mut self);
+    /// A note about the last command for the session log (e.g. how a scan was executed), taken
+    /// once. Default: none.
+    fn take_note(&mut self) -> Option<String> {
+        None
+    }
     /// The rotary table, if the machine has one: a point on its axis and the axis' unit
     /// direction (machine frame). `None`: a `CartCMM` (the default).
     fn rotary_axis(&self) -> Option<(Point3, Vector3)> {

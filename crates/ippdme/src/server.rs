@@ -1007,6 +1007,9 @@ impl<M: Cmm> Session<M> {
         };
         let mut pts: Vec<ScanPoint> = Vec::new();
         let res = st.machine.scan(first, path, tool.radius_mm, &mut pts);
+        if let Some(note) = st.machine.take_note() {
+            self.notes.push(format!("{tag}: {note}"));
+        }
         // Leave the surface along the last normal by the PtMeas retract distance.
         if let Some(last) = pts.last() {
             let r = tool.ptmeas(Param::Retract).max(0.0);

@@ -73,8 +73,12 @@ pub struct Params {
     /// Least duration of the settle path at scanning speed (s): the settle path is at least
     /// `settle_time · scan_speed` long, so the transient has time to die out at any speed.
     pub settle_time: f64,
-    /// Path acceleration limit.
+    /// Path acceleration limit (mm/s²): the magnitude of the acceleration vector, tangential and
+    /// centripetal together, on every positioning move.
     pub accel: f64,
+    /// Path jerk limit (mm/s³, the magnitude of the jerk vector) on every positioning move.
+    /// Default [`DEFAULT_JERK`].
+    pub jerk: f64,
     /// Classic style: speed of the approach along the normal (touch/search speed).
     pub touch_speed: f64,
     /// Classic style: wait at the pre-hit point for the machine to settle.
@@ -95,11 +99,21 @@ impl Default for Params {
             settle_length: 3.0,
             settle_time: 0.15,
             accel: 1500.0,
+            jerk: DEFAULT_JERK,
             touch_speed: 3.0,
             prehit_dwell: 0.3,
         }
     }
 }
+
+/// Default jerk limit: 20 m/s³ (20 000 mm/s³), so the default 1.5 m/s² acceleration is reached
+/// in 75 ms — a gentle value for a bridge CMM; files written before the key existed get it.
+pub const DEFAULT_JERK: f64 = 20_000.0;
+
+/// Largest centripetal acceleration of a circle scan as a share of `accel_mm_s2`.
+pub const MAX_SCAN_ACCEL_SHARE: f64 = 0.6;
+/// Largest centripetal jerk (v³/r²) of a circle scan as a share of `jerk_mm_s3`.
+pub const MAX_SCAN_JERK_SHARE: f64 = 0.25;
 
 /// Tolerance on |axis| − 1 and |normal| − 1.
 pub const UNIT_TOL: f64 = 1e-6;
@@ -125,6 +139,7 @@ pub fn validate(features: &[Feature], p: &Params) -> Result<(), ScanError> {
     pos("settle_mm", p.settle_length)?;
     pos("settle_s", p.settle_time)?;
     pos("accel_mm_s2", p.accel)?;
+    pos("jerk_mm_s3", p.jerk)?;
     pos("touch_speed_mm_s", p.touch_speed)?;
     if !(p.overshoot.is_finite() && p.overshoot >= 0.0) {
         return Err(ScanError::Parameter("overshoot_mm", p.overshoot));
@@ -189,6 +204,29 @@ impl Feature {
                     return Err(bad(format!(
                         "bore radius {radius} mm is not larger than the tip radius {} mm",
                         p.tip_radius
+                    )));
+                }
+                if *side == Side::Inside && *radius <= p.tip_radius + p.clearance {
+                    return Err(bad(format!(
+                        "bore radius {radius} mm is not larger than tip_radius_mm + clearance_mm ({} mm): \
+                         the approach would start and the release end beyond the bore's axis",
+                        p.tip_radius + p.clearance
+                    )));
+                }
+                // the scan runs at constant speed on a circle of this radius: its centripetal
+                // acceleration and jerk must leave room within the limits for the bends that join
+                // it (the planner's own share of the limits for constant-curvature moves)
+                let r = self.metric(p.tip_radius - p.deflection);
+                let (v, k) = (p.scan_speed, 1.0 / r.max(1e-9));
+                let (acc, jerk) = (v * v * k, v.powi(3) * k * k);
+                if acc > MAX_SCAN_ACCEL_SHARE * p.accel || jerk > MAX_SCAN_JERK_SHARE * p.jerk {
+                    return Err(bad(format!(
+                        "scan_speed_mm_s {v} is too fast for this circle: on its {r:.3} mm scan path \
+                         the centripetal acceleration is {acc:.0} mm/s² (at most {:.0}, 60 % of \
+                         accel_mm_s2) and the jerk {jerk:.0} mm/s³ (at most {:.0}, 25 % of \
+                         jerk_mm_s3); lower the scan speed",
+                        MAX_SCAN_ACCEL_SHARE * p.accel,
+                        MAX_SCAN_JERK_SHARE * p.jerk
                     )));
                 }
             }
@@ -283,9 +321,15 @@ impl Feature {
     /// normal (`h = tip radius − deflection` while scanning).
     pub fn point(&self, u: f64, h: f64) -> Point3 {
         match &self.geometry {
-            Geometry::Circle { center, radius, .. } => {
+            Geometry::Circle { center, radius, axis, side, .. } => {
                 let (r, _) = self.circle_frame(u).unwrap_or((Vector3::x(), Vector3::y()));
-                center + r * *radius + self.normal(u) * h
+                // the normal of [`Feature::normal`], from the same frame
+                let n = match side {
+                    Side::Inside => -r,
+                    Side::Outside => r,
+                    Side::Plane => *axis,
+                };
+                center + r * *radius + n * h
             }
             Geometry::Line { start, end, normal } => start + (end - start).normalize() * u + normal * h,
         }

@@ -40,6 +40,8 @@ pub struct ParamOverrides {
     pub tip_radius_mm: Option<f64>,
     pub clearance_mm: Option<f64>,
     pub accel_mm_s2: Option<f64>,
+    /// Jerk limit (mm/s³); absent in older files: [`crate::feature::DEFAULT_JERK`].
+    pub jerk_mm_s3: Option<f64>,
     pub touch_speed_mm_s: Option<f64>,
 }
 
@@ -55,6 +57,8 @@ pub struct FeaturesFile {
     pub tip_radius_mm: Option<f64>,
     pub clearance_mm: Option<f64>,
     accel_mm_s2: Option<f64>,
+    /// Optional (default [`crate::feature::DEFAULT_JERK`]), so older files still read.
+    jerk_mm_s3: Option<f64>,
     pub touch_speed_mm_s: Option<f64>,
     #[serde(default)]
     pub feature: Vec<FeatureToml>,
@@ -158,6 +162,7 @@ pub fn read_features(path: &Path, c: &ParamOverrides) -> Result<(Vec<Feature>, P
         tip_radius: pick(c.tip_radius_mm, file.tip_radius_mm, d.tip_radius),
         clearance: pick(c.clearance_mm, file.clearance_mm, d.clearance),
         accel: pick(c.accel_mm_s2, file.accel_mm_s2, d.accel),
+        jerk: pick(c.jerk_mm_s3, file.jerk_mm_s3, d.jerk),
         touch_speed: pick(c.touch_speed_mm_s, file.touch_speed_mm_s, d.touch_speed),
         ..d
     };

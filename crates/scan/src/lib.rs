@@ -24,6 +24,7 @@ pub mod feature;
 pub mod file;
 pub mod form;
 pub mod json;
+pub mod motion;
 pub mod plan;
 
 pub use feature::{validate, Feature, Geometry, Params, Side};

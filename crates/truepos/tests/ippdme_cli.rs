@@ -67,6 +67,57 @@ fn serve_runs_a_session_logs_it_and_ends_on_sigterm() {
     assert!(text.contains(" > 00004 # X(0.000000), Y(0.000000), Z(11.500000)"), "{text}");
 }
 
+#[test]
+fn serve_plans_an_unknown_contour_scan_and_logs_how() {
+    // The default (realistic) machine, a table plane Z = 0: a ScanIn… line on it is planned.
+    let dir = tempfile::tempdir().unwrap();
+    let part = dir.path().join("part.toml");
+    std::fs::write(&part, "[[plane]]\nid = \"table\"\npoint_mm = [0, 0, 0]\nnormal = [0, 0, 1]\n").unwrap();
+    let log = dir.path().join("ippdme.log");
+    let (mut child, addr) = spawn_server(&part, &["--log".as_ref(), log.as_os_str()]);
+    let s = TcpStream::connect(&addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+    let mut w = s.try_clone().unwrap();
+    let mut r = BufReader::new(s);
+    w.write_all(
+        b"00001 StartSession()\r\n00002 Home()\r\n00003 ChangeTool(\"Probe1\")\r\n00004 GoTo(X(0), Y(0), Z(50))\r\n\
+          00005 ScanInPlaneEndIsSphere(0, 0, 0, 0, 0, 1, 10, 0, 0, 0.5, 40, 0, 0, 2, 0, 0, 1)\r\n00006 EndSession()\r\n",
+    )
+    .unwrap();
+    let mut lines = Vec::new();
+    while lines.last().is_none_or(|l: &String| l != "00006 %") {
+        let mut l = String::new();
+        assert!(r.read_line(&mut l).unwrap() > 0, "{lines:?}");
+        lines.push(l.trim_end().to_string());
+    }
+    drop((w, r));
+    // X, Y, Z, Q per point (the default OnScanReport): 0 to 40 mm in 0.5 mm steps.
+    let values: Vec<f64> = lines
+        .iter()
+        .filter_map(|l| l.strip_prefix("00005 # "))
+        .flat_map(|d| d.split(',').map(|v| v.trim().parse::<f64>().unwrap()).collect::<Vec<_>>())
+        .collect();
+    assert_eq!(values.len(), 81 * 4, "{lines:?}");
+    for p in values.chunks(4) {
+        // The realistic machine's geometric map and noise: a few µm off the true Z = r, < 10 µm.
+        assert!((p[2] - 1.5).abs() < 10e-3 && p[1].abs() < 10e-3, "{p:?}");
+    }
+    assert!((values[80 * 4] - 40.0).abs() < 10e-3, "end at X = {}", values[80 * 4]);
+    unsafe_kill(child.id());
+    let t0 = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        assert!(t0.elapsed() < Duration::from_secs(10), "no exit after SIGTERM");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let text = std::fs::read_to_string(&log).unwrap();
+    assert!(
+        text.contains(
+            "# 00005: unknown contour planned as a line on the plane face `table` (blended planner"
+        ),
+        "{text}"
+    );
+}
+
 /// The operator's side: home the machine and pick the probe (both persist across sessions;
 /// truepos itself never homes a machine).
 fn home_with_probe1(addr: &str) {

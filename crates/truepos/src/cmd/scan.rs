@@ -94,6 +94,9 @@ pub struct Common {
     /// Path acceleration limit (default 1500 mm/s²).
     #[arg(long)]
     pub accel_mm_s2: Option<f64>,
+    /// Path jerk limit (default 20000 mm/s³).
+    #[arg(long)]
+    pub jerk_mm_s3: Option<f64>,
     /// Classic style: approach (touch) speed along the normal (default 3 mm/s).
     #[arg(long)]
     pub touch_speed_mm_s: Option<f64>,
@@ -151,6 +154,7 @@ fn load(c: &Common) -> Result<(Vec<Feature>, Params)> {
         tip_radius_mm: c.tip_radius_mm,
         clearance_mm: c.clearance_mm,
         accel_mm_s2: c.accel_mm_s2,
+        jerk_mm_s3: c.jerk_mm_s3,
         touch_speed_mm_s: c.touch_speed_mm_s,
     };
     read_features(&c.features, &overrides).map_err(|e| match e {
