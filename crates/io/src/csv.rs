@@ -925,8 +925,9 @@ fn parse_row_fast(text: &[u8], slots: &[usize], d: &mut [f64]) -> bool {
 }
 
 /// [`parse_row_fast`] that also tells where the row ends: the offset of its `\n` (or the end
-/// of `text`), i.e. the length of the line with its `\r` if any.
-#[inline]
+/// of `text`), i.e. the length of the line with its `\r` if any. Inlined into every row loop
+/// (the points' and the streams' readers each get their own copy, with the number parser in it).
+#[inline(always)]
 fn parse_row_fast_len(text: &[u8], slots: &[usize], d: &mut [f64]) -> Option<usize> {
     let mut i = 0;
     let n = text.len();

@@ -31,7 +31,7 @@ pub fn parse_f64_bytes(b: &[u8]) -> Option<f64> {
 /// Parse the longest number at the start of `b`: `(value, bytes used)`. `None` when `b` does not
 /// start with a number, or the number is not finite. Only decimal syntax is accepted
 /// (`[+-]digits[.digits][e[+-]digits]`, `.5`, `1.`); `inf`/`nan` words are refused.
-#[inline]
+#[inline(always)]
 pub fn parse_f64_prefix(b: &[u8]) -> Option<(f64, usize)> {
     // The exact fast path (shared with the G-code reader) for `[+-]digits[.digits]` with ≤ 19
     // significant digits, not followed by an exponent.
