@@ -114,6 +114,14 @@ impl std::fmt::Display for Txt {
 /// Fixed-point text of `v` with `dec` decimals (no "-0.000"). Integer arithmetic: much faster
 /// than float formatting, exact for |v|·10^dec below 2^53.
 fn fmt_num(v: f64, dec: u8) -> Txt {
+    let mut t = Txt::Inline { start: 31, buf: [0; 31] };
+    fmt_num_into(v, dec, &mut t);
+    t
+}
+
+/// [`fmt_num`] written into `t` where it lies (e.g. in the edit list): the digits are stored
+/// once, in place, and not copied out of a buffer just written (a reload that stalls).
+fn fmt_num_into(v: f64, dec: u8, t: &mut Txt) {
     const SCALE: [i64; 19] = {
         let mut t = [1i64; 19];
         let mut k = 1;
@@ -124,17 +132,22 @@ fn fmt_num(v: f64, dec: u8) -> Txt {
         t
     };
     let Some(&scale) = SCALE.get(dec as usize) else {
-        return Txt::from(format!("{:.*}", dec as usize, v));
+        *t = Txt::from(format!("{:.*}", dec as usize, v));
+        return;
     };
     let scaled = round(v * scale as f64);
     if !scaled.is_finite() || scaled.abs() >= 9.0e15 {
-        return Txt::from(format!("{:.*}", dec as usize, v));
+        *t = Txt::from(format!("{:.*}", dec as usize, v));
+        return;
     }
     let n = scaled as i64;
     // At most 16 digits, a point and a sign; digits two at a time from a table.
     const PAIRS: &[u8; 200] = b"00010203040506070809101112131415161718192021222324252627282930313233343536373839\
 404142434445464748495051525354555657585960616263646566676869707172737475767778798081828384858687888990919293949596979899";
-    let mut buf = [0u8; 31];
+    if !matches!(t, Txt::Inline { .. }) {
+        *t = Txt::Inline { start: 31, buf: [0; 31] };
+    }
+    let Txt::Inline { start, buf } = t else { return };
     let mut i = buf.len();
     let mut a = n.unsigned_abs();
     let mut left = dec as usize;
@@ -170,7 +183,7 @@ fn fmt_num(v: f64, dec: u8) -> Txt {
     }
     // ASCII digits, point and sign only, at the end of the buffer (at most 18 bytes).
     debug_assert!(std::str::from_utf8(&buf[i..]).is_ok());
-    Txt::Inline { start: i as u8, buf }
+    *start = i as u8;
 }
 
 /// 10^dec (a table for the usual decimals: this is on every rewritten word).
@@ -203,6 +216,17 @@ fn round(v: f64) -> f64 {
         t
     };
     r.copysign(v)
+}
+
+impl Edits {
+    /// Replace token `ti`'s number by `v` with `dec` decimals, formatted in place in the list.
+    #[inline]
+    fn replace_num(&mut self, ti: usize, v: f64, dec: u8) {
+        self.replace.push((ti, Txt::Inline { start: 31, buf: [0; 31] }));
+        if let Some((_, t)) = self.replace.last_mut() {
+            fmt_num_into(v, dec, t);
+        }
+    }
 }
 
 /// Edits of one line.
@@ -444,7 +468,7 @@ impl Rewriter {
                     match (blk.axes[k], axis_token(AXES[k])) {
                         (Some(orig), Some(ti)) => {
                             if (v - orig).abs() >= half {
-                                edits.replace.push((ti, fmt_num(v, dec)));
+                                edits.replace_num(ti, v, dec);
                                 self.written[k] = Some(round_to(v, dec));
                             } else {
                                 self.written[k] = Some(orig);
@@ -471,7 +495,7 @@ impl Rewriter {
                             // Unchanged by the transform (to the resolution, before rounding):
                             // keep the text.
                             if (dn - orig).abs() >= half && (inc - orig).abs() >= half {
-                                edits.replace.push((ti, fmt_num(inc, dec)));
+                                edits.replace_num(ti, inc, dec);
                             }
                         }
                         _ => {
@@ -488,7 +512,7 @@ impl Rewriter {
                 if let Some(ti) = axis_token(b'R') {
                     let nv = if blk.after.absolute { s * rv + t[2] / units_mm } else { s * rv };
                     if (nv - rv).abs() >= half {
-                        edits.replace.push((ti, fmt_num(nv, dec)));
+                        edits.replace_num(ti, nv, dec);
                     }
                 }
             }
@@ -529,7 +553,7 @@ impl Rewriter {
                     match (blk.ijk[k], axis_token(CENTRE[k])) {
                         (Some(orig), Some(ti)) => {
                             if (nv - orig).abs() >= half {
-                                edits.replace.push((ti, fmt_num(nv, dec)));
+                                edits.replace_num(ti, nv, dec);
                             }
                         }
                         _ => {
@@ -543,7 +567,7 @@ impl Rewriter {
             if let (Some(rv), Some(ti)) = (blk.r, axis_token(b'R')) {
                 let nv = s * rv;
                 if (nv - rv).abs() >= half {
-                    edits.replace.push((ti, fmt_num(nv, dec)));
+                    edits.replace_num(ti, nv, dec);
                 }
             }
         }
@@ -711,7 +735,7 @@ impl Program {
         for (k, letter) in AXES.iter().enumerate() {
             let v = [q.x, q.y, q.z][k] / u;
             match find(*letter) {
-                Some(ti) => edits.replace.push((ti, fmt_num(v, dec))),
+                Some(ti) => edits.replace_num(ti, v, dec),
                 None => self.plan_insert(toks, &mut edits, k, &AXES, &fmt_num(v, dec)),
             }
             written[k] = Some(round_to(v, dec));
