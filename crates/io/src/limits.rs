@@ -44,14 +44,26 @@ pub fn human(bytes: u64) -> String {
     }
 }
 
-/// The error for a file over the size limit.
+/// The error for a file over the size limit, its size known (a regular file).
 pub fn too_large(path: &Path, size: u64, limit: u64) -> InputError {
     InputError::in_file(
         path,
         format!(
-            "the file is {}{}; truepos reads inputs of at most {} (set TRUEPOS_MAX_INPUT_MB to change the limit)",
-            if size > limit { "" } else { "over " },
+            "the file is {}; truepos reads inputs of at most {} (set TRUEPOS_MAX_INPUT_MB to change the limit)",
             human(size),
+            human(limit)
+        ),
+    )
+}
+
+/// The error for a pipe or device that delivered more than the size limit (its size is not
+/// known beforehand; reading stopped at the limit).
+pub fn stream_too_large(path: &Path, limit: u64) -> InputError {
+    InputError::in_file(
+        path,
+        format!(
+            "more than {} arrived (read up to the limit); truepos reads inputs of at most {} (set TRUEPOS_MAX_INPUT_MB to change the limit)",
+            human(limit),
             human(limit)
         ),
     )
@@ -138,7 +150,7 @@ pub fn read_text(path: &Path, what: &str) -> Result<Vec<u8>, InputError> {
         };
         guard.scan(path, &block[..n], what)?;
         if (buf.len() + n) as u64 > limit {
-            return Err(too_large(path, (buf.len() + n) as u64, limit));
+            return Err(stream_too_large(path, limit));
         }
         buf.extend_from_slice(&block[..n]);
     }
@@ -173,7 +185,7 @@ impl Read for BoundedReader {
         self.total += n as u64;
         let bad = |e: InputError| std::io::Error::new(std::io::ErrorKind::InvalidData, e);
         if self.total > self.limit {
-            return Err(bad(too_large(&self.path, self.total, self.limit)));
+            return Err(bad(stream_too_large(&self.path, self.limit)));
         }
         self.guard.scan(&self.path, &buf[..n], &self.what).map_err(bad)?;
         Ok(n)

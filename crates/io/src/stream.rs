@@ -155,7 +155,7 @@ fn reader_thread(path: PathBuf, mut file: std::fs::File, tx: SyncSender<Result<B
         buf.truncate(filled);
         total += (filled - start) as u64;
         if total > limit {
-            let _ = tx.send(Err(limits::too_large(&path, total, limit)));
+            let _ = tx.send(Err(limits::stream_too_large(&path, limit)));
             return;
         }
         if let Err(e) = guard.scan(&path, &buf[start..], "CSV") {

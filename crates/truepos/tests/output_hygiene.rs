@@ -4,7 +4,7 @@
 
 mod common;
 use common::{bin, expect_input_error, write};
-use std::io::Read;
+use std::io::{Read, Write};
 use std::path::Path;
 use std::process::Stdio;
 use std::time::{Duration, Instant};
@@ -99,6 +99,37 @@ fn dev_zero_and_endless_lines_are_refused_at_once() {
     let o = bin().args(["fit", "sphere", s(&p), "--json"]).output().unwrap();
     expect_input_error(&o, &["long.csv:3", "longer than"]);
     assert!(t.elapsed() < Duration::from_secs(20));
+}
+
+#[test]
+fn inputs_over_the_size_limit_are_refused_by_size_or_when_the_limit_has_arrived() {
+    // a 2 MB point file against a 1 MiB limit (`TRUEPOS_MAX_INPUT_MB`, the same check as the
+    // default 2 GiB): a regular file is refused from its size before any read, a pipe once
+    // more than the limit has arrived
+    let dir = tempfile::tempdir().unwrap();
+    let mut text = String::from("x_mm,y_mm,z_mm\n");
+    while text.len() < 2_000_000 {
+        text.push_str("10.123456,20.654321,30.111111\n");
+    }
+    let p = write(dir.path(), "big.csv", &text);
+    let o = bin().env("TRUEPOS_MAX_INPUT_MB", "1").args(["fit", "sphere", s(&p), "--json"]).output().unwrap();
+    expect_input_error(&o, &["big.csv", "the file is 2.0 MB", "at most 1.0 MB", "TRUEPOS_MAX_INPUT_MB"]);
+    if Path::new("/dev/stdin").exists() {
+        let mut child = bin()
+            .env("TRUEPOS_MAX_INPUT_MB", "1")
+            .args(["fit", "sphere", "/dev/stdin", "--json"])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut input = child.stdin.take().unwrap();
+        // the reader stops at the limit: the rest of the write may meet a closed pipe
+        let _ = input.write_all(text.as_bytes());
+        drop(input);
+        let o = child.wait_with_output().unwrap();
+        expect_input_error(&o, &["/dev/stdin", "more than 1.0 MB arrived", "at most 1.0 MB"]);
+    }
 }
 
 #[test]
