@@ -51,18 +51,31 @@ pub(crate) struct Acc<const N: usize> {
     pub jtr: SVector<f64, N>,
     pub ssr: f64,
     pub max_abs: f64,
+    /// Smallest and largest signed residual (a fit's form without another pass over the points).
+    pub min_r: f64,
+    pub max_r: f64,
     pub finite: bool,
 }
 
 impl<const N: usize> Acc<N> {
     fn zero() -> Self {
-        Self { jtj: SMatrix::zeros(), jtr: SVector::zeros(), ssr: 0.0, max_abs: 0.0, finite: true }
+        Self {
+            jtj: SMatrix::zeros(),
+            jtr: SVector::zeros(),
+            ssr: 0.0,
+            max_abs: 0.0,
+            min_r: f64::INFINITY,
+            max_r: f64::NEG_INFINITY,
+            finite: true,
+        }
     }
     fn merge(mut self, o: Self) -> Self {
         self.jtj += o.jtj;
         self.jtr += o.jtr;
         self.ssr += o.ssr;
         self.max_abs = self.max_abs.max(o.max_abs);
+        self.min_r = self.min_r.min(o.min_r);
+        self.max_r = self.max_r.max(o.max_r);
         self.finite &= o.finite;
         self
     }
@@ -76,6 +89,8 @@ fn accumulate_chunk<const N: usize, M: Model<N>>(m: &M, s: &M::State, pts: &[Poi
     let mut jtr = [[0.0f64; BLOCK]; N];
     let mut ssr = [0.0f64; BLOCK];
     let mut max_abs = [0.0f64; BLOCK];
+    let mut min_r = [f64::INFINITY; BLOCK];
+    let mut max_r = [f64::NEG_INFINITY; BLOCK];
     let mut rb = [0.0f64; BLOCK];
     let mut jb = [[0.0f64; N]; BLOCK];
     let mut jt = [[0.0f64; BLOCK]; N];
@@ -96,6 +111,18 @@ fn accumulate_chunk<const N: usize, M: Model<N>>(m: &M, s: &M::State, pts: &[Poi
         for k in 0..BLOCK {
             ssr[k] += rb[k] * rb[k];
             max_abs[k] = max_abs[k].max(rb[k].abs());
+        }
+        if block.len() == BLOCK {
+            for k in 0..BLOCK {
+                min_r[k] = min_r[k].min(rb[k]);
+                max_r[k] = max_r[k].max(rb[k]);
+            }
+        } else {
+            // The padded lanes of a short block are not residuals.
+            for k in 0..block.len() {
+                min_r[k] = min_r[k].min(rb[k]);
+                max_r[k] = max_r[k].max(rb[k]);
+            }
         }
         for a in 0..N {
             for k in 0..BLOCK {
@@ -119,6 +146,8 @@ fn accumulate_chunk<const N: usize, M: Model<N>>(m: &M, s: &M::State, pts: &[Poi
     }
     acc.ssr = ssr.iter().sum();
     acc.max_abs = max_abs.iter().fold(0.0, |m, &v| if v > m || v.is_nan() { v } else { m });
+    acc.min_r = min_r.iter().fold(f64::INFINITY, |m, &v| m.min(v));
+    acc.max_r = max_r.iter().fold(f64::NEG_INFINITY, |m, &v| m.max(v));
     acc.finite = acc.ssr.is_finite()
         && acc.max_abs.is_finite()
         && acc.jtr.iter().all(|v| v.is_finite())

@@ -346,9 +346,19 @@ pub fn sphere(points: &[Point3]) -> Result<SphereFit, FitError> {
     let cov = covariance(&sol.acc, points.len(), RCOND).ok_or(FitError::Undetermined { kind: "sphere" })?;
     let center_covariance = cov.fixed_view::<3, 3>(0, 0).into_owned();
     let n = points.len();
-    let (lo, hi) = extremes(points, |p| (p - center).norm());
+    // The form from the last accumulation's residuals `d − r` (d = |p − c|), without another
+    // pass, when every `d − r` was exact (Sterbenz: r/2 ≤ d ≤ 2r), so that
+    // `(d_max − r) − (d_min − r)` is `d_max − d_min` rounded once, bit for bit the form of the
+    // distances themselves; else the pass over the distances.
+    let (lo_r, hi_r) = (sol.acc.min_r, sol.acc.max_r);
+    let form = if radius > 0.0 && lo_r >= -0.5 * radius && hi_r <= radius {
+        hi_r - lo_r
+    } else {
+        let (lo, hi) = extremes(points, |p| (p - center).norm());
+        hi - lo
+    };
     Ok(SphereFit {
-        form: hi - lo,
+        form,
         center,
         radius: radius.abs(),
         rms: (sol.acc.ssr / n as f64).sqrt(),

@@ -137,6 +137,8 @@ proptest! {
         prop_assert!((f.radius - r).abs() < EXACT_POS * r.max(1.0) * 10.0);
         let g = sphere_with_radius(&pts, r).unwrap();
         prop_assert!((g.center - c).norm() < EXACT_POS * r.max(1.0) * 10.0);
+        let (lo, hi) = pts.iter().map(|p| (p - f.center).norm()).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+        prop_assert_eq!(f.form.to_bits(), (hi - lo).to_bits());
     }
 
     #[test]
@@ -330,6 +332,11 @@ fn large_noisy_sphere_converges_quickly() {
     // 2 µm noise over 2e5 points: centre uncertainty ~1e-5 mm; 6σ bound.
     assert!((f.center - c).norm() < 6.0 * f.u_center.norm(), "{:?}", f.center - c);
     assert!((f.radius - 12.7).abs() < 6.0 * f.u_radius);
+    // The form taken from the fit's own residuals is the spread of the distances to the
+    // centre, bit for bit.
+    let d = pts.iter().map(|p| (p - f.center).norm());
+    let (lo, hi) = d.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    assert_eq!(f.form.to_bits(), (hi - lo).to_bits());
     let cy = cylinder(&cylinder_points(
         Point3::origin(),
         Vector3::new(0.1, 0.2, 1.0).normalize(),

@@ -121,8 +121,10 @@ fn parse_range(source: &str, from: usize, to: usize, tokens: &mut Vec<Token>, li
     tokens.reserve((to - from) / 4);
     lines.reserve((to - from) / 16 + 1);
     let mut pos = from;
+    // One search over the whole range (lines are short: a call per line costs more).
+    let mut ends = memchr::memchr_iter(b'\n', &b[from..]).map(|p| from + p);
     while pos < b.len() {
-        let nl = memchr_nl(&b[pos..]).map(|p| pos + p);
+        let nl = ends.next();
         let (end, next) = match nl {
             Some(n) if n > pos && b[n - 1] == b'\r' => (n - 1, n + 1),
             Some(n) => (n, n + 1),
@@ -317,6 +319,15 @@ fn starts_expression(b: &[u8], i: usize, end: usize) -> bool {
 /// value, the count of decimals, and whether the number is clean (not followed by more digits or
 /// points, as in `1.2.3` or `1..2`, which make the word malformed).
 fn lex_number(b: &[u8], start: usize, end: usize) -> Option<(usize, f64, Option<u8>, bool)> {
+    // The common case in one pass: the exact fast path (≤ 19 digits, shared with every number
+    // reader of truepos) reads the number, and a clean end (not more digits or points) is
+    // checked after it. Everything else is scanned below.
+    if let Ok((v, n, decimals)) = truepos_math::decimal::decimal_prefix_decimals(&b[start..end]) {
+        let j = start + n;
+        if j >= end || !(b[j].is_ascii_digit() || b[j] == b'.') {
+            return Some((j, v, decimals.map(|d| d.min(255) as u8), true));
+        }
+    }
     let mut i = start;
     if i < end && (b[i] == b'+' || b[i] == b'-') {
         i += 1;
@@ -355,7 +366,7 @@ fn lex_number(b: &[u8], start: usize, end: usize) -> Option<(usize, f64, Option<
     if j > i {
         return Some((j, f64::NAN, None, false));
     }
-    // Up to 15 digits: Clinger's exact fast path, the one every number reader of truepos shares.
+    // A number the fast path refused for what follows it (e.g. `X1.5E2`, an E word), on its own.
     if let Ok((v, n)) = truepos_math::decimal::decimal_prefix(&b[start..i]) {
         if start + n == i {
             return Some((i, v, decimals, true));

@@ -184,6 +184,15 @@ impl Program {
             let mut has_o = false;
             for ti in l.tokens.clone() {
                 let t = &self.tokens[ti];
+                // The common tokens need nothing (not even their text).
+                match t.kind {
+                    TokenKind::Word { letter, .. } if letter != b'O' => continue,
+                    TokenKind::Whitespace
+                    | TokenKind::ParenComment { closed: true }
+                    | TokenKind::SemicolonComment
+                    | TokenKind::Percent => continue,
+                    _ => {}
+                }
                 let text = self.text(t);
                 // Only computed for an error: counting characters on every token is slow.
                 let column = || self.source[l.start..t.start].chars().count() + 1;

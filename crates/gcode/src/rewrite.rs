@@ -52,10 +52,11 @@ const AXES: [u8; 3] = [b'X', b'Y', b'Z'];
 const CENTRE: [u8; 3] = [b'I', b'J', b'K'];
 
 /// Replacement text of a word: inline (no allocation) up to 31 bytes, which every fixed-point
-/// number below 10^15 is; longer text on the heap.
+/// number below 10^15 is; longer text on the heap. Inline text is kept at the end of its
+/// buffer (`buf[start..]`), where [`fmt_num`] writes its digits: no copy to build one.
 #[derive(Clone)]
 enum Txt {
-    Inline { len: u8, buf: [u8; 31] },
+    Inline { start: u8, buf: [u8; 31] },
     Heap(String),
 }
 
@@ -65,8 +66,9 @@ impl Txt {
     fn inline(b: &[u8]) -> Self {
         debug_assert!(b.len() <= 31 && std::str::from_utf8(b).is_ok());
         let mut buf = [0u8; 31];
-        buf[..b.len()].copy_from_slice(b);
-        Txt::Inline { len: b.len() as u8, buf }
+        let start = 31 - b.len();
+        buf[start..].copy_from_slice(b);
+        Txt::Inline { start: start as u8, buf }
     }
 }
 
@@ -94,9 +96,10 @@ impl std::ops::Deref for Txt {
     type Target = str;
     fn deref(&self) -> &str {
         match self {
-            // SAFETY: `Txt::inline` is the only constructor of `Inline`, from the bytes of a whole
-            // `&str` or from ASCII, so `buf[..len]` is valid UTF-8 (checked in debug builds).
-            Txt::Inline { len, buf } => unsafe { std::str::from_utf8_unchecked(&buf[..*len as usize]) },
+            // SAFETY: `Inline` is built by `Txt::inline`, from the bytes of a whole `&str` or
+            // from ASCII, and by `fmt_num`, from ASCII digits, point and sign only, so
+            // `buf[start..]` is valid UTF-8 (checked in debug builds).
+            Txt::Inline { start, buf } => unsafe { std::str::from_utf8_unchecked(&buf[*start as usize..]) },
             Txt::Heap(s) => s,
         }
     }
@@ -111,16 +114,40 @@ impl std::fmt::Display for Txt {
 /// Fixed-point text of `v` with `dec` decimals (no "-0.000"). Integer arithmetic: much faster
 /// than float formatting, exact for |v|·10^dec below 2^53.
 fn fmt_num(v: f64, dec: u8) -> Txt {
-    let scale = 10i64.pow(dec as u32);
-    let scaled = (v * scale as f64).round();
+    let mut t = Txt::Inline { start: 31, buf: [0; 31] };
+    fmt_num_into(v, dec, &mut t);
+    t
+}
+
+/// [`fmt_num`] written into `t` where it lies (e.g. in the edit list): the digits are stored
+/// once, in place, and not copied out of a buffer just written (a reload that stalls).
+fn fmt_num_into(v: f64, dec: u8, t: &mut Txt) {
+    const SCALE: [i64; 19] = {
+        let mut t = [1i64; 19];
+        let mut k = 1;
+        while k < 19 {
+            t[k] = t[k - 1] * 10;
+            k += 1;
+        }
+        t
+    };
+    let Some(&scale) = SCALE.get(dec as usize) else {
+        *t = Txt::from(format!("{:.*}", dec as usize, v));
+        return;
+    };
+    let scaled = round(v * scale as f64);
     if !scaled.is_finite() || scaled.abs() >= 9.0e15 {
-        return Txt::from(format!("{:.*}", dec as usize, v));
+        *t = Txt::from(format!("{:.*}", dec as usize, v));
+        return;
     }
     let n = scaled as i64;
     // At most 16 digits, a point and a sign; digits two at a time from a table.
     const PAIRS: &[u8; 200] = b"00010203040506070809101112131415161718192021222324252627282930313233343536373839\
 404142434445464748495051525354555657585960616263646566676869707172737475767778798081828384858687888990919293949596979899";
-    let mut buf = [0u8; 24];
+    if !matches!(t, Txt::Inline { .. }) {
+        *t = Txt::Inline { start: 31, buf: [0; 31] };
+    }
+    let Txt::Inline { start, buf } = t else { return };
     let mut i = buf.len();
     let mut a = n.unsigned_abs();
     let mut left = dec as usize;
@@ -154,8 +181,9 @@ fn fmt_num(v: f64, dec: u8) -> Txt {
         i -= 1;
         buf[i] = b'-';
     }
-    // ASCII digits, point and sign only.
-    Txt::inline(&buf[i..])
+    // ASCII digits, point and sign only, at the end of the buffer (at most 18 bytes).
+    debug_assert!(std::str::from_utf8(&buf[i..]).is_ok());
+    *start = i as u8;
 }
 
 /// 10^dec (a table for the usual decimals: this is on every rewritten word).
@@ -167,7 +195,38 @@ fn pow10(dec: u8) -> f64 {
 
 fn round_to(v: f64, dec: u8) -> f64 {
     let f = pow10(dec);
-    (v * f).round() / f
+    round(v * f) / f
+}
+
+/// `v.round()` (half away from zero, the sign of zero kept) without the call into libm that
+/// `f64::round` is on the x86-64 baseline (no rounding instruction before SSE4.1): truncation
+/// by the integer conversion, and the difference `v − trunc(v)`, exact below 2^52.
+#[inline(always)]
+fn round(v: f64) -> f64 {
+    if v.is_nan() || v.abs() >= 4.0e15 {
+        return v.round();
+    }
+    let t = (v as i64) as f64;
+    let d = v - t;
+    let r = if d >= 0.5 {
+        t + 1.0
+    } else if d <= -0.5 {
+        t - 1.0
+    } else {
+        t
+    };
+    r.copysign(v)
+}
+
+impl Edits {
+    /// Replace token `ti`'s number by `v` with `dec` decimals, formatted in place in the list.
+    #[inline]
+    fn replace_num(&mut self, ti: usize, v: f64, dec: u8) {
+        self.replace.push((ti, Txt::Inline { start: 31, buf: [0; 31] }));
+        if let Some((_, t)) = self.replace.last_mut() {
+            fmt_num_into(v, dec, t);
+        }
+    }
 }
 
 /// Edits of one line.
@@ -409,7 +468,7 @@ impl Rewriter {
                     match (blk.axes[k], axis_token(AXES[k])) {
                         (Some(orig), Some(ti)) => {
                             if (v - orig).abs() >= half {
-                                edits.replace.push((ti, fmt_num(v, dec)));
+                                edits.replace_num(ti, v, dec);
                                 self.written[k] = Some(round_to(v, dec));
                             } else {
                                 self.written[k] = Some(orig);
@@ -436,7 +495,7 @@ impl Rewriter {
                             // Unchanged by the transform (to the resolution, before rounding):
                             // keep the text.
                             if (dn - orig).abs() >= half && (inc - orig).abs() >= half {
-                                edits.replace.push((ti, fmt_num(inc, dec)));
+                                edits.replace_num(ti, inc, dec);
                             }
                         }
                         _ => {
@@ -453,7 +512,7 @@ impl Rewriter {
                 if let Some(ti) = axis_token(b'R') {
                     let nv = if blk.after.absolute { s * rv + t[2] / units_mm } else { s * rv };
                     if (nv - rv).abs() >= half {
-                        edits.replace.push((ti, fmt_num(nv, dec)));
+                        edits.replace_num(ti, nv, dec);
                     }
                 }
             }
@@ -494,7 +553,7 @@ impl Rewriter {
                     match (blk.ijk[k], axis_token(CENTRE[k])) {
                         (Some(orig), Some(ti)) => {
                             if (nv - orig).abs() >= half {
-                                edits.replace.push((ti, fmt_num(nv, dec)));
+                                edits.replace_num(ti, nv, dec);
                             }
                         }
                         _ => {
@@ -508,7 +567,7 @@ impl Rewriter {
             if let (Some(rv), Some(ti)) = (blk.r, axis_token(b'R')) {
                 let nv = s * rv;
                 if (nv - rv).abs() >= half {
-                    edits.replace.push((ti, fmt_num(nv, dec)));
+                    edits.replace_num(ti, nv, dec);
                 }
             }
         }
@@ -676,7 +735,7 @@ impl Program {
         for (k, letter) in AXES.iter().enumerate() {
             let v = [q.x, q.y, q.z][k] / u;
             match find(*letter) {
-                Some(ti) => edits.replace.push((ti, fmt_num(v, dec))),
+                Some(ti) => edits.replace_num(ti, v, dec),
                 None => self.plan_insert(toks, &mut edits, k, &AXES, &fmt_num(v, dec)),
             }
             written[k] = Some(round_to(v, dec));
@@ -714,24 +773,32 @@ impl Program {
     fn emit_line(&self, i: usize, edits: &Edits, out: &mut String) {
         let line = &self.lines[i];
         let toks = &self.tokens[line.tokens.clone()];
+        // The tokens tile the line: runs of untouched tokens are copied in one piece, from
+        // `from` (the first source byte not yet written) up to the next edit.
+        let mut from = line.start;
         for (ti, tk) in toks.iter().enumerate() {
             for (_, s) in edits.insert_before.iter().filter(|(j, _)| *j == ti) {
+                out.push_str(&self.source[from..tk.start]);
+                from = tk.start;
                 out.push_str(s);
             }
-            match edits.replace.iter().find(|(j, _)| *j == ti) {
-                Some((_, v)) if v.is_empty() => {}
-                Some((_, v)) => {
-                    // Keep the letter as written (its case), replace the number.
+            if let Some((_, v)) = edits.replace.iter().find(|(j, _)| *j == ti) {
+                out.push_str(&self.source[from..tk.start]);
+                // Keep the letter as written (its case), replace the number; empty text
+                // removes the word.
+                if !v.is_empty() {
                     out.push_str(&self.source[tk.start..tk.start + 1]);
                     out.push_str(v);
                 }
-                None => out.push_str(&self.source[tk.start..tk.end]),
+                from = tk.end;
             }
             for (_, s) in edits.insert_after.iter().filter(|(j, _)| *j == ti) {
+                out.push_str(&self.source[from..tk.end]);
+                from = tk.end;
                 out.push_str(s);
             }
         }
-        out.push_str(&self.source[line.end..line.next]);
+        out.push_str(&self.source[from..line.next]);
     }
 }
 
@@ -759,6 +826,17 @@ mod tests {
                 want = format!("{want}.{frac}");
             }
             proptest::prop_assert_eq!(&*fmt_num(v, dec), want);
+        }
+    }
+
+    proptest::proptest! {
+        /// The inline rounding is `f64::round`, bit for bit (sign of zero included).
+        #[test]
+        fn round_matches_std(v in proptest::num::f64::ANY, k in 0i32..8) {
+            let v = v / 10f64.powi(k);
+            proptest::prop_assert_eq!(round(v).to_bits(), v.round().to_bits(), "{}", v);
+            let h = (v * 2.0).trunc() / 2.0;
+            proptest::prop_assert_eq!(round(h).to_bits(), h.round().to_bits(), "{}", h);
         }
     }
 

@@ -443,7 +443,13 @@ impl Table {
         if crate::parquet_file::is_parquet(path) || crate::e57_file::is_e57(path) {
             return Self::read(path).map(Err);
         }
-        let text = match map_large_file(path)? {
+        Self::rows_direct(path, Self::checked_text(path)?, names)
+    }
+
+    /// The text of a CSV file, mapped when large, with the checks of [`Table::read`] (size, NUL
+    /// bytes, UTF-8).
+    fn checked_text(path: &Path) -> Result<Text, InputError> {
+        Ok(match map_large_file(path)? {
             Some(map) => {
                 Self::check_bytes(path, &map[..])?;
                 Text::Mapped(map)
@@ -455,8 +461,43 @@ impl Table {
                     .map_err(|_| InputError::in_file(path, "not valid UTF-8 text"))?;
                 Text::Owned(s)
             }
+        })
+    }
+
+    /// A time stream straight from the text, as [`read_rows_direct`](Self::read_rows_direct)
+    /// reads points: column `names[0]` (the time) into one vector and `names[1..4]` into
+    /// another, one pass, in parallel segments, no row index. `Ok(Err(table))` when the file is
+    /// not the plain case (a missing column, quotes, a non-ASCII or too long line, a bad value;
+    /// Parquet and E57 files): the caller then takes the general path on the returned table
+    /// (built from the same text), which also produces the exact error (file:line:col).
+    #[allow(clippy::type_complexity)]
+    pub fn read_stream_direct(
+        path: &Path,
+        names: &[&str; 4],
+    ) -> Result<Result<(Vec<f64>, Vec<[f64; 3]>), Table>, InputError> {
+        if crate::parquet_file::is_parquet(path) || crate::e57_file::is_e57(path) {
+            return Self::read(path).map(Err);
+        }
+        Self::stream_direct(path, Self::checked_text(path)?, names)
+    }
+
+    /// [`read_stream_direct`](Self::read_stream_direct) on text already read and checked.
+    #[allow(clippy::type_complexity)]
+    fn stream_direct(
+        path: &Path,
+        text: Text,
+        names: &[&str; 4],
+    ) -> Result<Result<(Vec<f64>, Vec<[f64; 3]>), Table>, InputError> {
+        let (header, _, data) = Self::head(path, &text)?;
+        let idx: Option<Vec<usize>> = names.iter().map(|n| header.iter().position(|h| h == n)).collect();
+        let rows = match idx {
+            Some(idx) => direct_streams(&text.as_bytes()[data..], header.len(), &idx),
+            None => None,
         };
-        Self::rows_direct(path, text, names)
+        match rows {
+            Some(r) => Ok(Ok(r)),
+            None => Self::from_text(path, text).map(Err),
+        }
     }
 
     /// [`read_rows_direct`](Self::read_rows_direct) on text already read and checked.
@@ -719,6 +760,64 @@ impl Rows<'_> {
 /// The output is sized once by the line count (a line gives at most one row); segments that
 /// skipped lines are moved down afterwards.
 fn direct_rows<const K: usize>(data: &[u8], width: usize, idx: &[usize]) -> Option<Vec<[f64; K]>> {
+    let slots = direct_slots(width, idx)?;
+    let (bounds, lines, total) = direct_segments(data);
+    let mut out: Vec<[f64; K]> = Vec::with_capacity(total);
+    advise_huge_pages(out.spare_capacity_mut());
+    let parts = split_parts(&mut out.spare_capacity_mut()[..total], &lines);
+    let filled: Option<Vec<usize>> = parts
+        .into_par_iter()
+        .zip(bounds.par_windows(2))
+        .map(|(dst, w)| {
+            parse_segment::<K>(&data[w[0]..w[1]], &slots, dst.len(), |r, d| {
+                dst[r].write(d);
+            })
+        })
+        .collect();
+    let filled = filled?;
+    // SAFETY: each segment wrote rows `0..f` of its part (`parse_segment` calls `put` for
+    // consecutive rows from 0 and returns their count).
+    unsafe { compact(&mut out, &lines, &filled) };
+    Some(out)
+}
+
+/// [`direct_rows`] for a time stream: column `idx[0]` into one vector, `idx[1..4]` into another
+/// (the layout `truepos_latency` works on), without an intermediate row buffer.
+fn direct_streams(data: &[u8], width: usize, idx: &[usize]) -> Option<(Vec<f64>, Vec<[f64; 3]>)> {
+    if idx.len() != 4 {
+        return None;
+    }
+    let slots = direct_slots(width, idx)?;
+    let (bounds, lines, total) = direct_segments(data);
+    let mut t: Vec<f64> = Vec::with_capacity(total);
+    let mut v: Vec<[f64; 3]> = Vec::with_capacity(total);
+    advise_huge_pages(t.spare_capacity_mut());
+    advise_huge_pages(v.spare_capacity_mut());
+    let parts_t = split_parts(&mut t.spare_capacity_mut()[..total], &lines);
+    let parts_v = split_parts(&mut v.spare_capacity_mut()[..total], &lines);
+    let filled: Option<Vec<usize>> = parts_t
+        .into_par_iter()
+        .zip(parts_v)
+        .zip(bounds.par_windows(2))
+        .map(|((dt, dv), w)| {
+            parse_segment::<4>(&data[w[0]..w[1]], &slots, dt.len().min(dv.len()), |r, d| {
+                dt[r].write(d[0]);
+                dv[r].write([d[1], d[2], d[3]]);
+            })
+        })
+        .collect();
+    let filled = filled?;
+    // SAFETY: as in `direct_rows`, for both vectors (the same rows of each segment).
+    unsafe {
+        compact(&mut t, &lines, &filled);
+        compact(&mut v, &lines, &filled);
+    }
+    Some((t, v))
+}
+
+/// Column → output slot (`usize::MAX`: not wanted) for the fused row parser; `None` when a
+/// column is outside the header or wanted twice.
+fn direct_slots(width: usize, idx: &[usize]) -> Option<Vec<usize>> {
     let mut slots = vec![usize::MAX; width];
     for (j, &c) in idx.iter().enumerate() {
         if c >= width || slots[c] != usize::MAX {
@@ -726,8 +825,13 @@ fn direct_rows<const K: usize>(data: &[u8], width: usize, idx: &[usize]) -> Opti
         }
         slots[c] = j;
     }
+    Some(slots)
+}
+
+/// Segment bounds of `data` (cut after line ends), the line count of each segment (a last line
+/// without `\n` counts too: an upper bound of its rows) and their total.
+fn direct_segments(data: &[u8]) -> (Vec<usize>, Vec<usize>, usize) {
     let bounds = line_segments(data, 1 << 20);
-    // Lines of each segment (a last line without `\n` counts too): an upper bound of its rows.
     let lines: Vec<usize> = bounds
         .par_windows(2)
         .map(|w| {
@@ -735,38 +839,42 @@ fn direct_rows<const K: usize>(data: &[u8], width: usize, idx: &[usize]) -> Opti
             memchr::memchr_iter(b'\n', seg).count() + usize::from(seg.last().is_some_and(|&b| b != b'\n'))
         })
         .collect();
-    let total: usize = lines.iter().sum();
-    let mut out: Vec<[f64; K]> = Vec::with_capacity(total);
-    advise_huge_pages(out.spare_capacity_mut());
+    let total = lines.iter().sum();
+    (bounds, lines, total)
+}
+
+/// `buf` cut into consecutive parts of `lines[k]` slots each.
+fn split_parts<'a, T>(mut buf: &'a mut [T], lines: &[usize]) -> Vec<&'a mut [T]> {
     let mut parts = Vec::with_capacity(lines.len());
-    let mut rest = &mut out.spare_capacity_mut()[..total];
-    for &n in &lines {
-        let (a, b) = rest.split_at_mut(n);
+    for &n in lines {
+        let (a, b) = buf.split_at_mut(n);
         parts.push(a);
-        rest = b;
+        buf = b;
     }
-    let filled: Option<Vec<usize>> = parts
-        .into_par_iter()
-        .zip(bounds.par_windows(2))
-        .map(|(dst, w)| parse_segment(&data[w[0]..w[1]], &slots, dst))
-        .collect();
-    let filled = filled?;
+    parts
+}
+
+/// Move the rows of each segment down to follow the previous segment's and set the length:
+/// segment `k` owns slots `Σ lines[..k] ..` of `out`'s capacity and wrote `filled[k]` of them.
+///
+/// # Safety
+/// `out` has capacity `Σ lines`, its length is 0, and segment `k` initialised the first
+/// `filled[k] ≤ lines[k]` slots of its part.
+unsafe fn compact<T>(out: &mut Vec<T>, lines: &[usize], filled: &[usize]) {
     let mut at = 0;
     let mut from = 0;
     let base = out.as_mut_ptr();
-    for (&n, &f) in lines.iter().zip(&filled) {
+    for (&n, &f) in lines.iter().zip(filled) {
         if at != from {
             // SAFETY: `from..from + f` (written by its segment) and `at..at + f` (`at <= from`)
-            // are within the capacity `total`; `ptr::copy` allows overlap.
+            // are within the capacity; `ptr::copy` allows overlap.
             unsafe { std::ptr::copy(base.add(from), base.add(at), f) };
         }
         at += f;
         from += n;
     }
-    // SAFETY: the first `at` slots were written: each segment wrote `f` rows at its start and
-    // they were moved down to follow each other.
+    // SAFETY: the first `at` slots were written and moved to follow each other.
     unsafe { out.set_len(at) };
-    Some(out)
 }
 
 /// Ask the kernel for transparent huge pages for a large output buffer about to be written
@@ -790,12 +898,13 @@ fn advise_huge_pages<T>(buf: &mut [std::mem::MaybeUninit<T>]) {
     let _ = buf;
 }
 
-/// Parse the rows of one segment (whole lines) into `dst`; the number of rows, or `None` at a
-/// line the fast path does not take.
+/// Parse the rows of one segment (whole lines), handing row `r` (0, 1, …, below `cap`) to
+/// `put`; the number of rows, or `None` at a line the fast path does not take (or a row `cap`).
 fn parse_segment<const K: usize>(
     seg: &[u8],
     slots: &[usize],
-    dst: &mut [std::mem::MaybeUninit<[f64; K]>],
+    cap: usize,
+    mut put: impl FnMut(usize, [f64; K]),
 ) -> Option<usize> {
     let mut pos = 0;
     let mut r = 0;
@@ -818,7 +927,10 @@ fn parse_segment<const K: usize>(
         }
         let mut d = [0.0; K];
         let used = parse_row_fast_len(&seg[pos..], slots, &mut d)?;
-        dst.get_mut(r)?.write(d);
+        if r >= cap {
+            return None;
+        }
+        put(r, d);
         if used > crate::limits::MAX_LINE_BYTES {
             return None;
         }
@@ -840,8 +952,9 @@ fn parse_row_fast(text: &[u8], slots: &[usize], d: &mut [f64]) -> bool {
 }
 
 /// [`parse_row_fast`] that also tells where the row ends: the offset of its `\n` (or the end
-/// of `text`), i.e. the length of the line with its `\r` if any.
-#[inline]
+/// of `text`), i.e. the length of the line with its `\r` if any. Inlined into every row loop
+/// (the points' and the streams' readers each get their own copy, with the number parser in it).
+#[inline(always)]
 fn parse_row_fast_len(text: &[u8], slots: &[usize], d: &mut [f64]) -> Option<usize> {
     let mut i = 0;
     let n = text.len();
@@ -1171,6 +1284,40 @@ mod tests {
             }
         }
         assert!(direct("x_mm,y_mm,z_mm\n").unwrap().unwrap().is_empty());
+    }
+
+    /// The direct stream reader gives the general path's columns bit for bit, and hands back
+    /// the table (with today's error) on anything it does not take.
+    #[test]
+    fn direct_streams_match_the_general_path() {
+        let names = ["t_s", "x_mm", "y_mm", "z_mm"];
+        let direct = |s: &str| Table::stream_direct(Path::new("m.csv"), Text::Owned(s.to_string()), &names);
+        let mut s = String::from("# machine\nz_mm,t_s,other,x_mm,y_mm\n");
+        for i in 0..150_000u64 {
+            let t = i as f64 * 0.001;
+            match i % 1009 {
+                0 => s.push_str("\n# gap\n"),
+                1 => s.push_str(&format!("{},{t:.8},a,{}.25,{:e}\r\n", i % 7, i, t * 3.0)),
+                _ => s.push_str(&format!("{:.8},{t:.8},b,{:.8},{}\n", t / 3.0, t * 250.0, 0.1 * t)),
+            }
+        }
+        assert!(s.len() > 2 << 20, "needs several segments: {}", s.len());
+        let (t, v) = direct(&s).unwrap().expect("plain file takes the direct path");
+        let g = Table::from_bytes("m.csv", s.clone().into_bytes()).unwrap().f64_rows(&names).unwrap();
+        assert_eq!(t.len(), g.len());
+        assert_eq!(v.len(), g.len());
+        for (k, row) in g.iter().enumerate() {
+            assert_eq!(t[k].to_bits(), row[0].to_bits());
+            assert_eq!(v[k].map(f64::to_bits), [row[1], row[2], row[3]].map(f64::to_bits));
+        }
+        let bad = format!("{s}1,2,b,x,5\n");
+        let e = direct(&bad).unwrap().expect_err("general path").f64_rows(&names).unwrap_err();
+        assert_eq!(e.line, Some(s.lines().count() + 1));
+        assert_eq!(e.column, Some(4));
+        let t = direct("t_s,x_mm,y_mm\n1,2,3\n").unwrap().expect_err("missing column");
+        assert!(t.f64_rows(&names).is_err());
+        let (t, v) = direct("t_s,x_mm,y_mm,z_mm\n").unwrap().unwrap();
+        assert!(t.is_empty() && v.is_empty());
     }
 
     #[test]

@@ -1,10 +1,12 @@
 //! Numbers in text: exact fast parsing and shortest round-trip (or fixed-decimal) formatting.
 //!
 //! - [`parse_f64`] / [`parse_f64_prefix`]: correctly rounded decimal → `f64` (every input gives
-//!   the nearest double, as `str::parse` does). Plain decimals of at most 15 significant digits
-//!   take Clinger's fast path ([`truepos_math::decimal`], digits eight at a time, the same code
-//!   the G-code reader uses); everything else goes to the `fast-float2` crate (Eisel–Lemire with
-//!   an exact big-decimal fallback), which parses straight from bytes.
+//!   the nearest double, as `str::parse` does). Plain decimals of at most 19 significant digits
+//!   take the exact fast path of [`truepos_math::decimal`] (Clinger's division up to 15 digits,
+//!   a 64-bit reciprocal of 5^f beyond; digits eight at a time; the same code the G-code reader
+//!   uses); everything else (exponents, longer mantissas, the rare values the reciprocal leaves
+//!   undecided) goes to the `fast-float2` crate (Eisel–Lemire with an exact big-decimal
+//!   fallback), which parses straight from bytes.
 //! - [`NumFormat`]: how written numbers look. `Shortest` (the default) writes the shortest text
 //!   that parses back to the same `f64` (the `zmij` crate: Schubfach/yy, already in the tree
 //!   through serde_json), so every written number round-trips bit for bit; `Fixed(n)` writes `n`
@@ -29,9 +31,9 @@ pub fn parse_f64_bytes(b: &[u8]) -> Option<f64> {
 /// Parse the longest number at the start of `b`: `(value, bytes used)`. `None` when `b` does not
 /// start with a number, or the number is not finite. Only decimal syntax is accepted
 /// (`[+-]digits[.digits][e[+-]digits]`, `.5`, `1.`); `inf`/`nan` words are refused.
-#[inline]
+#[inline(always)]
 pub fn parse_f64_prefix(b: &[u8]) -> Option<(f64, usize)> {
-    // Clinger's fast path (shared with the G-code reader) for `[+-]digits[.digits]` with ≤ 15
+    // The exact fast path (shared with the G-code reader) for `[+-]digits[.digits]` with ≤ 19
     // significant digits, not followed by an exponent.
     match truepos_math::decimal::decimal_prefix(b) {
         Ok(r) => Some(r),
@@ -194,6 +196,30 @@ mod tests {
             "-3.14159265358979323846264338327950288",
             "0.30000000000000004",
             "123.456e-7",
+            // Halfway and near-halfway cases, 17+ digits, subnormals, exponents.
+            "9007199254740993",
+            "9007199254740993.0",
+            "9007199254740993.00000001",
+            "9007199254740992.99999999",
+            "900719925474099.25",
+            "4503599627370496.5",
+            "1.00000000000000011102230246251565404236316680908203125",
+            "1.0000000000000001110223024625156540423631668090820312",
+            "1.00000000000000011102230246251565404236316680908203126",
+            "0.1000000000000000055511151231257827",
+            "123456789.01234567890123",
+            "2.2250738585072011e-308",
+            "2.2250738585072012e-308",
+            "4.9406564584124654e-324",
+            "2.4703282292062328e-324",
+            "2.4703282292062327e-324",
+            "1e-320",
+            "8.98846567431158e307",
+            "1.7976931348623158e308",
+            "179769313486231570814527423731704356798070567525844996598917476803157260780028538760589558632766878171540458953514382464234321326889464182768467546703537516986049910576551282076245490090389328944075868508455133942304583236903222948165808559332123348274797826204144723168738177180919299881250404026184124858368.0",
+            "1e22",
+            "1e23",
+            "-0.000000000000000000",
         ] {
             let want: f64 = s.parse().unwrap();
             assert_eq!(parse_f64(s).map(f64::to_bits), Some(want.to_bits()), "{s}");

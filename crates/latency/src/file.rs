@@ -1,42 +1,62 @@
 //! The stream files of delay calibration, defined once: [`read_stream`] reads `t_s` and three
-//! value columns of a CSV ([`read_streams`]: the machine and probe files at once); [`input_error`] turns a [`LatencyError`] about a stream into an input
-//! error naming the file and line; [`write_centres`] writes the stylus centres of
-//! `truepos latency apply`.
+//! value columns of a CSV ([`read_streams`]: the machine and probe files at once; plain CSV is
+//! parsed straight from the text, without a row index, unless the table is needed later);
+//! [`input_error`] turns a [`LatencyError`] about a stream into an input error naming the file
+//! and line; [`write_centres`] writes the stylus centres of `truepos latency apply`.
 
 use crate::{LatencyError, Which};
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use truepos_io::atomic::AtomicFile;
 use truepos_io::csv::Table;
 use truepos_io::InputError;
 
 /// A stream read from a CSV file.
 pub struct StreamFile {
-    pub table: Table,
+    pub path: PathBuf,
+    /// The indexed table, when the file was read through one (`keep_table`, or a file that is
+    /// not plain CSV); `None` when the columns were parsed straight from the text (an error
+    /// about a row then reads the table to name its line).
+    pub table: Option<Table>,
     pub t: Vec<f64>,
     pub v: Vec<[f64; 3]>,
 }
 
-/// Read `t_s` and three value columns.
-pub fn read_stream(path: &Path, cols: [&str; 3]) -> Result<StreamFile, InputError> {
-    let table = Table::read(path)?;
-    let all = table.f64_columns(&["t_s", cols[0], cols[1], cols[2]])?;
+/// Read `t_s` and three value columns. `keep_table`: go through the indexed table and keep it
+/// (to copy other columns row by row); otherwise plain CSV is parsed straight from the text and
+/// anything else (or any bad value) takes the table's path, whose errors name file:line:col.
+pub fn read_stream(path: &Path, cols: [&str; 3], keep_table: bool) -> Result<StreamFile, InputError> {
+    let names = ["t_s", cols[0], cols[1], cols[2]];
+    let table = if keep_table {
+        Table::read(path)?
+    } else {
+        match Table::read_stream_direct(path, &names)? {
+            Ok((t, v)) => return Ok(StreamFile { path: path.to_path_buf(), table: None, t, v }),
+            Err(table) => table,
+        }
+    };
+    let all = table.f64_columns(&names)?;
     let mut t = Vec::with_capacity(all.len() / 4);
     let mut v = Vec::with_capacity(all.len() / 4);
     for c in all.chunks_exact(4) {
         t.push(c[0]);
         v.push([c[1], c[2], c[3]]);
     }
-    Ok(StreamFile { table, t, v })
+    Ok(StreamFile { path: path.to_path_buf(), table: Some(table), t, v })
 }
 
 /// Read the machine stream (`t_s,x_mm,y_mm,z_mm`) and the probe stream (`t_s,a_mm,b_mm,c_mm`)
 /// at the same time (each read is itself parallel; reading both at once overlaps their serial
 /// parts: mapping, header, allocation). A bad machine file is reported before a bad probe file.
-pub fn read_streams(machine: &Path, probe: &Path) -> Result<(StreamFile, StreamFile), InputError> {
+/// `keep_probe_table`: keep the probe file's table (see [`read_stream`]).
+pub fn read_streams(
+    machine: &Path,
+    probe: &Path,
+    keep_probe_table: bool,
+) -> Result<(StreamFile, StreamFile), InputError> {
     let (m, p) = rayon::join(
-        || read_stream(machine, crate::task::MACHINE_COLUMNS),
-        || read_stream(probe, crate::task::PROBE_COLUMNS),
+        || read_stream(machine, crate::task::MACHINE_COLUMNS, false),
+        || read_stream(probe, crate::task::PROBE_COLUMNS, keep_probe_table),
     );
     Ok((m?, p?))
 }
@@ -46,9 +66,18 @@ pub fn input_error(e: LatencyError, machine: &StreamFile, probe: &StreamFile) ->
     let pick = |w: Which| if w == Which::Machine { machine } else { probe };
     let at = |w: Which, index: usize, msg: String| {
         let f = pick(w);
-        let line = if index < f.table.n_rows() { f.table.line_number(index) } else { 0 };
-        let col = f.table.column("t_s").map(|c| c + 1);
-        InputError::at(&f.table.path, line, col, msg).with_column_name("t_s")
+        // Parsed without a table: read it now to name the row's line (an error path only).
+        let read;
+        let table = match &f.table {
+            Some(t) => Some(t),
+            None => {
+                read = Table::read(&f.path).ok();
+                read.as_ref()
+            }
+        };
+        let line = table.filter(|t| index < t.n_rows()).map_or(0, |t| t.line_number(index));
+        let col = table.and_then(|t| t.column("t_s")).map(|c| c + 1);
+        InputError::at(&f.path, line, col, msg).with_column_name("t_s")
     };
     match &e {
         LatencyError::DuplicateStamp { which, index, t } => {
@@ -61,30 +90,34 @@ pub fn input_error(e: LatencyError, machine: &StreamFile, probe: &StreamFile) ->
         ),
         LatencyError::NotFinite { which, index } => at(*which, *index, "value is not finite".into()),
         LatencyError::TooShort { which, n } => {
-            InputError::in_file(&pick(*which).table.path, format!("{n} data row(s); at least two are needed"))
+            InputError::in_file(&pick(*which).path, format!("{n} data row(s); at least two are needed"))
         }
         LatencyError::NoOverlap { .. } => {
-            InputError::in_file(&probe.table.path, format!("{e} (with {})", machine.table.path.display()))
+            InputError::in_file(&probe.path, format!("{e} (with {})", machine.path.display()))
         }
-        LatencyError::NoContact(_) => InputError::in_file(&probe.table.path, e.to_string()),
+        LatencyError::NoContact(_) => InputError::in_file(&probe.path, e.to_string()),
         _ => InputError::new(e.to_string()),
     }
 }
 
 /// Write stylus-centre positions at the probe stamps (`t_s,x_mm,y_mm,z_mm`, then the probe file's
 /// other columns unchanged), atomically; rows whose centre is NaN (machine data not covering
-/// `t + delay`) are left out.
+/// `t + delay`) are left out. The probe stream must have been read with its table
+/// ([`read_stream`]'s `keep_table`).
 pub fn write_centres(path: &Path, delay_s: f64, probe: &StreamFile, out: &[[f64; 3]]) -> std::io::Result<()> {
+    let Some(table) = &probe.table else {
+        return Err(std::io::Error::other("the probe stream was read without its table"));
+    };
     // Pass through the probe file's other columns.
     let used = ["t_s", "a_mm", "b_mm", "c_mm", "x_mm", "y_mm", "z_mm"];
     let extra: Vec<usize> =
-        (0..probe.table.header.len()).filter(|&i| !used.contains(&probe.table.header[i].as_str())).collect();
+        (0..table.header.len()).filter(|&i| !used.contains(&table.header[i].as_str())).collect();
     let mut f = AtomicFile::create(path)?;
     {
         let mut w = truepos_io::csv::CsvWriter::new(std::io::BufWriter::new(&mut f));
         w.comment(&format!("stylus centre = machine(t + {} s) + deflection(t)", delay_s))?;
         let mut names: Vec<&str> = vec!["t_s", "x_mm", "y_mm", "z_mm"];
-        names.extend(extra.iter().map(|&i| probe.table.header[i].as_str()));
+        names.extend(extra.iter().map(|&i| table.header[i].as_str()));
         w.header(&names)?;
         let mut buf = Vec::new();
         for (i, p) in out.iter().enumerate() {
@@ -96,7 +129,7 @@ pub fn write_centres(path: &Path, delay_s: f64, probe: &StreamFile, out: &[[f64;
                 w.field_f64(*x)?;
             }
             if !extra.is_empty() {
-                let fields = probe.table.fields(i, &mut buf).map_err(std::io::Error::other)?;
+                let fields = table.fields(i, &mut buf).map_err(std::io::Error::other)?;
                 for &c in &extra {
                     w.field_str(fields[c])?;
                 }

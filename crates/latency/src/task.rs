@@ -37,7 +37,7 @@ impl Report for Estimated {
 /// `truepos latency`: the system delay from the machine stream (`t_s,x_mm,y_mm,z_mm`) and the
 /// probe stream (`t_s,a_mm,b_mm,c_mm`). The estimate's warnings are in `estimate.warnings`.
 pub fn estimate_files(machine: &Path, probe: &Path, options: Options) -> Result<Estimated, InputError> {
-    let (m, p) = read_streams(machine, probe)?;
+    let (m, p) = read_streams(machine, probe, false)?;
     let s = Streams { machine_t: &m.t, machine: &m.v, probe_t: &p.t, probe: &p.v };
     let estimate = crate::estimate(&s, &options).map_err(|e| input_error(e, &m, &p))?;
     Ok(Estimated { estimate, options })
@@ -85,7 +85,8 @@ pub fn apply_files(
     if !delay_s.is_finite() {
         return Err(InputError::new("the delay must be a finite number of seconds").into());
     }
-    let (m, p) = read_streams(machine, probe)?;
+    // The probe file's other columns are copied to the output: keep its table.
+    let (m, p) = read_streams(machine, probe, true)?;
     let s = Streams { machine_t: &m.t, machine: &m.v, probe_t: &p.t, probe: &p.v };
     s.check().map_err(|e| input_error(e, &m, &p))?;
     let mut out = Vec::new();
