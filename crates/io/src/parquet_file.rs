@@ -164,12 +164,13 @@ impl ::parquet::file::reader::ChunkReader for StrictFile {
 
 /// The columns of the open file (see [`read_columns_within`]).
 fn decode(path: &Path, file: std::fs::File, limit: u64) -> Result<Columns, InputError> {
-    let map_source = file.try_clone().map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
-    let reader = SerializedFileReader::new(StrictFile(file)).map_err(|e| pq_err(path, e))?;
     // SAFETY: a private read-only map, as in `csv::map_large_file`; the input file is not
-    // expected to change while truepos reads it. Only the page headers are touched.
-    let map = unsafe { memmap2::Mmap::map(&map_source) }
+    // expected to change while truepos reads it. Only the footer and the page headers are
+    // touched (by `check_footer` and `check_page_headers`).
+    let map = unsafe { memmap2::Mmap::map(&file) }
         .map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+    check_footer(&map).map_err(|e| pq_err(path, e))?;
+    let reader = SerializedFileReader::new(StrictFile(file)).map_err(|e| pq_err(path, e))?;
     let md = reader.metadata();
     let schema = md.file_metadata().schema_descr();
     let cols = schema.columns();
@@ -347,6 +348,21 @@ fn check_page_headers(chunk: &[u8]) -> Result<(), String> {
             .ok_or_else(|| format!("page header at chunk byte {pos}: page size {size}"))?;
     }
     Ok(())
+}
+
+/// Walk the file metadata (the footer, Thrift compact) the same way before `parquet` parses it:
+/// its skipping of unknown fields loops over bool lists without reading there too (a timeout
+/// found by the `parquet_points` fuzz target). A file without the `PAR1` footer is left to
+/// `parquet` to refuse.
+fn check_footer(file: &[u8]) -> Result<(), String> {
+    let n = file.len();
+    if n < 12 || &file[n - 4..] != b"PAR1" {
+        return Ok(());
+    }
+    let len = u32::from_le_bytes([file[n - 8], file[n - 7], file[n - 6], file[n - 5]]) as usize;
+    let Some(start) = (n - 8).checked_sub(len) else { return Ok(()) };
+    let mut r = Compact { buf: &file[start..n - 8], pos: 0, page_size: None };
+    r.structure(64, false).map_err(|e| format!("file metadata: {e}"))
 }
 
 /// A reader of the Thrift compact protocol that only checks and skips (see [`check_page_headers`]).

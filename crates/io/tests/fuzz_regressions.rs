@@ -67,3 +67,24 @@ fn parquet_page_header_bool_list() {
     // Milliseconds when refused up front; 2 s leaves room for a loaded machine.
     assert!(t.elapsed().as_secs_f64() < 2.0, "{:?}", t.elapsed());
 }
+
+/// `parquet_points` (a timeout, after the page headers were checked): the same kind of list in
+/// the file metadata (footer), which `parquet` parses before anything else.
+#[test]
+fn parquet_footer_bool_list() {
+    let t = std::time::Instant::now();
+    refused("footer_bool_list.parquet", "file metadata: ");
+    // Milliseconds when refused up front; 2 s leaves room for a loaded machine.
+    assert!(t.elapsed().as_secs_f64() < 2.0, "{:?}", t.elapsed());
+}
+
+/// The map of the file (for the footer and header walks) copes with an empty file: refused by
+/// `parquet`, naming the file.
+#[test]
+fn parquet_empty_file() {
+    let d = tempfile::tempdir().unwrap();
+    let path = d.path().join("empty.parquet");
+    std::fs::write(&path, b"").unwrap();
+    let e = truepos_io::parquet_file::read_columns(&path).unwrap_err().to_string();
+    assert!(e.starts_with(&format!("{}: not a readable Parquet file", path.display())), "{e}");
+}
