@@ -22,6 +22,10 @@ use std::sync::{Mutex, Once, OnceLock};
 fn contain_parquet_panics() {
     static HOOK: Once = Once::new();
     HOOK.call_once(|| {
+        // Decoded values are held to the input limit (8 bytes a number): with the default 2 GiB
+        // they could legitimately reach the fuzzer's 2 GB memory limit. 64 MiB keeps a legitimate
+        // large decode far below it, so an out-of-memory report means a real unbounded allocation.
+        std::env::set_var("TRUEPOS_MAX_INPUT_MB", "64");
         let fuzzer_hook = std::panic::take_hook();
         let seen = Mutex::new(HashSet::new());
         std::panic::set_hook(Box::new(move |info| match info.location() {

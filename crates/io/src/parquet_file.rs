@@ -209,7 +209,12 @@ fn decode(path: &Path, file: std::fs::File, limit: u64) -> Result<Columns, Input
                 pq_err(path, format!("row group {}, column '{}': {msg}", g + 1, c.column_path().string()))
             };
             let chunk = chunk.ok_or_else(|| at("the column chunk runs past the end of the file".into()))?;
-            check_page_headers(chunk).map_err(at)?;
+            // Columns are flat (repeated ones are refused): one value (or null) per row.
+            let values = c.num_values();
+            if values < 0 || values as u64 > n {
+                return Err(at(format!("{values} values in a row group of {n} rows")));
+            }
+            check_page_headers(chunk, values).map_err(at)?;
         }
     }
     let mut decoded = rows.saturating_mul(cols.len() as u64).saturating_mul(8);
@@ -336,11 +341,21 @@ fn decode(path: &Path, file: std::fs::File, limit: u64) -> Result<Columns, Input
 /// one byte). `parquet` skips unknown header fields element by element without reading bools,
 /// so a list of 2³¹ bools took 4 s per header, and a file can hold many such headers. Here the
 /// walk always advances through the bytes, so it costs at most the size of the headers.
-fn check_page_headers(chunk: &[u8]) -> Result<(), String> {
+///
+/// A page, and a dictionary page in particular, holds no more values than the column chunk
+/// (`max_values`): `parquet` reserves a dictionary's values from its header before decoding
+/// them (a header announcing 671 million doubles in a 1 kB file: 5 GB, found by the
+/// `parquet_points` fuzz target).
+fn check_page_headers(chunk: &[u8], max_values: i64) -> Result<(), String> {
     let mut pos = 0;
     while pos < chunk.len() {
-        let mut r = Compact { buf: chunk, pos, page_size: None };
-        r.structure(64, true).map_err(|e| format!("page header at chunk byte {pos}: {e}"))?;
+        let mut r = Compact { buf: chunk, pos, page_size: None, num_values: None };
+        r.structure(64, Capture::PageHeader).map_err(|e| format!("page header at chunk byte {pos}: {e}"))?;
+        if let Some(v) = r.num_values.filter(|&v| v < 0 || v > max_values) {
+            return Err(format!(
+                "page header at chunk byte {pos}: a page of {v} values in a column chunk of {max_values}"
+            ));
+        }
         let size = r.page_size.ok_or_else(|| format!("page header at chunk byte {pos}: no page size"))?;
         pos = usize::try_from(size)
             .ok()
@@ -361,8 +376,8 @@ fn check_footer(file: &[u8]) -> Result<(), String> {
     }
     let len = u32::from_le_bytes([file[n - 8], file[n - 7], file[n - 6], file[n - 5]]) as usize;
     let Some(start) = (n - 8).checked_sub(len) else { return Ok(()) };
-    let mut r = Compact { buf: &file[start..n - 8], pos: 0, page_size: None };
-    r.structure(64, false).map_err(|e| format!("file metadata: {e}"))
+    let mut r = Compact { buf: &file[start..n - 8], pos: 0, page_size: None, num_values: None };
+    r.structure(64, Capture::Nothing).map_err(|e| format!("file metadata: {e}"))
 }
 
 /// A reader of the Thrift compact protocol that only checks and skips (see [`check_page_headers`]).
@@ -371,6 +386,18 @@ struct Compact<'a> {
     pos: usize,
     /// Field 3 of the top-level structure (`PageHeader.compressed_page_size`).
     page_size: Option<i64>,
+    /// Field 1 (`num_values`) of its data page, dictionary page or data page v2 header.
+    num_values: Option<i64>,
+}
+
+/// Which fields [`Compact::structure`] keeps.
+#[derive(Clone, Copy, PartialEq)]
+enum Capture {
+    Nothing,
+    /// A `PageHeader`: field 3, and field 1 of the structures 5, 7 and 8.
+    PageHeader,
+    /// A `DataPageHeader`, `DictionaryPageHeader` or `DataPageHeaderV2`: field 1.
+    PageKind,
 }
 
 impl Compact<'_> {
@@ -439,12 +466,12 @@ impl Compact<'_> {
                 }
                 Ok(())
             }
-            12 => self.structure(depth.checked_sub(1).ok_or("nested too deep")?, false),
+            12 => self.structure(depth.checked_sub(1).ok_or("nested too deep")?, Capture::Nothing),
             13 => self.skip(16),
             _ => Err(format!("unknown Thrift type {ty}")),
         }
     }
-    fn structure(&mut self, depth: u8, top: bool) -> Result<(), String> {
+    fn structure(&mut self, depth: u8, capture: Capture) -> Result<(), String> {
         let mut last: i64 = 0;
         loop {
             let h = self.byte()?;
@@ -454,10 +481,13 @@ impl Compact<'_> {
             let (delta, ty) = (h >> 4, h & 15);
             let id = if delta != 0 { last + i64::from(delta) } else { self.zigzag()? };
             last = id;
-            if top && id == 3 && ty == 5 {
-                self.page_size = Some(self.zigzag()?);
-            } else {
-                self.value(ty, depth, false)?;
+            match (capture, id, ty) {
+                (Capture::PageHeader, 3, 5) => self.page_size = Some(self.zigzag()?),
+                (Capture::PageHeader, 5 | 7 | 8, 12) => {
+                    self.structure(depth.checked_sub(1).ok_or("nested too deep")?, Capture::PageKind)?
+                }
+                (Capture::PageKind, 1, 5) => self.num_values = Some(self.zigzag()?),
+                _ => self.value(ty, depth, false)?,
             }
         }
     }

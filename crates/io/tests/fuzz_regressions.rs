@@ -88,3 +88,11 @@ fn parquet_empty_file() {
     let e = truepos_io::parquet_file::read_columns(&path).unwrap_err().to_string();
     assert!(e.starts_with(&format!("{}: not a readable Parquet file", path.display())), "{e}");
 }
+
+/// `parquet_points` (out of memory): a dictionary page header announcing 671 million doubles
+/// in a 1 kB file made `parquet` reserve 5 GB before decoding; a page holds no more values than
+/// its column chunk.
+#[test]
+fn parquet_dictionary_of_671m_values() {
+    refused("dictionary_of_671m_values.parquet", "a page of 671088639 values in a column chunk of 4");
+}
