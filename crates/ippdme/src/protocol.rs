@@ -109,9 +109,15 @@ impl fmt::Display for Call {
     }
 }
 
-/// Format a number as the server sends it: fixed point, 6 decimals (1 nm in mm), no `-0`.
+/// Format a number as the server sends it: fixed point, 6 decimals (1 nm in mm), no `-0`. A
+/// number too large for that within the protocol's 16 mantissa digits (10 or more integer
+/// digits: speeds, counts or values a client sent) is written with 16 significant digits and an
+/// exponent instead, so every number this prints is one the parser accepts.
 pub fn fmt_num(x: f64) -> String {
     let s = format!("{x:.6}");
+    if s.bytes().filter(u8::is_ascii_digit).count() > 16 {
+        return format!("{x:.15e}");
+    }
     if s.starts_with('-') && s[1..].bytes().all(|b| b == b'0' || b == b'.') {
         s[1..].to_string()
     } else {
@@ -561,6 +567,31 @@ pub fn parse_data_items(data: &str) -> Result<Vec<(String, Vec<f64>)>, String> {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn every_printed_number_parses_back_even_past_ten_integer_digits() {
+        // found by the `ippdme` fuzz target on `numbersCmdOK.prg` of the NIST data: 6 decimals
+        // after 16 integer digits made 22 digits, which the parser refuses (0509)
+        for line in [
+            "00080 SetProp(Tool.GoToPar.Speed(1234567890123456))",
+            "00081 GoTo(X(-9999999999.5), Y(1e300), Z(-1.797693134862315e308))",
+            "00082 GoTo(X(0.000001), Y(-0.0000001), Z(123456789.123456))",
+        ] {
+            let (tag, call) = parse_line(line.as_bytes()).unwrap();
+            let printed = format!("{tag} {call}");
+            let (tag2, call2) = parse_line(printed.as_bytes()).unwrap_or_else(|e| panic!("{printed}: {e:?}"));
+            assert_eq!(
+                (tag, &call.name, call.args.len()),
+                (tag2, &call2.name, call2.args.len()),
+                "{printed}"
+            );
+        }
+        // what still prints in fixed point: up to 10 integer digits, 6 decimals
+        assert_eq!(fmt_num(1234567890.5), "1234567890.500000");
+        assert_eq!(fmt_num(12345678901.0), "1.234567890100000e10");
+        assert_eq!(fmt_num(-0.0000001), "0.000000");
+    }
+
     use super::*;
 
     #[test]
