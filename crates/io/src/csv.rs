@@ -290,6 +290,26 @@ impl Table {
     /// (E57 files come the same way, as their `x_mm,y_mm,z_mm` columns.)
     fn from_columns(path: &Path, c: crate::parquet_file::Columns) -> Result<Self, InputError> {
         use crate::parquet_file::ColumnData;
+        // Parquet column names are free text, the header here is a CSV line: a name must read
+        // back as itself (a comma in a name split the header in two, found by the
+        // `parquet_points` fuzz target; a leading '#' would make it a comment line).
+        for (i, n) in c.names.iter().enumerate() {
+            if n.is_empty()
+                || n.contains([',', '"', '\n', '\r'])
+                || n.trim() != n
+                || n.starts_with(['#', '\u{feff}'])
+                || c.names[..i].contains(n)
+            {
+                return Err(InputError::in_file(
+                    path,
+                    format!(
+                        "column {}: the name '{}' is empty, repeated, or has a comma, quote, line break, leading '#' or surrounding spaces",
+                        i + 1,
+                        n.escape_debug()
+                    ),
+                ));
+            }
+        }
         let mut w = CsvWriter::new(Vec::with_capacity(c.n_rows() * 40));
         let names: Vec<&str> = c.names.iter().map(String::as_str).collect();
         let io = |e: std::io::Error| InputError::in_file(path, e.to_string());
@@ -312,7 +332,14 @@ impl Table {
             }
             w.end_row().map_err(io)?;
         }
-        Self::from_bytes(path, w.into_inner())
+        let t = Self::from_bytes(path, w.into_inner())?;
+        if t.header != c.names {
+            return Err(InputError::in_file(
+                path,
+                format!("column names that do not read back as a header: {:?}", c.names),
+            ));
+        }
+        Ok(t)
     }
 
     /// NUL bytes and invalid UTF-8 are input errors (a binary file is not a CSV file): the first

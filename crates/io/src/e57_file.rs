@@ -5,8 +5,8 @@
 //!   file's common frame (each scan's pose applied), in **mm** (E57 stores metres: converted
 //!   here, at the edge). Scans recorded in spherical coordinates (range, azimuth, elevation) are
 //!   converted to Cartesian ones by the `e57` crate. Points whose coordinates are not valid
-//!   (`cartesianInvalidState` 1 = direction only, 2 = invalid; or the spherical equivalents)
-//!   are skipped and counted. A file that is not a readable E57 is an input error naming it (and
+//!   (`cartesianInvalidState` 1 = direction only, 2 = invalid; or the spherical equivalents),
+//!   or not finite numbers once in mm, are skipped and counted. A file that is not a readable E57 is an input error naming it (and
 //!   the scan, when one is broken).
 //! - [`write_e57`]: points in mm as one Cartesian scan of doubles, written atomically (for
 //!   tests and exchange).
@@ -54,8 +54,22 @@ pub fn read_e57(path: &Path) -> Result<E57Points, InputError> {
     crate::limits::check_file_size(path, &meta)?;
     let mut reader = E57Reader::new(std::io::BufReader::new(file)).map_err(|e| e57_err(path, e))?;
     let clouds = reader.pointclouds();
-    let mut points =
-        Vec::with_capacity(clouds.iter().map(|c| c.records as usize).sum::<usize>().min(1 << 26));
+    // The point counts come from the file's XML: bounded before anything is allocated or read.
+    // Every stored point takes at least one bit of the file, so a file of S bytes holds at most
+    // 8·S points; more announced is a broken (or hostile) file, refused instead of a reservation
+    // or a read loop of billions of points from a few kilobytes.
+    let announced = clouds.iter().fold(0_u64, |n, c| n.saturating_add(c.records));
+    let most = meta.len().saturating_mul(8);
+    if announced > most {
+        return Err(e57_err(
+            path,
+            format!(
+                "its scans announce {announced} points, more than a file of {} bytes can hold",
+                meta.len()
+            ),
+        ));
+    }
+    let mut points = Vec::with_capacity(usize::try_from(announced).unwrap_or(0).min(1 << 20));
     let mut skipped_invalid = 0;
     for (k, pc) in clouds.iter().enumerate() {
         let name = pc.name.clone().or_else(|| pc.guid.clone()).unwrap_or_default();
@@ -70,9 +84,17 @@ pub fn read_e57(path: &Path) -> Result<E57Points, InputError> {
         it.spherical_to_cartesian(true);
         for p in it {
             let p = p.map_err(|e| scan(&e))?;
+            // Finite in mm, not only in metres: beyond ±1.8e305 m the conversion overflows to
+            // infinity (found by the `e57_points` fuzz target), and an infinite point would go
+            // into the fit. Such points are skipped and counted like the ones marked invalid.
             match p.cartesian {
-                CartesianCoordinate::Valid { x, y, z } if x.is_finite() && y.is_finite() && z.is_finite() => {
-                    points.push(Point3::new(x * MM_PER_M, y * MM_PER_M, z * MM_PER_M))
+                CartesianCoordinate::Valid { x, y, z } => {
+                    let q = Point3::new(x * MM_PER_M, y * MM_PER_M, z * MM_PER_M);
+                    if q.x.is_finite() && q.y.is_finite() && q.z.is_finite() {
+                        points.push(q);
+                    } else {
+                        skipped_invalid += 1;
+                    }
                 }
                 _ => skipped_invalid += 1,
             }
@@ -199,5 +221,101 @@ mod tests {
         assert!(e.to_string().starts_with(&format!("{}: ", bad.display())), "{e}");
         std::fs::write(&bad, b"x_mm,y_mm,z_mm\n1,2,3\n").unwrap();
         assert!(read_e57(&bad).unwrap_err().to_string().contains("not a readable E57 file"));
+    }
+}
+
+/// Files broken on purpose: the XML of a valid file edited, the pages' checksums recomputed.
+#[cfg(test)]
+mod hostile {
+    use super::*;
+
+    const PAGE: usize = 1024;
+
+    /// CRC-32C (Castagnoli), as E57 pages carry it (big-endian).
+    fn crc32c(data: &[u8]) -> u32 {
+        !data.iter().fold(!0_u32, |mut c, &b| {
+            c ^= b as u32;
+            for _ in 0..8 {
+                c = if c & 1 == 0 { c >> 1 } else { (c >> 1) ^ 0x82F6_3B78 };
+            }
+            c
+        })
+    }
+
+    /// A file of `points` with `edit` applied to its XML section (the last thing in the file).
+    fn edited(path: &Path, points: usize, edit: impl Fn(&str) -> String) {
+        let pts: Vec<Point3> = (0..points).map(|i| Point3::new(i as f64, 1.0, 2.0)).collect();
+        write_e57(path, &pts).unwrap();
+        let phys = std::fs::read(path).unwrap();
+        let u64_at = |o: usize| u64::from_le_bytes(phys[o..o + 8].try_into().unwrap());
+        let (xml_phys, xml_len) = (u64_at(24) as usize, u64_at(32) as usize);
+        let mut logical: Vec<u8> = phys.chunks(PAGE).flat_map(|p| p[..PAGE - 4].to_vec()).collect();
+        let xml_at = xml_phys - xml_phys / PAGE * 4;
+        let xml = String::from_utf8(logical[xml_at..xml_at + xml_len].to_vec()).unwrap();
+        let new_xml = edit(&xml);
+        assert_ne!(new_xml, xml, "the edit changes nothing");
+        logical.truncate(xml_at);
+        logical.extend_from_slice(new_xml.as_bytes());
+        logical[32..40].copy_from_slice(&(new_xml.len() as u64).to_le_bytes());
+        logical.resize(logical.len().div_ceil(PAGE - 4) * (PAGE - 4), 0);
+        let phys_len = (logical.len() / (PAGE - 4) * PAGE) as u64;
+        logical[16..24].copy_from_slice(&phys_len.to_le_bytes());
+        let mut out = Vec::with_capacity(phys_len as usize);
+        for chunk in logical.chunks(PAGE - 4) {
+            out.extend_from_slice(chunk);
+            out.extend_from_slice(&crc32c(chunk).to_be_bytes());
+        }
+        std::fs::write(path, out).unwrap();
+    }
+
+    #[test]
+    fn the_page_tooling_reproduces_a_valid_file() {
+        let d = tempfile::tempdir().unwrap();
+        let path = d.path().join("same.e57");
+        edited(&path, 10, |x| x.replace("recordCount=\"10\"", "recordCount=\"9\""));
+        let r = read_e57(&path).unwrap();
+        assert_eq!(r.points.len(), 9);
+    }
+
+    /// Coordinates finite in metres but not in mm (the ×1000 overflows): skipped and counted,
+    /// never an infinite point.
+    #[test]
+    fn coordinates_that_overflow_in_mm_are_skipped() {
+        let d = tempfile::tempdir().unwrap();
+        let path = d.path().join("far.e57");
+        {
+            let mut w = E57Writer::from_file(&path, "far").unwrap();
+            let cart = vec![Record::CARTESIAN_X_F64, Record::CARTESIAN_Y_F64, Record::CARTESIAN_Z_F64];
+            let mut pc = w.add_pointcloud("far", cart).unwrap();
+            for v in [[1.0, 2.0, 3.0], [1e306, 0.0, 0.0], [0.0, -1e306, 0.0], [4.0, 5.0, 6.0]] {
+                pc.add_point(v.iter().map(|&x| RecordValue::Double(x)).collect()).unwrap();
+            }
+            pc.finalize().unwrap();
+            w.finalize().unwrap();
+        }
+        let r = read_e57(&path).unwrap();
+        assert_eq!(r.skipped_invalid, 2);
+        assert_eq!(r.points, vec![Point3::new(1000.0, 2000.0, 3000.0), Point3::new(4000.0, 5000.0, 6000.0)]);
+    }
+
+    /// A point count far beyond what the file can hold (the XML says 10^12 points, or two scans
+    /// whose counts overflow a u64 when added) is refused before anything is reserved or read.
+    #[test]
+    fn announced_point_counts_are_bounded_by_the_file_size() {
+        let d = tempfile::tempdir().unwrap();
+        let path = d.path().join("huge.e57");
+        edited(&path, 10, |x| x.replace("recordCount=\"10\"", "recordCount=\"1000000000000\""));
+        let e = read_e57(&path).unwrap_err().to_string();
+        assert!(e.starts_with(&format!("{}: not a readable E57 file: ", path.display())), "{e}");
+        assert!(e.contains("announce 1000000000000 points"), "{e}");
+        // Two scans of 2^63 points each: the sum saturates, it does not wrap to 0.
+        edited(&path, 10, |x| {
+            let start = x.find("<vectorChild").unwrap();
+            let end = x.rfind("</vectorChild>").unwrap() + "</vectorChild>".len();
+            let scan = x[start..end].replace("recordCount=\"10\"", "recordCount=\"9223372036854775808\"");
+            format!("{}{scan}{scan}{}", &x[..start], &x[end..])
+        });
+        let e = read_e57(&path).unwrap_err().to_string();
+        assert!(e.contains("announce 18446744073709551615 points"), "{e}");
     }
 }

@@ -24,6 +24,9 @@ use std::sync::Arc;
 /// Rows per row group when writing.
 pub const ROW_GROUP: usize = 1 << 20;
 
+/// Most values reserved ahead of reading one column (more grow as they are decoded).
+const RESERVE: usize = 1 << 20;
+
 /// Values of one column.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ColumnData {
@@ -93,17 +96,139 @@ fn row_err(path: &Path, name: &str, row: usize, msg: &str) -> InputError {
 
 /// Read every numeric and text column of a Parquet file.
 pub fn read_columns(path: &Path) -> Result<Columns, InputError> {
+    read_columns_within(path, crate::limits::max_input_bytes())
+}
+
+/// [`read_columns`] with the decoded values (8 bytes a number, the bytes of the text) held to
+/// `limit` bytes.
+fn read_columns_within(path: &Path, limit: u64) -> Result<Columns, InputError> {
     let file =
         std::fs::File::open(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
     let meta = file.metadata().map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
     crate::limits::check_file_size(path, &meta)?;
-    let reader = SerializedFileReader::new(file).map_err(|e| pq_err(path, e))?;
+    // `parquet` asserts instead of returning an error on some malformed data, e.g. a dictionary
+    // page whose text lengths run past its end (`bit_util::read_num_bytes`, found by the
+    // `parquet_points` fuzz target). That cannot be checked without decoding the page, so a
+    // panic in the decoder is contained here and becomes the input error naming the file
+    // (exit 2, not 3). Nothing outlives the call but its result. (The process's panic hook
+    // still prints the decoder's message to stderr before the error.)
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| decode(path, file, limit))) {
+        Ok(r) => r,
+        Err(p) => {
+            let msg = p
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_default();
+            Err(pq_err(path, format!("malformed data (the Parquet decoder failed: {msg})")))
+        }
+    }
+}
+
+/// A file for `parquet` whose streams fail at the end of the file instead of returning 0 bytes.
+/// `parquet` reads page headers from a stream and skips unknown Thrift fields with `io::copy`,
+/// which takes the end of the file as success: a header announcing a list of 2³¹ doubles then
+/// made 2³¹ empty reads at the end of a 2 kB file, a hang (found by the `parquet_points` fuzz
+/// target). Nothing `parquet` reads through these streams is meant to run past the end.
+struct StrictFile(std::fs::File);
+
+/// See [`StrictFile`].
+struct EofIsError<R>(R);
+
+impl<R: std::io::Read> std::io::Read for EofIsError<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        match self.0.read(buf)? {
+            0 if !buf.is_empty() => Err(std::io::ErrorKind::UnexpectedEof.into()),
+            n => Ok(n),
+        }
+    }
+}
+
+impl ::parquet::file::reader::Length for StrictFile {
+    fn len(&self) -> u64 {
+        self.0.len()
+    }
+}
+
+impl ::parquet::file::reader::ChunkReader for StrictFile {
+    type T = EofIsError<<std::fs::File as ::parquet::file::reader::ChunkReader>::T>;
+
+    fn get_read(&self, start: u64) -> ::parquet::errors::Result<Self::T> {
+        self.0.get_read(start).map(EofIsError)
+    }
+
+    fn get_bytes(&self, start: u64, length: usize) -> ::parquet::errors::Result<bytes::Bytes> {
+        self.0.get_bytes(start, length)
+    }
+}
+
+/// The columns of the open file (see [`read_columns_within`]).
+fn decode(path: &Path, file: std::fs::File, limit: u64) -> Result<Columns, InputError> {
+    // SAFETY: a private read-only map, as in `csv::map_large_file`; the input file is not
+    // expected to change while truepos reads it. Only the footer and the page headers are
+    // touched (by `check_footer` and `check_page_headers`).
+    let map = unsafe { memmap2::Mmap::map(&file) }
+        .map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+    check_footer(&map).map_err(|e| pq_err(path, e))?;
+    let reader = SerializedFileReader::new(StrictFile(file)).map_err(|e| pq_err(path, e))?;
     let md = reader.metadata();
     let schema = md.file_metadata().schema_descr();
     let cols = schema.columns();
     let mut names = Vec::with_capacity(cols.len());
     let mut data: Vec<ColumnData> = Vec::with_capacity(cols.len());
-    let total = usize::try_from(md.file_metadata().num_rows()).unwrap_or(0);
+    // Row counts come from the file's footer: checked before anything is reserved or decoded.
+    // Encoded values can be far smaller than decoded ones (run lengths, dictionaries), so a few
+    // kilobytes can announce billions of rows; the decoded numbers are held to the input limit
+    // (8 bytes each), like a CSV file of that size, and reservations to what is certainly there.
+    let mut rows: u64 = 0;
+    for g in 0..reader.num_row_groups() {
+        let rg = md.row_group(g);
+        let n = rg.num_rows();
+        let n = u64::try_from(n).map_err(|_| pq_err(path, format!("row group {}: {n} rows", g + 1)))?;
+        rows = rows.saturating_add(n);
+        // `parquet` panics on a negative column chunk offset or size (`byte_range`, found by
+        // the `parquet_points` fuzz target): refused here, before the row group is opened.
+        for c in rg.columns() {
+            let start = c.dictionary_page_offset().unwrap_or(c.data_page_offset());
+            if start < 0 || c.compressed_size() < 0 {
+                return Err(pq_err(
+                    path,
+                    format!(
+                        "row group {}, column '{}': chunk at offset {start} of {} bytes",
+                        g + 1,
+                        c.column_path().string(),
+                        c.compressed_size()
+                    ),
+                ));
+            }
+            let chunk = usize::try_from(start)
+                .ok()
+                .zip(usize::try_from(c.compressed_size()).ok())
+                .and_then(|(a, n)| map.get(a..a.checked_add(n)?));
+            let at = |msg: String| {
+                pq_err(path, format!("row group {}, column '{}': {msg}", g + 1, c.column_path().string()))
+            };
+            let chunk = chunk.ok_or_else(|| at("the column chunk runs past the end of the file".into()))?;
+            // Columns are flat (repeated ones are refused): one value (or null) per row.
+            let values = c.num_values();
+            if values < 0 || values as u64 > n {
+                return Err(at(format!("{values} values in a row group of {n} rows")));
+            }
+            check_page_headers(chunk, values).map_err(at)?;
+        }
+    }
+    let mut decoded = rows.saturating_mul(cols.len() as u64).saturating_mul(8);
+    if decoded > limit {
+        return Err(InputError::in_file(
+            path,
+            format!(
+                "{rows} rows of {} columns: more values than truepos reads ({} as 8-byte numbers; set TRUEPOS_MAX_INPUT_MB to change the limit)",
+                cols.len(),
+                crate::limits::human(limit)
+            ),
+        ));
+    }
+    let total = usize::try_from(rows).unwrap_or(usize::MAX).min(RESERVE);
     for c in cols {
         if c.max_rep_level() > 0 {
             return Err(InputError::in_file(
@@ -119,17 +244,18 @@ pub fn read_columns(path: &Path) -> Result<Columns, InputError> {
     }
     for g in 0..reader.num_row_groups() {
         let rg = reader.get_row_group(g).map_err(|e| pq_err(path, e))?;
+        // Not negative and within the limit: checked above.
         let n = usize::try_from(rg.metadata().num_rows()).unwrap_or(0);
         for (i, c) in cols.iter().enumerate() {
             let name = c.name();
             let first_row = data[i].len();
-            let mut defs: Vec<i16> = Vec::with_capacity(n);
+            let mut defs: Vec<i16> = Vec::with_capacity(n.min(RESERVE));
             let want_defs = c.max_def_level() > 0;
             let reader = rg.get_column_reader(i).map_err(|e| pq_err(path, e))?;
             macro_rules! numeric {
                 ($r:expr, $conv:expr) => {{
                     let mut r = $r;
-                    let mut vals = Vec::with_capacity(n);
+                    let mut vals = Vec::with_capacity(n.min(RESERVE));
                     let (recs, _, _) = r
                         .read_records(n, if want_defs { Some(&mut defs) } else { None }, None, &mut vals)
                         .map_err(|e| pq_err(path, e))?;
@@ -163,7 +289,7 @@ pub fn read_columns(path: &Path) -> Result<Columns, InputError> {
                 ColumnReader::Int32ColumnReader(r) => numeric!(r, |v: i32| v as f64),
                 ColumnReader::Int64ColumnReader(r) => numeric!(r, |v: i64| v as f64),
                 ColumnReader::ByteArrayColumnReader(mut r) => {
-                    let mut vals: Vec<ByteArray> = Vec::with_capacity(n);
+                    let mut vals: Vec<ByteArray> = Vec::with_capacity(n.min(RESERVE));
                     let (recs, _, _) = r
                         .read_records(n, if want_defs { Some(&mut defs) } else { None }, None, &mut vals)
                         .map_err(|e| pq_err(path, e))?;
@@ -173,6 +299,20 @@ pub fn read_columns(path: &Path) -> Result<Columns, InputError> {
                     }
                     let ColumnData::Str(out) = &mut data[i] else { unreachable!() };
                     for (k, v) in vals.into_iter().enumerate() {
+                        // Dictionary entries are shared when decoded but copied here: the text is
+                        // held to the input limit too.
+                        decoded = decoded.saturating_add(v.data().len() as u64);
+                        if decoded > limit {
+                            return Err(row_err(
+                                path,
+                                name,
+                                first_row + k + 1,
+                                &format!(
+                                    "more text than truepos reads ({}; set TRUEPOS_MAX_INPUT_MB to change the limit)",
+                                    crate::limits::human(limit)
+                                ),
+                            ));
+                        }
                         match std::str::from_utf8(v.data()) {
                             Ok(s) => out.push(s.to_string()),
                             Err(_) => {
@@ -194,6 +334,163 @@ pub fn read_columns(path: &Path) -> Result<Columns, InputError> {
         }
     }
     Ok(Columns { names, data })
+}
+
+/// Walk the page headers (Thrift compact protocol) of one column chunk before `parquet` reads
+/// them: every list, set or map must fit in the bytes that remain (each element takes at least
+/// one byte). `parquet` skips unknown header fields element by element without reading bools,
+/// so a list of 2³¹ bools took 4 s per header, and a file can hold many such headers. Here the
+/// walk always advances through the bytes, so it costs at most the size of the headers.
+///
+/// A page, and a dictionary page in particular, holds no more values than the column chunk
+/// (`max_values`): `parquet` reserves a dictionary's values from its header before decoding
+/// them (a header announcing 671 million doubles in a 1 kB file: 5 GB, found by the
+/// `parquet_points` fuzz target).
+fn check_page_headers(chunk: &[u8], max_values: i64) -> Result<(), String> {
+    let mut pos = 0;
+    while pos < chunk.len() {
+        let mut r = Compact { buf: chunk, pos, page_size: None, num_values: None };
+        r.structure(64, Capture::PageHeader).map_err(|e| format!("page header at chunk byte {pos}: {e}"))?;
+        if let Some(v) = r.num_values.filter(|&v| v < 0 || v > max_values) {
+            return Err(format!(
+                "page header at chunk byte {pos}: a page of {v} values in a column chunk of {max_values}"
+            ));
+        }
+        let size = r.page_size.ok_or_else(|| format!("page header at chunk byte {pos}: no page size"))?;
+        pos = usize::try_from(size)
+            .ok()
+            .and_then(|n| r.pos.checked_add(n))
+            .ok_or_else(|| format!("page header at chunk byte {pos}: page size {size}"))?;
+    }
+    Ok(())
+}
+
+/// Walk the file metadata (the footer, Thrift compact) the same way before `parquet` parses it:
+/// its skipping of unknown fields loops over bool lists without reading there too (a timeout
+/// found by the `parquet_points` fuzz target). A file without the `PAR1` footer is left to
+/// `parquet` to refuse.
+fn check_footer(file: &[u8]) -> Result<(), String> {
+    let n = file.len();
+    if n < 12 || &file[n - 4..] != b"PAR1" {
+        return Ok(());
+    }
+    let len = u32::from_le_bytes([file[n - 8], file[n - 7], file[n - 6], file[n - 5]]) as usize;
+    let Some(start) = (n - 8).checked_sub(len) else { return Ok(()) };
+    let mut r = Compact { buf: &file[start..n - 8], pos: 0, page_size: None, num_values: None };
+    r.structure(64, Capture::Nothing).map_err(|e| format!("file metadata: {e}"))
+}
+
+/// A reader of the Thrift compact protocol that only checks and skips (see [`check_page_headers`]).
+struct Compact<'a> {
+    buf: &'a [u8],
+    pos: usize,
+    /// Field 3 of the top-level structure (`PageHeader.compressed_page_size`).
+    page_size: Option<i64>,
+    /// Field 1 (`num_values`) of its data page, dictionary page or data page v2 header.
+    num_values: Option<i64>,
+}
+
+/// Which fields [`Compact::structure`] keeps.
+#[derive(Clone, Copy, PartialEq)]
+enum Capture {
+    Nothing,
+    /// A `PageHeader`: field 3, and field 1 of the structures 5, 7 and 8.
+    PageHeader,
+    /// A `DataPageHeader`, `DictionaryPageHeader` or `DataPageHeaderV2`: field 1.
+    PageKind,
+}
+
+impl Compact<'_> {
+    fn byte(&mut self) -> Result<u8, String> {
+        let b = *self.buf.get(self.pos).ok_or("it runs past the end of the column chunk")?;
+        self.pos += 1;
+        Ok(b)
+    }
+    fn varint(&mut self) -> Result<u64, String> {
+        let mut v = 0_u64;
+        for shift in (0..70).step_by(7) {
+            let b = self.byte()?;
+            v |= u64::from(b & 0x7f).checked_shl(shift).unwrap_or(0);
+            if b & 0x80 == 0 {
+                return Ok(v);
+            }
+        }
+        Err("a variable-length integer of more than 10 bytes".into())
+    }
+    fn zigzag(&mut self) -> Result<i64, String> {
+        let v = self.varint()?;
+        Ok((v >> 1) as i64 ^ -((v & 1) as i64))
+    }
+    fn skip(&mut self, n: u64) -> Result<(), String> {
+        let end =
+            usize::try_from(n).ok().and_then(|n| self.pos.checked_add(n)).filter(|&e| e <= self.buf.len());
+        self.pos = end.ok_or("it runs past the end of the column chunk")?;
+        Ok(())
+    }
+    /// Elements of a list, set or map: no more than the bytes left.
+    fn count(&self, n: u64) -> Result<u64, String> {
+        if n > (self.buf.len() - self.pos) as u64 {
+            return Err(format!("{n} elements announced in {} bytes", self.buf.len() - self.pos));
+        }
+        Ok(n)
+    }
+    /// One value of compact type `ty`; `element`: inside a list, set or map (bools take a byte).
+    fn value(&mut self, ty: u8, depth: u8, element: bool) -> Result<(), String> {
+        match ty {
+            1 | 2 if element => self.skip(1),
+            1 | 2 => Ok(()),
+            3 => self.skip(1),
+            4..=6 => self.varint().map(|_| ()),
+            7 => self.skip(8),
+            8 => {
+                let n = self.varint()?;
+                self.skip(n)
+            }
+            9 | 10 => {
+                let h = self.byte()?;
+                let n = if h >> 4 == 15 { self.varint()? } else { u64::from(h >> 4) };
+                for _ in 0..self.count(n)? {
+                    self.value(h & 15, depth.checked_sub(1).ok_or("nested too deep")?, true)?;
+                }
+                Ok(())
+            }
+            11 => {
+                let n = self.varint()?;
+                if n > 0 {
+                    let kv = self.byte()?;
+                    let d = depth.checked_sub(1).ok_or("nested too deep")?;
+                    for _ in 0..self.count(n)? {
+                        self.value(kv >> 4, d, true)?;
+                        self.value(kv & 15, d, true)?;
+                    }
+                }
+                Ok(())
+            }
+            12 => self.structure(depth.checked_sub(1).ok_or("nested too deep")?, Capture::Nothing),
+            13 => self.skip(16),
+            _ => Err(format!("unknown Thrift type {ty}")),
+        }
+    }
+    fn structure(&mut self, depth: u8, capture: Capture) -> Result<(), String> {
+        let mut last: i64 = 0;
+        loop {
+            let h = self.byte()?;
+            if h == 0 {
+                return Ok(());
+            }
+            let (delta, ty) = (h >> 4, h & 15);
+            let id = if delta != 0 { last + i64::from(delta) } else { self.zigzag()? };
+            last = id;
+            match (capture, id, ty) {
+                (Capture::PageHeader, 3, 5) => self.page_size = Some(self.zigzag()?),
+                (Capture::PageHeader, 5 | 7 | 8, 12) => {
+                    self.structure(depth.checked_sub(1).ok_or("nested too deep")?, Capture::PageKind)?
+                }
+                (Capture::PageKind, 1, 5) => self.num_values = Some(self.zigzag()?),
+                _ => self.value(ty, depth, false)?,
+            }
+        }
+    }
 }
 
 /// Write `columns` (all of one length) to `path` atomically: numbers as required DOUBLE, text as
@@ -294,5 +591,33 @@ mod tests {
         // Not Parquet at all.
         std::fs::write(&p, b"x_mm,y_mm\n1,2\n").unwrap();
         assert!(read_columns(&p).unwrap_err().to_string().contains("Parquet"));
+    }
+
+    /// Run lengths make decoded values far larger than the file: 200 000 equal rows of three
+    /// columns take about a kilobyte. The row count is checked against the limit before anything
+    /// is decoded; the text of the `id` column counts too.
+    #[test]
+    fn announced_rows_are_held_to_the_input_limit() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("runs.parquet");
+        let n = 200_000;
+        let c = Columns {
+            names: vec!["id".into(), "x_mm".into(), "y_mm".into()],
+            data: vec![
+                ColumnData::Str(vec!["point".into(); n]),
+                ColumnData::F64(vec![1.5; n]),
+                ColumnData::F64(vec![-2.0; n]),
+            ],
+        };
+        write_columns(&p, &c).unwrap();
+        let size = std::fs::metadata(&p).unwrap().len();
+        assert!(size < 20_000, "{size} bytes");
+        // 200 000 rows × 3 columns × 8 bytes = 4.8 MB: refused under 4 MB, naming the file.
+        let e = read_columns_within(&p, 4_000_000).unwrap_err().to_string();
+        assert!(e.starts_with(&format!("{}: 200000 rows of 3 columns", p.display())), "{e}");
+        // 4.8 MB within 5 MB, but the text adds 5 bytes a row: past 5 MB at row 40 001.
+        let e = read_columns_within(&p, 5_000_000).unwrap_err().to_string();
+        assert!(e.contains("row 40001") && e.contains("more text than truepos reads"), "{e}");
+        assert_eq!(read_columns_within(&p, 6_000_000).unwrap(), c);
     }
 }

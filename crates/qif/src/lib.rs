@@ -609,7 +609,12 @@ fn at(doc: &roxmltree::Document, n: roxmltree::Node, why: String) -> PlanError {
 fn number(doc: &roxmltree::Document, n: roxmltree::Node, scale: f64) -> Result<f64, PlanError> {
     let t = n.text().unwrap_or("").trim();
     match t.parse::<f64>() {
-        Ok(v) if v.is_finite() => Ok(v * scale),
+        // The product is checked too: a finite value times the unit's factor can overflow to
+        // infinity, which would be a tolerance of ±∞.
+        Ok(v) if v.is_finite() && (v * scale).is_finite() => Ok(v * scale),
+        Ok(v) if v.is_finite() => {
+            Err(at(doc, n, format!("<{}> {t} is out of range once converted to mm", n.tag_name().name())))
+        }
         _ => Err(at(doc, n, format!("<{}> is not a number: '{t}'", n.tag_name().name()))),
     }
 }
@@ -698,9 +703,18 @@ pub fn read_plan(text: &str, kind: FeatureKind) -> Result<Plan, PlanError> {
             ));
         };
         let triple = if limit == Some(true) {
-            // Limits of size: the nominal is the target when given, else the mid-limit.
-            let nominal = target.unwrap_or(0.5 * (min + max));
-            (nominal, min - nominal, max - nominal)
+            // Limits of size: the nominal is the target when given, else the mid-limit (halves
+            // first: the sum of two large limits can overflow).
+            let nominal = target.unwrap_or(0.5 * min + 0.5 * max);
+            let triple = (nominal, min - nominal, max - nominal);
+            if !(triple.1.is_finite() && triple.2.is_finite()) {
+                return Err(at(
+                    &doc,
+                    tol,
+                    "the limits of size are too far from the nominal (deviations out of range)".into(),
+                ));
+            }
+            triple
         } else {
             let Some(nominal) = target else {
                 return Err(at(

@@ -223,3 +223,39 @@ fn plans_are_read_with_units_and_limits() {
     let e = read_plan("<QIFDocument", FeatureKind::Circle).unwrap_err();
     assert!(e.to_string().contains("XML"), "{e}");
 }
+
+/// Numbers that are finite in the file but overflow once converted to mm (a huge unit factor, a
+/// huge value in metres, limits of size whose midpoint or deviations overflow) are refused with
+/// their place, never read as a tolerance of ±∞.
+#[test]
+fn numbers_that_overflow_in_mm_are_refused_with_their_place() {
+    let doc = |factor: &str, max: &str, min: &str, limit: &str, target: &str| {
+        format!(
+            r#"<QIFDocument xmlns="http://qifstandards.org/xsd/qif3">
+<FileUnits><PrimaryUnits><LinearUnit><UnitName>u</UnitName><UnitConversion><Factor>{factor}</Factor></UnitConversion></LinearUnit></PrimaryUnits></FileUnits>
+<Characteristics><CharacteristicDefinitions>
+<DiameterCharacteristicDefinition id="2"><Tolerance><MaxValue>{max}</MaxValue><MinValue>{min}</MinValue><DefinedAsLimit>{limit}</DefinedAsLimit></Tolerance></DiameterCharacteristicDefinition>
+</CharacteristicDefinitions><CharacteristicNominals>
+<DiameterCharacteristicNominal id="3"><CharacteristicDefinitionId>2</CharacteristicDefinitionId>{target}</DiameterCharacteristicNominal>
+</CharacteristicNominals></Characteristics></QIFDocument>"#
+        )
+    };
+    let t20 = "<TargetValue>20</TargetValue>";
+    // Factor 1e306 m → 1e309 mm per unit: infinite.
+    let e = read_plan(&doc("1e306", "0.1", "-0.1", "false", t20), FeatureKind::Circle).unwrap_err();
+    assert!(e.to_string().starts_with("line 2, column ") && e.to_string().contains("Factor"), "{e}");
+    // Metres: 1e306 m is finite, 1e309 mm is not.
+    let e = read_plan(&doc("1", "1e306", "-0.1", "false", t20), FeatureKind::Circle).unwrap_err();
+    assert!(e.to_string().contains("line 4") && e.to_string().contains("MaxValue"), "{e}");
+    // Limits of size in mm whose sum overflows: the mid-limit is still finite (1e308), but the
+    // deviations from a 0-based nominal overflow.
+    let p = read_plan(&doc("0.001", "1.5e308", "1e308", "true", ""), FeatureKind::Circle).unwrap();
+    let (n, lo, hi) = p.diameter.unwrap();
+    assert!(n.is_finite() && lo.is_finite() && hi.is_finite(), "{n} {lo} {hi}");
+    let e = read_plan(
+        &doc("0.001", "1.7e308", "-1.7e308", "true", "<TargetValue>1.7e308</TargetValue>"),
+        FeatureKind::Circle,
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("line 4") && e.to_string().contains("out of range"), "{e}");
+}
