@@ -209,20 +209,14 @@ impl Profile {
             phases.push((rest / vp, 0.0));
         }
         phases.extend(down);
-        let mut rows = Vec::with_capacity(phases.len() + 1);
-        let (mut t, mut x, mut v, mut acc) = (0.0, 0.0, v0, 0.0);
-        for (dt, jk) in phases {
-            if dt <= 0.0 {
-                continue;
-            }
-            rows.push([t, x, v, acc, jk]);
-            x += v * dt + 0.5 * acc * dt * dt + jk * dt * dt * dt / 6.0;
-            v += acc * dt + 0.5 * jk * dt * dt;
-            acc += jk * dt;
-            t += dt;
+        let mut pr = from_phases(len, v0, v1, &phases);
+        // the changes end exactly at `v1` with zero acceleration: the end row says so, free of
+        // the integration's rounding
+        if let Some(r) = pr.phases.last_mut() {
+            r[2] = v1;
+            r[3] = 0.0;
         }
-        rows.push([t, x, v1, 0.0, 0.0]);
-        Some(Profile { phases: rows, len, v0, v1 })
+        Some(pr)
     }
 
     /// Jerk-limited profile over `len` from `v0` to `v1` through the highest plateau ≤ `vmax`
