@@ -4,7 +4,7 @@
 //! (plane), the motion mode (G0–G3, canned cycles G81–G89, G80) and the current position. Entry
 //! point: [`crate::Program::blocks`].
 
-use crate::lex::TokenKind;
+use crate::lex::{Token, TokenKind};
 use crate::Program;
 use truepos_math::Point3;
 
@@ -145,100 +145,11 @@ impl Program {
 
     /// Interpret line `i` given the modal state before it.
     pub fn interpret_line(&self, i: usize, before: &Modal) -> Block<'_> {
-        let mut m = *before;
-        let mut axes = [None; 3];
-        let mut ijk = [None; 3];
-        let mut r = None;
-        let mut special = None;
         let mut comments = Vec::new();
-        for t in self.line_tokens(i) {
-            if matches!(t.kind, TokenKind::ParenComment { .. } | TokenKind::SemicolonComment) {
-                comments.push(self.text(t));
-            }
-            if let Some((letter, value)) = t.word() {
-                match letter {
-                    b'G' => {
-                        let g = value;
-                        if is_code(g, 0.0) {
-                            m.motion = MotionMode::Rapid
-                        } else if is_code(g, 1.0) {
-                            m.motion = MotionMode::Linear
-                        } else if is_code(g, 2.0) {
-                            m.motion = MotionMode::ArcCw
-                        } else if is_code(g, 3.0) {
-                            m.motion = MotionMode::ArcCcw
-                        } else if is_code(g, 17.0) {
-                            m.plane = Plane::XY
-                        } else if is_code(g, 18.0) {
-                            m.plane = Plane::ZX
-                        } else if is_code(g, 19.0) {
-                            m.plane = Plane::YZ
-                        } else if is_code(g, 20.0) {
-                            m.units = Units::Inch
-                        } else if is_code(g, 21.0) {
-                            m.units = Units::Mm
-                        } else if is_code(g, 90.0) {
-                            m.absolute = true
-                        } else if is_code(g, 91.0) {
-                            m.absolute = false
-                        } else if is_code(g, 90.1) {
-                            m.arc_absolute = true
-                        } else if is_code(g, 91.1) {
-                            m.arc_absolute = false
-                        } else if is_code(g, 80.0) {
-                            m.motion = MotionMode::None
-                        } else if (81.0..=89.0).contains(&g) && g.fract() == 0.0 {
-                            m.motion = MotionMode::Cycle(g as u8)
-                        } else if is_code(g, 53.0) {
-                            special = Some(Special::Machine)
-                        } else if is_code(g, 28.0) || is_code(g, 30.0) {
-                            special = Some(Special::Home)
-                        } else if is_code(g, 92.0) {
-                            special = Some(Special::SetPosition)
-                        } else if is_code(g, 10.0) {
-                            special = Some(Special::DataSetting)
-                        }
-                    }
-                    b'X' => axes[0] = Some(value),
-                    b'Y' => axes[1] = Some(value),
-                    b'Z' => axes[2] = Some(value),
-                    b'I' => ijk[0] = Some(value),
-                    b'J' => ijk[1] = Some(value),
-                    b'K' => ijk[2] = Some(value),
-                    b'R' => r = Some(value),
-                    _ => {}
-                }
-            }
-        }
-        if m.units != before.units {
-            // The position is kept in program units: convert it when the units change.
-            let f = before.units.mm() / m.units.mm();
-            for p in m.pos.iter_mut() {
-                *p = p.map(|v| v * f);
-            }
-        }
-        let moves = axes.iter().any(|a| a.is_some());
-        match special {
-            Some(Special::Machine) if moves => m.pos = [None; 3],
-            Some(Special::SetPosition) => {
-                for k in 0..3 {
-                    if let Some(v) = axes[k] {
-                        m.pos[k] = Some(v);
-                    }
-                }
-            }
-            Some(Special::DataSetting) => {}
-            _ => {
-                if moves && (m.motion != MotionMode::None || special == Some(Special::Home)) {
-                    for k in 0..3 {
-                        if let Some(v) = axes[k] {
-                            m.pos[k] = if m.absolute { Some(v) } else { m.pos[k].map(|p| p + v) };
-                        }
-                    }
-                }
-            }
-        }
-        let target_mm = if moves && m.motion != MotionMode::None && special.is_none() {
+        let s = self.scan_tokens(self.line_tokens(i), before, |t| comments.push(self.text(t)));
+        let m = s.after;
+        let moves = s.axes.iter().any(|a| a.is_some());
+        let target_mm = if moves && m.motion != MotionMode::None && s.special.is_none() {
             match m.pos {
                 [Some(x), Some(y), Some(z)] => {
                     let u = m.units.mm();
@@ -249,8 +160,170 @@ impl Program {
         } else {
             None
         };
-        Block { line: i, before: *before, after: m, axes, ijk, r, special, target_mm, comments }
+        Block {
+            line: i,
+            before: *before,
+            after: m,
+            axes: s.axes,
+            ijk: s.ijk,
+            r: s.r,
+            special: s.special,
+            target_mm,
+            comments,
+        }
     }
+
+    /// The interpretation of one line's tokens given the modal state before it (what
+    /// [`Program::interpret_line`] gives, without the comments' texts and the target), and where
+    /// its words are: one pass over the tokens, for the rewriter. `comment` is called with each
+    /// comment token in order.
+    #[inline]
+    pub(crate) fn scan_tokens(
+        &self,
+        toks: &[Token],
+        before: &Modal,
+        mut comment: impl FnMut(&Token),
+    ) -> LineScan {
+        let mut m = *before;
+        let mut s = LineScan {
+            after: m,
+            axes: [None; 3],
+            ijk: [None; 3],
+            r: None,
+            special: None,
+            first: [NONE; 7],
+            arc_g: NONE,
+            spaced: false,
+            last_word: NONE,
+        };
+        for (ti, t) in toks.iter().enumerate() {
+            let (letter, value) = match t.kind {
+                TokenKind::Word { letter, value, .. } => (letter, value),
+                TokenKind::Expr { letter, value: Some(value) } => (letter, value),
+                TokenKind::Whitespace => {
+                    s.spaced = true;
+                    continue;
+                }
+                TokenKind::ParenComment { .. } | TokenKind::SemicolonComment => {
+                    comment(t);
+                    continue;
+                }
+                _ => continue,
+            };
+            let ti = ti as u32;
+            s.last_word = ti;
+            match letter {
+                b'G' => {
+                    let g = value;
+                    // At most one integer code lies within 1e-6 of `g`: the nearest integer.
+                    let n = crate::rewrite::round(g);
+                    if (g - n).abs() < 1e-6 {
+                        match n as i64 {
+                            0 => m.motion = MotionMode::Rapid,
+                            1 => m.motion = MotionMode::Linear,
+                            c @ (2 | 3) => {
+                                m.motion = if c == 2 { MotionMode::ArcCw } else { MotionMode::ArcCcw };
+                                if s.arc_g == NONE {
+                                    s.arc_g = ti;
+                                }
+                            }
+                            17 => m.plane = Plane::XY,
+                            18 => m.plane = Plane::ZX,
+                            19 => m.plane = Plane::YZ,
+                            20 => m.units = Units::Inch,
+                            21 => m.units = Units::Mm,
+                            90 => m.absolute = true,
+                            91 => m.absolute = false,
+                            80 => m.motion = MotionMode::None,
+                            // Cycles only at exact integers.
+                            81..=89 if g.fract() == 0.0 => m.motion = MotionMode::Cycle(g as u8),
+                            53 => s.special = Some(Special::Machine),
+                            28 | 30 => s.special = Some(Special::Home),
+                            92 => s.special = Some(Special::SetPosition),
+                            10 => s.special = Some(Special::DataSetting),
+                            _ => {}
+                        }
+                    } else if is_code(g, 90.1) {
+                        m.arc_absolute = true
+                    } else if is_code(g, 91.1) {
+                        m.arc_absolute = false
+                    }
+                }
+                b'X' | b'Y' | b'Z' | b'I' | b'J' | b'K' | b'R' => {
+                    let k = match letter {
+                        b'X' => 0,
+                        b'Y' => 1,
+                        b'Z' => 2,
+                        b'I' => 3,
+                        b'J' => 4,
+                        b'K' => 5,
+                        _ => 6,
+                    };
+                    if s.first[k] == NONE {
+                        s.first[k] = ti;
+                    }
+                    match k {
+                        0..=2 => s.axes[k] = Some(value),
+                        3..=5 => s.ijk[k - 3] = Some(value),
+                        _ => s.r = Some(value),
+                    }
+                }
+                _ => {}
+            }
+        }
+        if m.units != before.units {
+            // The position is kept in program units: convert it when the units change.
+            let f = before.units.mm() / m.units.mm();
+            for p in m.pos.iter_mut() {
+                *p = p.map(|v| v * f);
+            }
+        }
+        let axes = s.axes;
+        let moves = axes.iter().any(|a| a.is_some());
+        match s.special {
+            Some(Special::Machine) if moves => m.pos = [None; 3],
+            Some(Special::SetPosition) => {
+                for k in 0..3 {
+                    if let Some(v) = axes[k] {
+                        m.pos[k] = Some(v);
+                    }
+                }
+            }
+            Some(Special::DataSetting) => {}
+            _ => {
+                if moves && (m.motion != MotionMode::None || s.special == Some(Special::Home)) {
+                    for k in 0..3 {
+                        if let Some(v) = axes[k] {
+                            m.pos[k] = if m.absolute { Some(v) } else { m.pos[k].map(|p| p + v) };
+                        }
+                    }
+                }
+            }
+        }
+        s.after = m;
+        s
+    }
+}
+
+/// "No such token" in [`LineScan`]'s token indices.
+pub(crate) const NONE: u32 = u32::MAX;
+
+/// One line interpreted for the rewriter: the block's values and the positions (indices into
+/// the line's tokens, [`NONE`] when absent) of the words it edits.
+pub(crate) struct LineScan {
+    pub after: Modal,
+    pub axes: [Option<f64>; 3],
+    pub ijk: [Option<f64>; 3],
+    pub r: Option<f64>,
+    pub special: Option<Special>,
+    /// The first word of each letter X, Y, Z, I, J, K, R (the one a rewrite edits).
+    pub first: [u32; 7],
+    /// The first G2/G3 word.
+    pub arc_g: u32,
+    /// Whether the line has any whitespace token.
+    pub spaced: bool,
+    /// The last word of the line.
+    pub last_word: u32,
 }
 
 #[cfg(test)]

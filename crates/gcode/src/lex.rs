@@ -60,20 +60,21 @@ impl Token {
 }
 
 pub(crate) fn parse(source: String) -> Program {
-    parse_reusing(source, Vec::new(), Vec::new())
+    parse_reusing(source, Vec::new(), Vec::new()).0
 }
 
 /// [`parse`], filling `tokens` and `lines` (cleared first): a streamed program hands the
 /// vectors of a finished piece back, so their memory is reused instead of allocated anew.
-pub(crate) fn parse_reusing(source: String, mut tokens: Vec<Token>, mut lines: Vec<Line>) -> Program {
+/// Also says whether every token is [plain](is_plain) (then there is nothing to evaluate).
+pub(crate) fn parse_reusing(source: String, mut tokens: Vec<Token>, mut lines: Vec<Line>) -> (Program, bool) {
     // Large programs are tokenised in parallel chunks split at line ends.
     const CHUNK: usize = 1 << 20;
     let b = source.as_bytes();
     if b.len() <= 2 * CHUNK {
         tokens.clear();
         lines.clear();
-        parse_range(&source, 0, b.len(), &mut tokens, &mut lines);
-        return Program { source, tokens, lines };
+        let plain = parse_range(&source, 0, b.len(), &mut tokens, &mut lines);
+        return (Program { source, tokens, lines }, plain);
     }
     let mut bounds = vec![0];
     let mut at = CHUNK;
@@ -89,21 +90,22 @@ pub(crate) fn parse_reusing(source: String, mut tokens: Vec<Token>, mut lines: V
     bounds.push(b.len());
     bounds.dedup();
     use rayon::prelude::*;
-    let parts: Vec<(Vec<Token>, Vec<Line>)> = bounds
+    let parts: Vec<(Vec<Token>, Vec<Line>, bool)> = bounds
         .par_windows(2)
         .map(|w| {
             let (mut t, mut l) = (Vec::new(), Vec::new());
-            parse_range(&source, w[0], w[1], &mut t, &mut l);
-            (t, l)
+            let plain = parse_range(&source, w[0], w[1], &mut t, &mut l);
+            (t, l, plain)
         })
         .collect();
+    let plain = parts.iter().all(|p| p.2);
     let n_tok = parts.iter().map(|p| p.0.len()).sum();
     let n_lines = parts.iter().map(|p| p.1.len()).sum();
     tokens.clear();
     lines.clear();
     tokens.reserve(n_tok);
     lines.reserve(n_lines);
-    for (t, l) in parts {
+    for (t, l, _) in parts {
         let base = tokens.len();
         lines.extend(l.into_iter().map(|mut line| {
             line.tokens = line.tokens.start + base..line.tokens.end + base;
@@ -111,16 +113,33 @@ pub(crate) fn parse_reusing(source: String, mut tokens: Vec<Token>, mut lines: V
         }));
         tokens.extend(t);
     }
-    Program { source, tokens, lines }
+    (Program { source, tokens, lines }, plain)
+}
+
+/// A token that needs no evaluation and cannot fail the check: whitespace, a closed comment,
+/// `%`, a word with a number (not an O word). A program of plain tokens sets no parameter,
+/// has no expression, and passes [`Program::check`].
+#[inline(always)]
+fn is_plain(kind: &TokenKind) -> bool {
+    match *kind {
+        TokenKind::Word { letter, .. } => letter != b'O',
+        TokenKind::Whitespace
+        | TokenKind::ParenComment { closed: true }
+        | TokenKind::SemicolonComment
+        | TokenKind::Percent => true,
+        _ => false,
+    }
 }
 
 /// Tokenise the lines in `source[from..to]` (`from` at a line start, `to` after a line end or
-/// at the end of the source), appending to `tokens` and `lines`. Offsets are absolute.
-fn parse_range(source: &str, from: usize, to: usize, tokens: &mut Vec<Token>, lines: &mut Vec<Line>) {
+/// at the end of the source), appending to `tokens` and `lines`. Offsets are absolute. Returns
+/// whether every token is [plain](is_plain).
+fn parse_range(source: &str, from: usize, to: usize, tokens: &mut Vec<Token>, lines: &mut Vec<Line>) -> bool {
     let b = &source.as_bytes()[..to];
     tokens.reserve((to - from) / 4);
     lines.reserve((to - from) / 16 + 1);
     let mut pos = from;
+    let mut plain = true;
     // One search over the whole range (lines are short: a call per line costs more).
     let mut ends = memchr::memchr_iter(b'\n', &b[from..]).map(|p| from + p);
     while pos < b.len() {
@@ -131,10 +150,11 @@ fn parse_range(source: &str, from: usize, to: usize, tokens: &mut Vec<Token>, li
             None => (b.len(), b.len()),
         };
         let t0 = tokens.len();
-        lex_line(source, pos, end, tokens);
+        plain &= lex_line(source, pos, end, tokens);
         lines.push(Line { start: pos, end, next, tokens: t0..tokens.len() });
         pos = next;
     }
+    plain
 }
 
 #[inline]
@@ -142,9 +162,12 @@ fn memchr_nl(b: &[u8]) -> Option<usize> {
     memchr::memchr(b'\n', b)
 }
 
-fn lex_line(src: &str, start: usize, end: usize, out: &mut Vec<Token>) {
+/// Tokenise one line (`src[start..end]`, without its line ending) into `out`; whether every
+/// token is [plain](is_plain).
+fn lex_line(src: &str, start: usize, end: usize, out: &mut Vec<Token>) -> bool {
     let b = src.as_bytes();
     let mut i = start;
+    let mut plain = true;
     while i < end {
         let c = b[i];
         let s = i;
@@ -256,8 +279,10 @@ fn lex_line(src: &str, start: usize, end: usize, out: &mut Vec<Token>) {
                 TokenKind::Other
             }
         };
+        plain &= is_plain(&kind);
         out.push(Token { kind, start: s, end: i });
     }
+    plain
 }
 
 /// Whether a word's value may end at `at`: end of line, a space, a comment or the next word.

@@ -110,10 +110,12 @@ impl Program {
         first: bool,
         reuse: Option<Program>,
     ) -> (Program, Result<(), GcodeError>) {
-        let mut p = match reuse {
-            Some(old) => lex::parse_reusing(source, old.tokens, old.lines),
-            None => lex::parse(source),
-        };
+        let (old_tokens, old_lines) = reuse.map(|old| (old.tokens, old.lines)).unwrap_or_default();
+        let (mut p, plain) = lex::parse_reusing(source, old_tokens, old_lines);
+        if plain {
+            // Nothing to evaluate, nothing that can fail the check (see `lex::is_plain`).
+            return (p, Ok(()));
+        }
         let (values, checked) = p.evaluate(params, first);
         p.set_values(values);
         (p, checked)

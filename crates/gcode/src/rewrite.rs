@@ -17,8 +17,7 @@
 //! - Canned cycles (G81–G89) are transformed when the rotation keeps the Z axis; G92 is refused;
 //!   G53 (machine coordinates) and G10 lines are copied unchanged.
 
-use crate::interp::{Modal, MotionMode, Special};
-use crate::lex::TokenKind;
+use crate::interp::{LineScan, Modal, MotionMode, Special, NONE};
 use crate::{GcodeError, Program};
 use truepos_math::Transform3;
 
@@ -141,16 +140,81 @@ fn fmt_num_into(v: f64, dec: u8, t: &mut Txt) {
         return;
     }
     let n = scaled as i64;
-    // At most 16 digits, a point and a sign; digits two at a time from a table.
-    const PAIRS: &[u8; 200] = b"00010203040506070809101112131415161718192021222324252627282930313233343536373839\
-404142434445464748495051525354555657585960616263646566676869707172737475767778798081828384858687888990919293949596979899";
     if !matches!(t, Txt::Inline { .. }) {
         *t = Txt::Inline { start: 31, buf: [0; 31] };
     }
     let Txt::Inline { start, buf } = t else { return };
+    let a = n.unsigned_abs();
+    // The usual decimals with constant divisors (multiplications).
+    let mut i = match dec {
+        4 => fixed_digits::<4>(a, buf),
+        5 => fixed_digits::<5>(a, buf),
+        3 => fixed_digits::<3>(a, buf),
+        6 => fixed_digits::<6>(a, buf),
+        _ => fixed_digits_any(a, dec as usize, buf),
+    };
+    if n < 0 {
+        i -= 1;
+        buf[i] = b'-';
+    }
+    // ASCII digits, point and sign only, at the end of the buffer (at most 18 bytes).
+    debug_assert!(std::str::from_utf8(&buf[i..]).is_ok());
+    *start = i as u8;
+}
+
+/// Digit pairs "00" to "99".
+const PAIRS: &[u8; 200] = b"00010203040506070809101112131415161718192021222324252627282930313233343536373839\
+404142434445464748495051525354555657585960616263646566676869707172737475767778798081828384858687888990919293949596979899";
+
+/// The integer part `q` written two digits at a time, ending before `buf[i]`; at least one
+/// digit. Returns where the text starts.
+#[inline(always)]
+fn integer_digits(mut q: u64, mut i: usize, buf: &mut [u8; 31]) -> usize {
+    while q >= 10 {
+        let r = (q % 100) as usize * 2;
+        q /= 100;
+        i -= 2;
+        buf[i..i + 2].copy_from_slice(&PAIRS[r..r + 2]);
+    }
+    // The leading digit, unless the pairs ended on one ("10" of 1000).
+    if q > 0 || i == buf.len() || buf[i] == b'.' {
+        i -= 1;
+        buf[i] = b'0' + q as u8;
+    }
+    i
+}
+
+/// `a` (at most 16 digits) with a point `D` (1 to 9) digits from the right, at the end of
+/// `buf`: the fraction and the integer part come from `a % 10^D` and `a / 10^D`, two short
+/// chains of divisions (by constants) instead of one long one. Returns where the text starts.
+#[inline(always)]
+fn fixed_digits<const D: usize>(a: u64, buf: &mut [u8; 31]) -> usize {
+    const P: [u64; 10] =
+        [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000, 100_000_000, 1_000_000_000];
+    let p = P[D];
+    let mut f = (a % p) as u32;
     let mut i = buf.len();
-    let mut a = n.unsigned_abs();
-    let mut left = dec as usize;
+    let mut left = D;
+    while left >= 2 {
+        let r = (f % 100) as usize * 2;
+        f /= 100;
+        i -= 2;
+        buf[i..i + 2].copy_from_slice(&PAIRS[r..r + 2]);
+        left -= 2;
+    }
+    if left == 1 {
+        i -= 1;
+        buf[i] = b'0' + f as u8;
+    }
+    i -= 1;
+    buf[i] = b'.';
+    integer_digits(a / p, i, buf)
+}
+
+/// [`fixed_digits`] for any count of decimals `dec` (0 to 18): one chain of divisions.
+fn fixed_digits_any(mut a: u64, dec: usize, buf: &mut [u8; 31]) -> usize {
+    let mut i = buf.len();
+    let mut left = dec;
     while left >= 2 {
         let r = (a % 100) as usize * 2;
         a /= 100;
@@ -167,30 +231,22 @@ fn fmt_num_into(v: f64, dec: u8, t: &mut Txt) {
         i -= 1;
         buf[i] = b'.';
     }
-    while a >= 10 {
-        let r = (a % 100) as usize * 2;
-        a /= 100;
-        i -= 2;
-        buf[i..i + 2].copy_from_slice(&PAIRS[r..r + 2]);
-    }
-    if a > 0 || i == buf.len() || buf[i] == b'.' {
-        i -= 1;
-        buf[i] = b'0' + a as u8;
-    }
-    if n < 0 {
-        i -= 1;
-        buf[i] = b'-';
-    }
-    // ASCII digits, point and sign only, at the end of the buffer (at most 18 bytes).
-    debug_assert!(std::str::from_utf8(&buf[i..]).is_ok());
-    *start = i as u8;
+    integer_digits(a, i, buf)
 }
 
 /// 10^dec (a table for the usual decimals: this is on every rewritten word).
+#[inline]
 fn pow10(dec: u8) -> f64 {
     const T: [f64; 16] =
         [1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15];
-    T.get(dec as usize).copied().unwrap_or_else(|| 10f64.powi(dec as i32))
+    #[cold]
+    fn big(dec: u8) -> f64 {
+        10f64.powi(dec as i32)
+    }
+    match T.get(dec as usize) {
+        Some(&p) => p,
+        None => big(dec),
+    }
 }
 
 fn round_to(v: f64, dec: u8) -> f64 {
@@ -200,41 +256,67 @@ fn round_to(v: f64, dec: u8) -> f64 {
 
 /// `v.round()` (half away from zero, the sign of zero kept) without the call into libm that
 /// `f64::round` is on the x86-64 baseline (no rounding instruction before SSE4.1): truncation
-/// by the integer conversion, and the difference `v − trunc(v)`, exact below 2^52.
+/// by the integer conversion, and the difference `v − trunc(v)`, exact below 2^52. (The sign
+/// is restored last: `t + 0 − 0` of a negative zero `t` is a positive zero.)
 #[inline(always)]
-fn round(v: f64) -> f64 {
+pub(crate) fn round(v: f64) -> f64 {
     if v.is_nan() || v.abs() >= 4.0e15 {
         return v.round();
     }
     let t = (v as i64) as f64;
     let d = v - t;
-    let r = if d >= 0.5 {
-        t + 1.0
-    } else if d <= -0.5 {
-        t - 1.0
-    } else {
-        t
-    };
-    r.copysign(v)
+    // Without branches: which way a value rounds is as good as random (a mispredicted branch
+    // on every rewritten number). t ± 1 is exact below 2^52.
+    let up = f64::from(u8::from(d >= 0.5));
+    let down = f64::from(u8::from(d <= -0.5));
+    (t + up - down).copysign(v)
 }
 
+/// One edit of a line, at token `ti`: text inserted before it, its number replaced, or text
+/// inserted after it.
+struct Edit {
+    /// `ti · 4 + slot` (slot 0: insert before, 1: replace, 2: insert after): sorted by it, the
+    /// edits come in the order they are written.
+    key: u32,
+    /// Inserted word's letter (0: none; a replacement keeps the letter as written).
+    letter: u8,
+    /// An inserted word is set off by a space (after the token, or before the token it precedes).
+    space: bool,
+    /// The replacement number (empty: the word is removed) or the inserted word's value.
+    text: Txt,
+}
+
+const BEFORE: u32 = 0;
+const REPLACE: u32 = 1;
+const AFTER: u32 = 2;
+
+/// Edits of one line, in the order they were planned (kept from line to line: no allocation
+/// per line).
+#[derive(Default)]
+struct Edits(Vec<Edit>);
+
 impl Edits {
+    fn push(&mut self, ti: usize, slot: u32, letter: u8, space: bool, text: Txt) {
+        self.0.push(Edit { key: ti as u32 * 4 + slot, letter, space, text });
+    }
+
     /// Replace token `ti`'s number by `v` with `dec` decimals, formatted in place in the list.
     #[inline]
     fn replace_num(&mut self, ti: usize, v: f64, dec: u8) {
-        self.replace.push((ti, Txt::Inline { start: 31, buf: [0; 31] }));
-        if let Some((_, t)) = self.replace.last_mut() {
-            fmt_num_into(v, dec, t);
+        self.push(ti, REPLACE, 0, false, Txt::Inline { start: 31, buf: [0; 31] });
+        if let Some(e) = self.0.last_mut() {
+            fmt_num_into(v, dec, &mut e.text);
         }
     }
-}
 
-/// Edits of one line.
-#[derive(Default)]
-struct Edits {
-    replace: Vec<(usize, Txt)>,
-    insert_after: Vec<(usize, String)>,
-    insert_before: Vec<(usize, String)>,
+    /// Insert word `letter` with value `v` (`dec` decimals) at token `ti` (`slot` BEFORE or AFTER).
+    #[inline]
+    fn insert_num(&mut self, ti: usize, slot: u32, letter: u8, space: bool, v: f64, dec: u8) {
+        self.push(ti, slot, letter, space, Txt::Inline { start: 31, buf: [0; 31] });
+        if let Some(e) = self.0.last_mut() {
+            fmt_num_into(v, dec, &mut e.text);
+        }
+    }
 }
 
 impl Program {
@@ -276,6 +358,9 @@ pub(crate) struct Rewriter {
     /// An axis whose new value depends on other old axes (the transform mixes them) is written
     /// on every transformed move.
     mixes: [bool; 3],
+    /// `s·R` (new from old, by axis) and which of its terms count (above [`MIX_EPS`]).
+    coef: [[f64; 3]; 3],
+    coef_used: [[bool; 3]; 3],
     /// Lines rewritten so far (in earlier chunks): added to the line numbers of errors.
     base: usize,
     /// The edits of the current line (kept from line to line: no allocation per line).
@@ -296,6 +381,8 @@ impl Rewriter {
             }
         }
         let mixes = std::array::from_fn(|k| (0..3).any(|j| j != k && (s * r[(k, j)]).abs() > MIX_EPS));
+        let coef: [[f64; 3]; 3] = std::array::from_fn(|k| std::array::from_fn(|j| s * r[(k, j)]));
+        let coef_used = coef.map(|row| row.map(|c| c.abs() > MIX_EPS));
         Self {
             new_from_old: *new_from_old,
             opts: opts.clone(),
@@ -303,6 +390,8 @@ impl Rewriter {
             written,
             exact_inc: [0.0; 3],
             mixes,
+            coef,
+            coef_used,
             base: 0,
             edits: Edits::default(),
         }
@@ -333,28 +422,31 @@ impl Rewriter {
         let s = self.new_from_old.scale;
         let r = self.new_from_old.rotation;
         let t = self.new_from_old.translation;
-        let blk = p.interpret_line(i, &self.old);
         let line = &p.lines[i];
         let toks = &p.tokens[line.tokens.clone()];
-        let units_mm = blk.after.units.mm();
-        if blk.after.units != self.old.units {
+        // One pass over the tokens: the block and where its words are.
+        let sc = p.scan_tokens(toks, &self.old, |_| {});
+        let after = sc.after;
+        let units_mm = after.units.mm();
+        if after.units != self.old.units {
             let f = self.old.units.mm() / units_mm;
             for w in self.written.iter_mut() {
                 *w = w.map(|v| v * f);
             }
         }
-        let dec = self.opts.decimals.unwrap_or(if blk.after.units == crate::Units::Inch { 5 } else { 4 });
+        let dec = self.opts.decimals.unwrap_or(if after.units == crate::Units::Inch { 5 } else { 4 });
         let half = 0.5 / pow10(dec);
-        let has_axes = blk.axes.iter().any(|a| a.is_some());
-        let has_centre = blk.ijk.iter().any(|a| a.is_some()) || blk.r.is_some();
+        let has_axes = sc.axes.iter().any(|a| a.is_some());
+        let has_centre = sc.ijk.iter().any(|a| a.is_some()) || sc.r.is_some();
         let copy = |out: &mut String| out.push_str(&p.source[line.start..line.next]);
         let err = |tok: Option<&crate::Token>, message: String| GcodeError::Unsupported {
             line: i + 1,
             column: tok.map_or(1, |tk| p.column_of(i, tk)),
             message,
         };
-        let axis_token = |letter: u8| toks.iter().position(|tk| tk.word().is_some_and(|w| w.0 == letter));
-        match blk.special {
+        // The first token of word X, Y, Z, I, J, K, R (k = 0..7), if on the line.
+        let word_at = |k: usize| (sc.first[k] != NONE).then_some(sc.first[k] as usize);
+        match sc.special {
             Some(Special::SetPosition) => {
                 return Err(err(
                     toks.iter()
@@ -367,31 +459,29 @@ impl Rewriter {
                     self.written = [None; 3];
                 }
                 copy(out);
-                self.old = blk.after;
+                self.old = after;
                 return Ok(());
             }
             Some(Special::DataSetting) => {
                 copy(out);
-                self.old = blk.after;
+                self.old = after;
                 return Ok(());
             }
             _ => {}
         }
-        let moving = has_axes && (blk.after.motion != MotionMode::None || blk.special == Some(Special::Home));
+        let moving = has_axes && (after.motion != MotionMode::None || sc.special == Some(Special::Home));
         if !moving && !has_centre {
             copy(out);
-            self.old = blk.after;
+            self.old = after;
             return Ok(());
         }
-        if moving && blk.after.pos.iter().any(|p| p.is_none()) {
+        if moving && after.pos.iter().any(|p| p.is_none()) {
             // The machine's position on an axis the move does not give is unknown: the
             // transformed move could not say where it goes (contract: a start position).
-            let given: String = (0..3).filter(|&k| blk.axes[k].is_some()).map(|k| AXES[k] as char).collect();
-            let missing: Vec<String> = (0..3)
-                .filter(|&k| blk.after.pos[k].is_none())
-                .map(|k| (AXES[k] as char).to_string())
-                .collect();
-            let first = (0..3).find_map(|k| axis_token(AXES[k])).map(|x| &toks[x]);
+            let given: String = (0..3).filter(|&k| sc.axes[k].is_some()).map(|k| AXES[k] as char).collect();
+            let missing: Vec<String> =
+                (0..3).filter(|&k| after.pos[k].is_none()).map(|k| (AXES[k] as char).to_string()).collect();
+            let first = (0..3).find_map(word_at).map(|x| &toks[x]);
             return Err(err(
                 first,
                 format!(
@@ -402,12 +492,13 @@ impl Rewriter {
                 ),
             ));
         }
-        let is_arc = matches!(blk.after.motion, MotionMode::ArcCw | MotionMode::ArcCcw);
+        let is_arc = matches!(after.motion, MotionMode::ArcCw | MotionMode::ArcCcw);
         if let (true, true, ArcPolicy::Linearize { tolerance_mm }) =
             (is_arc && moving, has_centre, self.opts.arc_policy)
         {
-            let n = blk.after.plane.normal_axis();
+            let n = after.plane.normal_axis();
             if (r[(n, n)].abs() - 1.0).abs() > MIX_EPS {
+                let blk = p.interpret_line(i, &self.old);
                 p.linearize_arc(
                     i,
                     &blk,
@@ -418,36 +509,34 @@ impl Rewriter {
                     &mut self.written,
                     out,
                 )?;
-                self.old = blk.after;
+                self.old = after;
                 return Ok(());
             }
         }
-        let mut edits = std::mem::take(&mut self.edits);
-        edits.replace.clear();
-        edits.insert_after.clear();
-        edits.insert_before.clear();
-        if let MotionMode::Cycle(_) = blk.after.motion {
+        let edits = &mut self.edits;
+        edits.0.clear();
+        if let MotionMode::Cycle(_) = after.motion {
             if (r[(2, 2)] - 1.0).abs() > MIX_EPS || r[(0, 2)].abs() > MIX_EPS || r[(1, 2)].abs() > MIX_EPS {
                 return Err(err(
-                    axis_token(b'Z').map(|k| &toks[k]),
+                    word_at(2).map(|k| &toks[k]),
                     "a canned drilling cycle cannot be re-oriented by a rotation that tilts the Z axis"
                         .into(),
                 ));
             }
         }
-        // New values per axis (program units) for the axis words.
-        let mut new_vals: [Option<f64>; 3] = [None; 3];
+        let ins = InsertAt::of(&sc);
         if moving {
-            if blk.after.absolute {
-                let pos = blk.after.pos;
+            if after.absolute {
+                // New values per axis (program units) for the axis words.
+                let mut new_vals: [Option<f64>; 3] = [None; 3];
+                let pos = after.pos;
                 for k in 0..3 {
                     let mut acc = t[k] / units_mm;
                     let mut known = true;
                     for j in 0..3 {
-                        let c = s * r[(k, j)];
-                        if c.abs() > MIX_EPS {
+                        if self.coef_used[k][j] {
                             match pos[j] {
-                                Some(v) => acc += c * v,
+                                Some(v) => acc += self.coef[k][j] * v,
                                 None => known = false,
                             }
                         }
@@ -456,16 +545,14 @@ impl Rewriter {
                         // Exact: compared with the written value before any rounding, so a
                         // value the transform leaves alone is never rewritten, however large.
                         new_vals[k] = Some(acc);
-                    } else if blk.axes[k].is_some() {
-                        let missing = (0..3)
-                            .find(|&j| pos[j].is_none() && (s * r[(k, j)]).abs() > MIX_EPS)
-                            .unwrap_or(k);
-                        return Err(err(axis_token(AXES[k]).map(|x| &toks[x]), format!("the {} position is not known before this move (give it earlier in the program, or a start position)", AXES[missing] as char)));
+                    } else if sc.axes[k].is_some() {
+                        let missing = (0..3).find(|&j| pos[j].is_none() && self.coef_used[k][j]).unwrap_or(k);
+                        return Err(err(word_at(k).map(|x| &toks[x]), format!("the {} position is not known before this move (give it earlier in the program, or a start position)", AXES[missing] as char)));
                     }
                 }
                 for k in 0..3 {
                     let Some(v) = new_vals[k] else { continue };
-                    match (blk.axes[k], axis_token(AXES[k])) {
+                    match (sc.axes[k], word_at(k)) {
                         (Some(orig), Some(ti)) => {
                             if (v - orig).abs() >= half {
                                 edits.replace_num(ti, v, dec);
@@ -476,21 +563,21 @@ impl Rewriter {
                         }
                         _ => {
                             if self.mixes[k] || self.written[k].is_none_or(|w| (w - v).abs() >= half) {
-                                p.plan_insert(toks, &mut edits, k, &AXES, &fmt_num(v, dec));
+                                ins.plan(edits, k, &AXES, v, dec);
                                 self.written[k] = Some(round_to(v, dec));
                             }
                         }
                     }
                 }
             } else {
-                let d: Vec<f64> = (0..3).map(|k| blk.axes[k].unwrap_or(0.0)).collect();
+                let d = sc.axes.map(|a| a.unwrap_or(0.0));
                 for k in 0..3 {
                     let dn = s * (r[(k, 0)] * d[0] + r[(k, 1)] * d[1] + r[(k, 2)] * d[2]);
                     let before = self.exact_inc[k];
                     self.exact_inc[k] += dn;
                     let inc = round_to(self.exact_inc[k], dec) - round_to(before, dec);
                     let inc = round_to(inc, dec);
-                    match (blk.axes[k], axis_token(AXES[k])) {
+                    match (sc.axes[k], word_at(k)) {
                         (Some(orig), Some(ti)) => {
                             // Unchanged by the transform (to the resolution, before rounding):
                             // keep the text.
@@ -500,7 +587,7 @@ impl Rewriter {
                         }
                         _ => {
                             if self.mixes[k] || inc.abs() >= half {
-                                p.plan_insert(toks, &mut edits, k, &AXES, &fmt_num(inc, dec));
+                                ins.plan(edits, k, &AXES, inc, dec);
                             }
                         }
                     }
@@ -508,49 +595,50 @@ impl Rewriter {
                 }
             }
             // Canned-cycle R plane: a Z level.
-            if let (MotionMode::Cycle(_), Some(rv)) = (blk.after.motion, blk.r) {
-                if let Some(ti) = axis_token(b'R') {
-                    let nv = if blk.after.absolute { s * rv + t[2] / units_mm } else { s * rv };
+            if let (MotionMode::Cycle(_), Some(rv)) = (after.motion, sc.r) {
+                if let Some(ti) = word_at(6) {
+                    let nv = if after.absolute { s * rv + t[2] / units_mm } else { s * rv };
                     if (nv - rv).abs() >= half {
                         edits.replace_num(ti, nv, dec);
                     }
                 }
             }
         }
-        if has_centre && matches!(blk.after.motion, MotionMode::ArcCw | MotionMode::ArcCcw) {
-            let n = blk.after.plane.normal_axis();
+        if has_centre && is_arc {
+            let n = after.plane.normal_axis();
             let rn = r[(n, n)];
             if (rn.abs() - 1.0).abs() > MIX_EPS {
-                let tok = axis_token(CENTRE[(n + 1) % 3]).or_else(|| axis_token(b'R')).map(|x| &toks[x]);
-                return Err(err(tok, format!("this arc lies in the {:?} plane and the transform tilts that plane; arcs can only be re-oriented by rotations that keep their plane", blk.after.plane)));
+                let tok = word_at(3 + (n + 1) % 3).or_else(|| word_at(6)).map(|x| &toks[x]);
+                return Err(err(tok, format!("this arc lies in the {:?} plane and the transform tilts that plane; arcs can only be re-oriented by rotations that keep their plane", after.plane)));
             }
             if rn < 0.0 {
                 // The plane is turned over: clockwise becomes counter-clockwise.
-                let g = toks.iter().position(|tk| {
-                    tk.word().is_some_and(|w| {
-                        w.0 == b'G' && ((w.1 - 2.0).abs() < 1e-6 || (w.1 - 3.0).abs() < 1e-6)
-                    })
-                });
-                match g {
-                    Some(gi) => {
-                        let txt = p.text(&toks[gi]);
-                        let swapped: String = txt.chars().map(|c| match c { '2' => '3', '3' => '2', c => c }).collect();
-                        edits.replace.push((gi, Txt::from(&swapped[1..])));
-                    }
-                    None => return Err(err(None, "the transform turns the arc plane over, which swaps G2 and G3, but the arc's G2/G3 word is modal (not on this line)".into())),
+                if sc.arc_g == NONE {
+                    return Err(err(None, "the transform turns the arc plane over, which swaps G2 and G3, but the arc's G2/G3 word is modal (not on this line)".into()));
                 }
+                let gi = sc.arc_g as usize;
+                let txt = p.text(&toks[gi]);
+                let swapped: String = txt
+                    .chars()
+                    .map(|c| match c {
+                        '2' => '3',
+                        '3' => '2',
+                        c => c,
+                    })
+                    .collect();
+                edits.push(gi, REPLACE, 0, false, Txt::from(&swapped[1..]));
             }
-            let v: Vec<f64> = (0..3).map(|k| blk.ijk[k].unwrap_or(0.0)).collect();
-            if blk.ijk.iter().any(|x| x.is_some()) {
+            let v = sc.ijk.map(|a| a.unwrap_or(0.0));
+            if sc.ijk.iter().any(|x| x.is_some()) {
                 for k in 0..3 {
                     if k == n {
                         continue;
                     }
                     let mut nv = s * (r[(k, 0)] * v[0] + r[(k, 1)] * v[1] + r[(k, 2)] * v[2]);
-                    if blk.after.arc_absolute {
+                    if after.arc_absolute {
                         nv += t[k] / units_mm;
                     }
-                    match (blk.ijk[k], axis_token(CENTRE[k])) {
+                    match (sc.ijk[k], word_at(3 + k)) {
                         (Some(orig), Some(ti)) => {
                             if (nv - orig).abs() >= half {
                                 edits.replace_num(ti, nv, dec);
@@ -558,27 +646,70 @@ impl Rewriter {
                         }
                         _ => {
                             if nv.abs() >= half {
-                                p.plan_insert(toks, &mut edits, k, &CENTRE, &fmt_num(nv, dec));
+                                ins.plan(edits, k, &CENTRE, nv, dec);
                             }
                         }
                     }
                 }
             }
-            if let (Some(rv), Some(ti)) = (blk.r, axis_token(b'R')) {
+            if let (Some(rv), Some(ti)) = (sc.r, word_at(6)) {
                 let nv = s * rv;
                 if (nv - rv).abs() >= half {
                     edits.replace_num(ti, nv, dec);
                 }
             }
         }
-        if edits.replace.is_empty() && edits.insert_after.is_empty() && edits.insert_before.is_empty() {
+        if edits.0.is_empty() {
             copy(out);
         } else {
-            p.emit_line(i, &edits, out);
+            p.emit_line(i, &mut edits.0, out);
         }
-        self.edits = edits;
-        self.old = blk.after;
+        self.old = after;
         Ok(())
+    }
+}
+
+/// Where an inserted word goes on a line: next to the other words of its group (see
+/// [`InsertAt::plan`]), from the positions of the line's words.
+struct InsertAt {
+    /// First token of X, Y, Z, I, J, K ([`NONE`]: absent).
+    first: [u32; 6],
+    spaced: bool,
+    /// Last word of the line, or token 0.
+    last_word: usize,
+}
+
+impl InsertAt {
+    fn of(sc: &LineScan) -> Self {
+        let mut first = [NONE; 6];
+        first.copy_from_slice(&sc.first[..6]);
+        let last_word = if sc.last_word == NONE { 0 } else { sc.last_word as usize };
+        Self { first, spaced: sc.spaced, last_word }
+    }
+
+    fn find(&self, letters: &[u8; 3], j: usize) -> Option<usize> {
+        let base = if letters[0] == b'X' { 0 } else { 3 };
+        let f = self.first[base + j];
+        (f != NONE).then_some(f as usize)
+    }
+
+    /// Plan the insertion of word `letters[k]` with value `v` (`dec` decimals) next to the
+    /// other words of its group: after the nearest one before it in X, Y, Z (I, J, K) order,
+    /// else before the nearest one after it; centre words with no other centre word go after
+    /// the last axis word (by letter), and otherwise after the last word of the line.
+    fn plan(&self, edits: &mut Edits, k: usize, letters: &[u8; 3], v: f64, dec: u8) {
+        let (letter, sp) = (letters[k], self.spaced);
+        if let Some(ti) = (0..k).rev().find_map(|j| self.find(letters, j)) {
+            edits.insert_num(ti, AFTER, letter, sp, v, dec);
+        } else if let Some(ti) = (k + 1..3).find_map(|j| self.find(letters, j)) {
+            edits.insert_num(ti, BEFORE, letter, sp, v, dec);
+        } else if let Some(ti) = (0..3).find_map(|j| self.find(&AXES, j)) {
+            // Centre words with no other centre word: after the last axis word.
+            let last = (0..3).rev().find_map(|j| self.find(&AXES, j)).unwrap_or(ti);
+            edits.insert_num(last, AFTER, letter, sp, v, dec);
+        } else {
+            edits.insert_num(self.last_word, AFTER, letter, sp, v, dec);
+        }
     }
 }
 
@@ -728,77 +859,92 @@ impl Program {
         });
         for letter in [b'I', b'J', b'K', b'R'] {
             if let Some(k) = find(letter) {
-                edits.replace.push((k, Txt::from("")));
+                edits.push(k, REPLACE, 0, false, Txt::from(""));
             }
         }
+        let ins = InsertAt::of(&self.scan_tokens(toks, old, |_| {}));
         let axis_pos: Vec<usize> = (0..3).filter_map(|k| find(AXES[k])).collect();
         for (k, letter) in AXES.iter().enumerate() {
             let v = [q.x, q.y, q.z][k] / u;
             match find(*letter) {
                 Some(ti) => edits.replace_num(ti, v, dec),
-                None => self.plan_insert(toks, &mut edits, k, &AXES, &fmt_num(v, dec)),
+                None => ins.plan(&mut edits, k, &AXES, v, dec),
             }
             written[k] = Some(round_to(v, dec));
         }
         match g {
-            Some(gi) => edits.replace.push((gi, Txt::from("1"))),
+            Some(gi) => edits.push(gi, REPLACE, 0, false, Txt::from("1")),
             None => {
                 let first = axis_pos.first().copied().unwrap_or(0);
-                edits.insert_before.push((first, "G1 ".into()));
+                edits.push(first, BEFORE, 0, false, Txt::from("G1 "));
             }
         }
-        self.emit_line(i, &edits, out);
+        self.emit_line(i, &mut edits.0, out);
         Ok(())
     }
 
-    /// Plan the insertion of word `letters[k]` with value text `v` next to the other words of its group.
-    fn plan_insert(&self, toks: &[crate::Token], edits: &mut Edits, k: usize, letters: &[u8; 3], v: &str) {
-        let spaced = toks.iter().any(|tk| tk.kind == TokenKind::Whitespace);
-        let find = |letter: u8| toks.iter().position(|tk| tk.word().is_some_and(|w| w.0 == letter));
-        let word = format!("{}{}", letters[k] as char, v);
-        if let Some(ti) = (0..k).rev().find_map(|j| find(letters[j])) {
-            edits.insert_after.push((ti, if spaced { format!(" {word}") } else { word }));
-        } else if let Some(ti) = (k + 1..3).find_map(|j| find(letters[j])) {
-            edits.insert_before.push((ti, if spaced { format!("{word} ") } else { word }));
-        } else if let Some(ti) = (0..3).find_map(|j| find(AXES[j])) {
-            // Centre words with no other centre word: after the last axis word.
-            let last = (0..3).rev().find_map(|j| find(AXES[j])).unwrap_or(ti);
-            edits.insert_after.push((last, if spaced { format!(" {word}") } else { word }));
-        } else {
-            let last = toks.iter().rposition(|tk| tk.word().is_some()).unwrap_or(0);
-            edits.insert_after.push((last, if spaced { format!(" {word}") } else { word }));
+    /// Write line `i` with `edits` applied (sorted here into the order of the line); the text
+    /// between edited tokens is copied as it is.
+    fn emit_line(&self, i: usize, edits: &mut [Edit], out: &mut String) {
+        // A handful of edits: a stable insertion sort (inserts at one place keep their order).
+        for a in 1..edits.len() {
+            let mut b = a;
+            while b > 0 && edits[b - 1].key > edits[b].key {
+                edits.swap(b - 1, b);
+                b -= 1;
+            }
         }
-    }
-
-    fn emit_line(&self, i: usize, edits: &Edits, out: &mut String) {
         let line = &self.lines[i];
         let toks = &self.tokens[line.tokens.clone()];
-        // The tokens tile the line: runs of untouched tokens are copied in one piece, from
-        // `from` (the first source byte not yet written) up to the next edit.
+        let src = &self.source;
+        // `from`: the first source byte not yet written.
         let mut from = line.start;
-        for (ti, tk) in toks.iter().enumerate() {
-            for (_, s) in edits.insert_before.iter().filter(|(j, _)| *j == ti) {
-                out.push_str(&self.source[from..tk.start]);
-                from = tk.start;
-                out.push_str(s);
-            }
-            if let Some((_, v)) = edits.replace.iter().find(|(j, _)| *j == ti) {
-                out.push_str(&self.source[from..tk.start]);
-                // Keep the letter as written (its case), replace the number; empty text
-                // removes the word.
-                if !v.is_empty() {
-                    out.push_str(&self.source[tk.start..tk.start + 1]);
-                    out.push_str(v);
+        let mut replaced = u32::MAX;
+        for e in edits.iter() {
+            let ti = e.key / 4;
+            let tk = &toks[ti as usize];
+            match e.key % 4 {
+                BEFORE => {
+                    out.push_str(&src[from..tk.start]);
+                    from = tk.start;
+                    if e.letter != 0 {
+                        out.push(e.letter as char);
+                    }
+                    out.push_str(&e.text);
+                    if e.space {
+                        out.push(' ');
+                    }
                 }
-                from = tk.end;
-            }
-            for (_, s) in edits.insert_after.iter().filter(|(j, _)| *j == ti) {
-                out.push_str(&self.source[from..tk.end]);
-                from = tk.end;
-                out.push_str(s);
+                REPLACE => {
+                    // The first replacement of a token counts.
+                    if replaced == ti {
+                        continue;
+                    }
+                    replaced = ti;
+                    // Keep the letter as written (its case), replace the number; empty text
+                    // removes the word.
+                    if e.text.is_empty() {
+                        out.push_str(&src[from..tk.start]);
+                    } else {
+                        out.push_str(&src[from..tk.start + 1]);
+                        out.push_str(&e.text);
+                    }
+                    from = tk.end;
+                }
+                _ => {
+                    out.push_str(&src[from..tk.end]);
+                    from = tk.end;
+                    if e.space {
+                        out.push(' ');
+                    }
+                    if e.letter != 0 {
+                        out.push(e.letter as char);
+                    }
+                    out.push_str(&e.text);
+                }
             }
         }
-        out.push_str(&self.source[from..line.next]);
+        out.push_str(&src[from..line.next]);
     }
 }
 
