@@ -347,7 +347,10 @@ fn lex_number(b: &[u8], start: usize, end: usize) -> Option<(usize, f64, Option<
     // The common case in one pass: the exact fast path (≤ 19 digits, shared with every number
     // reader of truepos) reads the number, and a clean end (not more digits or points) is
     // checked after it. Everything else is scanned below.
-    if let Ok((v, n, decimals)) = truepos_math::decimal::decimal_prefix_decimals(&b[start..end]) {
+    // The text after the line's end is passed too (the number cannot run into it: the line ends
+    // at a `\r` or `\n`), so the reader can take eight bytes at a time up to the last number
+    // of a line.
+    if let Ok((v, n, decimals)) = truepos_math::decimal::decimal_prefix_decimals(&b[start..]) {
         let j = start + n;
         if j >= end || !(b[j].is_ascii_digit() || b[j] == b'.') {
             return Some((j, v, decimals.map(|d| d.min(255) as u8), true));
@@ -423,6 +426,32 @@ mod tests {
         assert_eq!(k[4].0, TokenKind::Word { letter: b'X', value: -1.5, decimals: Some(2) });
         assert_eq!(k[6].0, TokenKind::Word { letter: b'Y', value: 0.5, decimals: Some(1) });
         assert_eq!(k[2].0, TokenKind::Word { letter: b'G', value: 1.0, decimals: None });
+    }
+
+    /// A piece of plain tokens is not evaluated (see `Program::parse_piece`): that is only
+    /// right if such a piece sets nothing and passes the check; anything else is not plain.
+    #[test]
+    fn plain_tokens_need_no_evaluation() {
+        for src in ["N10 G1 X1.5 Y-2 (c (nested)) ; t\r\n%\n\nG0 X.5\n", "g1x1y2\tz3\n", ""] {
+            let (p, plain) = parse_reusing(src.to_string(), Vec::new(), Vec::new());
+            assert!(plain, "{src:?}");
+            assert!(p.check().is_ok(), "{src:?}");
+        }
+        for src in [
+            "O1000\n",
+            "#1=2\n",
+            "G1 X[1+2]\n",
+            "G1 X#1\n",
+            "G1 X1.2.3\n",
+            "G1 Xabc\n",
+            "(open\n",
+            "@\n",
+            "/G1 X1\n",
+            "\u{feff}G1 X1\n",
+        ] {
+            let (_, plain) = parse_reusing(src.to_string(), Vec::new(), Vec::new());
+            assert!(!plain, "{src:?}");
+        }
     }
 
     #[test]

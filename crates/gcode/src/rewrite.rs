@@ -239,7 +239,10 @@ fn fixed_digits_any(mut a: u64, dec: usize, buf: &mut [u8; 31]) -> usize {
 fn pow10(dec: u8) -> f64 {
     const T: [f64; 16] =
         [1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15];
+    // Not inlined: `powi` may be computed ahead of the test (it has no side effects), which
+    // costs a call on every line.
     #[cold]
+    #[inline(never)]
     fn big(dec: u8) -> f64 {
         10f64.powi(dec as i32)
     }

@@ -52,49 +52,45 @@ const RECIP5: [(u64, u32); MAX_DIGITS + 1] = {
     t
 };
 
-/// Eight ASCII digits at `b[i..i + 8]` as their value, if all eight are digits.
+/// Powers of ten as integers (10^0 … 10^8).
+const POW10_U64: [u64; 9] = [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000, 100_000_000];
+
+/// The run of ASCII digits at the start of the eight bytes `v` (the first byte lowest): its
+/// length `n` (0 to 8) and its value. One load, no branch per digit: a byte is a digit when
+/// `x ^ 0x30` is below 10, found for all eight bytes at once (the first byte that is not has
+/// its high bit set in `flags`; a carry out of a byte only reaches bytes after one that is
+/// already flagged). The `n` digits are then shifted to the top, so the bytes below them are
+/// zeros (leading zeros of an eight-digit number), and combined pairwise, then by fours.
 #[inline(always)]
-fn eight_digits(b: &[u8], i: usize) -> Option<u64> {
-    let chunk: [u8; 8] = b.get(i..i + 8)?.try_into().ok()?;
-    let v = u64::from_le_bytes(chunk);
-    // Every byte in 0x30..=0x39: its high nibble is 3 and adding 6 does not carry out of it.
-    if (v & 0xF0F0_F0F0_F0F0_F0F0) | (((v.wrapping_add(0x0606_0606_0606_0606)) & 0xF0F0_F0F0_F0F0_F0F0) >> 4)
-        != 0x3333_3333_3333_3333
-    {
-        return None;
+fn digit_run(v: u64) -> (usize, u64) {
+    let t = v ^ 0x3030_3030_3030_3030;
+    let flags = (t.wrapping_add(0x7676_7676_7676_7676) | t) & 0x8080_8080_8080_8080;
+    let n = (flags.trailing_zeros() / 8) as usize;
+    if n == 0 {
+        return (0, 0);
     }
-    // Pairs, then quads, then the eight (the first digit is the lowest byte).
-    let v = v - 0x3030_3030_3030_3030;
-    let v = v.wrapping_mul(10).wrapping_add(v >> 8);
+    let d = t << (64 - 8 * n as u32);
+    let d = d.wrapping_mul(10).wrapping_add(d >> 8);
     const MASK: u64 = 0x0000_00FF_0000_00FF;
-    let v1 = (v & MASK).wrapping_mul(100 + (1_000_000 << 32));
-    let v2 = ((v >> 16) & MASK).wrapping_mul(1 + (10_000 << 32));
-    Some((v1.wrapping_add(v2) >> 32) as u32 as u64)
+    let v1 = (d & MASK).wrapping_mul(100 + (1_000_000 << 32));
+    let v2 = ((d >> 16) & MASK).wrapping_mul(1 + (10_000 << 32));
+    (n, (v1.wrapping_add(v2) >> 32) as u32 as u64)
 }
 
-/// Four ASCII digits at `b[i..i + 4]` as their value, if all four are digits.
-#[inline(always)]
-fn four_digits(b: &[u8], i: usize) -> Option<u64> {
-    let chunk: [u8; 4] = b.get(i..i + 4)?.try_into().ok()?;
-    let v = u32::from_le_bytes(chunk);
-    if (v & 0xF0F0_F0F0) | (((v.wrapping_add(0x0606_0606)) & 0xF0F0_F0F0) >> 4) != 0x3333_3333 {
-        return None;
-    }
-    let v = v - 0x3030_3030;
-    let v = v.wrapping_mul(10).wrapping_add(v >> 8);
-    Some(((v & 0x00FF_00FF).wrapping_mul(1 + (100 << 16)) >> 16) as u64 & 0xFFFF)
-}
-
-/// Digits from `b[i..]`: `(mantissa (wrapping), end)`.
+/// Digits from `b[i..]`: `(mantissa (wrapping), end)`. Eight bytes at a time where the text
+/// allows (a number's digits end inside the first load, mostly), one at a time in the last
+/// seven bytes.
 #[inline(always)]
 fn digits(b: &[u8], mut i: usize, mut mant: u64) -> (u64, usize) {
-    while let Some(d) = eight_digits(b, i) {
-        mant = mant.wrapping_mul(100_000_000).wrapping_add(d);
-        i += 8;
-    }
-    if let Some(d) = four_digits(b, i) {
-        mant = mant.wrapping_mul(10_000).wrapping_add(d);
-        i += 4;
+    while let Some(chunk) = b.get(i..i + 8) {
+        let mut w = [0u8; 8];
+        w.copy_from_slice(chunk);
+        let (n, d) = digit_run(u64::from_le_bytes(w));
+        mant = mant.wrapping_mul(POW10_U64[n]).wrapping_add(d);
+        i += n;
+        if n < 8 {
+            return (mant, i);
+        }
     }
     while i < b.len() && b[i].is_ascii_digit() {
         mant = mant.wrapping_mul(10).wrapping_add((b[i] - b'0') as u64);
@@ -192,14 +188,24 @@ mod tests {
 
     #[test]
     fn swar_digits() {
-        assert_eq!(eight_digits(b"12345678", 0), Some(12_345_678));
-        assert_eq!(eight_digits(b"x00000009", 1), Some(9));
-        assert_eq!(eight_digits(b"1234567", 0), None);
-        for bad in [b"1234567/", b"1234567:", b"123 5678", b"1234.678", b"\xb11234567"] {
-            assert_eq!(eight_digits(bad, 0), None, "{:?}", bad);
+        let run = |b: &[u8; 8]| digit_run(u64::from_le_bytes(*b));
+        assert_eq!(run(b"12345678"), (8, 12_345_678));
+        assert_eq!(run(b"00000009"), (8, 9));
+        assert_eq!(run(b"1234567/"), (7, 1_234_567));
+        assert_eq!(run(b"1234567:"), (7, 1_234_567));
+        assert_eq!(run(b"123 5678"), (3, 123));
+        assert_eq!(run(b"1234.678"), (4, 1234));
+        assert_eq!(run(b"\xb11234567"), (0, 0));
+        assert_eq!(run(b"9\xff\xff\xff\xff\xff\xff\xff"), (1, 9));
+        assert_eq!(run(b"0907,1.5"), (4, 907));
+        // Every byte value after a digit ends the run exactly when it is not a digit.
+        for x in 0..=255u8 {
+            let mut b = *b"57000000";
+            b[2] = x;
+            let want =
+                if x.is_ascii_digit() { (8, 57_000_000 + (x - b'0') as u64 * 100_000) } else { (2, 57) };
+            assert_eq!(run(&b), want, "{x}");
         }
-        assert_eq!(four_digits(b"0907", 0), Some(907));
-        assert_eq!(four_digits(b"99,9", 0), None);
         assert_eq!(digits(b"0907,1.5", 0, 0), (907, 4));
         assert_eq!(digits(b"123456789012,", 0, 7), (7_123_456_789_012, 12));
         assert_eq!(digits(b"12", 0, 0), (12, 2));
