@@ -197,6 +197,7 @@ fn lex_line(src: &str, start: usize, end: usize, out: &mut Vec<Token>) -> bool {
                     }
                     i += 1;
                 }
+                plain &= closed;
                 TokenKind::ParenComment { closed }
             }
             b';' => {
@@ -218,10 +219,12 @@ fn lex_line(src: &str, start: usize, end: usize, out: &mut Vec<Token>) -> bool {
                             if value.is_finite() && ends_value(b, n_end, end) =>
                         {
                             i = n_end;
+                            plain &= letter != b'O';
                             TokenKind::Word { letter, value, decimals }
                         }
                         _ => {
                             i = skip_malformed(b, i, end);
+                            plain = false;
                             TokenKind::Malformed { letter }
                         }
                     }
@@ -229,10 +232,12 @@ fn lex_line(src: &str, start: usize, end: usize, out: &mut Vec<Token>) -> bool {
                     match crate::expr::parse_value(&b[i..end]) {
                         Ok((_, n)) if ends_value(b, i + n, end) => {
                             i += n;
+                            plain = false;
                             TokenKind::Expr { letter, value: None }
                         }
                         _ => {
                             i = skip_malformed(b, i, end);
+                            plain = false;
                             TokenKind::Malformed { letter }
                         }
                     }
@@ -240,16 +245,19 @@ fn lex_line(src: &str, start: usize, end: usize, out: &mut Vec<Token>) -> bool {
                     // A letter without a value (`X`, `Xabc`, `XNaN`): malformed up to the next
                     // space or comment.
                     i = skip_malformed(b, i, end);
+                    plain = false;
                     TokenKind::Malformed { letter }
                 }
             }
             b'#' => match crate::expr::parse_assignment(&b[i..end]) {
                 Ok((_, _, n)) if ends_value(b, i + n, end) => {
                     i += n;
+                    plain = false;
                     TokenKind::Assign
                 }
                 _ => {
                     i = skip_malformed(b, i + 1, end);
+                    plain = false;
                     TokenKind::Other
                 }
             },
@@ -276,10 +284,12 @@ fn lex_line(src: &str, start: usize, end: usize, out: &mut Vec<Token>) -> bool {
                         i += 1;
                     }
                 }
+                plain = false;
                 TokenKind::Other
             }
         };
-        plain &= is_plain(&kind);
+        // `plain` is kept in the arms above (cheaper than a test of every token's kind).
+        debug_assert!(!plain || is_plain(&kind));
         out.push(Token { kind, start: s, end: i });
     }
     plain
