@@ -700,43 +700,11 @@ impl Rows<'_> {
         let n = self.rows.len();
         debug_assert_eq!(out.len(), n * k);
         const CHUNK: usize = 8 * 1024;
-        let width = self.width;
-        // Column → output slot (usize::MAX: not wanted), for the fused fast path.
-        let mut slots = vec![usize::MAX; width];
-        for (j, &c) in idx.iter().enumerate() {
-            if c < width {
-                slots[c] = j;
-            }
-        }
+        let slots = self.slots(idx);
         let work = |c: usize, dst: &mut [f64]| -> Option<RowError> {
-            let mut buf = Vec::with_capacity(width);
+            let mut buf = Vec::with_capacity(self.width);
             let first = c * CHUNK;
-            for row in first..(first + CHUNK).min(n) {
-                let d = &mut dst[(row - first) * k..(row - first + 1) * k];
-                // The fast path finds the row's end itself (no search for it first).
-                if parse_row_fast(&self.text[self.rows[row]..], &slots, d) {
-                    continue;
-                }
-                let line = self.line(row);
-                let text = std::str::from_utf8(line).unwrap_or("");
-                if !split_fields_fast(line, &mut buf) {
-                    split_fields(text, &mut buf);
-                }
-                if buf.len() != width {
-                    return Some(RowError { row, col: usize::MAX, text: buf.len().to_string() });
-                }
-                for (j, &col) in idx.iter().enumerate() {
-                    let (a, b) = buf[col];
-                    let f = &line[a..b];
-                    match crate::num::parse_f64_bytes(f) {
-                        Some(v) => d[j] = v,
-                        None => {
-                            return Some(RowError { row, col, text: String::from_utf8_lossy(f).into_owned() })
-                        }
-                    }
-                }
-            }
-            None
+            self.parse_range(first..(first + CHUNK).min(n), idx, &slots, dst, &mut buf).err()
         };
         let first_error = if k == 0 {
             (0..n.div_ceil(CHUNK)).into_par_iter().filter_map(|c| work(c, &mut [])).min_by_key(|e| e.row)
@@ -750,6 +718,136 @@ impl Rows<'_> {
             Some(e) => Err(e),
             None => Ok(()),
         }
+    }
+
+    /// Column → output slot (`usize::MAX`: not wanted) of the fused fast path, for columns `idx`.
+    pub(crate) fn slots(&self, idx: &[usize]) -> Vec<usize> {
+        let mut slots = vec![usize::MAX; self.width];
+        for (j, &c) in idx.iter().enumerate() {
+            if c < self.width {
+                slots[c] = j;
+            }
+        }
+        slots
+    }
+
+    /// Rows `range` split into fields and columns `idx` parsed, in one walk over each row: the
+    /// fields' byte ranges in the text (trimmed of spaces and tabs, quotes removed, as
+    /// [`split_fields`] gives them) are appended to `fields`, `width` per row, and the values go
+    /// to `dst` (row-major). For callers that write the rows back out with some fields replaced:
+    /// the passed-through fields need no second split. The first bad row of the range is
+    /// reported.
+    pub(crate) fn split_and_parse_range(
+        &self,
+        range: std::ops::Range<usize>,
+        idx: &[usize],
+        dst: &mut [f64],
+        fields: &mut Vec<(usize, usize)>,
+    ) -> Result<(), RowError> {
+        let k = idx.len();
+        let first = range.start;
+        let mut quoted = Vec::new();
+        for row in range {
+            let s0 = self.rows[row];
+            let t = &self.text[s0..];
+            let n = t.len();
+            let base = fields.len();
+            let (mut start, mut i) = (0, 0);
+            let mut has_quote = false;
+            loop {
+                while i < n {
+                    let b = t[i];
+                    if b == b',' || b == b'\n' {
+                        break;
+                    }
+                    if b == b'"' {
+                        has_quote = true;
+                        break;
+                    }
+                    i += 1;
+                }
+                if has_quote {
+                    break;
+                }
+                let last = i >= n || t[i] == b'\n';
+                let mut e = i;
+                if last && e > start && t[e - 1] == b'\r' {
+                    e -= 1;
+                }
+                let mut a = start;
+                while a < e && (t[a] == b' ' || t[a] == b'\t') {
+                    a += 1;
+                }
+                while e > a && (t[e - 1] == b' ' || t[e - 1] == b'\t') {
+                    e -= 1;
+                }
+                fields.push((s0 + a, s0 + e));
+                if last {
+                    break;
+                }
+                i += 1;
+                start = i;
+            }
+            if has_quote {
+                fields.truncate(base);
+                let line = self.line(row);
+                split_fields(std::str::from_utf8(line).unwrap_or(""), &mut quoted);
+                fields.extend(quoted.iter().map(|&(a, b)| (s0 + a, s0 + b)));
+            }
+            let got = fields.len() - base;
+            if got != self.width {
+                return Err(RowError { row, col: usize::MAX, text: got.to_string() });
+            }
+            let d = &mut dst[(row - first) * k..(row - first + 1) * k];
+            for (j, &col) in idx.iter().enumerate() {
+                let (a, b) = fields[base + col];
+                let f = &self.text[a..b];
+                match crate::num::parse_f64_bytes(f) {
+                    Some(v) => d[j] = v,
+                    None => return Err(RowError { row, col, text: String::from_utf8_lossy(f).into_owned() }),
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Parse columns `idx` of rows `range` into `dst` (row-major, `range.len() × idx.len()`), on
+    /// the calling thread; `slots` from [`slots`](Self::slots), `buf` a scratch field list. The
+    /// first bad row of the range is reported.
+    pub(crate) fn parse_range(
+        &self,
+        range: std::ops::Range<usize>,
+        idx: &[usize],
+        slots: &[usize],
+        dst: &mut [f64],
+        buf: &mut Vec<(usize, usize)>,
+    ) -> Result<(), RowError> {
+        let k = idx.len();
+        let first = range.start;
+        for row in range {
+            let d = &mut dst[(row - first) * k..(row - first + 1) * k];
+            // The fast path finds the row's end itself (no search for it first).
+            if parse_row_fast(&self.text[self.rows[row]..], slots, d) {
+                continue;
+            }
+            let line = self.line(row);
+            let text = std::str::from_utf8(line).unwrap_or("");
+            if !split_fields_fast(line, buf) {
+                split_fields(text, buf);
+            }
+            if buf.len() != self.width {
+                return Err(RowError { row, col: usize::MAX, text: buf.len().to_string() });
+            }
+            for (j, &col) in idx.iter().enumerate() {
+                let (a, b) = buf[col];
+                let f = &line[a..b];
+                match crate::num::parse_f64_bytes(f) {
+                    Some(v) => d[j] = v,
+                    None => return Err(RowError { row, col, text: String::from_utf8_lossy(f).into_owned() }),
+                }
+            }
+        }
+        Ok(())
     }
 }
 
@@ -1042,13 +1140,7 @@ impl<W: Write> CsvWriter<W> {
     /// Append one field to the current row.
     pub fn field_str(&mut self, s: &str) -> std::io::Result<()> {
         self.sep();
-        if s.contains(',') || s.contains('"') {
-            self.row.push(b'"');
-            self.row.extend_from_slice(s.replace('"', "\"\"").as_bytes());
-            self.row.push(b'"');
-        } else {
-            self.row.extend_from_slice(s.as_bytes());
-        }
+        push_field(&mut self.row, s);
         Ok(())
     }
     #[inline]
@@ -1083,6 +1175,24 @@ impl<W: Write> CsvWriter<W> {
             let _ = self.w.write_all(&self.row);
         }
         self.w
+    }
+}
+
+/// Append `s` to `out` as one CSV field: quoted (inner quotes doubled) when it holds a comma or
+/// a quote, as is otherwise.
+#[inline]
+pub fn push_field(out: &mut Vec<u8>, s: &str) {
+    if s.as_bytes().iter().any(|&b| b == b',' || b == b'"') {
+        out.push(b'"');
+        for &b in s.as_bytes() {
+            if b == b'"' {
+                out.push(b'"');
+            }
+            out.push(b);
+        }
+        out.push(b'"');
+    } else {
+        out.extend_from_slice(s.as_bytes());
     }
 }
 

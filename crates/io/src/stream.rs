@@ -25,10 +25,11 @@ use crate::atomic::{AtomicFile, OutputError};
 use crate::csv::{index_rows, split_fields, Rows};
 use crate::limits::{self, LineGuard};
 use crate::InputError;
-use std::io::{Read, Write};
+use rayon::prelude::*;
+use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
 /// Bytes read per block (a chunk holds the complete lines of about one block).
@@ -99,10 +100,58 @@ impl Chunk {
         Ok(out)
     }
     fn parse_into(&self, idx: &[usize], out: &mut [f64]) -> Result<(), InputError> {
-        let rows = Rows { text: self.text.as_bytes(), rows: &self.rows, width: self.header.len() };
-        rows.parse_into(idx, out)
+        self.rows_view()
+            .parse_into(idx, out)
             .map_err(|e| e.into_input_error(self.path.as_path(), &self.header, |r| self.line_number(r)))
     }
+    /// Parse columns `idx` of rows `range` (of this chunk) into `out`, one `[f64; K]` per row,
+    /// on the calling thread (for callers that split the chunk across threads themselves).
+    /// `scratch` is reused between calls.
+    pub fn parse_rows_into<const K: usize>(
+        &self,
+        range: std::ops::Range<usize>,
+        idx: &[usize; K],
+        out: &mut [[f64; K]],
+        scratch: &mut RowScratch,
+    ) -> Result<(), InputError> {
+        let rows = self.rows_view();
+        if scratch.slots.len() != self.header.len() || scratch.idx != idx[..] {
+            scratch.slots = rows.slots(idx);
+            scratch.idx = idx.to_vec();
+        }
+        rows.parse_range(range, idx, &scratch.slots, out.as_flattened_mut(), &mut scratch.fields)
+            .map_err(|e| e.into_input_error(self.path.as_path(), &self.header, |r| self.line_number(r)))
+    }
+    /// As [`parse_rows_into`](Self::parse_rows_into), and every field's byte range in the
+    /// chunk's text appended to `fields` (the header's width per row; spaces trimmed, quotes
+    /// removed): for writing the rows back with some fields replaced ([`field`](Self::field)).
+    pub fn split_parse_rows_into<const K: usize>(
+        &self,
+        range: std::ops::Range<usize>,
+        idx: &[usize; K],
+        out: &mut [[f64; K]],
+        fields: &mut Vec<(usize, usize)>,
+    ) -> Result<(), InputError> {
+        self.rows_view()
+            .split_and_parse_range(range, idx, out.as_flattened_mut(), fields)
+            .map_err(|e| e.into_input_error(self.path.as_path(), &self.header, |r| self.line_number(r)))
+    }
+    /// The text of a field range from [`split_parse_rows_into`](Self::split_parse_rows_into).
+    pub fn field(&self, range: (usize, usize)) -> &str {
+        self.text.get(range.0..range.1).unwrap_or("")
+    }
+    fn rows_view(&self) -> Rows<'_> {
+        Rows { text: self.text.as_bytes(), rows: &self.rows, width: self.header.len() }
+    }
+}
+
+/// Scratch space of [`Chunk::parse_rows_into`]: the column slots and a field list, kept
+/// between calls.
+#[derive(Default)]
+pub struct RowScratch {
+    idx: Vec<usize>,
+    slots: Vec<usize>,
+    fields: Vec<(usize, usize)>,
 }
 
 /// A CSV file read in chunks (see the module docs).
@@ -113,27 +162,46 @@ pub struct CsvStream {
     pub comments: Vec<String>,
     header_line: usize,
     rx: Receiver<Result<Block, InputError>>,
+    /// Consumed chunks' buffers back to the reader ([`recycle`](Self::recycle)).
+    spare: SyncSender<Spare>,
     /// Unconsumed remainder of the block that held the header.
     pending: Option<Block>,
     next_row: usize,
     reader: Option<JoinHandle<()>>,
 }
 
-/// Complete lines from the reader thread: text and the line number of its first byte.
+/// Complete lines from the reader thread: text, the start offsets of its data rows (indexed by
+/// the reader, so the consumer's thread does not walk the text once more) and the line number
+/// of its first byte.
 struct Block {
     text: String,
+    rows: Vec<usize>,
     first_line: usize,
 }
 
-fn reader_thread(path: PathBuf, mut file: std::fs::File, tx: SyncSender<Result<Block, InputError>>) {
+/// Buffers of consumed chunks, handed back to the reader for its next blocks (no fresh memory,
+/// hence no page faults, per block).
+type Spare = (String, Vec<usize>);
+
+fn reader_thread(
+    path: PathBuf,
+    mut file: std::fs::File,
+    tx: SyncSender<Result<Block, InputError>>,
+    spare: Receiver<Spare>,
+) {
     let limit = limits::max_input_bytes();
     let mut guard = LineGuard::default();
     let mut carry: Vec<u8> = Vec::new();
     let mut total: u64 = 0;
     let mut line = 1usize;
     loop {
-        let mut buf = Vec::with_capacity(BLOCK_BYTES + carry.len());
-        buf.append(&mut carry);
+        let (mut buf, mut rows) = match spare.try_recv() {
+            Ok((text, rows)) => (text.into_bytes(), rows),
+            Err(_) => (Vec::with_capacity(BLOCK_BYTES + carry.len()), Vec::new()),
+        };
+        buf.clear();
+        buf.extend_from_slice(&carry);
+        carry.clear();
         let start = buf.len();
         buf.resize(start + BLOCK_BYTES, 0);
         let mut filled = start;
@@ -164,7 +232,8 @@ fn reader_thread(path: PathBuf, mut file: std::fs::File, tx: SyncSender<Result<B
         }
         // Cut after the last line end (everything at end of file).
         let cut = if eof { buf.len() } else { memchr::memrchr(b'\n', &buf).map_or(0, |p| p + 1) };
-        carry = buf.split_off(cut);
+        carry.extend_from_slice(&buf[cut..]);
+        buf.truncate(cut);
         if !buf.is_empty() {
             let lines_here = memchr::memchr_iter(b'\n', &buf).count();
             let text = match String::from_utf8(buf) {
@@ -177,7 +246,14 @@ fn reader_thread(path: PathBuf, mut file: std::fs::File, tx: SyncSender<Result<B
                     return;
                 }
             };
-            if tx.send(Ok(Block { text, first_line: line })).is_err() {
+            rows.clear();
+            // Lines over the limit were refused by the guard above (a line never spans blocks).
+            if let Some(bad) = index_rows(&text, 0, text.len(), &mut rows) {
+                let l = line + memchr::memchr_iter(b'\n', &text.as_bytes()[..bad]).count();
+                let _ = tx.send(Err(limits::line_too_long(&path, l)));
+                return;
+            }
+            if tx.send(Ok(Block { text, rows, first_line: line })).is_err() {
                 return; // the consumer stopped (an error, or it had enough)
             }
             line += lines_here;
@@ -200,10 +276,11 @@ impl CsvStream {
         }
         limits::check_file_size(&path, &meta)?;
         let (tx, rx) = sync_channel(2);
+        let (spare, spare_rx) = sync_channel(4);
         let p2 = path.clone();
         let reader = std::thread::Builder::new()
             .name("truepos-csv-reader".into())
-            .spawn(move || reader_thread(p2, file, tx))
+            .spawn(move || reader_thread(p2, file, tx, spare_rx))
             .map_err(|e| InputError::in_file(&path, format!("cannot start the reader: {e}")))?;
         let mut comments = Vec::new();
         let mut bom_checked = false;
@@ -253,13 +330,20 @@ impl CsvStream {
                         }
                     }
                     let rest = block.text[(end + 1).min(bytes.len())..].to_string();
-                    let pending = (!rest.is_empty()).then_some(Block { text: rest, first_line: line + 1 });
+                    let mut rows = Vec::new();
+                    if let Some(bad) = index_rows(&rest, 0, rest.len(), &mut rows) {
+                        let l = line + 1 + memchr::memchr_iter(b'\n', &rest.as_bytes()[..bad]).count();
+                        return Err(limits::line_too_long(&path, l));
+                    }
+                    let pending =
+                        (!rest.is_empty()).then_some(Block { text: rest, rows, first_line: line + 1 });
                     return Ok(Self {
                         path: Arc::new(path),
                         header: Arc::new(names),
                         comments,
                         header_line: line,
                         rx,
+                        spare,
                         pending,
                         next_row: 0,
                         reader: Some(reader),
@@ -308,12 +392,7 @@ impl CsvStream {
                     Err(_) => return Ok(None),
                 },
             };
-            let mut rows = Vec::with_capacity(block.text.len() / 24 + 1);
-            if let Some(bad) = index_rows(&block.text, 0, block.text.len(), &mut rows) {
-                let line =
-                    block.first_line + memchr::memchr_iter(b'\n', &block.text.as_bytes()[..bad]).count();
-                return Err(limits::line_too_long(&self.path, line));
-            }
+            let rows = block.rows;
             if rows.is_empty() {
                 continue;
             }
@@ -331,6 +410,14 @@ impl CsvStream {
     }
 }
 
+impl CsvStream {
+    /// Hand a consumed chunk's buffers back to the reader, which fills them with a later block
+    /// instead of asking the system for fresh memory. Optional: a dropped chunk is just freed.
+    pub fn recycle(&self, chunk: Chunk) {
+        let _ = self.spare.try_send((chunk.text, chunk.rows));
+    }
+}
+
 impl Drop for CsvStream {
     fn drop(&mut self) {
         // The reader ends at its next send (the receiver is gone). It is not waited for: on a
@@ -339,35 +426,61 @@ impl Drop for CsvStream {
     }
 }
 
-/// Writes byte pieces to an [`AtomicFile`] on a thread of its own, two pieces deep, so the
-/// caller computes the next piece while the last one is written. [`finish`](Self::finish)
-/// returns the file for [`AtomicFile::commit`]; dropping the writer unfinished removes the
-/// temporary file.
+/// Writes byte pieces to an [`AtomicFile`] on a thread of its own, two batches deep, so the
+/// caller computes the next pieces while the last ones are written. Written pieces go back to a
+/// pool ([`buffer`](Self::buffer)), so a long stream of output reuses the same few buffers.
+/// [`finish`](Self::finish) returns the file for [`AtomicFile::commit`]; dropping the writer
+/// unfinished removes the temporary file.
 pub struct BackgroundWriter {
-    tx: Option<SyncSender<Vec<u8>>>,
+    tx: Option<SyncSender<Vec<Vec<u8>>>>,
     handle: Option<JoinHandle<(AtomicFile, std::io::Result<()>)>>,
     path: PathBuf,
+    pool: Arc<Mutex<Vec<Vec<u8>>>>,
 }
+
+/// Most buffers the pool keeps (the rest are freed).
+const POOL_MAX: usize = 256;
 
 impl BackgroundWriter {
     pub fn new(mut file: AtomicFile) -> Self {
         let path = file.path().to_path_buf();
-        let (tx, rx) = sync_channel::<Vec<u8>>(2);
+        let (tx, rx) = sync_channel::<Vec<Vec<u8>>>(2);
+        let pool: Arc<Mutex<Vec<Vec<u8>>>> = Arc::default();
+        let back = pool.clone();
         let handle = std::thread::spawn(move || {
             let mut r = Ok(());
-            for piece in rx {
-                if r.is_ok() {
-                    r = file.write_all(&piece);
+            for batch in rx {
+                for mut piece in batch {
+                    if r.is_ok() {
+                        r = file.write_piece(&piece);
+                    }
+                    piece.clear();
+                    if let Ok(mut p) = back.lock() {
+                        if p.len() < POOL_MAX {
+                            p.push(piece);
+                        }
+                    }
                 }
             }
             (file, r)
         });
-        Self { tx: Some(tx), handle: Some(handle), path }
+        Self { tx: Some(tx), handle: Some(handle), path, pool }
+    }
+
+    /// An empty buffer for a piece: a written one from the pool, or a new one. Callable from
+    /// any thread (the pool is shared).
+    pub fn buffer(&self) -> Vec<u8> {
+        self.pool.lock().ok().and_then(|mut p| p.pop()).unwrap_or_default()
     }
 
     /// Queue `piece` for writing. A failed earlier write is reported here (or at `finish`).
     pub fn send(&mut self, piece: Vec<u8>) -> Result<(), OutputError> {
-        let sent = self.tx.as_ref().map(|tx| tx.send(piece).is_ok()).unwrap_or(false);
+        self.send_all(vec![piece])
+    }
+
+    /// Queue `pieces` for writing, in order, as one batch.
+    pub fn send_all(&mut self, pieces: Vec<Vec<u8>>) -> Result<(), OutputError> {
+        let sent = self.tx.as_ref().map(|tx| tx.send(pieces).is_ok()).unwrap_or(false);
         if sent {
             return Ok(());
         }
@@ -406,9 +519,23 @@ impl Drop for BackgroundWriter {
     }
 }
 
+/// Rows per piece of [`rewrite_points`]: parsed, transformed and formatted by one task.
+const PIECE_ROWS: usize = 4096;
+
+/// Per-thread scratch of [`rewrite_points`]: the piece's points, its extra values, the
+/// parser's and the formatter's field lists. Taken out of the thread-local while a piece is
+/// worked on (so a nested task on the same thread gets its own) and put back after.
+#[derive(Default)]
+struct PieceScratch {
+    xyz: Vec<[f64; 3]>,
+    pts: Vec<truepos_math::Point3>,
+    ex: Vec<[f64; 3]>,
+    parse: RowScratch,
+    fields: Vec<(usize, usize)>,
+}
+
 thread_local! {
-    /// Field ranges of the row being formatted, one buffer per thread.
-    static FIELDS: std::cell::RefCell<Vec<(usize, usize)>> = const { std::cell::RefCell::new(Vec::new()) };
+    static SCRATCH: std::cell::Cell<Option<Box<PieceScratch>>> = const { std::cell::Cell::new(None) };
 }
 
 /// What [`rewrite_points`] did.
@@ -431,22 +558,30 @@ pub enum RewriteError {
 /// Stream a point CSV through `f` into `output`: the input with `x_mm,y_mm,z_mm` replaced by the
 /// points as `f` leaves them and the columns `extra` (three values per point from `f`, e.g.
 /// `dx_um,dy_um,dz_um`) replaced where the input has them or appended; every other column is
-/// passed through unchanged. Constant memory: one chunk of about [`BLOCK_BYTES`] at a time,
-/// the next one read while this one is parsed (in parallel), transformed and formatted (in
-/// parallel), and the previous one written.
+/// passed through unchanged. Constant memory: one chunk of about [`BLOCK_BYTES`] at a time (its
+/// buffers handed back to the reader for a later block), the next one read and indexed by the
+/// reader thread while this one is worked on, the previous one written by the writer thread.
 ///
-/// `f(first_row, points, extra)` is called once per chunk in file order; it returns
-/// `Err((row_in_chunk, message))` to refuse a point, which becomes an input error on that point's
-/// line. The output is atomic: nothing is left at `output` unless every row was written.
-pub fn rewrite_points<F>(
+/// A chunk is cut into pieces of [`PIECE_ROWS`] rows, worked on in parallel: each piece is
+/// parsed, passed to `f` and formatted by one task, while its rows are still in the cache.
+/// `f(first_row, points, extra)` gets the piece's points (`first_row`: index in the whole file
+/// of the first) and returns a partial result, or `Err((row_in_piece, message))` to refuse a
+/// point, which becomes an input error on that point's line (the first such row in file
+/// order). `merge` receives the partial results in file order, on the calling thread, so sums
+/// come out the same on every run. The output is atomic: nothing is left at `output` unless
+/// every row was written.
+pub fn rewrite_points<F, T, M>(
     input: &Path,
     output: &Path,
     extra: [&str; 3],
     fmt: crate::num::NumFormat,
-    mut f: F,
+    f: F,
+    mut merge: M,
 ) -> Result<RewriteSummary, RewriteError>
 where
-    F: FnMut(usize, &mut [truepos_math::Point3], &mut [[f64; 3]]) -> Result<(), (usize, String)>,
+    F: Fn(usize, &mut [truepos_math::Point3], &mut [[f64; 3]]) -> Result<T, (usize, String)> + Sync,
+    T: Send,
+    M: FnMut(T),
 {
     let mut s = CsvStream::open(input)?;
     let xyz = [s.require("x_mm")?, s.require("y_mm")?, s.require("z_mm")?];
@@ -477,6 +612,7 @@ where
             names.push(extra[k]);
         }
     }
+    let passes = plan.iter().any(|p| matches!(p, Src::Pass(_)));
     let file = AtomicFile::create(output)?;
     let mut head = crate::csv::CsvWriter::new(Vec::new()).with_format(fmt);
     head.header(&names).map_err(|e| OutputError::Io { path: output.to_path_buf(), source: e })?;
@@ -485,33 +621,63 @@ where
     let mut n_points = 0;
     let mut n_chunks = 0;
     while let Some(chunk) = s.next_chunk()? {
-        let rows: Vec<[f64; 3]> = chunk.f64_rows(&xyz)?;
-        // `[f64; 3]` and `Point3` have the same layout: this collect reuses the allocation.
-        let mut pts: Vec<truepos_math::Point3> = rows.into_iter().map(truepos_math::Point3::from).collect();
-        let mut ex = vec![[0.0; 3]; pts.len()];
-        f(chunk.first_row(), &mut pts, &mut ex)
-            .map_err(|(r, msg)| InputError::at(input, chunk.line_number(r), None, msg))?;
-        let pieces = crate::csv::format_rows_parallel(chunk.n_rows(), fmt, |r, cw| {
-            // Field ranges of the row (no allocation per row: one buffer per thread).
-            FIELDS.with_borrow_mut(|buf| -> Result<(), InputError> {
-                let line = chunk.split_row(r, buf)?;
-                let io = |e: std::io::Error| InputError::new(format!("formatting: {e}"));
-                for src in &plan {
+        let n = chunk.n_rows();
+        let first = chunk.first_row();
+        let piece = |range: std::ops::Range<usize>,
+                     sc: &mut PieceScratch|
+         -> Result<(Vec<u8>, T), InputError> {
+            let m = range.len();
+            sc.xyz.clear();
+            sc.xyz.resize(m, [0.0; 3]);
+            sc.fields.clear();
+            if passes {
+                chunk.split_parse_rows_into(range.clone(), &xyz, &mut sc.xyz, &mut sc.fields)?;
+            } else {
+                chunk.parse_rows_into(range.clone(), &xyz, &mut sc.xyz, &mut sc.parse)?;
+            }
+            sc.pts.clear();
+            sc.pts.extend(sc.xyz.iter().map(|&p| truepos_math::Point3::from(p)));
+            sc.ex.clear();
+            sc.ex.resize(m, [0.0; 3]);
+            let t = f(first + range.start, &mut sc.pts, &mut sc.ex)
+                .map_err(|(r, msg)| InputError::at(input, chunk.line_number(range.start + r), None, msg))?;
+            let mut out = w.buffer();
+            out.reserve(m * 128);
+            for i in 0..m {
+                let fields = sc.fields.get(i * width..).unwrap_or(&[]);
+                for (j, src) in plan.iter().enumerate() {
+                    if j > 0 {
+                        out.push(b',');
+                    }
                     match *src {
-                        Src::Point(k) => cw.field_f64(pts[r][k]).map_err(io)?,
-                        Src::Extra(k) => cw.field_f64(ex[r][k]).map_err(io)?,
-                        Src::Pass(c) => cw.field_str(&line[buf[c].0..buf[c].1]).map_err(io)?,
+                        Src::Point(k) => fmt.write(sc.pts[i][k], &mut out),
+                        Src::Extra(k) => fmt.write(sc.ex[i][k], &mut out),
+                        Src::Pass(c) => crate::csv::push_field(&mut out, chunk.field(fields[c])),
                     }
                 }
-                Ok(())
-            })?;
-            cw.end_row().map_err(|e| InputError::new(format!("formatting: {e}")))
-        })?;
-        for p in pieces {
-            w.send(p)?;
+                out.push(b'\n');
+            }
+            Ok((out, t))
+        };
+        let results: Vec<Result<(Vec<u8>, T), InputError>> = (0..n.div_ceil(PIECE_ROWS))
+            .into_par_iter()
+            .map(|c| {
+                let mut sc = SCRATCH.take().unwrap_or_default();
+                let r = piece(c * PIECE_ROWS..((c + 1) * PIECE_ROWS).min(n), &mut sc);
+                SCRATCH.set(Some(sc));
+                r
+            })
+            .collect();
+        let mut pieces = Vec::with_capacity(results.len());
+        for r in results {
+            let (p, t) = r?;
+            merge(t);
+            pieces.push(p);
         }
-        n_points += chunk.n_rows();
+        w.send_all(pieces)?;
+        n_points += n;
         n_chunks += 1;
+        s.recycle(chunk);
     }
     w.finish()?.commit()?;
     Ok(RewriteSummary { n_points, n_chunks })
@@ -638,16 +804,30 @@ mod tests {
         }
         let inp = write(dir.path(), "in.csv", &text);
         let out = dir.path().join("out.csv");
-        let sum =
-            rewrite_points(&inp, &out, ["dx_um", "dy_um", "dz_um"], Default::default(), |first, p, e| {
+        let mut merged = Vec::new();
+        let sum = rewrite_points(
+            &inp,
+            &out,
+            ["dx_um", "dy_um", "dz_um"],
+            Default::default(),
+            |first, p, e| {
                 for (k, (q, d)) in p.iter_mut().zip(e.iter_mut()).enumerate() {
                     q.x += 1.0;
                     *d = [(first + k) as f64, 0.25, -1.0];
                 }
-                Ok(())
-            })
-            .unwrap();
+                Ok((first, p.len()))
+            },
+            |t| merged.push(t),
+        )
+        .unwrap();
         assert_eq!(sum.n_points, n);
+        // Every piece's result, in file order, covering every row once.
+        let mut next = 0;
+        for &(first, len) in &merged {
+            assert_eq!(first, next);
+            next += len;
+        }
+        assert_eq!(next, n);
         assert!(sum.n_chunks >= 2);
         let t = crate::csv::Table::read(&out).unwrap();
         assert_eq!(t.header, vec!["id", "z_mm", "x_mm", "y_mm", "dy_um", "note", "dx_um", "dz_um"]);
@@ -656,16 +836,20 @@ mod tests {
         assert_eq!(t.row_text(r), format!("P{r},{}.5,{},0.1,0.25,\"a,{r}\",{r},-1", r % 10, r + 1));
         // A refused point: an input error on its line; no output left behind.
         std::fs::remove_file(&out).unwrap();
-        let e = rewrite_points(&inp, &out, ["dx_um", "dy_um", "dz_um"], Default::default(), |first, _, _| {
-            if first > 0 {
-                Err((3, "outside the map".into()))
-            } else {
-                Ok(())
-            }
-        })
+        let e = rewrite_points(
+            &inp,
+            &out,
+            ["dx_um", "dy_um", "dz_um"],
+            Default::default(),
+            |first, _, _| if first > 0 { Err((3, "outside the map".into())) } else { Ok(()) },
+            |_| {},
+        )
         .unwrap_err();
         let RewriteError::Input(e) = e else { panic!("{e}") };
-        assert!(e.line.unwrap() > 3 && e.to_string().contains("outside the map"), "{e}");
+        // The first refused point in file order: row 3 of the second piece (a comment line and
+        // the header come before row 0).
+        assert_eq!(e.line, Some(PIECE_ROWS + 3 + 3), "{e}");
+        assert!(e.to_string().contains("outside the map"), "{e}");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
     }
 
