@@ -136,9 +136,25 @@ impl Chunk {
             .split_and_parse_range(range, idx, out.as_flattened_mut(), fields)
             .map_err(|e| e.into_input_error(self.path.as_path(), &self.header, |r| self.line_number(r)))
     }
-    /// The text of a field range from [`split_parse_rows_into`](Self::split_parse_rows_into).
+    /// The text of a field range from [`split_parse_rows_into`](Self::split_parse_rows_into)
+    /// (for a quoted field: as written between the quotes, inner quotes still doubled).
     pub fn field(&self, range: (usize, usize)) -> &str {
         self.text.get(range.0..range.1).unwrap_or("")
+    }
+    /// Append the field at `range` (from [`split_parse_rows_into`](Self::split_parse_rows_into))
+    /// to a CSV row being written as it was written in the input (without the spaces around
+    /// it): a quoted field with its quotes (its inner quotes are already doubled), any other
+    /// one as is (it holds no comma). So a passed-through field keeps its text byte for byte.
+    pub fn push_field(&self, out: &mut Vec<u8>, range: (usize, usize)) {
+        let raw = self.field(range);
+        let quoted = range.0 > 0 && self.text.as_bytes().get(range.0 - 1) == Some(&b'"');
+        if quoted {
+            out.push(b'"');
+            out.extend_from_slice(raw.as_bytes());
+            out.push(b'"');
+        } else {
+            out.extend_from_slice(raw.as_bytes());
+        }
     }
     fn rows_view(&self) -> Rows<'_> {
         Rows { text: self.text.as_bytes(), rows: &self.rows, width: self.header.len() }
@@ -652,7 +668,7 @@ where
                     match *src {
                         Src::Point(k) => fmt.write(sc.pts[i][k], &mut out),
                         Src::Extra(k) => fmt.write(sc.ex[i][k], &mut out),
-                        Src::Pass(c) => crate::csv::push_field(&mut out, chunk.field(fields[c])),
+                        Src::Pass(c) => chunk.push_field(&mut out, fields[c]),
                     }
                 }
                 out.push(b'\n');
@@ -851,6 +867,41 @@ mod tests {
         assert_eq!(e.line, Some(PIECE_ROWS + 3 + 3), "{e}");
         assert!(e.to_string().contains("outside the map"), "{e}");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn rewrite_points_keeps_passed_through_fields_as_they_were() {
+        // Quoted fields with doubled quotes and commas, spaces around numbers, CRLF endings,
+        // comments and blank lines between rows, and a quoted number: every passed-through
+        // field keeps its value (read back through the general reader), nothing is escaped twice.
+        let dir = tempfile::tempdir().unwrap();
+        let mut text = String::from("id,x_mm,y_mm,z_mm,note\r\n");
+        let n = 20_000;
+        for i in 0..n {
+            match i % 5 {
+                0 => text.push_str(&format!("\"P\"\"{i}\"\"\",{i}, 2 ,\"3.5\",\"a,b\"\"c\"\r\n")),
+                1 => text.push_str(&format!("Q{i},{i}.25,-2,3,plain\n\n# comment\n")),
+                2 => text.push_str(&format!("R{i},{i},2,3,ab\"c\n")),
+                3 => text.push_str(&format!("  S{i} ,{i},2,3,  \"\"  \n")),
+                _ => text.push_str(&format!("T{i},{i},2,3,\n")),
+            }
+        }
+        let inp = write(dir.path(), "in.csv", &text);
+        let out = dir.path().join("out.csv");
+        rewrite_points(&inp, &out, ["dx_um", "dy_um", "dz_um"], Default::default(), |_, _, _| Ok(()), |_| {})
+            .unwrap();
+        let a = crate::csv::Table::read(&inp).unwrap();
+        let b = crate::csv::Table::read(&out).unwrap();
+        assert_eq!(b.n_rows(), n);
+        for name in ["id", "note"] {
+            assert!(a.str_column(name).unwrap() == b.str_column(name).unwrap(), "{name} differs");
+        }
+        for name in ["x_mm", "y_mm", "z_mm"] {
+            assert!(a.f64_column(name).unwrap() == b.f64_column(name).unwrap(), "{name} differs");
+        }
+        assert_eq!(b.row_text(0), "\"P\"\"0\"\"\",0,2,3.5,\"a,b\"\"c\",0,0,0");
+        assert_eq!(b.row_text(2), "R2,2,2,3,ab\"c,0,0,0");
+        assert_eq!(b.row_text(3), "S3,3,2,3,\"\",0,0,0");
     }
 
     #[test]
