@@ -215,11 +215,12 @@ fn reader_thread(
             Ok((text, rows)) => (text.into_bytes(), rows),
             Err(_) => (Vec::with_capacity(BLOCK_BYTES + carry.len()), Vec::new()),
         };
-        buf.clear();
-        buf.extend_from_slice(&carry);
-        carry.clear();
-        let start = buf.len();
+        // A returned buffer is about as long as needed already: only the difference is
+        // zero-filled, not the whole block again.
+        let start = carry.len();
         buf.resize(start + BLOCK_BYTES, 0);
+        buf[..start].copy_from_slice(&carry);
+        carry.clear();
         let mut filled = start;
         let mut eof = false;
         while filled < buf.len() {
