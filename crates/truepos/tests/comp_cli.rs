@@ -245,4 +245,29 @@ fn correct_reads_and_writes_parquet_and_reads_e57() {
     let gone = d.path().join("gone.parquet");
     expect_input_error(&correct(&pq_in, &gone), &["p.parquet", "row 2"]);
     assert!(!gone.exists());
+    // `comp error --output` by extension too: the Parquet file holds the CSV's numbers.
+    let errs = |out: &Path| {
+        run(&[
+            "comp",
+            "error",
+            "--map",
+            s(&map),
+            "--at",
+            s(&pts),
+            "--probe-offset-mm",
+            "0,0,-100",
+            "--output",
+            s(out),
+        ])
+    };
+    let (ec, ep) = (d.path().join("e.csv"), d.path().join("e.parquet"));
+    for out in [&ec, &ep] {
+        let o = errs(out);
+        assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let (a, b) = (truepos_io::csv::Table::read(&ec).unwrap(), read_columns(&ep).unwrap());
+    assert_eq!(b.names, a.header);
+    for name in ["x_mm", "ex_um", "ey_um"] {
+        assert_eq!(a.f64_column(name).unwrap(), b.f64(&ep, name).unwrap(), "{name}");
+    }
 }
