@@ -1585,6 +1585,34 @@ mod tests {
     }
 
     proptest::proptest! {
+        /// The rewrite's split-and-parse agrees with the general reader on any row: the same
+        /// values and fields, or an error at the same line and column.
+        #[test]
+        fn split_and_parse_matches_the_general_reader(fields in proptest::collection::vec("( |-|\\+)?[0-9]{0,6}(\\.[0-9]{0,6})?(e[0-9])? ?|[a-z\" \t]{0,3}|\"[a-z,\"]{0,3}\"", 1..7), cr in proptest::bool::ANY) {
+            let row = fields.join(",");
+            let text = format!("a,x_mm,y_mm,z_mm,b\n{row}{}\n", if cr { "\r" } else { "" });
+            let t = table(&text).unwrap();
+            proptest::prop_assume!(t.n_rows() == 1);
+            let general = t.f64_rows(&["x_mm", "y_mm", "z_mm"]);
+            let view = Rows { text: t.text.as_bytes(), rows: &t.rows, width: t.header.len() };
+            let (mut d, mut f) = (vec![0.0; 3], Vec::new());
+            let fast = view.split_and_parse_range(0..1, &[1, 2, 3], &mut d, &mut f);
+            match (general, fast) {
+                (Ok(g), Ok(())) => {
+                    proptest::prop_assert_eq!(g[0].iter().map(|v| v.to_bits()).collect::<Vec<_>>(), d.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+                    let mut buf = Vec::new();
+                    let want = t.fields(0, &mut buf).unwrap();
+                    let got: Vec<&str> = f.iter().map(|&(a, b)| &t.text[a..b]).collect();
+                    proptest::prop_assert_eq!(want, got);
+                }
+                (Err(g), Err(e)) => {
+                    let e = e.into_input_error(Path::new("t.csv"), &t.header, |r| t.line_number(r));
+                    proptest::prop_assert_eq!((g.line, g.column), (e.line, e.column));
+                }
+                (g, e) => proptest::prop_assert!(false, "general {:?}, fast {:?}", g, e),
+            }
+        }
+
         /// The fast path is bit-identical to `str::parse` on every decimal it accepts.
         #[test]
         fn fast_float_path_is_exact(int in 0u64..10_000_000_000, frac in 0u64..1_000_000_000, fd in 0usize..10, neg in proptest::bool::ANY) {
