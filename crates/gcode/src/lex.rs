@@ -136,8 +136,12 @@ fn is_plain(kind: &TokenKind) -> bool {
 /// whether every token is [plain](is_plain).
 fn parse_range(source: &str, from: usize, to: usize, tokens: &mut Vec<Token>, lines: &mut Vec<Line>) -> bool {
     let b = &source.as_bytes()[..to];
-    tokens.reserve((to - from) / 4);
-    lines.reserve((to - from) / 16 + 1);
+    // A token takes one byte or more; three or more, mostly (`X1 ` is two tokens in three
+    // bytes): room for a third of the bytes, so a piece of typical G-code never regrows. With
+    // an eighth more, so that vectors reused from piece to piece (pieces of about the same
+    // size, a few bytes more or less) are not reallocated at twice the size for a few bytes.
+    reserve_slack(tokens, (to - from) / 3);
+    reserve_slack(lines, (to - from) / 16 + 1);
     let mut pos = from;
     let mut plain = true;
     // One search over the whole range (lines are short: a call per line costs more).
@@ -155,6 +159,13 @@ fn parse_range(source: &str, from: usize, to: usize, tokens: &mut Vec<Token>, li
         pos = next;
     }
     plain
+}
+
+/// Room for `n` more elements in `v`, taken with an eighth to spare when it must grow.
+fn reserve_slack<T>(v: &mut Vec<T>, n: usize) {
+    if v.capacity() - v.len() < n {
+        v.reserve(n + n / 8);
+    }
 }
 
 #[inline]

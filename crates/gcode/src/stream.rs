@@ -24,7 +24,7 @@ use std::sync::mpsc::{sync_channel, SyncSender};
 use truepos_math::Transform3;
 
 /// Bytes of text per piece.
-pub const PIECE_BYTES: usize = 1 << 20;
+pub const PIECE_BYTES: usize = 1 << 18;
 
 /// What a streamed rewrite did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -189,26 +189,39 @@ fn read_pieces<R: BufRead>(
         }
         buf.reserve(PIECE_BYTES);
         let mut eof = false;
-        while buf.len() < PIECE_BYTES {
-            let avail = match input.fill_buf() {
-                Ok(b) => b,
-                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-                Err(e) => {
-                    let _ = tx.send(Err(StreamError::Read(e)));
-                    return;
+        // Read up to `want` bytes, then cut after the last line end (everything at the end of
+        // the input). The carried part holds no line end: only what is read after it is
+        // searched. A line longer than a piece reads on, a piece's size at a time.
+        let mut want = PIECE_BYTES;
+        let mut searched = buf.len();
+        let cut = loop {
+            while buf.len() < want {
+                let avail = match input.fill_buf() {
+                    Ok(b) => b,
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                    Err(e) => {
+                        let _ = tx.send(Err(StreamError::Read(e)));
+                        return;
+                    }
+                };
+                if avail.is_empty() {
+                    eof = true;
+                    break;
                 }
-            };
-            if avail.is_empty() {
-                eof = true;
-                break;
+                // Up to the piece's size (the reader's buffer may hold more: it waits there).
+                let n = avail.len().min(want - buf.len());
+                buf.extend_from_slice(&avail[..n]);
+                input.consume(n);
             }
-            let n = avail.len();
-            buf.extend_from_slice(avail);
-            input.consume(n);
-        }
-        // Cut after the last line end (everything at the end of the input); a line longer than
-        // a piece waits for more.
-        let cut = if eof { buf.len() } else { memchr::memrchr(b'\n', &buf).map_or(0, |p| p + 1) };
+            if eof {
+                break buf.len();
+            }
+            if let Some(p) = memchr::memrchr(b'\n', &buf[searched..]) {
+                break searched + p + 1;
+            }
+            searched = buf.len();
+            want = buf.len() + PIECE_BYTES;
+        };
         carry = buf.split_off(cut);
         if !buf.is_empty() {
             let text = match String::from_utf8(buf) {
@@ -304,6 +317,22 @@ mod tests {
             let e = Program::parse(&bad).transform(&t, &opts).unwrap_err();
             assert_eq!((e.line(), e.column()), (n + 1, col), "{tail}: {e}");
         }
+    }
+
+    /// A line longer than a piece (several pieces long, at the start, in the middle and at the
+    /// end without a line end) is read on until its end, and the output is the in-memory one.
+    #[test]
+    fn lines_longer_than_a_piece_are_read_whole() {
+        let long = format!("({})", "x".repeat(3 * PIECE_BYTES + 17));
+        let mut src = format!("{long}\nG0 X1 Y2 Z3\n");
+        for i in 0..50_000 {
+            src.push_str(&format!("G1 X{}.25 Y{}\n", i % 100, i % 7));
+        }
+        src.push_str(&format!("G1 X5 {long}\r\nG1 Y1\n{long}"));
+        let t = Transform3::new(1.0001, rz(0.3), Vector3::new(5.0, -2.0, 1.0));
+        let opts = TransformOptions::default();
+        let want = Program::parse(&src).transform(&t, &opts).unwrap();
+        assert_eq!(stream(&src, &t, &opts).unwrap(), want);
     }
 
     #[test]
