@@ -146,8 +146,8 @@ impl Program {
     /// Interpret line `i` given the modal state before it.
     pub fn interpret_line(&self, i: usize, before: &Modal) -> Block<'_> {
         let mut comments = Vec::new();
-        let s = self.scan_tokens(self.line_tokens(i), before, |t| comments.push(self.text(t)));
-        let m = s.after;
+        let mut m = *before;
+        let s = self.scan_tokens(self.line_tokens(i), &mut m, |t| comments.push(self.text(t)));
         let moves = s.axes.iter().any(|a| a.is_some());
         let target_mm = if moves && m.motion != MotionMode::None && s.special.is_none() {
             match m.pos {
@@ -173,20 +173,20 @@ impl Program {
         }
     }
 
-    /// The interpretation of one line's tokens given the modal state before it (what
-    /// [`Program::interpret_line`] gives, without the comments' texts and the target), and where
-    /// its words are: one pass over the tokens, for the rewriter. `comment` is called with each
-    /// comment token in order.
+    /// The interpretation of one line's tokens: `m`, the modal state before the line, becomes the
+    /// state after it (what [`Program::interpret_line`] gives, without the comments' texts and
+    /// the target), and the words and where they are come back: one pass over the tokens, for
+    /// the rewriter. `comment` is called with each comment token in order. (The state is updated
+    /// where it lies: a copy of it built field by field and read back whole stalls the load.)
     #[inline]
     pub(crate) fn scan_tokens(
         &self,
         toks: &[Token],
-        before: &Modal,
+        m: &mut Modal,
         mut comment: impl FnMut(&Token),
     ) -> LineScan {
-        let mut m = *before;
+        let before_units = m.units;
         let mut s = LineScan {
-            after: m,
             axes: [None; 3],
             ijk: [None; 3],
             r: None,
@@ -271,9 +271,9 @@ impl Program {
                 _ => {}
             }
         }
-        if m.units != before.units {
+        if m.units != before_units {
             // The position is kept in program units: convert it when the units change.
-            let f = before.units.mm() / m.units.mm();
+            let f = before_units.mm() / m.units.mm();
             for p in m.pos.iter_mut() {
                 *p = p.map(|v| v * f);
             }
@@ -300,7 +300,6 @@ impl Program {
                 }
             }
         }
-        s.after = m;
         s
     }
 }
@@ -311,7 +310,6 @@ pub(crate) const NONE: u32 = u32::MAX;
 /// One line interpreted for the rewriter: the block's values and the positions (indices into
 /// the line's tokens, [`NONE`] when absent) of the words it edits.
 pub(crate) struct LineScan {
-    pub after: Modal,
     pub axes: [Option<f64>; 3],
     pub ijk: [Option<f64>; 3],
     pub r: Option<f64>,

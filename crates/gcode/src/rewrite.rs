@@ -427,12 +427,16 @@ impl Rewriter {
         let t = self.new_from_old.translation;
         let line = &p.lines[i];
         let toks = &p.tokens[line.tokens.clone()];
-        // One pass over the tokens: the block and where its words are.
-        let sc = p.scan_tokens(toks, &self.old, |_| {});
-        let after = sc.after;
+        // One pass over the tokens: the block and where its words are; `self.old` becomes the
+        // state after the line (read here as `after`). The state before it is kept only where
+        // an arc may be linearised (which starts from it).
+        let before_units = self.old.units;
+        let before = matches!(self.opts.arc_policy, ArcPolicy::Linearize { .. }).then_some(self.old);
+        let sc = p.scan_tokens(toks, &mut self.old, |_| {});
+        let after = &self.old;
         let units_mm = after.units.mm();
-        if after.units != self.old.units {
-            let f = self.old.units.mm() / units_mm;
+        if after.units != before_units {
+            let f = before_units.mm() / units_mm;
             for w in self.written.iter_mut() {
                 *w = w.map(|v| v * f);
             }
@@ -462,12 +466,10 @@ impl Rewriter {
                     self.written = [None; 3];
                 }
                 copy(out);
-                self.old = after;
                 return Ok(());
             }
             Some(Special::DataSetting) => {
                 copy(out);
-                self.old = after;
                 return Ok(());
             }
             _ => {}
@@ -475,7 +477,6 @@ impl Rewriter {
         let moving = has_axes && (after.motion != MotionMode::None || sc.special == Some(Special::Home));
         if !moving && !has_centre {
             copy(out);
-            self.old = after;
             return Ok(());
         }
         if moving && after.pos.iter().any(|p| p.is_none()) {
@@ -496,23 +497,22 @@ impl Rewriter {
             ));
         }
         let is_arc = matches!(after.motion, MotionMode::ArcCw | MotionMode::ArcCcw);
-        if let (true, true, ArcPolicy::Linearize { tolerance_mm }) =
-            (is_arc && moving, has_centre, self.opts.arc_policy)
+        if let (true, true, ArcPolicy::Linearize { tolerance_mm }, Some(before)) =
+            (is_arc && moving, has_centre, self.opts.arc_policy, before)
         {
             let n = after.plane.normal_axis();
             if (r[(n, n)].abs() - 1.0).abs() > MIX_EPS {
-                let blk = p.interpret_line(i, &self.old);
+                let blk = p.interpret_line(i, &before);
                 p.linearize_arc(
                     i,
                     &blk,
-                    &self.old,
+                    &before,
                     &self.new_from_old,
                     tolerance_mm,
                     dec,
                     &mut self.written,
                     out,
                 )?;
-                self.old = after;
                 return Ok(());
             }
         }
@@ -667,7 +667,6 @@ impl Rewriter {
         } else {
             p.emit_line(i, &mut edits.0, out);
         }
-        self.old = after;
         Ok(())
     }
 }
@@ -865,7 +864,8 @@ impl Program {
                 edits.push(k, REPLACE, 0, false, Txt::from(""));
             }
         }
-        let ins = InsertAt::of(&self.scan_tokens(toks, old, |_| {}));
+        let mut state = *old;
+        let ins = InsertAt::of(&self.scan_tokens(toks, &mut state, |_| {}));
         let axis_pos: Vec<usize> = (0..3).filter_map(|k| find(AXES[k])).collect();
         for (k, letter) in AXES.iter().enumerate() {
             let v = [q.x, q.y, q.z][k] / u;
