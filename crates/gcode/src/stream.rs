@@ -9,8 +9,9 @@
 //!
 //! Entry points:
 //! - [`transform_stream`]: read a `BufRead`, write a `Write`. A reader thread reads, tokenises
-//!   and evaluates the next pieces (two deep) while the caller's thread rewrites and writes the
-//!   current one, so both cores work.
+//!   and evaluates the next pieces (two deep) while a rewriting thread rewrites the current one
+//!   and the caller's thread writes the one before: the work of three stages on the cores there
+//!   are, in order.
 //! - [`StreamTransform`]: the same, pushed text by text from the caller's own loop.
 //!
 //! The first thing that cannot be executed or re-oriented, in program order, is the error;
@@ -20,7 +21,7 @@ use crate::expr::Params;
 use crate::rewrite::Rewriter;
 use crate::{GcodeError, Program, TransformOptions};
 use std::io::{BufRead, Write};
-use std::sync::mpsc::{sync_channel, SyncSender};
+use std::sync::mpsc::{sync_channel, Receiver, Sender, SyncSender};
 use truepos_math::Transform3;
 
 /// Bytes of text per piece.
@@ -132,8 +133,10 @@ impl StreamTransform {
 /// memory. On an error, what was written before it is an incomplete program: write into a file
 /// that is discarded on error.
 ///
-/// The reader runs on a thread of its own; on an error it is not waited for (on a pipe it may be
-/// blocked in a read), it ends at its next hand-over.
+/// Three threads: one reads and tokenises, one rewrites, and the caller's writes the output
+/// (its system calls overlap the rewriting of the next piece). On an error the other threads
+/// are not waited for (on a pipe the reader may be blocked in a read); they end at their next
+/// hand-over.
 pub fn transform_stream<R, W>(
     input: R,
     mut output: W,
@@ -151,19 +154,60 @@ where
         .name("truepos-gcode-reader".into())
         .spawn(move || read_pieces(input, tx, back_rx))
         .map_err(StreamError::Read)?;
-    let mut rw = Rewriter::new(new_from_old, opts);
-    let mut out = String::with_capacity(PIECE_BYTES + PIECE_BYTES / 4);
-    for piece in rx.iter() {
-        let piece = piece?;
-        out.clear();
-        rewrite_piece(&mut rw, &piece, &mut out)?;
-        let _ = back_tx.send(piece.program);
-        output.write_all(out.as_bytes()).map_err(StreamError::Write)?;
+    // Rewritten text to the caller, and its buffers back once written.
+    let (text_tx, text_rx) = sync_channel::<Result<String, StreamError>>(2);
+    let (free_tx, free_rx) = std::sync::mpsc::channel::<String>();
+    let rw = Rewriter::new(new_from_old, opts);
+    let rewriter = std::thread::Builder::new()
+        .name("truepos-gcode-rewriter".into())
+        .spawn(move || rewrite_pieces(rw, rx, back_tx, text_tx, free_rx))
+        .map_err(StreamError::Read)?;
+    for text in text_rx.iter() {
+        let text = text?;
+        output.write_all(text.as_bytes()).map_err(StreamError::Write)?;
+        let _ = free_tx.send(text);
     }
     output.flush().map_err(StreamError::Write)?;
-    // The channel closed: the reader has returned.
+    // The channel closed: the rewriter has returned, after the reader's channel closed.
+    let lines = match rewriter.join() {
+        Ok(lines) => lines,
+        Err(panic) => std::panic::resume_unwind(panic),
+    };
     let _ = reader.join();
-    Ok(StreamSummary { lines: rw.lines_done() })
+    Ok(StreamSummary { lines })
+}
+
+/// The rewriting thread: each piece rewritten into a buffer (one the caller has written and
+/// handed back, when there is one) and sent on, in order; the first error is sent instead of
+/// its piece's text, and ends the rewriting. Returns the count of lines.
+fn rewrite_pieces(
+    mut rw: Rewriter,
+    pieces: Receiver<Result<Piece, StreamError>>,
+    back: Sender<Program>,
+    texts: SyncSender<Result<String, StreamError>>,
+    free: Receiver<String>,
+) -> usize {
+    for piece in pieces.iter() {
+        let piece = match piece {
+            Ok(p) => p,
+            Err(e) => {
+                let _ = texts.send(Err(e));
+                break;
+            }
+        };
+        let mut out =
+            free.try_recv().unwrap_or_else(|_| String::with_capacity(PIECE_BYTES + PIECE_BYTES / 4));
+        out.clear();
+        if let Err(e) = rewrite_piece(&mut rw, &piece, &mut out) {
+            let _ = texts.send(Err(e.into()));
+            break;
+        }
+        let _ = back.send(piece.program);
+        if texts.send(Ok(out)).is_err() {
+            break;
+        }
+    }
+    rw.lines_done()
 }
 
 /// The reader thread: pieces of complete lines, tokenised and evaluated, in order. Stops after
