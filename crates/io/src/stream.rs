@@ -707,14 +707,18 @@ where
     Ok(RewriteSummary { n_points, n_chunks })
 }
 
-/// The first column name that could not be written back unchanged (it holds a comma or a
-/// quote: the header is written plain), with its index.
+/// The first column name that could not be written back unchanged, with its index: it holds a
+/// comma or a quote (the header is written plain), or a byte-order mark (which would open the
+/// output and be taken for the file's own).
 fn unwritable_name(header: &[String]) -> Option<(usize, &str)> {
-    header.iter().enumerate().find(|(_, n)| n.contains([',', '"'])).map(|(i, n)| (i, n.as_str()))
+    header.iter().enumerate().find(|(_, n)| n.contains([',', '"', '\u{feff}'])).map(|(i, n)| (i, n.as_str()))
 }
 
 fn unwritable_message(name: &str) -> String {
-    format!("column name '{name}' holds a comma or a quote: the output could not carry it unchanged (rename the column)")
+    format!(
+        "column name '{}' holds a comma, a quote or a byte-order mark: the output could not carry it unchanged (rename the column)",
+        name.replace('\u{feff}', "<BOM>")
+    )
 }
 
 /// [`rewrite_points`] for binary files: a Parquet or E57 input, or a Parquet output (by
