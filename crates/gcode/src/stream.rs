@@ -168,12 +168,16 @@ where
         let _ = free_tx.send(text);
     }
     output.flush().map_err(StreamError::Write)?;
-    // The channel closed: the rewriter has returned, after the reader's channel closed.
+    // The channel closed: the rewriter has returned, after the reader's channel closed. A
+    // stage that panicked closed its channel early: its panic is the caller's (not a shorter
+    // output taken for the whole).
     let lines = match rewriter.join() {
         Ok(lines) => lines,
         Err(panic) => std::panic::resume_unwind(panic),
     };
-    let _ = reader.join();
+    if let Err(panic) = reader.join() {
+        std::panic::resume_unwind(panic);
+    }
     Ok(StreamSummary { lines })
 }
 
