@@ -159,7 +159,8 @@ where
     let (free_tx, free_rx) = std::sync::mpsc::channel::<String>();
     let rw = Rewriter::new(new_from_old, opts);
     let rewriter = std::thread::Builder::new()
-        .name("truepos-gcode-rewriter".into())
+        // (Thread names are cut to 15 bytes in profilers: "truepos-gcode-r" is the reader.)
+        .name("truepos-rewriter".into())
         .spawn(move || rewrite_pieces(rw, rx, back_tx, text_tx, free_rx))
         .map_err(StreamError::Read)?;
     for text in text_rx.iter() {
