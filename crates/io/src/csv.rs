@@ -35,6 +35,18 @@ impl std::ops::Deref for Text {
     }
 }
 
+impl Text {
+    /// Let go of the text. A memory map is unmapped on a short-lived thread of its own: tearing
+    /// down the page tables of a large map takes milliseconds (about 2 ms for 30 MB) that the
+    /// caller, about to compute on what it parsed, need not wait for. (If no thread can be
+    /// started, the map is unmapped here.)
+    fn release(self) {
+        if let Text::Mapped(map) = self {
+            let _ = std::thread::Builder::new().name("truepos-unmap".into()).spawn(move || drop(map));
+        }
+    }
+}
+
 /// A parsed CSV file: the text, the header and the byte offset of each data row.
 pub struct Table {
     pub path: PathBuf,
@@ -148,13 +160,20 @@ pub fn read_file(path: &Path) -> Result<Vec<u8>, InputError> {
     crate::limits::read_text(path, "CSV")
 }
 
+/// Bytes per segment of [`line_segments`]: small enough that the segments of a large file
+/// outnumber the threads many times over (a thread held up, e.g. by the kernel clearing a fresh
+/// page of the output, leaves its remaining segments to the others), large enough that the
+/// per-segment bookkeeping stays negligible.
+const SEGMENT_BYTES: usize = 512 << 10;
+
 /// Boundaries `[0, …, len]` of segments of `bytes` cut just after line ends, about
-/// 4 × the worker threads of them when `bytes` is at least `min_len` long (else one segment).
+/// [`SEGMENT_BYTES`] each (at least 4 × the worker threads of them) when `bytes` is at least
+/// `min_len` long (else one segment).
 fn line_segments(bytes: &[u8], min_len: usize) -> Vec<usize> {
     let len = bytes.len();
     let mut bounds = vec![0];
     if len >= min_len {
-        let parts = 4 * rayon::current_num_threads();
+        let parts = (len / SEGMENT_BYTES).clamp(4 * rayon::current_num_threads(), 1 << 12);
         for k in 1..parts {
             let b = len * k / parts;
             let b = memchr::memchr(b'\n', &bytes[b..]).map_or(len, |p| b + p + 1);
@@ -514,7 +533,10 @@ impl Table {
             _ => None,
         };
         match rows {
-            Some(r) => Ok(Ok(r)),
+            Some(r) => {
+                text.release();
+                Ok(Ok(r))
+            }
             None => Self::from_text(path, text).map(Err),
         }
     }
@@ -985,7 +1007,7 @@ fn parse_row_fast_len(text: &[u8], slots: &[usize], d: &mut [f64]) -> Option<usi
         while i < n && (text[i] == b' ' || text[i] == b'\t') {
             i += 1;
         }
-        let (v, used) = crate::num::parse_f64_prefix(&text[i..])?;
+        let (v, used) = number_prefix(&text[i..])?;
         i += used;
         while i < n && (text[i] == b' ' || text[i] == b'\t') {
             i += 1;
@@ -1000,6 +1022,96 @@ fn parse_row_fast_len(text: &[u8], slots: &[usize], d: &mut [f64]) -> Option<usi
         return None;
     }
     Some(if i < n && text[i] == b'\r' { i + 1 } else { i })
+}
+
+/// The number at the start of `b`: [`crate::num::parse_f64_prefix`], through
+/// [`short_decimal_prefix`] first where the text is long enough for its 8-byte reads.
+#[inline(always)]
+fn number_prefix(b: &[u8]) -> Option<(f64, usize)> {
+    if b.len() >= SHORT_DECIMAL_READ {
+        if let Some(r) = short_decimal_prefix(b) {
+            return Some(r);
+        }
+    }
+    crate::num::parse_f64_prefix(b)
+}
+
+/// Bytes [`short_decimal_prefix`] may read: sign, 8 bytes of integer digits, the point, 8 bytes
+/// of fraction digits, the byte after the number.
+const SHORT_DECIMAL_READ: usize = 24;
+
+/// The common short decimal (`[+-]digits[.digits]`, at most 7 digits before and 7 after the
+/// point, at least one digit, no exponent after it) without a loop over its digits: each digit
+/// run is found and converted in one 8-byte word (SWAR), so the cost does not depend on how many
+/// digits there are and no branch follows the digit count (which varies from number to number
+/// and defeated the branch predictor). `None` for anything else, which the general parser then
+/// reads. With at most 14 digits the value is Clinger's one exact division, the very operation
+/// (and result, bit for bit) of `truepos_math::decimal::decimal_prefix` and of `str::parse`.
+/// Needs `b.len() >= SHORT_DECIMAL_READ`.
+#[inline(always)]
+fn short_decimal_prefix(b: &[u8]) -> Option<(f64, usize)> {
+    const POW10: [u64; 8] = [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000];
+    let neg = b[0] == b'-';
+    let s = usize::from(neg || b[0] == b'+');
+    let w = word(b, s);
+    let int_len = digit_run(w);
+    if int_len == 8 {
+        return None;
+    }
+    let mut end = s + int_len;
+    let mut mant = digits_value(w, int_len);
+    let mut frac_len = 0;
+    if b[end] == b'.' {
+        let f = word(b, end + 1);
+        frac_len = digit_run(f);
+        if frac_len == 8 {
+            return None;
+        }
+        mant = mant * POW10[frac_len] + digits_value(f, frac_len);
+        end += 1 + frac_len;
+    }
+    if int_len + frac_len == 0 || (b[end] | 0x20) == b'e' {
+        return None;
+    }
+    // mant < 10^14 < 2^53 and 10^frac_len are exact: one correctly rounded division.
+    let v = mant as f64 / truepos_math::decimal::POW10[frac_len];
+    Some((if neg { -v } else { v }, end))
+}
+
+/// The 8 bytes at `b[i..]` as a little-endian word (the first byte lowest).
+#[inline(always)]
+fn word(b: &[u8], i: usize) -> u64 {
+    let mut a = [0u8; 8];
+    a.copy_from_slice(&b[i..i + 8]);
+    u64::from_le_bytes(a)
+}
+
+/// How many of the bytes of `w` (first byte lowest) are ASCII digits before the first that is
+/// not (8 when all are).
+#[inline(always)]
+fn digit_run(w: u64) -> usize {
+    const HIGH: u64 = 0xF0F0_F0F0_F0F0_F0F0;
+    const THREES: u64 = 0x3030_3030_3030_3030;
+    // A digit 0x30..=0x39 has high nibble 3, and still has after adding 6 (0x3A..=0x3F do not).
+    // A carry out of a byte (0xFA..=0xFF + 6) only disturbs the bytes after a non-digit.
+    let bad = ((w & HIGH) ^ THREES) | ((w.wrapping_add(0x0606_0606_0606_0606) & HIGH) ^ THREES);
+    (bad.trailing_zeros() / 8) as usize
+}
+
+/// The value of the first `len` (≤ 8) bytes of `w`, all ASCII digits, the first byte the most
+/// significant digit.
+#[inline(always)]
+fn digits_value(w: u64, len: usize) -> u64 {
+    // The digits move to the top bytes, zeros (leading zero digits) come in below; a borrow of
+    // the subtraction only starts at a non-digit byte, which is shifted out.
+    let d = w.wrapping_sub(0x3030_3030_3030_3030);
+    let d = ((d as u128) << (64 - 8 * len)) as u64;
+    // Pairs, then quads, then all eight.
+    let d = d.wrapping_mul(10).wrapping_add(d >> 8);
+    const MASK: u64 = 0x0000_00FF_0000_00FF;
+    let lo = (d & MASK).wrapping_mul(100 + (1_000_000 << 32));
+    let hi = ((d >> 16) & MASK).wrapping_mul(1 + (10_000 << 32));
+    (lo.wrapping_add(hi) >> 32) as u32 as u64
 }
 
 /// Write CSV rows with a header; floats in shortest round-trip form (or a fixed number of
@@ -1362,6 +1474,58 @@ mod tests {
         }
     }
 
+    /// Whether `b` starts with `[+-]?d{0,7}(.d{0,7})?` with at least one digit, not followed by
+    /// a digit, `.` after the fraction, or an exponent: what [`short_decimal_prefix`] must read.
+    fn regex_like_short(b: &[u8]) -> bool {
+        let mut i = usize::from(matches!(b[0], b'-' | b'+'));
+        let run = |i: usize| b[i..].iter().take_while(|c| c.is_ascii_digit()).count();
+        let int = run(i);
+        i += int;
+        let mut frac = 0;
+        if b[i] == b'.' {
+            frac = run(i + 1);
+            i += 1 + frac;
+        }
+        int <= 7 && frac <= 7 && int + frac > 0 && !matches!(b[i] | 0x20, b'e')
+    }
+
+    #[test]
+    fn short_decimal_cases() {
+        let pad = |s: &str| format!("{s},0000000000000000000000000");
+        for (s, want) in [
+            ("0", Some((0.0, 1))),
+            ("-0.0", Some((-0.0, 4))),
+            ("+1.5", Some((1.5, 4))),
+            ("1.", Some((1.0, 2))),
+            (".5", Some((0.5, 2))),
+            ("-.5", Some((-0.5, 3))),
+            ("00012.500", Some((12.5, 9))),
+            ("1234567.1234567", Some((1234567.1234567, 15))),
+            ("-12.345678", Some((-12.345678, 10))),
+            ("12345678.1", None),
+            ("1.12345678", None),
+            ("1e5", None),
+            ("1.5E3", None),
+            (".", None),
+            ("-", None),
+            ("", None),
+        ] {
+            let b = pad(s);
+            let got = short_decimal_prefix(b.as_bytes());
+            assert_eq!(
+                got.map(|(v, n)| (v.to_bits(), n)),
+                want.map(|(v, n): (f64, usize)| (v.to_bits(), n)),
+                "{s}"
+            );
+        }
+        // Non-ASCII bytes (0xFA..=0xFF carry when 6 is added) after the digits.
+        let b = [
+            b'1', b'2', 0xff, 0xfa, b'3', b'4', b'5', b'6', b'7', b'8', b'9', b'0', b'1', b'2', b'3', b'4',
+            b'5', b'6', b'7', b'8', b'9', b'0', b'1', b'2',
+        ];
+        assert_eq!(short_decimal_prefix(&b), Some((12.0, 2)));
+    }
+
     proptest::proptest! {
         /// The fast path is bit-identical to `str::parse` on every decimal it accepts.
         #[test]
@@ -1369,6 +1533,26 @@ mod tests {
             let s = format!("{}{}.{:0width$}", if neg { "-" } else { "" }, int, frac % 10u64.pow(fd as u32), width = fd);
             let want: f64 = s.parse().unwrap();
             proptest::prop_assert_eq!(parse_f64(&s).unwrap().to_bits(), want.to_bits(), "{}", s);
+        }
+
+        /// The SWAR short-decimal path reads what the general parser reads (value bit for bit,
+        /// length), or declines; numbers of up to 7 + 7 digits are never declined.
+        #[test]
+        fn short_decimal_matches_general(text in "[-+]?[0-9]{0,9}(\\.[0-9]{0,9})?[eE,\n .x0-9]?[0-9]?", tail in "[,\n0-9a-z.]{24}") {
+            let b = format!("{text}{tail}");
+            let b = b.as_bytes();
+            let general = crate::num::parse_f64_prefix(b);
+            match short_decimal_prefix(b) {
+                Some((v, n)) => {
+                    let (g, gn) = general.expect("the general parser reads it too");
+                    proptest::prop_assert_eq!((v.to_bits(), n), (g.to_bits(), gn), "{}", text);
+                }
+                None => {
+                    let num = regex_like_short(b);
+                    proptest::prop_assert!(!num, "declined a short decimal: {}", text);
+                }
+            }
+            proptest::prop_assert_eq!(number_prefix(b).map(|(v, n)| (v.to_bits(), n)), general.map(|(v, n)| (v.to_bits(), n)));
         }
 
         /// The quote-free splitter agrees with the general one.
