@@ -930,7 +930,18 @@ fn parse_segment<const K: usize>(
 ) -> Option<usize> {
     let mut pos = 0;
     let mut r = 0;
+    // The wanted columns are the row's columns in order (`x_mm,y_mm,z_mm` for points): rows
+    // of plain numbers take the short path first.
+    let in_order = slots.len() == K && slots.iter().enumerate().all(|(c, &s)| s == c);
     while pos < seg.len() {
+        if in_order && r < cap {
+            if let Some((d, used)) = parse_row_plain::<K>(&seg[pos..]) {
+                put(r, d);
+                r += 1;
+                pos += used + 1;
+                continue;
+            }
+        }
         let mut i = pos;
         while i < seg.len() && matches!(seg[i], b' ' | b'\t' | b'\r' | 0x0b | 0x0c) {
             i += 1;
@@ -960,6 +971,30 @@ fn parse_segment<const K: usize>(
         pos += used + 1;
     }
     Some(r)
+}
+
+/// The most common row, `K` short decimals (see [`short_decimal_prefix`]) separated by single
+/// commas and ended by `\n`, nothing else (no spaces, no `\r`, no other column): its values
+/// and the offset of its `\n`, exactly what [`parse_row_fast_len`] gives for it when the `K`
+/// columns are all wanted in order, with none of its per-field generality. `None` for any
+/// other row (the caller then takes the general row parser).
+#[inline(always)]
+fn parse_row_plain<const K: usize>(text: &[u8]) -> Option<([f64; K], usize)> {
+    let mut d = [0.0; K];
+    let mut i = 0;
+    for (k, v) in d.iter_mut().enumerate() {
+        if text.len() - i < SHORT_DECIMAL_READ {
+            return None;
+        }
+        let (x, used) = short_decimal_prefix(&text[i..])?;
+        *v = x;
+        i += used;
+        if text[i] != if k + 1 < K { b',' } else { b'\n' } {
+            return None;
+        }
+        i += 1;
+    }
+    Some((d, i - 1))
 }
 
 pub use crate::num::parse_f64;
@@ -1518,6 +1553,13 @@ mod tests {
                 "{s}"
             );
         }
+        // Rows: plain ones are taken, anything else is left to the general row parser.
+        let row = |s: &str| parse_row_plain::<3>(format!("{s}000000000000000000000000").as_bytes());
+        assert_eq!(row("1.5,-2.25,3\n"), Some(([1.5, -2.25, 3.0], 11)));
+        for other in ["1.5,-2.25,3\r\n", "1.5, -2.25,3\n", "1.5,-2.25\n", "1.5,-2.25,3,4\n", "#1,2,3\n", "\n"]
+        {
+            assert_eq!(row(other), None, "{other:?}");
+        }
         // Non-ASCII bytes (0xFA..=0xFF carry when 6 is added) after the digits.
         let b = [
             b'1', b'2', 0xff, 0xfa, b'3', b'4', b'5', b'6', b'7', b'8', b'9', b'0', b'1', b'2', b'3', b'4',
@@ -1553,6 +1595,18 @@ mod tests {
                 }
             }
             proptest::prop_assert_eq!(number_prefix(b).map(|(v, n)| (v.to_bits(), n)), general.map(|(v, n)| (v.to_bits(), n)));
+        }
+
+        /// The plain-row path gives what the general row parser gives, or declines.
+        #[test]
+        fn plain_rows_match_the_row_parser(fields in proptest::collection::vec("-?[0-9]{0,8}(\\.[0-9]{0,8})?|[ a-z\r\"]{1,2}[0-9]?", 3), end in "(\r?\n|,|\r| )", tail in "[0-9,\n]{24}") {
+            let line = format!("{}{end}{tail}", fields.join(","));
+            let b = line.as_bytes();
+            let mut d = [0.0; 3];
+            let general = parse_row_fast_len(b, &[0, 1, 2], &mut d).map(|n| (d.map(f64::to_bits), n));
+            if let Some((p, n)) = parse_row_plain::<3>(b) {
+                proptest::prop_assert_eq!(Some((p.map(f64::to_bits), n)), general, "{:?}", line);
+            }
         }
 
         /// The quote-free splitter agrees with the general one.
