@@ -142,17 +142,95 @@ fn split_fields_fast(line: &[u8], out: &mut Vec<(usize, usize)>) -> bool {
 /// when mapping fails: the caller then reads it). Mapping saves the kernel copy of the whole
 /// file; the pages come straight from the page cache. Files over the size limit are refused.
 fn map_large_file(path: &Path) -> Result<Option<memmap2::Mmap>, InputError> {
+    map_large_file_with(path, true)
+}
+
+/// [`map_large_file`]; `populate`: the page tables are filled in one go (the file is about to
+/// be read whole), instead of one page fault per few pages. (Without it the caller populates
+/// when it is ready to, e.g. after starting other work.)
+fn map_large_file_with(path: &Path, populate: bool) -> Result<Option<memmap2::Mmap>, InputError> {
     let Ok(file) = std::fs::File::open(path) else { return Ok(None) };
     let Ok(meta) = file.metadata() else { return Ok(None) };
     crate::limits::check_file_size(path, &meta)?;
     if !meta.is_file() || meta.len() < 8 << 20 {
         return Ok(None);
     }
+    let mut options = memmap2::MmapOptions::new();
+    if populate {
+        options.populate();
+    }
     // SAFETY: a private read-only map; the input file is not expected to change while truepos
     // reads it (as with any reader, a file truncated meanwhile is an error the OS reports).
-    // `populate`: the page tables are filled in one go (the file is about to be read whole),
-    // instead of one page fault per few pages.
-    Ok(unsafe { memmap2::MmapOptions::new().populate().map(&file).ok() })
+    Ok(unsafe { options.map(&file).ok() })
+}
+
+/// An output vector whose first slots the kernel backs with memory on a thread of its own
+/// while the caller does other work: the kernel clears every fresh page before a process sees
+/// it (about 1 ms per 24 MB when it has cleared huge pages at hand, tens of ms when it has
+/// not), and this moves that clearing off the threads that parse. Rows are written into the
+/// vector's spare capacity while the thread may still be at work: it only asks the kernel to
+/// map pages (`MADV_POPULATE_WRITE`), which never changes what a page holds.
+struct Prefaulted<T> {
+    vec: Vec<T>,
+    worker: Option<std::thread::JoinHandle<()>>,
+}
+
+impl<T> Prefaulted<T> {
+    /// A vector of capacity `cap`; the pages of its first `touch` slots are populated on a new
+    /// thread (Linux; elsewhere, or if no thread starts, it is a plain vector).
+    fn start(cap: usize, touch: usize) -> Self {
+        let mut vec = Vec::with_capacity(cap);
+        advise_huge_pages(vec.spare_capacity_mut());
+        #[cfg(target_os = "linux")]
+        let worker = {
+            const PAGE: usize = 4096;
+            let start = vec.as_mut_ptr() as usize;
+            let end = start + touch.min(cap) * std::mem::size_of::<T>();
+            let (a, b) = (start.next_multiple_of(PAGE), end / PAGE * PAGE);
+            (b > a)
+                .then(|| {
+                    std::thread::Builder::new().name("truepos-prefault".into()).spawn(move || {
+                        // SAFETY: `a..b` lies inside the vector's allocation, which outlives
+                        // this thread (`Prefaulted` joins it before the vector can be dropped
+                        // or handed out); MADV_POPULATE_WRITE only maps pages and leaves what
+                        // they hold (zeros, or rows already written) unchanged.
+                        unsafe { libc::madvise(a as *mut libc::c_void, b - a, libc::MADV_POPULATE_WRITE) };
+                    })
+                })
+                .and_then(Result::ok)
+        };
+        #[cfg(not(target_os = "linux"))]
+        let worker = {
+            let _ = touch;
+            None
+        };
+        Self { vec, worker }
+    }
+
+    fn join(&mut self) {
+        if let Some(w) = self.worker.take() {
+            let _ = w.join();
+        }
+    }
+
+    /// The vector, once the thread is done.
+    fn finish(mut self) -> Vec<T> {
+        self.join();
+        std::mem::take(&mut self.vec)
+    }
+}
+
+impl<T> Drop for Prefaulted<T> {
+    fn drop(&mut self) {
+        // Before the vector is freed.
+        self.join();
+    }
+}
+
+/// Lines a text of `len` bytes holds by the line length of its first 64 KiB (`sample`).
+fn estimated_lines(len: usize, sample: &[u8]) -> usize {
+    let lines = memchr::memchr_iter(b'\n', sample).count().max(1);
+    len / sample.len().div_ceil(lines).max(1)
 }
 
 /// Read a whole file with the bounds of [`crate::limits`] (size, line length, no NUL bytes).
@@ -462,7 +540,18 @@ impl Table {
         if crate::parquet_file::is_parquet(path) || crate::e57_file::is_e57(path) {
             return Self::read(path).map(Err);
         }
-        Self::rows_direct(path, Self::checked_text(path)?, names)
+        let Some(map) = map_large_file_with(path, false)? else {
+            return Self::rows_direct(path, Self::checked_text(path)?, names);
+        };
+        // The output is backed while the input's page tables are filled (two threads, two
+        // cores: the second core is otherwise idle here).
+        let sample = &map[..map.len().min(64 << 10)];
+        let est = estimated_lines(map.len(), sample);
+        // 3 % to spare for lines longer at the start than later (else a new vector is taken).
+        let out = Prefaulted::start(est + est / 32 + 64, est);
+        let _ = map.advise(memmap2::Advice::PopulateRead);
+        Self::check_bytes(path, &map[..])?;
+        Self::rows_direct_into(path, Text::Mapped(map), names, Some(out))
     }
 
     /// The text of a CSV file, mapped when large, with the checks of [`Table::read`] (size, NUL
@@ -525,11 +614,21 @@ impl Table {
         text: Text,
         names: &[&str; K],
     ) -> Result<Result<Vec<[f64; K]>, Table>, InputError> {
+        Self::rows_direct_into(path, text, names, None)
+    }
+
+    /// [`rows_direct`](Self::rows_direct) into `out` when its capacity suffices.
+    fn rows_direct_into<const K: usize>(
+        path: &Path,
+        text: Text,
+        names: &[&str; K],
+        out: Option<Prefaulted<[f64; K]>>,
+    ) -> Result<Result<Vec<[f64; K]>, Table>, InputError> {
         let (header, _, data) = Self::head(path, &text)?;
         let idx: Option<Vec<usize>> = names.iter().map(|n| header.iter().position(|h| h == n)).collect();
         let plain = !header.iter().any(|h| h == "id");
         let rows = match idx {
-            Some(idx) if plain => direct_rows::<K>(&text.as_bytes()[data..], header.len(), &idx),
+            Some(idx) if plain => direct_rows::<K>(&text.as_bytes()[data..], header.len(), &idx, out),
             _ => None,
         };
         match rows {
@@ -781,11 +880,20 @@ impl Rows<'_> {
 /// take (or a non-ASCII or too long line): the caller then takes the general path.
 /// The output is sized once by the line count (a line gives at most one row); segments that
 /// skipped lines are moved down afterwards.
-fn direct_rows<const K: usize>(data: &[u8], width: usize, idx: &[usize]) -> Option<Vec<[f64; K]>> {
+fn direct_rows<const K: usize>(
+    data: &[u8],
+    width: usize,
+    idx: &[usize],
+    out: Option<Prefaulted<[f64; K]>>,
+) -> Option<Vec<[f64; K]>> {
     let slots = direct_slots(width, idx)?;
     let (bounds, lines, total) = direct_segments(data);
-    let mut out: Vec<[f64; K]> = Vec::with_capacity(total);
-    advise_huge_pages(out.spare_capacity_mut());
+    // The vector prepared while the file was mapped if it holds every line, else a new one.
+    let mut pre = match out {
+        Some(p) if p.vec.capacity() >= total => p,
+        _ => Prefaulted::start(total, 0),
+    };
+    let out = &mut pre.vec;
     let parts = split_parts(&mut out.spare_capacity_mut()[..total], &lines);
     let filled: Option<Vec<usize>> = parts
         .into_par_iter()
@@ -799,8 +907,8 @@ fn direct_rows<const K: usize>(data: &[u8], width: usize, idx: &[usize]) -> Opti
     let filled = filled?;
     // SAFETY: each segment wrote rows `0..f` of its part (`parse_segment` calls `put` for
     // consecutive rows from 0 and returns their count).
-    unsafe { compact(&mut out, &lines, &filled) };
-    Some(out)
+    unsafe { compact(out, &lines, &filled) };
+    Some(pre.finish())
 }
 
 /// [`direct_rows`] for a time stream: column `idx[0]` into one vector, `idx[1..4]` into another
@@ -1431,6 +1539,38 @@ mod tests {
             }
         }
         assert!(direct("x_mm,y_mm,z_mm\n").unwrap().unwrap().is_empty());
+    }
+
+    /// A large (mapped) file read directly, into the output prepared while it was mapped or,
+    /// when its first 64 KiB have longer lines than the rest (more rows than estimated), into
+    /// a new one: the general path's rows either way; a bad value still comes back as the table.
+    #[test]
+    fn mapped_direct_rows_match_the_general_path() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("big.csv");
+        let names = ["x_mm", "y_mm", "z_mm"];
+        for long_start in [false, true] {
+            let mut s = String::from("x_mm,note,y_mm,z_mm\n");
+            let mut i = 0u64;
+            while s.len() < (9 << 20) {
+                let note = if long_start && s.len() < (80 << 10) { "n".repeat(200) } else { String::new() };
+                s.push_str(&format!("{}.{:03},{note},-{}.5,{}\n", i % 997, i % 1000, i % 13, i));
+                i += 1;
+            }
+            std::fs::write(&p, &s).unwrap();
+            let d = Table::read_rows_direct(&p, &names).unwrap().expect("plain file takes the direct path");
+            let g = Table::read(&p).unwrap().f64_rows(&names).unwrap();
+            assert_eq!(d.len(), i as usize);
+            assert!(d.iter().flatten().zip(g.iter().flatten()).all(|(a, b)| a.to_bits() == b.to_bits()));
+            let bad = s.replacen("\n5.005,", "\n5.0x5,", 1);
+            std::fs::write(&p, &bad).unwrap();
+            let e = Table::read_rows_direct(&p, &names)
+                .unwrap()
+                .expect_err("table")
+                .f64_rows(&names)
+                .unwrap_err();
+            assert_eq!((e.line, e.column), (Some(7), Some(1)));
+        }
     }
 
     /// The direct stream reader gives the general path's columns bit for bit, and hands back
