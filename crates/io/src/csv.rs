@@ -444,25 +444,32 @@ impl Table {
     /// parallel segments cut after line ends (a line end is never inside a UTF-8 character, so
     /// each segment validates on its own and finds the same first bad byte).
     fn check_bytes(path: &Path, bytes: &[u8]) -> Result<(), InputError> {
-        let segments = line_segments(bytes, 1 << 22);
-        let (nul, utf8) = segments
+        Self::check_counted(path, bytes, false).map(|_| ())
+    }
+
+    /// [`check_bytes`](Self::check_bytes) that also counts the lines of each segment when
+    /// `count` (in the same visit of the segment, while it is in cache): the segments
+    /// [`direct_rows`] parses.
+    fn check_counted(path: &Path, bytes: &[u8], count: bool) -> Result<Segments, InputError> {
+        let bounds = line_segments(bytes, if count { 1 << 20 } else { 1 << 22 });
+        let per: Vec<(Option<usize>, Option<usize>, usize)> = bounds
             .par_windows(2)
             .map(|w| {
                 let seg = &bytes[w[0]..w[1]];
                 let nul = memchr::memchr(0, seg).map(|p| w[0] + p);
                 let utf8 = std::str::from_utf8(seg).err().map(|e| w[0] + e.valid_up_to());
-                (nul, utf8)
+                (nul, utf8, if count { segment_lines(seg) } else { 0 })
             })
-            .reduce(|| (None, None), |a, b| (a.0.or(b.0), a.1.or(b.1)));
-        if let Some(p) = nul {
+            .collect();
+        if let Some(p) = per.iter().find_map(|s| s.0) {
             let line = memchr::memchr_iter(b'\n', &bytes[..p]).count() + 1;
             return Err(crate::limits::binary(path, line, "CSV"));
         }
-        if let Some(p) = utf8 {
+        if let Some(p) = per.iter().find_map(|s| s.1) {
             let line = memchr::memchr_iter(b'\n', &bytes[..p]).count() + 1;
             return Err(InputError::at(path, line, None, "not valid UTF-8 text: not a CSV file"));
         }
-        Ok(())
+        Ok(Segments { lines: per.iter().map(|s| s.2).collect(), bounds })
     }
 
     /// Index CSV data that came from `path` (used in messages).
@@ -550,8 +557,8 @@ impl Table {
         // 3 % to spare for lines longer at the start than later (else a new vector is taken).
         let out = Prefaulted::start(est + est / 32 + 64, est);
         let _ = map.advise(memmap2::Advice::PopulateRead);
-        Self::check_bytes(path, &map[..])?;
-        Self::rows_direct_into(path, Text::Mapped(map), names, Some(out))
+        let segments = Self::check_counted(path, &map[..], true)?;
+        Self::rows_direct_into(path, Text::Mapped(map), names, Some(out), Some(segments))
     }
 
     /// The text of a CSV file, mapped when large, with the checks of [`Table::read`] (size, NUL
@@ -614,21 +621,27 @@ impl Table {
         text: Text,
         names: &[&str; K],
     ) -> Result<Result<Vec<[f64; K]>, Table>, InputError> {
-        Self::rows_direct_into(path, text, names, None)
+        Self::rows_direct_into(path, text, names, None, None)
     }
 
-    /// [`rows_direct`](Self::rows_direct) into `out` when its capacity suffices.
+    /// [`rows_direct`](Self::rows_direct) into `out` when its capacity suffices, with the
+    /// text's `segments` (from [`check_counted`](Self::check_counted)) when known.
     fn rows_direct_into<const K: usize>(
         path: &Path,
         text: Text,
         names: &[&str; K],
         out: Option<Prefaulted<[f64; K]>>,
+        segments: Option<Segments>,
     ) -> Result<Result<Vec<[f64; K]>, Table>, InputError> {
         let (header, _, data) = Self::head(path, &text)?;
         let idx: Option<Vec<usize>> = names.iter().map(|n| header.iter().position(|h| h == n)).collect();
         let plain = !header.iter().any(|h| h == "id");
         let rows = match idx {
-            Some(idx) if plain => direct_rows::<K>(&text.as_bytes()[data..], header.len(), &idx, out),
+            Some(idx) if plain => {
+                let bytes = text.as_bytes();
+                let segments = segments.map(|s| s.after(bytes, data));
+                direct_rows::<K>(&bytes[data..], header.len(), &idx, out, segments)
+            }
             _ => None,
         };
         match rows {
@@ -885,9 +898,10 @@ fn direct_rows<const K: usize>(
     width: usize,
     idx: &[usize],
     out: Option<Prefaulted<[f64; K]>>,
+    segments: Option<(Vec<usize>, Vec<usize>, usize)>,
 ) -> Option<Vec<[f64; K]>> {
     let slots = direct_slots(width, idx)?;
-    let (bounds, lines, total) = direct_segments(data);
+    let (bounds, lines, total) = segments.unwrap_or_else(|| direct_segments(data));
     // The vector prepared while the file was mapped if it holds every line, else a new one.
     let mut pre = match out {
         Some(p) if p.vec.capacity() >= total => p,
@@ -962,15 +976,41 @@ fn direct_slots(width: usize, idx: &[usize]) -> Option<Vec<usize>> {
 /// without `\n` counts too: an upper bound of its rows) and their total.
 fn direct_segments(data: &[u8]) -> (Vec<usize>, Vec<usize>, usize) {
     let bounds = line_segments(data, 1 << 20);
-    let lines: Vec<usize> = bounds
-        .par_windows(2)
-        .map(|w| {
-            let seg = &data[w[0]..w[1]];
-            memchr::memchr_iter(b'\n', seg).count() + usize::from(seg.last().is_some_and(|&b| b != b'\n'))
-        })
-        .collect();
+    let lines: Vec<usize> = bounds.par_windows(2).map(|w| segment_lines(&data[w[0]..w[1]])).collect();
     let total = lines.iter().sum();
     (bounds, lines, total)
+}
+
+/// Lines of a segment: its `\n`s, and a last line without one.
+fn segment_lines(seg: &[u8]) -> usize {
+    memchr::memchr_iter(b'\n', seg).count() + usize::from(seg.last().is_some_and(|&b| b != b'\n'))
+}
+
+/// Segments of a whole text cut after line ends ([`line_segments`]) with the line count of
+/// each ([`segment_lines`]).
+struct Segments {
+    bounds: Vec<usize>,
+    lines: Vec<usize>,
+}
+
+impl Segments {
+    /// The segments of `bytes[from..]` (`from` at a line start), as [`direct_segments`] gives
+    /// them: bounds relative to `from`, line counts, total. The segment holding `from` loses the
+    /// lines before it; segments before it are left out.
+    fn after(&self, bytes: &[u8], from: usize) -> (Vec<usize>, Vec<usize>, usize) {
+        let mut bounds = vec![0];
+        let mut lines = Vec::with_capacity(self.lines.len());
+        for (w, &n) in self.bounds.windows(2).zip(&self.lines) {
+            if w[1] <= from {
+                continue;
+            }
+            let before = if w[0] < from { memchr::memchr_iter(b'\n', &bytes[w[0]..from]).count() } else { 0 };
+            bounds.push(w[1] - from);
+            lines.push(n - before);
+        }
+        let total = lines.iter().sum();
+        (bounds, lines, total)
+    }
 }
 
 /// `buf` cut into consecutive parts of `lines[k]` slots each.
@@ -1217,7 +1257,8 @@ fn short_decimal_prefix(b: &[u8]) -> Option<(f64, usize)> {
         return None;
     }
     // mant < 10^14 < 2^53 and 10^frac_len are exact: one correctly rounded division.
-    let v = mant as f64 / truepos_math::decimal::POW10[frac_len];
+    // (`as i64` first: one conversion instruction; the unsigned one takes several.)
+    let v = (mant as i64) as f64 / truepos_math::decimal::POW10[frac_len];
     Some((if neg { -v } else { v }, end))
 }
 
@@ -1570,6 +1611,44 @@ mod tests {
                 .f64_rows(&names)
                 .unwrap_err();
             assert_eq!((e.line, e.column), (Some(7), Some(1)));
+        }
+    }
+
+    /// The segments counted while checking, cut down to the data after the header (which may
+    /// start beyond the first segment), hold the lines `direct_segments` finds there, and
+    /// parse to the same rows.
+    #[test]
+    fn counted_segments_match_direct_segments() {
+        let names = ["x_mm", "y_mm", "z_mm"];
+        for comment_bytes in [10, 700 << 10] {
+            let mut s = String::new();
+            while s.len() < comment_bytes {
+                s.push_str("# a comment line before the header\n");
+            }
+            s.push_str("x_mm,y_mm,z_mm\n");
+            for i in 0..120_000u64 {
+                s.push_str(&format!("{i}.5,{},-{}.25\n", i % 11, i % 7));
+            }
+            s.push_str("1,2,3");
+            let bytes = s.as_bytes();
+            let segments = Table::check_counted(Path::new("t.csv"), bytes, true).unwrap();
+            assert!(segments.lines.len() > 4, "several segments");
+            let (_, _, data) = Table::head(Path::new("t.csv"), &s).unwrap();
+            let (bounds, lines, total) = segments.after(bytes, data);
+            let (b0, _, t0) = direct_segments(&bytes[data..]);
+            assert_eq!(total, t0);
+            assert_eq!(total, 120_001);
+            assert_eq!(
+                (bounds[0], bounds.last(), b0.last()),
+                (0, Some(&(s.len() - data)), Some(&(s.len() - data)))
+            );
+            assert_eq!(lines.len() + 1, bounds.len());
+            let idx = [0, 1, 2];
+            let a = direct_rows::<3>(&bytes[data..], 3, &idx, None, Some((bounds, lines, total))).unwrap();
+            let b = direct_rows::<3>(&bytes[data..], 3, &idx, None, None).unwrap();
+            let g = table(&s).unwrap().f64_rows(&names).unwrap();
+            assert_eq!(a, b);
+            assert_eq!(a, g);
         }
     }
 
