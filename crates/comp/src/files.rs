@@ -401,13 +401,29 @@ pub fn read_squareness(path: &Path) -> Result<Squareness, InputError> {
 }
 
 /// Write the volumetric errors at points (`truepos comp error --output`): `x_mm,y_mm,z_mm` and
-/// the error `ex_um,ey_um,ez_um`, atomically. A bad path rides in the `io::Error` as an
+/// the error `ex_um,ey_um,ez_um`, atomically; as Parquet for a `.parquet` path, else CSV. A bad path rides in the `io::Error` as an
 /// `OutputError`.
 pub fn write_errors(
     path: &Path,
     points: &[truepos_math::Point3],
     errors: &[truepos_math::Vector3],
 ) -> std::io::Result<()> {
+    if truepos_io::parquet_file::is_parquet(path) {
+        use truepos_io::parquet_file::{write_columns, ColumnData, Columns};
+        let col = |f: &dyn Fn(usize) -> f64| ColumnData::F64((0..points.len()).map(f).collect());
+        let cols = Columns {
+            names: ["x_mm", "y_mm", "z_mm", "ex_um", "ey_um", "ez_um"].map(String::from).to_vec(),
+            data: vec![
+                col(&|i| points[i].x),
+                col(&|i| points[i].y),
+                col(&|i| points[i].z),
+                col(&|i| errors[i].x * 1e3),
+                col(&|i| errors[i].y * 1e3),
+                col(&|i| errors[i].z * 1e3),
+            ],
+        };
+        return Ok(write_columns(path, &cols)?);
+    }
     let mut f = AtomicFile::create(path)?;
     {
         let mut w = CsvWriter::new(&mut f);

@@ -44,33 +44,39 @@ pub fn correct_file(
     hint: &str,
 ) -> Result<Summary, RewriteError> {
     let (mut sum_sq, mut max, mut iterations) = (0.0f64, 0.0f64, 0usize);
-    let mut d = Vec::new();
-    let summary = rewrite_points(input, output, ["dx_um", "dy_um", "dz_um"], fmt, |_, pts, ex| {
+    // Per piece: the sum of squared correction lengths, the largest length, the most iterations.
+    let piece = |_: usize, pts: &mut [truepos_math::Point3], ex: &mut [[f64; 3]]| {
         let refused = |e: CompError| (e.index(), format!("{e}{hint}"));
+        let mut its = 0;
         match mode {
             Mode::Commanded => {
                 let targets = pts.to_vec();
-                iterations = iterations.max(corr.compensate(pts).map_err(refused)?);
+                its = corr.compensate(pts).map_err(refused)?;
                 for ((c, t), e) in pts.iter().zip(&targets).zip(ex.iter_mut()) {
                     let v = c - t;
                     *e = [v.x * 1e3, v.y * 1e3, v.z * 1e3];
                 }
             }
             Mode::Measured => {
-                d.clear();
-                d.resize(pts.len(), Vector3::zeros());
+                let mut d = vec![Vector3::zeros(); pts.len()];
                 corr.correct_measured(pts, Some(&mut d)).map_err(refused)?;
                 for (v, e) in d.iter().zip(ex.iter_mut()) {
                     *e = [v.x * 1e3, v.y * 1e3, v.z * 1e3];
                 }
             }
         }
+        let (mut s2, mut m) = (0.0f64, 0.0f64);
         for e in ex.iter() {
             let n2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
-            sum_sq += n2;
-            max = max.max(n2.sqrt());
+            s2 += n2;
+            m = m.max(n2.sqrt());
         }
-        Ok(())
+        Ok((s2, m, its))
+    };
+    let summary = rewrite_points(input, output, ["dx_um", "dy_um", "dz_um"], fmt, piece, |(s2, m, its)| {
+        sum_sq += s2;
+        max = max.max(m);
+        iterations = iterations.max(its);
     })?;
     let n = summary.n_points;
     let rms_um = if n == 0 { 0.0 } else { (sum_sq / n as f64).sqrt() };

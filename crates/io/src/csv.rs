@@ -834,43 +834,11 @@ impl Rows<'_> {
         let n = self.rows.len();
         debug_assert_eq!(out.len(), n * k);
         const CHUNK: usize = 8 * 1024;
-        let width = self.width;
-        // Column → output slot (usize::MAX: not wanted), for the fused fast path.
-        let mut slots = vec![usize::MAX; width];
-        for (j, &c) in idx.iter().enumerate() {
-            if c < width {
-                slots[c] = j;
-            }
-        }
+        let slots = self.slots(idx);
         let work = |c: usize, dst: &mut [f64]| -> Option<RowError> {
-            let mut buf = Vec::with_capacity(width);
+            let mut buf = Vec::with_capacity(self.width);
             let first = c * CHUNK;
-            for row in first..(first + CHUNK).min(n) {
-                let d = &mut dst[(row - first) * k..(row - first + 1) * k];
-                // The fast path finds the row's end itself (no search for it first).
-                if parse_row_fast(&self.text[self.rows[row]..], &slots, d) {
-                    continue;
-                }
-                let line = self.line(row);
-                let text = std::str::from_utf8(line).unwrap_or("");
-                if !split_fields_fast(line, &mut buf) {
-                    split_fields(text, &mut buf);
-                }
-                if buf.len() != width {
-                    return Some(RowError { row, col: usize::MAX, text: buf.len().to_string() });
-                }
-                for (j, &col) in idx.iter().enumerate() {
-                    let (a, b) = buf[col];
-                    let f = &line[a..b];
-                    match crate::num::parse_f64_bytes(f) {
-                        Some(v) => d[j] = v,
-                        None => {
-                            return Some(RowError { row, col, text: String::from_utf8_lossy(f).into_owned() })
-                        }
-                    }
-                }
-            }
-            None
+            self.parse_range(first..(first + CHUNK).min(n), idx, &slots, dst, &mut buf).err()
         };
         let first_error = if k == 0 {
             (0..n.div_ceil(CHUNK)).into_par_iter().filter_map(|c| work(c, &mut [])).min_by_key(|e| e.row)
@@ -884,6 +852,143 @@ impl Rows<'_> {
             Some(e) => Err(e),
             None => Ok(()),
         }
+    }
+
+    /// Column → output slot (`usize::MAX`: not wanted) of the fused fast path, for columns `idx`.
+    pub(crate) fn slots(&self, idx: &[usize]) -> Vec<usize> {
+        let mut slots = vec![usize::MAX; self.width];
+        for (j, &c) in idx.iter().enumerate() {
+            if c < self.width {
+                slots[c] = j;
+            }
+        }
+        slots
+    }
+
+    /// Rows `range` split into fields and columns `idx` parsed, in one walk over each row: the
+    /// fields' byte ranges in the text (trimmed of spaces and tabs, quotes removed, as
+    /// [`split_fields`] gives them) are appended to `fields`, `width` per row, and the values go
+    /// to `dst` (row-major). For callers that write the rows back out with some fields replaced:
+    /// the passed-through fields need no second split. The first bad row of the range is
+    /// reported.
+    pub(crate) fn split_and_parse_range(
+        &self,
+        range: std::ops::Range<usize>,
+        idx: &[usize],
+        dst: &mut [f64],
+        fields: &mut Vec<(usize, usize)>,
+    ) -> Result<(), RowError> {
+        let k = idx.len();
+        let first = range.start;
+        let mut quoted = Vec::new();
+        let slots = self.slots(idx);
+        for row in range {
+            let s0 = self.rows[row];
+            let t = &self.text[s0..];
+            let base = fields.len();
+            let d = &mut dst[(row - first) * k..(row - first + 1) * k];
+            if split_parse_row_fast(t, s0, &slots, d, fields) {
+                continue;
+            }
+            // Anything unusual (quotes, a bad or missing value, a ragged row): split the row
+            // as the general reader does and report exactly what it would.
+            fields.truncate(base);
+            let n = t.len();
+            let (mut start, mut i) = (0, 0);
+            let mut has_quote = false;
+            loop {
+                while i < n {
+                    let b = t[i];
+                    if b == b',' || b == b'\n' {
+                        break;
+                    }
+                    if b == b'"' {
+                        has_quote = true;
+                        break;
+                    }
+                    i += 1;
+                }
+                if has_quote {
+                    break;
+                }
+                let last = i >= n || t[i] == b'\n';
+                let mut e = i;
+                if last && e > start && t[e - 1] == b'\r' {
+                    e -= 1;
+                }
+                let mut a = start;
+                while a < e && (t[a] == b' ' || t[a] == b'\t') {
+                    a += 1;
+                }
+                while e > a && (t[e - 1] == b' ' || t[e - 1] == b'\t') {
+                    e -= 1;
+                }
+                fields.push((s0 + a, s0 + e));
+                if last {
+                    break;
+                }
+                i += 1;
+                start = i;
+            }
+            if has_quote {
+                fields.truncate(base);
+                let line = self.line(row);
+                split_fields(std::str::from_utf8(line).unwrap_or(""), &mut quoted);
+                fields.extend(quoted.iter().map(|&(a, b)| (s0 + a, s0 + b)));
+            }
+            let got = fields.len() - base;
+            if got != self.width {
+                return Err(RowError { row, col: usize::MAX, text: got.to_string() });
+            }
+            for (j, &col) in idx.iter().enumerate() {
+                let (a, b) = fields[base + col];
+                let f = &self.text[a..b];
+                match crate::num::parse_f64_bytes(f) {
+                    Some(v) => d[j] = v,
+                    None => return Err(RowError { row, col, text: String::from_utf8_lossy(f).into_owned() }),
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Parse columns `idx` of rows `range` into `dst` (row-major, `range.len() × idx.len()`), on
+    /// the calling thread; `slots` from [`slots`](Self::slots), `buf` a scratch field list. The
+    /// first bad row of the range is reported.
+    pub(crate) fn parse_range(
+        &self,
+        range: std::ops::Range<usize>,
+        idx: &[usize],
+        slots: &[usize],
+        dst: &mut [f64],
+        buf: &mut Vec<(usize, usize)>,
+    ) -> Result<(), RowError> {
+        let k = idx.len();
+        let first = range.start;
+        for row in range {
+            let d = &mut dst[(row - first) * k..(row - first + 1) * k];
+            // The fast path finds the row's end itself (no search for it first).
+            if parse_row_fast(&self.text[self.rows[row]..], slots, d) {
+                continue;
+            }
+            let line = self.line(row);
+            let text = std::str::from_utf8(line).unwrap_or("");
+            if !split_fields_fast(line, buf) {
+                split_fields(text, buf);
+            }
+            if buf.len() != self.width {
+                return Err(RowError { row, col: usize::MAX, text: buf.len().to_string() });
+            }
+            for (j, &col) in idx.iter().enumerate() {
+                let (a, b) = buf[col];
+                let f = &line[a..b];
+                match crate::num::parse_f64_bytes(f) {
+                    Some(v) => d[j] = v,
+                    None => return Err(RowError { row, col, text: String::from_utf8_lossy(f).into_owned() }),
+                }
+            }
+        }
+        Ok(())
     }
 }
 
@@ -1298,6 +1403,69 @@ fn digits_value(w: u64, len: usize) -> u64 {
     (lo.wrapping_add(hi) >> 32) as u32 as u64
 }
 
+/// The fast path of [`Rows::split_and_parse_range`] for one row (`text` from the row's start,
+/// `s0` its offset in the whole text): wanted columns (`slots`) are parsed where they start,
+/// without a scan for their end first; only the other fields are walked byte by byte. Every
+/// field's range (absolute, spaces trimmed) is appended to `fields`. `false` (with `fields`
+/// and `d` unspecified) at anything the general path must decide: a quote, a value that is not
+/// a plain number, a ragged row.
+#[inline(always)]
+fn split_parse_row_fast(
+    text: &[u8],
+    s0: usize,
+    slots: &[usize],
+    d: &mut [f64],
+    fields: &mut Vec<(usize, usize)>,
+) -> bool {
+    let n = text.len();
+    let line_end =
+        |i: usize| i >= n || text[i] == b'\n' || (text[i] == b'\r' && (i + 1 >= n || text[i + 1] == b'\n'));
+    let mut i = 0;
+    for (col, &slot) in slots.iter().enumerate() {
+        if col > 0 {
+            // The previous field ended at a comma.
+            if i >= n || text[i] != b',' {
+                return false;
+            }
+            i += 1;
+        }
+        while i < n && (text[i] == b' ' || text[i] == b'\t') {
+            i += 1;
+        }
+        let a = i;
+        let e;
+        if slot == usize::MAX {
+            while i < n && text[i] != b',' && text[i] != b'\n' {
+                if text[i] == b'"' {
+                    return false;
+                }
+                i += 1;
+            }
+            let mut end = i;
+            if end > a && text[end - 1] == b'\r' && (i >= n || text[i] == b'\n') {
+                end -= 1;
+            }
+            while end > a && (text[end - 1] == b' ' || text[end - 1] == b'\t') {
+                end -= 1;
+            }
+            e = end;
+        } else {
+            let Some((v, used)) = crate::num::parse_f64_prefix(&text[i..]) else { return false };
+            i += used;
+            e = i;
+            while i < n && (text[i] == b' ' || text[i] == b'\t') {
+                i += 1;
+            }
+            if !line_end(i) && text[i] != b',' {
+                return false;
+            }
+            d[slot] = v;
+        }
+        fields.push((s0 + a, s0 + e));
+    }
+    line_end(i)
+}
+
 /// Write CSV rows with a header; floats in shortest round-trip form (or a fixed number of
 /// decimals, [`CsvWriter::with_format`]). The fields of a row are gathered in memory and written
 /// with one call at [`end_row`](CsvWriter::end_row) (an unfinished row at
@@ -1338,13 +1506,7 @@ impl<W: Write> CsvWriter<W> {
     /// Append one field to the current row.
     pub fn field_str(&mut self, s: &str) -> std::io::Result<()> {
         self.sep();
-        if s.contains(',') || s.contains('"') {
-            self.row.push(b'"');
-            self.row.extend_from_slice(s.replace('"', "\"\"").as_bytes());
-            self.row.push(b'"');
-        } else {
-            self.row.extend_from_slice(s.as_bytes());
-        }
+        push_field(&mut self.row, s);
         Ok(())
     }
     #[inline]
@@ -1379,6 +1541,24 @@ impl<W: Write> CsvWriter<W> {
             let _ = self.w.write_all(&self.row);
         }
         self.w
+    }
+}
+
+/// Append `s` to `out` as one CSV field: quoted (inner quotes doubled) when it holds a comma or
+/// a quote, as is otherwise.
+#[inline]
+pub fn push_field(out: &mut Vec<u8>, s: &str) {
+    if s.as_bytes().iter().any(|&b| b == b',' || b == b'"') {
+        out.push(b'"');
+        for &b in s.as_bytes() {
+            if b == b'"' {
+                out.push(b'"');
+            }
+            out.push(b);
+        }
+        out.push(b'"');
+    } else {
+        out.extend_from_slice(s.as_bytes());
     }
 }
 
@@ -1536,6 +1716,48 @@ mod tests {
     /// The direct reader gives the general path's rows bit for bit (several parallel segments,
     /// comments, blank and CRLF lines, extra columns in any order), and on anything it does not
     /// take it hands back the table, whose error is today's (line and column).
+    #[test]
+    fn split_and_parse_matches_the_general_reader_row_by_row() {
+        // Rows the fast path takes and rows it hands to the general one: the values, every
+        // field's text and the first error (row, column) agree with `Table`'s general reader.
+        let rows = [
+            "P1,1.5,2,3,ok",
+            "  P2 , 1.25 ,\t-2\t,3e2,  spaced  ",
+            "P3,1,2,3,crlf\r",
+            "\"P,4\",1,2,3,\"q\"\"x\"",
+            "P5,\"7.5\",2,3,",
+            "P6,1,2,3,a\rb",
+            "P7,.5,-0.,+4,ab\"c",
+            "P8,1,2,3,x,extra",
+            "P9,1,2",
+            "P10,1,abc,3,x",
+            "P11,1,2 3,3,x",
+            "P12,,2,3,x",
+        ];
+        for (k, row) in rows.iter().enumerate() {
+            let text = format!("id,x_mm,y_mm,z_mm,note\n{row}\n");
+            let t = table(&text).unwrap();
+            let general = t.f64_rows(&["x_mm", "y_mm", "z_mm"]);
+            let view = Rows { text: t.text.as_bytes(), rows: &t.rows, width: t.header.len() };
+            let (mut d, mut f) = (vec![0.0; 3], Vec::new());
+            let fast = view.split_and_parse_range(0..1, &[1, 2, 3], &mut d, &mut f);
+            match (general, fast) {
+                (Ok(g), Ok(())) => {
+                    assert_eq!(g[0].to_vec(), d, "row {k}");
+                    let mut buf = Vec::new();
+                    let want = t.fields(0, &mut buf).unwrap();
+                    let got: Vec<&str> = f.iter().map(|&(a, b)| &t.text[a..b]).collect();
+                    assert_eq!(want, got, "row {k}");
+                }
+                (Err(g), Err(e)) => {
+                    let e = e.into_input_error(Path::new("t.csv"), &t.header, |r| t.line_number(r));
+                    assert_eq!((g.line, g.column), (e.line, e.column), "row {k}: {g} / {e}");
+                }
+                (g, e) => panic!("row {k}: general {g:?}, fast {e:?}"),
+            }
+        }
+    }
+
     #[test]
     fn direct_rows_match_the_general_path() {
         let names = ["x_mm", "y_mm", "z_mm"];
@@ -1788,6 +2010,34 @@ mod tests {
     }
 
     proptest::proptest! {
+        /// The rewrite's split-and-parse agrees with the general reader on any row: the same
+        /// values and fields, or an error at the same line and column.
+        #[test]
+        fn split_and_parse_matches_the_general_reader(fields in proptest::collection::vec("( |-|\\+)?[0-9]{0,6}(\\.[0-9]{0,6})?(e[0-9])? ?|[a-z\" \t]{0,3}|\"[a-z,\"]{0,3}\"", 1..7), cr in proptest::bool::ANY) {
+            let row = fields.join(",");
+            let text = format!("a,x_mm,y_mm,z_mm,b\n{row}{}\n", if cr { "\r" } else { "" });
+            let t = table(&text).unwrap();
+            proptest::prop_assume!(t.n_rows() == 1);
+            let general = t.f64_rows(&["x_mm", "y_mm", "z_mm"]);
+            let view = Rows { text: t.text.as_bytes(), rows: &t.rows, width: t.header.len() };
+            let (mut d, mut f) = (vec![0.0; 3], Vec::new());
+            let fast = view.split_and_parse_range(0..1, &[1, 2, 3], &mut d, &mut f);
+            match (general, fast) {
+                (Ok(g), Ok(())) => {
+                    proptest::prop_assert_eq!(g[0].iter().map(|v| v.to_bits()).collect::<Vec<_>>(), d.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+                    let mut buf = Vec::new();
+                    let want = t.fields(0, &mut buf).unwrap();
+                    let got: Vec<&str> = f.iter().map(|&(a, b)| &t.text[a..b]).collect();
+                    proptest::prop_assert_eq!(want, got);
+                }
+                (Err(g), Err(e)) => {
+                    let e = e.into_input_error(Path::new("t.csv"), &t.header, |r| t.line_number(r));
+                    proptest::prop_assert_eq!((g.line, g.column), (e.line, e.column));
+                }
+                (g, e) => proptest::prop_assert!(false, "general {:?}, fast {:?}", g, e),
+            }
+        }
+
         /// The fast path is bit-identical to `str::parse` on every decimal it accepts.
         #[test]
         fn fast_float_path_is_exact(int in 0u64..10_000_000_000, frac in 0u64..1_000_000_000, fd in 0usize..10, neg in proptest::bool::ANY) {

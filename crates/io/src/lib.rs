@@ -15,8 +15,10 @@
 //! - [`csv::CsvWriter`]: fast CSV output with shortest round-trip float formatting (or fixed
 //!   decimals), [`csv::format_rows_parallel`] for large outputs.
 //! - [`num`]: exact fast float parsing, shortest round-trip and fixed-decimal formatting.
-//! - [`stream::CsvStream`]: CSV in chunks with constant memory, reading overlapped with work;
-//!   [`stream::BackgroundWriter`] for the output side.
+//! - [`stream::CsvStream`]: CSV in chunks with constant memory, reading and row indexing on a
+//!   reader thread overlapped with work; [`stream::BackgroundWriter`] for the output side;
+//!   [`stream::rewrite_points`]: a point file through a per-piece transform into an output of
+//!   the same columns (CSV streamed; Parquet/E57 in, Parquet out by extension).
 //! - [`parquet_file`]: Parquet point and stream files (same column names), read and written.
 //! - [`e57_file`]: E57 point clouds (ASTM E2807) as point files: every scan, in mm, invalid
 //!   points skipped and counted.

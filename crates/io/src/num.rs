@@ -98,8 +98,10 @@ impl NumFormat {
 pub fn write_shortest(v: f64, out: &mut Vec<u8>) {
     let mut b = zmij::Buffer::new();
     let s = b.format(v);
-    // zmij writes integers as `1.0`; the short form `1` is what the files always had.
-    let s = s.strip_suffix(".0").unwrap_or(s);
+    // zmij writes integers as `1.0`; the short form `1` is what the files always had. Only an
+    // integer value can end so: the text just written is not read back for any other (a load
+    // of its last two bytes right after zmij's wide stores stalls on store forwarding).
+    let s = if v.fract() == 0.0 { s.strip_suffix(".0").unwrap_or(s) } else { s };
     out.extend_from_slice(s.as_bytes());
 }
 

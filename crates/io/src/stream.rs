@@ -25,10 +25,11 @@ use crate::atomic::{AtomicFile, OutputError};
 use crate::csv::{index_rows, split_fields, Rows};
 use crate::limits::{self, LineGuard};
 use crate::InputError;
-use std::io::{Read, Write};
+use rayon::prelude::*;
+use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
 /// Bytes read per block (a chunk holds the complete lines of about one block).
@@ -99,10 +100,74 @@ impl Chunk {
         Ok(out)
     }
     fn parse_into(&self, idx: &[usize], out: &mut [f64]) -> Result<(), InputError> {
-        let rows = Rows { text: self.text.as_bytes(), rows: &self.rows, width: self.header.len() };
-        rows.parse_into(idx, out)
+        self.rows_view()
+            .parse_into(idx, out)
             .map_err(|e| e.into_input_error(self.path.as_path(), &self.header, |r| self.line_number(r)))
     }
+    /// Parse columns `idx` of rows `range` (of this chunk) into `out`, one `[f64; K]` per row,
+    /// on the calling thread (for callers that split the chunk across threads themselves).
+    /// `scratch` is reused between calls.
+    pub fn parse_rows_into<const K: usize>(
+        &self,
+        range: std::ops::Range<usize>,
+        idx: &[usize; K],
+        out: &mut [[f64; K]],
+        scratch: &mut RowScratch,
+    ) -> Result<(), InputError> {
+        let rows = self.rows_view();
+        if scratch.slots.len() != self.header.len() || scratch.idx != idx[..] {
+            scratch.slots = rows.slots(idx);
+            scratch.idx = idx.to_vec();
+        }
+        rows.parse_range(range, idx, &scratch.slots, out.as_flattened_mut(), &mut scratch.fields)
+            .map_err(|e| e.into_input_error(self.path.as_path(), &self.header, |r| self.line_number(r)))
+    }
+    /// As [`parse_rows_into`](Self::parse_rows_into), and every field's byte range in the
+    /// chunk's text appended to `fields` (the header's width per row; spaces trimmed, quotes
+    /// removed): for writing the rows back with some fields replaced ([`field`](Self::field)).
+    pub fn split_parse_rows_into<const K: usize>(
+        &self,
+        range: std::ops::Range<usize>,
+        idx: &[usize; K],
+        out: &mut [[f64; K]],
+        fields: &mut Vec<(usize, usize)>,
+    ) -> Result<(), InputError> {
+        self.rows_view()
+            .split_and_parse_range(range, idx, out.as_flattened_mut(), fields)
+            .map_err(|e| e.into_input_error(self.path.as_path(), &self.header, |r| self.line_number(r)))
+    }
+    /// The text of a field range from [`split_parse_rows_into`](Self::split_parse_rows_into)
+    /// (for a quoted field: as written between the quotes, inner quotes still doubled).
+    pub fn field(&self, range: (usize, usize)) -> &str {
+        self.text.get(range.0..range.1).unwrap_or("")
+    }
+    /// Append the field at `range` (from [`split_parse_rows_into`](Self::split_parse_rows_into))
+    /// to a CSV row being written as it was written in the input (without the spaces around
+    /// it): a quoted field with its quotes (its inner quotes are already doubled), any other
+    /// one as is (it holds no comma). So a passed-through field keeps its text byte for byte.
+    pub fn push_field(&self, out: &mut Vec<u8>, range: (usize, usize)) {
+        let raw = self.field(range);
+        let quoted = range.0 > 0 && self.text.as_bytes().get(range.0 - 1) == Some(&b'"');
+        if quoted {
+            out.push(b'"');
+            out.extend_from_slice(raw.as_bytes());
+            out.push(b'"');
+        } else {
+            out.extend_from_slice(raw.as_bytes());
+        }
+    }
+    fn rows_view(&self) -> Rows<'_> {
+        Rows { text: self.text.as_bytes(), rows: &self.rows, width: self.header.len() }
+    }
+}
+
+/// Scratch space of [`Chunk::parse_rows_into`]: the column slots and a field list, kept
+/// between calls.
+#[derive(Default)]
+pub struct RowScratch {
+    idx: Vec<usize>,
+    slots: Vec<usize>,
+    fields: Vec<(usize, usize)>,
 }
 
 /// A CSV file read in chunks (see the module docs).
@@ -113,29 +178,49 @@ pub struct CsvStream {
     pub comments: Vec<String>,
     header_line: usize,
     rx: Receiver<Result<Block, InputError>>,
+    /// Consumed chunks' buffers back to the reader ([`recycle`](Self::recycle)).
+    spare: SyncSender<Spare>,
     /// Unconsumed remainder of the block that held the header.
     pending: Option<Block>,
     next_row: usize,
     reader: Option<JoinHandle<()>>,
 }
 
-/// Complete lines from the reader thread: text and the line number of its first byte.
+/// Complete lines from the reader thread: text, the start offsets of its data rows (indexed by
+/// the reader, so the consumer's thread does not walk the text once more) and the line number
+/// of its first byte.
 struct Block {
     text: String,
+    rows: Vec<usize>,
     first_line: usize,
 }
 
-fn reader_thread(path: PathBuf, mut file: std::fs::File, tx: SyncSender<Result<Block, InputError>>) {
+/// Buffers of consumed chunks, handed back to the reader for its next blocks (no fresh memory,
+/// hence no page faults, per block).
+type Spare = (String, Vec<usize>);
+
+fn reader_thread(
+    path: PathBuf,
+    mut file: std::fs::File,
+    tx: SyncSender<Result<Block, InputError>>,
+    spare: Receiver<Spare>,
+) {
     let limit = limits::max_input_bytes();
     let mut guard = LineGuard::default();
     let mut carry: Vec<u8> = Vec::new();
     let mut total: u64 = 0;
     let mut line = 1usize;
     loop {
-        let mut buf = Vec::with_capacity(BLOCK_BYTES + carry.len());
-        buf.append(&mut carry);
-        let start = buf.len();
+        let (mut buf, mut rows) = match spare.try_recv() {
+            Ok((text, rows)) => (text.into_bytes(), rows),
+            Err(_) => (Vec::with_capacity(BLOCK_BYTES + carry.len()), Vec::new()),
+        };
+        // A returned buffer is about as long as needed already: only the difference is
+        // zero-filled, not the whole block again.
+        let start = carry.len();
         buf.resize(start + BLOCK_BYTES, 0);
+        buf[..start].copy_from_slice(&carry);
+        carry.clear();
         let mut filled = start;
         let mut eof = false;
         while filled < buf.len() {
@@ -164,7 +249,8 @@ fn reader_thread(path: PathBuf, mut file: std::fs::File, tx: SyncSender<Result<B
         }
         // Cut after the last line end (everything at end of file).
         let cut = if eof { buf.len() } else { memchr::memrchr(b'\n', &buf).map_or(0, |p| p + 1) };
-        carry = buf.split_off(cut);
+        carry.extend_from_slice(&buf[cut..]);
+        buf.truncate(cut);
         if !buf.is_empty() {
             let lines_here = memchr::memchr_iter(b'\n', &buf).count();
             let text = match String::from_utf8(buf) {
@@ -177,7 +263,14 @@ fn reader_thread(path: PathBuf, mut file: std::fs::File, tx: SyncSender<Result<B
                     return;
                 }
             };
-            if tx.send(Ok(Block { text, first_line: line })).is_err() {
+            rows.clear();
+            // Lines over the limit were refused by the guard above (a line never spans blocks).
+            if let Some(bad) = index_rows(&text, 0, text.len(), &mut rows) {
+                let l = line + memchr::memchr_iter(b'\n', &text.as_bytes()[..bad]).count();
+                let _ = tx.send(Err(limits::line_too_long(&path, l)));
+                return;
+            }
+            if tx.send(Ok(Block { text, rows, first_line: line })).is_err() {
                 return; // the consumer stopped (an error, or it had enough)
             }
             line += lines_here;
@@ -200,10 +293,11 @@ impl CsvStream {
         }
         limits::check_file_size(&path, &meta)?;
         let (tx, rx) = sync_channel(2);
+        let (spare, spare_rx) = sync_channel(4);
         let p2 = path.clone();
         let reader = std::thread::Builder::new()
             .name("truepos-csv-reader".into())
-            .spawn(move || reader_thread(p2, file, tx))
+            .spawn(move || reader_thread(p2, file, tx, spare_rx))
             .map_err(|e| InputError::in_file(&path, format!("cannot start the reader: {e}")))?;
         let mut comments = Vec::new();
         let mut bom_checked = false;
@@ -253,13 +347,20 @@ impl CsvStream {
                         }
                     }
                     let rest = block.text[(end + 1).min(bytes.len())..].to_string();
-                    let pending = (!rest.is_empty()).then_some(Block { text: rest, first_line: line + 1 });
+                    let mut rows = Vec::new();
+                    if let Some(bad) = index_rows(&rest, 0, rest.len(), &mut rows) {
+                        let l = line + 1 + memchr::memchr_iter(b'\n', &rest.as_bytes()[..bad]).count();
+                        return Err(limits::line_too_long(&path, l));
+                    }
+                    let pending =
+                        (!rest.is_empty()).then_some(Block { text: rest, rows, first_line: line + 1 });
                     return Ok(Self {
                         path: Arc::new(path),
                         header: Arc::new(names),
                         comments,
                         header_line: line,
                         rx,
+                        spare,
                         pending,
                         next_row: 0,
                         reader: Some(reader),
@@ -308,12 +409,7 @@ impl CsvStream {
                     Err(_) => return Ok(None),
                 },
             };
-            let mut rows = Vec::with_capacity(block.text.len() / 24 + 1);
-            if let Some(bad) = index_rows(&block.text, 0, block.text.len(), &mut rows) {
-                let line =
-                    block.first_line + memchr::memchr_iter(b'\n', &block.text.as_bytes()[..bad]).count();
-                return Err(limits::line_too_long(&self.path, line));
-            }
+            let rows = block.rows;
             if rows.is_empty() {
                 continue;
             }
@@ -331,6 +427,14 @@ impl CsvStream {
     }
 }
 
+impl CsvStream {
+    /// Hand a consumed chunk's buffers back to the reader, which fills them with a later block
+    /// instead of asking the system for fresh memory. Optional: a dropped chunk is just freed.
+    pub fn recycle(&self, chunk: Chunk) {
+        let _ = self.spare.try_send((chunk.text, chunk.rows));
+    }
+}
+
 impl Drop for CsvStream {
     fn drop(&mut self) {
         // The reader ends at its next send (the receiver is gone). It is not waited for: on a
@@ -339,35 +443,61 @@ impl Drop for CsvStream {
     }
 }
 
-/// Writes byte pieces to an [`AtomicFile`] on a thread of its own, two pieces deep, so the
-/// caller computes the next piece while the last one is written. [`finish`](Self::finish)
-/// returns the file for [`AtomicFile::commit`]; dropping the writer unfinished removes the
-/// temporary file.
+/// Writes byte pieces to an [`AtomicFile`] on a thread of its own, two batches deep, so the
+/// caller computes the next pieces while the last ones are written. Written pieces go back to a
+/// pool ([`buffer`](Self::buffer)), so a long stream of output reuses the same few buffers.
+/// [`finish`](Self::finish) returns the file for [`AtomicFile::commit`]; dropping the writer
+/// unfinished removes the temporary file.
 pub struct BackgroundWriter {
-    tx: Option<SyncSender<Vec<u8>>>,
+    tx: Option<SyncSender<Vec<Vec<u8>>>>,
     handle: Option<JoinHandle<(AtomicFile, std::io::Result<()>)>>,
     path: PathBuf,
+    pool: Arc<Mutex<Vec<Vec<u8>>>>,
 }
+
+/// Most buffers the pool keeps (the rest are freed).
+const POOL_MAX: usize = 256;
 
 impl BackgroundWriter {
     pub fn new(mut file: AtomicFile) -> Self {
         let path = file.path().to_path_buf();
-        let (tx, rx) = sync_channel::<Vec<u8>>(2);
+        let (tx, rx) = sync_channel::<Vec<Vec<u8>>>(2);
+        let pool: Arc<Mutex<Vec<Vec<u8>>>> = Arc::default();
+        let back = pool.clone();
         let handle = std::thread::spawn(move || {
             let mut r = Ok(());
-            for piece in rx {
-                if r.is_ok() {
-                    r = file.write_all(&piece);
+            for batch in rx {
+                for mut piece in batch {
+                    if r.is_ok() {
+                        r = file.write_piece(&piece);
+                    }
+                    piece.clear();
+                    if let Ok(mut p) = back.lock() {
+                        if p.len() < POOL_MAX {
+                            p.push(piece);
+                        }
+                    }
                 }
             }
             (file, r)
         });
-        Self { tx: Some(tx), handle: Some(handle), path }
+        Self { tx: Some(tx), handle: Some(handle), path, pool }
+    }
+
+    /// An empty buffer for a piece: a written one from the pool, or a new one. Callable from
+    /// any thread (the pool is shared).
+    pub fn buffer(&self) -> Vec<u8> {
+        self.pool.lock().ok().and_then(|mut p| p.pop()).unwrap_or_default()
     }
 
     /// Queue `piece` for writing. A failed earlier write is reported here (or at `finish`).
     pub fn send(&mut self, piece: Vec<u8>) -> Result<(), OutputError> {
-        let sent = self.tx.as_ref().map(|tx| tx.send(piece).is_ok()).unwrap_or(false);
+        self.send_all(vec![piece])
+    }
+
+    /// Queue `pieces` for writing, in order, as one batch.
+    pub fn send_all(&mut self, pieces: Vec<Vec<u8>>) -> Result<(), OutputError> {
+        let sent = self.tx.as_ref().map(|tx| tx.send(pieces).is_ok()).unwrap_or(false);
         if sent {
             return Ok(());
         }
@@ -406,9 +536,23 @@ impl Drop for BackgroundWriter {
     }
 }
 
+/// Rows per piece of [`rewrite_points`]: parsed, transformed and formatted by one task.
+const PIECE_ROWS: usize = 4096;
+
+/// Per-thread scratch of [`rewrite_points`]: the piece's points, its extra values, the
+/// parser's and the formatter's field lists. Taken out of the thread-local while a piece is
+/// worked on (so a nested task on the same thread gets its own) and put back after.
+#[derive(Default)]
+struct PieceScratch {
+    xyz: Vec<[f64; 3]>,
+    pts: Vec<truepos_math::Point3>,
+    ex: Vec<[f64; 3]>,
+    parse: RowScratch,
+    fields: Vec<(usize, usize)>,
+}
+
 thread_local! {
-    /// Field ranges of the row being formatted, one buffer per thread.
-    static FIELDS: std::cell::RefCell<Vec<(usize, usize)>> = const { std::cell::RefCell::new(Vec::new()) };
+    static SCRATCH: std::cell::Cell<Option<Box<PieceScratch>>> = const { std::cell::Cell::new(None) };
 }
 
 /// What [`rewrite_points`] did.
@@ -431,23 +575,35 @@ pub enum RewriteError {
 /// Stream a point CSV through `f` into `output`: the input with `x_mm,y_mm,z_mm` replaced by the
 /// points as `f` leaves them and the columns `extra` (three values per point from `f`, e.g.
 /// `dx_um,dy_um,dz_um`) replaced where the input has them or appended; every other column is
-/// passed through unchanged. Constant memory: one chunk of about [`BLOCK_BYTES`] at a time,
-/// the next one read while this one is parsed (in parallel), transformed and formatted (in
-/// parallel), and the previous one written.
+/// passed through unchanged. Constant memory: one chunk of about [`BLOCK_BYTES`] at a time (its
+/// buffers handed back to the reader for a later block), the next one read and indexed by the
+/// reader thread while this one is worked on, the previous one written by the writer thread.
 ///
-/// `f(first_row, points, extra)` is called once per chunk in file order; it returns
-/// `Err((row_in_chunk, message))` to refuse a point, which becomes an input error on that point's
-/// line. The output is atomic: nothing is left at `output` unless every row was written.
-pub fn rewrite_points<F>(
+/// A chunk is cut into pieces of [`PIECE_ROWS`] rows, worked on in parallel: each piece is
+/// parsed, passed to `f` and formatted by one task, while its rows are still in the cache.
+/// `f(first_row, points, extra)` gets the piece's points (`first_row`: index in the whole file
+/// of the first) and returns a partial result, or `Err((row_in_piece, message))` to refuse a
+/// point, which becomes an input error on that point's line (the first such row in file
+/// order). `merge` receives the partial results in file order, on the calling thread, so sums
+/// come out the same on every run. The output is atomic: nothing is left at `output` unless
+/// every row was written.
+pub fn rewrite_points<F, T, M>(
     input: &Path,
     output: &Path,
     extra: [&str; 3],
     fmt: crate::num::NumFormat,
-    mut f: F,
+    f: F,
+    mut merge: M,
 ) -> Result<RewriteSummary, RewriteError>
 where
-    F: FnMut(usize, &mut [truepos_math::Point3], &mut [[f64; 3]]) -> Result<(), (usize, String)>,
+    F: Fn(usize, &mut [truepos_math::Point3], &mut [[f64; 3]]) -> Result<T, (usize, String)> + Sync,
+    T: Send,
+    M: FnMut(T),
 {
+    use crate::parquet_file::is_parquet;
+    if is_parquet(input) || crate::e57_file::is_e57(input) || is_parquet(output) {
+        return rewrite_columns(input, output, extra, fmt, f, merge);
+    }
     let mut s = CsvStream::open(input)?;
     let xyz = [s.require("x_mm")?, s.require("y_mm")?, s.require("z_mm")?];
     let existing: Vec<Option<usize>> = extra.iter().map(|n| s.column(n)).collect();
@@ -477,6 +633,7 @@ where
             names.push(extra[k]);
         }
     }
+    let passes = plan.iter().any(|p| matches!(p, Src::Pass(_)));
     let file = AtomicFile::create(output)?;
     let mut head = crate::csv::CsvWriter::new(Vec::new()).with_format(fmt);
     head.header(&names).map_err(|e| OutputError::Io { path: output.to_path_buf(), source: e })?;
@@ -485,36 +642,171 @@ where
     let mut n_points = 0;
     let mut n_chunks = 0;
     while let Some(chunk) = s.next_chunk()? {
-        let rows: Vec<[f64; 3]> = chunk.f64_rows(&xyz)?;
-        // `[f64; 3]` and `Point3` have the same layout: this collect reuses the allocation.
-        let mut pts: Vec<truepos_math::Point3> = rows.into_iter().map(truepos_math::Point3::from).collect();
-        let mut ex = vec![[0.0; 3]; pts.len()];
-        f(chunk.first_row(), &mut pts, &mut ex)
-            .map_err(|(r, msg)| InputError::at(input, chunk.line_number(r), None, msg))?;
-        let pieces = crate::csv::format_rows_parallel(chunk.n_rows(), fmt, |r, cw| {
-            // Field ranges of the row (no allocation per row: one buffer per thread).
-            FIELDS.with_borrow_mut(|buf| -> Result<(), InputError> {
-                let line = chunk.split_row(r, buf)?;
-                let io = |e: std::io::Error| InputError::new(format!("formatting: {e}"));
-                for src in &plan {
+        let n = chunk.n_rows();
+        let first = chunk.first_row();
+        let piece = |range: std::ops::Range<usize>,
+                     sc: &mut PieceScratch|
+         -> Result<(Vec<u8>, T), InputError> {
+            let m = range.len();
+            sc.xyz.clear();
+            sc.xyz.resize(m, [0.0; 3]);
+            sc.fields.clear();
+            if passes {
+                chunk.split_parse_rows_into(range.clone(), &xyz, &mut sc.xyz, &mut sc.fields)?;
+            } else {
+                chunk.parse_rows_into(range.clone(), &xyz, &mut sc.xyz, &mut sc.parse)?;
+            }
+            sc.pts.clear();
+            sc.pts.extend(sc.xyz.iter().map(|&p| truepos_math::Point3::from(p)));
+            sc.ex.clear();
+            sc.ex.resize(m, [0.0; 3]);
+            let t = f(first + range.start, &mut sc.pts, &mut sc.ex)
+                .map_err(|(r, msg)| InputError::at(input, chunk.line_number(range.start + r), None, msg))?;
+            let mut out = w.buffer();
+            out.reserve(m * 128);
+            for i in 0..m {
+                let fields = sc.fields.get(i * width..).unwrap_or(&[]);
+                for (j, src) in plan.iter().enumerate() {
+                    if j > 0 {
+                        out.push(b',');
+                    }
                     match *src {
-                        Src::Point(k) => cw.field_f64(pts[r][k]).map_err(io)?,
-                        Src::Extra(k) => cw.field_f64(ex[r][k]).map_err(io)?,
-                        Src::Pass(c) => cw.field_str(&line[buf[c].0..buf[c].1]).map_err(io)?,
+                        Src::Point(k) => fmt.write(sc.pts[i][k], &mut out),
+                        Src::Extra(k) => fmt.write(sc.ex[i][k], &mut out),
+                        Src::Pass(c) => chunk.push_field(&mut out, fields[c]),
                     }
                 }
-                Ok(())
-            })?;
-            cw.end_row().map_err(|e| InputError::new(format!("formatting: {e}")))
-        })?;
-        for p in pieces {
-            w.send(p)?;
+                out.push(b'\n');
+            }
+            Ok((out, t))
+        };
+        let results: Vec<Result<(Vec<u8>, T), InputError>> = (0..n.div_ceil(PIECE_ROWS))
+            .into_par_iter()
+            .map(|c| {
+                let mut sc = SCRATCH.take().unwrap_or_default();
+                let r = piece(c * PIECE_ROWS..((c + 1) * PIECE_ROWS).min(n), &mut sc);
+                SCRATCH.set(Some(sc));
+                r
+            })
+            .collect();
+        let mut pieces = Vec::with_capacity(results.len());
+        for r in results {
+            let (p, t) = r?;
+            merge(t);
+            pieces.push(p);
         }
-        n_points += chunk.n_rows();
+        w.send_all(pieces)?;
+        n_points += n;
         n_chunks += 1;
+        s.recycle(chunk);
     }
     w.finish()?.commit()?;
     Ok(RewriteSummary { n_points, n_chunks })
+}
+
+/// [`rewrite_points`] for binary files: a Parquet or E57 input, or a Parquet output (by
+/// extension). The whole file is held in memory as columns (24 bytes a point in these
+/// formats), transformed in pieces in parallel like the streamed CSV path, and written as
+/// Parquet (`.parquet`: numbers as doubles, other columns as text; a Parquet input keeps its
+/// column types, a CSV input's passed-through column is a number column when all its values
+/// are numbers) or as CSV. A refused point is an input error on its row (Parquet, E57) or line.
+fn rewrite_columns<F, T, M>(
+    input: &Path,
+    output: &Path,
+    extra: [&str; 3],
+    fmt: crate::num::NumFormat,
+    f: F,
+    mut merge: M,
+) -> Result<RewriteSummary, RewriteError>
+where
+    F: Fn(usize, &mut [truepos_math::Point3], &mut [[f64; 3]]) -> Result<T, (usize, String)> + Sync,
+    T: Send,
+    M: FnMut(T),
+{
+    use crate::parquet_file::{is_parquet, read_columns, write_columns, ColumnData, Columns};
+    // Check the output before the work (a bad path is named at once).
+    crate::atomic::check_output_path(output)?;
+    let (mut cols, table) = if is_parquet(input) {
+        (read_columns(input)?, None)
+    } else {
+        // CSV (or E57, which `Table::read` reads as x_mm, y_mm, z_mm).
+        let t = crate::csv::Table::read(input)?;
+        let mut names = Vec::new();
+        let mut data = Vec::new();
+        for name in &t.header {
+            let numeric = ["x_mm", "y_mm", "z_mm"].contains(&name.as_str()) || extra.contains(&name.as_str());
+            data.push(if numeric {
+                ColumnData::F64(t.f64_column(name)?)
+            } else {
+                match t.f64_column(name) {
+                    Ok(v) => ColumnData::F64(v),
+                    Err(_) => ColumnData::Str(t.str_column(name)?),
+                }
+            });
+            names.push(name.clone());
+        }
+        (Columns { names, data }, Some(t))
+    };
+    let n = cols.n_rows();
+    let (x, y, z) = (cols.f64(input, "x_mm")?, cols.f64(input, "y_mm")?, cols.f64(input, "z_mm")?);
+    let mut pts: Vec<truepos_math::Point3> =
+        (0..n).map(|i| truepos_math::Point3::new(x[i], y[i], z[i])).collect();
+    let mut ex = vec![[0.0; 3]; n];
+    let results: Vec<Result<T, (usize, String)>> = pts
+        .par_chunks_mut(PIECE_ROWS)
+        .zip(ex.par_chunks_mut(PIECE_ROWS))
+        .enumerate()
+        .map(|(c, (p, e))| f(c * PIECE_ROWS, p, e).map_err(|(r, msg)| (c * PIECE_ROWS + r, msg)))
+        .collect();
+    for r in results {
+        match r {
+            Ok(t) => merge(t),
+            Err((row, msg)) => {
+                return Err(match &table {
+                    Some(t) if !crate::e57_file::is_e57(input) => {
+                        InputError::at(input, t.line_number(row), None, msg).into()
+                    }
+                    _ => InputError::in_file(input, format!("row {}: {msg}", row + 1)).into(),
+                })
+            }
+        }
+    }
+    // The points and the extra columns into the columns (replaced, or appended).
+    for (k, name) in ["x_mm", "y_mm", "z_mm"].iter().enumerate() {
+        if let Some(i) = cols.index(name) {
+            cols.data[i] = ColumnData::F64(pts.iter().map(|p| p[k]).collect());
+        }
+    }
+    for (k, name) in extra.iter().enumerate() {
+        let v = ColumnData::F64(ex.iter().map(|e| e[k]).collect());
+        match cols.index(name) {
+            Some(i) => cols.data[i] = v,
+            None => {
+                cols.names.push(name.to_string());
+                cols.data.push(v);
+            }
+        }
+    }
+    if is_parquet(output) {
+        write_columns(output, &cols)?;
+    } else {
+        let file = AtomicFile::create(output)?;
+        let mut w = BackgroundWriter::new(file);
+        w.send(format!("{}\n", cols.names.join(",")).into_bytes())?;
+        let pieces = crate::csv::format_rows_parallel(n, fmt, |r, cw| {
+            for d in &cols.data {
+                match d {
+                    ColumnData::F64(v) => cw.field_f64(v[r])?,
+                    ColumnData::Str(v) => cw.field_str(&v[r])?,
+                }
+            }
+            cw.end_row()
+        })
+        .map_err(|e| OutputError::Io { path: output.to_path_buf(), source: e })?;
+        w.send_all(pieces)?;
+        w.finish()?.commit()?;
+    }
+    Ok(RewriteSummary { n_points: n, n_chunks: 1 })
 }
 
 #[cfg(test)]
@@ -638,16 +930,30 @@ mod tests {
         }
         let inp = write(dir.path(), "in.csv", &text);
         let out = dir.path().join("out.csv");
-        let sum =
-            rewrite_points(&inp, &out, ["dx_um", "dy_um", "dz_um"], Default::default(), |first, p, e| {
+        let mut merged = Vec::new();
+        let sum = rewrite_points(
+            &inp,
+            &out,
+            ["dx_um", "dy_um", "dz_um"],
+            Default::default(),
+            |first, p, e| {
                 for (k, (q, d)) in p.iter_mut().zip(e.iter_mut()).enumerate() {
                     q.x += 1.0;
                     *d = [(first + k) as f64, 0.25, -1.0];
                 }
-                Ok(())
-            })
-            .unwrap();
+                Ok((first, p.len()))
+            },
+            |t| merged.push(t),
+        )
+        .unwrap();
         assert_eq!(sum.n_points, n);
+        // Every piece's result, in file order, covering every row once.
+        let mut next = 0;
+        for &(first, len) in &merged {
+            assert_eq!(first, next);
+            next += len;
+        }
+        assert_eq!(next, n);
         assert!(sum.n_chunks >= 2);
         let t = crate::csv::Table::read(&out).unwrap();
         assert_eq!(t.header, vec!["id", "z_mm", "x_mm", "y_mm", "dy_um", "note", "dx_um", "dz_um"]);
@@ -656,17 +962,112 @@ mod tests {
         assert_eq!(t.row_text(r), format!("P{r},{}.5,{},0.1,0.25,\"a,{r}\",{r},-1", r % 10, r + 1));
         // A refused point: an input error on its line; no output left behind.
         std::fs::remove_file(&out).unwrap();
-        let e = rewrite_points(&inp, &out, ["dx_um", "dy_um", "dz_um"], Default::default(), |first, _, _| {
-            if first > 0 {
-                Err((3, "outside the map".into()))
-            } else {
-                Ok(())
-            }
-        })
+        let e = rewrite_points(
+            &inp,
+            &out,
+            ["dx_um", "dy_um", "dz_um"],
+            Default::default(),
+            |first, _, _| if first > 0 { Err((3, "outside the map".into())) } else { Ok(()) },
+            |_| {},
+        )
         .unwrap_err();
         let RewriteError::Input(e) = e else { panic!("{e}") };
-        assert!(e.line.unwrap() > 3 && e.to_string().contains("outside the map"), "{e}");
+        // The first refused point in file order: row 3 of the second piece (a comment line and
+        // the header come before row 0).
+        assert_eq!(e.line, Some(PIECE_ROWS + 3 + 3), "{e}");
+        assert!(e.to_string().contains("outside the map"), "{e}");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn rewrite_points_keeps_passed_through_fields_as_they_were() {
+        // Quoted fields with doubled quotes and commas, spaces around numbers, CRLF endings,
+        // comments and blank lines between rows, and a quoted number: every passed-through
+        // field keeps its value (read back through the general reader), nothing is escaped twice.
+        let dir = tempfile::tempdir().unwrap();
+        let mut text = String::from("id,x_mm,y_mm,z_mm,note\r\n");
+        let n = 20_000;
+        for i in 0..n {
+            match i % 5 {
+                0 => text.push_str(&format!("\"P\"\"{i}\"\"\",{i}, 2 ,\"3.5\",\"a,b\"\"c\"\r\n")),
+                1 => text.push_str(&format!("Q{i},{i}.25,-2,3,plain\n\n# comment\n")),
+                2 => text.push_str(&format!("R{i},{i},2,3,ab\"c\n")),
+                3 => text.push_str(&format!("  S{i} ,{i},2,3,  \"\"  \n")),
+                _ => text.push_str(&format!("T{i},{i},2,3,\n")),
+            }
+        }
+        let inp = write(dir.path(), "in.csv", &text);
+        let out = dir.path().join("out.csv");
+        rewrite_points(&inp, &out, ["dx_um", "dy_um", "dz_um"], Default::default(), |_, _, _| Ok(()), |_| {})
+            .unwrap();
+        let a = crate::csv::Table::read(&inp).unwrap();
+        let b = crate::csv::Table::read(&out).unwrap();
+        assert_eq!(b.n_rows(), n);
+        for name in ["id", "note"] {
+            assert!(a.str_column(name).unwrap() == b.str_column(name).unwrap(), "{name} differs");
+        }
+        for name in ["x_mm", "y_mm", "z_mm"] {
+            assert!(a.f64_column(name).unwrap() == b.f64_column(name).unwrap(), "{name} differs");
+        }
+        assert_eq!(b.row_text(0), "\"P\"\"0\"\"\",0,2,3.5,\"a,b\"\"c\",0,0,0");
+        assert_eq!(b.row_text(2), "R2,2,2,3,ab\"c,0,0,0");
+        assert_eq!(b.row_text(3), "S3,3,2,3,\"\",0,0,0");
+    }
+
+    #[test]
+    fn rewrite_points_reads_and_writes_parquet_by_extension() {
+        use crate::parquet_file::{read_columns, ColumnData};
+        let dir = tempfile::tempdir().unwrap();
+        let mut text = String::from("id,x_mm,y_mm,z_mm,t_s\n");
+        let n = 9_000;
+        for i in 0..n {
+            text.push_str(&format!("P{i},{}.125,{},-{}.5,{}\n", i, i % 97, i % 13, i as f64 * 0.001));
+        }
+        let inp = write(dir.path(), "in.csv", &text);
+        let shift = |first: usize, p: &mut [truepos_math::Point3], e: &mut [[f64; 3]]| {
+            for (k, (q, d)) in p.iter_mut().zip(e.iter_mut()).enumerate() {
+                q.x += 0.1;
+                *d = [(first + k) as f64, 0.5, q.z];
+            }
+            Ok::<(), (usize, String)>(())
+        };
+        let run = |i: &Path, o: &Path| {
+            rewrite_points(i, o, ["dx_um", "dy_um", "dz_um"], Default::default(), shift, |_| {}).unwrap()
+        };
+        let csv_out = dir.path().join("out.csv");
+        let pq_out = dir.path().join("out.parquet");
+        assert_eq!(run(&inp, &csv_out).n_points, n);
+        assert_eq!(run(&inp, &pq_out).n_points, n);
+        // The Parquet output holds the same numbers as the CSV output, bit for bit, with the
+        // text column as text and the numeric pass-through column as numbers.
+        let want = crate::csv::Table::read(&csv_out).unwrap();
+        let got = read_columns(&pq_out).unwrap();
+        assert_eq!(got.names, want.header);
+        for name in ["x_mm", "y_mm", "z_mm", "t_s", "dx_um", "dy_um", "dz_um"] {
+            let a = want.f64_column(name).unwrap();
+            let b = got.f64(&pq_out, name).unwrap();
+            assert!(a.iter().zip(b).all(|(a, b)| a.to_bits() == b.to_bits()), "{name}");
+        }
+        assert!(matches!(&got.data[0], ColumnData::Str(v) if v[7] == "P7"));
+        // Parquet in, CSV out: byte for byte the CSV route's output, shifted once more.
+        let again = dir.path().join("again.csv");
+        run(&pq_out, &again);
+        let csv_twice = dir.path().join("twice.csv");
+        run(&csv_out, &csv_twice);
+        assert_eq!(std::fs::read(&again).unwrap(), std::fs::read(&csv_twice).unwrap());
+        // A refused point of a Parquet input is named by its row; nothing is written.
+        let gone = dir.path().join("gone.csv");
+        let e = rewrite_points(
+            &pq_out,
+            &gone,
+            ["dx_um", "dy_um", "dz_um"],
+            Default::default(),
+            |first, _, _| if first > 0 { Err((5, "outside the map".to_string())) } else { Ok(()) },
+            |_| {},
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains(&format!("row {}", PIECE_ROWS + 6)), "{e}");
+        assert!(!gone.exists());
     }
 
     #[test]

@@ -101,7 +101,8 @@ pub fn input_error(e: LatencyError, machine: &StreamFile, probe: &StreamFile) ->
 }
 
 /// Write stylus-centre positions at the probe stamps (`t_s,x_mm,y_mm,z_mm`, then the probe file's
-/// other columns unchanged), atomically; rows whose centre is NaN (machine data not covering
+/// other columns unchanged), atomically, as Parquet for a `.parquet` path (the comment line has
+/// no place there) else CSV; rows whose centre is NaN (machine data not covering
 /// `t + delay`) are left out. The probe stream must have been read with its table
 /// ([`read_stream`]'s `keep_table`).
 pub fn write_centres(path: &Path, delay_s: f64, probe: &StreamFile, out: &[[f64; 3]]) -> std::io::Result<()> {
@@ -112,6 +113,29 @@ pub fn write_centres(path: &Path, delay_s: f64, probe: &StreamFile, out: &[[f64;
     let used = ["t_s", "a_mm", "b_mm", "c_mm", "x_mm", "y_mm", "z_mm"];
     let extra: Vec<usize> =
         (0..table.header.len()).filter(|&i| !used.contains(&table.header[i].as_str())).collect();
+    if truepos_io::parquet_file::is_parquet(path) {
+        use truepos_io::parquet_file::{write_columns, ColumnData, Columns};
+        let keep: Vec<usize> = (0..out.len()).filter(|&i| !out[i][0].is_nan()).collect();
+        let mut names: Vec<String> = ["t_s", "x_mm", "y_mm", "z_mm"].map(String::from).to_vec();
+        let mut data = vec![ColumnData::F64(keep.iter().map(|&i| probe.t[i]).collect())];
+        for k in 0..3 {
+            data.push(ColumnData::F64(keep.iter().map(|&i| out[i][k]).collect()));
+        }
+        for &c in &extra {
+            let name = &table.header[c];
+            // A passed-through column stays a number column when every kept value is a number.
+            let all = table.f64_column(name).ok();
+            data.push(match all {
+                Some(v) => ColumnData::F64(keep.iter().map(|&i| v[i]).collect()),
+                None => {
+                    let s = table.str_column(name).map_err(std::io::Error::other)?;
+                    ColumnData::Str(keep.iter().map(|&i| s[i].clone()).collect())
+                }
+            });
+            names.push(name.clone());
+        }
+        return Ok(write_columns(path, &Columns { names, data })?);
+    }
     let mut f = AtomicFile::create(path)?;
     {
         let mut w = truepos_io::csv::CsvWriter::new(std::io::BufWriter::new(&mut f));

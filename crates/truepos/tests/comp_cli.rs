@@ -165,3 +165,109 @@ fn bad_maps_and_points_exit_2() {
     expect_input_error(&o, &["sq.toml:2"]);
     assert!(!outp.exists());
 }
+
+/// Issue 19: `comp correct` reads Parquet and E57 point files and writes Parquet by extension,
+/// with the same numbers as the CSV route (the hand-computed case above, and a refused point
+/// named by its row).
+#[test]
+fn correct_reads_and_writes_parquet_and_reads_e57() {
+    use truepos_io::parquet_file::{read_columns, write_columns, ColumnData, Columns};
+    let d = tempfile::tempdir().unwrap();
+    let map = map_file(d.path());
+    let correct = |pts: &Path, out: &Path| {
+        run(&[
+            "comp",
+            "correct",
+            "--map",
+            s(&map),
+            "--points",
+            s(pts),
+            "--output",
+            s(out),
+            "--probe-offset-mm",
+            "0,0,-100",
+        ])
+    };
+    let pts = write(d.path(), "p.csv", "id,x_mm,y_mm,z_mm\nP1,250,500,300\nP2,10.5,20.25,30\n");
+    let (out_csv, out_pq) = (d.path().join("c.csv"), d.path().join("c.parquet"));
+    for out in [&out_csv, &out_pq] {
+        let o = correct(&pts, out);
+        assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let want = truepos_io::csv::Table::read(&out_csv).unwrap();
+    let got = read_columns(&out_pq).unwrap();
+    assert_eq!(got.names, ["id", "x_mm", "y_mm", "z_mm", "dx_um", "dy_um", "dz_um"]);
+    for name in ["x_mm", "y_mm", "dx_um", "dy_um"] {
+        // Shortest text reads back bit for bit: the Parquet doubles equal the CSV's exactly.
+        assert_eq!(want.f64_column(name).unwrap(), got.f64(&out_pq, name).unwrap(), "{name}");
+    }
+    assert!((got.f64(&out_pq, "dx_um").unwrap()[0] - 2.5).abs() < 1e-9, "the hand-computed 2.5 µm");
+    // Parquet in → CSV out: the same text as CSV in → CSV out.
+    let pq_in = d.path().join("p.parquet");
+    let cols = Columns {
+        names: vec!["id".into(), "x_mm".into(), "y_mm".into(), "z_mm".into()],
+        data: vec![
+            ColumnData::Str(vec!["P1".into(), "P2".into()]),
+            ColumnData::F64(vec![250.0, 10.5]),
+            ColumnData::F64(vec![500.0, 20.25]),
+            ColumnData::F64(vec![300.0, 30.0]),
+        ],
+    };
+    write_columns(&pq_in, &cols).unwrap();
+    let again = d.path().join("again.csv");
+    let o = correct(&pq_in, &again);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(std::fs::read_to_string(&again).unwrap(), std::fs::read_to_string(&out_csv).unwrap());
+    // E57 in (metres inside; mm → m → mm moves a coordinate by an ulp or so).
+    let e57 = d.path().join("p.e57");
+    let p3 = |x, y, z| truepos_math::Point3::new(x, y, z);
+    truepos_io::e57_file::write_e57(&e57, &[p3(250.0, 500.0, 300.0), p3(10.5, 20.25, 30.0)]).unwrap();
+    let from_e57 = d.path().join("e.csv");
+    let o = correct(&e57, &from_e57);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let e = truepos_io::csv::Table::read(&from_e57).unwrap();
+    for name in ["x_mm", "y_mm", "z_mm", "dx_um", "dy_um", "dz_um"] {
+        let (a, b) = (want.f64_column(name).unwrap(), e.f64_column(name).unwrap());
+        // 1e-9 (mm or µm): ulps of ~1e3 mm are 1e-13 mm; a wrong unit would be off by 1e3.
+        assert!(a.iter().zip(&b).all(|(a, b)| (a - b).abs() < 1e-9), "{name}: {a:?} {b:?}");
+    }
+    // A point outside the map in a Parquet file: exit 2 naming the file and the row.
+    let far = Columns {
+        data: vec![
+            cols.data[0].clone(),
+            cols.data[1].clone(),
+            cols.data[2].clone(),
+            ColumnData::F64(vec![300.0, 1200.0]),
+        ],
+        ..cols
+    };
+    write_columns(&pq_in, &far).unwrap();
+    let gone = d.path().join("gone.parquet");
+    expect_input_error(&correct(&pq_in, &gone), &["p.parquet", "row 2"]);
+    assert!(!gone.exists());
+    // `comp error --output` by extension too: the Parquet file holds the CSV's numbers.
+    let errs = |out: &Path| {
+        run(&[
+            "comp",
+            "error",
+            "--map",
+            s(&map),
+            "--at",
+            s(&pts),
+            "--probe-offset-mm",
+            "0,0,-100",
+            "--output",
+            s(out),
+        ])
+    };
+    let (ec, ep) = (d.path().join("e.csv"), d.path().join("e.parquet"));
+    for out in [&ec, &ep] {
+        let o = errs(out);
+        assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let (a, b) = (truepos_io::csv::Table::read(&ec).unwrap(), read_columns(&ep).unwrap());
+    assert_eq!(b.names, a.header);
+    for name in ["x_mm", "ex_um", "ey_um"] {
+        assert_eq!(a.f64_column(name).unwrap(), b.f64(&ep, name).unwrap(), "{name}");
+    }
+}

@@ -143,6 +143,27 @@ fn apply_puts_stylus_centres_on_the_sphere() {
         }
     }
     assert!(n > 50, "{n} points in contact");
+    // The same as Parquet (by the extension): the same doubles as the CSV's shortest text.
+    let pq = tmp.path().join("centres.parquet");
+    let o = run(&[
+        "latency",
+        "apply",
+        "--delay-s",
+        &delay,
+        "--machine",
+        &m,
+        "--probe",
+        &p,
+        "--output",
+        pq.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let cols = truepos_io::parquet_file::read_columns(&pq).unwrap();
+    let csv = truepos_io::csv::Table::read(&out).unwrap();
+    assert_eq!(cols.names, csv.header);
+    for name in ["t_s", "x_mm", "y_mm", "z_mm"] {
+        assert_eq!(cols.f64(&pq, name).unwrap(), csv.f64_column(name).unwrap(), "{name}");
+    }
 }
 
 #[test]

@@ -87,10 +87,12 @@ pub struct MapArgs {
 pub struct CorrectArgs {
     #[command(flatten)]
     pub map: MapArgs,
-    /// Points (x_mm,y_mm,z_mm and any other columns, passed through).
+    /// Points (x_mm,y_mm,z_mm and any other columns, passed through): CSV, or Parquet
+    /// (`.parquet`) or E57 (`.e57`) by the extension.
     #[arg(long)]
     pub points: PathBuf,
-    /// Output CSV: the input with corrected x_mm,y_mm,z_mm and dx_um,dy_um,dz_um added.
+    /// Output: the input with corrected x_mm,y_mm,z_mm and dx_um,dy_um,dz_um added; Parquet
+    /// for a `.parquet` path, else CSV.
     #[arg(long)]
     pub output: PathBuf,
     /// The points are targets: write commanded positions c with c + E(c) = T.
@@ -112,7 +114,8 @@ pub struct ErrorArgs {
     /// Points (x_mm,y_mm,z_mm).
     #[arg(long)]
     pub at: PathBuf,
-    /// Write a CSV (x_mm,y_mm,z_mm,ex_um,ey_um,ez_um) instead of printing.
+    /// Write x_mm,y_mm,z_mm,ex_um,ey_um,ez_um instead of printing: Parquet for a `.parquet`
+    /// path, else CSV.
     #[arg(long)]
     pub output: Option<PathBuf>,
     /// Print one JSON object on stdout (human text goes to stderr).

@@ -137,7 +137,7 @@ pub struct ApplyArgs {
     /// Probe deflections: t_s,a_mm,b_mm,c_mm (along the machine axes).
     #[arg(long)]
     pub probe: PathBuf,
-    /// Output CSV: t_s,x_mm,y_mm,z_mm stylus-centre positions at the probe time stamps, then the probe file's other columns.
+    /// Output: t_s,x_mm,y_mm,z_mm stylus-centre positions at the probe time stamps, then the probe file's other columns; Parquet for a `.parquet` path, else CSV.
     #[arg(long)]
     pub output: PathBuf,
     /// Print a JSON summary on stdout.

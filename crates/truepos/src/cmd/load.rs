@@ -85,10 +85,12 @@ pub struct CorrectCmd {
     /// Bed TOML ([portal] gives the rails and their height).
     #[arg(long)]
     pub bed: PathBuf,
-    /// Measured points (x_mm,y_mm,z_mm; other columns passed through).
+    /// Measured points (x_mm,y_mm,z_mm; other columns passed through): CSV, or Parquet
+    /// (`.parquet`) or E57 (`.e57`) by the extension.
     #[arg(long)]
     pub points: PathBuf,
-    /// Output CSV: the points corrected, with dx_um,dy_um,dz_um (the correction applied) added.
+    /// Output: the points corrected, with dx_um,dy_um,dz_um (the correction applied) added;
+    /// Parquet for a `.parquet` path, else CSV.
     #[arg(long)]
     pub output: PathBuf,
     /// Also apply a 21-parameter geometric map (combined correction p + E(p) + e(p)).
