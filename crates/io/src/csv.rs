@@ -527,7 +527,8 @@ impl Table {
                         ));
                     }
                 }
-                return Ok((names, comments, end + 1));
+                // A header on the last line without a line end: no data after it (not past the end).
+                return Ok((names, comments, (end + 1).min(bytes.len())));
             }
             pos = end + 1;
         }
@@ -1724,6 +1725,26 @@ mod tests {
     /// The direct reader gives the general path's rows bit for bit (several parallel segments,
     /// comments, blank and CRLF lines, extra columns in any order), and on anything it does not
     /// take it hands back the table, whose error is today's (line and column).
+    /// Regression (found by the `csv_rewrite` fuzz target): a header on the last line without a
+    /// line end panicked (slice past the end) in every reader; it is a table without rows.
+    #[test]
+    fn header_without_line_end_is_an_empty_table() {
+        for text in ["x_mm,y_mm,z_mm", "# c\n\nx_mm,y_id,x_,mmmm,zy", "\u{feff}x_mm,y_mm,z_mm\r"] {
+            let t = table(text).unwrap();
+            assert_eq!(t.n_rows(), 0, "{text:?}");
+            let direct = Table::rows_direct(
+                Path::new("t.csv"),
+                Text::Owned(text.to_string()),
+                &["x_mm", "y_mm", "z_mm"],
+            );
+            match direct {
+                Ok(Ok(rows)) => assert!(rows.is_empty()),
+                Ok(Err(t)) => assert_eq!(t.n_rows(), 0),
+                Err(e) => assert!(e.to_string().contains("t.csv"), "{e}"),
+            }
+        }
+    }
+
     #[test]
     fn split_and_parse_matches_the_general_reader_row_by_row() {
         // Rows the fast path takes and rows it hands to the general one: the values, every

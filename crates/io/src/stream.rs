@@ -605,6 +605,9 @@ where
         return rewrite_columns(input, output, extra, fmt, f, merge);
     }
     let mut s = CsvStream::open(input)?;
+    if let Some((i, n)) = unwritable_name(s.header()) {
+        return Err(InputError::at(input, s.header_line(), Some(i + 1), unwritable_message(n)).into());
+    }
     let xyz = [s.require("x_mm")?, s.require("y_mm")?, s.require("z_mm")?];
     let existing: Vec<Option<usize>> = extra.iter().map(|n| s.column(n)).collect();
     let width = s.header().len();
@@ -704,6 +707,20 @@ where
     Ok(RewriteSummary { n_points, n_chunks })
 }
 
+/// The first column name that could not be written back unchanged, with its index: it holds a
+/// comma or a quote (the header is written plain), or a byte-order mark (which would open the
+/// output and be taken for the file's own).
+fn unwritable_name(header: &[String]) -> Option<(usize, &str)> {
+    header.iter().enumerate().find(|(_, n)| n.contains([',', '"', '\u{feff}'])).map(|(i, n)| (i, n.as_str()))
+}
+
+fn unwritable_message(name: &str) -> String {
+    format!(
+        "column name '{}' holds a comma, a quote or a byte-order mark: the output could not carry it unchanged (rename the column)",
+        name.replace('\u{feff}', "<BOM>")
+    )
+}
+
 /// [`rewrite_points`] for binary files: a Parquet or E57 input, or a Parquet output (by
 /// extension). The whole file is held in memory as columns (24 bytes a point in these
 /// formats), transformed in pieces in parallel like the streamed CSV path, and written as
@@ -731,6 +748,10 @@ where
     } else {
         // CSV (or E57, which `Table::read` reads as x_mm, y_mm, z_mm).
         let t = crate::csv::Table::read(input)?;
+        if let Some((i, n)) = unwritable_name(&t.header) {
+            let e = InputError::in_file(input, unwritable_message(n));
+            return Err(InputError { column: Some(i + 1), ..e }.into());
+        }
         let mut names = Vec::new();
         let mut data = Vec::new();
         for name in &t.header {
@@ -1068,6 +1089,29 @@ mod tests {
         .unwrap_err();
         assert!(e.to_string().contains(&format!("row {}", PIECE_ROWS + 6)), "{e}");
         assert!(!gone.exists());
+    }
+
+    /// Regression (found by the `csv_rewrite` fuzz target): a column name holding a comma was
+    /// written back plain, so the output's header split it in two (an unreadable output). Such
+    /// a name is refused at its place, and nothing is written.
+    #[test]
+    fn rewrite_points_refuses_column_names_it_cannot_write_back() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out.csv");
+        let inp = write(dir.path(), "in.csv", "# c\nid,x_mm,y_mm,z_mm,\"P,x_mm\"\n1,2,3,4,5\n");
+        let e = rewrite_points(
+            &inp,
+            &out,
+            ["dx_um", "dy_um", "dz_um"],
+            Default::default(),
+            |_, _, _| Ok(()),
+            |_| {},
+        )
+        .unwrap_err();
+        let RewriteError::Input(e) = e else { panic!("{e}") };
+        assert_eq!((e.line, e.column), (Some(2), Some(5)), "{e}");
+        assert!(e.to_string().contains("P,x_mm") && e.to_string().contains("comma"), "{e}");
+        assert!(!out.exists());
     }
 
     #[test]
