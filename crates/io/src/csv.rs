@@ -1459,7 +1459,7 @@ fn split_parse_row_fast(
             }
             e = end;
         } else {
-            let Some((v, used)) = crate::num::parse_f64_prefix(&text[i..]) else { return false };
+            let Some((v, used)) = number_prefix(&text[i..]) else { return false };
             i += used;
             e = i;
             while i < n && (text[i] == b' ' || text[i] == b'\t') {
