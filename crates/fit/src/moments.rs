@@ -53,7 +53,9 @@ fn check_finite(points: &[Point3]) -> Result<(), FitError> {
 fn centroid(points: &[Point3]) -> Point3 {
     let sum = |c: &[Point3]| c.iter().fold(Vector3::zeros(), |s, p| s + p.coords);
     let s = if points.len() > PARALLEL_ABOVE {
-        points.par_chunks(CHUNK).map(sum).reduce(Vector3::zeros, |a, b| a + b)
+        // Added in chunk order, whatever the threads do: the same digits on every run.
+        let parts: Vec<Vector3> = points.par_chunks(CHUNK).map(sum).collect();
+        parts.into_iter().fold(Vector3::zeros(), |a, b| a + b)
     } else {
         points.chunks(4096).map(sum).fold(Vector3::zeros(), |a, b| a + b)
     };
@@ -125,7 +127,8 @@ impl Moments {
             return Err(FitError::NonFinite { index: 0 });
         }
         let s = if points.len() > PARALLEL_ABOVE {
-            points.par_chunks(CHUNK).map(|ch| sums(ch, &c0)).reduce(Sums::zero, Sums::add)
+            let parts: Vec<Sums> = points.par_chunks(CHUNK).map(|ch| sums(ch, &c0)).collect();
+            parts.into_iter().fold(Sums::zero(), Sums::add)
         } else {
             sums(points, &c0)
         };

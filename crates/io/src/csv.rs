@@ -35,6 +35,18 @@ impl std::ops::Deref for Text {
     }
 }
 
+impl Text {
+    /// Let go of the text. A memory map is unmapped on a short-lived thread of its own: tearing
+    /// down the page tables of a large map takes milliseconds (about 2 ms for 30 MB) that the
+    /// caller, about to compute on what it parsed, need not wait for. (If no thread can be
+    /// started, the map is unmapped here.)
+    fn release(self) {
+        if let Text::Mapped(map) = self {
+            let _ = std::thread::Builder::new().name("truepos-unmap".into()).spawn(move || drop(map));
+        }
+    }
+}
+
 /// A parsed CSV file: the text, the header and the byte offset of each data row.
 pub struct Table {
     pub path: PathBuf,
@@ -130,17 +142,95 @@ fn split_fields_fast(line: &[u8], out: &mut Vec<(usize, usize)>) -> bool {
 /// when mapping fails: the caller then reads it). Mapping saves the kernel copy of the whole
 /// file; the pages come straight from the page cache. Files over the size limit are refused.
 fn map_large_file(path: &Path) -> Result<Option<memmap2::Mmap>, InputError> {
+    map_large_file_with(path, true)
+}
+
+/// [`map_large_file`]; `populate`: the page tables are filled in one go (the file is about to
+/// be read whole), instead of one page fault per few pages. (Without it the caller populates
+/// when it is ready to, e.g. after starting other work.)
+fn map_large_file_with(path: &Path, populate: bool) -> Result<Option<memmap2::Mmap>, InputError> {
     let Ok(file) = std::fs::File::open(path) else { return Ok(None) };
     let Ok(meta) = file.metadata() else { return Ok(None) };
     crate::limits::check_file_size(path, &meta)?;
     if !meta.is_file() || meta.len() < 8 << 20 {
         return Ok(None);
     }
+    let mut options = memmap2::MmapOptions::new();
+    if populate {
+        options.populate();
+    }
     // SAFETY: a private read-only map; the input file is not expected to change while truepos
     // reads it (as with any reader, a file truncated meanwhile is an error the OS reports).
-    // `populate`: the page tables are filled in one go (the file is about to be read whole),
-    // instead of one page fault per few pages.
-    Ok(unsafe { memmap2::MmapOptions::new().populate().map(&file).ok() })
+    Ok(unsafe { options.map(&file).ok() })
+}
+
+/// An output vector whose first slots the kernel backs with memory on a thread of its own
+/// while the caller does other work: the kernel clears every fresh page before a process sees
+/// it (about 1 ms per 24 MB when it has cleared huge pages at hand, tens of ms when it has
+/// not), and this moves that clearing off the threads that parse. Rows are written into the
+/// vector's spare capacity while the thread may still be at work: it only asks the kernel to
+/// map pages (`MADV_POPULATE_WRITE`), which never changes what a page holds.
+struct Prefaulted<T> {
+    vec: Vec<T>,
+    worker: Option<std::thread::JoinHandle<()>>,
+}
+
+impl<T> Prefaulted<T> {
+    /// A vector of capacity `cap`; the pages of its first `touch` slots are populated on a new
+    /// thread (Linux; elsewhere, or if no thread starts, it is a plain vector).
+    fn start(cap: usize, touch: usize) -> Self {
+        let mut vec = Vec::with_capacity(cap);
+        advise_huge_pages(vec.spare_capacity_mut());
+        #[cfg(target_os = "linux")]
+        let worker = {
+            const PAGE: usize = 4096;
+            let start = vec.as_mut_ptr() as usize;
+            let end = start + touch.min(cap) * std::mem::size_of::<T>();
+            let (a, b) = (start.next_multiple_of(PAGE), end / PAGE * PAGE);
+            (b > a)
+                .then(|| {
+                    std::thread::Builder::new().name("truepos-prefault".into()).spawn(move || {
+                        // SAFETY: `a..b` lies inside the vector's allocation, which outlives
+                        // this thread (`Prefaulted` joins it before the vector can be dropped
+                        // or handed out); MADV_POPULATE_WRITE only maps pages and leaves what
+                        // they hold (zeros, or rows already written) unchanged.
+                        unsafe { libc::madvise(a as *mut libc::c_void, b - a, libc::MADV_POPULATE_WRITE) };
+                    })
+                })
+                .and_then(Result::ok)
+        };
+        #[cfg(not(target_os = "linux"))]
+        let worker = {
+            let _ = touch;
+            None
+        };
+        Self { vec, worker }
+    }
+
+    fn join(&mut self) {
+        if let Some(w) = self.worker.take() {
+            let _ = w.join();
+        }
+    }
+
+    /// The vector, once the thread is done.
+    fn finish(mut self) -> Vec<T> {
+        self.join();
+        std::mem::take(&mut self.vec)
+    }
+}
+
+impl<T> Drop for Prefaulted<T> {
+    fn drop(&mut self) {
+        // Before the vector is freed.
+        self.join();
+    }
+}
+
+/// Lines a text of `len` bytes holds by the line length of its first 64 KiB (`sample`).
+fn estimated_lines(len: usize, sample: &[u8]) -> usize {
+    let lines = memchr::memchr_iter(b'\n', sample).count().max(1);
+    len / sample.len().div_ceil(lines).max(1)
 }
 
 /// Read a whole file with the bounds of [`crate::limits`] (size, line length, no NUL bytes).
@@ -148,13 +238,20 @@ pub fn read_file(path: &Path) -> Result<Vec<u8>, InputError> {
     crate::limits::read_text(path, "CSV")
 }
 
+/// Bytes per segment of [`line_segments`]: small enough that the segments of a large file
+/// outnumber the threads many times over (a thread held up, e.g. by the kernel clearing a fresh
+/// page of the output, leaves its remaining segments to the others), large enough that the
+/// per-segment bookkeeping stays negligible.
+const SEGMENT_BYTES: usize = 512 << 10;
+
 /// Boundaries `[0, …, len]` of segments of `bytes` cut just after line ends, about
-/// 4 × the worker threads of them when `bytes` is at least `min_len` long (else one segment).
+/// [`SEGMENT_BYTES`] each (at least 4 × the worker threads of them) when `bytes` is at least
+/// `min_len` long (else one segment).
 fn line_segments(bytes: &[u8], min_len: usize) -> Vec<usize> {
     let len = bytes.len();
     let mut bounds = vec![0];
     if len >= min_len {
-        let parts = 4 * rayon::current_num_threads();
+        let parts = (len / SEGMENT_BYTES).clamp(4 * rayon::current_num_threads(), 1 << 12);
         for k in 1..parts {
             let b = len * k / parts;
             let b = memchr::memchr(b'\n', &bytes[b..]).map_or(len, |p| b + p + 1);
@@ -347,25 +444,32 @@ impl Table {
     /// parallel segments cut after line ends (a line end is never inside a UTF-8 character, so
     /// each segment validates on its own and finds the same first bad byte).
     fn check_bytes(path: &Path, bytes: &[u8]) -> Result<(), InputError> {
-        let segments = line_segments(bytes, 1 << 22);
-        let (nul, utf8) = segments
+        Self::check_counted(path, bytes, false).map(|_| ())
+    }
+
+    /// [`check_bytes`](Self::check_bytes) that also counts the lines of each segment when
+    /// `count` (in the same visit of the segment, while it is in cache): the segments
+    /// [`direct_rows`] parses.
+    fn check_counted(path: &Path, bytes: &[u8], count: bool) -> Result<Segments, InputError> {
+        let bounds = line_segments(bytes, if count { 1 << 20 } else { 1 << 22 });
+        let per: Vec<(Option<usize>, Option<usize>, usize)> = bounds
             .par_windows(2)
             .map(|w| {
                 let seg = &bytes[w[0]..w[1]];
                 let nul = memchr::memchr(0, seg).map(|p| w[0] + p);
                 let utf8 = std::str::from_utf8(seg).err().map(|e| w[0] + e.valid_up_to());
-                (nul, utf8)
+                (nul, utf8, if count { segment_lines(seg) } else { 0 })
             })
-            .reduce(|| (None, None), |a, b| (a.0.or(b.0), a.1.or(b.1)));
-        if let Some(p) = nul {
+            .collect();
+        if let Some(p) = per.iter().find_map(|s| s.0) {
             let line = memchr::memchr_iter(b'\n', &bytes[..p]).count() + 1;
             return Err(crate::limits::binary(path, line, "CSV"));
         }
-        if let Some(p) = utf8 {
+        if let Some(p) = per.iter().find_map(|s| s.1) {
             let line = memchr::memchr_iter(b'\n', &bytes[..p]).count() + 1;
             return Err(InputError::at(path, line, None, "not valid UTF-8 text: not a CSV file"));
         }
-        Ok(())
+        Ok(Segments { lines: per.iter().map(|s| s.2).collect(), bounds })
     }
 
     /// Index CSV data that came from `path` (used in messages).
@@ -444,7 +548,26 @@ impl Table {
         if crate::parquet_file::is_parquet(path) || crate::e57_file::is_e57(path) {
             return Self::read(path).map(Err);
         }
-        Self::rows_direct(path, Self::checked_text(path)?, names)
+        let Some(map) = map_large_file_with(path, false)? else {
+            return Self::rows_direct(path, Self::checked_text(path)?, names);
+        };
+        // The output is backed while the input's page tables are filled (two threads, two
+        // cores: the second core is otherwise idle here), if the header (in the first 64 KiB)
+        // promises the direct path: every wanted column, no `id`.
+        let sample = &map[..map.len().min(64 << 10)];
+        let whole_lines = &sample[..memchr::memrchr(b'\n', sample).map_or(0, |p| p + 1)];
+        let direct =
+            std::str::from_utf8(whole_lines).ok().and_then(|t| Self::head(path, t).ok()).is_some_and(
+                |(h, _, _)| names.iter().all(|n| h.iter().any(|c| c == n)) && !h.iter().any(|c| c == "id"),
+            );
+        let out = direct.then(|| {
+            let est = estimated_lines(map.len(), sample);
+            // 3 % to spare for lines longer at the start than later (else a new vector is taken).
+            Prefaulted::start(est + est / 32 + 64, est)
+        });
+        let _ = map.advise(memmap2::Advice::PopulateRead);
+        let segments = Self::check_counted(path, &map[..], true)?;
+        Self::rows_direct_into(path, Text::Mapped(map), names, out, Some(segments))
     }
 
     /// The text of a CSV file, mapped when large, with the checks of [`Table::read`] (size, NUL
@@ -507,15 +630,34 @@ impl Table {
         text: Text,
         names: &[&str; K],
     ) -> Result<Result<Vec<[f64; K]>, Table>, InputError> {
+        Self::rows_direct_into(path, text, names, None, None)
+    }
+
+    /// [`rows_direct`](Self::rows_direct) into `out` when its capacity suffices, with the
+    /// text's `segments` (from [`check_counted`](Self::check_counted)) when known.
+    fn rows_direct_into<const K: usize>(
+        path: &Path,
+        text: Text,
+        names: &[&str; K],
+        out: Option<Prefaulted<[f64; K]>>,
+        segments: Option<Segments>,
+    ) -> Result<Result<Vec<[f64; K]>, Table>, InputError> {
         let (header, _, data) = Self::head(path, &text)?;
         let idx: Option<Vec<usize>> = names.iter().map(|n| header.iter().position(|h| h == n)).collect();
         let plain = !header.iter().any(|h| h == "id");
         let rows = match idx {
-            Some(idx) if plain => direct_rows::<K>(&text.as_bytes()[data..], header.len(), &idx),
+            Some(idx) if plain => {
+                let bytes = text.as_bytes();
+                let segments = segments.map(|s| s.after(bytes, data));
+                direct_rows::<K>(&bytes[data..], header.len(), &idx, out, segments)
+            }
             _ => None,
         };
         match rows {
-            Some(r) => Ok(Ok(r)),
+            Some(r) => {
+                text.release();
+                Ok(Ok(r))
+            }
             None => Self::from_text(path, text).map(Err),
         }
     }
@@ -865,11 +1007,21 @@ impl Rows<'_> {
 /// take (or a non-ASCII or too long line): the caller then takes the general path.
 /// The output is sized once by the line count (a line gives at most one row); segments that
 /// skipped lines are moved down afterwards.
-fn direct_rows<const K: usize>(data: &[u8], width: usize, idx: &[usize]) -> Option<Vec<[f64; K]>> {
+fn direct_rows<const K: usize>(
+    data: &[u8],
+    width: usize,
+    idx: &[usize],
+    out: Option<Prefaulted<[f64; K]>>,
+    segments: Option<(Vec<usize>, Vec<usize>, usize)>,
+) -> Option<Vec<[f64; K]>> {
     let slots = direct_slots(width, idx)?;
-    let (bounds, lines, total) = direct_segments(data);
-    let mut out: Vec<[f64; K]> = Vec::with_capacity(total);
-    advise_huge_pages(out.spare_capacity_mut());
+    let (bounds, lines, total) = segments.unwrap_or_else(|| direct_segments(data));
+    // The vector prepared while the file was mapped if it holds every line, else a new one.
+    let mut pre = match out {
+        Some(p) if p.vec.capacity() >= total => p,
+        _ => Prefaulted::start(total, 0),
+    };
+    let out = &mut pre.vec;
     let parts = split_parts(&mut out.spare_capacity_mut()[..total], &lines);
     let filled: Option<Vec<usize>> = parts
         .into_par_iter()
@@ -883,8 +1035,8 @@ fn direct_rows<const K: usize>(data: &[u8], width: usize, idx: &[usize]) -> Opti
     let filled = filled?;
     // SAFETY: each segment wrote rows `0..f` of its part (`parse_segment` calls `put` for
     // consecutive rows from 0 and returns their count).
-    unsafe { compact(&mut out, &lines, &filled) };
-    Some(out)
+    unsafe { compact(out, &lines, &filled) };
+    Some(pre.finish())
 }
 
 /// [`direct_rows`] for a time stream: column `idx[0]` into one vector, `idx[1..4]` into another
@@ -938,15 +1090,41 @@ fn direct_slots(width: usize, idx: &[usize]) -> Option<Vec<usize>> {
 /// without `\n` counts too: an upper bound of its rows) and their total.
 fn direct_segments(data: &[u8]) -> (Vec<usize>, Vec<usize>, usize) {
     let bounds = line_segments(data, 1 << 20);
-    let lines: Vec<usize> = bounds
-        .par_windows(2)
-        .map(|w| {
-            let seg = &data[w[0]..w[1]];
-            memchr::memchr_iter(b'\n', seg).count() + usize::from(seg.last().is_some_and(|&b| b != b'\n'))
-        })
-        .collect();
+    let lines: Vec<usize> = bounds.par_windows(2).map(|w| segment_lines(&data[w[0]..w[1]])).collect();
     let total = lines.iter().sum();
     (bounds, lines, total)
+}
+
+/// Lines of a segment: its `\n`s, and a last line without one.
+fn segment_lines(seg: &[u8]) -> usize {
+    memchr::memchr_iter(b'\n', seg).count() + usize::from(seg.last().is_some_and(|&b| b != b'\n'))
+}
+
+/// Segments of a whole text cut after line ends ([`line_segments`]) with the line count of
+/// each ([`segment_lines`]).
+struct Segments {
+    bounds: Vec<usize>,
+    lines: Vec<usize>,
+}
+
+impl Segments {
+    /// The segments of `bytes[from..]` (`from` at a line start), as [`direct_segments`] gives
+    /// them: bounds relative to `from`, line counts, total. The segment holding `from` loses the
+    /// lines before it; segments before it are left out.
+    fn after(&self, bytes: &[u8], from: usize) -> (Vec<usize>, Vec<usize>, usize) {
+        let mut bounds = vec![0];
+        let mut lines = Vec::with_capacity(self.lines.len());
+        for (w, &n) in self.bounds.windows(2).zip(&self.lines) {
+            if w[1] <= from {
+                continue;
+            }
+            let before = if w[0] < from { memchr::memchr_iter(b'\n', &bytes[w[0]..from]).count() } else { 0 };
+            bounds.push(w[1] - from);
+            lines.push(n - before);
+        }
+        let total = lines.iter().sum();
+        (bounds, lines, total)
+    }
 }
 
 /// `buf` cut into consecutive parts of `lines[k]` slots each.
@@ -1014,7 +1192,18 @@ fn parse_segment<const K: usize>(
 ) -> Option<usize> {
     let mut pos = 0;
     let mut r = 0;
+    // The wanted columns are the row's columns in order (`x_mm,y_mm,z_mm` for points): rows
+    // of plain numbers take the short path first.
+    let in_order = slots.len() == K && slots.iter().enumerate().all(|(c, &s)| s == c);
     while pos < seg.len() {
+        if in_order && r < cap {
+            if let Some((d, used)) = parse_row_plain::<K>(&seg[pos..]) {
+                put(r, d);
+                r += 1;
+                pos += used + 1;
+                continue;
+            }
+        }
         let mut i = pos;
         while i < seg.len() && matches!(seg[i], b' ' | b'\t' | b'\r' | 0x0b | 0x0c) {
             i += 1;
@@ -1044,6 +1233,30 @@ fn parse_segment<const K: usize>(
         pos += used + 1;
     }
     Some(r)
+}
+
+/// The most common row, `K` short decimals (see [`short_decimal_prefix`]) separated by single
+/// commas and ended by `\n`, nothing else (no spaces, no `\r`, no other column): its values
+/// and the offset of its `\n`, exactly what [`parse_row_fast_len`] gives for it when the `K`
+/// columns are all wanted in order, with none of its per-field generality. `None` for any
+/// other row (the caller then takes the general row parser).
+#[inline(always)]
+fn parse_row_plain<const K: usize>(text: &[u8]) -> Option<([f64; K], usize)> {
+    let mut d = [0.0; K];
+    let mut i = 0;
+    for (k, v) in d.iter_mut().enumerate() {
+        if text.len() - i < SHORT_DECIMAL_READ {
+            return None;
+        }
+        let (x, used) = short_decimal_prefix(&text[i..])?;
+        *v = x;
+        i += used;
+        if text[i] != if k + 1 < K { b',' } else { b'\n' } {
+            return None;
+        }
+        i += 1;
+    }
+    Some((d, i - 1))
 }
 
 pub use crate::num::parse_f64;
@@ -1091,7 +1304,7 @@ fn parse_row_fast_len(text: &[u8], slots: &[usize], d: &mut [f64]) -> Option<usi
         while i < n && (text[i] == b' ' || text[i] == b'\t') {
             i += 1;
         }
-        let (v, used) = crate::num::parse_f64_prefix(&text[i..])?;
+        let (v, used) = number_prefix(&text[i..])?;
         i += used;
         while i < n && (text[i] == b' ' || text[i] == b'\t') {
             i += 1;
@@ -1106,6 +1319,97 @@ fn parse_row_fast_len(text: &[u8], slots: &[usize], d: &mut [f64]) -> Option<usi
         return None;
     }
     Some(if i < n && text[i] == b'\r' { i + 1 } else { i })
+}
+
+/// The number at the start of `b`: [`crate::num::parse_f64_prefix`], through
+/// [`short_decimal_prefix`] first where the text is long enough for its 8-byte reads.
+#[inline(always)]
+fn number_prefix(b: &[u8]) -> Option<(f64, usize)> {
+    if b.len() >= SHORT_DECIMAL_READ {
+        if let Some(r) = short_decimal_prefix(b) {
+            return Some(r);
+        }
+    }
+    crate::num::parse_f64_prefix(b)
+}
+
+/// Bytes [`short_decimal_prefix`] may read: sign, 8 bytes of integer digits, the point, 8 bytes
+/// of fraction digits, the byte after the number.
+const SHORT_DECIMAL_READ: usize = 24;
+
+/// The common short decimal (`[+-]digits[.digits]`, at most 7 digits before and 7 after the
+/// point, at least one digit, no exponent after it) without a loop over its digits: each digit
+/// run is found and converted in one 8-byte word (SWAR), so the cost does not depend on how many
+/// digits there are and no branch follows the digit count (which varies from number to number
+/// and defeated the branch predictor). `None` for anything else, which the general parser then
+/// reads. With at most 14 digits the value is Clinger's one exact division, the very operation
+/// (and result, bit for bit) of `truepos_math::decimal::decimal_prefix` and of `str::parse`.
+/// Needs `b.len() >= SHORT_DECIMAL_READ`.
+#[inline(always)]
+fn short_decimal_prefix(b: &[u8]) -> Option<(f64, usize)> {
+    const POW10: [u64; 8] = [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000];
+    let neg = b[0] == b'-';
+    let s = usize::from(neg || b[0] == b'+');
+    let w = word(b, s);
+    let int_len = digit_run(w);
+    if int_len == 8 {
+        return None;
+    }
+    let mut end = s + int_len;
+    let mut mant = digits_value(w, int_len);
+    let mut frac_len = 0;
+    if b[end] == b'.' {
+        let f = word(b, end + 1);
+        frac_len = digit_run(f);
+        if frac_len == 8 {
+            return None;
+        }
+        mant = mant * POW10[frac_len] + digits_value(f, frac_len);
+        end += 1 + frac_len;
+    }
+    if int_len + frac_len == 0 || (b[end] | 0x20) == b'e' {
+        return None;
+    }
+    // mant < 10^14 < 2^53 and 10^frac_len are exact: one correctly rounded division.
+    // (`as i64` first: one conversion instruction; the unsigned one takes several.)
+    let v = (mant as i64) as f64 / truepos_math::decimal::POW10[frac_len];
+    Some((if neg { -v } else { v }, end))
+}
+
+/// The 8 bytes at `b[i..]` as a little-endian word (the first byte lowest).
+#[inline(always)]
+fn word(b: &[u8], i: usize) -> u64 {
+    let mut a = [0u8; 8];
+    a.copy_from_slice(&b[i..i + 8]);
+    u64::from_le_bytes(a)
+}
+
+/// How many of the bytes of `w` (first byte lowest) are ASCII digits before the first that is
+/// not (8 when all are).
+#[inline(always)]
+fn digit_run(w: u64) -> usize {
+    const HIGH: u64 = 0xF0F0_F0F0_F0F0_F0F0;
+    const THREES: u64 = 0x3030_3030_3030_3030;
+    // A digit 0x30..=0x39 has high nibble 3, and still has after adding 6 (0x3A..=0x3F do not).
+    // A carry out of a byte (0xFA..=0xFF + 6) only disturbs the bytes after a non-digit.
+    let bad = ((w & HIGH) ^ THREES) | ((w.wrapping_add(0x0606_0606_0606_0606) & HIGH) ^ THREES);
+    (bad.trailing_zeros() / 8) as usize
+}
+
+/// The value of the first `len` (≤ 8) bytes of `w`, all ASCII digits, the first byte the most
+/// significant digit.
+#[inline(always)]
+fn digits_value(w: u64, len: usize) -> u64 {
+    // The digits move to the top bytes, zeros (leading zero digits) come in below; a borrow of
+    // the subtraction only starts at a non-digit byte, which is shifted out.
+    let d = w.wrapping_sub(0x3030_3030_3030_3030);
+    let d = ((d as u128) << (64 - 8 * len)) as u64;
+    // Pairs, then quads, then all eight.
+    let d = d.wrapping_mul(10).wrapping_add(d >> 8);
+    const MASK: u64 = 0x0000_00FF_0000_00FF;
+    let lo = (d & MASK).wrapping_mul(100 + (1_000_000 << 32));
+    let hi = ((d >> 16) & MASK).wrapping_mul(1 + (10_000 << 32));
+    (lo.wrapping_add(hi) >> 32) as u32 as u64
 }
 
 /// The fast path of [`Rows::split_and_parse_range`] for one row (`text` from the row's start,
@@ -1155,7 +1459,7 @@ fn split_parse_row_fast(
             }
             e = end;
         } else {
-            let Some((v, used)) = crate::num::parse_f64_prefix(&text[i..]) else { return false };
+            let Some((v, used)) = number_prefix(&text[i..]) else { return false };
             i += used;
             e = i;
             while i < n && (text[i] == b' ' || text[i] == b'\t') {
@@ -1529,6 +1833,86 @@ mod tests {
         assert!(direct("x_mm,y_mm,z_mm\n").unwrap().unwrap().is_empty());
     }
 
+    /// A large (mapped) file read directly, into the output prepared while it was mapped or,
+    /// when its first 64 KiB have longer lines than the rest (more rows than estimated), into
+    /// a new one: the general path's rows either way; a bad value still comes back as the table.
+    #[test]
+    fn mapped_direct_rows_match_the_general_path() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("big.csv");
+        let names = ["x_mm", "y_mm", "z_mm"];
+        for long_start in [false, true] {
+            let mut s = String::from("x_mm,note,y_mm,z_mm\n");
+            let mut i = 0u64;
+            while s.len() < (9 << 20) {
+                let note = if long_start && s.len() < (80 << 10) { "n".repeat(200) } else { String::new() };
+                s.push_str(&format!("{}.{:03},{note},-{}.5,{}\n", i % 997, i % 1000, i % 13, i));
+                i += 1;
+            }
+            std::fs::write(&p, &s).unwrap();
+            let d = Table::read_rows_direct(&p, &names).unwrap().expect("plain file takes the direct path");
+            let g = Table::read(&p).unwrap().f64_rows(&names).unwrap();
+            assert_eq!(d.len(), i as usize);
+            assert!(d.iter().flatten().zip(g.iter().flatten()).all(|(a, b)| a.to_bits() == b.to_bits()));
+            let bad = s.replacen("\n5.005,", "\n5.0x5,", 1);
+            std::fs::write(&p, &bad).unwrap();
+            let e = Table::read_rows_direct(&p, &names)
+                .unwrap()
+                .expect_err("table")
+                .f64_rows(&names)
+                .unwrap_err();
+            assert_eq!((e.line, e.column), (Some(7), Some(1)));
+        }
+        // An `id` column: no output is prepared, the table comes back.
+        let mut s = String::from("id,x_mm,y_mm,z_mm\n");
+        let mut i = 0u64;
+        while s.len() < (9 << 20) {
+            s.push_str(&format!("p{i},{}.25,{},-{}\n", i % 101, i % 7, i));
+            i += 1;
+        }
+        std::fs::write(&p, &s).unwrap();
+        let t = Table::read_rows_direct(&p, &names).unwrap().expect_err("id column: the table");
+        assert_eq!(t.f64_rows(&names).unwrap()[5], [5.25, 5.0, -5.0]);
+    }
+
+    /// The segments counted while checking, cut down to the data after the header (which may
+    /// start beyond the first segment), hold the lines `direct_segments` finds there, and
+    /// parse to the same rows.
+    #[test]
+    fn counted_segments_match_direct_segments() {
+        let names = ["x_mm", "y_mm", "z_mm"];
+        for comment_bytes in [10, 700 << 10] {
+            let mut s = String::new();
+            while s.len() < comment_bytes {
+                s.push_str("# a comment line before the header\n");
+            }
+            s.push_str("x_mm,y_mm,z_mm\n");
+            for i in 0..120_000u64 {
+                s.push_str(&format!("{i}.5,{},-{}.25\n", i % 11, i % 7));
+            }
+            s.push_str("1,2,3");
+            let bytes = s.as_bytes();
+            let segments = Table::check_counted(Path::new("t.csv"), bytes, true).unwrap();
+            assert!(segments.lines.len() > 4, "several segments");
+            let (_, _, data) = Table::head(Path::new("t.csv"), &s).unwrap();
+            let (bounds, lines, total) = segments.after(bytes, data);
+            let (b0, _, t0) = direct_segments(&bytes[data..]);
+            assert_eq!(total, t0);
+            assert_eq!(total, 120_001);
+            assert_eq!(
+                (bounds[0], bounds.last(), b0.last()),
+                (0, Some(&(s.len() - data)), Some(&(s.len() - data)))
+            );
+            assert_eq!(lines.len() + 1, bounds.len());
+            let idx = [0, 1, 2];
+            let a = direct_rows::<3>(&bytes[data..], 3, &idx, None, Some((bounds, lines, total))).unwrap();
+            let b = direct_rows::<3>(&bytes[data..], 3, &idx, None, None).unwrap();
+            let g = table(&s).unwrap().f64_rows(&names).unwrap();
+            assert_eq!(a, b);
+            assert_eq!(a, g);
+        }
+    }
+
     /// The direct stream reader gives the general path's columns bit for bit, and hands back
     /// the table (with today's error) on anything it does not take.
     #[test]
@@ -1605,6 +1989,65 @@ mod tests {
         }
     }
 
+    /// Whether `b` starts with `[+-]?d{0,7}(.d{0,7})?` with at least one digit, not followed by
+    /// a digit, `.` after the fraction, or an exponent: what [`short_decimal_prefix`] must read.
+    fn regex_like_short(b: &[u8]) -> bool {
+        let mut i = usize::from(matches!(b[0], b'-' | b'+'));
+        let run = |i: usize| b[i..].iter().take_while(|c| c.is_ascii_digit()).count();
+        let int = run(i);
+        i += int;
+        let mut frac = 0;
+        if b[i] == b'.' {
+            frac = run(i + 1);
+            i += 1 + frac;
+        }
+        int <= 7 && frac <= 7 && int + frac > 0 && !matches!(b[i] | 0x20, b'e')
+    }
+
+    #[test]
+    fn short_decimal_cases() {
+        let pad = |s: &str| format!("{s},0000000000000000000000000");
+        for (s, want) in [
+            ("0", Some((0.0, 1))),
+            ("-0.0", Some((-0.0, 4))),
+            ("+1.5", Some((1.5, 4))),
+            ("1.", Some((1.0, 2))),
+            (".5", Some((0.5, 2))),
+            ("-.5", Some((-0.5, 3))),
+            ("00012.500", Some((12.5, 9))),
+            ("1234567.1234567", Some((1234567.1234567, 15))),
+            ("-12.345678", Some((-12.345678, 10))),
+            ("12345678.1", None),
+            ("1.12345678", None),
+            ("1e5", None),
+            ("1.5E3", None),
+            (".", None),
+            ("-", None),
+            ("", None),
+        ] {
+            let b = pad(s);
+            let got = short_decimal_prefix(b.as_bytes());
+            assert_eq!(
+                got.map(|(v, n)| (v.to_bits(), n)),
+                want.map(|(v, n): (f64, usize)| (v.to_bits(), n)),
+                "{s}"
+            );
+        }
+        // Rows: plain ones are taken, anything else is left to the general row parser.
+        let row = |s: &str| parse_row_plain::<3>(format!("{s}000000000000000000000000").as_bytes());
+        assert_eq!(row("1.5,-2.25,3\n"), Some(([1.5, -2.25, 3.0], 11)));
+        for other in ["1.5,-2.25,3\r\n", "1.5, -2.25,3\n", "1.5,-2.25\n", "1.5,-2.25,3,4\n", "#1,2,3\n", "\n"]
+        {
+            assert_eq!(row(other), None, "{other:?}");
+        }
+        // Non-ASCII bytes (0xFA..=0xFF carry when 6 is added) after the digits.
+        let b = [
+            b'1', b'2', 0xff, 0xfa, b'3', b'4', b'5', b'6', b'7', b'8', b'9', b'0', b'1', b'2', b'3', b'4',
+            b'5', b'6', b'7', b'8', b'9', b'0', b'1', b'2',
+        ];
+        assert_eq!(short_decimal_prefix(&b), Some((12.0, 2)));
+    }
+
     proptest::proptest! {
         /// The rewrite's split-and-parse agrees with the general reader on any row: the same
         /// values and fields, or an error at the same line and column.
@@ -1640,6 +2083,38 @@ mod tests {
             let s = format!("{}{}.{:0width$}", if neg { "-" } else { "" }, int, frac % 10u64.pow(fd as u32), width = fd);
             let want: f64 = s.parse().unwrap();
             proptest::prop_assert_eq!(parse_f64(&s).unwrap().to_bits(), want.to_bits(), "{}", s);
+        }
+
+        /// The SWAR short-decimal path reads what the general parser reads (value bit for bit,
+        /// length), or declines; numbers of up to 7 + 7 digits are never declined.
+        #[test]
+        fn short_decimal_matches_general(text in "[-+]?[0-9]{0,9}(\\.[0-9]{0,9})?[eE,\n .x0-9]?[0-9]?", tail in "[,\n0-9a-z.]{24}") {
+            let b = format!("{text}{tail}");
+            let b = b.as_bytes();
+            let general = crate::num::parse_f64_prefix(b);
+            match short_decimal_prefix(b) {
+                Some((v, n)) => {
+                    let (g, gn) = general.expect("the general parser reads it too");
+                    proptest::prop_assert_eq!((v.to_bits(), n), (g.to_bits(), gn), "{}", text);
+                }
+                None => {
+                    let num = regex_like_short(b);
+                    proptest::prop_assert!(!num, "declined a short decimal: {}", text);
+                }
+            }
+            proptest::prop_assert_eq!(number_prefix(b).map(|(v, n)| (v.to_bits(), n)), general.map(|(v, n)| (v.to_bits(), n)));
+        }
+
+        /// The plain-row path gives what the general row parser gives, or declines.
+        #[test]
+        fn plain_rows_match_the_row_parser(fields in proptest::collection::vec("-?[0-9]{0,8}(\\.[0-9]{0,8})?|[ a-z\r\"]{1,2}[0-9]?", 3), end in "(\r?\n|,|\r| )", tail in "[0-9,\n]{24}") {
+            let line = format!("{}{end}{tail}", fields.join(","));
+            let b = line.as_bytes();
+            let mut d = [0.0; 3];
+            let general = parse_row_fast_len(b, &[0, 1, 2], &mut d).map(|n| (d.map(f64::to_bits), n));
+            if let Some((p, n)) = parse_row_plain::<3>(b) {
+                proptest::prop_assert_eq!(Some((p.map(f64::to_bits), n)), general, "{:?}", line);
+            }
         }
 
         /// The quote-free splitter agrees with the general one.

@@ -5,9 +5,12 @@ use std::io::{IsTerminal, Write};
 
 /// Print exactly one JSON object on stdout (pretty, one trailing newline).
 pub fn print_json(value: &serde_json::Value) -> anyhow::Result<()> {
+    // Built in memory and written with one call (stdout's line buffering would make one
+    // system call per line of the pretty-printed object).
+    let mut text = serde_json::to_vec_pretty(value)?;
+    text.push(b'\n');
     let mut out = std::io::stdout().lock();
-    serde_json::to_writer_pretty(&mut out, value)?;
-    out.write_all(b"\n")?;
+    out.write_all(&text)?;
     out.flush()?;
     Ok(())
 }
