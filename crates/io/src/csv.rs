@@ -1334,20 +1334,20 @@ fn number_prefix(b: &[u8]) -> Option<(f64, usize)> {
 }
 
 /// Bytes [`short_decimal_prefix`] may read: sign, 8 bytes of integer digits, the point, 8 bytes
-/// of fraction digits, the byte after the number.
+/// of fraction digits, the byte after them (18 at most; 24 keeps a margin).
 const SHORT_DECIMAL_READ: usize = 24;
 
-/// The common short decimal (`[+-]digits[.digits]`, at most 7 digits before and 7 after the
+/// The common short decimal (`[+-]digits[.digits]`, at most 7 digits before and 8 after the
 /// point, at least one digit, no exponent after it) without a loop over its digits: each digit
 /// run is found and converted in one 8-byte word (SWAR), so the cost does not depend on how many
 /// digits there are and no branch follows the digit count (which varies from number to number
 /// and defeated the branch predictor). `None` for anything else, which the general parser then
-/// reads. With at most 14 digits the value is Clinger's one exact division, the very operation
+/// reads. With at most 15 digits the value is Clinger's one exact division, the very operation
 /// (and result, bit for bit) of `truepos_math::decimal::decimal_prefix` and of `str::parse`.
 /// Needs `b.len() >= SHORT_DECIMAL_READ`.
 #[inline(always)]
 fn short_decimal_prefix(b: &[u8]) -> Option<(f64, usize)> {
-    const POW10: [u64; 8] = [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000];
+    const POW10: [u64; 9] = [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000, 100_000_000];
     let neg = b[0] == b'-';
     let s = usize::from(neg || b[0] == b'+');
     let w = word(b, s);
@@ -1361,7 +1361,9 @@ fn short_decimal_prefix(b: &[u8]) -> Option<(f64, usize)> {
     if b[end] == b'.' {
         let f = word(b, end + 1);
         frac_len = digit_run(f);
-        if frac_len == 8 {
+        // Eight fraction digits fill the word: taken when the byte after them ends the run
+        // (the 8-decimal files of the latency streams), else the general parser reads on.
+        if frac_len == 8 && b[end + 9].is_ascii_digit() {
             return None;
         }
         mant = mant * POW10[frac_len] + digits_value(f, frac_len);
@@ -1370,7 +1372,7 @@ fn short_decimal_prefix(b: &[u8]) -> Option<(f64, usize)> {
     if int_len + frac_len == 0 || (b[end] | 0x20) == b'e' {
         return None;
     }
-    // mant < 10^14 < 2^53 and 10^frac_len are exact: one correctly rounded division.
+    // mant < 10^15 < 2^53 and 10^frac_len are exact: one correctly rounded division.
     // (`as i64` first: one conversion instruction; the unsigned one takes several.)
     let v = (mant as i64) as f64 / truepos_math::decimal::POW10[frac_len];
     Some((if neg { -v } else { v }, end))
@@ -2018,7 +2020,11 @@ mod tests {
             ("1234567.1234567", Some((1234567.1234567, 15))),
             ("-12.345678", Some((-12.345678, 10))),
             ("12345678.1", None),
-            ("1.12345678", None),
+            ("1.12345678", Some((1.12345678, 10))),
+            ("250.00023792", Some((250.00023792, 12))),
+            ("-1234567.12345678", Some((-1234567.12345678, 17))),
+            ("1.123456789", None),
+            ("0.000000001", None),
             ("1e5", None),
             ("1.5E3", None),
             (".", None),
