@@ -551,9 +551,11 @@ impl Table {
         let Some(map) = map_large_file_with(path, false)? else {
             return Self::rows_direct(path, Self::checked_text(path)?, names);
         };
-        // The output is backed while the input's page tables are filled (two threads, two
-        // cores: the second core is otherwise idle here), if the header (in the first 64 KiB)
-        // promises the direct path: every wanted column, no `id`.
+        // The output is backed on a thread of its own while the input is checked and parsed,
+        // if the header (in the first 64 KiB) promises the direct path: every wanted column, no
+        // `id`. The input's page tables are not filled beforehand (one thread, ≈ 6 ms for 30 MB):
+        // the threads that check it fault its pages in as they go, in parallel (measured 1.5 ms
+        // faster for `fit sphere` on 1M points, medians of 11 alternated runs).
         let sample = &map[..map.len().min(64 << 10)];
         let whole_lines = &sample[..memchr::memrchr(b'\n', sample).map_or(0, |p| p + 1)];
         let direct =
@@ -565,7 +567,6 @@ impl Table {
             // 3 % to spare for lines longer at the start than later (else a new vector is taken).
             Prefaulted::start(est + est / 32 + 64, est)
         });
-        let _ = map.advise(memmap2::Advice::PopulateRead);
         let segments = Self::check_counted(path, &map[..], true)?;
         Self::rows_direct_into(path, Text::Mapped(map), names, out, Some(segments))
     }
