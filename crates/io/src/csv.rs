@@ -164,75 +164,6 @@ fn map_large_file_with(path: &Path, populate: bool) -> Result<Option<memmap2::Mm
     Ok(unsafe { options.map(&file).ok() })
 }
 
-/// An output vector whose first slots the kernel backs with memory on a thread of its own
-/// while the caller does other work: the kernel clears every fresh page before a process sees
-/// it (about 1 ms per 24 MB when it has cleared huge pages at hand, tens of ms when it has
-/// not), and this moves that clearing off the threads that parse. Rows are written into the
-/// vector's spare capacity while the thread may still be at work: it only asks the kernel to
-/// map pages (`MADV_POPULATE_WRITE`), which never changes what a page holds.
-struct Prefaulted<T> {
-    vec: Vec<T>,
-    worker: Option<std::thread::JoinHandle<()>>,
-}
-
-impl<T> Prefaulted<T> {
-    /// A vector of capacity `cap`; the pages of its first `touch` slots are populated on a new
-    /// thread (Linux; elsewhere, or if no thread starts, it is a plain vector).
-    fn start(cap: usize, touch: usize) -> Self {
-        let mut vec = Vec::with_capacity(cap);
-        advise_huge_pages(vec.spare_capacity_mut());
-        #[cfg(target_os = "linux")]
-        let worker = {
-            const PAGE: usize = 4096;
-            let start = vec.as_mut_ptr() as usize;
-            let end = start + touch.min(cap) * std::mem::size_of::<T>();
-            let (a, b) = (start.next_multiple_of(PAGE), end / PAGE * PAGE);
-            (b > a)
-                .then(|| {
-                    std::thread::Builder::new().name("truepos-prefault".into()).spawn(move || {
-                        // SAFETY: `a..b` lies inside the vector's allocation, which outlives
-                        // this thread (`Prefaulted` joins it before the vector can be dropped
-                        // or handed out); MADV_POPULATE_WRITE only maps pages and leaves what
-                        // they hold (zeros, or rows already written) unchanged.
-                        unsafe { libc::madvise(a as *mut libc::c_void, b - a, libc::MADV_POPULATE_WRITE) };
-                    })
-                })
-                .and_then(Result::ok)
-        };
-        #[cfg(not(target_os = "linux"))]
-        let worker = {
-            let _ = touch;
-            None
-        };
-        Self { vec, worker }
-    }
-
-    fn join(&mut self) {
-        if let Some(w) = self.worker.take() {
-            let _ = w.join();
-        }
-    }
-
-    /// The vector, once the thread is done.
-    fn finish(mut self) -> Vec<T> {
-        self.join();
-        std::mem::take(&mut self.vec)
-    }
-}
-
-impl<T> Drop for Prefaulted<T> {
-    fn drop(&mut self) {
-        // Before the vector is freed.
-        self.join();
-    }
-}
-
-/// Lines a text of `len` bytes holds by the line length of its first 64 KiB (`sample`).
-fn estimated_lines(len: usize, sample: &[u8]) -> usize {
-    let lines = memchr::memchr_iter(b'\n', sample).count().max(1);
-    len / sample.len().div_ceil(lines).max(1)
-}
-
 /// Read a whole file with the bounds of [`crate::limits`] (size, line length, no NUL bytes).
 pub fn read_file(path: &Path) -> Result<Vec<u8>, InputError> {
     crate::limits::read_text(path, "CSV")
@@ -551,24 +482,14 @@ impl Table {
         let Some(map) = map_large_file_with(path, false)? else {
             return Self::rows_direct(path, Self::checked_text(path)?, names);
         };
-        // The output is backed on a thread of its own while the input is checked and parsed,
-        // if the header (in the first 64 KiB) promises the direct path: every wanted column, no
-        // `id`. The input's page tables are not filled beforehand (one thread, ≈ 6 ms for 30 MB):
-        // the threads that check it fault its pages in as they go, in parallel (measured 1.5 ms
-        // faster for `fit sphere` on 1M points, medians of 11 alternated runs).
-        let sample = &map[..map.len().min(64 << 10)];
-        let whole_lines = &sample[..memchr::memrchr(b'\n', sample).map_or(0, |p| p + 1)];
-        let direct =
-            std::str::from_utf8(whole_lines).ok().and_then(|t| Self::head(path, t).ok()).is_some_and(
-                |(h, _, _)| names.iter().all(|n| h.iter().any(|c| c == n)) && !h.iter().any(|c| c == "id"),
-            );
-        let out = direct.then(|| {
-            let est = estimated_lines(map.len(), sample);
-            // 3 % to spare for lines longer at the start than later (else a new vector is taken).
-            Prefaulted::start(est + est / 32 + 64, est)
-        });
+        // The input's page tables are not filled beforehand (on one thread, ≈ 6 ms for 30 MB):
+        // the threads that check it fault its pages in as they go, in parallel. (A thread that
+        // backed the output with memory meanwhile, `MADV_POPULATE_WRITE`, helped while the
+        // input was populated serially; now it competes with the checking threads and gains
+        // nothing measurable: medians of 21 alternated runs of `fit sphere` on 1M points, with /
+        // without, 31.5 / 30.8 ms and 32.4 / 32.2 ms. One thread and an `unsafe` call fewer.)
         let segments = Self::check_counted(path, &map[..], true)?;
-        Self::rows_direct_into(path, Text::Mapped(map), names, out, Some(segments))
+        Self::rows_direct_into(path, Text::Mapped(map), names, Some(segments))
     }
 
     /// The text of a CSV file, mapped when large, with the checks of [`Table::read`] (size, NUL
@@ -631,7 +552,7 @@ impl Table {
         text: Text,
         names: &[&str; K],
     ) -> Result<Result<Vec<[f64; K]>, Table>, InputError> {
-        Self::rows_direct_into(path, text, names, None, None)
+        Self::rows_direct_into(path, text, names, None)
     }
 
     /// [`rows_direct`](Self::rows_direct) into `out` when its capacity suffices, with the
@@ -640,7 +561,6 @@ impl Table {
         path: &Path,
         text: Text,
         names: &[&str; K],
-        out: Option<Prefaulted<[f64; K]>>,
         segments: Option<Segments>,
     ) -> Result<Result<Vec<[f64; K]>, Table>, InputError> {
         let (header, _, data) = Self::head(path, &text)?;
@@ -650,7 +570,7 @@ impl Table {
             Some(idx) if plain => {
                 let bytes = text.as_bytes();
                 let segments = segments.map(|s| s.after(bytes, data));
-                direct_rows::<K>(&bytes[data..], header.len(), &idx, out, segments)
+                direct_rows::<K>(&bytes[data..], header.len(), &idx, segments)
             }
             _ => None,
         };
@@ -1012,17 +932,13 @@ fn direct_rows<const K: usize>(
     data: &[u8],
     width: usize,
     idx: &[usize],
-    out: Option<Prefaulted<[f64; K]>>,
     segments: Option<(Vec<usize>, Vec<usize>, usize)>,
 ) -> Option<Vec<[f64; K]>> {
     let slots = direct_slots(width, idx)?;
     let (bounds, lines, total) = segments.unwrap_or_else(|| direct_segments(data));
-    // The vector prepared while the file was mapped if it holds every line, else a new one.
-    let mut pre = match out {
-        Some(p) if p.vec.capacity() >= total => p,
-        _ => Prefaulted::start(total, 0),
-    };
-    let out = &mut pre.vec;
+    let mut vec: Vec<[f64; K]> = Vec::with_capacity(total);
+    advise_huge_pages(vec.spare_capacity_mut());
+    let out = &mut vec;
     let parts = split_parts(&mut out.spare_capacity_mut()[..total], &lines);
     let filled: Option<Vec<usize>> = parts
         .into_par_iter()
@@ -1037,7 +953,7 @@ fn direct_rows<const K: usize>(
     // SAFETY: each segment wrote rows `0..f` of its part (`parse_segment` calls `put` for
     // consecutive rows from 0 and returns their count).
     unsafe { compact(out, &lines, &filled) };
-    Some(pre.finish())
+    Some(vec)
 }
 
 /// [`direct_rows`] for a time stream: column `idx[0]` into one vector, `idx[1..4]` into another
@@ -1866,7 +1782,7 @@ mod tests {
                 .unwrap_err();
             assert_eq!((e.line, e.column), (Some(7), Some(1)));
         }
-        // An `id` column: no output is prepared, the table comes back.
+        // An `id` column: the table comes back.
         let mut s = String::from("id,x_mm,y_mm,z_mm\n");
         let mut i = 0u64;
         while s.len() < (9 << 20) {
@@ -1908,8 +1824,8 @@ mod tests {
             );
             assert_eq!(lines.len() + 1, bounds.len());
             let idx = [0, 1, 2];
-            let a = direct_rows::<3>(&bytes[data..], 3, &idx, None, Some((bounds, lines, total))).unwrap();
-            let b = direct_rows::<3>(&bytes[data..], 3, &idx, None, None).unwrap();
+            let a = direct_rows::<3>(&bytes[data..], 3, &idx, Some((bounds, lines, total))).unwrap();
+            let b = direct_rows::<3>(&bytes[data..], 3, &idx, None).unwrap();
             let g = table(&s).unwrap().f64_rows(&names).unwrap();
             assert_eq!(a, b);
             assert_eq!(a, g);
