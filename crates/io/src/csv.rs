@@ -1192,10 +1192,26 @@ fn parse_row_fast(text: &[u8], slots: &[usize], d: &mut [f64]) -> bool {
 /// (the points' and the streams' readers each get their own copy, with the number parser in it).
 #[inline(always)]
 fn parse_row_fast_len(text: &[u8], slots: &[usize], d: &mut [f64]) -> Option<usize> {
-    let mut i = 0;
+    row_fast(text, slots, d, |_, _| {})
+}
+
+/// The one fast row walk behind [`parse_row_fast_len`] and [`split_parse_row_fast`]: wanted
+/// columns (`slots`) are parsed where they start, without a scan for their end first; only the
+/// other fields are walked byte by byte. `field(start, end)` receives every field's range in
+/// `text` (spaces and tabs trimmed, a row-ending `\r` left out); a no-op closure costs nothing.
+/// Returns the offset of the row's `\n` (or the end of `text`), or `None` at anything the
+/// general path must decide: a quote, a value that is not a plain number, a ragged row.
+#[inline(always)]
+fn row_fast(
+    text: &[u8],
+    slots: &[usize],
+    d: &mut [f64],
+    mut field: impl FnMut(usize, usize),
+) -> Option<usize> {
     let n = text.len();
     let line_end =
         |i: usize| i >= n || text[i] == b'\n' || (text[i] == b'\r' && (i + 1 >= n || text[i + 1] == b'\n'));
+    let mut i = 0;
     let mut filled = 0;
     for (col, &slot) in slots.iter().enumerate() {
         if col > 0 {
@@ -1205,6 +1221,11 @@ fn parse_row_fast_len(text: &[u8], slots: &[usize], d: &mut [f64]) -> Option<usi
             }
             i += 1;
         }
+        while i < n && (text[i] == b' ' || text[i] == b'\t') {
+            i += 1;
+        }
+        let a = i;
+        let e;
         if slot == usize::MAX {
             while i < n && text[i] != b',' && text[i] != b'\n' {
                 if text[i] == b'"' {
@@ -1212,25 +1233,28 @@ fn parse_row_fast_len(text: &[u8], slots: &[usize], d: &mut [f64]) -> Option<usi
                 }
                 i += 1;
             }
-            // A field that ends the row keeps its `\r` out (as the row's text does).
-            if i < n && text[i] == b'\n' && i > 0 && text[i - 1] == b'\r' {
-                i -= 1;
+            let mut end = i;
+            if end > a && text[end - 1] == b'\r' && (i >= n || text[i] == b'\n') {
+                end -= 1;
             }
-            continue;
+            while end > a && (text[end - 1] == b' ' || text[end - 1] == b'\t') {
+                end -= 1;
+            }
+            e = end;
+        } else {
+            let (v, used) = number_prefix(&text[i..])?;
+            i += used;
+            e = i;
+            while i < n && (text[i] == b' ' || text[i] == b'\t') {
+                i += 1;
+            }
+            if !line_end(i) && text[i] != b',' {
+                return None;
+            }
+            d[slot] = v;
+            filled += 1;
         }
-        while i < n && (text[i] == b' ' || text[i] == b'\t') {
-            i += 1;
-        }
-        let (v, used) = number_prefix(&text[i..])?;
-        i += used;
-        while i < n && (text[i] == b' ' || text[i] == b'\t') {
-            i += 1;
-        }
-        if !line_end(i) && text[i] != b',' {
-            return None;
-        }
-        d[slot] = v;
-        filled += 1;
+        field(a, e);
     }
     if !line_end(i) || filled != d.len() {
         return None;
@@ -1332,11 +1356,9 @@ fn digits_value(w: u64, len: usize) -> u64 {
 }
 
 /// The fast path of [`Rows::split_and_parse_range`] for one row (`text` from the row's start,
-/// `s0` its offset in the whole text): wanted columns (`slots`) are parsed where they start,
-/// without a scan for their end first; only the other fields are walked byte by byte. Every
-/// field's range (absolute, spaces trimmed) is appended to `fields`. `false` (with `fields`
-/// and `d` unspecified) at anything the general path must decide: a quote, a value that is not
-/// a plain number, a ragged row.
+/// `s0` its offset in the whole text): [`row_fast`] with every field's range (absolute, spaces
+/// trimmed) appended to `fields`. `false` (with `fields` and `d` unspecified) at anything the
+/// general path must decide.
 #[inline(always)]
 fn split_parse_row_fast(
     text: &[u8],
@@ -1345,53 +1367,7 @@ fn split_parse_row_fast(
     d: &mut [f64],
     fields: &mut Vec<(usize, usize)>,
 ) -> bool {
-    let n = text.len();
-    let line_end =
-        |i: usize| i >= n || text[i] == b'\n' || (text[i] == b'\r' && (i + 1 >= n || text[i + 1] == b'\n'));
-    let mut i = 0;
-    for (col, &slot) in slots.iter().enumerate() {
-        if col > 0 {
-            // The previous field ended at a comma.
-            if i >= n || text[i] != b',' {
-                return false;
-            }
-            i += 1;
-        }
-        while i < n && (text[i] == b' ' || text[i] == b'\t') {
-            i += 1;
-        }
-        let a = i;
-        let e;
-        if slot == usize::MAX {
-            while i < n && text[i] != b',' && text[i] != b'\n' {
-                if text[i] == b'"' {
-                    return false;
-                }
-                i += 1;
-            }
-            let mut end = i;
-            if end > a && text[end - 1] == b'\r' && (i >= n || text[i] == b'\n') {
-                end -= 1;
-            }
-            while end > a && (text[end - 1] == b' ' || text[end - 1] == b'\t') {
-                end -= 1;
-            }
-            e = end;
-        } else {
-            let Some((v, used)) = number_prefix(&text[i..]) else { return false };
-            i += used;
-            e = i;
-            while i < n && (text[i] == b' ' || text[i] == b'\t') {
-                i += 1;
-            }
-            if !line_end(i) && text[i] != b',' {
-                return false;
-            }
-            d[slot] = v;
-        }
-        fields.push((s0 + a, s0 + e));
-    }
-    line_end(i)
+    row_fast(text, slots, d, |a, e| fields.push((s0 + a, s0 + e))).is_some()
 }
 
 /// Write CSV rows with a header; floats in shortest round-trip form (or a fixed number of
