@@ -99,19 +99,12 @@ fn apply_puts_stylus_centres_on_the_sphere() {
     let (m, p) = files(tmp.path());
     let out = tmp.path().join("centres.csv");
     let delay = truth["delay_s"].as_f64().unwrap().to_string();
-    let o = run(&[
-        "latency",
-        "apply",
-        "--delay-s",
-        &delay,
-        "--machine",
-        &m,
-        "--probe",
-        &p,
-        "--output",
-        out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let apply = |out: &std::path::Path| {
+        let args = ["latency", "apply", "--delay-s", &delay, "--machine", &m, "--probe", &p, "--output"];
+        let o = run(&[&args[..], &[out.to_str().unwrap()]].concat());
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    apply(&out);
     let text = std::fs::read_to_string(&out).unwrap();
     let mut lines = text.lines().filter(|l| !l.starts_with('#'));
     assert_eq!(lines.next().unwrap(), "t_s,x_mm,y_mm,z_mm");
@@ -145,19 +138,7 @@ fn apply_puts_stylus_centres_on_the_sphere() {
     assert!(n > 50, "{n} points in contact");
     // The same as Parquet (by the extension): the same doubles as the CSV's shortest text.
     let pq = tmp.path().join("centres.parquet");
-    let o = run(&[
-        "latency",
-        "apply",
-        "--delay-s",
-        &delay,
-        "--machine",
-        &m,
-        "--probe",
-        &p,
-        "--output",
-        pq.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    apply(&pq);
     let cols = truepos_io::parquet_file::read_columns(&pq).unwrap();
     let csv = truepos_io::csv::Table::read(&out).unwrap();
     assert_eq!(cols.names, csv.header);
