@@ -9,6 +9,14 @@
 //! ([`Table::f64_columns`]) parses the requested columns of all rows in parallel and reports
 //! the first bad value with file, line, column number and column name. Ragged rows are errors.
 //! [`CsvWriter`] writes rows with shortest round-trip float formatting.
+//!
+//! The direct readers ([`Table::read_rows_direct`] for points, [`Table::read_stream_direct`] for
+//! time streams) parse the wanted columns straight from the text in parallel segments, without a
+//! row index, and hand anything unusual back as a [`Table`] (the general path, which also words
+//! the errors). Their common row, short decimals separated by commas, is read by delimiter
+//! blocks and SSSE3 number conversion where the CPU has it (`plain_rows_ssse3`), else by the
+//! SWAR reader (`short_decimal_prefix`); both give `str::parse`'s value bit for bit. A mapped
+//! file is checked for NUL bytes and UTF-8 only where the parser did not see plain ASCII rows.
 
 use crate::num::NumFormat;
 use crate::InputError;
