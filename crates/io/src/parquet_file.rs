@@ -375,21 +375,30 @@ impl ParquetReader {
                         ),
                     ));
                 }
-                let chunk = usize::try_from(start)
+                let range = usize::try_from(start)
                     .ok()
                     .zip(usize::try_from(c.compressed_size()).ok())
-                    .and_then(|(a, n)| map.get(a..a.checked_add(n)?));
+                    .and_then(|(a, n)| Some((a, n, map.get(a..a.checked_add(n)?)?)));
                 let at = |msg: String| {
                     pq_err(path, format!("row group {}, column '{}': {msg}", g + 1, c.column_path().string()))
                 };
-                let chunk =
-                    chunk.ok_or_else(|| at("the column chunk runs past the end of the file".into()))?;
+                let (a, len, chunk) =
+                    range.ok_or_else(|| at("the column chunk runs past the end of the file".into()))?;
                 // Columns are flat (repeated ones are refused): one value (or null) per row.
                 let values = c.num_values();
                 if values < 0 || values as u64 > n {
                     return Err(at(format!("{values} values in a row group of {n} rows")));
                 }
                 check_page_headers(chunk, values).map_err(at)?;
+                // The pages the walk touched (the kernel maps some around each header: most of
+                // the file when its pages are small) leave the process at once, so the check
+                // holds no memory that grows with the file.
+                #[cfg(unix)]
+                // SAFETY: a read-only private map of a file: a dropped page is read again from
+                // the file if touched, and nothing reads this range again anyway.
+                unsafe {
+                    let _ = map.unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, a, len);
+                }
             }
         }
         let decoded = rows.saturating_mul(cols.len() as u64).saturating_mul(8);

@@ -403,19 +403,12 @@ where
             .into_par_iter()
             .map(|c| piece(c * PIECE_ROWS..((c + 1) * PIECE_ROWS).min(n)))
             .collect();
-        let mut batch: Option<Vec<BatchColumn>> = None;
+        // Piece by piece to the writer (which gathers them into row groups): no copy of the
+        // whole chunk's columns, and little in flight.
         for r in results {
             let (cols, t) = r?;
             merge(t);
-            match &mut batch {
-                None => batch = Some(cols),
-                Some(b) => b.iter_mut().zip(&cols).for_each(|(a, c)| {
-                    a.append(c);
-                }),
-            }
-        }
-        if let Some(b) = batch {
-            w.send(b)?;
+            w.send(cols)?;
         }
         n_points += n;
         n_chunks += 1;

@@ -604,7 +604,7 @@ pub enum RewriteError {
     Output(#[from] OutputError),
 }
 
-/// Stream a point CSV through `f` into `output`: the input with `x_mm,y_mm,z_mm` replaced by the
+/// Stream a point file through `f` into `output`: the input with `x_mm,y_mm,z_mm` replaced by the
 /// points as `f` leaves them and the columns `extra` (three values per point from `f`, e.g.
 /// `dx_um,dy_um,dz_um`) replaced where the input has them or appended; every other column is
 /// passed through unchanged. Constant memory: one chunk of about [`BLOCK_BYTES`] at a time (its
@@ -619,6 +619,15 @@ pub enum RewriteError {
 /// order). `merge` receives the partial results in file order, on the calling thread, so sums
 /// come out the same on every run. The output is atomic: nothing is left at `output` unless
 /// every row was written.
+///
+/// Binary files, by extension, are streamed too (`rewrite_binary`): a Parquet or E57 input is
+/// read in batches of [`BATCH_ROWS`] rows (pieces at the same rows as if the whole file were
+/// cut; a refused point is an input error naming its 1-based row), and a `.parquet` output is
+/// written a row group at a time by a writer thread (numbers as doubles; a Parquet input keeps
+/// its column types; a CSV input's passed-through column is a number column when every value
+/// of it in the file is a number — decided by a first pass over the file, or text for an input
+/// that cannot be read twice, a pipe — else text). Memory holds a batch or chunk and one row
+/// group, whatever the file's size.
 pub fn rewrite_points<F, T, M>(
     input: &Path,
     output: &Path,
