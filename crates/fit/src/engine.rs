@@ -269,6 +269,19 @@ pub(crate) fn minimise<const N: usize, M: Model<N>>(
             converged = true;
             break;
         }
+        // Converged when even the undamped Gauss-Newton step, the minimiser of the linear
+        // model, predicts a decrease `δᵀJᵀJδ = −δᵀJᵀr` below the rounding noise of the sum of
+        // squares: no step can then gain anything real, whatever λ is. (Checked before the
+        // damped step, so a fit that starts close, as the algebraic start usually is, ends
+        // without evaluating one more step that can only confirm it.)
+        if let Some(c) = acc.jtj.cholesky() {
+            let gn = c.solve(&(-acc.jtr));
+            let pred = -gn.dot(&acc.jtr);
+            if pred.is_finite() && pred <= PRED_TOL * acc.ssr {
+                converged = true;
+                break;
+            }
+        }
         let mut tries = 0;
         loop {
             tries += 1;
