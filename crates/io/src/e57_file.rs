@@ -14,8 +14,9 @@
 //! - [`write_e57`]: points in mm as one Cartesian scan of doubles, written atomically (for
 //!   tests and exchange).
 //!
-//! Where E57 points reach the rest of truepos: [`crate::points::read_points`] (fit) and
-//! [`crate::csv::Table::read`] (columns `x_mm,y_mm,z_mm`).
+//! Where E57 points reach the rest of truepos: [`crate::points::read_points`] (fit),
+//! [`crate::csv::Table::read`] (columns `x_mm,y_mm,z_mm`) and, streamed,
+//! [`crate::stream::rewrite_points`] (`comp correct`, `load correct`).
 
 use crate::atomic::OutputError;
 use crate::InputError;
