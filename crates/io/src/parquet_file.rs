@@ -225,6 +225,13 @@ impl BatchColumn {
         }
         true
     }
+    /// Room for `rows` values in all (the text's bytes grow as needed).
+    fn reserve_rows(&mut self, rows: usize) {
+        match self {
+            BatchColumn::F64(v) => v.reserve_exact(rows.saturating_sub(v.len())),
+            BatchColumn::Text(t) => t.ends.reserve_exact(rows.saturating_sub(t.ends.len())),
+        }
+    }
     fn split_off(&mut self, at: usize) -> BatchColumn {
         match self {
             BatchColumn::F64(v) => BatchColumn::F64(v.split_off(at)),
@@ -963,6 +970,9 @@ fn write_thread(
             let rest: Option<Vec<BatchColumn>> =
                 (n > room).then(|| batch.iter_mut().map(|c| c.split_off(room)).collect());
             for (b, c) in buf.iter_mut().zip(&batch) {
+                // The whole row group at once, not by doubling: growth would leave the
+                // smaller buffers behind as free memory the process keeps.
+                b.reserve_rows(group);
                 b.append(c);
             }
             buffered += n.min(room);

@@ -2,7 +2,7 @@
 //! CSV → CSV route: a Parquet or E57 input, or a Parquet output (by extension).
 //!
 //! - [`rewrite_batches`] (Parquet or E57 in; CSV or Parquet out): a reader thread decodes the
-//!   input in batches of `stream::BATCH_ROWS` (65 536) rows ([`ParquetReader`]: one row group's column readers
+//!   input in batches of `stream::BATCH_ROWS` (32 768) rows ([`ParquetReader`]: one row group's column readers
 //!   open at a time, pages decoded as needed; [`E57Source`]: the scans packet by packet); the
 //!   calling thread cuts each batch into pieces of [`PIECE_ROWS`] rows for `f` (in parallel, at
 //!   the same rows as if the whole file were cut, so `merge` sees the same partial results as

@@ -566,7 +566,7 @@ pub(crate) const PIECE_ROWS: usize = 4096;
 
 /// Rows per batch of a Parquet or E57 input: a whole number of pieces, so pieces start at the
 /// same rows as if the whole file were cut into pieces.
-pub(crate) const BATCH_ROWS: usize = 16 * PIECE_ROWS;
+pub(crate) const BATCH_ROWS: usize = 8 * PIECE_ROWS;
 
 /// Rows per row group of a Parquet output.
 const ROW_GROUP: usize = crate::parquet_file::ROW_GROUP;
