@@ -133,18 +133,34 @@ fn numbers(c: &BatchColumn) -> &[f64] {
     }
 }
 
-/// A column name of a binary input that a CSV header cannot carry unchanged: empty, or with a
-/// comma, quote or line break, surrounding spaces, or a leading `#` or byte-order mark (the
-/// names `csv::Table` refuses for a Parquet file).
-fn csv_unwritable(names: &[String]) -> Option<(usize, &str)> {
-    unwritable_name(names).or_else(|| {
-        names
-            .iter()
-            .enumerate()
-            .find(|(_, n)| {
-                n.is_empty() || n.contains(['\n', '\r']) || n.trim() != n.as_str() || n.starts_with('#')
-            })
-            .map(|(i, n)| (i, n.as_str()))
+/// A column name of a binary input that a CSV header cannot carry unchanged, with the reason:
+/// a comma, quote or byte-order mark, a line break, surrounding spaces, a leading `#`, empty or
+/// repeated (the names `csv::Table` refuses for a Parquet file).
+fn csv_unwritable(names: &[String]) -> Option<(usize, String)> {
+    if let Some((i, n)) = unwritable_name(names) {
+        return Some((i, unwritable_message(n)));
+    }
+    names.iter().enumerate().find_map(|(i, n)| {
+        let why = if n.is_empty() {
+            "is empty"
+        } else if n.contains(['\n', '\r']) {
+            "holds a line break"
+        } else if n.trim() != n.as_str() {
+            "has spaces around it"
+        } else if n.starts_with('#') {
+            "starts with '#'"
+        } else if names[..i].contains(n) {
+            "is repeated"
+        } else {
+            return None;
+        };
+        Some((
+            i,
+            format!(
+                "column name '{}' {why}: a CSV header could not carry it unchanged (write Parquet, or rename the column)",
+                n.escape_debug()
+            ),
+        ))
     })
 }
 
@@ -188,9 +204,8 @@ where
         let text: Vec<bool> = plan.iter().map(|s| matches!(*s, Src::Pass(c) if src.text[c])).collect();
         Sink::Parquet(ParquetWriter::create_grouped(output, &names, &text, group)?)
     } else {
-        if let Some((i, n)) = csv_unwritable(&src.names) {
-            let e = InputError::in_file(input, unwritable_message(n));
-            return Err(InputError { column: Some(i + 1), ..e }.into());
+        if let Some((i, msg)) = csv_unwritable(&src.names) {
+            return Err(InputError { column: Some(i + 1), ..InputError::in_file(input, msg) }.into());
         }
         let mut w = BackgroundWriter::new(AtomicFile::create(output)?);
         w.send(format!("{}\n", names.join(",")).into_bytes())?;
@@ -802,6 +817,36 @@ mod tests {
         let RewriteError::Input(e) = e else { panic!("{e}") };
         assert_eq!(e.column, Some(4), "{e}");
         assert!(!out.exists());
+    }
+
+    /// Inputs without rows: a CSV output of just the header, a Parquet output of no rows with
+    /// every column (one empty row group, as `write_columns` writes it).
+    #[test]
+    fn inputs_without_rows_give_outputs_without_rows() {
+        let dir = tempfile::tempdir().unwrap();
+        let inp = dir.path().join("empty.parquet");
+        let none = Columns {
+            names: ["id", "x_mm", "y_mm", "z_mm"].map(String::from).to_vec(),
+            data: vec![
+                ColumnData::Str(vec![]),
+                ColumnData::F64(vec![]),
+                ColumnData::F64(vec![]),
+                ColumnData::F64(vec![]),
+            ],
+        };
+        crate::parquet_file::write_columns(&inp, &none).unwrap();
+        let csv_out = dir.path().join("out.csv");
+        let sum = rewrite_points(&inp, &csv_out, EXTRA, NumFormat::Shortest, shift, |_| {}).unwrap();
+        assert_eq!(sum.n_points, 0);
+        assert_eq!(std::fs::read_to_string(&csv_out).unwrap(), "id,x_mm,y_mm,z_mm,dx_um,dy_um,dz_um\n");
+        let pq_out = dir.path().join("out.parquet");
+        rewrite_points(&inp, &pq_out, EXTRA, NumFormat::Shortest, shift, |_| {}).unwrap();
+        let got = read_columns(&pq_out).unwrap();
+        assert_eq!((got.names.len(), got.n_rows(), row_groups(&pq_out)), (7, 0, 1));
+        let csv_in = dir.path().join("empty.csv");
+        std::fs::write(&csv_in, "# nothing yet\nid,x_mm,y_mm,z_mm\n").unwrap();
+        rewrite_points(&csv_in, &pq_out, EXTRA, NumFormat::Shortest, shift, |_| {}).unwrap();
+        assert_eq!(read_columns(&pq_out).unwrap().n_rows(), 0);
     }
 
     /// A writer dropped before `finish` leaves nothing behind.
