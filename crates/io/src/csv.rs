@@ -1976,6 +1976,63 @@ mod tests {
         assert_eq!(e.line, Some(line_at(&bin, 5_000_000)));
     }
 
+    /// The direct read of a mapped file checks the text only where its row parser did not see
+    /// plain ASCII rows, and reports exactly what `Table::read` reports: a NUL byte or invalid
+    /// UTF-8 in a comment deep in the file (the rows themselves parse) is an error at its line;
+    /// valid non-ASCII text in a comment is fine; bad bytes in a row, and a header after more
+    /// than a segment of comments, take the general path with the same result.
+    #[test]
+    fn mapped_direct_rows_check_the_text_where_the_parse_did_not() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("big.csv");
+        let names = ["x_mm", "y_mm", "z_mm"];
+        let mut text = String::from("# big\nx_mm,y_mm,z_mm\n");
+        let mut i = 0u64;
+        while text.len() < 9 << 20 {
+            if i == 200_000 {
+                text.push_str("# a comment: COMMENT_HERE\n");
+            }
+            text.push_str(&format!("{}.{:03},-{}.5,{}\n", i % 997, i % 1000, i % 13, i));
+            i += 1;
+        }
+        let at = text.find("COMMENT_HERE").unwrap();
+        let line_at = |b: &[u8], at: usize| b[..at].iter().filter(|&&c| c == b'\n').count() + 1;
+        let direct = |bytes: &[u8]| {
+            std::fs::write(&p, bytes).unwrap();
+            Table::read_rows_direct(&p, &names)
+        };
+        let general = |bytes: &[u8]| {
+            std::fs::write(&p, bytes).unwrap();
+            Table::read(&p).and_then(|t| t.f64_rows(&names))
+        };
+        // Plain, and with valid UTF-8 in the comment: the direct rows, as the general path's.
+        let good = text.replace("COMMENT_HERE", "été µm");
+        let d = direct(good.as_bytes()).unwrap().expect("direct");
+        assert_eq!(d, general(good.as_bytes()).unwrap());
+        assert_eq!(d.len() as u64, i);
+        // A NUL byte or an invalid byte in the comment: the text error of `Table::read`.
+        for (byte, what) in [(0u8, "binary"), (0xff, "UTF-8")] {
+            let mut b = text.clone().into_bytes();
+            b[at] = byte;
+            let e = direct(&b).unwrap_err();
+            assert!(e.to_string().contains(what), "{e}");
+            assert_eq!(e.line, Some(line_at(&b, at)));
+            assert_eq!(e.to_string(), general(&b).unwrap_err().to_string());
+        }
+        // The same bytes in a row: the general path, the same error.
+        let row = text.find("\n5.005,").unwrap() + 2;
+        for byte in [0u8, 0xff] {
+            let mut b = text.clone().into_bytes();
+            b[row] = byte;
+            let e = direct(&b).unwrap_err();
+            assert_eq!(e.to_string(), general(&b).unwrap_err().to_string());
+        }
+        // The header after 2 MiB of comments (not in the first segment): still read.
+        let late = format!("{}{}", "# padding\n".repeat(200_000), text);
+        let d = direct(late.as_bytes()).unwrap().expect("direct or general rows");
+        assert_eq!(d, general(late.as_bytes()).unwrap());
+    }
+
     #[test]
     fn writer_round_trips_floats() {
         let mut w = CsvWriter::new(Vec::new());
