@@ -247,7 +247,10 @@ where
                                 RowFail::Text(c) => RewriteError::from(
                                     InputError::in_file(
                                         input,
-                                        format!("row {}: a line break in the text", first + r + 1),
+                                        format!(
+                                            "row {}: a line break or NUL byte in the text (a CSV cannot carry it; write Parquet)",
+                                            first + r + 1
+                                        ),
                                     )
                                     .with_column_name(col_names[c].clone()),
                                 ),
@@ -307,8 +310,9 @@ fn csv_row(
                 BatchColumn::F64(v) => cw.field_f64(v[r]),
                 BatchColumn::Text(t) => {
                     let s = t.get(r);
-                    // A CSV field cannot hold a line break (the readers take it for a row's end).
-                    if s.contains(['\n', '\r']) {
+                    // A CSV field cannot hold a line break (the readers take it for a row's end),
+                    // nor a NUL byte (they take it for a binary file).
+                    if s.contains(['\n', '\r', '\0']) {
                         return Err(RowFail::Text(c));
                     }
                     cw.field_str(s)
@@ -847,6 +851,37 @@ mod tests {
         std::fs::write(&csv_in, "# nothing yet\nid,x_mm,y_mm,z_mm\n").unwrap();
         rewrite_points(&csv_in, &pq_out, EXTRA, NumFormat::Shortest, shift, |_| {}).unwrap();
         assert_eq!(read_columns(&pq_out).unwrap().n_rows(), 0);
+    }
+
+    /// Text a CSV field cannot carry (a line break, a NUL byte) is refused on the way to CSV,
+    /// named by row and column, nothing written; Parquet carries it unchanged.
+    #[test]
+    fn text_a_csv_cannot_carry_is_refused_for_csv_only() {
+        let dir = tempfile::tempdir().unwrap();
+        let inp = dir.path().join("in.parquet");
+        for bad in ["a\nb", "a\0b"] {
+            let mut ids: Vec<String> = (0..10).map(|i| format!("P{i}")).collect();
+            ids[3] = bad.to_string();
+            let c = Columns {
+                names: ["id", "x_mm", "y_mm", "z_mm"].map(String::from).to_vec(),
+                data: vec![
+                    ColumnData::Str(ids),
+                    ColumnData::F64(vec![1.0; 10]),
+                    ColumnData::F64(vec![2.0; 10]),
+                    ColumnData::F64(vec![3.0; 10]),
+                ],
+            };
+            crate::parquet_file::write_columns(&inp, &c).unwrap();
+            let out = dir.path().join("out.csv");
+            let e = rewrite_points(&inp, &out, EXTRA, NumFormat::Shortest, shift, |_| {})
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("row 4") && e.contains("id") && e.contains("line break or NUL"), "{e}");
+            assert!(!out.exists());
+            let pq = dir.path().join("out.parquet");
+            rewrite_points(&inp, &pq, EXTRA, NumFormat::Shortest, shift, |_| {}).unwrap();
+            assert!(matches!(&read_columns(&pq).unwrap().data[0], ColumnData::Str(v) if v[3] == bad));
+        }
     }
 
     /// A writer dropped before `finish` leaves nothing behind.
