@@ -125,6 +125,18 @@ impl Source {
     }
 }
 
+impl Drop for Source {
+    /// The reader is stopped and waited for (not left running past the rewrite): with the
+    /// channel gone, its next send fails and it returns, after at most the batch it decodes.
+    fn drop(&mut self) {
+        let (_, closed) = sync_channel(0);
+        drop(std::mem::replace(&mut self.rx, closed));
+        if let Some(h) = self.handle.take() {
+            let _ = h.join();
+        }
+    }
+}
+
 /// The values of a number column (a text column has none: checked before this is asked).
 fn numbers(c: &BatchColumn) -> &[f64] {
     match c {
