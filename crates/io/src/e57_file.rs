@@ -8,11 +8,15 @@
 //!   (`cartesianInvalidState` 1 = direction only, 2 = invalid; or the spherical equivalents),
 //!   or not finite numbers once in mm, are skipped and counted. A file that is not a readable E57 is an input error naming it (and
 //!   the scan, when one is broken).
+//! - [`E57Source`]: the same points in batches, in constant memory (the `e57` crate reads the
+//!   binary sections packet by packet): what the streamed point rewrite
+//!   ([`crate::stream::rewrite_points`]) reads.
 //! - [`write_e57`]: points in mm as one Cartesian scan of doubles, written atomically (for
 //!   tests and exchange).
 //!
-//! Where E57 points reach the rest of truepos: [`crate::points::read_points`] (fit) and
-//! [`crate::csv::Table::read`] (columns `x_mm,y_mm,z_mm`).
+//! Where E57 points reach the rest of truepos: [`crate::points::read_points`] (fit),
+//! [`crate::csv::Table::read`] (columns `x_mm,y_mm,z_mm`) and, streamed,
+//! [`crate::stream::rewrite_points`] (`comp correct`, `load correct`).
 
 use crate::atomic::OutputError;
 use crate::InputError;
@@ -45,62 +49,111 @@ fn e57_err(path: &Path, e: impl std::fmt::Display) -> InputError {
 
 /// Read every scan of an E57 file (see the module docs).
 pub fn read_e57(path: &Path) -> Result<E57Points, InputError> {
-    let file =
-        std::fs::File::open(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
-    let meta = file.metadata().map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
-    if meta.is_dir() {
-        return Err(InputError::in_file(path, "is a directory, not a file"));
-    }
-    crate::limits::check_file_size(path, &meta)?;
-    let mut reader = E57Reader::new(std::io::BufReader::new(file)).map_err(|e| e57_err(path, e))?;
-    let clouds = reader.pointclouds();
-    // The point counts come from the file's XML: bounded before anything is allocated or read.
-    // Every stored point takes at least one bit of the file, so a file of S bytes holds at most
-    // 8·S points; more announced is a broken (or hostile) file, refused instead of a reservation
-    // or a read loop of billions of points from a few kilobytes.
-    let announced = clouds.iter().fold(0_u64, |n, c| n.saturating_add(c.records));
-    let most = meta.len().saturating_mul(8);
-    if announced > most {
-        return Err(e57_err(
-            path,
-            format!(
-                "its scans announce {announced} points, more than a file of {} bytes can hold",
-                meta.len()
-            ),
-        ));
-    }
-    let mut points = Vec::with_capacity(usize::try_from(announced).unwrap_or(0).min(1 << 20));
-    let mut skipped_invalid = 0;
-    for (k, pc) in clouds.iter().enumerate() {
-        let name = pc.name.clone().or_else(|| pc.guid.clone()).unwrap_or_default();
-        let scan = |e: &dyn std::fmt::Display| e57_err(path, format!("scan {} ('{name}'): {e}", k + 1));
-        if !pc.has_cartesian() && !pc.has_spherical() {
-            return Err(scan(&"it has neither Cartesian nor spherical coordinates"));
+    let mut points = Vec::new();
+    let (skipped_invalid, scans) = E57Source::open(path)?.for_each_batch(usize::MAX, |b| {
+        if points.is_empty() {
+            points = b;
+        } else {
+            points.extend_from_slice(&b);
         }
-        let mut it = reader.pointcloud_simple(pc).map_err(|e| scan(&e))?;
-        // Defaults of the simple reader, stated: the scan's pose is applied (points in the
-        // file's common frame) and spherical coordinates are converted to Cartesian ones.
-        it.apply_pose(true);
-        it.spherical_to_cartesian(true);
-        for p in it {
-            let p = p.map_err(|e| scan(&e))?;
-            // Finite in mm, not only in metres: beyond ±1.8e305 m the conversion overflows to
-            // infinity (found by the `e57_points` fuzz target), and an infinite point would go
-            // into the fit. Such points are skipped and counted like the ones marked invalid.
-            match p.cartesian {
-                CartesianCoordinate::Valid { x, y, z } => {
-                    let q = Point3::new(x * MM_PER_M, y * MM_PER_M, z * MM_PER_M);
-                    if q.x.is_finite() && q.y.is_finite() && q.z.is_finite() {
-                        points.push(q);
-                    } else {
-                        skipped_invalid += 1;
+        true
+    })?;
+    Ok(E57Points { points, skipped_invalid, scans })
+}
+
+/// An E57 file opened, its XML read and its point counts checked, ready to be read scan by scan
+/// in batches ([`for_each_batch`](Self::for_each_batch)): the `e57` crate reads the binary
+/// sections packet by packet, so memory holds one batch whatever the file's size.
+pub struct E57Source {
+    path: std::path::PathBuf,
+    reader: E57Reader<std::io::BufReader<std::fs::File>>,
+    clouds: Vec<e57::PointCloud>,
+    announced: u64,
+}
+
+impl E57Source {
+    /// Open `path` and check what can be checked before reading points.
+    pub fn open(path: &Path) -> Result<Self, InputError> {
+        let file =
+            std::fs::File::open(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+        let meta = file.metadata().map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+        if meta.is_dir() {
+            return Err(InputError::in_file(path, "is a directory, not a file"));
+        }
+        crate::limits::check_file_size(path, &meta)?;
+        let reader = E57Reader::new(std::io::BufReader::new(file)).map_err(|e| e57_err(path, e))?;
+        let clouds = reader.pointclouds();
+        // The point counts come from the file's XML: bounded before anything is allocated or
+        // read. Every stored point takes at least one bit of the file, so a file of S bytes
+        // holds at most 8·S points; more announced is a broken (or hostile) file, refused
+        // instead of a reservation or a read loop of billions of points from a few kilobytes.
+        let announced = clouds.iter().fold(0_u64, |n, c| n.saturating_add(c.records));
+        let most = meta.len().saturating_mul(8);
+        if announced > most {
+            return Err(e57_err(
+                path,
+                format!(
+                    "its scans announce {announced} points, more than a file of {} bytes can hold",
+                    meta.len()
+                ),
+            ));
+        }
+        Ok(Self { path: path.to_path_buf(), reader, clouds, announced })
+    }
+
+    /// Read every scan in file order and hand the valid points (mm, in the file's common frame)
+    /// to `sink` in batches of `batch` points (the last one shorter; none for a file without
+    /// points). Reading stops, without an error, when `sink` returns `false`. Returns the points
+    /// skipped as invalid and the number of scans.
+    pub fn for_each_batch(
+        mut self,
+        batch: usize,
+        mut sink: impl FnMut(Vec<Point3>) -> bool,
+    ) -> Result<(usize, usize), InputError> {
+        let path = self.path.as_path();
+        let cap = usize::try_from(self.announced).unwrap_or(0).min(1 << 20).min(batch);
+        let mut points = Vec::with_capacity(cap);
+        let mut skipped_invalid = 0;
+        for (k, pc) in self.clouds.iter().enumerate() {
+            let name = pc.name.clone().or_else(|| pc.guid.clone()).unwrap_or_default();
+            let scan = |e: &dyn std::fmt::Display| e57_err(path, format!("scan {} ('{name}'): {e}", k + 1));
+            if !pc.has_cartesian() && !pc.has_spherical() {
+                return Err(scan(&"it has neither Cartesian nor spherical coordinates"));
+            }
+            let mut it = self.reader.pointcloud_simple(pc).map_err(|e| scan(&e))?;
+            // Defaults of the simple reader, stated: the scan's pose is applied (points in the
+            // file's common frame) and spherical coordinates are converted to Cartesian ones.
+            it.apply_pose(true);
+            it.spherical_to_cartesian(true);
+            for p in it {
+                let p = p.map_err(|e| scan(&e))?;
+                // Finite in mm, not only in metres: beyond ±1.8e305 m the conversion overflows
+                // to infinity (found by the `e57_points` fuzz target), and an infinite point
+                // would go into the fit. Such points are skipped and counted like the ones
+                // marked invalid.
+                match p.cartesian {
+                    CartesianCoordinate::Valid { x, y, z } => {
+                        let q = Point3::new(x * MM_PER_M, y * MM_PER_M, z * MM_PER_M);
+                        if q.x.is_finite() && q.y.is_finite() && q.z.is_finite() {
+                            points.push(q);
+                            if points.len() == batch
+                                && !sink(std::mem::replace(&mut points, Vec::with_capacity(cap)))
+                            {
+                                return Ok((skipped_invalid, self.clouds.len()));
+                            }
+                        } else {
+                            skipped_invalid += 1;
+                        }
                     }
+                    _ => skipped_invalid += 1,
                 }
-                _ => skipped_invalid += 1,
             }
         }
+        if !points.is_empty() {
+            sink(points);
+        }
+        Ok((skipped_invalid, self.clouds.len()))
     }
-    Ok(E57Points { points, skipped_invalid, scans: clouds.len() })
 }
 
 /// Write `points_mm` as an E57 file with one Cartesian scan (doubles, metres), atomically.

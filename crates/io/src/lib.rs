@@ -18,8 +18,10 @@
 //! - [`stream::CsvStream`]: CSV in chunks with constant memory, reading and row indexing on a
 //!   reader thread overlapped with work; [`stream::BackgroundWriter`] for the output side;
 //!   [`stream::rewrite_points`]: a point file through a per-piece transform into an output of
-//!   the same columns (CSV streamed; Parquet/E57 in, Parquet out by extension).
-//! - [`parquet_file`]: Parquet point and stream files (same column names), read and written.
+//!   the same columns, streamed in constant memory whatever the formats (CSV, Parquet or E57
+//!   in; CSV or Parquet out, by extension).
+//! - [`parquet_file`]: Parquet point and stream files (same column names), read and written,
+//!   whole or in batches ([`parquet_file::ParquetReader`], [`parquet_file::ParquetWriter`]).
 //! - [`e57_file`]: E57 point clouds (ASTM E2807) as point files: every scan, in mm, invalid
 //!   points skipped and counted.
 //! - [`report::Report`]: a command's result as the contract's JSON and as human text (what
@@ -37,6 +39,7 @@ pub mod num;
 pub mod parquet_file;
 pub mod points;
 pub mod report;
+mod rewrite_binary;
 pub mod stream;
 
 pub use error::InputError;

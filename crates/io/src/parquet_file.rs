@@ -4,8 +4,13 @@
 //! - [`read_columns`]: the numeric columns (DOUBLE, FLOAT, INT32, INT64 read as `f64`) and text
 //!   columns (UTF-8 BYTE_ARRAY) of every row group. A null or non-finite value is an input error
 //!   naming the column and the 1-based **row** (Parquet has no lines).
+//! - [`ParquetReader`]: the same values in batches of rows, in constant memory (the column
+//!   readers of one row group open at a time, pages decoded as the batch needs them): what
+//!   [`read_columns`] gathers, and what the streamed point rewrite
+//!   ([`crate::stream::rewrite_points`]) reads.
 //! - [`write_columns`]: required DOUBLE / UTF-8 columns, Snappy pages, one row group per
-//!   [`ROW_GROUP`] rows, written atomically.
+//!   [`ROW_GROUP`] rows, written atomically; [`ParquetWriter`] writes the same file from batches
+//!   of rows as they come (one row group in memory), on a thread of its own.
 //!
 //! Values are binary doubles, so a Parquet file holds exactly the `f64`s that were written (no
 //! decimal conversion at all).
@@ -19,7 +24,9 @@ use ::parquet::file::properties::WriterProperties;
 use ::parquet::file::reader::{FileReader, SerializedFileReader};
 use ::parquet::file::writer::SerializedFileWriter;
 use std::path::Path;
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::sync::Arc;
+use std::thread::JoinHandle;
 
 /// Rows per row group when writing.
 pub const ROW_GROUP: usize = 1 << 20;
@@ -100,19 +107,154 @@ pub fn read_columns(path: &Path) -> Result<Columns, InputError> {
 }
 
 /// [`read_columns`] with the decoded values (8 bytes a number, the bytes of the text) held to
-/// `limit` bytes.
+/// `limit` bytes: the batches of a [`ParquetReader`], one row group at a time, appended.
 fn read_columns_within(path: &Path, limit: u64) -> Result<Columns, InputError> {
-    let file =
-        std::fs::File::open(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
-    let meta = file.metadata().map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
-    crate::limits::check_file_size(path, &meta)?;
-    // `parquet` asserts instead of returning an error on some malformed data, e.g. a dictionary
-    // page whose text lengths run past its end (`bit_util::read_num_bytes`, found by the
-    // `parquet_points` fuzz target). That cannot be checked without decoding the page, so a
-    // panic in the decoder is contained here and becomes the input error naming the file
-    // (exit 2, not 3). Nothing outlives the call but its result. (The process's panic hook
-    // still prints the decoder's message to stderr before the error.)
-    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| decode(path, file, limit))) {
+    let mut r = ParquetReader::open_within(path, limit)?;
+    let total = usize::try_from(r.n_rows()).unwrap_or(usize::MAX).min(RESERVE);
+    let mut data: Vec<ColumnData> = r
+        .is_text()
+        .iter()
+        .map(|&t| {
+            if t {
+                ColumnData::Str(Vec::with_capacity(total))
+            } else {
+                ColumnData::F64(Vec::with_capacity(total))
+            }
+        })
+        .collect();
+    while let Some(batch) = r.next_batch(ROW_GROUP)? {
+        for (d, b) in data.iter_mut().zip(batch) {
+            match (d, b) {
+                (ColumnData::F64(d), BatchColumn::F64(b)) => d.extend_from_slice(&b),
+                (ColumnData::Str(d), BatchColumn::Text(b)) => d.extend(b.iter().map(str::to_string)),
+                // The reader gives each column the kind it announced.
+                _ => return Err(pq_err(path, "a column changed kind between row groups")),
+            }
+        }
+    }
+    Ok(Columns { names: r.names().to_vec(), data })
+}
+
+/// Text values of a batch held in one buffer (no allocation per value).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct TextColumn {
+    text: String,
+    /// End of each value in `text`.
+    ends: Vec<usize>,
+}
+
+impl TextColumn {
+    pub fn len(&self) -> usize {
+        self.ends.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.ends.is_empty()
+    }
+    /// Value `i`.
+    pub fn get(&self, i: usize) -> &str {
+        let a = if i == 0 { 0 } else { self.ends[i - 1] };
+        // Every boundary is the end of a pushed `&str`: always a character boundary.
+        self.text.get(a..self.ends[i]).unwrap_or("")
+    }
+    pub fn push(&mut self, s: &str) {
+        self.text.push_str(s);
+        self.ends.push(self.text.len());
+    }
+    pub fn iter(&self) -> impl Iterator<Item = &str> + '_ {
+        (0..self.len()).map(|i| self.get(i))
+    }
+    /// Append every value of `other`.
+    pub fn append(&mut self, other: &TextColumn) {
+        let base = self.text.len();
+        self.text.push_str(&other.text);
+        self.ends.extend(other.ends.iter().map(|e| e + base));
+    }
+    /// Values `at..` moved into a new column.
+    fn split_off(&mut self, at: usize) -> TextColumn {
+        let cut = if at == 0 { 0 } else { self.ends[at - 1] };
+        let text = self.text.split_off(cut);
+        let ends = self.ends.split_off(at).into_iter().map(|e| e - cut).collect();
+        TextColumn { text, ends }
+    }
+    fn clear(&mut self) {
+        self.text.clear();
+        self.ends.clear();
+    }
+}
+
+impl<S: AsRef<str>> FromIterator<S> for TextColumn {
+    fn from_iter<I: IntoIterator<Item = S>>(it: I) -> Self {
+        let mut t = TextColumn::default();
+        for s in it {
+            t.push(s.as_ref());
+        }
+        t
+    }
+}
+
+/// Values of one column of a batch: the unit of [`ParquetReader`] and [`ParquetWriter`].
+#[derive(Debug, Clone, PartialEq)]
+pub enum BatchColumn {
+    F64(Vec<f64>),
+    Text(TextColumn),
+}
+
+impl BatchColumn {
+    pub fn len(&self) -> usize {
+        match self {
+            BatchColumn::F64(v) => v.len(),
+            BatchColumn::Text(t) => t.len(),
+        }
+    }
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// An empty column of the same kind.
+    pub fn empty_like(&self) -> BatchColumn {
+        match self {
+            BatchColumn::F64(_) => BatchColumn::F64(Vec::new()),
+            BatchColumn::Text(_) => BatchColumn::Text(TextColumn::default()),
+        }
+    }
+    /// Append `other` (of the same kind; `false` if it is not).
+    pub fn append(&mut self, other: &BatchColumn) -> bool {
+        match (self, other) {
+            (BatchColumn::F64(a), BatchColumn::F64(b)) => a.extend_from_slice(b),
+            (BatchColumn::Text(a), BatchColumn::Text(b)) => a.append(b),
+            _ => return false,
+        }
+        true
+    }
+    /// Room for `rows` values in all (the text's bytes grow as needed).
+    fn reserve_rows(&mut self, rows: usize) {
+        match self {
+            BatchColumn::F64(v) => v.reserve_exact(rows.saturating_sub(v.len())),
+            BatchColumn::Text(t) => t.ends.reserve_exact(rows.saturating_sub(t.ends.len())),
+        }
+    }
+    fn split_off(&mut self, at: usize) -> BatchColumn {
+        match self {
+            BatchColumn::F64(v) => BatchColumn::F64(v.split_off(at)),
+            BatchColumn::Text(t) => BatchColumn::Text(t.split_off(at)),
+        }
+    }
+    fn clear(&mut self) {
+        match self {
+            BatchColumn::F64(v) => v.clear(),
+            BatchColumn::Text(t) => t.clear(),
+        }
+    }
+}
+
+/// Run `work` with a panic of the `parquet` decoder contained: it becomes the input error naming
+/// the file (exit 2, not 3). `parquet` asserts instead of returning an error on some malformed
+/// data, e.g. a dictionary page whose text lengths run past its end
+/// (`bit_util::read_num_bytes`, found by the `parquet_points` fuzz target). That cannot be
+/// checked without decoding the page. Nothing outlives a failed call but its error: the reader
+/// it ran on is not used again. (The process's panic hook still prints the decoder's message to
+/// stderr before the error.)
+fn contained<T>(path: &Path, work: impl FnOnce() -> Result<T, InputError>) -> Result<T, InputError> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(work)) {
         Ok(r) => r,
         Err(p) => {
             let msg = p
@@ -124,7 +266,6 @@ fn read_columns_within(path: &Path, limit: u64) -> Result<Columns, InputError> {
         }
     }
 }
-
 /// A file for `parquet` whose streams fail at the end of the file instead of returning 0 bytes.
 /// `parquet` reads page headers from a stream and skips unknown Thrift fields with `io::copy`,
 /// which takes the end of the file as success: a header announcing a list of 2³¹ doubles then
@@ -162,178 +303,316 @@ impl ::parquet::file::reader::ChunkReader for StrictFile {
     }
 }
 
-/// The columns of the open file (see [`read_columns_within`]).
-fn decode(path: &Path, file: std::fs::File, limit: u64) -> Result<Columns, InputError> {
-    // SAFETY: a private read-only map, as in `csv::map_large_file`; the input file is not
-    // expected to change while truepos reads it. Only the footer and the page headers are
-    // touched (by `check_footer` and `check_page_headers`).
-    let map = unsafe { memmap2::Mmap::map(&file) }
-        .map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
-    check_footer(&map).map_err(|e| pq_err(path, e))?;
-    let reader = SerializedFileReader::new(StrictFile(file)).map_err(|e| pq_err(path, e))?;
-    let md = reader.metadata();
-    let schema = md.file_metadata().schema_descr();
-    let cols = schema.columns();
-    let mut names = Vec::with_capacity(cols.len());
-    let mut data: Vec<ColumnData> = Vec::with_capacity(cols.len());
-    // Row counts come from the file's footer: checked before anything is reserved or decoded.
-    // Encoded values can be far smaller than decoded ones (run lengths, dictionaries), so a few
-    // kilobytes can announce billions of rows; the decoded numbers are held to the input limit
-    // (8 bytes each), like a CSV file of that size, and reservations to what is certainly there.
-    let mut rows: u64 = 0;
-    for g in 0..reader.num_row_groups() {
-        let rg = md.row_group(g);
-        let n = rg.num_rows();
-        let n = u64::try_from(n).map_err(|_| pq_err(path, format!("row group {}: {n} rows", g + 1)))?;
-        rows = rows.saturating_add(n);
-        // `parquet` panics on a negative column chunk offset or size (`byte_range`, found by
-        // the `parquet_points` fuzz target): refused here, before the row group is opened.
-        for c in rg.columns() {
-            let start = c.dictionary_page_offset().unwrap_or(c.data_page_offset());
-            if start < 0 || c.compressed_size() < 0 {
-                return Err(pq_err(
-                    path,
-                    format!(
-                        "row group {}, column '{}': chunk at offset {start} of {} bytes",
-                        g + 1,
-                        c.column_path().string(),
-                        c.compressed_size()
-                    ),
-                ));
+/// A Parquet file read in batches of rows, in constant memory: the column readers of one row
+/// group are open at a time and each batch decodes the next rows of every column (page by page),
+/// across row-group boundaries. Everything that can be checked without decoding is checked at
+/// [`open`](Self::open): the footer and every page header (Thrift lists bounded by their bytes,
+/// page value counts by their column chunk), column chunks inside the file, the total of
+/// decoded values against the input limit, flat columns of numbers or text. Batches check each
+/// value: no nulls, finite numbers (DOUBLE, FLOAT, INT32, INT64 as `f64`), UTF-8 text (its bytes
+/// counted against the input limit); errors name the column and the 1-based row. A panic of the
+/// decoder is contained ([`contained`]).
+pub struct ParquetReader {
+    path: std::path::PathBuf,
+    names: Vec<String>,
+    text: Vec<bool>,
+    n_rows: u64,
+    reader: SerializedFileReader<StrictFile>,
+    /// The next row group to open.
+    group: usize,
+    /// The column readers of the open row group, and its rows not read yet.
+    columns: Vec<ColumnReader>,
+    left: usize,
+    /// Rows handed out so far.
+    row: usize,
+    /// Bytes counted against `limit` (8 a value, plus the text).
+    decoded: u64,
+    limit: u64,
+}
+
+impl ParquetReader {
+    /// Open `path` and check what can be checked before decoding (see the type's docs).
+    pub fn open(path: &Path) -> Result<Self, InputError> {
+        Self::open_within(path, crate::limits::max_input_bytes())
+    }
+
+    fn open_within(path: &Path, limit: u64) -> Result<Self, InputError> {
+        let file =
+            std::fs::File::open(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+        let meta = file.metadata().map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+        crate::limits::check_file_size(path, &meta)?;
+        contained(path, || Self::checked(path, file, limit))
+    }
+
+    fn checked(path: &Path, file: std::fs::File, limit: u64) -> Result<Self, InputError> {
+        // SAFETY: a private read-only map, as in `csv::map_large_file`; the input file is not
+        // expected to change while truepos reads it. Only the footer and the page headers are
+        // touched (by `check_footer` and `check_page_headers`), and the map is dropped before
+        // any value is decoded.
+        let map = unsafe { memmap2::Mmap::map(&file) }
+            .map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+        check_footer(&map).map_err(|e| pq_err(path, e))?;
+        let reader = SerializedFileReader::new(StrictFile(file)).map_err(|e| pq_err(path, e))?;
+        let md = reader.metadata();
+        let schema = md.file_metadata().schema_descr();
+        let cols = schema.columns();
+        // Row counts come from the file's footer: checked before anything is reserved or
+        // decoded. Encoded values can be far smaller than decoded ones (run lengths,
+        // dictionaries), so a few kilobytes can announce billions of rows; the decoded numbers
+        // are held to the input limit (8 bytes each), like a CSV file of that size, and
+        // reservations to what is certainly there.
+        let mut rows: u64 = 0;
+        for g in 0..reader.num_row_groups() {
+            let rg = md.row_group(g);
+            let n = rg.num_rows();
+            let n = u64::try_from(n).map_err(|_| pq_err(path, format!("row group {}: {n} rows", g + 1)))?;
+            rows = rows.saturating_add(n);
+            // `parquet` panics on a negative column chunk offset or size (`byte_range`, found by
+            // the `parquet_points` fuzz target): refused here, before the row group is opened.
+            for c in rg.columns() {
+                let start = c.dictionary_page_offset().unwrap_or(c.data_page_offset());
+                if start < 0 || c.compressed_size() < 0 {
+                    return Err(pq_err(
+                        path,
+                        format!(
+                            "row group {}, column '{}': chunk at offset {start} of {} bytes",
+                            g + 1,
+                            c.column_path().string(),
+                            c.compressed_size()
+                        ),
+                    ));
+                }
+                let range = usize::try_from(start)
+                    .ok()
+                    .zip(usize::try_from(c.compressed_size()).ok())
+                    .and_then(|(a, n)| Some((a, n, map.get(a..a.checked_add(n)?)?)));
+                let at = |msg: String| {
+                    pq_err(path, format!("row group {}, column '{}': {msg}", g + 1, c.column_path().string()))
+                };
+                let (a, len, chunk) =
+                    range.ok_or_else(|| at("the column chunk runs past the end of the file".into()))?;
+                // Columns are flat (repeated ones are refused): one value (or null) per row.
+                let values = c.num_values();
+                if values < 0 || values as u64 > n {
+                    return Err(at(format!("{values} values in a row group of {n} rows")));
+                }
+                check_page_headers(chunk, values).map_err(at)?;
+                // The pages the walk touched (the kernel maps some around each header: most of
+                // the file when its pages are small) leave the process at once, so the check
+                // holds no memory that grows with the file.
+                #[cfg(unix)]
+                // SAFETY: a read-only private map of a file: a dropped page is read again from
+                // the file if touched, and nothing reads this range again anyway.
+                unsafe {
+                    let _ = map.unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, a, len);
+                }
             }
-            let chunk = usize::try_from(start)
-                .ok()
-                .zip(usize::try_from(c.compressed_size()).ok())
-                .and_then(|(a, n)| map.get(a..a.checked_add(n)?));
-            let at = |msg: String| {
-                pq_err(path, format!("row group {}, column '{}': {msg}", g + 1, c.column_path().string()))
-            };
-            let chunk = chunk.ok_or_else(|| at("the column chunk runs past the end of the file".into()))?;
-            // Columns are flat (repeated ones are refused): one value (or null) per row.
-            let values = c.num_values();
-            if values < 0 || values as u64 > n {
-                return Err(at(format!("{values} values in a row group of {n} rows")));
-            }
-            check_page_headers(chunk, values).map_err(at)?;
         }
-    }
-    let mut decoded = rows.saturating_mul(cols.len() as u64).saturating_mul(8);
-    if decoded > limit {
-        return Err(InputError::in_file(
-            path,
-            format!(
-                "{rows} rows of {} columns: more values than truepos reads ({} as 8-byte numbers; set TRUEPOS_MAX_INPUT_MB to change the limit)",
-                cols.len(),
-                crate::limits::human(limit)
-            ),
-        ));
-    }
-    let total = usize::try_from(rows).unwrap_or(usize::MAX).min(RESERVE);
-    for c in cols {
-        if c.max_rep_level() > 0 {
+        let decoded = rows.saturating_mul(cols.len() as u64).saturating_mul(8);
+        if decoded > limit {
             return Err(InputError::in_file(
                 path,
-                format!("column '{}' is repeated (a list): not supported", c.name()),
+                format!(
+                    "{rows} rows of {} columns: more values than truepos reads ({} as 8-byte numbers; set TRUEPOS_MAX_INPUT_MB to change the limit)",
+                    cols.len(),
+                    crate::limits::human(limit)
+                ),
             ));
         }
-        names.push(c.name().to_string());
-        data.push(match c.physical_type() {
-            ::parquet::basic::Type::BYTE_ARRAY => ColumnData::Str(Vec::with_capacity(total)),
-            _ => ColumnData::F64(Vec::with_capacity(total)),
-        });
+        let mut names = Vec::with_capacity(cols.len());
+        let mut text = Vec::with_capacity(cols.len());
+        for c in cols {
+            if c.max_rep_level() > 0 {
+                return Err(InputError::in_file(
+                    path,
+                    format!("column '{}' is repeated (a list): not supported", c.name()),
+                ));
+            }
+            use ::parquet::basic::Type;
+            let t = c.physical_type();
+            // Types are refused where there are values to read (a file without row groups has
+            // none).
+            if reader.num_row_groups() > 0
+                && !matches!(t, Type::DOUBLE | Type::FLOAT | Type::INT32 | Type::INT64 | Type::BYTE_ARRAY)
+            {
+                return Err(InputError::in_file(
+                    path,
+                    format!("column '{}': type {t} not supported (numbers or text)", c.name()),
+                ));
+            }
+            names.push(c.name().to_string());
+            text.push(t == Type::BYTE_ARRAY);
+        }
+        drop(map);
+        Ok(Self {
+            path: path.to_path_buf(),
+            names,
+            text,
+            n_rows: rows,
+            reader,
+            group: 0,
+            columns: Vec::new(),
+            left: 0,
+            row: 0,
+            decoded,
+            limit,
+        })
     }
-    for g in 0..reader.num_row_groups() {
-        let rg = reader.get_row_group(g).map_err(|e| pq_err(path, e))?;
-        // Not negative and within the limit: checked above.
-        let n = usize::try_from(rg.metadata().num_rows()).unwrap_or(0);
-        for (i, c) in cols.iter().enumerate() {
-            let name = c.name();
-            let first_row = data[i].len();
-            let mut defs: Vec<i16> = Vec::with_capacity(n.min(RESERVE));
-            let want_defs = c.max_def_level() > 0;
-            let reader = rg.get_column_reader(i).map_err(|e| pq_err(path, e))?;
-            macro_rules! numeric {
-                ($r:expr, $conv:expr) => {{
-                    let mut r = $r;
-                    let mut vals = Vec::with_capacity(n.min(RESERVE));
-                    let (recs, _, _) = r
-                        .read_records(n, if want_defs { Some(&mut defs) } else { None }, None, &mut vals)
-                        .map_err(|e| pq_err(path, e))?;
-                    if recs != n || vals.len() != n {
-                        let bad = defs.iter().position(|&d| d < c.max_def_level()).unwrap_or(vals.len());
+
+    /// Column names, in file order.
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+    /// Per column: text (else numbers).
+    pub fn is_text(&self) -> &[bool] {
+        &self.text
+    }
+    /// Rows of the file (from its footer).
+    pub fn n_rows(&self) -> u64 {
+        self.n_rows
+    }
+
+    /// The next `max` rows (fewer at the end of the file; `None` after the last row), one
+    /// column per name, of the kind [`is_text`](Self::is_text) says.
+    pub fn next_batch(&mut self, max: usize) -> Result<Option<Vec<BatchColumn>>, InputError> {
+        let path = self.path.clone();
+        contained(&path, || self.batch(max))
+    }
+
+    fn batch(&mut self, max: usize) -> Result<Option<Vec<BatchColumn>>, InputError> {
+        let remaining = usize::try_from(self.n_rows).unwrap_or(usize::MAX).saturating_sub(self.row);
+        let cap = max.min(remaining).min(RESERVE);
+        let mut out: Vec<BatchColumn> = self
+            .text
+            .iter()
+            .map(|&t| {
+                if t {
+                    BatchColumn::Text(TextColumn { text: String::new(), ends: Vec::with_capacity(cap) })
+                } else {
+                    BatchColumn::F64(Vec::with_capacity(cap))
+                }
+            })
+            .collect();
+        let mut got = 0;
+        while got < max {
+            if self.left == 0 {
+                if self.group == self.reader.num_row_groups() {
+                    break;
+                }
+                let path = &self.path;
+                let rg = self.reader.get_row_group(self.group).map_err(|e| pq_err(path, e))?;
+                // Not negative and within the limit: checked at open.
+                self.left = usize::try_from(rg.metadata().num_rows()).unwrap_or(0);
+                self.columns = (0..self.names.len())
+                    .map(|i| rg.get_column_reader(i).map_err(|e| pq_err(path, e)))
+                    .collect::<Result<_, _>>()?;
+                self.group += 1;
+                continue;
+            }
+            let take = (max - got).min(self.left);
+            for i in 0..self.names.len() {
+                self.read_column(i, take, &mut out[i])?;
+            }
+            got += take;
+            self.left -= take;
+            self.row += take;
+        }
+        if got == 0 {
+            self.columns.clear();
+            return Ok(None);
+        }
+        Ok(Some(out))
+    }
+
+    /// The next `n` values of column `i` (of the open row group) appended to `out`; the values
+    /// are rows `self.row + 1 ..` (1-based) of the file.
+    fn read_column(&mut self, i: usize, n: usize, out: &mut BatchColumn) -> Result<(), InputError> {
+        let path = self.path.as_path();
+        let first_row = self.row;
+        let c = self.reader.metadata().file_metadata().schema_descr().column(i);
+        let name = c.name();
+        let max_def = c.max_def_level();
+        let mut defs: Vec<i16> = Vec::with_capacity(if max_def > 0 { n.min(RESERVE) } else { 0 });
+        let want_defs = max_def > 0;
+        macro_rules! numeric {
+            ($r:expr, $conv:expr) => {{
+                let mut vals = Vec::with_capacity(n.min(RESERVE));
+                let (recs, _, _) = $r
+                    .read_records(n, if want_defs { Some(&mut defs) } else { None }, None, &mut vals)
+                    .map_err(|e| pq_err(path, e))?;
+                if recs != n || vals.len() != n {
+                    let bad = defs.iter().position(|&d| d < max_def).unwrap_or(vals.len());
+                    return Err(row_err(
+                        path,
+                        name,
+                        first_row + bad + 1,
+                        "empty (null) value where a number is required",
+                    ));
+                }
+                let BatchColumn::F64(out) = out else {
+                    return Err(pq_err(path, format!("column '{name}' changed kind")));
+                };
+                for (k, v) in vals.into_iter().enumerate() {
+                    let x: f64 = $conv(v);
+                    if !x.is_finite() {
                         return Err(row_err(
                             path,
                             name,
-                            first_row + bad + 1,
-                            "empty (null) value where a number is required",
+                            first_row + k + 1,
+                            &format!("not a finite number: {x}"),
                         ));
                     }
-                    let ColumnData::F64(out) = &mut data[i] else { unreachable!() };
-                    for (k, v) in vals.into_iter().enumerate() {
-                        let x: f64 = $conv(v);
-                        if !x.is_finite() {
-                            return Err(row_err(
-                                path,
-                                name,
-                                first_row + k + 1,
-                                &format!("not a finite number: {x}"),
-                            ));
-                        }
-                        out.push(x);
+                    out.push(x);
+                }
+            }};
+        }
+        match &mut self.columns[i] {
+            ColumnReader::DoubleColumnReader(r) => numeric!(r, |v: f64| v),
+            ColumnReader::FloatColumnReader(r) => numeric!(r, |v: f32| v as f64),
+            ColumnReader::Int32ColumnReader(r) => numeric!(r, |v: i32| v as f64),
+            ColumnReader::Int64ColumnReader(r) => numeric!(r, |v: i64| v as f64),
+            ColumnReader::ByteArrayColumnReader(r) => {
+                let mut vals: Vec<ByteArray> = Vec::with_capacity(n.min(RESERVE));
+                let (recs, _, _) = r
+                    .read_records(n, if want_defs { Some(&mut defs) } else { None }, None, &mut vals)
+                    .map_err(|e| pq_err(path, e))?;
+                if recs != n || vals.len() != n {
+                    let bad = defs.iter().position(|&d| d < max_def).unwrap_or(vals.len());
+                    return Err(row_err(path, name, first_row + bad + 1, "empty (null) value"));
+                }
+                let BatchColumn::Text(out) = out else {
+                    return Err(pq_err(path, format!("column '{name}' changed kind")));
+                };
+                for (k, v) in vals.into_iter().enumerate() {
+                    // Dictionary entries are shared when decoded but copied here: the text is
+                    // held to the input limit too.
+                    self.decoded = self.decoded.saturating_add(v.data().len() as u64);
+                    if self.decoded > self.limit {
+                        return Err(row_err(
+                            path,
+                            name,
+                            first_row + k + 1,
+                            &format!(
+                                "more text than truepos reads ({}; set TRUEPOS_MAX_INPUT_MB to change the limit)",
+                                crate::limits::human(self.limit)
+                            ),
+                        ));
                     }
-                }};
+                    match std::str::from_utf8(v.data()) {
+                        Ok(s) => out.push(s),
+                        Err(_) => return Err(row_err(path, name, first_row + k + 1, "not valid UTF-8 text")),
+                    }
+                }
             }
-            match reader {
-                ColumnReader::DoubleColumnReader(r) => numeric!(r, |v: f64| v),
-                ColumnReader::FloatColumnReader(r) => numeric!(r, |v: f32| v as f64),
-                ColumnReader::Int32ColumnReader(r) => numeric!(r, |v: i32| v as f64),
-                ColumnReader::Int64ColumnReader(r) => numeric!(r, |v: i64| v as f64),
-                ColumnReader::ByteArrayColumnReader(mut r) => {
-                    let mut vals: Vec<ByteArray> = Vec::with_capacity(n.min(RESERVE));
-                    let (recs, _, _) = r
-                        .read_records(n, if want_defs { Some(&mut defs) } else { None }, None, &mut vals)
-                        .map_err(|e| pq_err(path, e))?;
-                    if recs != n || vals.len() != n {
-                        let bad = defs.iter().position(|&d| d < c.max_def_level()).unwrap_or(vals.len());
-                        return Err(row_err(path, name, first_row + bad + 1, "empty (null) value"));
-                    }
-                    let ColumnData::Str(out) = &mut data[i] else { unreachable!() };
-                    for (k, v) in vals.into_iter().enumerate() {
-                        // Dictionary entries are shared when decoded but copied here: the text is
-                        // held to the input limit too.
-                        decoded = decoded.saturating_add(v.data().len() as u64);
-                        if decoded > limit {
-                            return Err(row_err(
-                                path,
-                                name,
-                                first_row + k + 1,
-                                &format!(
-                                    "more text than truepos reads ({}; set TRUEPOS_MAX_INPUT_MB to change the limit)",
-                                    crate::limits::human(limit)
-                                ),
-                            ));
-                        }
-                        match std::str::from_utf8(v.data()) {
-                            Ok(s) => out.push(s.to_string()),
-                            Err(_) => {
-                                return Err(row_err(path, name, first_row + k + 1, "not valid UTF-8 text"))
-                            }
-                        }
-                    }
-                }
-                _ => {
-                    return Err(InputError::in_file(
-                        path,
-                        format!(
-                            "column '{name}': type {} not supported (numbers or text)",
-                            c.physical_type()
-                        ),
-                    ))
-                }
+            _ => {
+                return Err(InputError::in_file(
+                    path,
+                    format!("column '{name}': type {} not supported (numbers or text)", c.physical_type()),
+                ))
             }
         }
+        Ok(())
     }
-    Ok(Columns { names, data })
 }
 
 /// Walk the page headers (Thrift compact protocol) of one column chunk before `parquet` reads
@@ -494,65 +773,264 @@ impl Compact<'_> {
 }
 
 /// Write `columns` (all of one length) to `path` atomically: numbers as required DOUBLE, text as
-/// required UTF-8 BYTE_ARRAY, Snappy compressed.
+/// required UTF-8 BYTE_ARRAY, Snappy compressed, one row group per [`ROW_GROUP`] rows (a
+/// [`ParquetWriter`] fed in slices).
 pub fn write_columns(path: &Path, columns: &Columns) -> Result<(), OutputError> {
-    let out = path.to_path_buf();
-    let io = |e: ::parquet::errors::ParquetError| OutputError::Io {
-        path: out.clone(),
-        source: std::io::Error::other(e),
-    };
+    write_columns_grouped(path, columns, ROW_GROUP)
+}
+
+/// [`write_columns`] with `group` rows per row group (tests make files of several row groups
+/// cheaply).
+pub(crate) fn write_columns_grouped(path: &Path, columns: &Columns, group: usize) -> Result<(), OutputError> {
     let n = columns.n_rows();
     if columns.data.iter().any(|c| c.len() != n) || columns.names.len() != columns.data.len() {
         return Err(OutputError::Io {
-            path: out.clone(),
+            path: path.to_path_buf(),
             source: std::io::Error::other("columns of different lengths"),
         });
     }
-    let mut fields = String::new();
-    for (name, d) in columns.names.iter().zip(&columns.data) {
-        if !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') || name.is_empty() {
-            return Err(OutputError::Io {
-                path: out.clone(),
-                source: std::io::Error::other(format!("column name '{name}' cannot be written to Parquet")),
-            });
-        }
-        match d {
-            ColumnData::F64(_) => fields.push_str(&format!("required double {name}; ")),
-            ColumnData::Str(_) => fields.push_str(&format!("required binary {name} (UTF8); ")),
-        }
-    }
-    let schema = ::parquet::schema::parser::parse_message_type(&format!("message truepos {{ {fields}}}"))
-        .map_err(io)?;
-    let props = WriterProperties::builder().set_compression(Compression::SNAPPY).build();
-    let file = AtomicFile::create(path)?;
-    let mut w = SerializedFileWriter::new(file, Arc::new(schema), Arc::new(props)).map_err(io)?;
+    let text: Vec<bool> = columns.data.iter().map(|d| matches!(d, ColumnData::Str(_))).collect();
+    let names: Vec<&str> = columns.names.iter().map(String::as_str).collect();
+    let mut w = ParquetWriter::create_grouped(path, &names, &text, group)?;
+    // Slices of at most a row group: the text is copied once more, a slice at a time.
     let mut start = 0;
-    while start < n || (n == 0 && start == 0) {
-        let end = (start + ROW_GROUP).min(n);
-        let mut rg = w.next_row_group().map_err(io)?;
-        let mut k = 0;
-        while let Some(mut col) = rg.next_column().map_err(io)? {
-            match &columns.data[k] {
-                ColumnData::F64(v) => {
-                    col.typed::<DoubleType>().write_batch(&v[start..end], None, None).map_err(io)?;
-                }
-                ColumnData::Str(v) => {
-                    let b: Vec<ByteArray> =
-                        v[start..end].iter().map(|s| ByteArray::from(s.as_str())).collect();
-                    col.typed::<ByteArrayType>().write_batch(&b, None, None).map_err(io)?;
-                }
-            }
-            col.close().map_err(io)?;
-            k += 1;
-        }
-        rg.close().map_err(io)?;
-        if n == 0 {
-            break;
-        }
+    while start < n {
+        let end = (start + group).min(n);
+        let batch = columns
+            .data
+            .iter()
+            .map(|d| match d {
+                ColumnData::F64(v) => BatchColumn::F64(v[start..end].to_vec()),
+                ColumnData::Str(v) => BatchColumn::Text(v[start..end].iter().collect()),
+            })
+            .collect();
+        w.send(batch)?;
         start = end;
     }
-    let file = w.into_inner().map_err(io)?;
-    file.commit()
+    w.finish()
+}
+
+/// Values of text columns handed to `parquet` per call: a multiple of its write batch size (1024
+/// values), so the pages come out as from one call with the whole row group.
+const TEXT_SLICE: usize = 64 * 1024;
+
+/// What the writer thread of a [`ParquetWriter`] receives.
+enum ToWriter {
+    Batch(Vec<BatchColumn>),
+    /// Every batch was sent: write the last row group and the footer.
+    Finish,
+}
+
+/// A Parquet file written as batches arrive, atomically, on a thread of its own (so encoding and
+/// compressing overlap the caller's next batch): numbers as required DOUBLE, text as required
+/// UTF-8 BYTE_ARRAY, Snappy pages, one row group per [`ROW_GROUP`] rows. Batches are gathered
+/// until a row group is full, so memory holds one row group of values (8 bytes a number, the
+/// bytes of the text), whatever the file's size. The bytes are those of [`write_columns`] with
+/// the same rows. [`finish`](Self::finish) writes the footer and commits; dropping the writer
+/// unfinished removes the temporary file.
+pub struct ParquetWriter {
+    tx: Option<SyncSender<ToWriter>>,
+    handle: Option<JoinHandle<Result<AtomicFile, std::io::Error>>>,
+    path: std::path::PathBuf,
+    text: Vec<bool>,
+}
+
+impl ParquetWriter {
+    /// Create the output (`text[c]`: column `c` holds text, else numbers). A name that is not
+    /// ASCII letters, digits and `_`, or a bad path, is an [`OutputError`].
+    pub fn create(path: &Path, names: &[&str], text: &[bool]) -> Result<Self, OutputError> {
+        Self::create_grouped(path, names, text, ROW_GROUP)
+    }
+
+    pub(crate) fn create_grouped(
+        path: &Path,
+        names: &[&str],
+        text: &[bool],
+        group: usize,
+    ) -> Result<Self, OutputError> {
+        let out = path.to_path_buf();
+        let bad = |msg: String| OutputError::Io { path: out.clone(), source: std::io::Error::other(msg) };
+        if names.len() != text.len() || group == 0 {
+            return Err(bad("a column without its kind".into()));
+        }
+        let mut fields = String::new();
+        for (name, &t) in names.iter().zip(text) {
+            if !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') || name.is_empty() {
+                return Err(bad(format!("column name '{name}' cannot be written to Parquet")));
+            }
+            if t {
+                fields.push_str(&format!("required binary {name} (UTF8); "));
+            } else {
+                fields.push_str(&format!("required double {name}; "));
+            }
+        }
+        let schema = ::parquet::schema::parser::parse_message_type(&format!("message truepos {{ {fields}}}"))
+            .map_err(|e| bad(e.to_string()))?;
+        let file = AtomicFile::create(path)?;
+        let (tx, rx) = sync_channel::<ToWriter>(2);
+        let kinds = text.to_vec();
+        let handle = std::thread::Builder::new()
+            .name("truepos-parquet-writer".into())
+            .spawn(move || write_thread(file, schema, kinds, group, rx))
+            .map_err(|e| OutputError::Io { path: path.to_path_buf(), source: e })?;
+        Ok(Self { tx: Some(tx), handle: Some(handle), path: path.to_path_buf(), text: text.to_vec() })
+    }
+
+    /// Queue the next rows: one column per name, of the kinds given at
+    /// [`create`](Self::create), all of one length. A failed earlier write is reported here (or
+    /// at [`finish`](Self::finish)).
+    pub fn send(&mut self, batch: Vec<BatchColumn>) -> Result<(), OutputError> {
+        let n = batch.first().map_or(0, BatchColumn::len);
+        let fits = batch.len() == self.text.len()
+            && batch
+                .iter()
+                .zip(&self.text)
+                .all(|(b, &t)| b.len() == n && matches!(b, BatchColumn::Text(_)) == t);
+        if !fits {
+            self.tx = None;
+            return Err(OutputError::Io {
+                path: self.path.clone(),
+                source: std::io::Error::other("a batch whose columns do not match the file's"),
+            });
+        }
+        let sent = self.tx.as_ref().is_some_and(|tx| tx.send(ToWriter::Batch(batch)).is_ok());
+        if sent {
+            return Ok(());
+        }
+        self.join().map(|_| ())
+    }
+
+    /// Write the last row group and the footer, and commit the file.
+    pub fn finish(mut self) -> Result<(), OutputError> {
+        let sent = self.tx.take().is_some_and(|tx| tx.send(ToWriter::Finish).is_ok());
+        let file = self.join()?;
+        if !sent {
+            return Err(OutputError::Io {
+                path: self.path.clone(),
+                source: std::io::Error::other("the Parquet writer stopped early"),
+            });
+        }
+        file.commit()
+    }
+
+    fn join(&mut self) -> Result<AtomicFile, OutputError> {
+        self.tx = None;
+        let io = |source| OutputError::Io { path: self.path.clone(), source };
+        let h = self.handle.take().ok_or_else(|| io(std::io::Error::other("the writer already finished")))?;
+        match h.join() {
+            Ok(Ok(file)) => Ok(file),
+            Ok(Err(e)) => Err(io(e)),
+            Err(_) => Err(io(std::io::Error::other("the Parquet writer thread panicked"))),
+        }
+    }
+}
+
+impl Drop for ParquetWriter {
+    fn drop(&mut self) {
+        // Unfinished: the thread sees the channel close without `Finish` and drops the file
+        // (the temporary is removed).
+        self.tx = None;
+        if let Some(h) = self.handle.take() {
+            let _ = h.join();
+        }
+    }
+}
+
+/// The thread of a [`ParquetWriter`]: gathers batches into row groups of `group` rows and writes
+/// them; on `Finish`, the last (possibly empty, if the file has no rows) group and the footer.
+/// Returns the file, unfinished if the channel closed without `Finish`.
+fn write_thread(
+    file: AtomicFile,
+    schema: ::parquet::schema::types::Type,
+    text: Vec<bool>,
+    group: usize,
+    rx: Receiver<ToWriter>,
+) -> Result<AtomicFile, std::io::Error> {
+    let io = std::io::Error::other;
+    let props = WriterProperties::builder().set_compression(Compression::SNAPPY).build();
+    let mut w = SerializedFileWriter::new(file, Arc::new(schema), Arc::new(props)).map_err(io)?;
+    let mut buf: Vec<BatchColumn> = text
+        .iter()
+        .map(|&t| if t { BatchColumn::Text(TextColumn::default()) } else { BatchColumn::F64(Vec::new()) })
+        .collect();
+    let mut buffered = 0;
+    let mut groups = 0;
+    let mut finished = false;
+    for msg in rx {
+        let mut batch = match msg {
+            ToWriter::Batch(b) => b,
+            ToWriter::Finish => {
+                finished = true;
+                break;
+            }
+        };
+        loop {
+            let n = batch.first().map_or(0, BatchColumn::len);
+            let room = group - buffered;
+            let rest: Option<Vec<BatchColumn>> =
+                (n > room).then(|| batch.iter_mut().map(|c| c.split_off(room)).collect());
+            for (b, c) in buf.iter_mut().zip(&batch) {
+                // The whole row group at once, not by doubling: growth would leave the
+                // smaller buffers behind as free memory the process keeps.
+                b.reserve_rows(group);
+                b.append(c);
+            }
+            buffered += n.min(room);
+            if buffered == group {
+                write_group(&mut w, &buf)?;
+                groups += 1;
+                buf.iter_mut().for_each(BatchColumn::clear);
+                buffered = 0;
+            }
+            match rest {
+                Some(r) => batch = r,
+                None => break,
+            }
+        }
+    }
+    if !finished {
+        // Dropped unfinished: no footer; the file is dropped with the writer (removed).
+        return Err(std::io::Error::other("the Parquet output was not finished"));
+    }
+    if buffered > 0 || groups == 0 {
+        write_group(&mut w, &buf)?;
+    }
+    w.into_inner().map_err(io)
+}
+
+/// One row group of the buffered columns.
+fn write_group(w: &mut SerializedFileWriter<AtomicFile>, cols: &[BatchColumn]) -> Result<(), std::io::Error> {
+    let io = std::io::Error::other;
+    let mut rg = w.next_row_group().map_err(io)?;
+    let mut k = 0;
+    while let Some(mut col) = rg.next_column().map_err(io)? {
+        match &cols[k] {
+            BatchColumn::F64(v) => {
+                col.typed::<DoubleType>().write_batch(v, None, None).map_err(io)?;
+            }
+            BatchColumn::Text(t) => {
+                let mut start = 0;
+                while start < t.len() {
+                    let end = (start + TEXT_SLICE).min(t.len());
+                    // One buffer for the slice's text; each value a view of it.
+                    let a = if start == 0 { 0 } else { t.ends[start - 1] };
+                    let bytes = bytes::Bytes::copy_from_slice(&t.text.as_bytes()[a..t.ends[end - 1]]);
+                    let vals: Vec<ByteArray> = (start..end)
+                        .map(|i| {
+                            let s = if i == 0 { 0 } else { t.ends[i - 1] };
+                            ByteArray::from(bytes.slice(s - a..t.ends[i] - a))
+                        })
+                        .collect();
+                    col.typed::<ByteArrayType>().write_batch(&vals, None, None).map_err(io)?;
+                    start = end;
+                }
+            }
+        }
+        col.close().map_err(io)?;
+        k += 1;
+    }
+    rg.close().map_err(io)?;
+    Ok(())
 }
 
 /// True for a path with the `.parquet` extension.

@@ -136,6 +136,31 @@ impl Chunk {
             .split_and_parse_range(range, idx, out.as_flattened_mut(), fields)
             .map_err(|e| e.into_input_error(self.path.as_path(), &self.header, |r| self.line_number(r)))
     }
+    /// As [`split_parse_rows_into`](Self::split_parse_rows_into) with any number of columns:
+    /// `out` holds `idx.len()` values per row (row-major).
+    pub fn split_parse_rows_flat(
+        &self,
+        range: std::ops::Range<usize>,
+        idx: &[usize],
+        out: &mut [f64],
+        fields: &mut Vec<(usize, usize)>,
+    ) -> Result<(), InputError> {
+        self.rows_view()
+            .split_and_parse_range(range, idx, out, fields)
+            .map_err(|e| e.into_input_error(self.path.as_path(), &self.header, |r| self.line_number(r)))
+    }
+    /// The value of a field range from [`split_parse_rows_into`](Self::split_parse_rows_into):
+    /// its text, a quoted field's doubled quotes made single (what the field means, for an
+    /// output that is not CSV).
+    pub fn field_value(&self, range: (usize, usize)) -> std::borrow::Cow<'_, str> {
+        let raw = self.field(range);
+        let quoted = range.0 > 0 && self.text.as_bytes().get(range.0 - 1) == Some(&b'"');
+        if quoted && raw.contains("\"\"") {
+            std::borrow::Cow::Owned(raw.replace("\"\"", "\""))
+        } else {
+            std::borrow::Cow::Borrowed(raw)
+        }
+    }
     /// The text of a field range from [`split_parse_rows_into`](Self::split_parse_rows_into)
     /// (for a quoted field: as written between the quotes, inner quotes still doubled).
     pub fn field(&self, range: (usize, usize)) -> &str {
@@ -537,7 +562,14 @@ impl Drop for BackgroundWriter {
 }
 
 /// Rows per piece of [`rewrite_points`]: parsed, transformed and formatted by one task.
-const PIECE_ROWS: usize = 4096;
+pub(crate) const PIECE_ROWS: usize = 4096;
+
+/// Rows per batch of a Parquet or E57 input: a whole number of pieces, so pieces start at the
+/// same rows as if the whole file were cut into pieces.
+pub(crate) const BATCH_ROWS: usize = 8 * PIECE_ROWS;
+
+/// Rows per row group of a Parquet output.
+const ROW_GROUP: usize = crate::parquet_file::ROW_GROUP;
 
 /// Per-thread scratch of [`rewrite_points`]: the piece's points, its extra values, the
 /// parser's and the formatter's field lists. Taken out of the thread-local while a piece is
@@ -572,7 +604,7 @@ pub enum RewriteError {
     Output(#[from] OutputError),
 }
 
-/// Stream a point CSV through `f` into `output`: the input with `x_mm,y_mm,z_mm` replaced by the
+/// Stream a point file through `f` into `output`: the input with `x_mm,y_mm,z_mm` replaced by the
 /// points as `f` leaves them and the columns `extra` (three values per point from `f`, e.g.
 /// `dx_um,dy_um,dz_um`) replaced where the input has them or appended; every other column is
 /// passed through unchanged. Constant memory: one chunk of about [`BLOCK_BYTES`] at a time (its
@@ -587,6 +619,15 @@ pub enum RewriteError {
 /// order). `merge` receives the partial results in file order, on the calling thread, so sums
 /// come out the same on every run. The output is atomic: nothing is left at `output` unless
 /// every row was written.
+///
+/// Binary files, by extension, are streamed too (`rewrite_binary`): a Parquet or E57 input is
+/// read in batches of [`BATCH_ROWS`] rows (pieces at the same rows as if the whole file were
+/// cut; a refused point is an input error naming its 1-based row), and a `.parquet` output is
+/// written a row group at a time by a writer thread (numbers as doubles; a Parquet input keeps
+/// its column types; a CSV input's passed-through column is a number column when every value
+/// of it in the file is a number — decided by a first pass over the file, or text for an input
+/// that cannot be read twice, a pipe — else text). Memory holds a batch or chunk and one row
+/// group, whatever the file's size.
 pub fn rewrite_points<F, T, M>(
     input: &Path,
     output: &Path,
@@ -601,41 +642,21 @@ where
     M: FnMut(T),
 {
     use crate::parquet_file::is_parquet;
-    if is_parquet(input) || crate::e57_file::is_e57(input) || is_parquet(output) {
-        return rewrite_columns(input, output, extra, fmt, f, merge);
+    if is_parquet(input) || crate::e57_file::is_e57(input) {
+        return crate::rewrite_binary::rewrite_batches(
+            input, output, extra, fmt, f, merge, BATCH_ROWS, ROW_GROUP,
+        );
+    }
+    if is_parquet(output) {
+        return crate::rewrite_binary::rewrite_csv_to_parquet(input, output, extra, f, merge, ROW_GROUP);
     }
     let mut s = CsvStream::open(input)?;
     if let Some((i, n)) = unwritable_name(s.header()) {
         return Err(InputError::at(input, s.header_line(), Some(i + 1), unwritable_message(n)).into());
     }
     let xyz = [s.require("x_mm")?, s.require("y_mm")?, s.require("z_mm")?];
-    let existing: Vec<Option<usize>> = extra.iter().map(|n| s.column(n)).collect();
     let width = s.header().len();
-    // Output column c: what to write.
-    #[derive(Clone, Copy)]
-    enum Src {
-        Point(usize),
-        Extra(usize),
-        Pass(usize),
-    }
-    let mut plan: Vec<Src> = (0..width)
-        .map(|c| {
-            if let Some(k) = xyz.iter().position(|&x| x == c) {
-                Src::Point(k)
-            } else if let Some(k) = existing.iter().position(|&e| e == Some(c)) {
-                Src::Extra(k)
-            } else {
-                Src::Pass(c)
-            }
-        })
-        .collect();
-    let mut names: Vec<&str> = s.header().iter().map(String::as_str).collect();
-    for (k, e) in existing.iter().enumerate() {
-        if e.is_none() {
-            plan.push(Src::Extra(k));
-            names.push(extra[k]);
-        }
-    }
+    let (plan, names) = output_plan(s.header(), xyz, extra);
     let passes = plan.iter().any(|p| matches!(p, Src::Pass(_)));
     let file = AtomicFile::create(output)?;
     let mut head = crate::csv::CsvWriter::new(Vec::new()).with_format(fmt);
@@ -710,124 +731,56 @@ where
 /// The first column name that could not be written back unchanged, with its index: it holds a
 /// comma or a quote (the header is written plain), or a byte-order mark (which would open the
 /// output and be taken for the file's own).
-fn unwritable_name(header: &[String]) -> Option<(usize, &str)> {
+pub(crate) fn unwritable_name(header: &[String]) -> Option<(usize, &str)> {
     header.iter().enumerate().find(|(_, n)| n.contains([',', '"', '\u{feff}'])).map(|(i, n)| (i, n.as_str()))
 }
 
-fn unwritable_message(name: &str) -> String {
+pub(crate) fn unwritable_message(name: &str) -> String {
     format!(
         "column name '{}' holds a comma, a quote or a byte-order mark: the output could not carry it unchanged (rename the column)",
         name.replace('\u{feff}', "<BOM>")
     )
 }
 
-/// [`rewrite_points`] for binary files: a Parquet or E57 input, or a Parquet output (by
-/// extension). The whole file is held in memory as columns (24 bytes a point in these
-/// formats), transformed in pieces in parallel like the streamed CSV path, and written as
-/// Parquet (`.parquet`: numbers as doubles, other columns as text; a Parquet input keeps its
-/// column types, a CSV input's passed-through column is a number column when all its values
-/// are numbers) or as CSV. A refused point is an input error on its row (Parquet, E57) or line.
-fn rewrite_columns<F, T, M>(
-    input: &Path,
-    output: &Path,
-    extra: [&str; 3],
-    fmt: crate::num::NumFormat,
-    f: F,
-    mut merge: M,
-) -> Result<RewriteSummary, RewriteError>
-where
-    F: Fn(usize, &mut [truepos_math::Point3], &mut [[f64; 3]]) -> Result<T, (usize, String)> + Sync,
-    T: Send,
-    M: FnMut(T),
-{
-    use crate::parquet_file::{is_parquet, read_columns, write_columns, ColumnData, Columns};
-    // Check the output before the work (a bad path is named at once).
-    crate::atomic::check_output_path(output)?;
-    let (mut cols, table) = if is_parquet(input) {
-        (read_columns(input)?, None)
-    } else {
-        // CSV (or E57, which `Table::read` reads as x_mm, y_mm, z_mm).
-        let t = crate::csv::Table::read(input)?;
-        if let Some((i, n)) = unwritable_name(&t.header) {
-            let e = InputError::in_file(input, unwritable_message(n));
-            return Err(InputError { column: Some(i + 1), ..e }.into());
-        }
-        let mut names = Vec::new();
-        let mut data = Vec::new();
-        for name in &t.header {
-            let numeric = ["x_mm", "y_mm", "z_mm"].contains(&name.as_str()) || extra.contains(&name.as_str());
-            data.push(if numeric {
-                ColumnData::F64(t.f64_column(name)?)
+/// Output column `c`: what to write.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Src {
+    /// Coordinate `k` of the point as `f` leaves it.
+    Point(usize),
+    /// Value `k` of the extra columns.
+    Extra(usize),
+    /// Input column `c`, passed through.
+    Pass(usize),
+}
+
+/// The output's columns for an input with columns `header` (`x_mm,y_mm,z_mm` at `xyz`): every
+/// input column in place (the point's coordinates and the `extra` columns replaced), then the
+/// `extra` columns the input does not have; with their names.
+pub(crate) fn output_plan<'a>(
+    header: &'a [String],
+    xyz: [usize; 3],
+    extra: [&'a str; 3],
+) -> (Vec<Src>, Vec<&'a str>) {
+    let existing: Vec<Option<usize>> = extra.iter().map(|n| header.iter().position(|h| h == n)).collect();
+    let mut plan: Vec<Src> = (0..header.len())
+        .map(|c| {
+            if let Some(k) = xyz.iter().position(|&x| x == c) {
+                Src::Point(k)
+            } else if let Some(k) = existing.iter().position(|&e| e == Some(c)) {
+                Src::Extra(k)
             } else {
-                match t.f64_column(name) {
-                    Ok(v) => ColumnData::F64(v),
-                    Err(_) => ColumnData::Str(t.str_column(name)?),
-                }
-            });
-            names.push(name.clone());
-        }
-        (Columns { names, data }, Some(t))
-    };
-    let n = cols.n_rows();
-    let (x, y, z) = (cols.f64(input, "x_mm")?, cols.f64(input, "y_mm")?, cols.f64(input, "z_mm")?);
-    let mut pts: Vec<truepos_math::Point3> =
-        (0..n).map(|i| truepos_math::Point3::new(x[i], y[i], z[i])).collect();
-    let mut ex = vec![[0.0; 3]; n];
-    let results: Vec<Result<T, (usize, String)>> = pts
-        .par_chunks_mut(PIECE_ROWS)
-        .zip(ex.par_chunks_mut(PIECE_ROWS))
-        .enumerate()
-        .map(|(c, (p, e))| f(c * PIECE_ROWS, p, e).map_err(|(r, msg)| (c * PIECE_ROWS + r, msg)))
-        .collect();
-    for r in results {
-        match r {
-            Ok(t) => merge(t),
-            Err((row, msg)) => {
-                return Err(match &table {
-                    Some(t) if !crate::e57_file::is_e57(input) => {
-                        InputError::at(input, t.line_number(row), None, msg).into()
-                    }
-                    _ => InputError::in_file(input, format!("row {}: {msg}", row + 1)).into(),
-                })
+                Src::Pass(c)
             }
-        }
-    }
-    // The points and the extra columns into the columns (replaced, or appended).
-    for (k, name) in ["x_mm", "y_mm", "z_mm"].iter().enumerate() {
-        if let Some(i) = cols.index(name) {
-            cols.data[i] = ColumnData::F64(pts.iter().map(|p| p[k]).collect());
-        }
-    }
-    for (k, name) in extra.iter().enumerate() {
-        let v = ColumnData::F64(ex.iter().map(|e| e[k]).collect());
-        match cols.index(name) {
-            Some(i) => cols.data[i] = v,
-            None => {
-                cols.names.push(name.to_string());
-                cols.data.push(v);
-            }
-        }
-    }
-    if is_parquet(output) {
-        write_columns(output, &cols)?;
-    } else {
-        let file = AtomicFile::create(output)?;
-        let mut w = BackgroundWriter::new(file);
-        w.send(format!("{}\n", cols.names.join(",")).into_bytes())?;
-        let pieces = crate::csv::format_rows_parallel(n, fmt, |r, cw| {
-            for d in &cols.data {
-                match d {
-                    ColumnData::F64(v) => cw.field_f64(v[r])?,
-                    ColumnData::Str(v) => cw.field_str(&v[r])?,
-                }
-            }
-            cw.end_row()
         })
-        .map_err(|e| OutputError::Io { path: output.to_path_buf(), source: e })?;
-        w.send_all(pieces)?;
-        w.finish()?.commit()?;
+        .collect();
+    let mut names: Vec<&str> = header.iter().map(String::as_str).collect();
+    for (k, e) in existing.iter().enumerate() {
+        if e.is_none() {
+            plan.push(Src::Extra(k));
+            names.push(extra[k]);
+        }
     }
-    Ok(RewriteSummary { n_points: n, n_chunks: 1 })
+    (plan, names)
 }
 
 #[cfg(test)]

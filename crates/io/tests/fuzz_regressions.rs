@@ -1,6 +1,7 @@
 //! Files found by the fuzz targets (`fuzz/`, see its README) that once panicked or gave a wrong
 //! answer, kept as they were found (`tests/fuzz/`): each is now an input error that names the
-//! file, through the entry points the CLI uses (`points::read_points`, `csv::Table::read`).
+//! file, through the entry points the CLI uses (`points::read_points`, `csv::Table::read`, and
+//! for the Parquet cases the streamed point rewrite, `stream::rewrite_points`).
 
 use std::path::{Path, PathBuf};
 use truepos_io::csv::Table;
@@ -95,4 +96,41 @@ fn parquet_empty_file() {
 #[test]
 fn parquet_dictionary_of_671m_values() {
     refused("dictionary_of_671m_values.parquet", "a page of 671088639 values in a column chunk of 4");
+}
+
+/// Every Parquet file above through the streamed point rewrite (`comp correct` of a `.parquet`
+/// input, `stream::rewrite_points`), into CSV and into Parquet: refused with an error naming
+/// the file, never a panic, and nothing left at the output.
+#[test]
+fn parquet_cases_through_the_streamed_rewrite() {
+    use truepos_io::stream::rewrite_points;
+    let dir = tempfile::tempdir().unwrap();
+    let mut n = 0;
+    for entry in std::fs::read_dir(case("")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "parquet") {
+            continue;
+        }
+        n += 1;
+        for out in [dir.path().join("out.csv"), dir.path().join("out.parquet")] {
+            let r = rewrite_points(
+                &path,
+                &out,
+                ["dx_um", "dy_um", "dz_um"],
+                Default::default(),
+                |_, p, e| {
+                    for (q, d) in p.iter_mut().zip(e.iter_mut()) {
+                        q.x += 1.0;
+                        *d = [1.0, 2.0, 3.0];
+                    }
+                    Ok::<(), (usize, String)>(())
+                },
+                |_| {},
+            );
+            let e = r.expect_err("refused").to_string();
+            assert!(e.starts_with(&format!("{}:", path.display())), "{}: {e}", path.display());
+            assert!(!out.exists(), "{}", path.display());
+        }
+    }
+    assert!(n >= 6, "{n} Parquet cases");
 }

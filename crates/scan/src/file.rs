@@ -1,7 +1,8 @@
 //! The files of `truepos scan`, each defined once: the features file (TOML: `[[feature]]`
 //! tables and top-level scan parameters; [`FeaturesFile`], read by [`read_features`] with
 //! [`ParamOverrides`], the command line's options of the same names), the planned path CSV
-//! ([`write_path`]) and the measured points CSV ([`write_points`]). Unknown keys are errors;
+//! ([`write_path`]) and the measured points CSV ([`write_points`]), each as Parquet instead for a
+//! `.parquet` path (same column names). Unknown keys are errors;
 //! errors name the file, and the line of the feature's `id` where there is one.
 
 use crate::execute::Run;
@@ -13,6 +14,7 @@ use std::io::Write;
 use std::path::Path;
 use truepos_io::atomic::AtomicFile;
 use truepos_io::csv::CsvWriter;
+use truepos_io::parquet_file::{is_parquet, write_columns, ColumnData, Columns};
 use truepos_io::InputError;
 use truepos_math::{Point3, Vector3};
 
@@ -176,14 +178,39 @@ pub fn read_features(path: &Path, c: &ParamOverrides) -> Result<(Vec<Feature>, P
     }
 }
 
+/// Columns of the planned path file.
+const PATH_COLUMNS: [&str; 7] = ["t_s", "x_mm", "y_mm", "z_mm", "segment", "feature", "speed_mm_s"];
+
+/// Columns of the measured points file.
+const POINT_COLUMNS: [&str; 9] =
+    ["t_s", "x_mm", "y_mm", "z_mm", "segment", "feature", "deflection_mm", "quality", "target_deflection_mm"];
+
 /// Write a planned path as the contract's CSV (`t_s,x_mm,y_mm,z_mm,segment,feature,speed_mm_s`),
-/// atomically; `style` names the style in the comment line.
+/// atomically; `style` names the style in the comment line. A `.parquet` path gets the same
+/// columns as Parquet (`segment` and `feature` as text, the others as doubles; no comment line).
 pub fn write_path(path: &Path, pl: &Plan, samples: &[PathSample], style: &str) -> std::io::Result<()> {
+    if is_parquet(path) {
+        let num = |f: &dyn Fn(&PathSample) -> f64| ColumnData::F64(samples.iter().map(f).collect());
+        let seg = |s: &PathSample| &pl.segments[s.segment];
+        let cols = Columns {
+            names: PATH_COLUMNS.map(String::from).to_vec(),
+            data: vec![
+                num(&|s| s.t),
+                num(&|s| s.position.x),
+                num(&|s| s.position.y),
+                num(&|s| s.position.z),
+                ColumnData::Str(samples.iter().map(|s| seg(s).kind.as_str().to_string()).collect()),
+                ColumnData::Str(samples.iter().map(|s| pl.features[seg(s).feature].id.clone()).collect()),
+                num(&|s| s.speed),
+            ],
+        };
+        return Ok(write_columns(path, &cols)?);
+    }
     let mut f = AtomicFile::create(path)?;
     {
         let mut w = CsvWriter::new(std::io::BufWriter::new(&mut f));
         w.comment(&format!("truepos scan plan, style {}: commanded probe (tip centre) path", style))?;
-        w.header(&["t_s", "x_mm", "y_mm", "z_mm", "segment", "feature", "speed_mm_s"])?;
+        w.header(&PATH_COLUMNS)?;
         for s in samples {
             let seg = &pl.segments[s.segment];
             w.field_f64(s.t)?;
@@ -201,7 +228,9 @@ pub fn write_path(path: &Path, pl: &Plan, samples: &[PathSample], style: &str) -
 }
 
 /// Write measured points as the contract's CSV (`t_s,x_mm,y_mm,z_mm,segment,feature,
-/// deflection_mm,quality,target_deflection_mm`), atomically.
+/// deflection_mm,quality,target_deflection_mm`), atomically. A `.parquet` path gets the same
+/// columns as Parquet (`segment` and `feature` as text, the others, `quality` too, as doubles;
+/// no comment line).
 pub fn write_points(
     path: &Path,
     r: &Run,
@@ -209,6 +238,25 @@ pub fn write_points(
     params: &Params,
     style: &str,
 ) -> std::io::Result<()> {
+    if is_parquet(path) {
+        let num =
+            |f: &dyn Fn(&crate::execute::Point) -> f64| ColumnData::F64(r.points.iter().map(f).collect());
+        let cols = Columns {
+            names: POINT_COLUMNS.map(String::from).to_vec(),
+            data: vec![
+                num(&|q| q.t),
+                num(&|q| q.position.x),
+                num(&|q| q.position.y),
+                num(&|q| q.position.z),
+                ColumnData::Str(r.points.iter().map(|q| q.segment.as_str().to_string()).collect()),
+                ColumnData::Str(r.points.iter().map(|q| features[q.feature].id.clone()).collect()),
+                num(&|q| q.deflection),
+                num(&|q| f64::from(q.quality)),
+                num(&|q| q.target),
+            ],
+        };
+        return Ok(write_columns(path, &cols)?);
+    }
     let mut f = AtomicFile::create(path)?;
     {
         let mut w = CsvWriter::new(std::io::BufWriter::new(&mut f));
@@ -218,17 +266,7 @@ pub fn write_points(
             params.quality_bands[0],
             params.quality_bands[1]
         ))?;
-        w.header(&[
-            "t_s",
-            "x_mm",
-            "y_mm",
-            "z_mm",
-            "segment",
-            "feature",
-            "deflection_mm",
-            "quality",
-            "target_deflection_mm",
-        ])?;
+        w.header(&POINT_COLUMNS)?;
         for q in &r.points {
             w.field_f64(q.t)?;
             w.field_f64(q.position.x)?;

@@ -241,3 +241,46 @@ fn a_scan_too_short_for_a_form_error_reports_null_not_a_number() {
     assert!(l1["form_error_note"].as_str().unwrap().contains("too few"), "{l1}");
     assert!(r["features"][0]["form_error_mm"].as_f64().is_some());
 }
+
+/// `scan plan` and `scan run` write Parquet for a `.parquet` output: the CSV's columns, the
+/// numbers bit for bit (the CSV's are shortest round-trip), `segment` and `feature` as text.
+#[test]
+fn plan_and_run_write_parquet_by_extension() {
+    use truepos_io::parquet_file::{read_columns, ColumnData};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = truepos(&["simulate", "scan", "--out", s(&d.join("sc")), "--seed", "4", "--features", "2"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let features = d.join("sc/features.toml");
+    let truth = d.join("sc/truth.json");
+    for (cmd, extra) in [("plan", vec![]), ("run", vec!["--part", s(&truth)])] {
+        let csv = d.join(format!("{cmd}.csv"));
+        let pq = d.join(format!("{cmd}.parquet"));
+        for o in [&csv, &pq] {
+            let mut args = vec!["scan", cmd, "--features", s(&features), "--output", s(o)];
+            args.extend(extra.iter().copied());
+            let out = truepos(&args);
+            assert!(out.status.success(), "{cmd}: {}", String::from_utf8_lossy(&out.stderr));
+        }
+        let want = truepos_io::csv::Table::read(&csv).unwrap();
+        let got = read_columns(&pq).unwrap();
+        assert_eq!(got.names, want.header, "{cmd}");
+        assert!(want.n_rows() > 100, "{cmd}: {} rows", want.n_rows());
+        assert_eq!(got.n_rows(), want.n_rows(), "{cmd}");
+        for (name, data) in got.names.iter().zip(&got.data) {
+            match data {
+                ColumnData::Str(v) => {
+                    assert!(name == "segment" || name == "feature", "{cmd}: {name} is text");
+                    assert!(*v == want.str_column(name).unwrap(), "{cmd}: {name} differs");
+                }
+                ColumnData::F64(v) => {
+                    let a = want.f64_column(name).unwrap();
+                    assert!(
+                        a.iter().zip(v).all(|(a, b)| a.to_bits() == b.to_bits()),
+                        "{cmd}: {name} differs"
+                    );
+                }
+            }
+        }
+    }
+}

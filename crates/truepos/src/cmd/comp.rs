@@ -92,7 +92,9 @@ pub struct CorrectArgs {
     #[arg(long)]
     pub points: PathBuf,
     /// Output: the input with corrected x_mm,y_mm,z_mm and dx_um,dy_um,dz_um added; Parquet
-    /// for a `.parquet` path, else CSV.
+    /// for a `.parquet` path, else CSV. Streamed in constant memory. In a Parquet output,
+    /// a Parquet input keeps its column types and a CSV input's other columns are numbers
+    /// where every value in the file is a number, else text (text for a CSV read from a pipe).
     #[arg(long)]
     pub output: PathBuf,
     /// The points are targets: write commanded positions c with c + E(c) = T.

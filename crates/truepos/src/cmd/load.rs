@@ -90,7 +90,10 @@ pub struct CorrectCmd {
     #[arg(long)]
     pub points: PathBuf,
     /// Output: the points corrected, with dx_um,dy_um,dz_um (the correction applied) added;
-    /// Parquet for a `.parquet` path, else CSV.
+    /// Parquet for a `.parquet` path, else CSV. Streamed in constant memory. In a Parquet
+    /// output, a Parquet input keeps its column types and a CSV input's other columns are
+    /// numbers where every value in the file is a number, else text (text for a CSV read from
+    /// a pipe).
     #[arg(long)]
     pub output: PathBuf,
     /// Also apply a 21-parameter geometric map (combined correction p + E(p) + e(p)).

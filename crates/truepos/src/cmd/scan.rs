@@ -109,7 +109,8 @@ pub struct Common {
 pub struct PlanArgs {
     #[command(flatten)]
     pub common: Common,
-    /// Path CSV to write.
+    /// Path file to write: CSV, or Parquet for a `.parquet` path (same columns; segment and
+    /// feature as text).
     #[arg(long)]
     pub output: PathBuf,
     /// Sampling step of the path (s).
@@ -131,7 +132,8 @@ pub struct RunArgs {
     /// Without it the part is exactly nominal.
     #[arg(long)]
     pub part: Option<PathBuf>,
-    /// Measured points CSV to write.
+    /// Measured points file to write: CSV, or Parquet for a `.parquet` path (same columns;
+    /// segment and feature as text).
     #[arg(long)]
     pub output: PathBuf,
     /// Random seed of the measurement noise.
