@@ -861,7 +861,45 @@ impl Rows<'_> {
     /// to `dst` (row-major). For callers that write the rows back out with some fields replaced:
     /// the passed-through fields need no second split. The first bad row of the range is
     /// reported.
+    ///
+    /// Where the CPU has SSSE3 (checked at run time), rows of plain fields are split by
+    /// delimiter masks and their numbers converted by vector instructions
+    /// ([`split_parse_row_ssse3`]); any other row takes the portable walk.
     pub(crate) fn split_and_parse_range(
+        &self,
+        range: std::ops::Range<usize>,
+        idx: &[usize],
+        dst: &mut [f64],
+        fields: &mut Vec<(usize, usize)>,
+    ) -> Result<(), RowError> {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("ssse3") {
+            // SAFETY: the CPU has SSSE3 (checked just above).
+            return unsafe { self.split_and_parse_range_ssse3(range, idx, dst, fields) };
+        }
+        self.split_and_parse_range_impl::<false>(range, idx, dst, fields)
+    }
+
+    /// [`split_and_parse_range`](Self::split_and_parse_range) compiled with SSSE3.
+    ///
+    /// # Safety
+    /// The CPU must have SSSE3.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "ssse3")]
+    unsafe fn split_and_parse_range_ssse3(
+        &self,
+        range: std::ops::Range<usize>,
+        idx: &[usize],
+        dst: &mut [f64],
+        fields: &mut Vec<(usize, usize)>,
+    ) -> Result<(), RowError> {
+        self.split_and_parse_range_impl::<true>(range, idx, dst, fields)
+    }
+
+    /// The loop of [`split_and_parse_range`](Self::split_and_parse_range); `SSSE3`: rows tried
+    /// by [`split_parse_row_ssse3`] first (only inside a function compiled with SSSE3).
+    #[inline(always)]
+    fn split_and_parse_range_impl<const SSSE3: bool>(
         &self,
         range: std::ops::Range<usize>,
         idx: &[usize],
@@ -877,6 +915,14 @@ impl Rows<'_> {
             let t = &self.text[s0..];
             let base = fields.len();
             let d = &mut dst[(row - first) * k..(row - first + 1) * k];
+            #[cfg(target_arch = "x86_64")]
+            if SSSE3 {
+                // SAFETY: with `SSSE3` this runs on a CPU with SSSE3 (see the dispatch above).
+                if unsafe { split_parse_row_ssse3(self.text, s0, &slots, d, fields) } {
+                    continue;
+                }
+                fields.truncate(base);
+            }
             if split_parse_row_fast(t, s0, &slots, d, fields) {
                 continue;
             }
@@ -1708,6 +1754,74 @@ unsafe fn delimiter_mask(b: &[u8], i: usize) -> u64 {
     m
 }
 
+/// One row of [`Rows::split_and_parse_range`] by delimiter masks: the row starting at
+/// `text[s0]`, whole within the 64 bytes from `s0` and holding no quote, space, tab or `\r`
+/// (so no field needs trimming or unquoting), has its fields' ranges appended to `fields` and
+/// its wanted columns (`slots`, as for [`row_fast`]) converted by [`plain_field_ssse3`] — every
+/// field's end is known from the masks, so nothing waits for the previous field's digits.
+/// `true` when it did; `false` (with `fields` and `d` unspecified) for any other row, which
+/// the portable walk then reads: the same fields and values for every row this one takes.
+///
+/// # Safety
+/// The CPU must have SSSE3.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "ssse3")]
+#[inline]
+unsafe fn split_parse_row_ssse3(
+    text: &[u8],
+    s0: usize,
+    slots: &[usize],
+    d: &mut [f64],
+    fields: &mut Vec<(usize, usize)>,
+) -> bool {
+    use std::arch::x86_64::{
+        __m128i, _mm_cmpeq_epi8, _mm_loadu_si128, _mm_movemask_epi8, _mm_or_si128, _mm_set1_epi8,
+    };
+    // The block and a number's 16-byte read after the last field start must lie in the text.
+    let Some(block) = text.get(s0..s0 + PLAIN_BLOCK + 16) else {
+        return false;
+    };
+    let (mut delims, mut newline, mut special) = (0u64, 0u64, 0u64);
+    for q in 0..4 {
+        // SAFETY: an unaligned load of 16 bytes inside `block`.
+        let v = unsafe { _mm_loadu_si128(block.as_ptr().add(16 * q).cast::<__m128i>()) };
+        let eq = |c: u8| _mm_cmpeq_epi8(v, _mm_set1_epi8(c as i8));
+        let nl = eq(b'\n');
+        let del = _mm_or_si128(eq(b','), nl);
+        let sp = _mm_or_si128(_mm_or_si128(eq(b'"'), eq(b' ')), _mm_or_si128(eq(b'\t'), eq(b'\r')));
+        delims |= (_mm_movemask_epi8(del) as u32 as u64) << (16 * q);
+        newline |= (_mm_movemask_epi8(nl) as u32 as u64) << (16 * q);
+        special |= (_mm_movemask_epi8(sp) as u32 as u64) << (16 * q);
+    }
+    if newline == 0 {
+        return false;
+    }
+    // Bits up to and including the row's `\n`.
+    let end = newline.trailing_zeros();
+    let row = u64::MAX >> (63 - end);
+    if special & row != 0 || (delims & row).count_ones() as usize != slots.len() {
+        return false;
+    }
+    let mut m = delims & row;
+    let mut a = 0usize;
+    let mut filled = 0;
+    for &slot in slots {
+        let e = m.trailing_zeros() as usize;
+        m &= m - 1;
+        if slot != usize::MAX {
+            // SAFETY: the CPU has SSSE3; `s0 + e` is a delimiter with 16 readable bytes after.
+            match unsafe { plain_field_ssse3(text, s0 + a, s0 + e) } {
+                Some(x) => d[slot] = x,
+                None => return false,
+            }
+            filled += 1;
+        }
+        fields.push((s0 + a, s0 + e));
+        a = e + 1;
+    }
+    filled == d.len()
+}
+
 /// Byte shuffles of [`short_decimal_ssse3`], by integer length (0–7) and fraction length
 /// (0–8): the `i + f` digits right-aligned in 16 bytes, the point (at byte `i`) skipped,
 /// zeros (index with the high bit set) in front.
@@ -2129,9 +2243,16 @@ mod tests {
             "P10,1,abc,3,x",
             "P11,1,2 3,3,x",
             "P12,,2,3,x",
+            "P13,12345678.5,2.123456789,3,x",
+            "P14,1.5,2,3,x,",
+            "P15,1.5,2,3",
+            "P16,-7.25,+8.,.5,nöte",
+            "P17,1.5,2,3,x,y,z,w,v,u,t,s,r,q,p,o,n,m,l,k,j,i,h,g,f,e,d,c,b,a,0123456789",
         ];
         for (k, row) in rows.iter().enumerate() {
-            let text = format!("id,x_mm,y_mm,z_mm,note\n{row}\n");
+            // A comment line after the row (skipped by every reader) leaves the text long
+            // enough for the SSSE3 row reader's block reads, so that it is tested too.
+            let text = format!("id,x_mm,y_mm,z_mm,note\n{row}\n# {}\n", "pad ".repeat(30));
             let t = table(&text).unwrap();
             let general = t.f64_rows(&["x_mm", "y_mm", "z_mm"]);
             let view = Rows { text: t.text.as_bytes(), rows: &t.rows, width: t.header.len() };
@@ -2425,7 +2546,7 @@ mod tests {
         #[test]
         fn split_and_parse_matches_the_general_reader(fields in proptest::collection::vec("( |-|\\+)?[0-9]{0,6}(\\.[0-9]{0,6})?(e[0-9])? ?|[a-z\" \t]{0,3}|\"[a-z,\"]{0,3}\"", 1..7), cr in proptest::bool::ANY) {
             let row = fields.join(",");
-            let text = format!("a,x_mm,y_mm,z_mm,b\n{row}{}\n", if cr { "\r" } else { "" });
+            let text = format!("a,x_mm,y_mm,z_mm,b\n{row}{}\n# {}\n", if cr { "\r" } else { "" }, "pad ".repeat(30));
             let t = table(&text).unwrap();
             proptest::prop_assume!(t.n_rows() == 1);
             let general = t.f64_rows(&["x_mm", "y_mm", "z_mm"]);
