@@ -9,6 +9,14 @@
 //! ([`Table::f64_columns`]) parses the requested columns of all rows in parallel and reports
 //! the first bad value with file, line, column number and column name. Ragged rows are errors.
 //! [`CsvWriter`] writes rows with shortest round-trip float formatting.
+//!
+//! The direct readers ([`Table::read_rows_direct`] for points, [`Table::read_stream_direct`] for
+//! time streams) parse the wanted columns straight from the text in parallel segments, without a
+//! row index, and hand anything unusual back as a [`Table`] (the general path, which also words
+//! the errors). Their common row, short decimals separated by commas, is read by delimiter
+//! blocks and SSSE3 number conversion where the CPU has it (`plain_rows_ssse3`), else by the
+//! SWAR reader (`short_decimal_prefix`); both give `str::parse`'s value bit for bit. A mapped
+//! file is checked for NUL bytes and UTF-8 only where the parser did not see plain ASCII rows.
 
 use crate::num::NumFormat;
 use crate::InputError;
@@ -1464,9 +1472,7 @@ fn short_decimal_prefix(b: &[u8]) -> Option<(f64, usize)> {
 
 /// [`short_decimal_prefix`] with SSE2/SSSE3 vector instructions: the 16 bytes after the sign
 /// are classified at once (digit or not: the integer and fraction lengths are the positions of
-/// the first two non-digits), the digits are moved by one byte shuffle to the right end of a
-/// register, the point dropped and zeros in front ([`DIGIT_SHUFFLE`]), and the 15 digits are
-/// combined by three multiply-adds of neighbours (×10, ×100, ×10⁴) into two 8-digit halves.
+/// the first two non-digits) and the digits converted by [`digits_value_ssse3`].
 /// Takes what [`short_decimal_prefix`] takes (except 7 integer digits followed by 8 fraction
 /// digits, which it leaves to the general parser), with the same value, bit for bit (the same
 /// integer mantissa and the same one division), and the same end.
@@ -1478,9 +1484,8 @@ fn short_decimal_prefix(b: &[u8]) -> Option<(f64, usize)> {
 #[inline]
 unsafe fn short_decimal_ssse3(b: &[u8]) -> Option<(f64, usize)> {
     use std::arch::x86_64::{
-        __m128i, _mm_cmpeq_epi8, _mm_cvtsi128_si64, _mm_loadu_si128, _mm_madd_epi16, _mm_maddubs_epi16,
-        _mm_min_epu8, _mm_movemask_epi8, _mm_packs_epi32, _mm_set1_epi16, _mm_set1_epi32, _mm_set1_epi8,
-        _mm_shuffle_epi8, _mm_sub_epi8,
+        __m128i, _mm_cmpeq_epi8, _mm_loadu_si128, _mm_min_epu8, _mm_movemask_epi8, _mm_set1_epi8,
+        _mm_sub_epi8,
     };
     if b.len() < SHORT_DECIMAL_READ {
         return None;
@@ -1511,6 +1516,32 @@ unsafe fn short_decimal_ssse3(b: &[u8]) -> Option<(f64, usize)> {
     if int_len + frac_len == 0 || (b[end] | 0x20) == b'e' {
         return None;
     }
+    // SAFETY: the CPU has SSSE3 (this function's contract).
+    Some((unsafe { digits_value_ssse3(d, int_len, frac_len, neg) }, end))
+}
+
+/// The value of a short decimal whose bytes minus `'0'` are `d` (after the sign): `int_len`
+/// (≤ 7) digits, the point, `frac_len` (≤ 8) digits, all checked by the caller. The digits are
+/// moved by one byte shuffle to the right end of the register, the point dropped and zeros in
+/// front ([`DIGIT_SHUFFLE`]), and combined by three multiply-adds of neighbours (×10, ×100,
+/// ×10⁴) into two 8-digit halves: the integer mantissa, then the one correctly rounded division
+/// of [`short_decimal_prefix`] (the same value, bit for bit).
+///
+/// # Safety
+/// The CPU must have SSSE3.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "ssse3")]
+#[inline]
+unsafe fn digits_value_ssse3(
+    d: std::arch::x86_64::__m128i,
+    int_len: usize,
+    frac_len: usize,
+    neg: bool,
+) -> f64 {
+    use std::arch::x86_64::{
+        __m128i, _mm_cvtsi128_si64, _mm_loadu_si128, _mm_madd_epi16, _mm_maddubs_epi16, _mm_packs_epi32,
+        _mm_set1_epi16, _mm_set1_epi32, _mm_shuffle_epi8,
+    };
     let table = &DIGIT_SHUFFLE[int_len][frac_len];
     // SAFETY: an unaligned load of the 16 bytes of `table`.
     let ctl = unsafe { _mm_loadu_si128(table.as_ptr().cast::<__m128i>()) };
@@ -1525,7 +1556,8 @@ unsafe fn short_decimal_ssse3(b: &[u8]) -> Option<(f64, usize)> {
     let mant = (lanes & 0xFFFF_FFFF) * 100_000_000 + (lanes >> 32);
     // mant < 10^15 < 2^53: one correctly rounded division, as in `short_decimal_prefix`.
     let v = (mant as i64) as f64 / truepos_math::decimal::POW10[frac_len];
-    Some((f64::from_bits(v.to_bits() | (u64::from(neg) << 63)), end))
+    // `v ≥ 0`: setting the sign bit is `-v` (also for zero).
+    f64::from_bits(v.to_bits() | (u64::from(neg) << 63))
 }
 
 /// Bytes after a block start [`plain_rows_ssse3`] may read: the 64-byte block, then up to 16
@@ -1611,9 +1643,8 @@ unsafe fn plain_rows_ssse3<const K: usize>(
 #[inline]
 unsafe fn plain_field_ssse3(b: &[u8], a: usize, e: usize) -> Option<f64> {
     use std::arch::x86_64::{
-        __m128i, _mm_cmpeq_epi8, _mm_cvtsi128_si64, _mm_loadu_si128, _mm_madd_epi16, _mm_maddubs_epi16,
-        _mm_min_epu8, _mm_movemask_epi8, _mm_packs_epi32, _mm_set1_epi16, _mm_set1_epi32, _mm_set1_epi8,
-        _mm_shuffle_epi8, _mm_sub_epi8,
+        __m128i, _mm_cmpeq_epi8, _mm_loadu_si128, _mm_min_epu8, _mm_movemask_epi8, _mm_set1_epi8,
+        _mm_sub_epi8,
     };
     if e <= a || e - a > 17 {
         return None;
@@ -1645,18 +1676,8 @@ unsafe fn plain_field_ssse3(b: &[u8], a: usize, e: usize) -> Option<f64> {
     if int_len + frac_len == 0 {
         return None;
     }
-    let table = &DIGIT_SHUFFLE[int_len][frac_len];
-    // SAFETY: an unaligned load of the 16 bytes of `table`.
-    let ctl = unsafe { _mm_loadu_si128(table.as_ptr().cast::<__m128i>()) };
-    let digits = _mm_shuffle_epi8(d, ctl);
-    let pairs = _mm_maddubs_epi16(digits, _mm_set1_epi16(0x010A));
-    let quads = _mm_madd_epi16(pairs, _mm_set1_epi32(0x0001_0064));
-    let quads = _mm_packs_epi32(quads, quads);
-    let eights = _mm_madd_epi16(quads, _mm_set1_epi32(0x0001_2710));
-    let lanes = _mm_cvtsi128_si64(eights) as u64;
-    let mant = (lanes & 0xFFFF_FFFF) * 100_000_000 + (lanes >> 32);
-    let v = (mant as i64) as f64 / truepos_math::decimal::POW10[frac_len];
-    Some(f64::from_bits(v.to_bits() | (u64::from(neg) << 63)))
+    // SAFETY: the CPU has SSSE3 (this function's contract).
+    Some(unsafe { digits_value_ssse3(d, int_len, frac_len, neg) })
 }
 
 /// Bit `j` set where `b[i + j]` is `,` or `\n` (`j` < 64).
