@@ -2,7 +2,9 @@
 //! `parquet` underneath) on arbitrary bytes, through the two entry points the CLI uses:
 //! `csv::Table::read` (streams, maps, every command reading columns) and `points::read_points`
 //! (fit). Either columns of equal length with finite numbers, or an input error that names the
-//! file — never a panic, a hang or an unbounded allocation. Streams have no reader of their own:
+//! file — never a panic, a hang or an unbounded allocation. The streamed point rewrite
+//! (`stream::rewrite_points`, what `comp correct` runs on a `.parquet` input) is run on the same
+//! file: an error names the file and leaves no output. Streams have no reader of their own:
 //! a `.parquet` stream (`t_s`, …) is read by `Table::read` like any other column file.
 //! The readers take paths (chosen by the `.parquet` extension), so each input is written to one
 //! scratch file in the temporary directory first.
@@ -55,7 +57,9 @@ fuzz_target!(|data: &[u8]| {
         let s = e.to_string();
         assert!(s.starts_with(&format!("{name}:")), "Parquet error without the file: {s}");
     };
-    match truepos_io::csv::Table::read(path) {
+    let table = truepos_io::csv::Table::read(path);
+    rewrite(path, table.as_ref().ok(), &named);
+    match table {
         Ok(t) => {
             assert!(t.check_rectangular().is_ok());
             for h in t.header.clone() {
@@ -79,3 +83,47 @@ fuzz_target!(|data: &[u8]| {
         Err(e) => named(&e),
     }
 });
+
+/// The streamed point rewrite (`comp correct` of a `.parquet` input: `ParquetReader` in
+/// batches, pieces, the CSV writer) into CSV: an error names the file and leaves no output;
+/// a success on a file the table reader reads too writes every row, x moved by one.
+fn rewrite(
+    path: &std::path::Path,
+    table: Option<&truepos_io::csv::Table>,
+    named: &dyn Fn(&dyn std::fmt::Display),
+) {
+    let out = path.with_extension("out.csv");
+    let _ = std::fs::remove_file(&out);
+    let r = truepos_io::stream::rewrite_points(
+        path,
+        &out,
+        ["dx_um", "dy_um", "dz_um"],
+        Default::default(),
+        |_, p, e| {
+            for (q, d) in p.iter_mut().zip(e.iter_mut()) {
+                q.x += 1.0;
+                *d = [1.0, 2.0, 3.0];
+            }
+            Ok::<(), (usize, String)>(())
+        },
+        |_| {},
+    );
+    match r {
+        Err(e) => {
+            named(&e);
+            assert!(!out.exists(), "an output after an error");
+        }
+        Ok(sum) => {
+            // The table reader may refuse what the rewrite reads (its CSV text has limits of its
+            // own, e.g. the line length); where it reads the file, the rows agree.
+            if let Some(t) = table {
+                assert_eq!(sum.n_points, t.n_rows());
+                let x = t.f64_column("x_mm").expect("x_mm of a rewritten file");
+                let o = truepos_io::csv::Table::read(&out).expect("the output reads back");
+                let x2 = o.f64_column("x_mm").expect("x_mm");
+                assert!(x.iter().zip(&x2).all(|(a, b)| (a + 1.0).to_bits() == b.to_bits()));
+            }
+            let _ = std::fs::remove_file(&out);
+        }
+    }
+}

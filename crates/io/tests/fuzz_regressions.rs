@@ -134,3 +134,11 @@ fn parquet_cases_through_the_streamed_rewrite() {
     }
     assert!(n >= 6, "{n} Parquet cases");
 }
+
+/// `parquet_points` (out of memory): a footer whose schema element announces 562 million
+/// children made `parquet` reserve 4.5 GB for them before reading any; now refused while the
+/// footer is walked.
+#[test]
+fn parquet_schema_children_past_elements() {
+    refused("schema_children_past_elements.parquet", "children in a schema of");
+}
