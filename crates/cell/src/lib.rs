@@ -20,6 +20,7 @@
 //!   `truepos_ippdme::Cmm`) and [`cmm::bind_virtual`].
 
 pub mod cmm;
+pub mod vcmm;
 pub mod demo;
 pub mod error;
 pub mod gantry;

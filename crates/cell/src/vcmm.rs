@@ -1,0 +1,467 @@
+//! Task-specific measurement uncertainty by simulation (ISO/TS 15530-4, the "virtual CMM";
+//! JCGM 101 Monte Carlo): what `--machine-model FILE` adds to the commands that measure through a
+//! controller.
+//!
+//! The user does not know the errors of *their* machine, only the class it belongs to: its error
+//! model (the keys of the virtual CMM's `[ippdme.model]`: a geometric map of that class and size,
+//! probe pre-travel residual and lobing, noise) or its ISO 10360 datasheet (`[iso10360] mpe_e_um
+//! = [A, K]`, `mpe_p_um = P`). The uncertainty of a measurement is then the spread of its result
+//! over machines of that class, each measuring a perfect feature at the measured place with the
+//! same strategy:
+//!
+//! 1. for r = 1..R (R ≥ [`MIN_RUNS`], seeded, in parallel): draw a machine from the model (a new
+//!    geometric map, probe lobing and pre-travel residual, a new noise stream), run the *same*
+//!    probing code ([`truepos_head::acquire::probe_sphere`]) against a perfect sphere at the
+//!    measured centre and radius, fit, and record the deviations of the fitted parameters from
+//!    the perfect ones;
+//! 2. u of each parameter = the root mean square of those deviations (their spread plus the bias
+//!    the model predicts, which is not corrected);
+//! 3. the measurement's own fit scatter is a cross-check, not a second noise term (the noise is in
+//!    the simulation already): only the part of it beyond what the simulated machines show (the
+//!    median of their fit uncertainties) is added in quadrature — form error of the artefact or
+//!    effects the model does not contain;
+//! 4. U = k·u with k = [`truepos_math::stats::COVERAGE_FACTOR`].
+//!
+//! With the ISO 10360 datasheet only, each realisation has per-axis scale errors uniform within
+//! ±1/K µm/mm and squareness errors uniform within ±1/K µrad·10³ (so that a length along any axis
+//! or diagonal stays within MPE_E's length term), and a probing error along the surface normal
+//! uniform within ±P/2 per point (a form range within MPE_P) — the usual conservative
+//! assumptions (uniform within ±MPE). The output says which basis was used.
+//!
+//! Entry points: [`MachineModel`] (read the file), [`sphere_uncertainty`] (a probed sphere),
+//! [`SimulatedCmm`] (one realisation behind the [`ProbingMachine`] trait).
+
+use rayon::prelude::*;
+use std::path::Path;
+use truepos_device::{DeviceError, DeviceInfo, ProbeHit, ProbeRequest, ProbingMachine};
+use truepos_head::acquire::{probe_sphere, SphereProbing};
+use truepos_ippdme::part::{Part, Solid};
+use truepos_ippdme::{Cmm, MachineConfig};
+use truepos_math::{Matrix3, Point3, Vector3};
+use truepos_sim::noise;
+
+use crate::cmm::IppdmeCmm;
+use crate::error::{CellError, Result};
+
+/// The fewest machine realisations a task-specific uncertainty is computed from.
+pub const MIN_RUNS: usize = 200;
+
+/// The base seed of the realisations (fixed: the same measurement gets the same uncertainty).
+pub const DEFAULT_SEED: u64 = 0x1553_0004;
+
+/// Most realisations (bounds the work of one command).
+pub const MAX_RUNS: usize = 100_000;
+
+/// An ISO 10360 datasheet: MPE_E = A + L/K µm (L in mm) and MPE_P.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Iso10360 {
+    /// A of MPE_E (µm).
+    pub mpe_e_a_um: f64,
+    /// K of MPE_E (mm/µm).
+    pub mpe_e_k: f64,
+    /// MPE_P (µm): the range of a sphere's residuals the probing may produce.
+    pub mpe_p_um: f64,
+}
+
+/// What is known of the machine's errors (`--machine-model FILE`).
+#[derive(Debug, Clone)]
+pub struct MachineModel {
+    /// The file it was read from (for messages and the JSON).
+    pub source: String,
+    /// The virtual CMM's error model (`[ippdme.model]`, and the `[ippdme]` volume the map is
+    /// stretched over); its seed is not used.
+    pub cmm: Option<MachineConfig>,
+    /// The ISO 10360 datasheet.
+    pub iso10360: Option<Iso10360>,
+}
+
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawFile {
+    ippdme: Option<toml::Table>,
+    iso10360: Option<RawIso>,
+}
+
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawIso {
+    mpe_e_um: [f64; 2],
+    mpe_p_um: f64,
+}
+
+impl MachineModel {
+    /// Read a machine-model file (bounded read; every error names the file, and the line where
+    /// there is one).
+    pub fn read(path: &Path) -> Result<MachineModel> {
+        let text = truepos_io::limits::read_string(path, "TOML")?;
+        MachineModel::from_toml(path, &text)
+    }
+
+    /// Parse the text of a machine-model file that came from `path`.
+    pub fn from_toml(path: &Path, text: &str) -> Result<MachineModel> {
+        let file = path.display().to_string();
+        let raw: RawFile = truepos_io::config::parse_toml(path, text)?;
+        let cmm = match &raw.ippdme {
+            Some(t) => {
+                if !t.contains_key("model") {
+                    return Err(CellError::Invalid(format!(
+                        "{file}: [ippdme] has no [ippdme.model] table (the machine's error model)"
+                    )));
+                }
+                Some(MachineConfig::from_toml(&file, text).map_err(|e| CellError::Invalid(e.to_string()))?)
+            }
+            None => None,
+        };
+        let iso10360 = match raw.iso10360 {
+            Some(r) => {
+                let [a, k] = r.mpe_e_um;
+                let bad = |key: &str, what: &str| {
+                    Err(CellError::Invalid(format!("{file}: iso10360.{key}: {what}")))
+                };
+                if !(a.is_finite() && a > 0.0) {
+                    return bad("mpe_e_um", "A (µm) must be a positive number");
+                }
+                if !(k.is_finite() && k > 0.0) {
+                    return bad("mpe_e_um", "K (mm/µm, MPE_E = A + L/K) must be a positive number");
+                }
+                if !(r.mpe_p_um.is_finite() && r.mpe_p_um > 0.0) {
+                    return bad("mpe_p_um", "must be a positive number (µm)");
+                }
+                Some(Iso10360 { mpe_e_a_um: a, mpe_e_k: k, mpe_p_um: r.mpe_p_um })
+            }
+            None => None,
+        };
+        if cmm.is_none() && iso10360.is_none() {
+            return Err(CellError::Invalid(format!(
+                "{file}: names no machine model: expected [ippdme.model] (an error model) and/or [iso10360] (mpe_e_um = [A, K], mpe_p_um)"
+            )));
+        }
+        Ok(MachineModel { source: file, cmm, iso10360 })
+    }
+
+    /// One line saying what the uncertainty is based on.
+    pub fn basis(&self) -> String {
+        let mut parts = Vec::new();
+        if let Some(c) = &self.cmm {
+            let m = &c.model;
+            parts.push(format!(
+                "error model of {} ({} geometric map ×{}, pre-travel {} µm {}compensated, lobing {} µm, probing noise σ {} µm)",
+                self.source,
+                if m.geometric_errors { "bridge-CMM" } else { "no" },
+                m.geometric_error_scale,
+                m.pretravel_mm * 1e3,
+                if m.pretravel_compensated { "" } else { "not " },
+                m.lobing_mm * 1e3,
+                m.probe_noise_mm * 1e3
+            ));
+        }
+        if let Some(i) = &self.iso10360 {
+            parts.push(format!(
+                "ISO 10360 datasheet of {} (MPE_E = {} + L/{} µm, MPE_P = {} µm; uniform within ±MPE)",
+                self.source, i.mpe_e_a_um, i.mpe_e_k, i.mpe_p_um
+            ));
+        }
+        parts.join("; ")
+    }
+}
+
+/// How many realisations, from which seed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MonteCarlo {
+    pub runs: usize,
+    pub seed: u64,
+}
+
+impl Default for MonteCarlo {
+    fn default() -> Self {
+        MonteCarlo { runs: MIN_RUNS, seed: DEFAULT_SEED }
+    }
+}
+
+impl MonteCarlo {
+    fn check(&self) -> Result<()> {
+        if !(MIN_RUNS..=MAX_RUNS).contains(&self.runs) {
+            return Err(CellError::Invalid(format!(
+                "Monte Carlo runs must be between {MIN_RUNS} and {MAX_RUNS}, got {}",
+                self.runs
+            )));
+        }
+        Ok(())
+    }
+
+    /// The seed of realisation `r` (SplitMix64 of the base seed and r: independent streams).
+    fn seed_of(&self, r: usize) -> u64 {
+        let mut z = self.seed ^ (r as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+}
+
+/// The task-specific uncertainty of a probed sphere.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SphereUncertainty {
+    /// Standard uncertainty of each centre coordinate (mm).
+    pub center_mm: Vector3,
+    /// Standard uncertainty of the radius (mm).
+    pub radius_mm: f64,
+    /// The simulation's part: RMS deviation over the realisations (centre, radius; mm).
+    pub simulated_center_mm: Vector3,
+    pub simulated_radius_mm: f64,
+    /// Mean deviation over the realisations (the bias the model predicts; mm), included in u.
+    pub bias_center_mm: Vector3,
+    pub bias_radius_mm: f64,
+    /// The measurement's own fit scatter beyond the simulated machines' (mm, 0 when within).
+    pub excess_center_mm: Vector3,
+    pub excess_radius_mm: f64,
+    /// Realisations run.
+    pub runs: usize,
+    /// What the model was (for the output).
+    pub basis: String,
+    /// Wall time of the simulation (s).
+    pub elapsed_s: f64,
+}
+
+/// One simulated sphere measurement: deviations of centre and radius from the perfect sphere,
+/// and the fit's own standard uncertainties.
+#[derive(Debug, Clone, Copy)]
+struct Trial {
+    dc: Vector3,
+    dr: f64,
+    uc: Vector3,
+    ur: f64,
+}
+
+/// The task-specific uncertainty of a sphere measured as `plan` says, whose fit gave `center`,
+/// `radius` (the sphere's, tip radius removed) and the fit-residual standard uncertainties
+/// `fit_u_center`, `fit_u_radius`.
+pub fn sphere_uncertainty(
+    model: &MachineModel,
+    plan: &SphereProbing,
+    center: Point3,
+    radius: f64,
+    fit_u_center: Vector3,
+    fit_u_radius: f64,
+    mc: MonteCarlo,
+) -> Result<SphereUncertainty> {
+    mc.check()?;
+    plan.check().map_err(|e| CellError::Invalid(e.to_string()))?;
+    if !(center.iter().all(|v| v.is_finite()) && radius.is_finite() && radius > 0.0) {
+        return Err(CellError::Invalid("the measured sphere is not finite".into()));
+    }
+    let t0 = std::time::Instant::now();
+    // The simulation probes the perfect sphere where it was found, with the same plan.
+    let sim_plan = *plan;
+    let mut per_model: Vec<Vec<Trial>> = Vec::new();
+    if let Some(cfg) = &model.cmm {
+        let trials: Result<Vec<Trial>> = (0..mc.runs)
+            .into_par_iter()
+            .map(|r| cmm_trial(cfg, &sim_plan, center, radius, mc.seed_of(r)))
+            .collect();
+        per_model.push(trials?);
+    }
+    if let Some(iso) = &model.iso10360 {
+        let trials: Result<Vec<Trial>> = (0..mc.runs)
+            .into_par_iter()
+            .map(|r| iso_trial(iso, &sim_plan, center, radius, mc.seed_of(r)))
+            .collect();
+        per_model.push(trials?);
+    }
+    // Each model gives a u per parameter; with both, the larger (they describe the same machine).
+    let mut best: Option<SphereUncertainty> = None;
+    for trials in &per_model {
+        let u = summarise(trials, fit_u_center, fit_u_radius);
+        best = Some(match best {
+            None => u,
+            Some(b) => SphereUncertainty {
+                center_mm: b.center_mm.zip_map(&u.center_mm, f64::max),
+                radius_mm: b.radius_mm.max(u.radius_mm),
+                simulated_center_mm: b.simulated_center_mm.zip_map(&u.simulated_center_mm, f64::max),
+                simulated_radius_mm: b.simulated_radius_mm.max(u.simulated_radius_mm),
+                bias_center_mm: b.bias_center_mm.zip_map(&u.bias_center_mm, |x, y| {
+                    if x.abs() >= y.abs() {
+                        x
+                    } else {
+                        y
+                    }
+                }),
+                bias_radius_mm: if b.bias_radius_mm.abs() >= u.bias_radius_mm.abs() {
+                    b.bias_radius_mm
+                } else {
+                    u.bias_radius_mm
+                },
+                excess_center_mm: b.excess_center_mm.zip_map(&u.excess_center_mm, f64::max),
+                excess_radius_mm: b.excess_radius_mm.max(u.excess_radius_mm),
+                ..b
+            },
+        });
+    }
+    let mut out = best.ok_or_else(|| CellError::Invalid("the machine model names no model".into()))?;
+    out.runs = mc.runs;
+    out.basis = model.basis();
+    out.elapsed_s = t0.elapsed().as_secs_f64();
+    Ok(out)
+}
+
+fn summarise(trials: &[Trial], fit_u_center: Vector3, fit_u_radius: f64) -> SphereUncertainty {
+    let n = trials.len() as f64;
+    let mut mean_c = Vector3::zeros();
+    let mut mean_r = 0.0;
+    let mut ms_c = Vector3::zeros();
+    let mut ms_r = 0.0;
+    for t in trials {
+        mean_c += t.dc;
+        mean_r += t.dr;
+        ms_c += t.dc.component_mul(&t.dc);
+        ms_r += t.dr * t.dr;
+    }
+    mean_c /= n;
+    mean_r /= n;
+    let rms_c = (ms_c / n).map(f64::sqrt);
+    let rms_r = (ms_r / n).sqrt();
+    // Typical fit scatter of the simulated machines (median per parameter).
+    let median = |mut v: Vec<f64>| -> f64 {
+        v.sort_by(f64::total_cmp);
+        let m = v.len() / 2;
+        if v.len() % 2 == 1 {
+            v[m]
+        } else {
+            0.5 * (v[m - 1] + v[m])
+        }
+    };
+    let typical_uc = Vector3::from_fn(|k, _| median(trials.iter().map(|t| t.uc[k]).collect()));
+    let typical_ur = median(trials.iter().map(|t| t.ur).collect());
+    let excess = |obs: f64, typ: f64| (obs * obs - typ * typ).max(0.0).sqrt();
+    let excess_c = fit_u_center.zip_map(&typical_uc, excess);
+    let excess_r = excess(fit_u_radius, typical_ur);
+    SphereUncertainty {
+        center_mm: rms_c.zip_map(&excess_c, f64::hypot),
+        radius_mm: rms_r.hypot(excess_r),
+        simulated_center_mm: rms_c,
+        simulated_radius_mm: rms_r,
+        bias_center_mm: mean_c,
+        bias_radius_mm: mean_r,
+        excess_center_mm: excess_c,
+        excess_radius_mm: excess_r,
+        runs: trials.len(),
+        basis: String::new(),
+        elapsed_s: 0.0,
+    }
+}
+
+/// One realisation of the error model measuring the perfect sphere.
+fn cmm_trial(cfg: &MachineConfig, plan: &SphereProbing, center: Point3, radius: f64, seed: u64) -> Result<Trial> {
+    let mut cfg = cfg.clone();
+    cfg.model.seed = seed;
+    let part = Part { solids: vec![(None, Solid::Sphere { center, radius })] };
+    let mut m = SimulatedCmm::new(&cfg, Some(part), plan.tip_radius_mm);
+    let s = probe_sphere(&mut m, plan).map_err(|e| {
+        CellError::Failed(format!(
+            "task-specific uncertainty: a simulated machine could not measure the sphere ({e}); the error model's errors are larger than the clearance"
+        ))
+    })?;
+    Ok(Trial {
+        dc: s.center_mm - center,
+        dr: s.radius_mm - radius,
+        uc: s.center_uncertainty_mm,
+        ur: s.radius_uncertainty_mm,
+    })
+}
+
+/// One realisation of the ISO 10360 datasheet measuring the perfect sphere: the tip centres the
+/// plan's probing directions find on it, moved by the realisation's linear errors about the
+/// sphere's centre and by a uniform probing error along the normal.
+fn iso_trial(iso: &Iso10360, plan: &SphereProbing, center: Point3, radius: f64, seed: u64) -> Result<Trial> {
+    use rand::Rng;
+    let mut rng = noise::rng(seed);
+    let rel = 1e-3 / iso.mpe_e_k; // µm per mm → relative
+    let mut u = |h: f64| rng.random_range(-h..=h);
+    let scale = Vector3::new(u(rel), u(rel), u(rel));
+    let (sxy, sxz, syz) = (u(rel), u(rel), u(rel));
+    // Linear error matrix: scale on the diagonal, squareness as shear.
+    let lin = Matrix3::new(scale.x, sxy, sxz, 0.0, scale.y, syz, 0.0, 0.0, scale.z);
+    let half_p = 0.5 * iso.mpe_p_um * 1e-3;
+    let r_tip = radius + plan.tip_radius_mm;
+    // The linear error is taken about the measured centre's distance from the probing start of
+    // the sphere: a length L measured across the sphere errs by ≈ L·ε.
+    let points: Vec<Point3> = plan
+        .requests()
+        .iter()
+        .map(|req| {
+            let d = req.approach;
+            let p = center + d * r_tip;
+            let e = lin * (p - center) + d * u(half_p);
+            p + e
+        })
+        .collect();
+    let f = truepos_fit::sphere(&points).map_err(|e| CellError::Failed(format!("ISO 10360 simulation: {e}")))?;
+    Ok(Trial {
+        dc: f.center - center,
+        dr: f.radius - r_tip,
+        uc: f.u_center,
+        ur: f.u_radius,
+    })
+}
+
+/// One realisation of the virtual CMM's error model behind [`ProbingMachine`]: probing moves run
+/// as the I++ DME server's PtMeas cycle (start, search to the end, latch, retract) on an
+/// [`IppdmeCmm`], in process.
+pub struct SimulatedCmm {
+    cmm: IppdmeCmm,
+    tip_radius_mm: f64,
+}
+
+impl SimulatedCmm {
+    /// The machine of `config` (its model's seed picks the realisation) with `part` on it,
+    /// carrying a stylus ball of `tip_radius_mm` (positioning moves keep it off the part).
+    pub fn new(config: &MachineConfig, part: Option<Part>, tip_radius_mm: f64) -> SimulatedCmm {
+        SimulatedCmm { cmm: IppdmeCmm::new(config, part), tip_radius_mm }
+    }
+}
+
+const SIM_ADDRESS: &str = "simulated CMM";
+
+impl ProbingMachine for SimulatedCmm {
+    fn info(&self) -> DeviceInfo {
+        DeviceInfo { address: SIM_ADDRESS.into(), version: self.cmm.describe() }
+    }
+
+    fn position(&mut self) -> Result<Point3, DeviceError> {
+        Ok(self.cmm.position())
+    }
+
+    fn move_to(&mut self, target_mm: Point3) -> Result<(), DeviceError> {
+        self.cmm.move_to(target_mm, self.tip_radius_mm).map_err(|e| DeviceError::Controller {
+            address: SIM_ADDRESS.into(),
+            what: format!("move to {target_mm:?}"),
+            message: e.to_string(),
+        })
+    }
+
+    fn probe(&mut self, req: &ProbeRequest) -> Result<ProbeHit, DeviceError> {
+        let what = || format!("probing at {:?}", req.nominal_mm);
+        let err = |e: truepos_ippdme::MachineError| DeviceError::Controller {
+            address: SIM_ADDRESS.into(),
+            what: what(),
+            message: e.to_string(),
+        };
+        let (start, end) = (req.start_mm(), req.end_mm());
+        let r = req.tip_radius_mm;
+        self.cmm.move_to(start, r).map_err(err)?;
+        match self.cmm.probe(start, end, r, req.nominal_mm, req.approach).map_err(err)? {
+            Some(c) => {
+                self.cmm.move_to(c.tip_center_mm + req.approach * req.retract_mm, r).map_err(err)?;
+                Ok(ProbeHit { tip_center_mm: c.tip_center_mm, normal: Some(c.normal) })
+            }
+            None => {
+                let _ = self.cmm.move_to(start, r);
+                Err(DeviceError::NoContact { address: SIM_ADDRESS.into(), what: what() })
+            }
+        }
+    }
+
+    fn abort(&mut self) -> Result<(), DeviceError> {
+        self.cmm.stop();
+        Ok(())
+    }
+}
