@@ -41,10 +41,53 @@ pub struct SphereArgs {
     /// Probing feed (mm/min).
     #[arg(long, default_value_t = 50.0)]
     pub feed_mm_min: f64,
+    #[command(flatten)]
+    pub model: ModelArgs,
     /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
 }
+
+/// `--machine-model FILE`: task-specific uncertainty (ISO/TS 15530-4) for commands that measure
+/// through a controller.
+#[derive(clap::Args, Debug, Clone)]
+pub struct ModelArgs {
+    /// What is known of the machine's errors (TOML): the keys of the virtual CMM's
+    /// `[ippdme.model]` (its geometric map class, probe pre-travel and lobing, noise; the seed is
+    /// ignored) and/or `[iso10360] mpe_e_um = [A, K]` (MPE_E = A + L/K µm), `mpe_p_um = P`.
+    /// With it the uncertainty is task-specific: the same probing simulated on machines drawn
+    /// from the model. Without it, the fit's scatter alone (a warning says so).
+    #[arg(long, value_name = "FILE")]
+    pub machine_model: Option<std::path::PathBuf>,
+    /// Machine realisations of the task-specific simulation (≥ 200).
+    #[arg(long, default_value_t = truepos_cell::vcmm::MIN_RUNS, requires = "machine_model")]
+    pub monte_carlo_runs: usize,
+}
+
+impl ModelArgs {
+    /// The machine model, read (and checked) before any machine moves.
+    pub fn read(&self) -> Result<Option<truepos_cell::vcmm::MachineModel>> {
+        let Some(path) = &self.machine_model else { return Ok(None) };
+        if !(truepos_cell::vcmm::MIN_RUNS..=truepos_cell::vcmm::MAX_RUNS).contains(&self.monte_carlo_runs) {
+            return Err(UsageError(format!(
+                "--monte-carlo-runs must be between {} and {}, got {}",
+                truepos_cell::vcmm::MIN_RUNS,
+                truepos_cell::vcmm::MAX_RUNS,
+                self.monte_carlo_runs
+            ))
+            .into());
+        }
+        Ok(Some(truepos_cell::vcmm::MachineModel::read(path)?))
+    }
+
+    /// The Monte Carlo settings.
+    pub fn monte_carlo(&self) -> truepos_cell::vcmm::MonteCarlo {
+        truepos_cell::vcmm::MonteCarlo { runs: self.monte_carlo_runs, ..Default::default() }
+    }
+}
+
+/// The warning printed when a measurement's uncertainty leaves the machine's errors out.
+pub const NO_MODEL_WARNING: &str = "warning: no --machine-model: the uncertainty is the fit's scatter alone and does not include the machine's own errors (geometric map, probe); give the machine's error model or its ISO 10360 MPEs for a task-specific uncertainty";
 
 /// The options every command that probes a reference sphere through a controller shares
 /// (`probe sphere`, `head-offset acquire`, `latency probe`).
@@ -141,10 +184,11 @@ pub fn run(a: Args) -> Result<Outcome> {
 
 fn sphere(a: SphereArgs) -> Result<Outcome> {
     let plan = a.sphere.plan(a.points, a.feed_mm_min);
-    // Check the plan before touching a machine.
+    // Check the plan and the machine model before touching a machine.
     if let Err(e) = plan.check() {
         return Err(UsageError(e.to_string()).into());
     }
+    let model = a.model.read()?;
     let mut opened = a.sphere.open()?;
     let info = opened.machine.info();
     let t0 = std::time::Instant::now();
@@ -154,8 +198,50 @@ fn sphere(a: SphereArgs) -> Result<Outcome> {
         Err(e) => return Err(DeviceError(e.to_string()).into()),
     };
     let elapsed = t0.elapsed().as_secs_f64();
+    let fit_u = (s.center_uncertainty_mm, s.radius_uncertainty_mm);
+    let task = match &model {
+        Some(m) => Some(truepos_cell::vcmm::sphere_uncertainty(
+            m,
+            &plan,
+            s.center_mm,
+            s.radius_mm,
+            fit_u.0,
+            fit_u.1,
+            a.model.monte_carlo(),
+        )?),
+        None => {
+            eprintln!("{NO_MODEL_WARNING}");
+            None
+        }
+    };
+    let (u_c, u_r) = task.as_ref().map_or(fit_u, |t| (t.center_mm, t.radius_mm));
+    let k = truepos_math::stats::COVERAGE_FACTOR;
+    let mut s = s;
+    s.center_uncertainty_mm = u_c;
+    s.radius_uncertainty_mm = u_r;
     if a.json {
         let mut j = s.to_json();
+        j["uncertainty"] =
+            json!({ "center_mm": v3(Point3::from(u_c)), "radius_mm": u_r, "diameter_mm": 2.0 * u_r });
+        j["coverage_factor"] = json!(k);
+        j["expanded_uncertainty"] = json!({ "center_mm": v3(Point3::from(u_c * k)), "radius_mm": k * u_r, "diameter_mm": 2.0 * k * u_r });
+        j["fit_uncertainty"] = json!({ "center_mm": v3(Point3::from(fit_u.0)), "radius_mm": fit_u.1 });
+        match &task {
+            Some(t) => {
+                j["uncertainty_method"] = json!("task-specific");
+                j["monte_carlo_runs"] = json!(t.runs);
+                j["uncertainty_basis"] = json!(t.basis);
+                j["monte_carlo_s"] = json!(t.elapsed_s);
+                j["simulated_bias"] =
+                    json!({ "center_mm": v3(Point3::from(t.bias_center_mm)), "radius_mm": t.bias_radius_mm });
+            }
+            None => {
+                j["uncertainty_method"] = json!("fit-residuals");
+                j["monte_carlo_runs"] = json!(0);
+                j["uncertainty_basis"] =
+                    json!("scatter of the fit's residuals only (machine errors not included)");
+            }
+        }
         j["tip_diameter_mm"] = json!(a.sphere.tip_diameter_mm);
         j["feed_mm_min"] = json!(a.feed_mm_min);
         j["clearance_mm"] = json!(a.sphere.clearance_mm);
@@ -173,18 +259,26 @@ fn sphere(a: SphereArgs) -> Result<Outcome> {
             s.points.len()
         );
         println!(
-            "  centre  {:.4} {:.4} {:.4} mm  (u = {:.4} {:.4} {:.4})",
+            "  centre  {:.4} {:.4} {:.4} mm  (U = {:.2} {:.2} {:.2} µm, k = {k})",
             s.center_mm.x,
             s.center_mm.y,
             s.center_mm.z,
-            s.center_uncertainty_mm.x,
-            s.center_uncertainty_mm.y,
-            s.center_uncertainty_mm.z
+            k * u_c.x * 1e3,
+            k * u_c.y * 1e3,
+            k * u_c.z * 1e3
         );
         println!(
-            "  radius  {:.4} mm (u = {:.4}), rms {:.4} mm",
-            s.radius_mm, s.radius_uncertainty_mm, s.rms_mm
+            "  radius  {:.4} mm (U = {:.2} µm, k = {k}), rms {:.2} µm",
+            s.radius_mm,
+            k * u_r * 1e3,
+            s.rms_mm * 1e3
         );
+        match &task {
+            Some(t) => {
+                println!("  uncertainty: task-specific, {} machine realisations ({})", t.runs, t.basis)
+            }
+            None => println!("  uncertainty: fit residuals only (machine errors not included)"),
+        }
     }
     Ok(Outcome::Done)
 }

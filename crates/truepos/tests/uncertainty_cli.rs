@@ -1,0 +1,191 @@
+//! Task-specific uncertainty through the real interfaces (issue: "uncertainty you can sign"):
+//! machines drawn from the virtual CMM's error model are `truepos ippdme serve` processes with
+//! different `[ippdme.model] seed`s; `truepos probe sphere --controller ippdme://…
+//! --machine-model FILE` measures a Ø 25 mm sphere of known position on each, and the truth must
+//! lie within ± `expanded_uncertainty` in about 95 % of the comparisons (centre coordinates and
+//! radius). The always-on test uses 20 machines; `--ignored` the 100 of docs/uncertainty.md.
+
+use std::io::{BufRead, BufReader, Write};
+use std::net::TcpStream;
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+fn truepos() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_truepos"))
+}
+
+/// A server on a free loopback port with `part` and `machine`; homed, Probe1 chosen.
+fn server(part: &Path, machine: &Path) -> (std::process::Child, String) {
+    let mut child = truepos()
+        .args(["ippdme", "serve", "--port", "0", "--part"])
+        .arg(part)
+        .arg("--machine")
+        .arg(machine)
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let mut first = String::new();
+    err.read_line(&mut first).unwrap();
+    let addr =
+        first.trim().strip_prefix("ippdme: listening on ").unwrap_or_else(|| panic!("{first}")).to_string();
+    let s = TcpStream::connect(&addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    let mut w = s.try_clone().unwrap();
+    let mut r = BufReader::new(s);
+    w.write_all(
+        b"00001 StartSession()\r\n00002 Home()\r\n00003 ChangeTool(\"Probe1\")\r\n00004 EndSession()\r\n",
+    )
+    .unwrap();
+    let mut last = String::new();
+    while last.trim_end() != "00004 %" {
+        last.clear();
+        assert!(r.read_line(&mut last).unwrap() > 0);
+    }
+    (child, addr)
+}
+
+fn stop(mut child: std::process::Child) {
+    let _ = Command::new("kill").args(["-TERM", &child.id().to_string()]).status();
+    let _ = child.wait();
+}
+
+fn arr(v: &serde_json::Value) -> Vec<f64> {
+    v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect()
+}
+
+struct Tally {
+    task_inside: usize,
+    fit_inside: usize,
+    n: usize,
+    ratios: Vec<f64>,
+    mc_s: Vec<f64>,
+}
+
+fn run_machines(machines: u64) -> Tally {
+    let dir = tempfile::tempdir().unwrap();
+    let truth = [10.0, -5.0, 20.0];
+    let part = dir.path().join("part.toml");
+    std::fs::write(&part, "[[sphere]]\ncenter_mm = [10, -5, 20]\ndiameter_mm = 25\n").unwrap();
+    // What the user knows: the class of their machine (the default model), not its seed.
+    let model = dir.path().join("model.toml");
+    std::fs::write(&model, "[ippdme.model]\n").unwrap();
+    let mut t = Tally { task_inside: 0, fit_inside: 0, n: 0, ratios: Vec::new(), mc_s: Vec::new() };
+    for seed in 1..=machines {
+        let machine = dir.path().join(format!("cmm{seed}.toml"));
+        std::fs::write(&machine, format!("[ippdme.model]\nseed = {seed}\n")).unwrap();
+        let (child, addr) = server(&part, &machine);
+        let probe = |with_model: bool| {
+            let mut c = truepos();
+            c.args(["probe", "sphere", "--controller", &format!("ippdme://{addr}")]).args([
+                "--near=10.2,-5.1,20.1",
+                "--diameter-mm",
+                "25",
+                "--tip-diameter-mm",
+                "3",
+                "--json",
+            ]);
+            if with_model {
+                c.arg("--machine-model").arg(&model);
+            }
+            let out = c.output().unwrap();
+            assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+            (
+                serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap(),
+                String::from_utf8_lossy(&out.stderr).to_string(),
+            )
+        };
+        let (task, task_err) = probe(true);
+        let (fit, fit_err) = probe(false);
+        stop(child);
+        assert_eq!(task["uncertainty_method"], "task-specific");
+        assert!(task["monte_carlo_runs"].as_u64().unwrap() >= 200);
+        assert_eq!(task["coverage_factor"].as_f64(), Some(2.0));
+        assert!(!task_err.contains("warning"), "{task_err}");
+        assert_eq!(fit["uncertainty_method"], "fit-residuals");
+        assert_eq!(fit["monte_carlo_runs"].as_u64(), Some(0));
+        assert!(fit_err.contains("warning: no --machine-model"), "{fit_err}");
+        t.mc_s.push(task["monte_carlo_s"].as_f64().unwrap());
+        for (j, inside) in [(&task, &mut t.task_inside), (&fit, &mut t.fit_inside)] {
+            let c = arr(&j["center_mm"]);
+            let u = arr(&j["expanded_uncertainty"]["center_mm"]);
+            let mut errs: Vec<(f64, f64)> = (0..3).map(|k| (c[k] - truth[k], u[k])).collect();
+            errs.push((
+                j["radius_mm"].as_f64().unwrap() - 12.5,
+                j["expanded_uncertainty"]["radius_mm"].as_f64().unwrap(),
+            ));
+            for (e, u) in errs {
+                *inside += usize::from(e.abs() <= u);
+                if std::ptr::eq(j, &task) {
+                    t.ratios.push(e.abs() / u);
+                }
+            }
+        }
+        t.n += 4;
+    }
+    t.ratios.sort_by(f64::total_cmp);
+    t
+}
+
+fn report(t: &Tally) -> (f64, f64, f64) {
+    let cov = t.task_inside as f64 / t.n as f64;
+    let fit = t.fit_inside as f64 / t.n as f64;
+    let median = t.ratios[t.ratios.len() / 2];
+    let mut mc = t.mc_s.clone();
+    mc.sort_by(f64::total_cmp);
+    eprintln!(
+        "probe sphere through ippdme://, {} comparisons: task-specific {:.1} % within ±U (median |error|/U {median:.2}), fit residuals alone {:.1} %; Monte Carlo median {:.3} s, max {:.3} s",
+        t.n,
+        100.0 * cov,
+        100.0 * fit,
+        mc[mc.len() / 2],
+        mc[mc.len() - 1]
+    );
+    (cov, fit, median)
+}
+
+#[test]
+fn probe_sphere_task_specific_uncertainty_covers_the_truth_through_ippdme() {
+    let t = run_machines(20);
+    let (cov, fit, median) = report(&t);
+    // 80 comparisons: at 95 % true coverage, fewer than 72 inside (90 %) has probability < 3 %.
+    assert!(cov >= 0.9, "coverage {cov}");
+    assert!(median >= 0.15, "U inflated: median |error|/U {median}");
+    assert!(fit < 0.8, "fit residuals alone covered {fit}");
+    assert!(t.mc_s.iter().all(|&s| s < 2.0), "Monte Carlo slower than 2 s: {:?}", t.mc_s);
+}
+
+#[test]
+#[ignore = "100 server processes: the figure of docs/uncertainty.md"]
+fn probe_sphere_task_specific_uncertainty_covers_the_truth_100_machines() {
+    let t = run_machines(100);
+    let (cov, _, median) = report(&t);
+    assert!((0.90..=0.99).contains(&cov), "coverage {cov}");
+    assert!(median >= 0.15, "U inflated: median |error|/U {median}");
+}
+
+#[test]
+fn a_bad_machine_model_is_exit_2_before_any_motion() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("model.toml");
+    std::fs::write(&model, "[iso10360]\nmpe_e_um = [1.5, 333]\nmpe_p = 2\n").unwrap();
+    // No server at this address: the model is refused before the controller is opened.
+    let out = truepos()
+        .args([
+            "probe",
+            "sphere",
+            "--controller",
+            "ippdme://127.0.0.1:9",
+            "--near=0,0,0",
+            "--diameter-mm",
+            "25",
+        ])
+        .arg("--machine-model")
+        .arg(&model)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("model.toml") && err.contains("mpe_p"), "{err}");
+}
