@@ -20,7 +20,6 @@
 //!   `truepos_ippdme::Cmm`) and [`cmm::bind_virtual`].
 
 pub mod cmm;
-pub mod vcmm;
 pub mod demo;
 pub mod error;
 pub mod gantry;
@@ -30,5 +29,6 @@ pub mod report;
 pub mod scan_scenario;
 pub mod scanning_cmm;
 pub mod scenarios;
+pub mod vcmm;
 
 pub use error::{CellError, Context};

@@ -38,6 +38,11 @@ pub struct Header {
 
 /// One capability's result against truth: a row of the summary table and the box at the top of
 /// its section. Uncertainties are expanded, with the coverage factor written in the text.
+///
+/// The verdict follows ISO 14253-1 ([`Judgement`]): `pass` needs the expanded uncertainty below
+/// the tolerance (a result whose uncertainty is as large as the tolerance proves nothing:
+/// `inconclusive`), and under the guarded rule |error| + U ≤ tolerance. A capability that could
+/// not run is `skipped` with its reason, never `pass`.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Verdict {
     /// Section id this verdict belongs to.
@@ -47,11 +52,229 @@ pub struct Verdict {
     pub measured: String,
     pub truth: String,
     pub result: String,
-    /// Expanded uncertainty with its coverage factor (e.g. "U = 1.2 µm (k = 2)").
+    /// Expanded uncertainty with its coverage factor and basis, in words (e.g. "U = 1.2 µm (k =
+    /// 2) from …").
     pub uncertainty: String,
-    /// Tolerance the result is judged against, with its reason.
-    pub tolerance: String,
-    pub pass: bool,
+    /// Tolerance the result is judged against, with its reason, in words.
+    pub tolerance_text: String,
+    /// `pass`, `fail`, `inconclusive` or `skipped`.
+    pub verdict: Outcome,
+    /// Why the verdict is not `pass` (or what else it rests on).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+    pub decision_rule: DecisionRule,
+    /// The result's deviation from the truth (in `unit`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<f64>,
+    /// Expanded uncertainty of `error` (k = `coverage_factor`, in `unit`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub expanded_uncertainty: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coverage_factor: Option<f64>,
+    /// The tolerance on |error| (in `unit`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tolerance: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unit: Option<String>,
+}
+
+/// A verdict's outcome (`summary.json` `verdict`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Outcome {
+    Pass,
+    Fail,
+    Inconclusive,
+    Skipped,
+}
+
+impl Outcome {
+    /// The word the report prints.
+    pub fn word(self) -> &'static str {
+        match self {
+            Outcome::Pass => "pass",
+            Outcome::Fail => "FAIL",
+            Outcome::Inconclusive => "inconclusive",
+            Outcome::Skipped => "skipped",
+        }
+    }
+}
+
+/// ISO 14253-1 decision rules.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DecisionRule {
+    /// Conformance when |error| ≤ tolerance (and U < tolerance: otherwise the result proves
+    /// nothing).
+    Simple,
+    /// Conformance only when |error| + U ≤ tolerance; non-conformance only when |error| − U >
+    /// tolerance; otherwise inconclusive.
+    Guarded,
+}
+
+/// The numbers a capability is judged on.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Judgement {
+    pub error: f64,
+    pub expanded_uncertainty: f64,
+    pub tolerance: f64,
+    pub unit: &'static str,
+    pub rule: DecisionRule,
+    /// Other conditions of the capability that failed (each makes the verdict `fail`).
+    pub failures: Vec<String>,
+    /// Why the uncertainty is not known (the verdict is then `inconclusive`).
+    pub unknown: Option<String>,
+}
+
+impl Judgement {
+    /// |error| against `tolerance` with expanded uncertainty `u` (k = 2) under `rule`.
+    pub fn new(error: f64, u: f64, tolerance: f64, unit: &'static str, rule: DecisionRule) -> Judgement {
+        Judgement {
+            error,
+            expanded_uncertainty: u,
+            tolerance,
+            unit,
+            rule,
+            failures: Vec::new(),
+            unknown: None,
+        }
+    }
+
+    /// A further condition: when `ok` is false the verdict is `fail` with `what` as a reason.
+    pub fn require(mut self, ok: bool, what: impl Into<String>) -> Judgement {
+        if !ok {
+            self.failures.push(what.into());
+        }
+        self
+    }
+
+    /// A result whose uncertainty is not known: never `pass` (inconclusive, with `why`).
+    pub fn unknown_uncertainty(
+        error: f64,
+        tolerance: f64,
+        unit: &'static str,
+        why: impl Into<String>,
+    ) -> Judgement {
+        Judgement {
+            error,
+            expanded_uncertainty: f64::NAN,
+            tolerance,
+            unit,
+            rule: DecisionRule::Simple,
+            failures: Vec::new(),
+            unknown: None,
+        }
+        .require_known(why)
+    }
+
+    fn require_known(mut self, why: impl Into<String>) -> Judgement {
+        self.unknown = Some(why.into());
+        self
+    }
+
+    /// The outcome and its reason.
+    pub fn decide(&self) -> (Outcome, Option<String>) {
+        let (e, u, t) = (self.error.abs(), self.expanded_uncertainty, self.tolerance);
+        if !self.failures.is_empty() {
+            return (Outcome::Fail, Some(self.failures.join("; ")));
+        }
+        if let Some(why) = &self.unknown {
+            return (Outcome::Inconclusive, Some(format!("the uncertainty is unknown: {why}")));
+        }
+        if !(e.is_finite() && u.is_finite() && t.is_finite()) {
+            return (
+                Outcome::Inconclusive,
+                Some("the error or its uncertainty is not a finite number".into()),
+            );
+        }
+        let unit = self.unit;
+        match self.rule {
+            DecisionRule::Simple => {
+                if e > t {
+                    (Outcome::Fail, Some(format!("|error| {e:.4} {unit} > tolerance {t} {unit}")))
+                } else if u >= t {
+                    (
+                        Outcome::Inconclusive,
+                        Some(format!("U = {u:.4} {unit} is not below the tolerance {t} {unit}: the result proves nothing")),
+                    )
+                } else {
+                    (Outcome::Pass, None)
+                }
+            }
+            DecisionRule::Guarded => {
+                if e - u > t {
+                    (Outcome::Fail, Some(format!("|error| − U = {:.4} {unit} > tolerance {t} {unit}", e - u)))
+                } else if u >= t || e + u > t {
+                    (
+                        Outcome::Inconclusive,
+                        Some(format!(
+                            "|error| + U = {:.4} {unit} exceeds the tolerance {t} {unit} (guarded rule): neither conformance nor non-conformance is proven",
+                            e + u
+                        )),
+                    )
+                } else {
+                    (Outcome::Pass, None)
+                }
+            }
+        }
+    }
+}
+
+impl Verdict {
+    /// The verdict fields of a judged capability (texts empty: fill them with struct update
+    /// syntax, `Verdict { section: …, ..Verdict::judged(j) }`).
+    pub fn judged(j: Judgement) -> Verdict {
+        let (verdict, reason) = j.decide();
+        Verdict {
+            section: String::new(),
+            capability: String::new(),
+            measured: String::new(),
+            truth: String::new(),
+            result: String::new(),
+            uncertainty: String::new(),
+            tolerance_text: String::new(),
+            verdict,
+            reason,
+            decision_rule: j.rule,
+            error: Some(j.error),
+            expanded_uncertainty: j.expanded_uncertainty.is_finite().then_some(j.expanded_uncertainty),
+            coverage_factor: Some(truepos_math::stats::COVERAGE_FACTOR),
+            tolerance: Some(j.tolerance),
+            unit: Some(j.unit.to_string()),
+        }
+    }
+
+    /// A capability that could not run (missing data or device): `skipped`, with the reason.
+    pub fn skipped(section: &str, capability: &str, reason: impl Into<String>) -> Verdict {
+        let reason = reason.into();
+        Verdict {
+            section: section.into(),
+            capability: capability.into(),
+            measured: "—".into(),
+            truth: "—".into(),
+            result: format!("not run: {reason}"),
+            uncertainty: "—".into(),
+            tolerance_text: "—".into(),
+            verdict: Outcome::Skipped,
+            reason: Some(reason),
+            decision_rule: DecisionRule::Simple,
+            error: None,
+            expanded_uncertainty: None,
+            coverage_factor: None,
+            tolerance: None,
+            unit: None,
+        }
+    }
+}
+
+/// `summary.json`'s `overall`: `pass` only when every verdict passes; `fail` when any fails;
+/// otherwise (inconclusive or skipped ones, or none at all) `incomplete`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Overall {
+    Pass,
+    Fail,
+    Incomplete,
 }
 
 /// UTC calendar date and time `YYYY-MM-DD hh:mm:ss UTC` of a Unix time.
@@ -65,7 +288,7 @@ td:first-child,th:first-child,th[scope=row]{text-align:left}tbody th{font-weight
 .wrap{overflow-x:auto;max-width:100%}
 figure{margin:1em 0}figure svg{max-width:100%;height:auto;display:block}figcaption{font-size:.95em;color:#333}
 .legend{list-style:none;padding:0;margin:.3em 0;display:flex;flex-wrap:wrap;gap:1.2em}.swatch{display:inline-block;width:1.2em;height:.8em;margin-right:.4em;vertical-align:middle;border:1px solid #555}
-.pass{color:#065f06;font-weight:bold}.fail{color:#a00000;font-weight:bold}
+.pass{color:#065f06;font-weight:bold}.incomplete{color:#6b4a00;font-weight:bold}.fail{color:#a00000;font-weight:bold}
 .overall{font-size:1.3em;padding:.5em 1em;border:2px solid currentColor;display:inline-block}
 dl.header{display:grid;grid-template-columns:max-content 1fr;gap:.2em 1em}dl.header dt{font-weight:bold}dl.header dd{margin:0;overflow-wrap:anywhere}
 .verdict td,.verdict th{text-align:left}
@@ -100,17 +323,36 @@ impl Report {
         self.verdicts.push(v);
     }
 
-    /// True when every recorded verdict passes (and there is at least one).
+    /// The overall verdict ([`Overall`]).
+    pub fn overall(&self) -> Overall {
+        if self.verdicts.iter().any(|v| v.verdict == Outcome::Fail) {
+            Overall::Fail
+        } else if !self.verdicts.is_empty() && self.verdicts.iter().all(|v| v.verdict == Outcome::Pass) {
+            Overall::Pass
+        } else {
+            Overall::Incomplete
+        }
+    }
+
+    /// True when the overall verdict is `pass`.
     pub fn overall_pass(&self) -> bool {
-        !self.verdicts.is_empty() && self.verdicts.iter().all(|v| v.pass)
+        self.overall() == Overall::Pass
+    }
+
+    /// The verdicts recorded so far.
+    pub fn verdicts(&self) -> &[Verdict] {
+        &self.verdicts
     }
 
     /// The whole `index.html`.
     pub fn html(&self) -> String {
         let h = &self.header;
-        let pass = self.overall_pass();
-        let failed: Vec<&str> =
-            self.verdicts.iter().filter(|v| !v.pass).map(|v| v.capability.as_str()).collect();
+        let overall = self.overall();
+        let named = |o: Outcome| -> Vec<&str> {
+            self.verdicts.iter().filter(|v| v.verdict == o).map(|v| v.capability.as_str()).collect()
+        };
+        let (failed, open, skipped) =
+            (named(Outcome::Fail), named(Outcome::Inconclusive), named(Outcome::Skipped));
         let mut html = format!(
             "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n<title>truepos demo report</title>\n<style>\n{CSS}</style></head><body>\n<header>\n<h1>truepos demo report</h1>\n<dl class=\"header\">\n<dt>truepos version</dt><dd>{}</dd>\n<dt>generated</dt><dd>{}</dd>\n<dt>command line</dt><dd><code>{}</code></dd>\n<dt>seed</dt><dd>{}</dd>\n<dt>machines</dt><dd>{}</dd>\n<dt>environment</dt><dd>{}</dd>\n</dl>\n</header>\n<main>\n<h2 id=\"verdict\">Overall verdict</h2>\n<p class=\"overall {}\">{}</p>\n",
             escape(&h.version),
@@ -119,11 +361,22 @@ impl Report {
             h.seed,
             escape(&h.machine),
             escape(&h.environment),
-            if pass { "pass" } else { "fail" },
-            if pass {
-                format!("PASS — all {} capabilities within tolerance against the simulator's truth", self.verdicts.len())
-            } else {
-                escape(&format!("FAIL — outside tolerance: {}", failed.join(", ")))
+            match overall {
+                Overall::Pass => "pass",
+                Overall::Fail => "fail",
+                Overall::Incomplete => "incomplete",
+            },
+            match overall {
+                Overall::Pass => format!(
+                    "PASS — all {} capabilities within tolerance against the simulator's truth, each with U below its tolerance",
+                    self.verdicts.len()
+                ),
+                Overall::Fail => escape(&format!("FAIL — outside tolerance: {}", failed.join(", "))),
+                Overall::Incomplete => escape(&format!(
+                    "INCOMPLETE — not every capability was shown to pass (inconclusive: {}; skipped: {})",
+                    if open.is_empty() { "none".into() } else { open.join(", ") },
+                    if skipped.is_empty() { "none".into() } else { skipped.join(", ") }
+                )),
             },
         );
         html.push_str("<p>Every capability runs end to end on the virtual cell (or on NIST reference data for fitting); each result is compared with the truth the simulator used, which truepos never sees. Uncertainties are expanded uncertainties U with the coverage factor k stated (k = 2: about 95 % coverage for a normal distribution).</p>\n");
@@ -136,8 +389,8 @@ impl Report {
                     v.measured.clone(),
                     v.result.clone(),
                     v.uncertainty.clone(),
-                    v.tolerance.clone(),
-                    verdict_word(v.pass).into(),
+                    v.tolerance_text.clone(),
+                    v.verdict.word().into(),
                 ]
             })
             .collect();
@@ -207,18 +460,17 @@ impl Report {
                 "machine": self.header.machine,
                 "environment": self.header.environment,
             },
-            "overall": verdict_word(self.overall_pass()),
+            "overall": self.overall(),
             "capabilities": self.verdicts,
             "sections": sections,
         })
     }
 }
 
-fn verdict_word(pass: bool) -> &'static str {
-    if pass {
-        "pass"
-    } else {
-        "FAIL"
+fn decision_rule_text(r: DecisionRule) -> &'static str {
+    match r {
+        DecisionRule::Simple => "simple acceptance (ISO 14253-1), with U < tolerance required; k = 2",
+        DecisionRule::Guarded => "guarded acceptance (ISO 14253-1): |error| + U ≤ tolerance; k = 2",
     }
 }
 
@@ -228,9 +480,14 @@ fn verdict_box(v: &Verdict) -> String {
         vec!["truth".to_string(), v.truth.clone()],
         vec!["result".to_string(), v.result.clone()],
         vec!["uncertainty".to_string(), v.uncertainty.clone()],
-        vec!["tolerance".to_string(), v.tolerance.clone()],
-        vec!["verdict".to_string(), verdict_word(v.pass).to_string()],
+        vec!["tolerance".to_string(), v.tolerance_text.clone()],
+        vec!["decision rule".to_string(), decision_rule_text(v.decision_rule).to_string()],
+        vec!["verdict".to_string(), v.verdict.word().to_string()],
     ];
+    let mut rows = rows;
+    if let Some(r) = &v.reason {
+        rows.push(vec!["reason".to_string(), r.clone()]);
+    }
     let mut h = format!(
         "<table class=\"verdict\"><caption>{}: verdict against truth</caption><tbody>\n",
         escape(&v.capability)
@@ -239,6 +496,7 @@ fn verdict_box(v: &Verdict) -> String {
         let class = match r[1].as_str() {
             "pass" => " class=\"pass\"",
             "FAIL" => " class=\"fail\"",
+            "inconclusive" | "skipped" => " class=\"incomplete\"",
             _ => "",
         };
         h.push_str(&format!(
@@ -767,8 +1025,8 @@ mod tests {
                 truth: "t".into(),
                 result: "r".into(),
                 uncertainty: "U (k = 2)".into(),
-                tolerance: "tol".into(),
-                pass: true,
+                tolerance_text: "tol".into(),
+                ..Verdict::judged(Judgement::new(1.0, 1.0, 2.0, "µm", DecisionRule::Simple))
             });
             (r.html(), serde_json::to_string(&r.summary()).unwrap())
         };
@@ -776,5 +1034,53 @@ mod tests {
         let (a, b) = (build(1_700_000_000).0, build(1_700_000_060).0);
         assert_ne!(a, b);
         assert_eq!(a.replace("22:13:20", "22:14:20"), b, "only the time differs");
+    }
+
+    #[test]
+    fn decisions_follow_iso_14253_1() {
+        use DecisionRule::{Guarded, Simple};
+        let d = |e: f64, u: f64, t: f64, r| Judgement::new(e, u, t, "µm", r).decide().0;
+        assert_eq!(d(0.5, 0.2, 1.0, Simple), Outcome::Pass);
+        assert_eq!(d(-0.9, 0.2, 1.0, Simple), Outcome::Pass);
+        assert_eq!(d(1.1, 0.2, 1.0, Simple), Outcome::Fail);
+        // U as large as the tolerance proves nothing, even with a small error.
+        assert_eq!(d(0.1, 1.0, 1.0, Simple), Outcome::Inconclusive);
+        assert_eq!(d(0.7, 0.2, 1.0, Guarded), Outcome::Pass);
+        assert_eq!(d(0.9, 0.2, 1.0, Guarded), Outcome::Inconclusive);
+        assert_eq!(d(1.1, 0.2, 1.0, Guarded), Outcome::Inconclusive);
+        assert_eq!(d(1.3, 0.2, 1.0, Guarded), Outcome::Fail);
+        let j = Judgement::new(0.1, 0.1, 1.0, "µm", Simple).require(false, "flags");
+        assert_eq!(j.decide(), (Outcome::Fail, Some("flags".into())));
+        let j = Judgement::unknown_uncertainty(0.1, 1.0, "µm", "no map u");
+        assert_eq!(j.decide().0, Outcome::Inconclusive);
+        assert!(Verdict::judged(j).expanded_uncertainty.is_none());
+    }
+
+    #[test]
+    fn overall_is_pass_only_when_every_capability_passes() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut r = Report::new(dir.path());
+        assert_eq!(r.overall(), Overall::Incomplete);
+        r.verdict(Verdict {
+            section: "a".into(),
+            ..Verdict::judged(Judgement::new(0.1, 0.1, 1.0, "µm", DecisionRule::Simple))
+        });
+        assert_eq!(r.overall(), Overall::Pass);
+        r.verdict(Verdict::skipped("b", "B", "no data"));
+        assert_eq!(r.overall(), Overall::Incomplete);
+        let j = serde_json::to_value(&r.verdicts()[1]).unwrap();
+        assert_eq!(j["verdict"], "skipped");
+        assert_eq!(j["reason"], "no data");
+        r.verdict(Verdict {
+            section: "c".into(),
+            ..Verdict::judged(Judgement::new(2.0, 0.1, 1.0, "µm", DecisionRule::Simple))
+        });
+        assert_eq!(r.overall(), Overall::Fail);
+        let s = r.summary();
+        assert_eq!(s["overall"], "fail");
+        assert_eq!(s["capabilities"][0]["decision_rule"], "simple");
+        assert_eq!(s["capabilities"][0]["coverage_factor"], 2.0);
+        assert_eq!(s["capabilities"][0]["tolerance"], 1.0);
+        assert_eq!(s["capabilities"][0]["unit"], "µm");
     }
 }

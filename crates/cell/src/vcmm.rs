@@ -254,11 +254,13 @@ pub fn sphere_uncertainty(
     let sim_plan = *plan;
     let mut per_model: Vec<Vec<Trial>> = Vec::new();
     if let Some(cfg) = &model.cmm {
-        let trials: Result<Vec<Trial>> = (0..mc.runs)
-            .into_par_iter()
-            .map(|r| cmm_trial(cfg, &sim_plan, center, radius, mc.seed_of(r)))
-            .collect();
-        per_model.push(trials?);
+        let make = |seed: u64| {
+            let mut cfg = cfg.clone();
+            cfg.model.seed = seed;
+            let part = Part { solids: vec![(None, Solid::Sphere { center, radius })] };
+            SimulatedCmm::new(&cfg, Some(part), sim_plan.tip_radius_mm)
+        };
+        per_model.push(trials_on(&make, &sim_plan, center, radius, mc)?);
     }
     if let Some(iso) = &model.iso10360 {
         let trials: Result<Vec<Trial>> = (0..mc.runs)
@@ -349,23 +351,63 @@ fn summarise(trials: &[Trial], fit_u_center: Vector3, fit_u_radius: f64) -> Sphe
     }
 }
 
-/// One realisation of the error model measuring the perfect sphere.
-fn cmm_trial(cfg: &MachineConfig, plan: &SphereProbing, center: Point3, radius: f64, seed: u64) -> Result<Trial> {
-    let mut cfg = cfg.clone();
-    cfg.model.seed = seed;
-    let part = Part { solids: vec![(None, Solid::Sphere { center, radius })] };
-    let mut m = SimulatedCmm::new(&cfg, Some(part), plan.tip_radius_mm);
-    let s = probe_sphere(&mut m, plan).map_err(|e| {
-        CellError::Failed(format!(
-            "task-specific uncertainty: a simulated machine could not measure the sphere ({e}); the error model's errors are larger than the clearance"
-        ))
-    })?;
-    Ok(Trial {
-        dc: s.center_mm - center,
-        dr: s.radius_mm - radius,
-        uc: s.center_uncertainty_mm,
-        ur: s.radius_uncertainty_mm,
-    })
+/// The sphere measured as `plan` says on `mc.runs` machines made by `make(seed)`, each with the
+/// perfect sphere (`center`, `radius`) on it.
+fn trials_on<M, F>(
+    make: &F,
+    plan: &SphereProbing,
+    center: Point3,
+    radius: f64,
+    mc: MonteCarlo,
+) -> Result<Vec<Trial>>
+where
+    M: ProbingMachine,
+    F: Fn(u64) -> M + Sync,
+{
+    (0..mc.runs)
+        .into_par_iter()
+        .map(|r| {
+            let mut m = make(mc.seed_of(r));
+            let s = probe_sphere(&mut m, plan).map_err(|e| {
+                CellError::Failed(format!(
+                    "task-specific uncertainty: a simulated machine could not measure the sphere ({e}); the model's errors are larger than the clearance"
+                ))
+            })?;
+            Ok(Trial {
+                dc: s.center_mm - center,
+                dr: s.radius_mm - radius,
+                uc: s.center_uncertainty_mm,
+                ur: s.radius_uncertainty_mm,
+            })
+        })
+        .collect()
+}
+
+/// The task-specific uncertainty of a sphere measured as `plan` says on a machine of which
+/// `make(seed)` builds realisations with the perfect sphere (`center`, `radius`) on them — e.g.
+/// the virtual machine tool, whose servo latch, pre-travel and noise are its model. `basis`
+/// names the model for the output.
+pub fn sphere_uncertainty_on<M, F>(
+    make: F,
+    basis: &str,
+    plan: &SphereProbing,
+    center: Point3,
+    radius: f64,
+    fit_u_center: Vector3,
+    fit_u_radius: f64,
+    mc: MonteCarlo,
+) -> Result<SphereUncertainty>
+where
+    M: ProbingMachine,
+    F: Fn(u64) -> M + Sync,
+{
+    mc.check()?;
+    let t0 = std::time::Instant::now();
+    let trials = trials_on(&make, plan, center, radius, mc)?;
+    let mut u = summarise(&trials, fit_u_center, fit_u_radius);
+    u.basis = basis.to_string();
+    u.elapsed_s = t0.elapsed().as_secs_f64();
+    Ok(u)
 }
 
 /// One realisation of the ISO 10360 datasheet measuring the perfect sphere: the tip centres the
@@ -394,13 +436,9 @@ fn iso_trial(iso: &Iso10360, plan: &SphereProbing, center: Point3, radius: f64, 
             p + e
         })
         .collect();
-    let f = truepos_fit::sphere(&points).map_err(|e| CellError::Failed(format!("ISO 10360 simulation: {e}")))?;
-    Ok(Trial {
-        dc: f.center - center,
-        dr: f.radius - r_tip,
-        uc: f.u_center,
-        ur: f.u_radius,
-    })
+    let f =
+        truepos_fit::sphere(&points).map_err(|e| CellError::Failed(format!("ISO 10360 simulation: {e}")))?;
+    Ok(Trial { dc: f.center - center, dr: f.radius - r_tip, uc: f.u_center, ur: f.u_radius })
 }
 
 /// One realisation of the virtual CMM's error model behind [`ProbingMachine`]: probing moves run

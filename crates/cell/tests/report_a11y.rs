@@ -26,8 +26,8 @@ fn sample_report(dir: &std::path::Path) -> PathBuf {
         truth: "t".into(),
         result: "r".into(),
         uncertainty: "U = 1 µm (k = 2)".into(),
-        tolerance: "≤ 2 µm".into(),
-        pass: true,
+        tolerance_text: "≤ 2 µm".into(),
+        ..Verdict::judged(report::Judgement::new(1.0, 1.0, 2.0, "µm", report::DecisionRule::Simple))
     });
     let circle: Vec<(f64, f64)> =
         (0..100).map(|i| (i as f64 / 15.9).cos()).zip((0..100).map(|i| (i as f64 / 15.9).sin())).collect();

@@ -90,7 +90,11 @@ fn task_specific_uncertainty_covers_the_truth_on_the_default_cmm() {
 #[ignore = "200 machines × 200 realisations: the figures of docs/uncertainty.md"]
 fn task_specific_uncertainty_covers_the_truth_200_machines() {
     check("default virtual CMM", 200, DEFAULT_MODEL);
-    check("CMM with twice the geometric errors", 200, "[ippdme.model]\ngeometric_error_scale = 2\nprobe_noise_um = 0.5\n");
+    check(
+        "CMM with twice the geometric errors",
+        200,
+        "[ippdme.model]\ngeometric_error_scale = 2\nprobe_noise_um = 0.5\n",
+    );
 }
 
 /// Without the machine's errors (the fit's scatter alone) the coverage is far below 95 %: the
@@ -187,7 +191,8 @@ fn the_uncertainty_is_deterministic() {
         tip_radius_mm: 1.5,
     };
     let go = || {
-        sphere_uncertainty(&m, &plan, plan.near_mm, 12.5, Vector3::zeros(), 0.0, MonteCarlo::default()).unwrap()
+        sphere_uncertainty(&m, &plan, plan.near_mm, 12.5, Vector3::zeros(), 0.0, MonteCarlo::default())
+            .unwrap()
     };
     let (a, b) = (go(), go());
     assert_eq!(a.center_mm, b.center_mm);

@@ -211,8 +211,15 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
         truth: "the simulator's offset and observability per set-up (column “true R”)".into(),
         result: format!("worst component error {:.3} µm", worst * 1e3),
         uncertainty: format!("largest U = {:.3} µm (k = 2)", 2.0 * worst_u * 1e3),
-        tolerance: "observable components within 1 µm; observability flags as the geometry dictates".into(),
-        pass: all_pass,
+        tolerance_text: "observable components within 1 µm; observability flags as the geometry dictates"
+            .into(),
+        ..report::Verdict::judged(
+            report::Judgement::new(worst * 1e3, 2.0 * worst_u * 1e3, 1.0, "µm", report::DecisionRule::Simple)
+                .require(
+                    all_pass,
+                    "a set-up outside 1 µm or with observability flags other than the geometry dictates",
+                ),
+        )
     });
     report.add("head-offset", "Measuring-head 3D offset", html);
     Ok(())

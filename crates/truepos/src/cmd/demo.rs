@@ -52,9 +52,22 @@ pub fn run(a: Args) -> anyhow::Result<Outcome> {
     eprintln!(
         "all {n} sections in {:.1} s; overall: {}",
         t_all.elapsed().as_secs_f64(),
-        if report.overall_pass() { "PASS" } else { "FAIL" }
+        match report.overall() {
+            truepos_cell::report::Overall::Pass => "PASS".to_string(),
+            truepos_cell::report::Overall::Fail => "FAIL".to_string(),
+            truepos_cell::report::Overall::Incomplete => {
+                let open: Vec<String> = report
+                    .verdicts()
+                    .iter()
+                    .filter(|v| !matches!(v.verdict, truepos_cell::report::Outcome::Pass))
+                    .map(|v| format!("{} {}", v.capability, v.verdict.word()))
+                    .collect();
+                format!("INCOMPLETE ({})", open.join(", "))
+            }
+        }
     );
     let path = report.write()?;
     eprintln!("report written to {}", path.display());
-    Ok(Outcome::Done)
+    // Exit 0 only when every capability passed (contract: summary.json verdicts).
+    Ok(if report.overall_pass() { Outcome::Done } else { Outcome::OutOfTolerance })
 }
