@@ -166,12 +166,91 @@ pub struct RunReport {
 
 impl RunReport {
     /// The run did not do its job: it halted, a stop did not succeed, or an alarm that fails a
-    /// run fired (exit code 1, final status FAILURE in the audit trail).
+    /// run fired (exit code 1).
     pub fn failed(&self) -> bool {
-        self.halted
-            || self.stops.iter().any(|s| s.status != StopStatus::Success)
-            || self.alarms.iter().any(|a| a.kind.fails_run())
+        self.verdict().verdict != RunOutcome::Pass
     }
+
+    /// The run's verdict with every reason: `fail` when it halted or a stop is not SUCCESS;
+    /// `alarm` when every stop succeeded but an alarm that needs a person's review fired
+    /// (recovered or not: the contract's "an alarm fired", exit code 1); `pass` otherwise. Every
+    /// alarm is a reason, recovered beam breaks too (they alone do not change the verdict).
+    pub fn verdict(&self) -> RunVerdict {
+        let mut reasons = Vec::new();
+        if self.halted {
+            reasons.push("the run halted before the end of the program".to_string());
+        }
+        for s in self.stops.iter().filter(|s| s.status != StopStatus::Success) {
+            reasons.push(format!(
+                "line {}: stop {}{}",
+                s.line,
+                s.status.as_str(),
+                s.message.as_deref().map(|m| format!(" ({m})")).unwrap_or_default()
+            ));
+        }
+        let bad_stops = !reasons.is_empty();
+        for a in &self.alarms {
+            reasons.push(format!(
+                "line {}: {} alarm — {} ({}){}",
+                a.line,
+                a.kind.as_str(),
+                a.message,
+                a.action,
+                if a.kind.fails_run() { "" } else { "; recovered, does not fail the run" }
+            ));
+        }
+        let alarm = self.alarms.iter().any(|a| a.kind.fails_run());
+        let verdict = if bad_stops {
+            RunOutcome::Fail
+        } else if alarm {
+            RunOutcome::Alarm
+        } else {
+            RunOutcome::Pass
+        };
+        if reasons.is_empty() {
+            reasons.push(format!("all {} stops SUCCESS, no alarm", self.stops.len()));
+        }
+        RunVerdict { verdict, reasons }
+    }
+}
+
+/// The outcome of a run ([`RunReport::verdict`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RunOutcome {
+    /// Every stop SUCCESS, no alarm that needs review: exit code 0, audit status SUCCESS.
+    Pass,
+    /// Every stop SUCCESS, but an alarm fired (e.g. an inclination alarm, recovered by
+    /// re-aligning): exit code 1, audit status ALARM.
+    Alarm,
+    /// The run halted or a stop is not SUCCESS: exit code 1, audit status FAILURE.
+    Fail,
+}
+
+impl RunOutcome {
+    /// The JSON `verdict`: `pass`, `alarm` or `fail`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RunOutcome::Pass => "pass",
+            RunOutcome::Alarm => "alarm",
+            RunOutcome::Fail => "fail",
+        }
+    }
+
+    /// The audit trail's final run status for this outcome.
+    pub fn audit_status(self) -> &'static str {
+        match self {
+            RunOutcome::Pass => "SUCCESS",
+            RunOutcome::Alarm => "ALARM",
+            RunOutcome::Fail => "FAILURE",
+        }
+    }
+}
+
+/// A run's verdict and its reasons (never empty).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RunVerdict {
+    pub verdict: RunOutcome,
+    pub reasons: Vec<String>,
 }
 
 #[derive(Debug, Error)]

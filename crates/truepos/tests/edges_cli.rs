@@ -171,7 +171,7 @@ fn somac_run_shares_one_audit_database_between_eight_runs_and_refuses_foreign_fi
     let q = |sql: &str| -> i64 { c.query_row(sql, [], |r| r.get(0)).unwrap() };
     assert_eq!(q("SELECT COUNT(*) FROM runs"), 8);
     assert_eq!(
-        q("SELECT COUNT(*) FROM runs WHERE ended_at IS NOT NULL AND status IN ('SUCCESS', 'FAILURE')"),
+        q("SELECT COUNT(*) FROM runs WHERE ended_at IS NOT NULL AND status IN ('SUCCESS', 'ALARM', 'FAILURE')"),
         8
     );
     assert_eq!(q("SELECT COUNT(DISTINCT run_id) FROM stops"), 8);

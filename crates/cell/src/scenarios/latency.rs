@@ -162,7 +162,7 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
         (scen::Variant::Sphere, Method::Artefact, 48),
         (scen::Variant::Plates, Method::Artefact, 48),
         (scen::Variant::Speeds, Method::Speeds, 16),
-        (scen::Variant::Scan, Method::Scan, 6),
+        (scen::Variant::Scan, Method::Scan, 24),
         (scen::Variant::InOut, Method::Inout, 48),
         (scen::Variant::PerAxis, Method::Artefact, 48),
         (scen::Variant::MultiRate, Method::Artefact, 48),

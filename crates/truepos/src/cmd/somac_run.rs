@@ -15,7 +15,7 @@ use truepos_io::InputError;
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos simulate somac --out spar && truepos somac run --program spar/program.nc --cell spar/cell.toml --json\n\nExit code 1 when a stop is not SUCCESS, the run halted, or an alarm other than an\nautomatically recovered beam break fired."
+    after_help = "Example:\n  truepos simulate somac --out spar && truepos somac run --program spar/program.nc --cell spar/cell.toml --json\n\nVerdict (JSON `verdict`, `reasons`; the audit run's status says the same):\n  pass   every stop SUCCESS and no alarm: exit 0, status SUCCESS\n  alarm  every stop SUCCESS but an alarm fired, recovered or not (an inclination or\n         temperature alarm means the trackers or the part moved: a person must review\n         the run before the part is accepted, so the contract's exit code is 1): exit 1,\n         status ALARM\n  fail   a stop is not SUCCESS or the run halted: exit 1, status FAILURE\nAn automatically recovered beam break is listed in `reasons` and alone does not change\nthe verdict."
 )]
 pub struct RunArgs {
     /// The G-code program; measurement blocks carry the loop's keyword comment ([loop] keyword, default `(MSG,Measure SOMaC)`).
@@ -97,8 +97,10 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
     };
     // The run row records its end and final status, whatever happened.
     let (status, message) = match &vr {
-        Ok(v) if v.report.failed() => ("FAILURE", None),
-        Ok(_) => ("SUCCESS", None),
+        Ok(v) => {
+            let rv = v.report.verdict();
+            (rv.verdict.audit_status(), Some(format!("{}: {}", rv.verdict.as_str(), rv.reasons.join("; "))))
+        }
         Err(e) => ("ERROR", Some(format!("{e:#}"))),
     };
     audit
@@ -114,6 +116,10 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
     })?;
     let out = vr.to_json(&a.db);
     let mut out = out;
+    let rv = vr.report.verdict();
+    out["verdict"] = json!(rv.verdict.as_str());
+    out["reasons"] = json!(rv.reasons);
+    out["status"] = json!(rv.verdict.audit_status());
     if let Some(extra) = on_controller {
         for (k, v) in extra.as_object().into_iter().flatten() {
             out[k] = v.clone();
@@ -135,6 +141,7 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
             (true, true) => {}
         }
     }
+    eprintln!("verdict: {} — {}", rv.verdict.as_str(), rv.reasons.join("; "));
     eprintln!("audit trail appended to {} (run with --db FILE to choose another)", a.db.display());
     Ok(if vr.report.failed() { Outcome::OutOfTolerance } else { Outcome::Done })
 }
