@@ -292,8 +292,25 @@ figure{margin:1em 0}figure svg{max-width:100%;height:auto;display:block}figcapti
 .overall{font-size:1.3em;padding:.5em 1em;border:2px solid currentColor;display:inline-block}
 dl.header{display:grid;grid-template-columns:max-content 1fr;gap:.2em 1em}dl.header dt{font-weight:bold}dl.header dd{margin:0;overflow-wrap:anywhere}
 .verdict td,.verdict th{text-align:left}
-@media print{body{max-width:none;margin:0;font-size:10pt;color:#000}nav{display:none}section{break-before:page}figure,table{break-inside:avoid}a{color:#000;text-decoration:none}.wrap{overflow:visible}}
+.banner{border:2px dashed #6b4a00;background:#fff8e6;padding:.4em .8em;font-weight:bold;display:inline-block;margin-left:1em}
+.doccontrol td.fill{min-width:14em;height:1.6em}
+@media print{body{max-width:none;margin:0;font-size:10pt;color:#000}nav{display:none}section{break-before:page}figure,table{break-inside:avoid}a{color:#000;text-decoration:none}.wrap{overflow:visible}h1,h2,h3,caption{break-after:avoid}h2+*,h3+*{break-before:avoid}p{orphans:3;widows:3}}
 ";
+
+/// The page box of a printed report: its ID at the bottom left of every page and "page x of y"
+/// at the bottom right (CSS page margin boxes).
+fn print_css(report_id: &str) -> String {
+    format!(
+        "@page{{size:A4;margin:16mm 14mm 18mm;@bottom-left{{content:\"truepos report {report_id} — simulated data, not a calibration certificate\";font-size:8pt}}@bottom-right{{content:\"page \" counter(page) \" of \" counter(pages);font-size:8pt}}}}\n"
+    )
+}
+
+/// FNV-1a (64 bit): a stable short fingerprint of the report's content for its ID.
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes
+        .iter()
+        .fold(0xcbf2_9ce4_8422_2325_u64, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3))
+}
 
 /// A report under construction.
 pub struct Report {
@@ -344,6 +361,15 @@ impl Report {
         &self.verdicts
     }
 
+    /// The report's ID: `TP-YYYYMMDD-` and a fingerprint of its verdicts and tables (two reports
+    /// with the same ID have the same content).
+    pub fn report_id(&self) -> String {
+        let content = serde_json::json!({ "capabilities": self.verdicts, "sections": self.sections.iter().map(|s| (&s.id, &s.html)).collect::<Vec<_>>() });
+        let date = utc_string(self.header.generated_unix_s);
+        let ymd: String = date.chars().take(10).filter(|c| c.is_ascii_digit()).collect();
+        format!("TP-{ymd}-{:08X}", fnv1a(content.to_string().as_bytes()) >> 32)
+    }
+
     /// The whole `index.html`.
     pub fn html(&self) -> String {
         let h = &self.header;
@@ -354,7 +380,8 @@ impl Report {
         let (failed, open, skipped) =
             (named(Outcome::Fail), named(Outcome::Inconclusive), named(Outcome::Skipped));
         let mut html = format!(
-            "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n<title>truepos demo report</title>\n<style>\n{CSS}</style></head><body>\n<header>\n<h1>truepos demo report</h1>\n<dl class=\"header\">\n<dt>truepos version</dt><dd>{}</dd>\n<dt>generated</dt><dd>{}</dd>\n<dt>command line</dt><dd><code>{}</code></dd>\n<dt>seed</dt><dd>{}</dd>\n<dt>machines</dt><dd>{}</dd>\n<dt>environment</dt><dd>{}</dd>\n</dl>\n</header>\n<main>\n<h2 id=\"verdict\">Overall verdict</h2>\n<p class=\"overall {}\">{}</p>\n",
+            "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n<title>truepos demo report</title>\n<style>\n{CSS}{}</style></head><body>\n<header>\n<h1>truepos demo report</h1>\n<dl class=\"header\">\n<dt>truepos version</dt><dd>{}</dd>\n<dt>generated</dt><dd>{}</dd>\n<dt>command line</dt><dd><code>{}</code></dd>\n<dt>seed</dt><dd>{}</dd>\n<dt>machines</dt><dd>{}</dd>\n<dt>environment</dt><dd>{}</dd>\n</dl>\n</header>\n<main>\n<h2 id=\"verdict\">Overall verdict</h2>\n<p class=\"overall {}\">{}</p><p class=\"banner\" role=\"note\">Simulated data — not a calibration certificate</p>\n",
+            print_css(&self.report_id()),
             escape(&h.version),
             utc_string(h.generated_unix_s),
             escape(&h.command_line),
@@ -379,6 +406,7 @@ impl Report {
                 )),
             },
         );
+        html.push_str(&self.document_control());
         html.push_str("<p>Every capability runs end to end on the virtual cell (or on NIST reference data for fitting); each result is compared with the truth the simulator used, which truepos never sees. Uncertainties are expanded uncertainties U with the coverage factor k stated (k = 2: about 95 % coverage for a normal distribution).</p>\n");
         let rows: Vec<Vec<String>> = self
             .verdicts
@@ -400,6 +428,7 @@ impl Report {
             &["capability", "measured", "result", "uncertainty", "tolerance", "verdict"],
             &rows,
         ));
+        html.push_str(&self.traceability());
         html.push_str("<nav aria-label=\"Sections\"><h2>Sections</h2><ul>\n");
         for s in &self.sections {
             html.push_str(&format!("<li><a href=\"#{}\">{}</a></li>\n", s.id, escape(&s.title)));
@@ -422,6 +451,49 @@ impl Report {
         }
         html.push_str("</main>\n</body></html>\n");
         html
+    }
+
+    /// The document-control block: report ID, version and build, date, decision rule, and the
+    /// fields a quality engineer fills in (operator, approval, signature, date).
+    fn document_control(&self) -> String {
+        let h = &self.header;
+        let rows = vec![
+            vec!["report ID".to_string(), self.report_id()],
+            vec!["software".to_string(), format!("truepos {}", h.version)],
+            vec!["generated".to_string(), utc_string(h.generated_unix_s)],
+            vec![
+                "decision rule".to_string(),
+                "ISO 14253-1, per capability as stated in its section; expanded uncertainties with k = 2; pass requires U < tolerance".to_string(),
+            ],
+            vec!["status of the data".to_string(), "simulated — not a calibration certificate".to_string()],
+        ];
+        let mut t = table_left("Document control", &["item", "value"], &rows);
+        t.push_str("<div class=\"wrap\"><table class=\"verdict doccontrol\"><caption>Review and approval (to be completed by hand)</caption><thead><tr><th scope=\"col\">role</th><th scope=\"col\">name</th><th scope=\"col\">signature</th><th scope=\"col\">date</th></tr></thead>\n<tbody>\n");
+        for role in ["operator", "reviewed by", "approved by"] {
+            t.push_str(&format!("<tr><th scope=\"row\">{role}</th><td class=\"fill\"></td><td class=\"fill\"></td><td class=\"fill\"></td></tr>\n"));
+        }
+        t.push_str("</tbody></table></div>\n");
+        format!("<h2 id=\"document-control\">Document control</h2>\n{t}")
+    }
+
+    /// What each capability's truth is and what it is traceable to.
+    fn traceability(&self) -> String {
+        let rows: Vec<Vec<String>> = self
+            .verdicts
+            .iter()
+            .map(|v| {
+                let to = match v.section.as_str() {
+                    "fit" => "NIST's certified least-squares fits (NIST algorithm-testing service, ASME B89.4.10): an external reference computed in extended precision",
+                    "air" => "NIST's published refractive-index values (Ciddor equation): an external reference",
+                    _ => "the simulator's own truth: exact by construction, traceable to no physical standard; it shows that the method recovers what the simulated machine did, not what a real machine does",
+                };
+                vec![v.capability.clone(), v.truth.clone(), to.to_string()]
+            })
+            .collect();
+        format!(
+            "<h2 id=\"traceability\">Traceability</h2>\n<p>Each result is compared with a truth. What that truth is, and what it is traceable to:</p>\n{}",
+            table(&["capability", "truth", "traceable to"], &rows)
+        )
     }
 
     /// Write `index.html` and `summary.json` into the report directory.
@@ -460,6 +532,7 @@ impl Report {
                 "machine": self.header.machine,
                 "environment": self.header.environment,
             },
+            "report_id": self.report_id(),
             "overall": self.overall(),
             "capabilities": self.verdicts,
             "sections": sections,
@@ -489,7 +562,7 @@ fn verdict_box(v: &Verdict) -> String {
         rows.push(vec!["reason".to_string(), r.clone()]);
     }
     let mut h = format!(
-        "<table class=\"verdict\"><caption>{}: verdict against truth</caption><tbody>\n",
+        "<table class=\"verdict\"><caption>{}: verdict against truth</caption><thead><tr><th scope=\"col\">item</th><th scope=\"col\">value</th></tr></thead><tbody>\n",
         escape(&v.capability)
     );
     for r in rows {

@@ -29,7 +29,7 @@ pub fn run(a: Args) -> anyhow::Result<Outcome> {
             .unwrap_or(0),
     };
     report.header = truepos_cell::report::Header {
-        version: env!("CARGO_PKG_VERSION").to_string(),
+        version: format!("{} (build {})", env!("CARGO_PKG_VERSION"), env!("TRUEPOS_BUILD_COMMIT")),
         generated_unix_s: now,
         command_line: std::env::args().collect::<Vec<_>>().join(" "),
         seed: truepos_cell::scenarios::part::SEED,
