@@ -503,3 +503,136 @@ impl ProbingMachine for SimulatedCmm {
         Ok(())
     }
 }
+
+/// The task-specific uncertainty of one inspected hole (`somac inspect`), standard (k = 1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HoleUncertainty {
+    /// Of the measured centre's X and Y (mm).
+    pub center_xy_mm: [f64; 2],
+    /// Of the measured diameter (mm).
+    pub diameter_mm: f64,
+}
+
+/// The task-specific uncertainty of every hole of an inspection: the same plan simulated on
+/// `mc.runs` realisations of the machine model with perfect bores (in a plate whose top is the
+/// holes' top) at the measured centres and diameters.
+pub fn inspection_uncertainty(
+    model: &MachineModel,
+    plan: &truepos_somac::inspect::InspectPlan,
+    measured: &truepos_somac::inspect::Inspection,
+    mc: MonteCarlo,
+) -> Result<Vec<HoleUncertainty>> {
+    use truepos_ippdme::part::CylinderSide;
+    use truepos_somac::inspect::{inspect, Hole};
+    mc.check()?;
+    let holes: Vec<Hole> = measured.holes.iter().map(|r| r.hole.clone()).collect();
+    let n = holes.len();
+    // Perfect bores where they were found: centre at the probing depth, measured diameter.
+    let perfect: Vec<(Point3, f64)> = measured.holes.iter().map(|r| (r.measured_mm, r.diameter_mm)).collect();
+    let top = holes.iter().map(|h| h.nominal_mm.z).fold(f64::NEG_INFINITY, f64::max);
+    // Per model: per run, per hole (dx, dy, dd).
+    let mut per_model: Vec<Vec<Vec<[f64; 3]>>> = Vec::new();
+    let deviations = |m: &truepos_somac::inspect::Inspection| -> Vec<[f64; 3]> {
+        m.holes
+            .iter()
+            .zip(&perfect)
+            .map(|(r, (c, d))| [r.measured_mm.x - c.x, r.measured_mm.y - c.y, r.diameter_mm - d])
+            .collect()
+    };
+    if let Some(cfg) = &model.cmm {
+        let mut solids =
+            vec![(None, Solid::HalfSpace { point: Point3::new(0.0, 0.0, top), normal: Vector3::z() })];
+        for (c, d) in &perfect {
+            solids.push((
+                None,
+                Solid::Cylinder {
+                    point: *c,
+                    axis: Vector3::z(),
+                    radius: 0.5 * d,
+                    side: CylinderSide::Inside,
+                },
+            ));
+        }
+        let part = Part { solids };
+        let runs: Result<Vec<Vec<[f64; 3]>>> = (0..mc.runs)
+            .into_par_iter()
+            .map(|r| {
+                let mut cfg = cfg.clone();
+                cfg.model.seed = mc.seed_of(r);
+                let mut m = SimulatedCmm::new(&cfg, Some(part.clone()), plan.tip_radius_mm);
+                let got = inspect(&mut m, &holes, plan).map_err(|e| {
+                    CellError::Failed(format!(
+                        "task-specific uncertainty: a simulated machine could not inspect the holes ({e})"
+                    ))
+                })?;
+                Ok(deviations(&got))
+            })
+            .collect();
+        per_model.push(runs?);
+    }
+    if let Some(iso) = &model.iso10360 {
+        let runs: Result<Vec<Vec<[f64; 3]>>> = (0..mc.runs)
+            .into_par_iter()
+            .map(|r| iso_holes(iso, plan, &holes, &perfect, mc.seed_of(r)))
+            .collect();
+        per_model.push(runs?);
+    }
+    if per_model.is_empty() {
+        return Err(CellError::Invalid("the machine model names no model".into()));
+    }
+    let mut out = vec![HoleUncertainty { center_xy_mm: [0.0; 2], diameter_mm: 0.0 }; n];
+    for runs in &per_model {
+        for (h, o) in out.iter_mut().enumerate() {
+            let rms =
+                |k: usize| (runs.iter().map(|r| r[h][k] * r[h][k]).sum::<f64>() / runs.len() as f64).sqrt();
+            let fit = &measured.holes[h];
+            // The measurement's own fit scatter is a cross-check (see the module docs): kept only
+            // where it exceeds the simulation (then added in quadrature).
+            let u = [
+                rms(0).max(fit.center_uncertainty_mm[0]),
+                rms(1).max(fit.center_uncertainty_mm[1]),
+                rms(2).max(fit.diameter_uncertainty_mm),
+            ];
+            o.center_xy_mm = [o.center_xy_mm[0].max(u[0]), o.center_xy_mm[1].max(u[1])];
+            o.diameter_mm = o.diameter_mm.max(u[2]);
+        }
+    }
+    Ok(out)
+}
+
+/// One realisation of the ISO 10360 datasheet inspecting perfect bores (see [`iso_trial`]).
+fn iso_holes(
+    iso: &Iso10360,
+    plan: &truepos_somac::inspect::InspectPlan,
+    holes: &[truepos_somac::inspect::Hole],
+    perfect: &[(Point3, f64)],
+    seed: u64,
+) -> Result<Vec<[f64; 3]>> {
+    use rand::Rng;
+    let mut rng = noise::rng(seed);
+    let rel = 1e-3 / iso.mpe_e_k;
+    let mut u = |h: f64| rng.random_range(-h..=h);
+    let lin = Matrix3::new(u(rel), u(rel), u(rel), 0.0, u(rel), u(rel), 0.0, 0.0, u(rel));
+    let half_p = 0.5 * iso.mpe_p_um * 1e-3;
+    let origin = perfect.first().map_or(Point3::origin(), |p| p.0);
+    holes
+        .iter()
+        .zip(perfect)
+        .map(|(h, (c, d))| {
+            let r_tip = 0.5 * d - plan.tip_radius_mm;
+            let points: Vec<Point3> = plan
+                .requests(h)
+                .iter()
+                .map(|req| {
+                    // The probing moves outwards (−approach) onto the bore wall.
+                    let e = -req.approach;
+                    let p = c + e * r_tip;
+                    p + lin * (p - origin) + e * u(half_p)
+                })
+                .collect();
+            let f = truepos_fit::circle(&points)
+                .map_err(|e| CellError::Failed(format!("ISO 10360 simulation: {e}")))?;
+            Ok([f.center.x - c.x, f.center.y - c.y, 2.0 * (f.radius + plan.tip_radius_mm) - d])
+        })
+        .collect()
+}

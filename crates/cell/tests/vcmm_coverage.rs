@@ -199,3 +199,79 @@ fn the_uncertainty_is_deterministic() {
     assert_eq!(a.radius_mm, b.radius_mm);
     assert_eq!(a.runs, 200);
 }
+
+/// `somac inspect` on machines drawn from the default CMM model: three Ø 20 mm bores in a plate,
+/// 8 points each; the task-specific U of each hole's X, Y and diameter covers the true bore.
+#[test]
+fn inspection_uncertainty_covers_the_truth() {
+    use truepos_ippdme::part::CylinderSide;
+    use truepos_somac::inspect::{inspect, Hole, InspectPlan};
+    let model = MachineModel::from_toml(Path::new("m.toml"), DEFAULT_MODEL).unwrap();
+    let tops =
+        [Point3::new(100.0, 50.0, 0.0), Point3::new(-250.0, 180.0, 0.0), Point3::new(300.0, -320.0, 0.0)];
+    let plan = InspectPlan {
+        depth_mm: 5.0,
+        points: 8,
+        feed_mm_s: 1.0,
+        clearance_mm: 1.5,
+        tip_radius_mm: 1.5,
+        safe_height_mm: 10.0,
+        start_angle_deg: 0.0,
+    };
+    let (mut inside, mut n, mut ratios) = (0, 0, Vec::new());
+    for seed in 1..=30u64 {
+        let mut cfg = model.cmm.clone().unwrap();
+        cfg.model.seed = 7000 + seed;
+        // The real bores: 30–60 µm off nominal, diameters 20 ± 0.01.
+        let truth: Vec<(Point3, f64)> = tops
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                let f = (seed as f64 * 0.37 + i as f64).sin();
+                (Point3::new(t.x + 0.04 * f, t.y - 0.03 * f, t.z), 20.0 + 0.01 * f)
+            })
+            .collect();
+        let mut solids = vec![(None, Solid::HalfSpace { point: Point3::origin(), normal: Vector3::z() })];
+        for (c, d) in &truth {
+            solids.push((
+                None,
+                Solid::Cylinder {
+                    point: *c,
+                    axis: Vector3::z(),
+                    radius: 0.5 * d,
+                    side: CylinderSide::Inside,
+                },
+            ));
+        }
+        let holes: Vec<Hole> = tops
+            .iter()
+            .enumerate()
+            .map(|(i, t)| Hole { id: format!("H{i}"), line: None, nominal_mm: *t, diameter_mm: 20.0 })
+            .collect();
+        let mut m = SimulatedCmm::new(&cfg, Some(Part { solids }), plan.tip_radius_mm);
+        let got = inspect(&mut m, &holes, &plan).unwrap();
+        let u =
+            truepos_cell::vcmm::inspection_uncertainty(&model, &plan, &got, MonteCarlo::default()).unwrap();
+        for ((r, u), (c, d)) in got.holes.iter().zip(&u).zip(&truth) {
+            let errs = [
+                (r.measured_mm.x - c.x, 2.0 * u.center_xy_mm[0]),
+                (r.measured_mm.y - c.y, 2.0 * u.center_xy_mm[1]),
+                (r.diameter_mm - d, 2.0 * u.diameter_mm),
+            ];
+            for (e, big_u) in errs {
+                n += 1;
+                inside += usize::from(e.abs() <= big_u);
+                ratios.push(e.abs() / big_u);
+            }
+        }
+    }
+    ratios.sort_by(f64::total_cmp);
+    let cov = inside as f64 / n as f64;
+    let median = ratios[n / 2];
+    eprintln!(
+        "somac inspect: {:.1} % of {n} comparisons within ±U, median |error|/U = {median:.2}",
+        100.0 * cov
+    );
+    assert!((0.90..=0.99).contains(&cov), "coverage {cov}");
+    assert!(median >= 0.15, "inflated: {median}");
+}

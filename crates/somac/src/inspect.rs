@@ -361,6 +361,9 @@ pub struct InspectReport {
     pub inspection: Inspection,
     pub tolerance_mm: Option<f64>,
     pub truth: Option<Vec<(Point3, f64)>>,
+    /// How the holes' uncertainties were found: (`task-specific` or `fit-residuals`, Monte Carlo
+    /// runs, basis). The holes' `center_uncertainty_mm` / `diameter_uncertainty_mm` hold them.
+    pub uncertainty: (String, usize, String),
 }
 
 impl InspectReport {
@@ -382,6 +385,19 @@ impl InspectReport {
 impl truepos_io::report::Report for InspectReport {
     fn to_json(&self) -> serde_json::Value {
         let mut j = self.inspection.to_json();
+        let k = truepos_math::stats::COVERAGE_FACTOR;
+        j["uncertainty_method"] = serde_json::json!(self.uncertainty.0);
+        j["monte_carlo_runs"] = serde_json::json!(self.uncertainty.1);
+        j["uncertainty_basis"] = serde_json::json!(self.uncertainty.2);
+        j["coverage_factor"] = serde_json::json!(k);
+        if let Some(holes) = j["holes"].as_array_mut() {
+            for (h, r) in holes.iter_mut().zip(&self.inspection.holes) {
+                h["expanded_uncertainty"] = serde_json::json!({
+                    "center_xy_mm": [k * r.center_uncertainty_mm[0], k * r.center_uncertainty_mm[1]],
+                    "diameter_mm": k * r.diameter_uncertainty_mm,
+                });
+            }
+        }
         if let Some(t) = self.tolerance_mm {
             j["tolerance_mm"] = serde_json::json!(t);
             j["out_of_tolerance"] = serde_json::json!(self.out_of_tolerance());

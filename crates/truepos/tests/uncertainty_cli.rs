@@ -189,3 +189,60 @@ fn a_bad_machine_model_is_exit_2_before_any_motion() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("model.toml") && err.contains("mpe_p"), "{err}");
 }
+
+/// `somac inspect --controller ippdme://… --machine-model FILE`: each hole's U is task-specific
+/// and covers the part file's bore (3 machines × 2 holes × X, Y, diameter).
+#[test]
+fn somac_inspect_reports_task_specific_uncertainty_through_ippdme() {
+    let dir = tempfile::tempdir().unwrap();
+    let part = dir.path().join("part.toml");
+    std::fs::write(
+        &part,
+        "[[plane]]\npoint_mm = [0, 0, 0]\nnormal = [0, 0, 1]\n\n[[cylinder]]\npoint_mm = [100.02, 49.97, 0]\naxis = [0, 0, 1]\ndiameter_mm = 20.004\nside = \"inside\"\n\n[[cylinder]]\npoint_mm = [-150, 80.03, 0]\naxis = [0, 0, 1]\ndiameter_mm = 19.998\nside = \"inside\"\n",
+    )
+    .unwrap();
+    let holes = dir.path().join("holes.csv");
+    std::fs::write(&holes, "id,x_mm,y_mm,z_mm\nA,100,50,0\nB,-150,80,0\n").unwrap();
+    let model = dir.path().join("model.toml");
+    std::fs::write(&model, "[ippdme.model]\n").unwrap();
+    let truth = [(100.02, 49.97, 20.004), (-150.0, 80.03, 19.998)];
+    let (mut inside, mut n) = (0, 0);
+    for seed in 1..=3 {
+        let machine = dir.path().join(format!("cmm{seed}.toml"));
+        std::fs::write(&machine, format!("[ippdme.model]\nseed = {}\n", 40 + seed)).unwrap();
+        let (child, addr) = server(&part, &machine);
+        let out = truepos()
+            .args(["somac", "inspect", "--controller", &format!("ippdme://{addr}"), "--holes"])
+            .arg(&holes)
+            .args([
+                "--diameter-mm",
+                "20",
+                "--tip-diameter-mm",
+                "3",
+                "--points",
+                "8",
+                "--json",
+                "--machine-model",
+            ])
+            .arg(&model)
+            .output()
+            .unwrap();
+        stop(child);
+        assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+        let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(j["uncertainty_method"], "task-specific");
+        assert!(j["monte_carlo_runs"].as_u64().unwrap() >= 200);
+        for (h, (x, y, d)) in j["holes"].as_array().unwrap().iter().zip(truth) {
+            let m = arr(&h["measured_mm"]);
+            let u = arr(&h["expanded_uncertainty"]["center_xy_mm"]);
+            let ud = h["expanded_uncertainty"]["diameter_mm"].as_f64().unwrap();
+            for (e, u) in [(m[0] - x, u[0]), (m[1] - y, u[1]), (h["diameter_mm"].as_f64().unwrap() - d, ud)] {
+                n += 1;
+                inside += usize::from(e.abs() <= u);
+                assert!(u > 0.0 && u < 0.02, "U {u}");
+            }
+        }
+    }
+    eprintln!("somac inspect through ippdme://: {inside} of {n} within ±U");
+    assert!(inside >= n - 2, "{inside} of {n}");
+}

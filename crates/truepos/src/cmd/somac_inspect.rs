@@ -63,6 +63,8 @@ pub struct InspectArgs {
     /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub model: super::probe::ModelArgs,
 }
 
 fn read_holes(a: &InspectArgs) -> Result<Vec<Hole>> {
@@ -96,6 +98,7 @@ pub fn run(a: InspectArgs) -> Result<Outcome> {
     if let Err(e) = plan.check(&holes) {
         return Err(UsageError(e.to_string()).into());
     }
+    let model = a.model.read()?;
     let mut truth = None;
     let mut machine: Box<dyn truepos_device::ProbingMachine> = if a.controller == "virtual" {
         let nominal: Vec<(Point3, f64)> = holes.iter().map(|h| (h.nominal_mm, h.diameter_mm)).collect();
@@ -106,15 +109,34 @@ pub fn run(a: InspectArgs) -> Result<Outcome> {
     } else {
         super::probe::open_probing_machine(&a.controller, None, a.seed)?.machine
     };
-    let r = match inspect(machine.as_mut(), &holes, &plan) {
+    let mut r = match inspect(machine.as_mut(), &holes, &plan) {
         Ok(r) => r,
         Err(InspectError::Plan(m)) => return Err(UsageError(m).into()),
         Err(e) => return Err(DeviceError(e.to_string()).into()),
+    };
+    let uncertainty = match &model {
+        Some(m) => {
+            let u = truepos_cell::vcmm::inspection_uncertainty(m, &plan, &r, a.model.monte_carlo())?;
+            for (h, u) in r.holes.iter_mut().zip(&u) {
+                h.center_uncertainty_mm = u.center_xy_mm;
+                h.diameter_uncertainty_mm = u.diameter_mm;
+            }
+            ("task-specific".to_string(), a.model.monte_carlo_runs, m.basis())
+        }
+        None => {
+            eprintln!("{}", super::probe::NO_MODEL_WARNING);
+            (
+                "fit-residuals".to_string(),
+                0,
+                "scatter of each hole's circle fit only (machine errors not included)".to_string(),
+            )
+        }
     };
     let report = InspectReport {
         inspection: r,
         tolerance_mm: a.tolerance_mm,
         truth: truth.map(|t| t.iter().map(|t| (t.top_mm, t.diameter_mm)).collect()),
+        uncertainty,
     };
     crate::output::emit(&report, a.json)?;
     let over = report.out_of_tolerance();
