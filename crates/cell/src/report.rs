@@ -467,7 +467,7 @@ impl Report {
             ],
             vec!["status of the data".to_string(), "simulated — not a calibration certificate".to_string()],
         ];
-        let mut t = table_left("Document control", &["item", "value"], &rows);
+        let mut t = table_left("Identification", &["item", "value"], &rows);
         t.push_str("<div class=\"wrap\"><table class=\"verdict doccontrol\"><caption>Review and approval (to be completed by hand)</caption><thead><tr><th scope=\"col\">role</th><th scope=\"col\">name</th><th scope=\"col\">signature</th><th scope=\"col\">date</th></tr></thead>\n<tbody>\n");
         for role in ["operator", "reviewed by", "approved by"] {
             t.push_str(&format!("<tr><th scope=\"row\">{role}</th><td class=\"fill\"></td><td class=\"fill\"></td><td class=\"fill\"></td></tr>\n"));
@@ -653,6 +653,7 @@ pub fn table(header: &[&str], rows: &[Vec<String>]) -> String {
             let class = match c.as_str() {
                 "pass" => " class=\"pass\"",
                 "FAIL" | "fail" => " class=\"fail\"",
+                "inconclusive" | "skipped" => " class=\"incomplete\"",
                 _ => "",
             };
             if i == 0 {
