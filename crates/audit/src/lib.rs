@@ -233,13 +233,23 @@ impl Audit {
     /// period while spooling: `TRUEPOS_AUDIT_RETRY_S` (default 5 s); how long
     /// [`Audit::finish`] waits for the database: `TRUEPOS_AUDIT_WAIT_S` (default 60 s).
     pub fn open(db: impl Into<Db>, program: &str, started_at: &str) -> Result<Self, AuditError> {
+        Self::open_noted(db, program, None, started_at)
+    }
+
+    /// [`Audit::open`] with a note on the run (e.g. `somac inspect`: what kind of run it is).
+    pub fn open_noted(
+        db: impl Into<Db>,
+        program: &str,
+        note: Option<&str>,
+        started_at: &str,
+    ) -> Result<Self, AuditError> {
         let db = db.into();
         if !is_iso8601_utc(started_at) {
             return Err(AuditError::BadTimestamp(started_at.into()));
         }
         let shown = db.display();
         let backend = db.connect(true)?;
-        Self::open_backend(backend, shown, program, started_at)
+        Self::open_backend(backend, shown, program, note, started_at)
     }
 
     /// [`Audit::open`] on a backend already connected.
@@ -247,6 +257,7 @@ impl Audit {
         mut backend: Box<dyn Backend>,
         shown: String,
         program: &str,
+        note: Option<&str>,
         started_at: &str,
     ) -> Result<Self, AuditError> {
         if !is_iso8601_utc(started_at) {
@@ -265,7 +276,7 @@ impl Audit {
                     Value::text(&uid),
                     Value::text(started_at),
                     Value::text(program),
-                    Value::Null,
+                    Value::opt_text(note),
                 ],
             };
             chain::append_in(b, &[start])?;
@@ -426,8 +437,9 @@ impl Audit {
         Record { table, record_id, values: v }
     }
 
-    /// Append the pending records (one batch); spool them if the database is away.
-    fn flush(&mut self) -> Result<(), AuditError> {
+    /// Append the pending records (one batch); spool them if the database is away. The same as
+    /// [`AuditSink::commit`], with this crate's error.
+    pub fn flush(&mut self) -> Result<(), AuditError> {
         if self.pending.is_empty() {
             return Ok(());
         }
@@ -612,6 +624,8 @@ pub struct RunSummary {
     pub message: Option<String>,
     pub controller: Option<String>,
     pub controller_version: Option<String>,
+    /// What kind of run it is (`somac inspect`), when the writer said.
+    pub note: Option<String>,
 }
 
 impl RunSummary {
@@ -620,6 +634,7 @@ impl RunSummary {
             "id": self.id, "uid": self.uid, "program": self.program, "started_at": self.started_at,
             "ended_at": self.ended_at, "status": self.status, "message": self.message,
             "controller": self.controller, "controller_version": self.controller_version,
+            "note": self.note,
         })
     }
 }
@@ -631,7 +646,7 @@ pub struct Trail {
 }
 
 const RUN_COLUMNS: &str =
-    "id, uid, program, started_at, ended_at, status, message, controller, controller_version";
+    "id, uid, program, started_at, ended_at, status, message, controller, controller_version, note";
 
 fn summary(r: Vec<Value>) -> RunSummary {
     let s = |i: usize| r.get(i).and_then(Value::as_str).map(str::to_string);
@@ -645,6 +660,7 @@ fn summary(r: Vec<Value>) -> RunSummary {
         message: s(6),
         controller: s(7),
         controller_version: s(8),
+        note: s(9),
     }
 }
 

@@ -367,7 +367,7 @@ fn an_outage_is_spooled_and_sent_exactly_once() {
     let lose_ack = Arc::new(AtomicBool::new(false));
     let flaky =
         Flaky { inner: sqlite(&path).connect(true).unwrap(), down: down.clone(), lose_ack: lose_ack.clone() };
-    let mut a = Audit::open_backend(Box::new(flaky), path.display().to_string(), "p.nc", &now_utc()).unwrap();
+    let mut a = Audit::open_backend(Box::new(flaky), path.display().to_string(), "p.nc", None, &now_utc()).unwrap();
     let notices = Arc::new(Mutex::new(Vec::<String>::new()));
     let n2 = notices.clone();
     a.set_notify(move |m| n2.lock().unwrap().push(m.to_string()));
@@ -422,7 +422,7 @@ fn a_run_ending_during_an_outage_leaves_a_spool_to_push() {
         down: down.clone(),
         lose_ack: Arc::new(AtomicBool::new(false)),
     };
-    let mut a = Audit::open_backend(Box::new(flaky), path.display().to_string(), "p.nc", &now_utc()).unwrap();
+    let mut a = Audit::open_backend(Box::new(flaky), path.display().to_string(), "p.nc", None, &now_utc()).unwrap();
     a.set_notify(|_| {});
     a.set_spool_dir(dir.path());
     a.set_retry(Duration::from_millis(50), Duration::from_millis(200));
@@ -449,7 +449,7 @@ fn a_run_ending_during_an_outage_leaves_a_spool_to_push() {
         down: down.clone(),
         lose_ack: Arc::new(AtomicBool::new(false)),
     };
-    let mut a = Audit::open_backend(Box::new(flaky), path.display().to_string(), "p.nc", &now_utc()).unwrap();
+    let mut a = Audit::open_backend(Box::new(flaky), path.display().to_string(), "p.nc", None, &now_utc()).unwrap();
     a.set_notify(|_| {});
     a.set_spool_dir(dir.path().join("no/such/dir"));
     down.store(true, Ordering::SeqCst);

@@ -60,6 +60,10 @@ pub struct InspectArgs {
     /// Seed of the virtual machine (where its holes really are).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Audit trail: a SQLite file (created if missing) or postgresql://USER@HOST:PORT/DB; the
+    /// inspection is recorded as a run (note `somac inspect`) with one record per hole.
+    #[arg(long, default_value = "somac-audit.sqlite")]
+    pub db: String,
     /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
@@ -96,6 +100,30 @@ pub fn run(a: InspectArgs) -> Result<Outcome> {
     if let Err(e) = plan.check(&holes) {
         return Err(UsageError(e.to_string()).into());
     }
+    let db = super::audit::parse_db(&a.db)?;
+    let source = a.program.as_ref().or(a.holes.as_ref()).map(|p| p.display().to_string()).unwrap_or_default();
+    let mut audit = truepos_audit::Audit::open_noted(&db, &source, Some("somac inspect"), &truepos_audit::now_utc())?;
+    let r = inspect_and_record(&a, &holes, &plan, &mut audit);
+    let (status, message) = match &r {
+        Ok(rep) if !rep.out_of_tolerance().is_empty() => ("FAILURE", None),
+        Ok(_) => ("SUCCESS", None),
+        Err(e) => ("ERROR", Some(format!("{e:#}"))),
+    };
+    audit.finish(status, message.as_deref(), &truepos_audit::now_utc())?;
+    let report = r?;
+    crate::output::emit(&report, a.json)?;
+    eprintln!("audit trail appended to {} (run {})", db.display(), audit.run_id());
+    let over = report.out_of_tolerance();
+    Ok(if over.is_empty() { Outcome::Done } else { Outcome::OutOfTolerance })
+}
+
+/// Open the machine, inspect, and record the device and every hole in the audit trail.
+fn inspect_and_record(
+    a: &InspectArgs,
+    holes: &[Hole],
+    plan: &InspectPlan,
+    audit: &mut truepos_audit::Audit,
+) -> Result<InspectReport> {
     let mut truth = None;
     let mut machine: Box<dyn truepos_device::ProbingMachine> = if a.controller == "virtual" {
         let nominal: Vec<(Point3, f64)> = holes.iter().map(|h| (h.nominal_mm, h.diameter_mm)).collect();
@@ -106,17 +134,19 @@ pub fn run(a: InspectArgs) -> Result<Outcome> {
     } else {
         super::probe::open_probing_machine(&a.controller, None, a.seed)?.machine
     };
-    let r = match inspect(machine.as_mut(), &holes, &plan) {
+    let r = match inspect(machine.as_mut(), holes, plan) {
         Ok(r) => r,
         Err(InspectError::Plan(m)) => return Err(UsageError(m).into()),
         Err(e) => return Err(DeviceError(e.to_string()).into()),
     };
-    let report = InspectReport {
+    audit.set_controller(&r.device.address, &r.device.version)?;
+    for h in &r.holes {
+        audit.record_inspection(h);
+    }
+    audit.flush()?;
+    Ok(InspectReport {
         inspection: r,
         tolerance_mm: a.tolerance_mm,
         truth: truth.map(|t| t.iter().map(|t| (t.top_mm, t.diameter_mm)).collect()),
-    };
-    crate::output::emit(&report, a.json)?;
-    let over = report.out_of_tolerance();
-    Ok(if over.is_empty() { Outcome::Done } else { Outcome::OutOfTolerance })
+    })
 }
