@@ -18,7 +18,7 @@ use std::collections::HashMap;
 use std::time::Duration;
 
 /// The advisory lock every truepos writer takes for migrations and chain appends.
-pub const LOCK_KEY: i64 = 0x7472_7565_706f_73; // "truepos"
+pub const LOCK_KEY: i64 = 0x0074_7275_6570_6f73; // "truepos"
 
 /// A PostgreSQL address, its password resolved (never displayed).
 #[derive(Clone)]
@@ -149,7 +149,7 @@ impl PgTarget {
                 }
             }
         }
-        t.password = env("PGPASSWORD").filter(|p| !p.is_empty()).or_else(|| t.from_pgpass(env));
+        t.password = env("PGPASSWORD").filter(|p| !p.is_empty()).or_else(|| t.password_from_file(env));
         Ok(t)
     }
 
@@ -164,7 +164,7 @@ impl PgTarget {
     }
 
     /// The first matching line of the password file.
-    fn from_pgpass(&self, env: &dyn Fn(&str) -> Option<String>) -> Option<String> {
+    fn password_from_file(&self, env: &dyn Fn(&str) -> Option<String>) -> Option<String> {
         let path = env("PGPASSFILE")
             .map(std::path::PathBuf::from)
             .or_else(|| env("HOME").map(|h| std::path::Path::new(&h).join(".pgpass")))?;
@@ -201,8 +201,13 @@ impl PgTarget {
             .port(self.port)
             .dbname(&self.dbname)
             .connect_timeout(self.connect_timeout)
+            // A server that vanishes without closing the connection (power, network) is noticed
+            // within seconds, not after the kernel's TCP timeouts: the run then spools.
             .keepalives(true)
-            .keepalives_idle(Duration::from_secs(10))
+            .keepalives_idle(Duration::from_secs(5))
+            .keepalives_interval(Duration::from_secs(2))
+            .keepalives_retries(3)
+            .tcp_user_timeout(Duration::from_secs(15))
             .application_name(&self.application_name);
         if let Some(p) = &self.password {
             c.password(p);
@@ -213,20 +218,22 @@ impl PgTarget {
 
 /// Fields of a password-file line: `:` separates, `\` escapes.
 fn split_pgpass(line: &str) -> Vec<String> {
-    let mut out = vec![String::new()];
+    let mut out = Vec::new();
+    let mut field = String::new();
     let mut esc = false;
     for ch in line.chars() {
         if esc {
-            out.last_mut().map(|s| s.push(ch));
+            field.push(ch);
             esc = false;
         } else if ch == '\\' {
             esc = true;
-        } else if ch == ':' && out.len() < 5 {
-            out.push(String::new());
+        } else if ch == ':' && out.len() < 4 {
+            out.push(std::mem::take(&mut field));
         } else {
-            out.last_mut().map(|s| s.push(ch));
+            field.push(ch);
         }
     }
+    out.push(field);
     out
 }
 
@@ -435,7 +442,7 @@ mod tests {
             ("postgresql://cell@db/fleet?sslmode=require", "not supported in this build"),
             ("postgresql://cell@db/fleet?foo=1", "unknown parameter"),
         ] {
-            let e = PgTarget::parse(bad, &env(&[])).err().expect(bad);
+            let e = PgTarget::parse(bad, &env(&[])).expect_err(bad);
             assert!(e.contains(what), "{bad}: {e}");
             assert!(!e.contains("hunter2"), "{e}");
         }

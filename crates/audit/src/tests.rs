@@ -367,7 +367,8 @@ fn an_outage_is_spooled_and_sent_exactly_once() {
     let lose_ack = Arc::new(AtomicBool::new(false));
     let flaky =
         Flaky { inner: sqlite(&path).connect(true).unwrap(), down: down.clone(), lose_ack: lose_ack.clone() };
-    let mut a = Audit::open_backend(Box::new(flaky), path.display().to_string(), "p.nc", None, &now_utc()).unwrap();
+    let mut a =
+        Audit::open_backend(Box::new(flaky), path.display().to_string(), "p.nc", None, &now_utc()).unwrap();
     let notices = Arc::new(Mutex::new(Vec::<String>::new()));
     let n2 = notices.clone();
     a.set_notify(move |m| n2.lock().unwrap().push(m.to_string()));
@@ -422,14 +423,15 @@ fn a_run_ending_during_an_outage_leaves_a_spool_to_push() {
         down: down.clone(),
         lose_ack: Arc::new(AtomicBool::new(false)),
     };
-    let mut a = Audit::open_backend(Box::new(flaky), path.display().to_string(), "p.nc", None, &now_utc()).unwrap();
+    let mut a =
+        Audit::open_backend(Box::new(flaky), path.display().to_string(), "p.nc", None, &now_utc()).unwrap();
     a.set_notify(|_| {});
     a.set_spool_dir(dir.path());
     a.set_retry(Duration::from_millis(50), Duration::from_millis(200));
     stop(&mut a, 0);
     down.store(true, Ordering::SeqCst);
     stop(&mut a, 1);
-    let e = a.finish("SUCCESS", None, &now_utc()).err().expect("unsent");
+    let e = a.finish("SUCCESS", None, &now_utc()).expect_err("unsent");
     let AuditError::Unsent { spool, records, .. } = &e else { panic!("{e}") };
     assert_eq!(*records, 3, "block, stop, end");
     assert!(!e.is_usage());
@@ -449,12 +451,13 @@ fn a_run_ending_during_an_outage_leaves_a_spool_to_push() {
         down: down.clone(),
         lose_ack: Arc::new(AtomicBool::new(false)),
     };
-    let mut a = Audit::open_backend(Box::new(flaky), path.display().to_string(), "p.nc", None, &now_utc()).unwrap();
+    let mut a =
+        Audit::open_backend(Box::new(flaky), path.display().to_string(), "p.nc", None, &now_utc()).unwrap();
     a.set_notify(|_| {});
     a.set_spool_dir(dir.path().join("no/such/dir"));
     down.store(true, Ordering::SeqCst);
     a.record(&Event::Block { line: 1, text: "G1".into(), time_s: 0.0 }).unwrap();
-    let e = a.commit().err().expect("cannot keep");
+    let e = a.commit().expect_err("cannot keep");
     assert!(e.to_string().contains("cannot be kept"), "{e}");
 }
 

@@ -267,7 +267,7 @@ fn postgres_outage_in_the_middle_of_a_run() {
     stop(&mut a, 0);
     c.crash();
     stop(&mut a, 1);
-    let e = a.finish("ABORTED", Some("signal"), &now_utc()).err().expect("unsent");
+    let e = a.finish("ABORTED", Some("signal"), &now_utc()).expect_err("unsent");
     let AuditError::Unsent { spool, records, .. } = e else { panic!("{e}") };
     assert_eq!(records, 4);
     drop(a);

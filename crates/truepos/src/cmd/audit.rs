@@ -103,9 +103,14 @@ pub fn run(a: Args) -> Result<Outcome> {
             let mut t = open(&d.db)?;
             let runs = t.runs()?;
             if d.json {
-                print_json(&json!({ "db": t.display(), "runs": runs.iter().map(RunSummary::to_json).collect::<Vec<_>>() }))?;
+                print_json(
+                    &json!({ "db": t.display(), "runs": runs.iter().map(RunSummary::to_json).collect::<Vec<_>>() }),
+                )?;
             } else {
-                println!("{:>5}  {:<8}  {:<24}  {:<24}  {:<8}  program  controller", "run", "status", "started", "ended", "uid");
+                println!(
+                    "{:>5}  {:<8}  {:<24}  {:<24}  {:<8}  program  controller",
+                    "run", "status", "started", "ended", "uid"
+                );
                 for r in &runs {
                     println!("{}", run_line(r));
                 }
@@ -117,7 +122,9 @@ pub fn run(a: Args) -> Result<Outcome> {
             let r = t.run(&run)?;
             let counts = t.counts(r.id)?;
             let records = t.records(r.id)?;
-            let pick = |table: &str| records.iter().filter(|x| x.table == table).map(|x| x.to_json()).collect::<Vec<_>>();
+            let pick = |table: &str| {
+                records.iter().filter(|x| x.table == table).map(|x| x.to_json()).collect::<Vec<_>>()
+            };
             if db.json {
                 let c: serde_json::Map<String, serde_json::Value> =
                     counts.iter().map(|(k, n)| (k.to_string(), (*n).into())).collect();
@@ -132,19 +139,37 @@ pub fn run(a: Args) -> Result<Outcome> {
                     println!("  message {m}");
                 }
                 println!("  controller {} {}", opt(&r.controller), opt(&r.controller_version));
-                let c: Vec<String> = counts.iter().filter(|c| c.1 > 0).map(|(k, n)| format!("{k} {n}")).collect();
+                let c: Vec<String> =
+                    counts.iter().filter(|c| c.1 > 0).map(|(k, n)| format!("{k} {n}")).collect();
                 println!("  records: {}", if c.is_empty() { "none".into() } else { c.join(", ") });
                 for s in records.iter().filter(|x| x.table == "stops") {
                     let g = |c: &str| s.get(c).map(|v| v.to_field()).unwrap_or_default();
-                    println!("  stop line {:>5}  {:<8}  final error {} mm  iterations {}", g("line"), g("status"), g("final_error_mm"), g("iterations"));
+                    println!(
+                        "  stop line {:>5}  {:<8}  final error {} mm  iterations {}",
+                        g("line"),
+                        g("status"),
+                        g("final_error_mm"),
+                        g("iterations")
+                    );
                 }
                 for s in records.iter().filter(|x| x.table == "alarms") {
                     let g = |c: &str| s.get(c).map(|v| v.to_field()).unwrap_or_default();
-                    println!("  alarm line {:>5}  {}: {} ({})", g("line"), g("kind"), g("message"), g("action"));
+                    println!(
+                        "  alarm line {:>5}  {}: {} ({})",
+                        g("line"),
+                        g("kind"),
+                        g("message"),
+                        g("action")
+                    );
                 }
                 for s in records.iter().filter(|x| x.table == "inspections") {
                     let g = |c: &str| s.get(c).map(|v| v.to_field()).unwrap_or_default();
-                    println!("  hole {}  position error {} mm  diameter {} mm", g("hole"), g("position_error_mm"), g("diameter_mm"));
+                    println!(
+                        "  hole {}  position error {} mm  diameter {} mm",
+                        g("hole"),
+                        g("position_error_mm"),
+                        g("diameter_mm")
+                    );
                 }
             }
         }
@@ -168,9 +193,9 @@ pub fn run(a: Args) -> Result<Outcome> {
         AuditCommand::Verify(d) => {
             let mut t = open(&d.db)?;
             let v = t.verify()?;
-            let broken = v.first_broken.as_ref().map(|b| {
-                json!({ "seq": b.seq, "table": b.table, "record_id": b.record_id, "problem": b.problem })
-            });
+            let broken = v.first_broken.as_ref().map(
+                |b| json!({ "seq": b.seq, "table": b.table, "record_id": b.record_id, "problem": b.problem }),
+            );
             if d.json {
                 print_json(&json!({
                     "db": t.display(), "ok": v.first_broken.is_none(), "records": v.records,
@@ -189,7 +214,10 @@ pub fn run(a: Args) -> Result<Outcome> {
                     ),
                 }
                 if v.legacy_records > 0 {
-                    eprintln!("note: {} rows predate the hash chain (schema < 4) and cannot be verified", v.legacy_records);
+                    eprintln!(
+                        "note: {} rows predate the hash chain (schema < 4) and cannot be verified",
+                        v.legacy_records
+                    );
                 }
             }
             if v.first_broken.is_some() {
@@ -209,7 +237,9 @@ pub fn run(a: Args) -> Result<Outcome> {
             let db = db.as_deref().map(parse_db).transpose()?;
             let (db, sent) = truepos_audit::push_spool(&spool, db.as_ref())?;
             if as_json {
-                print_json(&json!({ "db": db.display(), "spool": spool.display().to_string(), "sent": sent }))?;
+                print_json(
+                    &json!({ "db": db.display(), "spool": spool.display().to_string(), "sent": sent }),
+                )?;
             } else {
                 println!("{sent} records sent from {} to {}; spool removed", spool.display(), db.display());
             }

@@ -102,7 +102,8 @@ pub fn run(a: InspectArgs) -> Result<Outcome> {
     }
     let db = super::audit::parse_db(&a.db)?;
     let source = a.program.as_ref().or(a.holes.as_ref()).map(|p| p.display().to_string()).unwrap_or_default();
-    let mut audit = truepos_audit::Audit::open_noted(&db, &source, Some("somac inspect"), &truepos_audit::now_utc())?;
+    let mut audit =
+        truepos_audit::Audit::open_noted(&db, &source, Some("somac inspect"), &truepos_audit::now_utc())?;
     let r = inspect_and_record(&a, &holes, &plan, &mut audit);
     let (status, message) = match &r {
         Ok(rep) if !rep.out_of_tolerance().is_empty() => ("FAILURE", None),

@@ -80,7 +80,8 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         .into());
     }
     let db = super::audit::parse_db(&a.db)?;
-    let mut audit = truepos_audit::Audit::open(&db, &a.program.display().to_string(), &truepos_audit::now_utc())?;
+    let mut audit =
+        truepos_audit::Audit::open(&db, &a.program.display().to_string(), &truepos_audit::now_utc())?;
     let mut on_controller = None;
     let vr = if a.controller != "virtual" {
         run_on_controller(&a, &text, cfg, targets, &params, &mut audit).map(|(vr, extra)| {
@@ -129,7 +130,11 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
             (true, true) => {}
         }
     }
-    eprintln!("audit trail appended to {} (run {}; --db FILE|postgresql://… to choose another)", db.display(), audit.run_id());
+    eprintln!(
+        "audit trail appended to {} (run {}; --db FILE|postgresql://… to choose another)",
+        db.display(),
+        audit.run_id()
+    );
     Ok(if vr.report.failed() { Outcome::OutOfTolerance } else { Outcome::Done })
 }
 
