@@ -263,7 +263,10 @@ fn classify(e: postgres::Error, target: &PgTarget) -> BackendError {
             let mut m = e.to_string();
             let mut src = std::error::Error::source(&e);
             while let Some(s) = src {
-                m = format!("{m}: {s}");
+                let t = s.to_string();
+                if !m.contains(&t) {
+                    m = format!("{m}: {t}");
+                }
                 src = s.source();
             }
             m

@@ -213,7 +213,7 @@ fn rate(d: &Db, stops: usize) -> f64 {
 
 #[test]
 fn postgres_outage_in_the_middle_of_a_run() {
-    let Some(c) = Cluster::start() else { return };
+    let Some(c) = Cluster::start_durable() else { return };
     let owner = db(&c, "owner");
     let cell = db(&c, "cell");
     Trail::open(&owner).unwrap();

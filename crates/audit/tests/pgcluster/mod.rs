@@ -3,7 +3,8 @@
 //! port, password (SCRAM) authentication over TCP, trust on its own Unix socket inside the
 //! directory. Stopped (immediately) and removed when dropped, also when a test fails.
 //! [`Cluster::start`] returns `None` after printing `SKIPPED: …` when PostgreSQL is not
-//! installed or cannot start. Shared by `crates/audit/tests` and `crates/truepos/tests`.
+//! installed or cannot start. `fsync` is off except in [`Cluster::start_durable`]. Shared by
+//! `crates/audit/tests` and `crates/truepos/tests`.
 
 #![allow(dead_code)]
 
@@ -17,6 +18,10 @@ pub struct Cluster {
     pub port: u16,
     /// Run the server and clients as this OS user (when the tests are root).
     run_as: Option<String>,
+    /// `fsync` of the server: off unless a test measures throughput. A killed server keeps what
+    /// it wrote in the OS page cache, so crash tests hold either way; commits still wait for the
+    /// WAL write (`synchronous_commit` stays on).
+    fsync: bool,
 }
 
 pub const OWNER_PW: &str = "owner-pw-7Q";
@@ -54,6 +59,15 @@ impl Cluster {
     /// `cell` (may only SELECT and INSERT what `owner` creates there), passwords [`OWNER_PW`],
     /// [`CELL_PW`].
     pub fn start() -> Option<Cluster> {
+        Self::start_with(false)
+    }
+
+    /// [`Cluster::start`] with `fsync` on, as a production server (for throughput figures).
+    pub fn start_durable() -> Option<Cluster> {
+        Self::start_with(true)
+    }
+
+    fn start_with(fsync: bool) -> Option<Cluster> {
         let Some(bin) = find_bin() else {
             return skipped("no /usr/lib/postgresql/*/bin/initdb (apt-get install postgresql)");
         };
@@ -86,7 +100,7 @@ impl Cluster {
                 return skipped("cannot chown the data directory to postgres");
             }
         }
-        let c = Cluster { dir, data, bin, port: 0, run_as };
+        let c = Cluster { dir, data, bin, port: 0, run_as, fsync };
         let d = c.data.display().to_string();
         let out = c.run(
             "initdb",
@@ -152,7 +166,8 @@ impl Cluster {
     fn pg_ctl_start(&self) -> bool {
         let d = self.data.display().to_string();
         let log = self.data.join("log").display().to_string();
-        let opts = format!("-p {} -k {d} -c listen_addresses=127.0.0.1", self.port);
+        let fsync = if self.fsync { "on" } else { "off" };
+        let opts = format!("-p {} -k {d} -c listen_addresses=127.0.0.1 -c fsync={fsync}", self.port);
         self.run("pg_ctl", &["-D", &d, "-w", "-t", "30", "-l", &log, "-o", &opts, "start"])
             .is_ok_and(|o| o.status.success())
     }
