@@ -251,8 +251,10 @@ pub struct Verification {
 }
 
 /// Recompute the whole chain: every hash from its record's content and the previous hash, the
-/// sequence 1, 2, 3, … without gap or repeat. Stops at the first broken record.
-pub fn verify(b: &mut dyn Backend) -> Result<Verification, BackendError> {
+/// sequence 1, 2, 3, … without gap or repeat. Stops at the first broken record. `anchor`: a
+/// head (`seq`, `hash`) printed by an earlier verify and kept elsewhere; it detects what the
+/// chain alone cannot, records deleted at its end.
+pub fn verify(b: &mut dyn Backend, anchor: Option<(i64, &str)>) -> Result<Verification, BackendError> {
     let mut all = Vec::new();
     for sp in SPECS {
         all.extend(read_table(b, sp, None)?);
@@ -319,5 +321,27 @@ pub fn verify(b: &mut dyn Backend) -> Result<Verification, BackendError> {
         }
     }
     let head = all.last().map_or((0, GENESIS.to_string()), |r| (r.seq, r.hash.clone()));
+    // A head kept elsewhere earlier: the record at its seq must still be there, unchanged.
+    if let (None, Some((seq, hash))) = (&first_broken, anchor) {
+        let problem = match all.iter().find(|r| r.seq == seq) {
+            Some(r) if r.hash == hash => None,
+            Some(r) => Some((
+                r.table.to_string(),
+                r.record_id.clone(),
+                format!("the kept head says hash {hash}, the chain has {} (the chain was rewritten)", r.hash),
+            )),
+            None => Some((
+                String::new(),
+                String::new(),
+                format!(
+                    "the kept head is record {seq} but the chain ends at {} (records at its end were deleted)",
+                    head.0
+                ),
+            )),
+        };
+        if let Some((table, record_id, problem)) = problem {
+            first_broken = Some(Break { seq, table, record_id, problem });
+        }
+    }
     Ok(Verification { records: all.len() as i64, legacy_records, head, first_broken })
 }

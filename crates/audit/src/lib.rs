@@ -730,7 +730,13 @@ impl Trail {
 
     /// Recompute the whole chain ([`chain::verify`]).
     pub fn verify(&mut self) -> Result<Verification, AuditError> {
-        chain::verify(self.backend.as_mut()).map_err(self.err())
+        chain::verify(self.backend.as_mut(), None).map_err(self.err())
+    }
+
+    /// [`Trail::verify`], and the record at a head kept earlier (`seq`, `hash`) must still be
+    /// there unchanged (detects records deleted at the end of the chain).
+    pub fn verify_against(&mut self, seq: i64, hash: &str) -> Result<Verification, AuditError> {
+        chain::verify(self.backend.as_mut(), Some((seq, hash))).map_err(self.err())
     }
 }
 

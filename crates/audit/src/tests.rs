@@ -268,6 +268,17 @@ fn the_chain_names_the_first_changed_deleted_or_inserted_record() {
         assert_eq!(b.seq, *seq, "{sql}: {b:?}");
         assert!(b.problem.contains(what), "{sql}: {b:?}");
     }
+    // Records deleted at the end: only a head kept elsewhere tells.
+    let p = dir.path().join("truncated.sqlite");
+    std::fs::copy(&src, &p).unwrap();
+    assert!(tamper(&p, "DELETE FROM run_ends WHERE seq = 16; DELETE FROM stops WHERE seq = 15").is_none());
+    let mut t = Trail::open(&sqlite(&p)).unwrap();
+    let b = t.verify_against(v.head.0, &v.head.1).unwrap().first_broken.expect("detected with the head");
+    assert!(b.problem.contains("chain ends at 14"), "{b:?}");
+    let ok = Trail::open(&sqlite(&src)).unwrap().verify_against(8, &v.head.1).unwrap();
+    assert!(ok.first_broken.unwrap().problem.contains("rewritten"));
+    let ok = Trail::open(&sqlite(&src)).unwrap().verify_against(v.head.0, &v.head.1).unwrap();
+    assert!(ok.first_broken.is_none());
     // Taking the last record out of the chain while keeping its id.
     let p = dir.path().join("tail.sqlite");
     std::fs::copy(&src, &p).unwrap();

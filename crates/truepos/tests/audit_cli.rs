@@ -127,9 +127,22 @@ fn audit_commands_on_sqlite_and_tampering_named() {
     ok_json(&o);
     assert!(stderr(&o).contains("audit trail appended to a.sqlite (run 3)"), "{}", stderr(&o));
     check_trail(dir, "a.sqlite", &[], stops);
+    let v = ok_json(&bin(dir).args(["audit", "verify", "--db", "a.sqlite", "--json"]).output().unwrap());
+    let head = format!("{}:{}", v["head"]["seq"], v["head"]["hash"].as_str().unwrap());
+    let o = bin(dir).args(["audit", "verify", "--db", "a.sqlite", "--head", &head]).output().unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let o = bin(dir).args(["audit", "verify", "--db", "a.sqlite", "--head", "12:abc"]).output().unwrap();
+    common::expect_input_error(&o, &["is not SEQ:HASH"]);
+    // The last record deleted: only the kept head tells.
+    let c = rusqlite::Connection::open(dir.join("a.sqlite")).unwrap();
+    c.execute("DELETE FROM run_ends WHERE run_id = 3", []).unwrap();
+    let o = bin(dir).args(["audit", "verify", "--db", "a.sqlite"]).output().unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let o = bin(dir).args(["audit", "verify", "--db", "a.sqlite", "--head", &head]).output().unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("records at its end were deleted"));
 
     // An owner's change to one value: verify exits 1 naming that record.
-    let c = rusqlite::Connection::open(dir.join("a.sqlite")).unwrap();
     let seq: i64 = c.query_row("SELECT MIN(seq) FROM stops WHERE run_id = 2", [], |r| r.get(0)).unwrap();
     c.execute("UPDATE stops SET final_error_mm = 0.0001 WHERE seq = ?1", [seq]).unwrap();
     let o = bin(dir).args(["audit", "verify", "--db", "a.sqlite", "--json"]).output().unwrap();

@@ -54,7 +54,14 @@ pub enum AuditCommand {
         db: String,
     },
     /// Recompute the hash chain; exit 1 naming the first broken record.
-    Verify(DbArg),
+    Verify {
+        #[command(flatten)]
+        db: DbArg,
+        /// A head printed by an earlier verify (SEQ:HASH), kept elsewhere: that record must still
+        /// be there unchanged (detects records deleted at the end of the chain).
+        #[arg(long, value_name = "SEQ:HASH")]
+        head: Option<String>,
+    },
     /// Create or migrate the schema (run once as the schema owner; cells then only insert and read).
     Migrate(DbArg),
     /// Send a spool left by a run that ended while the database was unreachable.
@@ -190,9 +197,25 @@ pub fn run(a: Args) -> Result<Outcome> {
             }
             eprintln!("run {}: {} records exported", r.id, records.len());
         }
-        AuditCommand::Verify(d) => {
+        AuditCommand::Verify { db: d, head } => {
+            let anchor = match head.as_deref() {
+                None => None,
+                Some(h) => {
+                    let bad =
+                        || UsageError(format!("--head '{h}' is not SEQ:HASH (as `audit verify` prints it)"));
+                    let (seq, hash) = h.split_once(':').ok_or_else(bad)?;
+                    let seq: i64 = seq.parse().map_err(|_| bad())?;
+                    if hash.len() != 64 || !hash.bytes().all(|c| c.is_ascii_hexdigit()) {
+                        return Err(bad().into());
+                    }
+                    Some((seq, hash.to_ascii_lowercase()))
+                }
+            };
             let mut t = open(&d.db)?;
-            let v = t.verify()?;
+            let v = match &anchor {
+                Some((seq, hash)) => t.verify_against(*seq, hash)?,
+                None => t.verify()?,
+            };
             let broken = v.first_broken.as_ref().map(
                 |b| json!({ "seq": b.seq, "table": b.table, "record_id": b.record_id, "problem": b.problem }),
             );
@@ -205,7 +228,7 @@ pub fn run(a: Args) -> Result<Outcome> {
             } else {
                 match &v.first_broken {
                     None => println!(
-                        "ok: {} records, chain intact; head seq {} hash {}",
+                        "ok: {} records, chain intact; head {}:{} (keep it: --head checks it later)",
                         v.records, v.head.0, v.head.1
                     ),
                     Some(b) => println!(
