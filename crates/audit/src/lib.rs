@@ -1,39 +1,66 @@
-//! # truepos-audit — the audit trail in SQLite
+//! # truepos-audit — the audit trail, in SQLite or a shared PostgreSQL
 //!
-//! Every block sent, measurement, correction, alarm, orientation and refractive-index update of
-//! an end-point control run, stored in an embedded SQLite database. Events are kept in memory
-//! during a measurement stop and written in one transaction at its end ([`AuditSink::commit`]),
-//! so a crash loses nothing that was committed and never leaves half a stop, and the write lock
-//! is held only for the milliseconds of that transaction.
+//! Every block sent, measurement, correction, alarm, orientation, refractive-index update and
+//! hole inspection of a run, and the run's start, controller and end, stored as records in one
+//! database: a SQLite file ([`Db::Sqlite`], the default, no server) or PostgreSQL
+//! ([`Db::Postgres`], `postgresql://USER@HOST:PORT/DB`, for a fleet of cells sharing one trail).
+//! The record logic is written once over a small [`backend::Backend`] trait; both databases
+//! get the same schema ([`schema`]), the same records and the same hashes.
 //!
-//! Several runs may share one database at once: a busy timeout makes writers wait for each other,
-//! the migrations run in one `BEGIN IMMEDIATE` transaction that re-reads the schema version, and
-//! every run row records its start, end and final status ([`SqliteAudit::finish`]). Timestamps
-//! are ISO 8601 UTC ([`now_utc`]). A file that is not a truepos audit database (not SQLite, or
-//! SQLite with other tables), or one whose schema is newer than this build knows, is refused
-//! before anything is written to it: it stays byte for byte as it was.
+//! * **Transactions.** Events are kept in memory during a measurement stop and appended in one
+//!   exclusive transaction at its end ([`AuditSink::commit`]): a crash loses nothing committed
+//!   and never leaves half a stop. Many writers (processes, cells) share a database; they take
+//!   turns at the chain's head.
+//! * **Hash chain.** Every record carries `prev_hash` and `hash` (SHA-256 over its canonical
+//!   content, [`chain`]); [`Trail::verify`] names the first changed, inserted or deleted record.
+//! * **Schema.** Created and migrated forward on first use ([`schema::migrate`]); a database with
+//!   tables truepos does not create, or a newer schema, is refused and left unchanged.
+//! * **Outages.** When the connection is lost, batches go to a local SQLite spool ([`spool`],
+//!   its path announced through the notice callback) and are sent, in order and exactly once
+//!   (writer-chosen record ids), when the database is back; a spool that cannot be written stops
+//!   the run (the error reaches the loop). [`Audit::finish`] waits a while for the database and
+//!   otherwise reports the spool to send later (`truepos audit push`).
+//! * **Least privilege.** Writing needs only INSERT and SELECT (no UPDATE, DELETE or DDL once the
+//!   owner has created the schema): the run rows are append-only and `runs` is a view.
 //!
-//! The schema uses only portable SQL (INTEGER, REAL, TEXT; no SQLite-specific types or
-//! functions) and numbered migrations in `schema_migrations`, so the same migrations run on
-//! PostgreSQL when shared plants need it.
-//!
-//! Entry points: [`SqliteAudit::open`], [`SqliteAudit::finish`], [`MIGRATIONS`],
-//! [`SqliteAudit::count`], [`now_utc`].
+//! Entry points: [`Db::parse`], [`Audit::open`] (a run: an [`AuditSink`]), [`Audit::finish`],
+//! [`Trail::open`] (list, show, export, verify), [`push_spool`], [`now_utc`].
 
-use rusqlite::{params, Connection, OpenFlags};
-use std::path::Path;
-use std::time::Duration;
+pub mod backend;
+pub mod chain;
+pub mod pg;
+pub mod schema;
+pub mod spool;
+pub mod sqlite;
+
+pub use backend::{BackendError, Value};
+pub use chain::{Break, Stored, Verification};
+pub use schema::{MIGRATIONS, TABLES};
+pub use sqlite::BUSY_TIMEOUT;
+
+use backend::{exclusive, Backend};
+use chain::Record;
+use pg::{PgBackend, PgTarget};
+use schema::{spec, SPECS};
+use spool::Spool;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
 use thiserror::Error;
 use truepos_somac::audit::{AuditSink, Event, SinkError};
 
 #[derive(Debug, Error)]
 pub enum AuditError {
-    #[error("audit database: {0}")]
-    Sql(#[from] rusqlite::Error),
-    /// The file is not a truepos audit database; it was not modified.
+    /// The database failed (or could not be reached).
+    #[error("audit trail {db}: {source}")]
+    Db {
+        db: String,
+        #[source]
+        source: BackendError,
+    },
+    /// The database is not a truepos audit database; it was not modified.
     #[error("{path} is not a truepos audit database ({why}); it was left unchanged")]
     Foreign { path: String, why: String },
-    /// The schema is newer than this build; the file was not modified.
+    /// The schema is newer than this build; the database was not modified.
     #[error(
         "{path} has audit schema version {found}, newer than this truepos knows ({known}); it was left \
          unchanged (use a newer truepos)"
@@ -41,23 +68,714 @@ pub enum AuditError {
     Newer { path: String, found: i64, known: i64 },
     #[error("timestamp '{0}' is not ISO 8601 UTC (YYYY-MM-DDTHH:MM:SS[.fff]Z)")]
     BadTimestamp(String),
+    /// A `--db` value that is not a usable address (never contains a password).
+    #[error("--db: {0}")]
+    Address(String),
+    /// Reading a trail (or spool) that does not exist.
+    #[error("no audit trail at {0}")]
+    Missing(String),
+    #[error("audit trail {db}: no run '{run}' (give its id or uid, see `truepos audit list`)")]
+    NoSuchRun { db: String, run: String },
+    /// The local spool could not keep records: the run must stop.
+    #[error("audit spool: {0}; the records of this stop cannot be kept")]
+    Spool(String),
+    /// The run ended while the database was away: its last records are in the spool.
+    #[error(
+        "audit trail {db} is unreachable; {records} records of this run are kept in {spool}: send them \
+         with `truepos audit push {spool}` when it is back"
+    )]
+    Unsent { db: String, spool: String, records: i64 },
 }
 
-/// How long a writer waits for another one before giving up.
-pub const BUSY_TIMEOUT: Duration = Duration::from_secs(60);
+impl AuditError {
+    pub(crate) fn db(db: impl std::fmt::Display, source: BackendError) -> AuditError {
+        AuditError::Db { db: db.to_string(), source }
+    }
 
-/// The tables the migrations create (a database with any other table is someone else's).
-pub const TABLES: &[&str] = &[
-    "schema_migrations",
-    "runs",
-    "blocks",
-    "measurements",
-    "corrections",
-    "alarms",
-    "orientations",
-    "refractive_index_updates",
-    "stops",
-];
+    /// Bad usage or input (exit 2); everything else is a failure of the trail (exit 3).
+    pub fn is_usage(&self) -> bool {
+        matches!(
+            self,
+            AuditError::Foreign { .. }
+                | AuditError::Newer { .. }
+                | AuditError::BadTimestamp(_)
+                | AuditError::Address(_)
+                | AuditError::Missing(_)
+                | AuditError::NoSuchRun { .. }
+        )
+    }
+}
+
+/// Where the trail is.
+#[derive(Debug, Clone)]
+pub enum Db {
+    Sqlite(PathBuf),
+    Postgres(PgTarget),
+}
+
+impl From<&Path> for Db {
+    fn from(p: &Path) -> Db {
+        Db::Sqlite(p.to_path_buf())
+    }
+}
+
+impl From<PathBuf> for Db {
+    fn from(p: PathBuf) -> Db {
+        Db::Sqlite(p)
+    }
+}
+
+impl From<&PathBuf> for Db {
+    fn from(p: &PathBuf) -> Db {
+        Db::Sqlite(p.clone())
+    }
+}
+
+impl From<&Db> for Db {
+    fn from(d: &Db) -> Db {
+        d.clone()
+    }
+}
+
+impl Db {
+    /// `postgresql://…` (or `postgres://…`) is PostgreSQL, its password from `PGPASSWORD` or
+    /// `~/.pgpass`; anything else is a SQLite file path.
+    pub fn parse(s: &str) -> Result<Db, AuditError> {
+        Db::parse_with(s, &|k| std::env::var(k).ok())
+    }
+
+    /// [`Db::parse`] with the environment given (tests).
+    pub fn parse_with(s: &str, env: &dyn Fn(&str) -> Option<String>) -> Result<Db, AuditError> {
+        if s.starts_with("postgresql://") || s.starts_with("postgres://") {
+            return PgTarget::parse(s, env).map(Db::Postgres).map_err(AuditError::Address);
+        }
+        if let Some((scheme, _)) = s.split_once("://") {
+            if !scheme.is_empty() && scheme.chars().all(|c| c.is_ascii_alphanumeric() || "+-.".contains(c)) {
+                return Err(AuditError::Address(format!(
+                    "'{scheme}://' is not a supported database (a SQLite file path or postgresql://USER@HOST:PORT/DB)"
+                )));
+            }
+        }
+        if s.is_empty() {
+            return Err(AuditError::Address("empty".into()));
+        }
+        Ok(Db::Sqlite(PathBuf::from(s)))
+    }
+
+    /// The database as shown in messages (never a password).
+    pub fn display(&self) -> String {
+        match self {
+            Db::Sqlite(p) => p.display().to_string(),
+            Db::Postgres(t) => t.display(),
+        }
+    }
+
+    /// Connect (a SQLite file is created when `create`; otherwise it must exist).
+    pub fn connect(&self, create: bool) -> Result<Box<dyn Backend>, AuditError> {
+        Ok(match self {
+            Db::Sqlite(p) => Box::new(sqlite::SqliteBackend::open(p, create)?),
+            Db::Postgres(t) => Box::new(PgBackend::connect(t).map_err(|e| AuditError::db(t.display(), e))?),
+        })
+    }
+}
+
+/// A fresh run uid: 32 hex digits from the time, process, a counter and the address space.
+fn new_uid() -> String {
+    use sha2::{Digest, Sha256};
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let t = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
+    let local = 0u8;
+    let mut h = Sha256::new();
+    h.update(t.as_nanos().to_le_bytes());
+    h.update(std::process::id().to_le_bytes());
+    h.update(COUNTER.fetch_add(1, Ordering::Relaxed).to_le_bytes());
+    h.update((&local as *const u8 as usize).to_le_bytes());
+    h.update(format!("{:?}", std::thread::current().id()).as_bytes());
+    if let Ok(host) = std::fs::read_to_string("/proc/sys/kernel/hostname") {
+        h.update(host.as_bytes());
+    }
+    h.finalize().iter().take(16).map(|b| format!("{b:02x}")).collect()
+}
+
+/// One run's writer: an [`AuditSink`] whose stops are appended to the chain at each commit.
+pub struct Audit {
+    backend: Box<dyn Backend>,
+    shown: String,
+    run_id: i64,
+    uid: String,
+    next: u64,
+    /// Records of the current stop, appended at [`AuditSink::commit`].
+    pending: Vec<Record>,
+    spool: Option<Spool>,
+    spool_dir: PathBuf,
+    last_try: Option<Instant>,
+    retry_every: Duration,
+    finish_wait: Duration,
+    finished: bool,
+    notify: Box<dyn FnMut(&str) + Send>,
+}
+
+/// Seconds from an environment variable.
+fn env_secs(name: &str, default: f64) -> Duration {
+    let s =
+        std::env::var(name).ok().and_then(|v| v.parse::<f64>().ok()).filter(|s| s.is_finite() && *s >= 0.0);
+    Duration::from_secs_f64(s.unwrap_or(default))
+}
+
+impl Audit {
+    /// Open (or create) the trail, run pending migrations, and start a new run (its start
+    /// record is in the chain when this returns). `started_at` must be ISO 8601 UTC
+    /// ([`now_utc`]). A database that cannot be reached now is an error: no run starts
+    /// without its trail.
+    ///
+    /// Spool directory: `TRUEPOS_AUDIT_SPOOL_DIR` (default the current directory); retry
+    /// period while spooling: `TRUEPOS_AUDIT_RETRY_S` (default 5 s); how long
+    /// [`Audit::finish`] waits for the database: `TRUEPOS_AUDIT_WAIT_S` (default 60 s).
+    pub fn open(db: impl Into<Db>, program: &str, started_at: &str) -> Result<Self, AuditError> {
+        Self::open_noted(db, program, None, started_at)
+    }
+
+    /// [`Audit::open`] with a note on the run (e.g. `somac inspect`: what kind of run it is).
+    pub fn open_noted(
+        db: impl Into<Db>,
+        program: &str,
+        note: Option<&str>,
+        started_at: &str,
+    ) -> Result<Self, AuditError> {
+        let db = db.into();
+        if !is_iso8601_utc(started_at) {
+            return Err(AuditError::BadTimestamp(started_at.into()));
+        }
+        let shown = db.display();
+        let backend = db.connect(true)?;
+        Self::open_backend(backend, shown, program, note, started_at)
+    }
+
+    /// [`Audit::open`] on a backend already connected.
+    pub fn open_backend(
+        mut backend: Box<dyn Backend>,
+        shown: String,
+        program: &str,
+        note: Option<&str>,
+        started_at: &str,
+    ) -> Result<Self, AuditError> {
+        if !is_iso8601_utc(started_at) {
+            return Err(AuditError::BadTimestamp(started_at.into()));
+        }
+        schema::migrate(backend.as_mut(), &shown, started_at)?;
+        let uid = new_uid();
+        let run_id = exclusive(backend.as_mut(), |b| -> Result<i64, BackendError> {
+            let rows = b.query("SELECT COALESCE(MAX(id), 0) + 1 FROM run_starts", &[])?;
+            let id = rows.first().and_then(|r| r.first()).and_then(Value::as_i64).unwrap_or(1);
+            let start = Record {
+                table: "run_starts",
+                record_id: format!("{uid}-0"),
+                values: vec![
+                    Value::Int(id),
+                    Value::text(&uid),
+                    Value::text(started_at),
+                    Value::text(program),
+                    Value::opt_text(note),
+                ],
+            };
+            chain::append_in(b, &[start])?;
+            Ok(id)
+        })
+        .map_err(|e| AuditError::db(&shown, e))?;
+        Ok(Audit {
+            backend,
+            shown,
+            run_id,
+            uid,
+            next: 1,
+            pending: Vec::new(),
+            spool: None,
+            spool_dir: std::env::var_os("TRUEPOS_AUDIT_SPOOL_DIR")
+                .map_or_else(|| PathBuf::from("."), PathBuf::from),
+            last_try: None,
+            retry_every: env_secs("TRUEPOS_AUDIT_RETRY_S", 5.0),
+            finish_wait: env_secs("TRUEPOS_AUDIT_WAIT_S", 60.0),
+            finished: false,
+            notify: Box::new(|m| eprintln!("{m}")),
+        })
+    }
+
+    /// Where spool files go (default: `TRUEPOS_AUDIT_SPOOL_DIR` or the current directory).
+    pub fn set_spool_dir(&mut self, dir: impl Into<PathBuf>) {
+        self.spool_dir = dir.into();
+    }
+
+    /// How often to try the database again while spooling, and how long [`Audit::finish`]
+    /// waits for it.
+    pub fn set_retry(&mut self, every: Duration, finish_wait: Duration) {
+        self.retry_every = every;
+        self.finish_wait = finish_wait;
+    }
+
+    /// Where notices go (spool started, spool sent); default stderr.
+    pub fn set_notify(&mut self, f: impl FnMut(&str) + Send + 'static) {
+        self.notify = Box::new(f);
+    }
+
+    /// Commit what is pending and record the run's end time and final status (for example
+    /// `SUCCESS`, `FAILURE`, `ERROR`, `ABORTED`) with an optional message. When the database
+    /// is away, waits for it (see [`Audit::open`]); if it does not come back the records stay in
+    /// the spool and [`AuditError::Unsent`] names it.
+    pub fn finish(&mut self, status: &str, message: Option<&str>, ended_at: &str) -> Result<(), AuditError> {
+        if !is_iso8601_utc(ended_at) {
+            return Err(AuditError::BadTimestamp(ended_at.into()));
+        }
+        let r =
+            self.make("run_ends", vec![Value::text(ended_at), Value::text(status), Value::opt_text(message)]);
+        self.pending.push(r);
+        self.flush()?;
+        self.finished = true;
+        let t0 = Instant::now();
+        while self.spool.is_some() {
+            if t0.elapsed() >= self.finish_wait {
+                let spool = self.spool.as_ref().expect("checked");
+                return Err(AuditError::Unsent {
+                    db: self.shown.clone(),
+                    spool: spool.path().display().to_string(),
+                    records: spool.records().unwrap_or(-1),
+                });
+            }
+            std::thread::sleep(self.retry_every.min(Duration::from_millis(500)));
+            self.try_drain(true)?;
+        }
+        Ok(())
+    }
+
+    /// Record the controller this run drives: its address and version.
+    pub fn set_controller(&mut self, address: &str, version: &str) -> Result<(), AuditError> {
+        let r = self.make(
+            "run_controllers",
+            vec![Value::text(address), Value::text(version), Value::text(now_utc())],
+        );
+        self.pending.push(r);
+        self.flush()
+    }
+
+    /// Record one inspected hole (`somac inspect`); stored at the next commit.
+    pub fn record_inspection(&mut self, h: &truepos_somac::inspect::HoleResult) {
+        let n = &h.hole.nominal_mm;
+        let m = &h.measured_mm;
+        let v = vec![
+            Value::text(&h.hole.id),
+            h.hole.line.map_or(Value::Null, |l| Value::Int(l as i64)),
+            Value::real(n.x),
+            Value::real(n.y),
+            Value::real(n.z),
+            Value::real(m.x),
+            Value::real(m.y),
+            Value::real(m.z),
+            Value::real(h.error_xy_mm[0]),
+            Value::real(h.error_xy_mm[1]),
+            Value::real(h.position_error_mm),
+            Value::real(h.hole.diameter_mm),
+            Value::real(h.diameter_mm),
+            Value::real(h.diameter_error_mm),
+            Value::real(h.roundness_mm),
+            Value::Int(h.points.len() as i64),
+            Value::real(h.elapsed_s),
+        ];
+        let r = self.make("inspections", v);
+        self.pending.push(r);
+    }
+
+    /// The controller recorded for this run (address, version).
+    pub fn controller(&mut self) -> Result<(Option<String>, Option<String>), AuditError> {
+        let rows = self
+            .backend
+            .query(
+                "SELECT controller, controller_version FROM runs WHERE id = $1",
+                &[Value::Int(self.run_id)],
+            )
+            .map_err(|e| AuditError::db(&self.shown, e))?;
+        let row = rows.into_iter().next().unwrap_or_default();
+        let s = |i: usize| row.get(i).and_then(Value::as_str).map(str::to_string);
+        Ok((s(0), s(1)))
+    }
+
+    /// Whether [`Audit::finish`] has been called.
+    pub fn is_finished(&self) -> bool {
+        self.finished
+    }
+
+    pub fn run_id(&self) -> i64 {
+        self.run_id
+    }
+
+    /// The run's unique id (its records' ids start with it).
+    pub fn uid(&self) -> &str {
+        &self.uid
+    }
+
+    /// The spool file, while records wait in it.
+    pub fn spool_path(&self) -> Option<&Path> {
+        self.spool.as_ref().map(|s| s.path())
+    }
+
+    /// Committed rows of `table` for this run (a record table name).
+    pub fn count(&mut self, table: &str) -> Result<i64, AuditError> {
+        let t = spec(table).filter(|s| s.table != "run_starts").map_or("stops", |s| s.table);
+        let rows = self
+            .backend
+            .query(&format!("SELECT COUNT(*) FROM {t} WHERE run_id = $1"), &[Value::Int(self.run_id)])
+            .map_err(|e| AuditError::db(&self.shown, e))?;
+        Ok(rows.first().and_then(|r| r.first()).and_then(Value::as_i64).unwrap_or(0))
+    }
+
+    /// A record of this run: run id first, then `values`; the next record id.
+    fn make(&mut self, table: &'static str, values: Vec<Value>) -> Record {
+        let mut v = Vec::with_capacity(values.len() + 1);
+        v.push(Value::Int(self.run_id));
+        v.extend(values);
+        let record_id = format!("{}-{}", self.uid, self.next);
+        self.next += 1;
+        Record { table, record_id, values: v }
+    }
+
+    /// Append the pending records (one batch); spool them if the database is away. The same as
+    /// [`AuditSink::commit`], with this crate's error.
+    pub fn flush(&mut self) -> Result<(), AuditError> {
+        if self.pending.is_empty() {
+            return Ok(());
+        }
+        let batch = std::mem::take(&mut self.pending);
+        if self.spool.is_some() {
+            self.try_drain(false)?;
+        }
+        if let Some(spool) = self.spool.as_mut() {
+            return spool.push(&batch);
+        }
+        match chain::append(self.backend.as_mut(), &batch) {
+            Ok(_) => Ok(()),
+            Err(e) if e.lost => {
+                let name = format!("truepos-audit-spool-{}.sqlite", self.uid);
+                let path = std::path::absolute(self.spool_dir.join(name))
+                    .map_err(|e| AuditError::Spool(format!("{}: {e}", self.spool_dir.display())))?;
+                let mut spool = Spool::create(&path, &self.shown)?;
+                spool.push(&batch)?;
+                (self.notify)(&format!(
+                    "audit trail {} unreachable ({e}); records are kept in {} and sent when it is back",
+                    self.shown,
+                    path.display()
+                ));
+                self.spool = Some(spool);
+                self.last_try = Some(Instant::now());
+                Ok(())
+            }
+            Err(e) => Err(AuditError::db(&self.shown, e)),
+        }
+    }
+
+    /// Try to send the spool (at most every `retry_every` unless `force`); remove it when empty.
+    fn try_drain(&mut self, force: bool) -> Result<(), AuditError> {
+        if !force && self.last_try.is_some_and(|t| t.elapsed() < self.retry_every) {
+            return Ok(());
+        }
+        self.last_try = Some(Instant::now());
+        let Some(spool) = self.spool.as_mut() else { return Ok(()) };
+        if self.backend.reconnect().is_err() {
+            return Ok(());
+        }
+        match spool.drain(self.backend.as_mut(), &self.shown) {
+            Ok(sent) => {
+                let spool = self.spool.take().expect("checked");
+                let path = spool.path().display().to_string();
+                spool.remove()?;
+                (self.notify)(&format!(
+                    "audit trail {} is back: {sent} spooled records sent, {path} removed",
+                    self.shown
+                ));
+                Ok(())
+            }
+            Err(AuditError::Db { source, .. }) if source.lost => Ok(()),
+            Err(e) => Err(e),
+        }
+    }
+
+    fn record_event(&mut self, e: &Event) {
+        let r = match e {
+            Event::Block { line, text, time_s } => {
+                self.make("blocks", vec![Value::Int(*line as i64), Value::text(text), Value::real(*time_s)])
+            }
+            Event::Measurement {
+                line,
+                iteration,
+                commanded_mm: c,
+                measured_mm: m,
+                error_mm,
+                samples_std_mm,
+                time_s,
+            } => self.make(
+                "measurements",
+                vec![
+                    Value::Int(*line as i64),
+                    Value::Int(*iteration as i64),
+                    Value::real(c.x),
+                    Value::real(c.y),
+                    Value::real(c.z),
+                    Value::real(m.x),
+                    Value::real(m.y),
+                    Value::real(m.z),
+                    Value::real(*error_mm),
+                    Value::real(*samples_std_mm),
+                    Value::real(*time_s),
+                ],
+            ),
+            Event::Correction { line, iteration, delta_mm: d, offset_mm: o, clipped, time_s } => self.make(
+                "corrections",
+                vec![
+                    Value::Int(*line as i64),
+                    Value::Int(*iteration as i64),
+                    Value::real(d.x),
+                    Value::real(d.y),
+                    Value::real(d.z),
+                    Value::real(o.x),
+                    Value::real(o.y),
+                    Value::real(o.z),
+                    Value::Int(*clipped as i64),
+                    Value::real(*time_s),
+                ],
+            ),
+            Event::Alarm { line, kind, message, action, time_s } => self.make(
+                "alarms",
+                vec![
+                    Value::Int(*line as i64),
+                    Value::text(kind.as_str()),
+                    Value::text(message),
+                    Value::text(action),
+                    Value::real(*time_s),
+                ],
+            ),
+            Event::Orientation { line, reason, scale, rms_mm, time_s } => self.make(
+                "orientations",
+                vec![
+                    Value::Int(*line as i64),
+                    Value::text(reason),
+                    Value::real(*scale),
+                    Value::real(*rms_mm),
+                    Value::real(*time_s),
+                ],
+            ),
+            Event::RefractiveIndex { line, old, new, time_s } => self.make(
+                "refractive_index_updates",
+                vec![Value::Int(*line as i64), Value::real(*old), Value::real(*new), Value::real(*time_s)],
+            ),
+            Event::StopResult { line, status, final_error_mm, iterations, time_s } => self.make(
+                "stops",
+                vec![
+                    Value::Int(*line as i64),
+                    Value::text(status),
+                    Value::real(*final_error_mm), // non-finite → NULL? see Value::real
+                    Value::Int(*iterations as i64),
+                    Value::real(*time_s),
+                ],
+            ),
+        };
+        self.pending.push(r);
+    }
+}
+
+impl AuditSink for Audit {
+    fn record(&mut self, event: &Event) -> Result<(), SinkError> {
+        self.record_event(event);
+        Ok(())
+    }
+
+    fn commit(&mut self) -> Result<(), SinkError> {
+        Ok(self.flush()?)
+    }
+}
+
+/// The writer under its former name (SQLite was its only backend).
+pub type SqliteAudit = Audit;
+
+/// Send a spool left by a run that ended while the database was away (`truepos audit push`).
+/// `db` defaults to the database the spool names. Returns the records sent; the spool file is
+/// removed once empty.
+pub fn push_spool(path: &Path, db: Option<&Db>) -> Result<(Db, i64), AuditError> {
+    let (spool, named) = Spool::open(path)?;
+    let db = match db {
+        Some(d) => d.clone(),
+        None => Db::parse(&named)?,
+    };
+    let shown = db.display();
+    let mut backend = db.connect(false)?;
+    schema::migrate(backend.as_mut(), &shown, &now_utc())?;
+    let mut spool = spool;
+    let sent = spool.drain(backend.as_mut(), &shown)?;
+    spool.remove()?;
+    Ok((db, sent))
+}
+
+/// A run as listed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunSummary {
+    pub id: i64,
+    pub uid: Option<String>,
+    pub program: String,
+    pub started_at: String,
+    pub ended_at: Option<String>,
+    pub status: Option<String>,
+    pub message: Option<String>,
+    pub controller: Option<String>,
+    pub controller_version: Option<String>,
+    /// What kind of run it is (`somac inspect`), when the writer said.
+    pub note: Option<String>,
+}
+
+impl RunSummary {
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "id": self.id, "uid": self.uid, "program": self.program, "started_at": self.started_at,
+            "ended_at": self.ended_at, "status": self.status, "message": self.message,
+            "controller": self.controller, "controller_version": self.controller_version,
+            "note": self.note,
+        })
+    }
+}
+
+/// A trail opened to read: list runs, show or export one, verify the chain.
+pub struct Trail {
+    backend: Box<dyn Backend>,
+    shown: String,
+}
+
+const RUN_COLUMNS: &str =
+    "id, uid, program, started_at, ended_at, status, message, controller, controller_version, note";
+
+fn summary(r: Vec<Value>) -> RunSummary {
+    let s = |i: usize| r.get(i).and_then(Value::as_str).map(str::to_string);
+    RunSummary {
+        id: r.first().and_then(Value::as_i64).unwrap_or(0),
+        uid: s(1),
+        program: s(2).unwrap_or_default(),
+        started_at: s(3).unwrap_or_default(),
+        ended_at: s(4),
+        status: s(5),
+        message: s(6),
+        controller: s(7),
+        controller_version: s(8),
+        note: s(9),
+    }
+}
+
+impl Trail {
+    /// Open an existing trail (a missing SQLite file is an error) and migrate it forward when
+    /// it is older than this build (nothing is written when it is current).
+    pub fn open(db: &Db) -> Result<Trail, AuditError> {
+        let shown = db.display();
+        let mut backend = db.connect(false)?;
+        schema::migrate(backend.as_mut(), &shown, &now_utc())?;
+        Ok(Trail { backend, shown })
+    }
+
+    pub fn display(&self) -> &str {
+        &self.shown
+    }
+
+    fn err(&self) -> impl Fn(BackendError) -> AuditError + '_ {
+        move |e| AuditError::db(&self.shown, e)
+    }
+
+    /// Every run, oldest first.
+    pub fn runs(&mut self) -> Result<Vec<RunSummary>, AuditError> {
+        let rows = self.backend.query(&format!("SELECT {RUN_COLUMNS} FROM runs ORDER BY id"), &[]);
+        Ok(rows.map_err(self.err())?.into_iter().map(summary).collect())
+    }
+
+    /// One run, by id or uid.
+    pub fn run(&mut self, key: &str) -> Result<RunSummary, AuditError> {
+        let rows = match key.parse::<i64>() {
+            Ok(id) => self
+                .backend
+                .query(&format!("SELECT {RUN_COLUMNS} FROM runs WHERE id = $1"), &[Value::Int(id)]),
+            Err(_) => self
+                .backend
+                .query(&format!("SELECT {RUN_COLUMNS} FROM runs WHERE uid = $1"), &[Value::text(key)]),
+        };
+        rows.map_err(self.err())?
+            .into_iter()
+            .next()
+            .map(summary)
+            .ok_or_else(|| AuditError::NoSuchRun { db: self.shown.clone(), run: key.to_string() })
+    }
+
+    /// Rows per record table for a run (including rows from before the chain).
+    pub fn counts(&mut self, run_id: i64) -> Result<Vec<(&'static str, i64)>, AuditError> {
+        let mut out = Vec::new();
+        for sp in SPECS.iter().filter(|s| s.table != "run_starts") {
+            let rows = self
+                .backend
+                .query(&format!("SELECT COUNT(*) FROM {} WHERE run_id = $1", sp.table), &[Value::Int(run_id)])
+                .map_err(self.err())?;
+            out.push((sp.table, rows.first().and_then(|r| r.first()).and_then(Value::as_i64).unwrap_or(0)));
+        }
+        Ok(out)
+    }
+
+    /// Every chained record of a run, in chain order.
+    pub fn records(&mut self, run_id: i64) -> Result<Vec<Stored>, AuditError> {
+        let mut all = Vec::new();
+        for sp in SPECS {
+            all.extend(chain::read_table(self.backend.as_mut(), sp, Some(run_id)).map_err(self.err())?);
+        }
+        all.sort_by_key(|r| r.seq);
+        Ok(all)
+    }
+
+    /// Recompute the whole chain ([`chain::verify`]).
+    pub fn verify(&mut self) -> Result<Verification, AuditError> {
+        chain::verify(self.backend.as_mut(), None).map_err(self.err())
+    }
+
+    /// [`Trail::verify`], and the record at a head kept earlier (`seq`, `hash`) must still be
+    /// there unchanged (detects records deleted at the end of the chain).
+    pub fn verify_against(&mut self, seq: i64, hash: &str) -> Result<Verification, AuditError> {
+        chain::verify(self.backend.as_mut(), Some((seq, hash))).map_err(self.err())
+    }
+}
+
+/// Records as CSV: `seq,table,record_id,prev_hash,hash` and then every column of every record
+/// table (empty where a record has no such column).
+pub fn records_csv(records: &[Stored]) -> String {
+    let mut cols: Vec<&str> = Vec::new();
+    for sp in SPECS {
+        for (c, _) in sp.columns {
+            if !cols.contains(c) {
+                cols.push(c);
+            }
+        }
+    }
+    let field = |s: &str| {
+        if s.contains([',', '"', '\n', '\r']) {
+            format!("\"{}\"", s.replace('"', "\"\""))
+        } else {
+            s.to_string()
+        }
+    };
+    let mut out = String::from("seq,table,record_id,prev_hash,hash");
+    for c in &cols {
+        out.push(',');
+        out.push_str(c);
+    }
+    out.push('\n');
+    for r in records {
+        out.push_str(&format!("{},{},{},{},{}", r.seq, r.table, field(&r.record_id), r.prev_hash, r.hash));
+        for c in &cols {
+            out.push(',');
+            if let Some(v) = r.get(c) {
+                out.push_str(&field(&v.to_field()));
+            }
+        }
+        out.push('\n');
+    }
+    out
+}
 
 /// The current time as ISO 8601 UTC with milliseconds, e.g. `2026-11-24T01:02:03.456Z`.
 pub fn now_utc() -> String {
@@ -101,580 +819,5 @@ pub fn is_iso8601_utc(s: &str) -> bool {
         && n(17..19) < 61
 }
 
-/// Numbered, portable migrations.
-pub const MIGRATIONS: &[(i64, &str)] = &[
-    (
-        1,
-        "CREATE TABLE runs (
-        id INTEGER PRIMARY KEY,
-        started_at TEXT NOT NULL,
-        program TEXT NOT NULL,
-        note TEXT
-    );
-    CREATE TABLE blocks (
-        run_id INTEGER NOT NULL REFERENCES runs(id),
-        line INTEGER NOT NULL,
-        text TEXT NOT NULL,
-        time_s REAL NOT NULL
-    );
-    CREATE TABLE measurements (
-        run_id INTEGER NOT NULL REFERENCES runs(id),
-        line INTEGER NOT NULL,
-        iteration INTEGER NOT NULL,
-        commanded_x_mm REAL NOT NULL, commanded_y_mm REAL NOT NULL, commanded_z_mm REAL NOT NULL,
-        measured_x_mm REAL NOT NULL, measured_y_mm REAL NOT NULL, measured_z_mm REAL NOT NULL,
-        error_mm REAL NOT NULL,
-        samples_std_mm REAL NOT NULL,
-        time_s REAL NOT NULL
-    );
-    CREATE TABLE corrections (
-        run_id INTEGER NOT NULL REFERENCES runs(id),
-        line INTEGER NOT NULL,
-        iteration INTEGER NOT NULL,
-        dx_mm REAL NOT NULL, dy_mm REAL NOT NULL, dz_mm REAL NOT NULL,
-        offset_x_mm REAL NOT NULL, offset_y_mm REAL NOT NULL, offset_z_mm REAL NOT NULL,
-        clipped INTEGER NOT NULL,
-        time_s REAL NOT NULL
-    );
-    CREATE TABLE alarms (
-        run_id INTEGER NOT NULL REFERENCES runs(id),
-        line INTEGER NOT NULL,
-        kind TEXT NOT NULL,
-        message TEXT NOT NULL,
-        action TEXT NOT NULL,
-        time_s REAL NOT NULL
-    );
-    CREATE TABLE orientations (
-        run_id INTEGER NOT NULL REFERENCES runs(id),
-        line INTEGER NOT NULL,
-        reason TEXT NOT NULL,
-        scale REAL NOT NULL,
-        rms_mm REAL NOT NULL,
-        time_s REAL NOT NULL
-    );
-    CREATE TABLE refractive_index_updates (
-        run_id INTEGER NOT NULL REFERENCES runs(id),
-        line INTEGER NOT NULL,
-        n_old REAL NOT NULL,
-        n_new REAL NOT NULL,
-        time_s REAL NOT NULL
-    );
-    CREATE TABLE stops (
-        run_id INTEGER NOT NULL REFERENCES runs(id),
-        line INTEGER NOT NULL,
-        status TEXT NOT NULL,
-        final_error_mm REAL,
-        iterations INTEGER NOT NULL,
-        time_s REAL NOT NULL
-    );",
-    ),
-    (
-        2,
-        // The controller a run drove (address and version as it reports them).
-        "ALTER TABLE runs ADD COLUMN controller TEXT;
-         ALTER TABLE runs ADD COLUMN controller_version TEXT;",
-    ),
-    (
-        3,
-        // How each run ended: its end time, final status and message.
-        "ALTER TABLE runs ADD COLUMN ended_at TEXT;
-    ALTER TABLE runs ADD COLUMN status TEXT;
-    ALTER TABLE runs ADD COLUMN message TEXT;",
-    ),
-];
-
-/// An audit trail in a SQLite file.
-pub struct SqliteAudit {
-    conn: Connection,
-    run_id: i64,
-    /// Events of the current stop, written at [`AuditSink::commit`].
-    pending: Vec<Event>,
-    finished: bool,
-}
-
-/// Refuse, without writing anything, a file that is not ours or is newer than this build.
-fn inspect(path: &Path) -> Result<(), AuditError> {
-    let shown = path.display().to_string();
-    let foreign = |why: String| AuditError::Foreign { path: shown.clone(), why };
-    match std::fs::metadata(path) {
-        Ok(m) if m.is_dir() => return Err(foreign("it is a directory".into())),
-        Ok(m) if m.len() == 0 => return Ok(()),
-        Ok(_) => {}
-        Err(_) => return Ok(()), // created below
-    }
-    let mut header = [0u8; 16];
-    {
-        use std::io::Read;
-        let mut f = std::fs::File::open(path).map_err(|e| foreign(format!("cannot read it: {e}")))?;
-        let n = f.read(&mut header).map_err(|e| foreign(format!("cannot read it: {e}")))?;
-        if n < 16 || &header != b"SQLite format 3\0" {
-            return Err(foreign("it is not an SQLite database".into()));
-        }
-    }
-    let conn =
-        Connection::open_with_flags(path, OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX)
-            .map_err(|e| foreign(format!("cannot open it read-only: {e}")))?;
-    conn.busy_timeout(BUSY_TIMEOUT)?;
-    let tables: Vec<String> = {
-        let mut st = conn
-            .prepare("SELECT name FROM sqlite_master WHERE type = 'table'")
-            .map_err(|e| foreign(format!("cannot read its schema: {e}")))?;
-        let rows = st.query_map([], |r| r.get::<_, String>(0))?;
-        rows.collect::<Result<_, _>>()?
-    };
-    if tables.is_empty() {
-        return Ok(());
-    }
-    if let Some(t) = tables.iter().find(|t| !TABLES.contains(&t.as_str())) {
-        return Err(foreign(format!("it has a table '{t}' that truepos does not create")));
-    }
-    if !tables.iter().any(|t| t == "schema_migrations") {
-        return Err(foreign("it has no schema_migrations table".into()));
-    }
-    let found: Option<i64> =
-        conn.query_row("SELECT MAX(version) FROM schema_migrations", [], |r| r.get(0))?;
-    let known = MIGRATIONS.last().map_or(0, |m| m.0);
-    if let Some(found) = found.filter(|f| *f > known) {
-        return Err(AuditError::Newer { path: shown, found, known });
-    }
-    Ok(())
-}
-
-impl SqliteAudit {
-    /// Open (or create) the database, run pending migrations, and start a new run.
-    /// `started_at` must be ISO 8601 UTC (see [`now_utc`]).
-    pub fn open(path: impl AsRef<Path>, program: &str, started_at: &str) -> Result<Self, AuditError> {
-        let path = path.as_ref();
-        if !is_iso8601_utc(started_at) {
-            return Err(AuditError::BadTimestamp(started_at.into()));
-        }
-        inspect(path)?;
-        let conn = Connection::open(path)?;
-        conn.busy_timeout(BUSY_TIMEOUT)?;
-        // Write-ahead log: a commit is one append and fsync; a crashed process loses nothing
-        // committed, and readers never block the loop. Switching needs a moment alone with the
-        // file, which the busy timeout gives.
-        retry_busy(|| conn.pragma_update(None, "journal_mode", "WAL"))?;
-        conn.pragma_update(None, "synchronous", "FULL")?;
-        migrate(&conn, path, started_at)?;
-        conn.execute(
-            "INSERT INTO runs (started_at, program, status) VALUES (?1, ?2, 'running')",
-            params![started_at, program],
-        )?;
-        let run_id = conn.last_insert_rowid();
-        Ok(Self { conn, run_id, pending: Vec::new(), finished: false })
-    }
-
-    /// Commit what is pending and record the run's end time and final status (for example
-    /// `SUCCESS`, `FAILURE`, `ERROR`) with an optional message.
-    pub fn finish(&mut self, status: &str, message: Option<&str>, ended_at: &str) -> Result<(), AuditError> {
-        if !is_iso8601_utc(ended_at) {
-            return Err(AuditError::BadTimestamp(ended_at.into()));
-        }
-        self.flush()?;
-        self.conn.execute(
-            "UPDATE runs SET ended_at = ?1, status = ?2, message = ?3 WHERE id = ?4",
-            params![ended_at, status, message, self.run_id],
-        )?;
-        self.finished = true;
-        Ok(())
-    }
-
-    /// Record the controller this run drives: its address and version.
-    pub fn set_controller(&mut self, address: &str, version: &str) -> Result<(), AuditError> {
-        self.conn.execute(
-            "UPDATE runs SET controller = ?1, controller_version = ?2 WHERE id = ?3",
-            params![address, version, self.run_id],
-        )?;
-        Ok(())
-    }
-
-    /// The controller recorded for this run (address, version).
-    pub fn controller(&self) -> Result<(Option<String>, Option<String>), AuditError> {
-        Ok(self.conn.query_row(
-            "SELECT controller, controller_version FROM runs WHERE id = ?1",
-            params![self.run_id],
-            |r| Ok((r.get(0)?, r.get(1)?)),
-        )?)
-    }
-
-    /// Whether [`SqliteAudit::finish`] has been called.
-    pub fn is_finished(&self) -> bool {
-        self.finished
-    }
-
-    pub fn run_id(&self) -> i64 {
-        self.run_id
-    }
-
-    /// Committed rows of `table` for this run.
-    pub fn count(&self, table: &str) -> Result<i64, AuditError> {
-        let allowed = [
-            "blocks",
-            "measurements",
-            "corrections",
-            "alarms",
-            "orientations",
-            "refractive_index_updates",
-            "stops",
-        ];
-        let t = allowed.iter().find(|a| **a == table).copied().unwrap_or("stops");
-        Ok(self.conn.query_row(
-            &format!("SELECT COUNT(*) FROM {t} WHERE run_id = ?1"),
-            params![self.run_id],
-            |r| r.get(0),
-        )?)
-    }
-
-    /// Write the pending events in one immediate transaction.
-    fn flush(&mut self) -> Result<(), rusqlite::Error> {
-        if self.pending.is_empty() {
-            return Ok(());
-        }
-        let events = std::mem::take(&mut self.pending);
-        retry_busy(|| self.conn.execute_batch("BEGIN IMMEDIATE"))?;
-        let r = events.iter().try_for_each(|e| self.insert(e));
-        match r {
-            Ok(()) => self.conn.execute_batch("COMMIT"),
-            Err(e) => {
-                let _ = self.conn.execute_batch("ROLLBACK");
-                Err(e)
-            }
-        }
-    }
-
-    fn insert(&self, e: &Event) -> Result<(), rusqlite::Error> {
-        let id = self.run_id;
-        match e {
-            Event::Block { line, text, time_s } => {
-                self.conn.execute(
-                    "INSERT INTO blocks VALUES (?1, ?2, ?3, ?4)",
-                    params![id, *line as i64, text, time_s],
-                )?;
-            }
-            Event::Measurement {
-                line,
-                iteration,
-                commanded_mm: c,
-                measured_mm: m,
-                error_mm,
-                samples_std_mm,
-                time_s,
-            } => {
-                self.conn.execute(
-                    "INSERT INTO measurements VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)",
-                    params![
-                        id,
-                        *line as i64,
-                        *iteration as i64,
-                        c.x,
-                        c.y,
-                        c.z,
-                        m.x,
-                        m.y,
-                        m.z,
-                        error_mm,
-                        samples_std_mm,
-                        time_s
-                    ],
-                )?;
-            }
-            Event::Correction { line, iteration, delta_mm: d, offset_mm: o, clipped, time_s } => {
-                self.conn.execute(
-                    "INSERT INTO corrections VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
-                    params![
-                        id,
-                        *line as i64,
-                        *iteration as i64,
-                        d.x,
-                        d.y,
-                        d.z,
-                        o.x,
-                        o.y,
-                        o.z,
-                        *clipped as i64,
-                        time_s
-                    ],
-                )?;
-            }
-            Event::Alarm { line, kind, message, action, time_s } => {
-                self.conn.execute(
-                    "INSERT INTO alarms VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
-                    params![id, *line as i64, kind.as_str(), message, action, time_s],
-                )?;
-            }
-            Event::Orientation { line, reason, scale, rms_mm, time_s } => {
-                self.conn.execute(
-                    "INSERT INTO orientations VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
-                    params![id, *line as i64, reason, scale, rms_mm, time_s],
-                )?;
-            }
-            Event::RefractiveIndex { line, old, new, time_s } => {
-                self.conn.execute(
-                    "INSERT INTO refractive_index_updates VALUES (?1, ?2, ?3, ?4, ?5)",
-                    params![id, *line as i64, old, new, time_s],
-                )?;
-            }
-            Event::StopResult { line, status, final_error_mm, iterations, time_s } => {
-                let fe = final_error_mm.is_finite().then_some(*final_error_mm);
-                self.conn.execute(
-                    "INSERT INTO stops VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
-                    params![id, *line as i64, status, fe, *iterations as i64, time_s],
-                )?;
-            }
-        }
-        Ok(())
-    }
-}
-
-impl AuditSink for SqliteAudit {
-    fn record(&mut self, event: &Event) -> Result<(), SinkError> {
-        self.pending.push(event.clone());
-        Ok(())
-    }
-
-    fn commit(&mut self) -> Result<(), SinkError> {
-        Ok(self.flush()?)
-    }
-}
-
-/// Retry `f` while the database is busy (some lock upgrades report busy without waiting in the
-/// busy handler), up to [`BUSY_TIMEOUT`].
-fn retry_busy<T>(mut f: impl FnMut() -> Result<T, rusqlite::Error>) -> Result<T, rusqlite::Error> {
-    let t0 = std::time::Instant::now();
-    loop {
-        match f() {
-            Err(rusqlite::Error::SqliteFailure(e, _))
-                if matches!(
-                    e.code,
-                    rusqlite::ErrorCode::DatabaseBusy | rusqlite::ErrorCode::DatabaseLocked
-                ) && t0.elapsed() < BUSY_TIMEOUT =>
-            {
-                std::thread::sleep(Duration::from_millis(5));
-            }
-            r => return r,
-        }
-    }
-}
-
-/// Run the pending migrations in one immediate transaction (so concurrent openers apply each
-/// exactly once), refusing a schema newer than this build.
-fn migrate(conn: &Connection, path: &Path, applied_at: &str) -> Result<(), AuditError> {
-    retry_busy(|| conn.execute_batch("BEGIN IMMEDIATE"))?;
-    let r = (|| -> Result<(), AuditError> {
-        conn.execute_batch(
-            "CREATE TABLE IF NOT EXISTS schema_migrations (version INTEGER PRIMARY KEY, applied_at TEXT NOT NULL);",
-        )?;
-        let found: Option<i64> =
-            conn.query_row("SELECT MAX(version) FROM schema_migrations", [], |r| r.get(0))?;
-        let found = found.unwrap_or(0);
-        let known = MIGRATIONS.last().map_or(0, |m| m.0);
-        if found > known {
-            return Err(AuditError::Newer { path: path.display().to_string(), found, known });
-        }
-        for (v, sql) in MIGRATIONS.iter().filter(|m| m.0 > found) {
-            conn.execute_batch(sql)?;
-            conn.execute(
-                "INSERT INTO schema_migrations (version, applied_at) VALUES (?1, ?2)",
-                params![v, applied_at],
-            )?;
-        }
-        Ok(())
-    })();
-    match r {
-        Ok(()) => {
-            conn.execute_batch("COMMIT")?;
-            Ok(())
-        }
-        Err(e) => {
-            let _ = conn.execute_batch("ROLLBACK");
-            Err(e)
-        }
-    }
-}
-
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use truepos_somac::audit::Event;
-
-    #[test]
-    fn committed_events_survive_a_crash_uncommitted_do_not() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("audit.sqlite");
-        {
-            let mut a = SqliteAudit::open(&path, "spar.nc", "2026-11-22T00:00:00Z").unwrap();
-            a.record(&Event::Block { line: 1, text: "G0 X0".into(), time_s: 0.0 }).unwrap();
-            a.record(&Event::Alarm {
-                line: 1,
-                kind: truepos_somac::run::AlarmKind::BeamBreak,
-                message: "m".into(),
-                action: "a".into(),
-                time_s: 0.1,
-            })
-            .unwrap();
-            a.commit().unwrap();
-            a.record(&Event::Block { line: 2, text: "G0 X1".into(), time_s: 0.2 }).unwrap();
-            // Closed without commit, as when the process dies in the middle of a stop: SQLite
-            // rolls the open transaction back.
-            drop(a);
-        }
-        let a = SqliteAudit::open(&path, "spar.nc", "2026-11-22T00:01:00Z").unwrap();
-        let conn = &a.conn;
-        let blocks: i64 = conn.query_row("SELECT COUNT(*) FROM blocks", [], |r| r.get(0)).unwrap();
-        let alarms: i64 = conn.query_row("SELECT COUNT(*) FROM alarms", [], |r| r.get(0)).unwrap();
-        assert_eq!((blocks, alarms), (1, 1));
-        // Migrations ran once; the second open started run 2.
-        let migs: i64 = conn.query_row("SELECT COUNT(*) FROM schema_migrations", [], |r| r.get(0)).unwrap();
-        assert_eq!(migs, MIGRATIONS.len() as i64);
-        assert_eq!(a.run_id(), 2);
-        // The controller of a run (migration 2).
-        let mut a = a;
-        assert_eq!(a.controller().unwrap(), (None, None));
-        a.set_controller("linuxcncrsh://127.0.0.1:5007", "LinuxCNC 2.9.0").unwrap();
-        assert_eq!(
-            a.controller().unwrap(),
-            (Some("linuxcncrsh://127.0.0.1:5007".to_string()), Some("LinuxCNC 2.9.0".to_string()))
-        );
-    }
-
-    #[test]
-    fn iso8601_utc_of_known_instants() {
-        assert_eq!(iso8601_utc(0, 0), "1970-01-01T00:00:00.000Z");
-        assert_eq!(iso8601_utc(951_782_400, 5), "2000-02-29T00:00:00.005Z");
-        assert_eq!(iso8601_utc(1_700_000_000, 123), "2023-11-14T22:13:20.123Z");
-        assert_eq!(iso8601_utc(-1, 0), "1969-12-31T23:59:59.000Z");
-        assert!(is_iso8601_utc(&now_utc()));
-        assert!(is_iso8601_utc("2026-11-22T00:00:00Z"));
-        for bad in [
-            "SystemTime { tv_sec: 1, tv_nsec: 2 }",
-            "2026-11-22 00:00:00Z",
-            "2026-13-01T00:00:00Z",
-            "2026-11-22T00:00:00",
-        ] {
-            assert!(!is_iso8601_utc(bad), "{bad}");
-        }
-    }
-
-    fn stop(a: &mut SqliteAudit, line: usize) {
-        a.record(&Event::Block { line, text: format!("G1 X{line}"), time_s: line as f64 }).unwrap();
-        a.record(&Event::StopResult {
-            line,
-            status: "SUCCESS".into(),
-            final_error_mm: 0.01,
-            iterations: 1,
-            time_s: line as f64,
-        })
-        .unwrap();
-        a.commit().unwrap();
-    }
-
-    /// Eight runs at once on one new database: every run opens (one applies the migrations, the
-    /// others see them), writes all its stops, and records its end and status.
-    #[test]
-    fn eight_concurrent_runs_all_complete() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("shared.sqlite");
-        let barrier = std::sync::Arc::new(std::sync::Barrier::new(8));
-        let handles: Vec<_> = (0..8)
-            .map(|k| {
-                let path = path.clone();
-                let barrier = barrier.clone();
-                std::thread::spawn(move || -> Result<i64, String> {
-                    barrier.wait();
-                    let mut a = SqliteAudit::open(&path, &format!("p{k}.nc"), &now_utc())
-                        .map_err(|e| e.to_string())?;
-                    for line in 0..25 {
-                        stop(&mut a, line);
-                    }
-                    a.finish("SUCCESS", None, &now_utc()).map_err(|e| e.to_string())?;
-                    Ok(a.run_id())
-                })
-            })
-            .collect();
-        let mut ids: Vec<i64> = handles.into_iter().map(|h| h.join().unwrap().unwrap()).collect();
-        ids.sort();
-        assert_eq!(ids, (1..=8).collect::<Vec<i64>>());
-        let c = Connection::open(&path).unwrap();
-        let q = |sql: &str| -> i64 { c.query_row(sql, [], |r| r.get(0)).unwrap() };
-        assert_eq!(q("SELECT COUNT(*) FROM runs"), 8);
-        assert_eq!(q("SELECT COUNT(*) FROM runs WHERE status = 'SUCCESS' AND ended_at IS NOT NULL"), 8);
-        assert_eq!(q("SELECT COUNT(*) FROM schema_migrations"), MIGRATIONS.len() as i64);
-        for id in 1..=8 {
-            assert_eq!(q(&format!("SELECT COUNT(*) FROM blocks WHERE run_id = {id}")), 25);
-            assert_eq!(q(&format!("SELECT COUNT(*) FROM stops WHERE run_id = {id}")), 25);
-        }
-        let started: String =
-            c.query_row("SELECT started_at FROM runs WHERE id = 1", [], |r| r.get(0)).unwrap();
-        assert!(is_iso8601_utc(&started), "{started}");
-    }
-
-    /// Foreign files and newer schemas are refused before anything is written.
-    #[test]
-    fn foreign_and_newer_databases_are_left_byte_identical() {
-        let dir = tempfile::tempdir().unwrap();
-        let text = dir.path().join("notes.sqlite");
-        std::fs::write(&text, "not a database\n").unwrap();
-        let foreign = dir.path().join("parts.sqlite");
-        {
-            let c = Connection::open(&foreign).unwrap();
-            c.execute_batch(
-                "CREATE TABLE parts (id INTEGER, name TEXT); INSERT INTO parts VALUES (1, 'spar');",
-            )
-            .unwrap();
-        }
-        let rails = dir.path().join("rails.sqlite");
-        {
-            let c = Connection::open(&rails).unwrap();
-            c.execute_batch(
-                "CREATE TABLE schema_migrations (version TEXT); CREATE TABLE users (id INTEGER);",
-            )
-            .unwrap();
-        }
-        let newer = dir.path().join("newer.sqlite");
-        {
-            let mut a = SqliteAudit::open(&newer, "p.nc", &now_utc()).unwrap();
-            a.finish("SUCCESS", None, &now_utc()).unwrap();
-            a.conn.execute("INSERT INTO schema_migrations VALUES (99, '2030-01-01T00:00:00Z')", []).unwrap();
-        }
-        for (p, what) in
-            [(&text, "not an SQLite"), (&foreign, "parts"), (&rails, "users"), (&newer, "version 99")]
-        {
-            let before = std::fs::read(p).unwrap();
-            let e = SqliteAudit::open(p, "p.nc", &now_utc()).err().expect("refused");
-            assert!(e.to_string().contains(what), "{e}");
-            assert_eq!(std::fs::read(p).unwrap(), before, "{}", p.display());
-        }
-        // A directory is refused too; a bad timestamp is refused before the file is touched.
-        assert!(SqliteAudit::open(dir.path(), "p.nc", &now_utc()).is_err());
-        let fresh = dir.path().join("fresh.sqlite");
-        assert!(matches!(
-            SqliteAudit::open(&fresh, "p.nc", "SystemTime { tv_sec: 1 }"),
-            Err(AuditError::BadTimestamp(_))
-        ));
-        assert!(!fresh.exists());
-    }
-
-    /// A version-1 database gains the run end and status columns; its old rows stay.
-    #[test]
-    fn version_1_database_is_migrated() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("v1.sqlite");
-        {
-            let c = Connection::open(&path).unwrap();
-            c.execute_batch(
-                "CREATE TABLE schema_migrations (version INTEGER PRIMARY KEY, applied_at TEXT NOT NULL);",
-            )
-            .unwrap();
-            c.execute_batch(MIGRATIONS[0].1).unwrap();
-            c.execute("INSERT INTO schema_migrations VALUES (1, '2026-01-01T00:00:00Z')", []).unwrap();
-            c.execute("INSERT INTO runs (started_at, program) VALUES ('2026-01-01T00:00:00Z', 'old.nc')", [])
-                .unwrap();
-        }
-        let mut a = SqliteAudit::open(&path, "new.nc", &now_utc()).unwrap();
-        assert_eq!(a.run_id(), 2);
-        a.finish("FAILURE", Some("alarm"), &now_utc()).unwrap();
-        let st: String = a.conn.query_row("SELECT status FROM runs WHERE id = 2", [], |r| r.get(0)).unwrap();
-        assert_eq!(st, "FAILURE");
-    }
-}
+mod tests;

@@ -70,6 +70,9 @@ fn exit_code(err: &anyhow::Error) -> u8 {
                 return 2;
             }
         }
+        if let Some(e) = cause.downcast_ref::<truepos_audit::AuditError>() {
+            return if e.is_usage() { 2 } else { 3 };
+        }
         if cause.is::<DeviceError>() || cause.is::<truepos_device::DeviceError>() {
             return 3;
         }

@@ -3,7 +3,14 @@
 
 mod common;
 
-use common::{bin, write};
+use common::write;
+
+/// `truepos` in cargo's scratch directory: `somac inspect` appends to `./somac-audit.sqlite`.
+fn bin() -> std::process::Command {
+    let mut c = common::bin();
+    c.current_dir(env!("CARGO_TARGET_TMPDIR"));
+    c
+}
 
 fn json(out: &std::process::Output) -> serde_json::Value {
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));

@@ -175,6 +175,7 @@ fn somac_inspect_and_head_offset_acquire_on_linuxcnc() {
     let holes = common::write(tmp.path(), "holes.csv", csv);
     let t = Instant::now();
     let out = bin()
+        .current_dir(tmp.path())
         .args(["somac", "inspect", "--controller", &url, "--holes"])
         .arg(&holes)
         .args([

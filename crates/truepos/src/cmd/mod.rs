@@ -6,6 +6,7 @@ use crate::Outcome;
 use clap::{Parser, Subcommand};
 
 pub mod align;
+pub mod audit;
 pub mod cli_tree;
 pub mod comp;
 pub mod demo;
@@ -65,6 +66,8 @@ pub enum Command {
     Demo(demo::Args),
     /// I++ DME: the virtual CMM as an I++ DME server (`truepos ippdme serve`).
     Ippdme(ippdme::Args),
+    /// The audit trail (SQLite or shared PostgreSQL): list, show and export runs, verify the hash chain.
+    Audit(audit::Args),
     /// The command line as JSON (every command and argument with its help), for the tests.
     #[command(name = "__cli-tree", hide = true)]
     CliTree,
@@ -129,6 +132,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         },
         Command::Demo(a) => demo::run(a),
         Command::Ippdme(a) => ippdme::run(a),
+        Command::Audit(a) => audit::run(a),
         Command::CliTree => cli_tree::run(),
     }
 }

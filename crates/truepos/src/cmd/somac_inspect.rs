@@ -60,6 +60,10 @@ pub struct InspectArgs {
     /// Seed of the virtual machine (where its holes really are).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Audit trail: a SQLite file (created if missing) or postgresql://USER@HOST:PORT/DB; the
+    /// inspection is recorded as a run (note `somac inspect`) with one record per hole.
+    #[arg(long, default_value = "somac-audit.sqlite")]
+    pub db: String,
     /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
@@ -99,6 +103,32 @@ pub fn run(a: InspectArgs) -> Result<Outcome> {
         return Err(UsageError(e.to_string()).into());
     }
     let model = a.model.read()?;
+    let db = super::audit::parse_db(&a.db)?;
+    let source = a.program.as_ref().or(a.holes.as_ref()).map(|p| p.display().to_string()).unwrap_or_default();
+    let mut audit =
+        truepos_audit::Audit::open_noted(&db, &source, Some("somac inspect"), &truepos_audit::now_utc())?;
+    let r = inspect_and_record(&a, &holes, &plan, model.as_ref(), &mut audit);
+    let (status, message) = match &r {
+        Ok(rep) if !rep.out_of_tolerance().is_empty() => ("FAILURE", None),
+        Ok(_) => ("SUCCESS", None),
+        Err(e) => ("ERROR", Some(format!("{e:#}"))),
+    };
+    audit.finish(status, message.as_deref(), &truepos_audit::now_utc())?;
+    let report = r?;
+    crate::output::emit(&report, a.json)?;
+    eprintln!("audit trail appended to {} (run {})", db.display(), audit.run_id());
+    let over = report.out_of_tolerance();
+    Ok(if over.is_empty() { Outcome::Done } else { Outcome::OutOfTolerance })
+}
+
+/// Open the machine, inspect, and record the device and every hole in the audit trail.
+fn inspect_and_record(
+    a: &InspectArgs,
+    holes: &[Hole],
+    plan: &InspectPlan,
+    model: Option<&truepos_cell::vcmm::MachineModel>,
+    audit: &mut truepos_audit::Audit,
+) -> Result<InspectReport> {
     let mut truth = None;
     let mut machine: Box<dyn truepos_device::ProbingMachine> = if a.controller == "virtual" {
         let nominal: Vec<(Point3, f64)> = holes.iter().map(|h| (h.nominal_mm, h.diameter_mm)).collect();
@@ -109,14 +139,14 @@ pub fn run(a: InspectArgs) -> Result<Outcome> {
     } else {
         super::probe::open_probing_machine(&a.controller, None, a.seed)?.machine
     };
-    let mut r = match inspect(machine.as_mut(), &holes, &plan) {
+    let mut r = match inspect(machine.as_mut(), holes, plan) {
         Ok(r) => r,
         Err(InspectError::Plan(m)) => return Err(UsageError(m).into()),
         Err(e) => return Err(DeviceError(e.to_string()).into()),
     };
-    let uncertainty = match &model {
+    let uncertainty = match model {
         Some(m) => {
-            let u = truepos_cell::vcmm::inspection_uncertainty(m, &plan, &r, a.model.monte_carlo())?;
+            let u = truepos_cell::vcmm::inspection_uncertainty(m, plan, &r, a.model.monte_carlo())?;
             for (h, u) in r.holes.iter_mut().zip(&u) {
                 h.center_uncertainty_mm = u.center_xy_mm;
                 h.diameter_uncertainty_mm = u.diameter_mm;
@@ -132,13 +162,15 @@ pub fn run(a: InspectArgs) -> Result<Outcome> {
             )
         }
     };
-    let report = InspectReport {
+    audit.set_controller(&r.device.address, &r.device.version)?;
+    for h in &r.holes {
+        audit.record_inspection(h);
+    }
+    audit.flush()?;
+    Ok(InspectReport {
         inspection: r,
         tolerance_mm: a.tolerance_mm,
         truth: truth.map(|t| t.iter().map(|t| (t.top_mm, t.diameter_mm)).collect()),
         uncertainty,
-    };
-    crate::output::emit(&report, a.json)?;
-    let over = report.out_of_tolerance();
-    Ok(if over.is_empty() { Outcome::Done } else { Outcome::OutOfTolerance })
+    })
 }

@@ -7,7 +7,7 @@
 
 use crate::output::print_json;
 use crate::{Outcome, UsageError};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use serde_json::json;
 use std::path::PathBuf;
 use truepos_cell::scenarios::somac::{read_cell_file, run_virtual, write_scenario};
@@ -24,10 +24,12 @@ pub struct RunArgs {
     /// The cell: virtual gantry, trackers, part targets, loop parameters.
     #[arg(long)]
     pub cell: PathBuf,
-    /// Audit trail database (SQLite), created if missing; every run is appended to it (one run
-    /// row, one row per stop, alarm and correction). Its path is printed at the end of the run.
+    /// Audit trail: a SQLite file (created if missing) or postgresql://USER@HOST:PORT/DB shared
+    /// by a fleet (password from PGPASSWORD or ~/.pgpass); every run is appended to it (its
+    /// start, controller and end, one record per block, measurement, stop, alarm and correction,
+    /// hash-chained). It is printed at the end of the run; `truepos audit` reads it.
     #[arg(long, default_value = "somac-audit.sqlite")]
-    pub db: PathBuf,
+    pub db: String,
     /// Measure and report only, never correct. The program is still oriented through the
     /// measured part targets (placement and thermal scale); add --no-orient for the machine's
     /// native accuracy (the figure `truepos simulate somac` prints as "native").
@@ -77,14 +79,9 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         )
         .into());
     }
+    let db = super::audit::parse_db(&a.db)?;
     let mut audit =
-        truepos_audit::SqliteAudit::open(&a.db, &a.program.display().to_string(), &truepos_audit::now_utc())
-            .map_err(|e| match e {
-                truepos_audit::AuditError::Sql(_) => {
-                    anyhow::Error::from(e).context(format!("audit trail {}", a.db.display()))
-                }
-                other => InputError::in_file(&a.db, other.to_string()).into(),
-            })?;
+        truepos_audit::Audit::open(&db, &a.program.display().to_string(), &truepos_audit::now_utc())?;
     let mut on_controller = None;
     let vr = if a.controller != "virtual" {
         run_on_controller(&a, &text, cfg, targets, &params, &mut audit).map(|(vr, extra)| {
@@ -103,9 +100,7 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         }
         Err(e) => ("ERROR", Some(format!("{e:#}"))),
     };
-    audit
-        .finish(status, message.as_deref(), &truepos_audit::now_utc())
-        .with_context(|| format!("audit trail {}", a.db.display()))?;
+    audit.finish(status, message.as_deref(), &truepos_audit::now_utc())?;
     let vr = vr.map_err(|e| match e.downcast::<truepos_somac::run::RunError>() {
         Ok(truepos_somac::run::RunError::Program { line, message }) => {
             InputError::at(&a.program, line, None, message).into()
@@ -114,7 +109,7 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         Ok(other) => anyhow::Error::from(other),
         Err(e) => e,
     })?;
-    let out = vr.to_json(&a.db);
+    let out = vr.to_json(std::path::Path::new(&db.display()));
     let mut out = out;
     let rv = vr.report.verdict();
     out["verdict"] = json!(rv.verdict.as_str());
@@ -142,7 +137,11 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         }
     }
     eprintln!("verdict: {} — {}", rv.verdict.as_str(), rv.reasons.join("; "));
-    eprintln!("audit trail appended to {} (run with --db FILE to choose another)", a.db.display());
+    eprintln!(
+        "audit trail appended to {} (run {}; --db FILE|postgresql://… to choose another)",
+        db.display(),
+        audit.run_id()
+    );
     Ok(if vr.report.failed() { Outcome::OutOfTolerance } else { Outcome::Done })
 }
 
@@ -155,7 +154,7 @@ fn run_on_controller(
     cfg: truepos_cell::gantry::CellConfig,
     targets: Vec<(String, truepos_math::Point3)>,
     params: &truepos_somac::Params,
-    audit: &mut truepos_audit::SqliteAudit,
+    audit: &mut truepos_audit::Audit,
 ) -> Result<(truepos_cell::scenarios::somac::VirtualRun, serde_json::Value)> {
     use truepos_device::ProbingMachine;
     use truepos_somac::run::RunError;
@@ -189,7 +188,7 @@ fn run_on_controller(
                 "{other}; the run was aborted at line {} (no further motion){}; audit trail {}",
                 ab.line,
                 ab.stop_line.map(|l| format!(", stop at line {l} marked FAILURE")).unwrap_or_default(),
-                a.db.display()
+                a.db
             ))
             .into(),
         }),
