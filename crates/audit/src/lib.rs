@@ -583,6 +583,11 @@ impl Audit {
 impl AuditSink for Audit {
     fn record(&mut self, event: &Event) -> Result<(), SinkError> {
         self.record_event(event);
+        // A deferred SIGINT/SIGTERM stops the run at this event (the caller closes the run as
+        // ABORTED and ends the process).
+        if let Some(sig) = truepos_io::atomic::interrupted() {
+            return Err(format!("interrupted by {}", truepos_io::atomic::signal_name(sig)).into());
+        }
         Ok(())
     }
 

@@ -90,6 +90,50 @@ pub fn remove_all_temporaries() -> usize {
     n
 }
 
+/// The signal that arrived while interrupts were deferred (0: none).
+static INTERRUPTED: std::sync::atomic::AtomicI32 = std::sync::atomic::AtomicI32::new(0);
+/// Whether the process wants to close its work itself when interrupted ([`defer_interrupts`]).
+static DEFERRED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// How long a deferred interrupt waits for the process to close its work before it ends the
+/// process anyway (s).
+pub const DEFERRED_INTERRUPT_GRACE_S: u64 = 10;
+
+/// Ask for SIGINT/SIGTERM/SIGHUP to be reported instead of ending the process at once: the
+/// signal is recorded ([`interrupted`]) for the work to stop at its next safe point and close its
+/// records (e.g. the audit trail's run as aborted); the process then ends itself with
+/// [`exit_interrupted`]. If it has not within [`DEFERRED_INTERRUPT_GRACE_S`] seconds, the handler
+/// removes the temporary files and ends it the default way, as without deferral.
+pub fn defer_interrupts() {
+    DEFERRED.store(true, std::sync::atomic::Ordering::SeqCst);
+    install_signal_cleanup();
+}
+
+/// The signal number if the process was interrupted while interrupts were deferred.
+pub fn interrupted() -> Option<i32> {
+    match INTERRUPTED.load(std::sync::atomic::Ordering::SeqCst) {
+        0 => None,
+        s => Some(s),
+    }
+}
+
+/// The name of a signal number (for messages).
+pub fn signal_name(sig: i32) -> &'static str {
+    match sig {
+        2 => "SIGINT",
+        15 => "SIGTERM",
+        1 => "SIGHUP",
+        _ => "a signal",
+    }
+}
+
+/// End the process after a deferred interrupt: temporary files removed, exit status 128 + the
+/// signal number (what a shell reports for a process ended by that signal).
+pub fn exit_interrupted(sig: i32) -> ! {
+    remove_all_temporaries();
+    std::process::exit(128 + sig)
+}
+
 fn install_signal_cleanup() {
     HANDLER.call_once(|| {
         #[cfg(unix)]
@@ -100,6 +144,11 @@ fn install_signal_cleanup() {
             };
             let spawned = std::thread::Builder::new().name("truepos-signals".into()).spawn(move || {
                 if let Some(sig) = signals.forever().next() {
+                    if DEFERRED.load(std::sync::atomic::Ordering::SeqCst) {
+                        // The work stops at its next safe point and ends the process itself.
+                        INTERRUPTED.store(sig, std::sync::atomic::Ordering::SeqCst);
+                        std::thread::sleep(std::time::Duration::from_secs(DEFERRED_INTERRUPT_GRACE_S));
+                    }
                     // Hold the registry while removing and ending the process: a commit in
                     // progress finishes its rename first, a new file waits and is never created.
                     let mut l = live();

@@ -88,3 +88,48 @@ fn a_small_run_agrees_too() {
     let (code, j) = run(d.path(), &db);
     check_agreement(code, &j, &db);
 }
+
+/// A run ended by SIGINT is closed in the audit trail as ABORTED with its end time (not left
+/// `running`), and the process reports the signal (exit status 130).
+#[test]
+fn a_run_interrupted_by_sigint_is_closed_as_aborted() {
+    let d = tempfile::tempdir().unwrap();
+    let o = bin().args(["simulate", "somac", "--out", s(d.path())]).output().unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let db = d.path().join("audit.sqlite");
+    let mut child = bin()
+        .args([
+            "somac",
+            "run",
+            "--program",
+            s(&d.path().join("program.nc")),
+            "--cell",
+            s(&d.path().join("cell.toml")),
+        ])
+        .args(["--db", s(&db), "--json"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until the run row exists, then interrupt.
+    let t0 = std::time::Instant::now();
+    while !db.exists() && t0.elapsed().as_secs() < 20 {
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(30));
+    let _ = std::process::Command::new("kill").args(["-INT", &child.id().to_string()]).status();
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    let (status, message, ended) = last_run_row(&db);
+    if out.status.code() == Some(0) || out.status.code() == Some(1) {
+        // The run finished before the signal arrived: then it is closed with its verdict.
+        eprintln!("note: the run ended before SIGINT arrived ({status})");
+        assert!(ended.is_some());
+        return;
+    }
+    assert_eq!(out.status.code(), Some(130), "{err}");
+    assert_eq!(status, "ABORTED", "{err}");
+    assert!(message.contains("SIGINT"), "{message}");
+    assert!(ended.is_some());
+    assert!(err.contains("ABORTED"), "{err}");
+}

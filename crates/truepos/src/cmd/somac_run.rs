@@ -82,6 +82,8 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
     let db = super::audit::parse_db(&a.db)?;
     let mut audit =
         truepos_audit::Audit::open(&db, &a.program.display().to_string(), &truepos_audit::now_utc())?;
+    // SIGINT/SIGTERM: the loop stops at its next event and the run is closed as ABORTED.
+    truepos_io::atomic::defer_interrupts();
     let mut on_controller = None;
     let vr = if a.controller != "virtual" {
         run_on_controller(&a, &text, cfg, targets, &params, &mut audit).map(|(vr, extra)| {
@@ -92,6 +94,17 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         audit.set_controller("virtual", "truepos virtual gantry cell")?;
         run_virtual(&text, cfg, targets, &params, &mut audit).map_err(anyhow::Error::from)
     };
+    if let Some(sig) = truepos_io::atomic::interrupted() {
+        let name = truepos_io::atomic::signal_name(sig);
+        let at = truepos_audit::now_utc();
+        let _ = audit.finish("ABORTED", Some(&format!("aborted: interrupted by {name} at {at}")), &at);
+        eprintln!(
+            "aborted by {name}: the run is closed as ABORTED in {} (run {})",
+            db.display(),
+            audit.run_id()
+        );
+        truepos_io::atomic::exit_interrupted(sig);
+    }
     // The run row records its end and final status, whatever happened.
     let (status, message) = match &vr {
         Ok(v) => {
