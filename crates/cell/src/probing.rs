@@ -31,7 +31,8 @@
 //! [`VirtualMachineTool::new`], [`VirtualMachineTool::truth`].
 
 use truepos_device::{
-    DeviceError, DeviceInfo, KinematicsParameter, ProbeHit, ProbeRequest, ProbingMachine, RotaryAxes, RotaryKinematics,
+    DeviceError, DeviceInfo, KinematicsParameter, ProbeHit, ProbeRequest, ProbingMachine, RotaryAxes,
+    RotaryKinematics,
 };
 use truepos_kinematics::trt::{reported_centre, TrtGeometry};
 use truepos_math::{ry, rz, Matrix3};
@@ -338,8 +339,13 @@ impl VirtualMachineTool {
         radius: f64,
         tip_radius: f64,
     ) -> Result<(VirtualMachineTool, TrtTruth), ParamError> {
-        let configured =
-            TrtGeometry { x_rot_point: 10.0, y_rot_point: -5.0, z_rot_point: -20.0, x_offset: -20.0, z_offset: -15.0 };
+        let configured = TrtGeometry {
+            x_rot_point: 10.0,
+            y_rot_point: -5.0,
+            z_rot_point: -20.0,
+            x_offset: -20.0,
+            z_offset: -15.0,
+        };
         let mut rng = noise::stream(seed, 83);
         let e: Vec<f64> = (0..4).map(|_| noise::gaussian(&mut rng, 0.030)).collect();
         let truth = configured.corrected(&[e[0], e[1], e[2], e[3]]);
@@ -526,7 +532,8 @@ impl ProbingMachine for VirtualMachineTool {
     }
 
     fn rotary_kinematics(&self) -> Option<RotaryKinematics> {
-        self.trt.map(|_| RotaryKinematics { model: "xyzbc-trt".into(), module: "virtual xyzbc-trt-kins".into() })
+        self.trt
+            .map(|_| RotaryKinematics { model: "xyzbc-trt".into(), module: "virtual xyzbc-trt-kins".into() })
     }
 
     fn orientation(&mut self) -> Result<(f64, f64), DeviceError> {
@@ -550,7 +557,8 @@ impl ProbingMachine for VirtualMachineTool {
     /// Only at B = C = 0, as on a real controller.
     fn set_kinematics_parameters(&mut self, values: &[KinematicsParameter]) -> Result<(), DeviceError> {
         let what = "writing the kinematics parameters";
-        let reject = |message: String| DeviceError::Rejected { address: ADDRESS.into(), what: what.into(), message };
+        let reject =
+            |message: String| DeviceError::Rejected { address: ADDRESS.into(), what: what.into(), message };
         let Some(t) = self.trt.as_mut() else {
             return Err(reject("this virtual machine has no five-axis kinematics".into()));
         };
@@ -566,7 +574,9 @@ impl ProbingMachine for VirtualMachineTool {
                 .iter()
                 .position(|n| *n == p.name)
                 .filter(|_| p.value_mm.is_finite())
-                .ok_or_else(|| reject(format!("`{}` = {} is not a geometry pin value", p.name, p.value_mm)))?;
+                .ok_or_else(|| {
+                    reject(format!("`{}` = {} is not a geometry pin value", p.name, p.value_mm))
+                })?;
             v[k] = p.value_mm;
         }
         t.configured = TrtGeometry::from_values(v);

@@ -66,7 +66,8 @@ impl KinematicsProbing {
                 ));
             }
         }
-        let reach = 0.5 * self.sphere.diameter_mm + self.sphere.tip_radius_mm + 2.0 * self.sphere.clearance_mm;
+        let reach =
+            0.5 * self.sphere.diameter_mm + self.sphere.tip_radius_mm + 2.0 * self.sphere.clearance_mm;
         let t = self.turn_distance_mm;
         if !(t.is_finite() && t >= 1.5 * reach) {
             return bad(format!(
@@ -129,7 +130,12 @@ impl Path {
     }
 
     /// Along the great circle of radius T from direction `from` to `to` (both unit).
-    fn arc<M: ProbingMachine + ?Sized>(&self, m: &mut M, from: &Vector3, to: &Vector3) -> Result<(), DeviceError> {
+    fn arc<M: ProbingMachine + ?Sized>(
+        &self,
+        m: &mut M,
+        from: &Vector3,
+        to: &Vector3,
+    ) -> Result<(), DeviceError> {
         let angle = from.dot(to).clamp(-1.0, 1.0).acos();
         if angle < 1e-12 {
             return Ok(());
@@ -145,7 +151,10 @@ impl Path {
         };
         let n = (angle / ARC_STEP).ceil().max(1.0) as usize;
         for k in 1..=n {
-            let rot = nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_unchecked(axis), angle * k as f64 / n as f64);
+            let rot = nalgebra::Rotation3::from_axis_angle(
+                &nalgebra::Unit::new_unchecked(axis),
+                angle * k as f64 / n as f64,
+            );
             let d = if k == n { *to } else { rot * from };
             m.move_to(self.s + d * self.turn)?;
         }

@@ -222,12 +222,14 @@ pub fn identify(obs: &[Observation]) -> Result<Identification, NotDetermined> {
     }
     let (inv, _) = pinv(&n);
     let x = inv * rhs;
-    let residuals_mm: Vec<Vector3> = blocks.iter().zip(obs).map(|(j, o)| (o.centre_mm - origin) - j * x).collect();
+    let residuals_mm: Vec<Vector3> =
+        blocks.iter().zip(obs).map(|(j, o)| (o.centre_mm - origin) - j * x).collect();
     let rss: f64 = residuals_mm.iter().map(|r| r.norm_squared()).sum();
     let m = 3 * obs.len();
     let dof = m.saturating_sub(7);
     let rms = (rss / m as f64).sqrt();
-    let fit_var = obs.iter().map(|o| o.centre_uncertainty_mm.norm_squared() / 3.0).sum::<f64>() / obs.len() as f64;
+    let fit_var =
+        obs.iter().map(|o| o.centre_uncertainty_mm.norm_squared() / 3.0).sum::<f64>() / obs.len() as f64;
     let res_var = if dof > 0 { rss / dof as f64 } else { 0.0 };
     let sigma = res_var.max(fit_var).sqrt();
     let theta_mm = [x[3], x[4], x[5], x[6]];
@@ -263,7 +265,13 @@ mod tests {
     use rand_distr::{Distribution, Normal};
 
     fn conf() -> TrtGeometry {
-        TrtGeometry { x_rot_point: 10.0, y_rot_point: -5.0, z_rot_point: -20.0, x_offset: -20.0, z_offset: -15.0 }
+        TrtGeometry {
+            x_rot_point: 10.0,
+            y_rot_point: -5.0,
+            z_rot_point: -20.0,
+            x_offset: -20.0,
+            z_offset: -15.0,
+        }
     }
 
     fn truth() -> TrtGeometry {
@@ -276,7 +284,8 @@ mod tests {
         }
     }
 
-    const SET: [[f64; 2]; 6] = [[0.0, 0.0], [0.0, 120.0], [0.0, 240.0], [45.0, 0.0], [90.0, 120.0], [90.0, 240.0]];
+    const SET: [[f64; 2]; 6] =
+        [[0.0, 0.0], [0.0, 120.0], [0.0, 240.0], [45.0, 0.0], [90.0, 120.0], [90.0, 240.0]];
 
     fn observe(orientations: &[[f64; 2]], noise_mm: f64, seed: u64) -> Vec<Observation> {
         let s = Point3::new(60.0, 25.0, 15.0);

@@ -23,7 +23,8 @@ pub enum Model {
 }
 
 /// Why `maxkins` is refused (the recipe's measurement on LinuxCNC 2.9).
-pub const MAXKINS_REFUSAL: &str = "maxkins is refused: in LinuxCNC 2.9 (and upstream master) its forward and \
+pub const MAXKINS_REFUSAL: &str =
+    "maxkins is refused: in LinuxCNC 2.9 (and upstream master) its forward and \
 inverse kinematics disagree when B ≠ 0 and C ≠ 0 — the inverse turns the head's B offset with C, the forward \
 adds it unturned — so a probe latched at a combined B/C orientation is off by 2·L·sin B·sin(C/2), tens of mm \
 for a usual pivot length; it also has a single geometry pin and its C axis fixed at X0 Y0. Run a kinematics \
@@ -100,7 +101,9 @@ impl CalibrateRequest {
         }
         if let Some(v) = &self.verify {
             if !self.apply {
-                return Err(KinematicsError::Usage("--verify checks the applied geometry: it needs --apply".into()));
+                return Err(KinematicsError::Usage(
+                    "--verify checks the applied geometry: it needs --apply".into(),
+                ));
             }
             let p = KinematicsProbing { orientations: v.clone(), ..self.probing.clone() };
             p.check().map_err(|e| KinematicsError::Usage(format!("verification: {e}")))?;
@@ -182,7 +185,10 @@ impl CalibrationReport {
 
     /// The HAL lines that set the identified values (for a HAL file).
     pub fn hal_lines(&self) -> Vec<String> {
-        self.parameters.iter().map(|p| format!("setp {MODULE}.{} {}", p.name, fmt6(p.identified_mm))).collect()
+        self.parameters
+            .iter()
+            .map(|p| format!("setp {MODULE}.{} {}", p.name, fmt6(p.identified_mm)))
+            .collect()
     }
 
     /// The INI lines that make the change permanent: the recipe's `[KINS]` keys, which the HAL
@@ -420,7 +426,10 @@ impl truepos_io::report::Report for CalibrationReport {
             self.spread_before_mm * 1e3,
             id.spread_after_predicted_mm() * 1e3
         );
-        s += &format!("{:<12} {:>14} {:>14} {:>10} {:>12}\n", "parameter", "configured mm", "identified mm", "change µm", "U (k=2) µm");
+        s += &format!(
+            "{:<12} {:>14} {:>14} {:>10} {:>12}\n",
+            "parameter", "configured mm", "identified mm", "change µm", "U (k=2) µm"
+        );
         for p in &self.parameters {
             s += &format!(
                 "{:<12} {:>14.6} {:>14.6} {:>10.1} {:>12.1}\n",

@@ -77,7 +77,13 @@ impl TrtGeometry {
     }
 
     pub fn from_values(v: [f64; 5]) -> TrtGeometry {
-        TrtGeometry { x_rot_point: v[0], y_rot_point: v[1], z_rot_point: v[2], x_offset: v[3], z_offset: v[4] }
+        TrtGeometry {
+            x_rot_point: v[0],
+            y_rot_point: v[1],
+            z_rot_point: v[2],
+            x_offset: v[3],
+            z_offset: v[4],
+        }
     }
 
     /// As the controller's parameters (pin names).
@@ -117,7 +123,12 @@ impl TrtGeometry {
 
     /// The observable numbers: C axis (x, y) and B axis (x, z) (mm).
     pub fn axes(&self) -> [f64; 4] {
-        [self.x_rot_point, self.y_rot_point, self.x_rot_point + self.x_offset, self.z_rot_point + self.z_offset]
+        [
+            self.x_rot_point,
+            self.y_rot_point,
+            self.x_rot_point + self.x_offset,
+            self.z_rot_point + self.z_offset,
+        ]
     }
 }
 
@@ -189,7 +200,13 @@ mod tests {
     use super::*;
 
     fn conf() -> TrtGeometry {
-        TrtGeometry { x_rot_point: 10.0, y_rot_point: -5.0, z_rot_point: -20.0, x_offset: -20.0, z_offset: -15.0 }
+        TrtGeometry {
+            x_rot_point: 10.0,
+            y_rot_point: -5.0,
+            z_rot_point: -20.0,
+            x_offset: -20.0,
+            z_offset: -15.0,
+        }
     }
     fn truth() -> TrtGeometry {
         TrtGeometry {
@@ -253,7 +270,10 @@ mod tests {
         }
         // Only the sum z-rot-point + z-offset enters.
         let moved = TrtGeometry { z_rot_point: gt.z_rot_point + 7.0, z_offset: gt.z_offset - 7.0, ..gt };
-        assert!((reported_centre(&gc, &moved, &s, 0.7, 2.0) - reported_centre(&gc, &gt, &s, 0.7, 2.0)).norm() < 1e-12);
+        assert!(
+            (reported_centre(&gc, &moved, &s, 0.7, 2.0) - reported_centre(&gc, &gt, &s, 0.7, 2.0)).norm()
+                < 1e-12
+        );
     }
 
     #[test]

@@ -29,12 +29,14 @@ fn request(orientations: Vec<[f64; 2]>, apply: bool, verify: Option<Vec<[f64; 2]
     }
 }
 
-const SET: [[f64; 2]; 6] = [[0.0, 0.0], [0.0, 120.0], [0.0, 240.0], [45.0, 0.0], [90.0, 120.0], [90.0, 240.0]];
+const SET: [[f64; 2]; 6] =
+    [[0.0, 0.0], [0.0, 120.0], [0.0, 240.0], [45.0, 0.0], [90.0, 120.0], [90.0, 240.0]];
 
 #[test]
 fn identifies_applies_and_verifies_on_the_virtual_machine() {
     for seed in [1, 2, 3] {
-        let (mut m, truth) = VirtualMachineTool::five_axis(seed, Point3::new(60.0, 25.0, 15.0), 12.5, 1.5).unwrap();
+        let (mut m, truth) =
+            VirtualMachineTool::five_axis(seed, Point3::new(60.0, 25.0, 15.0), 12.5, 1.5).unwrap();
         let verify = vec![[0.0, 60.0], [30.0, 180.0], [60.0, 300.0], [90.0, 30.0]];
         let r = calibrate(&mut m, &request(SET.to_vec(), true, Some(verify)), |_| {}).unwrap();
         assert_eq!(r.configured, truth.configured);
@@ -59,7 +61,15 @@ fn identifies_applies_and_verifies_on_the_virtual_machine() {
         assert_eq!(m.orientation().unwrap(), (0.0, 0.0));
         // The text and JSON carry the contract's fields.
         let j = truepos_io::report::Report::to_json(&r);
-        for k in ["model", "parameters", "centres_mm", "spread_before_mm", "spread_after_predicted_mm", "applied", "coverage_factor"] {
+        for k in [
+            "model",
+            "parameters",
+            "centres_mm",
+            "spread_before_mm",
+            "spread_after_predicted_mm",
+            "applied",
+            "coverage_factor",
+        ] {
             assert!(j.get(k).is_some(), "{k}");
         }
         assert_eq!(j["parameters"].as_array().unwrap().len(), 4);
@@ -80,7 +90,8 @@ fn refusals_come_before_any_motion() {
     // Orientations that cannot determine the B axis.
     let (mut m, _) = VirtualMachineTool::five_axis(1, Point3::new(60.0, 25.0, 15.0), 12.5, 1.5).unwrap();
     let p0 = m.position().unwrap();
-    let e = calibrate(&mut m, &request(vec![[0.0, 0.0], [0.0, 90.0], [0.0, 180.0]], false, None), |_| {}).unwrap_err();
+    let e = calibrate(&mut m, &request(vec![[0.0, 0.0], [0.0, 90.0], [0.0, 180.0]], false, None), |_| {})
+        .unwrap_err();
     assert!(matches!(e, KinematicsError::NotDetermined(_)) && e.is_user_input(), "{e}");
     assert!(e.to_string().contains("x-offset, z-offset"), "{e}");
     assert_eq!(m.position().unwrap(), p0);

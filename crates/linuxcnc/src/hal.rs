@@ -25,7 +25,10 @@ pub struct Hal {
 fn find_program(name: &str) -> Option<PathBuf> {
     let path = std::env::var_os("PATH").unwrap_or_default();
     std::env::split_paths(&path)
-        .chain(["/usr/local/sbin", "/usr/local/bin", "/usr/sbin", "/usr/bin", "/sbin", "/bin"].map(PathBuf::from))
+        .chain(
+            ["/usr/local/sbin", "/usr/local/bin", "/usr/sbin", "/usr/bin", "/sbin", "/bin"]
+                .map(PathBuf::from),
+        )
         .map(|d| d.join(name))
         .find(|p| p.is_file())
 }
@@ -84,13 +87,15 @@ impl Hal {
             )));
         }
         let halcmd = find_program("halcmd").ok_or_else(|| rejected("halcmd is not installed here".into()))?;
-        let owner = owner_of("milltask").ok_or_else(|| rejected("no LinuxCNC (milltask) runs on this host".into()))?;
+        let owner = owner_of("milltask")
+            .ok_or_else(|| rejected("no LinuxCNC (milltask) runs on this host".into()))?;
         let me = std::fs::read_to_string("/proc/self/status").ok().as_deref().and_then(real_uid_of);
         let run_as = if me == Some(owner) {
             None
         } else if me == Some(0) {
             let user = user_name(owner).ok_or_else(|| rejected(format!("no user name for uid {owner}")))?;
-            let runuser = find_program("runuser").ok_or_else(|| rejected("runuser (util-linux) not found".into()))?;
+            let runuser =
+                find_program("runuser").ok_or_else(|| rejected("runuser (util-linux) not found".into()))?;
             Some((runuser, user))
         } else {
             let user = user_name(owner).unwrap_or_else(|| format!("uid {owner}"));
@@ -124,10 +129,11 @@ impl Hal {
         let stdout = String::from_utf8_lossy(&out.stdout).to_string();
         if !out.status.success() {
             let err = String::from_utf8_lossy(&out.stderr);
+            let said = [err.trim(), stdout.trim()].join(" ");
             return Err(DeviceError::Controller {
                 address: self.address.clone(),
                 what: what.into(),
-                message: format!("halcmd {}: {}", args.join(" "), format!("{} {}", err.trim(), stdout.trim()).trim()),
+                message: format!("halcmd {}: {}", args.join(" "), said.trim()),
             });
         }
         Ok(stdout)
@@ -135,7 +141,11 @@ impl Hal {
 
     /// The loaded components (`halcmd list comp`).
     pub fn components(&self) -> Result<Vec<String>, DeviceError> {
-        Ok(self.run(&["list", "comp"], "listing the HAL components")?.split_whitespace().map(str::to_string).collect())
+        Ok(self
+            .run(&["list", "comp"], "listing the HAL components")?
+            .split_whitespace()
+            .map(str::to_string)
+            .collect())
     }
 
     /// A pin's or parameter's value as a number.

@@ -516,13 +516,21 @@ impl SimLinuxCnc {
         let (ini_name, ini, hal_name, hal) = match &five {
             None => ("truepos_sim.ini", ini, "truepos_sim.hal", HAL),
             Some(f) => {
-                let mut ini = set_section_key(INI5, "[DISPLAY]", "DISPLAY", &format!("linuxcncrsh --port {port}"));
-                for (k, key) in ["X_ROT_POINT", "Y_ROT_POINT", "Z_ROT_POINT", "X_OFFSET", "Z_OFFSET"].iter().enumerate() {
+                let mut ini =
+                    set_section_key(INI5, "[DISPLAY]", "DISPLAY", &format!("linuxcncrsh --port {port}"));
+                for (k, key) in
+                    ["X_ROT_POINT", "Y_ROT_POINT", "Z_ROT_POINT", "X_OFFSET", "Z_OFFSET"].iter().enumerate()
+                {
                     ini = set_section_key(&ini, "[KINS]", key, &format!("{:.6}", f.configured[k]));
                     ini = set_section_key(&ini, "[TRUTH]", key, &format!("{:.6}", f.truth[k]));
                 }
                 let c = f.sphere_center_mm;
-                for (key, v) in [("SPHERE_X", c.x), ("SPHERE_Y", c.y), ("SPHERE_Z", c.z), ("RADIUS", f.radius_mm + f.tip_radius_mm)] {
+                for (key, v) in [
+                    ("SPHERE_X", c.x),
+                    ("SPHERE_Y", c.y),
+                    ("SPHERE_Z", c.z),
+                    ("RADIUS", f.radius_mm + f.tip_radius_mm),
+                ] {
                     ini = set_section_key(&ini, "[TRUTH]", key, &format!("{v:.6}"));
                 }
                 ("xyzbc_sphere.ini", ini, "xyzbc_sphere.hal", HAL5)

@@ -19,13 +19,13 @@
 //! #5063 #5070)` and `get operator_display`, with a fresh tag per point (after a failed probe
 //! the parameters and the display still hold the previous point). Every wait has a deadline.
 
+use crate::hal::{agrees, Hal};
 use crate::session::Session;
 use crate::url::{Address, AddressError};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
-use crate::hal::{agrees, Hal};
 use truepos_device::{
-    Controller, DeviceError, DeviceInfo, KinematicsParameter, ProbeHit, ProbeRequest, ProbingMachine, RotaryAxes,
-    RotaryKinematics,
+    Controller, DeviceError, DeviceInfo, KinematicsParameter, ProbeHit, ProbeRequest, ProbingMachine,
+    RotaryAxes, RotaryKinematics,
 };
 use truepos_math::{Point3, Vector3};
 
@@ -647,7 +647,11 @@ impl ProbingMachine for LinuxCnc {
             });
         }
         if !(b_deg.is_finite() && c_deg.is_finite()) {
-            return Err(DeviceError::Rejected { address: self.address.clone(), what, message: "the angles are not finite".into() });
+            return Err(DeviceError::Rejected {
+                address: self.address.clone(),
+                what,
+                message: "the angles are not finite".into(),
+            });
         }
         let before = self.get_axes("abs_cmd_pos", &what)?;
         let turn = (b_deg - before[4]).abs().max((c_deg - before[5]).abs());
@@ -697,7 +701,10 @@ impl ProbingMachine for LinuxCnc {
         };
         for v in values {
             if !TRT_PINS.contains(&v.name.as_str()) || !v.value_mm.is_finite() {
-                return Err(rejected(&self.address, format!("`{}` = {} is not a geometry pin value of {module}", v.name, v.value_mm)));
+                return Err(rejected(
+                    &self.address,
+                    format!("`{}` = {} is not a geometry pin value of {module}", v.name, v.value_mm),
+                ));
             }
         }
         self.check_ready(what)?;
@@ -706,7 +713,10 @@ impl ProbingMachine for LinuxCnc {
         if cmd[4].abs() > 1e-9 || cmd[5].abs() > 1e-9 || act[4].abs() > 1e-6 || act[5].abs() > 1e-6 {
             return Err(rejected(
                 &self.address,
-                format!("the table is at B = {} C = {}: the geometry may be changed only at B = C = 0", act[4], act[5]),
+                format!(
+                    "the table is at B = {} C = {}: the geometry may be changed only at B = C = 0",
+                    act[4], act[5]
+                ),
             ));
         }
         for v in values {

@@ -92,7 +92,11 @@ fn run(points: usize, orientations: Vec<[f64; 2]>, verify: Vec<[f64; 2]>) -> Opt
     let now = TrtGeometry::from_parameters(&m.kinematics_parameters().unwrap()).unwrap();
     for (a, b) in now.values().iter().zip(r.identified.values()) {
         // halcmd prints seven significant digits.
-        assert!(truepos_linuxcnc::hal::agrees(*a, b), "controller holds {now:?}, identified {:?}", r.identified);
+        assert!(
+            truepos_linuxcnc::hal::agrees(*a, b),
+            "controller holds {now:?}, identified {:?}",
+            r.identified
+        );
     }
     let v = r.verification.as_ref().expect("verification");
     let sc = (r.identification.sphere_centre_mm - truth.sphere_center_mm).norm() * 1e3;

@@ -33,7 +33,8 @@ pub enum What {
 }
 
 #[derive(clap::Args, Debug)]
-#[command(after_help = "Example:\n  truepos kinematics calibrate --controller linuxcncrsh://127.0.0.1:5007 --model xyzbc-trt --near=60,25,15 --diameter-mm 25 --tip-diameter-mm 2 --orientation 0,0 --orientation 0,120 --orientation 0,240 --orientation 45,0 --orientation 90,120 --orientation 90,240 --apply --verify --json
+#[command(
+    after_help = "Example:\n  truepos kinematics calibrate --controller linuxcncrsh://127.0.0.1:5007 --model xyzbc-trt --near=60,25,15 --diameter-mm 25 --tip-diameter-mm 2 --orientation 0,0 --orientation 0,120 --orientation 0,240 --orientation 45,0 --orientation 90,120 --orientation 90,240 --apply --verify --json
 
 The sphere sits on the rotary table; --near is its nominal centre in the programme frame (the
 table frame at B = C = 0), known to better than the clearance. The controller must run its
@@ -55,7 +56,8 @@ that runs LinuxCNC) and prints the INI/HAL lines that make it permanent. --verif
 again at other orientations and reports how well the centres agree.
 
 Exit codes: 0 done; 2 bad options, orientations that cannot determine the geometry, or --model
-maxkins (its forward and inverse kinematics disagree in LinuxCNC 2.9); 3 controller faults.")]
+maxkins (its forward and inverse kinematics disagree in LinuxCNC 2.9); 3 controller faults."
+)]
 pub struct CalibrateArgs {
     /// `virtual` (a built-in xyzbc-trt machine whose true geometry is tens of µm off its
     /// configured one) or `linuxcncrsh://HOST:PORT[?password=…]` on this host.
@@ -159,13 +161,20 @@ fn calibrate(a: CalibrateArgs) -> Result<Outcome> {
     // Options and observability before a controller is opened (and anything moves).
     req.check().map_err(kin_err)?;
     let (mut machine, truth): (Box<dyn ProbingMachine>, _) = if a.controller == "virtual" {
-        let (m, t) = VirtualMachineTool::five_axis(a.seed, Point3::from(a.near), 0.5 * a.diameter_mm, 0.5 * a.tip_diameter_mm)
-            .map_err(|e| UsageError(format!("virtual machine: {e}")))?;
+        let (m, t) = VirtualMachineTool::five_axis(
+            a.seed,
+            Point3::from(a.near),
+            0.5 * a.diameter_mm,
+            0.5 * a.tip_diameter_mm,
+        )
+        .map_err(|e| UsageError(format!("virtual machine: {e}")))?;
         (Box::new(m), Some(t))
     } else if a.controller.starts_with(truepos_linuxcnc::url::SCHEME) {
-        let address = truepos_linuxcnc::Address::parse(&a.controller).map_err(|e| UsageError(e.to_string()))?;
+        let address =
+            truepos_linuxcnc::Address::parse(&a.controller).map_err(|e| UsageError(e.to_string()))?;
         let options = truepos_linuxcnc::Options { joints: 5, ..truepos_linuxcnc::Options::default() };
-        let mut m = truepos_linuxcnc::LinuxCnc::open_address(&address, options).map_err(|e| DeviceError(e.to_string()))?;
+        let mut m = truepos_linuxcnc::LinuxCnc::open_address(&address, options)
+            .map_err(|e| DeviceError(e.to_string()))?;
         m.attach_kinematics().map_err(|e| DeviceError(e.to_string()))?;
         (Box::new(m), None)
     } else {
@@ -176,7 +185,8 @@ fn calibrate(a: CalibrateArgs) -> Result<Outcome> {
         .into());
     };
     // Progress on stderr (stdout carries only the result).
-    let mut report = truepos_kinematics::calibrate(machine.as_mut(), &req, |s| eprintln!("{s}")).map_err(kin_err)?;
+    let mut report =
+        truepos_kinematics::calibrate(machine.as_mut(), &req, |s| eprintln!("{s}")).map_err(kin_err)?;
     eprintln!("warning: the uncertainties are the fit residuals' alone; the machine's other errors are not included");
     if let Some(t) = truth {
         report.truth = Some((t.truth, t.sphere_centre_mm));
