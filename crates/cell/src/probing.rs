@@ -16,6 +16,13 @@
 //! `P + Ry(b)·R` (`head_offset_mm`), and what is on the table at `A` (C = 0) is at
 //! `O + Rz(c)·(A − O)` (`table_center_mm`).
 //!
+//! [`VirtualMachineTool::five_axis`] is a five-axis machine of another kind: a B tilting table
+//! carrying a C rotary table (LinuxCNC's `xyzbc-trt-kins`) with tool-centre-point control, whose
+//! positions are in the programme frame; its controller is configured with a geometry tens of
+//! µm off the true one, so the sphere appears displaced at B, C ≠ 0 by exactly the closed form
+//! of `truepos_kinematics::trt::reported_centre`. Its kinematics parameters can be read and
+//! written (at B = C = 0), like a real controller's.
+//!
 //! Besides spheres, the table can carry plates with bores ([`truepos_sim::artefact::Part`]), the
 //! holes that in-spindle inspection probes ([`MachineToolConfig::with_holes`]).
 //!
@@ -23,7 +30,11 @@
 //! ball), [`MachineToolConfig::near`], [`MachineToolConfig::with_holes`],
 //! [`VirtualMachineTool::new`], [`VirtualMachineTool::truth`].
 
-use truepos_device::{DeviceError, DeviceInfo, ProbeHit, ProbeRequest, ProbingMachine, RotaryAxes};
+use truepos_device::{
+    DeviceError, DeviceInfo, KinematicsParameter, ProbeHit, ProbeRequest, ProbingMachine, RotaryAxes,
+    RotaryKinematics,
+};
+use truepos_kinematics::trt::{reported_centre, TrtGeometry};
 use truepos_math::{ry, rz, Matrix3};
 use truepos_math::{Point3, Vector3};
 use truepos_sim::artefact::{Artefact, ConvexPolyhedron, Cylinder, Part, Sphere, SurfacePoint};
@@ -274,6 +285,29 @@ pub struct VirtualMachineTool {
     c: f64,
     /// Probing moves made (for tests and reports).
     pub probings: usize,
+    /// A five-axis table-tilting machine with TCP ([`VirtualMachineTool::five_axis`]).
+    trt: Option<TrtState>,
+}
+
+/// The virtual xyzbc-trt machine's two geometries and its angles in degrees.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct TrtState {
+    configured: TrtGeometry,
+    truth: TrtGeometry,
+    b_deg: f64,
+    c_deg: f64,
+}
+
+/// The truth of [`VirtualMachineTool::five_axis`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrtTruth {
+    /// The geometry the virtual controller is configured with at the start.
+    pub configured: TrtGeometry,
+    /// The machine's true geometry.
+    pub truth: TrtGeometry,
+    /// The sphere on the table (centre in the table frame, radius).
+    pub sphere_centre_mm: Point3,
+    pub sphere_radius_mm: f64,
 }
 
 fn fmt_point(p: &Point3) -> String {
@@ -288,7 +322,40 @@ impl VirtualMachineTool {
         noise::check_nonneg("position sigma", cfg.position_sigma_mm)?;
         let rng = noise::stream(cfg.seed, 31);
         let pos = cfg.start_mm;
-        Ok(VirtualMachineTool { cfg, spheres, probe, rng, pos, b: 0.0, c: 0.0, probings: 0 })
+        Ok(VirtualMachineTool { cfg, spheres, probe, rng, pos, b: 0.0, c: 0.0, probings: 0, trt: None })
+    }
+
+    /// A five-axis machine tool with a B tilting table carrying a C rotary table and
+    /// tool-centre-point control, LinuxCNC's `xyzbc-trt-kins` (`truepos kinematics calibrate
+    /// --controller virtual`): positions are in the programme frame, which turns with the table;
+    /// `orient` keeps the tip fixed in it. The controller is configured with the geometry of
+    /// the LinuxCNC recipe (C axis through (10, −5), B axis at x −10, z −35 mm); the true
+    /// geometry differs from it by a seeded error of σ = 30 µm in each of the four observable
+    /// numbers (the C axis's x, y, the B axis's x, z). The sphere is set up near its nominal
+    /// centre as [`MachineToolConfig::near`] does; the tip starts 60 mm above it.
+    pub fn five_axis(
+        seed: u64,
+        centre: Point3,
+        radius: f64,
+        tip_radius: f64,
+    ) -> Result<(VirtualMachineTool, TrtTruth), ParamError> {
+        let configured = TrtGeometry {
+            x_rot_point: 10.0,
+            y_rot_point: -5.0,
+            z_rot_point: -20.0,
+            x_offset: -20.0,
+            z_offset: -15.0,
+        };
+        let mut rng = noise::stream(seed, 83);
+        let e: Vec<f64> = (0..4).map(|_| noise::gaussian(&mut rng, 0.030)).collect();
+        let truth = configured.corrected(&[e[0], e[1], e[2], e[3]]);
+        let mut cfg = MachineToolConfig::near(seed, centre, radius, tip_radius);
+        cfg.start_mm = centre + Vector3::new(0.0, 0.0, 60.0);
+        cfg.rotary = RotaryAxes { head_b: false, table_c: true };
+        let (c, r) = cfg.spheres[0];
+        let mut m = VirtualMachineTool::new(cfg)?;
+        m.trt = Some(TrtState { configured, truth, b_deg: 0.0, c_deg: 0.0 });
+        Ok((m, TrtTruth { configured, truth, sphere_centre_mm: c, sphere_radius_mm: r }))
     }
 
     /// The reference spheres (truth).
@@ -303,9 +370,16 @@ impl VirtualMachineTool {
     /// Everything on the table, as seen by the position the machine reports (P) at the current
     /// head and table angles.
     fn artefacts(&self) -> impl Iterator<Item = Placed<'_>> {
-        let shift = ry(self.b) * self.cfg.head_offset_mm;
-        let turn = rz(self.c);
-        let o = self.cfg.table_center_mm;
+        let (shift, turn, o) = match &self.trt {
+            // With TCP the table frame is the programme frame, up to the translation by which the
+            // configured geometry misplaces it (zero at B = C = 0).
+            Some(t) => {
+                let o = self.cfg.table_center_mm;
+                let seen = reported_centre(&t.configured, &t.truth, &o, self.b, self.c);
+                (o - seen, Matrix3::identity(), o)
+            }
+            None => (ry(self.b) * self.cfg.head_offset_mm, rz(self.c), self.cfg.table_center_mm),
+        };
         self.spheres
             .iter()
             .map(|s| s as &dyn Artefact)
@@ -457,6 +531,58 @@ impl ProbingMachine for VirtualMachineTool {
         self.cfg.rotary
     }
 
+    fn rotary_kinematics(&self) -> Option<RotaryKinematics> {
+        self.trt
+            .map(|_| RotaryKinematics { model: "xyzbc-trt".into(), module: "virtual xyzbc-trt-kins".into() })
+    }
+
+    fn orientation(&mut self) -> Result<(f64, f64), DeviceError> {
+        Ok(match &self.trt {
+            Some(t) => (t.b_deg, t.c_deg),
+            None => (self.b.to_degrees(), self.c.to_degrees()),
+        })
+    }
+
+    fn kinematics_parameters(&mut self) -> Result<Vec<KinematicsParameter>, DeviceError> {
+        match &self.trt {
+            Some(t) => Ok(t.configured.parameters()),
+            None => Err(DeviceError::Rejected {
+                address: ADDRESS.into(),
+                what: "reading the kinematics parameters".into(),
+                message: "this virtual machine has no five-axis kinematics".into(),
+            }),
+        }
+    }
+
+    /// Only at B = C = 0, as on a real controller.
+    fn set_kinematics_parameters(&mut self, values: &[KinematicsParameter]) -> Result<(), DeviceError> {
+        let what = "writing the kinematics parameters";
+        let reject =
+            |message: String| DeviceError::Rejected { address: ADDRESS.into(), what: what.into(), message };
+        let Some(t) = self.trt.as_mut() else {
+            return Err(reject("this virtual machine has no five-axis kinematics".into()));
+        };
+        if t.b_deg != 0.0 || t.c_deg != 0.0 {
+            return Err(reject(format!(
+                "the table is at B = {} C = {}: the geometry may be changed only at B = C = 0",
+                t.b_deg, t.c_deg
+            )));
+        }
+        let mut v = t.configured.values();
+        for p in values {
+            let k = truepos_kinematics::trt::PINS
+                .iter()
+                .position(|n| *n == p.name)
+                .filter(|_| p.value_mm.is_finite())
+                .ok_or_else(|| {
+                    reject(format!("`{}` = {} is not a geometry pin value", p.name, p.value_mm))
+                })?;
+            v[k] = p.value_mm;
+        }
+        t.configured = TrtGeometry::from_values(v);
+        Ok(())
+    }
+
     /// Turns the axes at once; a ball that ends up in the material is an error (the angles are
     /// then left as they were).
     fn orient(&mut self, b_deg: f64, c_deg: f64) -> Result<(), DeviceError> {
@@ -466,17 +592,26 @@ impl ProbingMachine for VirtualMachineTool {
         if !(b_deg.is_finite() && c_deg.is_finite()) {
             return Err(reject("the angles must be finite".into()));
         }
-        if b_deg != 0.0 && !self.cfg.rotary.head_b {
+        if b_deg != 0.0 && !self.cfg.rotary.head_b && self.trt.is_none() {
             return Err(reject(format!("this machine has no B axis ({})", self.cfg.rotary.describe())));
         }
         if c_deg != 0.0 && !self.cfg.rotary.table_c {
             return Err(reject(format!("this machine has no C axis ({})", self.cfg.rotary.describe())));
         }
+        if self.trt.is_some() && b_deg.abs() > 120.0 {
+            return Err(reject(format!("B = {b_deg}° is beyond the B axis's travel (±120°)")));
+        }
         let (b0, c0) = (self.b, self.c);
         (self.b, self.c) = (b_deg.to_radians(), c_deg.to_radians());
+        if let Some(t) = self.trt.as_mut() {
+            (t.b_deg, t.c_deg) = (b_deg, c_deg);
+        }
         let r = self.cfg.tip_radius_mm;
         if self.artefacts().any(|a| a.distance(&self.pos) - r <= 0.0) {
             (self.b, self.c) = (b0, c0);
+            if let Some(t) = self.trt.as_mut() {
+                (t.b_deg, t.c_deg) = (b0.to_degrees(), c0.to_degrees());
+            }
             return Err(DeviceError::Controller {
                 address: ADDRESS.into(),
                 what,

@@ -16,10 +16,15 @@
 //!   controller scans by itself.
 //! - [`Controller`], [`Tracker`], [`Cell`]: the end-point control loop's NC controller fed block by
 //!   block, its laser trackers and the rest of the cell's sensors.
+//! - [`RotaryKinematics`], [`KinematicsParameter`]: a five-axis controller with tool-centre-point
+//!   control and the geometry of its kinematics module, which `truepos kinematics calibrate`
+//!   reads, identifies and writes back through [`ProbingMachine`].
 //! - [`DeviceError`]: every failure of a device, naming the device's address; the binary maps it
 //!   to exit code 3.
 //!
-//! Frames and units: every position is in the machine frame, millimetres; feeds in mm/s.
+//! Frames and units: every position is in the machine frame, millimetres; feeds in mm/s — except
+//! on a machine with [`ProbingMachine::rotary_kinematics`], whose positions are in the programme
+//! frame that turns with its table.
 
 use thiserror::Error;
 use truepos_math::air::AirConditions;
@@ -156,6 +161,31 @@ impl RotaryAxes {
     }
 }
 
+/// The kinematics of a five-axis machine whose controller turns programme positions with its
+/// rotary axes ([`ProbingMachine::rotary_kinematics`]): tool-centre-point control (TCP).
+///
+/// With TCP, every position the machine reports and takes is in the *programme frame*, which
+/// moves with the table (at B = C = 0 it coincides with the machine frame), and
+/// [`ProbingMachine::orient`] keeps the tip fixed in that frame while the axes turn. Where the
+/// controller believes the table is depends on the geometry its kinematics module is configured
+/// with ([`ProbingMachine::kinematics_parameters`]); `truepos-kinematics` identifies it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RotaryKinematics {
+    /// truepos's name of the model (`xyzbc-trt`: a B tilting table carrying a C rotary table).
+    pub model: String,
+    /// The controller's own name of its kinematics module (`xyzbc-trt-kins` in LinuxCNC).
+    pub module: String,
+}
+
+/// One geometry parameter of a controller's kinematics module (a LinuxCNC kinematics pin), in
+/// mm.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KinematicsParameter {
+    /// The module's own name of the parameter (`x-rot-point`).
+    pub name: String,
+    pub value_mm: f64,
+}
+
 /// A machine with a touch-trigger (or scanning) probe: a CMM, or a machine tool with a
 /// spindle probe. Positions are tip-centre positions in the machine frame (mm) — as the NC
 /// knows them: with a head whose offset is being calibrated, they are the NC's head reference
@@ -192,6 +222,46 @@ pub trait ProbingMachine {
             address: self.info().address,
             what: format!("orienting the head to B = {b_deg}°, C = {c_deg}°"),
             message: "this machine has no rotary axes (B, C)".into(),
+        })
+    }
+    /// Where a five-axis machine's controller turns positions with its rotary axes (TCP), its
+    /// kinematics ([`RotaryKinematics`]); then positions are in the programme frame, `orient`
+    /// keeps the tip fixed in it, and B may tilt the table rather than the head. Default: none
+    /// (positions are machine coordinates, as on every machine before).
+    fn rotary_kinematics(&self) -> Option<RotaryKinematics> {
+        None
+    }
+    /// The rotary axes' angles now (B, C in degrees). The default knows only machines without
+    /// rotary axes (always 0, 0); machines with axes override it.
+    fn orientation(&mut self) -> Result<(f64, f64), DeviceError> {
+        let axes = self.rotary_axes();
+        if !axes.head_b && !axes.table_c && self.rotary_kinematics().is_none() {
+            return Ok((0.0, 0.0));
+        }
+        Err(DeviceError::Rejected {
+            address: self.info().address,
+            what: "reading the rotary axes' angles".into(),
+            message: "this machine does not report them".into(),
+        })
+    }
+    /// The geometry its kinematics module is configured with now, read from the running
+    /// controller (default: not available).
+    fn kinematics_parameters(&mut self) -> Result<Vec<KinematicsParameter>, DeviceError> {
+        Err(DeviceError::Rejected {
+            address: self.info().address,
+            what: "reading the kinematics parameters".into(),
+            message: "this machine's kinematics cannot be read".into(),
+        })
+    }
+    /// Write kinematics parameters into the running controller. Implementations refuse unless
+    /// the machine is idle at B = C = 0, where the geometry moves no joint, and read the values
+    /// back (default: not available).
+    fn set_kinematics_parameters(&mut self, values: &[KinematicsParameter]) -> Result<(), DeviceError> {
+        let _ = values;
+        Err(DeviceError::Rejected {
+            address: self.info().address,
+            what: "writing the kinematics parameters".into(),
+            message: "this machine's kinematics cannot be written".into(),
         })
     }
 }

@@ -13,6 +13,9 @@
 //! (otherwise a probe misses, or trips during a positioning move: both are errors naming the
 //! move, with the machine retracted).
 //!
+//! [`probe_sphere_about`] does the same with "up" along another direction (the tool axis of a
+//! five-axis machine whose positions turn with its table; `truepos kinematics calibrate`).
+//!
 //! [`acquire_head_offset`] repeats this at several head (B) and table (C) orientations, where
 //! the machine has those axes, and [`points_csv`] writes the head-offset points file
 //! (`truepos head-offset acquire`); a machine without them is refused before it moves.
@@ -225,6 +228,86 @@ pub fn probe_sphere<M: ProbingMachine + ?Sized>(
         points,
         device: m.info(),
     })
+}
+
+/// [`probe_sphere`] in a turned frame: the same plan, with "up" (the pole of the probed cap, the
+/// direction of the clearance moves) along `programme_from_local`'s third column instead of +Z,
+/// and the whole pattern turned with it about the nominal centre. For a five-axis machine with
+/// tool-centre-point control, whose positions are in the programme frame that turns with the
+/// table, `programme_from_local` is the table's rotation (machine directions in the programme
+/// frame): the cap then faces the tool and the pattern is the same in the machine at every
+/// orientation. The result is in the programme frame (centre, points); each centre
+/// uncertainty is the rotated per-axis uncertainty with the fit's correlations left out.
+///
+/// `programme_from_local` must be a rotation (orthonormal, determinant +1).
+pub fn probe_sphere_about<M: ProbingMachine + ?Sized>(
+    m: &mut M,
+    plan: &SphereProbing,
+    programme_from_local: &nalgebra::Matrix3<f64>,
+) -> Result<ProbedSphere, AcquireError> {
+    plan.check()?;
+    let r = programme_from_local;
+    let orthonormal = (r.transpose() * r - nalgebra::Matrix3::identity()).abs().max() < 1e-9;
+    if !(r.iter().all(|v| v.is_finite()) && orthonormal && r.determinant() > 0.0) {
+        return Err(AcquireError::Plan("the probing frame is not a rotation".into()));
+    }
+    let mut turned = Turned { m, frame: *r, origin: plan.near_mm };
+    let s = probe_sphere(&mut turned, plan)?;
+    let to_prog = |p: &Point3| turned.to_programme(p);
+    let u = s.center_uncertainty_mm;
+    let u_prog = Vector3::from_fn(|i, _| (0..3).map(|j| (r[(i, j)] * u[j]).powi(2)).sum::<f64>().sqrt());
+    Ok(ProbedSphere {
+        center_mm: to_prog(&s.center_mm),
+        points: s.points.iter().map(to_prog).collect(),
+        center_uncertainty_mm: u_prog,
+        ..s
+    })
+}
+
+/// A machine seen in a frame turned about `origin`: local `q` is programme
+/// `origin + frame·(q − origin)`.
+struct Turned<'a, M: ?Sized> {
+    m: &'a mut M,
+    frame: nalgebra::Matrix3<f64>,
+    origin: Point3,
+}
+
+impl<M: ProbingMachine + ?Sized> Turned<'_, M> {
+    fn to_programme(&self, q: &Point3) -> Point3 {
+        self.origin + self.frame * (q - self.origin)
+    }
+    fn to_local(&self, p: &Point3) -> Point3 {
+        self.origin + self.frame.transpose() * (p - self.origin)
+    }
+}
+
+impl<M: ProbingMachine + ?Sized> ProbingMachine for Turned<'_, M> {
+    fn info(&self) -> DeviceInfo {
+        self.m.info()
+    }
+    fn position(&mut self) -> Result<Point3, DeviceError> {
+        let p = self.m.position()?;
+        Ok(self.to_local(&p))
+    }
+    fn move_to(&mut self, target_mm: Point3) -> Result<(), DeviceError> {
+        let p = self.to_programme(&target_mm);
+        self.m.move_to(p)
+    }
+    fn probe(&mut self, request: &ProbeRequest) -> Result<truepos_device::ProbeHit, DeviceError> {
+        let req = ProbeRequest {
+            nominal_mm: self.to_programme(&request.nominal_mm),
+            approach: self.frame * request.approach,
+            ..*request
+        };
+        let hit = self.m.probe(&req)?;
+        Ok(truepos_device::ProbeHit {
+            tip_center_mm: self.to_local(&hit.tip_center_mm),
+            normal: hit.normal.map(|n| self.frame.transpose() * n),
+        })
+    }
+    fn abort(&mut self) -> Result<(), DeviceError> {
+        self.m.abort()
+    }
 }
 
 #[cfg(test)]

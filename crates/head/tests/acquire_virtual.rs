@@ -18,6 +18,33 @@ fn plan(feed_mm_min: f64) -> SphereProbing {
 }
 
 #[test]
+fn a_turned_cap_finds_the_same_sphere_and_faces_the_turned_pole() {
+    use truepos_head::acquire::probe_sphere_about;
+    let cfg = MachineToolConfig { seed: 3, ..MachineToolConfig::default() };
+    let (c_true, _) = cfg.spheres[0];
+    for tilt_deg in [0.0f64, 30.0, 75.0] {
+        // The pole tilted about Y, then turned 40° about Z.
+        let frame = truepos_math::rz(40f64.to_radians()) * truepos_math::ry(tilt_deg.to_radians());
+        let pole = frame.column(2).into_owned();
+        let mut m = VirtualMachineTool::new(cfg.clone()).unwrap();
+        // Start above the turned cap.
+        m.move_to(plan(50.0).near_mm + pole * 40.0).unwrap();
+        let s = probe_sphere_about(&mut m, &plan(50.0), &frame).unwrap();
+        assert!((s.center_mm - c_true).norm() < 0.0015, "tilt {tilt_deg}: {}", s.center_mm);
+        // Every point on the cap around the pole (within 80° of it, 0.3 mm nominal offset).
+        for p in &s.points {
+            let d = (p - plan(50.0).near_mm).normalize();
+            assert!(d.dot(&pole) > (80f64 + 2.0).to_radians().cos(), "tilt {tilt_deg}: {p}");
+        }
+    }
+    // Not a rotation: refused before anything moves.
+    let mut m = VirtualMachineTool::new(cfg).unwrap();
+    let e = probe_sphere_about(&mut m, &plan(50.0), &(truepos_math::Matrix3::identity() * 2.0)).unwrap_err();
+    assert!(matches!(e, AcquireError::Plan(_)), "{e}");
+    assert_eq!(m.probings, 0);
+}
+
+#[test]
 fn finds_the_true_sphere_within_the_servo_latch_error() {
     for (seed, feed) in [(1u64, 50.0), (2, 200.0)] {
         let cfg = MachineToolConfig { seed, ..MachineToolConfig::default() };

@@ -30,6 +30,11 @@ use truepos_math::Point3;
 const INI: &str = include_str!("../tests/lcnc/truepos_sim.ini");
 const HAL: &str = include_str!("../tests/lcnc/truepos_sim.hal");
 const TBL: &str = include_str!("../tests/lcnc/sim_mm.tbl");
+const INI5: &str = include_str!("../tests/lcnc5/xyzbc_sphere.ini");
+const HAL5: &str = include_str!("../tests/lcnc5/xyzbc_sphere.hal");
+
+/// Where `halcompile --install` puts the five-axis truth component.
+pub const SPHERE5_MODULE: &str = "/usr/lib/linuxcnc/modules/sphere5.so";
 
 static ONE_LINUXCNC: Mutex<()> = Mutex::new(());
 
@@ -165,6 +170,58 @@ impl Default for PlateTruth {
     }
 }
 
+/// The five-axis test machine (`tests/lcnc5/`, the verified recipe's configuration): LinuxCNC's
+/// `xyzbc-trt-kins` (a B tilting table carrying a C rotary table) configured with one geometry,
+/// while the probe input comes from the `sphere5` realtime component, which computes the tip in
+/// the table frame with the *true* geometry and trips inside a sphere fixed on the table.
+/// Geometry arrays are in the pin order x-rot-point, y-rot-point, z-rot-point, x-offset,
+/// z-offset (mm).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FiveAxisTruth {
+    /// What the controller's kinematics pins are set to at start-up.
+    pub configured: [f64; 5],
+    /// The machine's true geometry (only the truth component knows it).
+    pub truth: [f64; 5],
+    /// The sphere's centre in the (true) table frame, its radius, the stylus tip radius.
+    pub sphere_center_mm: Point3,
+    pub radius_mm: f64,
+    pub tip_radius_mm: f64,
+}
+
+impl Default for FiveAxisTruth {
+    /// The recipe's machine: C axis off by (+30, −20) µm, B axis by x +45 µm, z −25 µm; a
+    /// 25 mm sphere at (60, 25, 15) probed with a 2 mm ball.
+    fn default() -> Self {
+        FiveAxisTruth {
+            configured: [10.0, -5.0, -20.0, -20.0, -15.0],
+            truth: [10.030, -5.020, -20.0, -19.985, -15.025],
+            sphere_center_mm: Point3::new(60.0, 25.0, 15.0),
+            radius_mm: 12.5,
+            tip_radius_mm: 1.0,
+        }
+    }
+}
+
+/// Set `key = value` in `[section]` only.
+fn set_section_key(text: &str, section: &str, key: &str, value: &str) -> String {
+    let mut current = String::new();
+    text.lines()
+        .map(|l| {
+            let t = l.trim();
+            if t.starts_with('[') && t.ends_with(']') {
+                current = t.to_string();
+            }
+            if current == section && t.starts_with(key) && t[key.len()..].trim_start().starts_with('=') {
+                format!("{key} = {value}")
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+        + "\n"
+}
+
 /// A running simulated LinuxCNC (stopped on drop).
 pub struct SimLinuxCnc {
     child: Option<Child>,
@@ -172,6 +229,7 @@ pub struct SimLinuxCnc {
     port: u16,
     sphere: SphereTruth,
     plate: PlateTruth,
+    five: Option<FiveAxisTruth>,
     /// The user and the runuser program when running as root.
     run_as: Option<(String, PathBuf)>,
     // Dropped after `Drop::drop` has stopped LinuxCNC: fields drop in declaration order, the
@@ -355,6 +413,32 @@ impl SimLinuxCnc {
 
     /// [`SimLinuxCnc::start`] with another plate (the tip radius is the sphere's).
     pub fn start_with(sphere: SphereTruth, plate: PlateTruth) -> Result<SimLinuxCnc, Unavailable> {
+        SimLinuxCnc::start_inner(sphere, plate, None)
+    }
+
+    /// Start the five-axis test machine ([`FiveAxisTruth`]). Needs the `sphere5` component
+    /// installed ([`SPHERE5_MODULE`]: `halcompile --install tests/lcnc5/sphere5.comp` as root,
+    /// from linuxcnc-uspace-dev); without it, [`Unavailable`] says so.
+    pub fn start_five_axis(five: FiveAxisTruth) -> Result<SimLinuxCnc, Unavailable> {
+        if !Path::new(SPHERE5_MODULE).is_file() {
+            return Err(Unavailable(format!(
+                "the five-axis truth component is not installed ({SPHERE5_MODULE}): as root, with \
+                 linuxcnc-uspace-dev, `halcompile --install crates/linuxcnc/tests/lcnc5/sphere5.comp`"
+            )));
+        }
+        let sphere = SphereTruth {
+            center_mm: five.sphere_center_mm,
+            radius_mm: five.radius_mm,
+            tip_radius_mm: five.tip_radius_mm,
+        };
+        SimLinuxCnc::start_inner(sphere, PlateTruth::default(), Some(five))
+    }
+
+    fn start_inner(
+        sphere: SphereTruth,
+        plate: PlateTruth,
+        five: Option<FiveAxisTruth>,
+    ) -> Result<SimLinuxCnc, Unavailable> {
         let guard = ONE_LINUXCNC.lock().unwrap_or_else(|p| p.into_inner());
         let un = |s: String| Unavailable(s);
         let linuxcnc = find_program("linuxcnc")
@@ -429,9 +513,32 @@ impl SimLinuxCnc {
         for (k, v) in plate_keys {
             ini = set_key(&ini, &k, &format!("{v}"));
         }
+        let (ini_name, ini, hal_name, hal) = match &five {
+            None => ("truepos_sim.ini", ini, "truepos_sim.hal", HAL),
+            Some(f) => {
+                let mut ini =
+                    set_section_key(INI5, "[DISPLAY]", "DISPLAY", &format!("linuxcncrsh --port {port}"));
+                for (k, key) in
+                    ["X_ROT_POINT", "Y_ROT_POINT", "Z_ROT_POINT", "X_OFFSET", "Z_OFFSET"].iter().enumerate()
+                {
+                    ini = set_section_key(&ini, "[KINS]", key, &format!("{:.6}", f.configured[k]));
+                    ini = set_section_key(&ini, "[TRUTH]", key, &format!("{:.6}", f.truth[k]));
+                }
+                let c = f.sphere_center_mm;
+                for (key, v) in [
+                    ("SPHERE_X", c.x),
+                    ("SPHERE_Y", c.y),
+                    ("SPHERE_Z", c.z),
+                    ("RADIUS", f.radius_mm + f.tip_radius_mm),
+                ] {
+                    ini = set_section_key(&ini, "[TRUTH]", key, &format!("{v:.6}"));
+                }
+                ("xyzbc_sphere.ini", ini, "xyzbc_sphere.hal", HAL5)
+            }
+        };
         fs::create_dir_all(&dir)
-            .and_then(|_| write("truepos_sim.ini", &ini))
-            .and_then(|_| write("truepos_sim.hal", HAL))
+            .and_then(|_| write(ini_name, &ini))
+            .and_then(|_| write(hal_name, hal))
             .and_then(|_| write("sim_mm.tbl", TBL))
             .and_then(|_| write("sim_mm.var", ""))
             .map_err(|e| un(format!("cannot write the configuration in {}: {e}", dir.display())))?;
@@ -443,7 +550,7 @@ impl SimLinuxCnc {
         }
         let log = fs::File::create(dir.join("linuxcnc-output.txt")).map_err(|e| un(e.to_string()))?;
         let log2 = log.try_clone().map_err(|e| un(e.to_string()))?;
-        let ini_path = dir.join("truepos_sim.ini");
+        let ini_path = dir.join(ini_name);
         let mut cmd = Command::new(setsid);
         if let Some((user, _, _, runuser)) = &run_as {
             cmd.arg(runuser).args(["-u", user, "--"]);
@@ -463,6 +570,7 @@ impl SimLinuxCnc {
             port,
             sphere,
             plate,
+            five,
             run_as,
             _machine_lock: machine_lock,
             _exclusive: guard,
@@ -515,6 +623,11 @@ impl SimLinuxCnc {
         self.plate
     }
 
+    /// The five-axis machine's truth, when it is the five-axis test machine.
+    pub fn five_axis(&self) -> Option<FiveAxisTruth> {
+        self.five
+    }
+
     /// The operator's part: release the e-stop, switch on, home every joint where it stands,
     /// MDI mode.
     pub fn arm(&self) -> Result<(), String> {
@@ -527,7 +640,8 @@ impl SimLinuxCnc {
         let t = Instant::now();
         loop {
             let h = op.cmd("get joint_homed")?;
-            if h.starts_with("JOINT_HOMED YES YES YES") {
+            let joints = if self.five.is_some() { 5 } else { 3 };
+            if h.split_whitespace().skip(1).take(joints).filter(|w| *w == "YES").count() == joints {
                 break;
             }
             if t.elapsed() > Duration::from_secs(10) {

@@ -9,6 +9,10 @@
 //!   (out of e-stop, on, homed, idle — truepos never releases an e-stop or switches a machine
 //!   on), then [`truepos_device::ProbingMachine`] (G38.2 probing with the latched point read
 //!   back) and [`truepos_device::Controller`] (moves and correction moves for `somac`).
+//! - [`LinuxCnc::attach_kinematics`]: a five-axis machine (`xyzbc-trt-kins` with
+//!   tool-centre-point control): `orient` turns the table with `G0 B C`, and the kinematics
+//!   module's geometry pins are read and written through [`hal`] (`halcmd` on the controller's
+//!   host, as the user that runs LinuxCNC) for `truepos kinematics calibrate`.
 //! - [`url::Address`]: the address and its passwords.
 //! - [`harness::SimLinuxCnc`]: a simulated LinuxCNC with a virtual reference sphere on the probe
 //!   input, started headless for integration tests.
@@ -16,6 +20,7 @@
 //! Every failure is a [`truepos_device::DeviceError`] naming the address and, where the
 //! controller said something, its own message.
 
+pub mod hal;
 pub mod harness;
 mod machine;
 mod session;

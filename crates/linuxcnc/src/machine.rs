@@ -19,10 +19,14 @@
 //! #5063 #5070)` and `get operator_display`, with a fresh tag per point (after a failed probe
 //! the parameters and the display still hold the previous point). Every wait has a deadline.
 
+use crate::hal::{agrees, Hal};
 use crate::session::Session;
 use crate::url::{Address, AddressError};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
-use truepos_device::{Controller, DeviceError, DeviceInfo, ProbeHit, ProbeRequest, ProbingMachine};
+use truepos_device::{
+    Controller, DeviceError, DeviceInfo, KinematicsParameter, ProbeHit, ProbeRequest, ProbingMachine,
+    RotaryAxes, RotaryKinematics,
+};
 use truepos_math::{Point3, Vector3};
 
 /// Tunables of a session. `Default` suits a machine tool with a spindle probe.
@@ -72,7 +76,14 @@ pub struct LinuxCnc {
     offset: Vector3,
     commanded: Option<Point3>,
     t0: Instant,
+    /// The controller's host (for halcmd, which works only there).
+    host: String,
+    /// A five-axis kinematics module found by [`LinuxCnc::attach_kinematics`], and halcmd.
+    kinematics: Option<(RotaryKinematics, Hal)>,
 }
+
+/// The geometry pins of `xyzbc-trt-kins` truepos reads and may write (tool-offset is read only).
+const TRT_PINS: [&str; 5] = ["x-rot-point", "y-rot-point", "z-rot-point", "x-offset", "z-offset"];
 
 fn fmt_mm(v: f64) -> String {
     let s = format!("{v:.6}");
@@ -149,6 +160,8 @@ impl LinuxCnc {
             offset: Vector3::zeros(),
             commanded: None,
             t0: Instant::now(),
+            host: address.host.clone(),
+            kinematics: None,
         };
         let enable = format!("set enable {}", address.enable_password);
         if !m.set(&enable, "enable", "enabling commands", m.options.answer_timeout)? {
@@ -446,6 +459,56 @@ impl LinuxCnc {
     }
 }
 
+impl LinuxCnc {
+    /// Find the controller's five-axis kinematics through halcmd on its host (see
+    /// [`crate::hal`]): `xyzbc-trt-kins` with tool-centre-point control selected
+    /// (`motion.switchkins-type` 0) makes this machine a five-axis one behind
+    /// [`ProbingMachine::rotary_kinematics`]; `maxkins` is reported as such (truepos refuses to
+    /// calibrate it); anything else leaves it a 3-axis machine (`Ok(None)`).
+    pub fn attach_kinematics(&mut self) -> Result<Option<RotaryKinematics>, DeviceError> {
+        let hal = Hal::for_controller(&self.address, &self.host)?;
+        let comps = hal.components()?;
+        let module = ["xyzbc-trt-kins", "maxkins"].into_iter().find(|m| comps.iter().any(|c| c == m));
+        let Some(module) = module else { return Ok(None) };
+        if module == "xyzbc-trt-kins" {
+            let kins_type = hal.getp("motion.switchkins-type").unwrap_or(0.0);
+            if kins_type != 0.0 {
+                return Err(DeviceError::NotReady {
+                    address: self.address.clone(),
+                    reason: format!(
+                        "motion.switchkins-type is {kins_type}: the identity kinematics is selected; select \
+                         xyzbc-trt (type 0, tool-centre-point) first"
+                    ),
+                });
+            }
+        }
+        let k = RotaryKinematics {
+            model: if module == "xyzbc-trt-kins" { "xyzbc-trt" } else { "maxkins" }.into(),
+            module: module.into(),
+        };
+        self.kinematics = Some((k.clone(), hal));
+        Ok(Some(k))
+    }
+
+    /// The six axis values of `abs_cmd_pos` or `abs_act_pos` (x y z a b c).
+    fn get_axes(&mut self, name: &str, what: &str) -> Result<[f64; 6], DeviceError> {
+        let w = self.get(name, what)?;
+        let v: Vec<f64> = w.iter().take(6).filter_map(|s| s.parse::<f64>().ok()).collect();
+        if v.len() < 6 || !v.iter().all(|x| x.is_finite()) {
+            return Err(self.protocol(what, format!("`get {name}` answered `{}`", w.join(" "))));
+        }
+        Ok([v[0], v[1], v[2], v[3], v[4], v[5]])
+    }
+
+    fn hal(&self, what: &str) -> Result<&Hal, DeviceError> {
+        self.kinematics.as_ref().map(|k| &k.1).ok_or_else(|| DeviceError::Rejected {
+            address: self.address.clone(),
+            what: what.into(),
+            message: "no five-axis kinematics module was found on this controller".into(),
+        })
+    }
+}
+
 fn trim_number(v: f64) -> String {
     let s = format!("{v:.6}");
     let s = s.trim_end_matches('0').trim_end_matches('.');
@@ -546,6 +609,138 @@ impl ProbingMachine for LinuxCnc {
             return self.session.resync_with_abort(self.options.answer_timeout);
         }
         self.set_ack("set abort", "abort", "aborting")
+    }
+
+    fn rotary_axes(&self) -> RotaryAxes {
+        match &self.kinematics {
+            // B tilts the table, not a head: only C is what the head-offset contract calls an axis.
+            Some((k, _)) if k.model == "xyzbc-trt" => RotaryAxes { head_b: false, table_c: true },
+            _ => RotaryAxes::default(),
+        }
+    }
+
+    fn rotary_kinematics(&self) -> Option<RotaryKinematics> {
+        self.kinematics.as_ref().map(|k| k.0.clone())
+    }
+
+    fn orientation(&mut self) -> Result<(f64, f64), DeviceError> {
+        if self.kinematics.is_none() {
+            return Ok((0.0, 0.0));
+        }
+        let v = self.get_axes("abs_cmd_pos", "reading the rotary axes")?;
+        Ok((v[4], v[5]))
+    }
+
+    /// `G0 B C` with X, Y, Z unchanged: with tool-centre-point control the tip stays where it is
+    /// in the programme frame while the table turns. Checks that B and C arrived and the tip
+    /// stayed.
+    fn orient(&mut self, b_deg: f64, c_deg: f64) -> Result<(), DeviceError> {
+        let what = format!("turning the table to B = {b_deg}°, C = {c_deg}°");
+        if self.kinematics.is_none() {
+            if b_deg == 0.0 && c_deg == 0.0 {
+                return Ok(());
+            }
+            return Err(DeviceError::Rejected {
+                address: self.address.clone(),
+                what,
+                message: "no five-axis kinematics is attached to this session (a 3-axis machine)".into(),
+            });
+        }
+        if !(b_deg.is_finite() && c_deg.is_finite()) {
+            return Err(DeviceError::Rejected {
+                address: self.address.clone(),
+                what,
+                message: "the angles are not finite".into(),
+            });
+        }
+        let before = self.get_axes("abs_cmd_pos", &what)?;
+        let turn = (b_deg - before[4]).abs().max((c_deg - before[5]).abs());
+        // Rapid angular moves: assume at least 10°/s for the deadline.
+        let timeout = Duration::from_secs_f64(turn / 10.0 * 1.5) + self.options.move_margin;
+        self.commanded = None;
+        self.mdi(&format!("G0 B{} C{}", fmt_mm(b_deg), fmt_mm(c_deg)), &what, timeout)?;
+        let after = self.get_axes("abs_cmd_pos", &what)?;
+        let moved = (0..3).map(|i| (after[i] - before[i]).abs()).fold(0.0, f64::max);
+        if (after[4] - b_deg).abs() > 1e-6 || (after[5] - c_deg).abs() > 1e-6 || moved > POSITION_TOL_MM {
+            return Err(DeviceError::Controller {
+                address: self.address.clone(),
+                what,
+                message: format!(
+                    "the move ended at X {:.4} Y {:.4} Z {:.4} B {:.4} C {:.4} (started at X {:.4} Y {:.4} Z {:.4})",
+                    after[0], after[1], after[2], after[4], after[5], before[0], before[1], before[2]
+                ),
+            });
+        }
+        self.commanded = Some(Point3::new(after[0], after[1], after[2]));
+        Ok(())
+    }
+
+    /// The geometry pins of the kinematics module and `tool-offset`, through halcmd.
+    fn kinematics_parameters(&mut self) -> Result<Vec<KinematicsParameter>, DeviceError> {
+        let hal = self.hal("reading the kinematics parameters")?.clone();
+        let module = self.kinematics.as_ref().map(|k| k.0.module.clone()).unwrap_or_default();
+        let mut out = vec![];
+        for pin in TRT_PINS.iter().chain(&["tool-offset"]) {
+            let v = hal.getp(&format!("{module}.{pin}"))?;
+            out.push(KinematicsParameter { name: pin.to_string(), value_mm: v });
+        }
+        Ok(out)
+    }
+
+    /// Writes the pins (or the signals they are linked to) with halcmd, only with the machine
+    /// idle at B = C = 0, where the geometry moves no joint; reads them back and checks that the
+    /// position did not move.
+    fn set_kinematics_parameters(&mut self, values: &[KinematicsParameter]) -> Result<(), DeviceError> {
+        let what = "writing the kinematics parameters";
+        let hal = self.hal(what)?.clone();
+        let module = self.kinematics.as_ref().map(|k| k.0.module.clone()).unwrap_or_default();
+        let rejected = |address: &str, message: String| DeviceError::Rejected {
+            address: address.to_string(),
+            what: what.into(),
+            message,
+        };
+        for v in values {
+            if !TRT_PINS.contains(&v.name.as_str()) || !v.value_mm.is_finite() {
+                return Err(rejected(
+                    &self.address,
+                    format!("`{}` = {} is not a geometry pin value of {module}", v.name, v.value_mm),
+                ));
+            }
+        }
+        self.check_ready(what)?;
+        let cmd = self.get_axes("abs_cmd_pos", what)?;
+        let act = self.get_axes("abs_act_pos", what)?;
+        if cmd[4].abs() > 1e-9 || cmd[5].abs() > 1e-9 || act[4].abs() > 1e-6 || act[5].abs() > 1e-6 {
+            return Err(rejected(
+                &self.address,
+                format!(
+                    "the table is at B = {} C = {}: the geometry may be changed only at B = C = 0",
+                    act[4], act[5]
+                ),
+            ));
+        }
+        for v in values {
+            let pin = format!("{module}.{}", v.name);
+            hal.set(&pin, v.value_mm)?;
+            let read = hal.getp(&pin)?;
+            if !agrees(read, v.value_mm) {
+                return Err(DeviceError::Controller {
+                    address: self.address.clone(),
+                    what: what.into(),
+                    message: format!("{pin} reads {read} after writing {}", v.value_mm),
+                });
+            }
+        }
+        let after = self.get_axes("abs_act_pos", what)?;
+        let moved = (0..6).map(|i| (after[i] - act[i]).abs()).fold(0.0, f64::max);
+        if moved > 1e-6 {
+            return Err(DeviceError::Controller {
+                address: self.address.clone(),
+                what: what.into(),
+                message: format!("the position moved by {moved} while the geometry was written"),
+            });
+        }
+        Ok(())
     }
 }
 

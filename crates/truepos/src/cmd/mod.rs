@@ -13,6 +13,7 @@ pub mod demo;
 pub mod fit;
 pub mod head;
 pub mod ippdme;
+pub mod kinematics;
 pub mod latency;
 pub mod load;
 pub mod probe;
@@ -60,6 +61,8 @@ pub enum Command {
     Somac(somac::Args),
     /// Probe on a machine with a touch probe (virtual, LinuxCNC): `truepos probe sphere`.
     Probe(probe::Args),
+    /// Rotary axes of a five-axis controller: `truepos kinematics calibrate`.
+    Kinematics(kinematics::Args),
     /// Write a virtual-cell data set (and its truth.json) for one capability.
     Simulate(SimulateArgs),
     /// Run every capability end to end on the virtual cell and write a report.
@@ -122,6 +125,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Command::Air(a) => somac::air(a),
         Command::Somac(a) => somac::run(a),
         Command::Probe(a) => probe::run(a),
+        Command::Kinematics(a) => kinematics::run(a),
         Command::Simulate(s) => match s.scenario {
             Scenario::Latency(a) => latency::simulate(a),
             Scenario::HeadOffset(a) => head::simulate(a),

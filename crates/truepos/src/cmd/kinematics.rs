@@ -1,0 +1,196 @@
+//! `truepos kinematics calibrate`: the rotary axes of a five-axis controller identified by
+//! probing a reference sphere on its table at several orientations, and written back with
+//! `--apply`. Parses the options, checks them (and the orientations' observability) before
+//! opening the controller, opens it (the virtual xyzbc-trt machine, or LinuxCNC with its
+//! kinematics module found through halcmd), calls `truepos_kinematics::calibrate`, prints.
+
+use crate::output::{emit, parse_pair, parse_triple};
+use crate::{DeviceError, Outcome, UsageError};
+use anyhow::Result;
+use std::path::PathBuf;
+use truepos_cell::probing::VirtualMachineTool;
+use truepos_device::ProbingMachine;
+use truepos_head::acquire::SphereProbing;
+use truepos_kinematics::acquire::KinematicsProbing;
+use truepos_kinematics::task::default_verify_orientations;
+use truepos_kinematics::{CalibrateRequest, KinematicsError, Model};
+use truepos_math::Point3;
+
+#[derive(clap::Args, Debug)]
+#[command(
+    after_help = "Example:\n  truepos kinematics calibrate --controller linuxcncrsh://127.0.0.1:5007 --model xyzbc-trt --near=60,25,15 --diameter-mm 25 --tip-diameter-mm 2 --orientation 0,0 --orientation 0,120 --orientation 0,240 --orientation 45,0 --orientation 90,120 --orientation 90,240 --apply --verify --json"
+)]
+pub struct Args {
+    #[command(subcommand)]
+    pub what: What,
+}
+
+#[derive(clap::Subcommand, Debug)]
+pub enum What {
+    /// Identify the rotary axes' geometry from a sphere probed at several orientations; write
+    /// it into the running controller with --apply.
+    Calibrate(CalibrateArgs),
+}
+
+#[derive(clap::Args, Debug)]
+#[command(
+    after_help = "Example:\n  truepos kinematics calibrate --controller linuxcncrsh://127.0.0.1:5007 --model xyzbc-trt --near=60,25,15 --diameter-mm 25 --tip-diameter-mm 2 --orientation 0,0 --orientation 0,120 --orientation 0,240 --orientation 45,0 --orientation 90,120 --orientation 90,240 --apply --verify --json
+
+The sphere sits on the rotary table; --near is its nominal centre in the programme frame (the
+table frame at B = C = 0), known to better than the clearance. The controller must run its
+five-axis kinematics with tool-centre-point control (LinuxCNC: xyzbc-trt-kins, switchkins type
+0), be on, homed and idle; truepos never releases an e-stop or switches a machine on.
+
+At each orientation the sphere is probed over the cap that faces the tool, as `probe sphere`
+does. Between orientations the probe goes out along the tool axis to --turn-distance-mm from the
+sphere, over to the top, the axes turn there (the tip stays put in the table frame), and it
+comes back along the new tool axis. The machine ends at B = C = 0 above the sphere.
+
+Four numbers are observable: the C axis's X, Y (x-rot-point, y-rot-point) and the B axis's X, Z
+(x-rot-point + x-offset, z-rot-point + z-offset); the Z change goes into z-offset. Orientations
+that cannot determine one of them (no two C angles, no two B angles): exit 2 before any motion.
+
+Without --apply nothing is written (dry run). --apply writes the identified values into the
+running controller at B = C = 0 (LinuxCNC: halcmd setp on the controller's host, as the user
+that runs LinuxCNC) and prints the INI/HAL lines that make it permanent. --verify then probes
+again at other orientations and reports how well the centres agree.
+
+Exit codes: 0 done; 2 bad options, orientations that cannot determine the geometry, or --model
+maxkins (its forward and inverse kinematics disagree in LinuxCNC 2.9); 3 controller faults."
+)]
+pub struct CalibrateArgs {
+    /// `virtual` (a built-in xyzbc-trt machine whose true geometry is tens of µm off its
+    /// configured one) or `linuxcncrsh://HOST:PORT[?password=…]` on this host.
+    #[arg(long, default_value = "virtual")]
+    pub controller: String,
+    /// The kinematics: `xyzbc-trt` (LinuxCNC's xyzbc-trt-kins: a B tilting table carrying a C
+    /// rotary table). `maxkins` is refused.
+    #[arg(long)]
+    pub model: String,
+    /// Nominal sphere centre X,Y,Z (mm, programme frame); negative values as `--near=-1,2,3`.
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
+    pub near: [f64; 3],
+    /// Nominal sphere diameter (mm).
+    #[arg(long)]
+    pub diameter_mm: f64,
+    /// An orientation B,C (degrees, |B| ≤ 90); repeat for each. Negative values as
+    /// `--orientation=-45,0`.
+    #[arg(long = "orientation", value_parser = parse_pair, allow_hyphen_values = true, required = true)]
+    pub orientations: Vec<[f64; 2]>,
+    /// Points per orientation (≥ 5).
+    #[arg(long, default_value_t = 9)]
+    pub points: usize,
+    /// Probing feed (mm/min).
+    #[arg(long, default_value_t = 50.0)]
+    pub feed_mm_min: f64,
+    /// Distance from the nominal surface where each probing move starts and beyond which it
+    /// gives up (mm).
+    #[arg(long, default_value_t = 2.0)]
+    pub clearance_mm: f64,
+    /// Stylus ball diameter (mm).
+    #[arg(long, default_value_t = 0.0)]
+    pub tip_diameter_mm: f64,
+    /// Distance from the sphere's centre at which the axes turn (mm).
+    #[arg(long, default_value_t = 60.0)]
+    pub turn_distance_mm: f64,
+    /// Write the identified geometry into the running controller (at B = C = 0).
+    #[arg(long)]
+    pub apply: bool,
+    /// After --apply, probe again at other orientations and report the centres' agreement.
+    #[arg(long)]
+    pub verify: bool,
+    /// The verification orientations B,C (default: 0,0; 0,60; B/2,180; B,300; B/2,30 with B the
+    /// largest calibration tilt).
+    #[arg(long = "verify-orientation", value_parser = parse_pair, allow_hyphen_values = true)]
+    pub verify_orientations: Vec<[f64; 2]>,
+    /// Write the latched points (b_deg,c_deg,x_mm,y_mm,z_mm,group; programme frame) here.
+    #[arg(long)]
+    pub output: Option<PathBuf>,
+    /// Seed of the virtual machine (its true geometry and where its sphere is).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print one JSON object on stdout (human text goes to stderr).
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(a: Args) -> Result<Outcome> {
+    match a.what {
+        What::Calibrate(c) => calibrate(c),
+    }
+}
+
+fn kin_err(e: KinematicsError) -> anyhow::Error {
+    if e.is_user_input() {
+        UsageError(e.to_string()).into()
+    } else {
+        DeviceError(e.to_string()).into()
+    }
+}
+
+fn calibrate(a: CalibrateArgs) -> Result<Outcome> {
+    let model = Model::parse(&a.model).map_err(kin_err)?;
+    if !a.verify && !a.verify_orientations.is_empty() {
+        return Err(UsageError("--verify-orientation needs --verify".into()).into());
+    }
+    let verify = a.verify.then(|| {
+        if a.verify_orientations.is_empty() {
+            default_verify_orientations(&a.orientations)
+        } else {
+            a.verify_orientations.clone()
+        }
+    });
+    let req = CalibrateRequest {
+        model,
+        probing: KinematicsProbing {
+            sphere: SphereProbing {
+                near_mm: Point3::from(a.near),
+                diameter_mm: a.diameter_mm,
+                points: a.points,
+                feed_mm_s: a.feed_mm_min / 60.0,
+                clearance_mm: a.clearance_mm,
+                tip_radius_mm: 0.5 * a.tip_diameter_mm,
+            },
+            orientations: a.orientations.clone(),
+            turn_distance_mm: a.turn_distance_mm,
+        },
+        apply: a.apply,
+        verify,
+        output: a.output.clone(),
+    };
+    // Options and observability before a controller is opened (and anything moves).
+    req.check().map_err(kin_err)?;
+    let (mut machine, truth): (Box<dyn ProbingMachine>, _) = if a.controller == "virtual" {
+        let (m, t) = VirtualMachineTool::five_axis(
+            a.seed,
+            Point3::from(a.near),
+            0.5 * a.diameter_mm,
+            0.5 * a.tip_diameter_mm,
+        )
+        .map_err(|e| UsageError(format!("virtual machine: {e}")))?;
+        (Box::new(m), Some(t))
+    } else if a.controller.starts_with(truepos_linuxcnc::url::SCHEME) {
+        let address =
+            truepos_linuxcnc::Address::parse(&a.controller).map_err(|e| UsageError(e.to_string()))?;
+        let options = truepos_linuxcnc::Options { joints: 5, ..truepos_linuxcnc::Options::default() };
+        let mut m = truepos_linuxcnc::LinuxCnc::open_address(&address, options)
+            .map_err(|e| DeviceError(e.to_string()))?;
+        m.attach_kinematics().map_err(|e| DeviceError(e.to_string()))?;
+        (Box::new(m), None)
+    } else {
+        return Err(UsageError(format!(
+            "--controller `{}`: expected `virtual` or `linuxcncrsh://HOST:PORT[?password=…]`",
+            a.controller
+        ))
+        .into());
+    };
+    // Progress on stderr (stdout carries only the result).
+    let mut report =
+        truepos_kinematics::calibrate(machine.as_mut(), &req, |s| eprintln!("{s}")).map_err(kin_err)?;
+    eprintln!("warning: the uncertainties are the fit residuals' alone; the machine's other errors are not included");
+    if let Some(t) = truth {
+        report.truth = Some((t.truth, t.sphere_centre_mm));
+    }
+    emit(&report, a.json)?;
+    Ok(Outcome::Done)
+}
