@@ -128,7 +128,7 @@ const MALFORMED: &[(&str, u32, u32, ErrorKind, &str)] = &[
     ("DMISMN/'x'\nCONST/POINT,F(P),TANTO,FA(A),FA(B)\n", 2, 18, ErrorKind::Unsupported, "TANTO"),
     ("DMISMN/'x'\nOUTPUT/\n", 2, 8, ErrorKind::Syntax, "expected at the end"),
     ("DMISMN/'x'\n= GOTO/1,2,3\n", 2, 1, ErrorKind::Syntax, "major word"),
-    ("DMISMN/'x'\nGOTO/1,2,3=\n", 2, 11, ErrorKind::Syntax, "argument expected"),
+    ("DMISMN/'x'\nGOTO/1,2,3=\n", 2, 11, ErrorKind::Syntax, "',' expected"),
     ("DMISMN/'x'\n+FEAT/1\n", 2, 1, ErrorKind::Syntax, "is not a number"),
 ];
 
