@@ -129,7 +129,8 @@ const MALFORMED: &[(&str, u32, u32, ErrorKind, &str)] = &[
     ("DMISMN/'x'\nOUTPUT/\n", 2, 8, ErrorKind::Syntax, "expected at the end"),
     ("DMISMN/'x'\n= GOTO/1,2,3\n", 2, 1, ErrorKind::Syntax, "major word"),
     ("DMISMN/'x'\nGOTO/1,2,3=\n", 2, 11, ErrorKind::Syntax, "',' expected"),
-    ("DMISMN/'x'\n+FEAT/1\n", 2, 1, ErrorKind::Syntax, "is not a number"),
+    ("DMISMN/'x'\n+FEAT/1\n", 2, 1, ErrorKind::Syntax, "unexpected character"),
+    ("DMISMN/'x'\nGOTO/.,1,2\n", 2, 6, ErrorKind::Syntax, "is not a number"),
 ];
 
 #[test]
