@@ -22,8 +22,12 @@
 
 pub mod ast;
 pub mod error;
+pub mod exec;
 pub mod lexer;
+pub mod model;
 pub mod parse;
+pub mod report;
+pub mod task;
 
 pub use error::{DmisError, ErrorKind, Pos};
 pub use parse::{parse, Program, Stmt};
