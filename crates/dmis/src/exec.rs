@@ -978,8 +978,8 @@ pub fn fit_feature(t: FeatType, nominal: &Geom, points: Vec<Point3>) -> Result<A
             (Geom::Circle { c: f.center, n, r: f.radius }, Some(u), Some(2.0 * f.u_radius))
         }
         FeatType::Cylndr => {
-            let f = truepos_fit::cylinder(&points).map_err(e)?;
-            (Geom::Cylinder { p: f.point, axis: orient(f.axis, like), r: f.radius }, Some(f.u_point), Some(2.0 * f.u_radius))
+            let (p, axis, r, up, ur) = cylinder_from_nominal(nominal, &points)?;
+            (Geom::Cylinder { p, axis: orient(axis, like), r }, Some(up), Some(2.0 * ur))
         }
         FeatType::Sphere => {
             let f = truepos_fit::sphere(&points).map_err(e)?;
@@ -1043,4 +1043,70 @@ impl ProbingMachine for DryRun {
         self.radius = self.tools.get(name).copied().unwrap_or(0.0);
         Ok(ToolInfo { name: name.to_string(), tip_radius_mm: self.radius })
     }
+}
+
+/// The least-squares cylinder started from the nominal (axis, radius). Points taken on two
+/// levels at the same angles lie on several cylinders (four points a level at 0°, 90°, 180°,
+/// 270° lie as well on a cylinder about a diagonal); the nominal picks the one the program means.
+/// Returns axis point, unit axis, radius and the standard uncertainties of point and radius.
+fn cylinder_from_nominal(nominal: &Geom, points: &[Point3]) -> Result<(Point3, Vector3, f64, f64, f64), String> {
+    use truepos_math::lsq::{solve, LsqOptions, Residuals};
+    let Geom::Cylinder { p: p0, axis: a0, r: r0 } = nominal else {
+        return Err("not a cylinder".into());
+    };
+    let n = points.len() as f64;
+    let centroid = Point3::from(points.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / n);
+    let a0 = a0 / a0.norm();
+    let c0 = p0 + a0 * (centroid - p0).dot(&a0);
+    let u = a0.cross(&if a0.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() });
+    let u = u / u.norm();
+    let v = a0.cross(&u);
+    struct Cyl<'a> {
+        pts: &'a [Point3],
+        c0: Point3,
+        a0: Vector3,
+        u: Vector3,
+        v: Vector3,
+    }
+    impl Cyl<'_> {
+        fn geom(&self, x: &[f64]) -> (Point3, Vector3) {
+            let o = self.c0 + self.u * x[0] + self.v * x[1];
+            let a = self.a0 + self.u * x[2] + self.v * x[3];
+            (o, a / a.norm())
+        }
+        fn res(&self, x: &[f64], i: usize) -> f64 {
+            let (o, a) = self.geom(x);
+            (self.pts[i] - o).cross(&a).norm() - x[4]
+        }
+    }
+    impl Residuals for Cyl<'_> {
+        fn n_params(&self) -> usize {
+            5
+        }
+        fn n_residuals(&self) -> usize {
+            self.pts.len()
+        }
+        fn eval(&self, x: &[f64], i: usize, jac: &mut [f64]) -> f64 {
+            let r = self.res(x, i);
+            let mut y = x.to_vec();
+            for j in 0..5 {
+                let h = 1e-7 * (1.0 + x[j].abs());
+                y[j] = x[j] + h;
+                let rp = self.res(&y, i);
+                y[j] = x[j] - h;
+                let rm = self.res(&y, i);
+                y[j] = x[j];
+                jac[j] = (rp - rm) / (2.0 * h);
+            }
+            r
+        }
+    }
+    let prob = Cyl { pts: points, c0, a0, u, v };
+    let sol = solve(&prob, &[0.0, 0.0, 0.0, 0.0, *r0], &LsqOptions::default()).map_err(|e| format!("cylinder: {e}"))?;
+    if sol.rank < 5 {
+        return Err("cylinder: the points do not determine the cylinder".into());
+    }
+    let (o, a) = prob.geom(&sol.params);
+    let up = (sol.covariance[(0, 0)] + sol.covariance[(1, 1)]).max(0.0).sqrt();
+    Ok((o, a, sol.params[4].abs(), up, sol.std_dev(4)))
 }

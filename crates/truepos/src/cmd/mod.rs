@@ -9,6 +9,7 @@ pub mod align;
 pub mod cli_tree;
 pub mod comp;
 pub mod demo;
+pub mod dmis;
 pub mod fit;
 pub mod head;
 pub mod ippdme;
@@ -65,6 +66,8 @@ pub enum Command {
     Demo(demo::Args),
     /// I++ DME: the virtual CMM as an I++ DME server (`truepos ippdme serve`).
     Ippdme(ippdme::Args),
+    /// DMIS part programs on a CMM (I++ DME or the virtual CMM): `truepos dmis run`.
+    Dmis(dmis::Args),
     /// The command line as JSON (every command and argument with its help), for the tests.
     #[command(name = "__cli-tree", hide = true)]
     CliTree,
@@ -129,6 +132,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         },
         Command::Demo(a) => demo::run(a),
         Command::Ippdme(a) => ippdme::run(a),
+        Command::Dmis(a) => dmis::run(a),
         Command::CliTree => cli_tree::run(),
     }
 }
