@@ -1117,7 +1117,10 @@ pub struct LoopbackCmm {
 
 /// Build the virtual CMM from the files (as `truepos ippdme serve`), serve it on
 /// `127.0.0.1:0` and home it.
-pub fn serve_loopback(part: Option<&std::path::Path>, machine: Option<&std::path::Path>) -> Result<LoopbackCmm, ServeError> {
+pub fn serve_loopback(
+    part: Option<&std::path::Path>,
+    machine: Option<&std::path::Path>,
+) -> Result<LoopbackCmm, ServeError> {
     let opts = ServeOptions {
         bind: "127.0.0.1".into(),
         port: 0,
@@ -1133,7 +1136,10 @@ pub fn serve_loopback(part: Option<&std::path::Path>, machine: Option<&std::path
         let _ = session.handle_line(line.as_bytes(), &mut out);
     }
     if let Some(bad) = out.iter().map(|r| r.format()).find(|l| l.contains(" ! ")) {
-        return Err(ServeError::Bind { address, source: std::io::Error::other(format!("homing refused: {bad}")) });
+        return Err(ServeError::Bind {
+            address,
+            source: std::io::Error::other(format!("homing refused: {bad}")),
+        });
     }
     let handle = server.spawn().map_err(|source| ServeError::Bind { address: address.clone(), source })?;
     let url = format!("ippdme://{}", handle.addr);

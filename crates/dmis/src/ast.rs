@@ -304,19 +304,45 @@ pub enum Tol {
     Cirlty(f64),
     Cylcty(f64),
     /// `DIAM,lotol,uptol`: deviations from nominal.
-    Diam { lo: f64, hi: f64 },
+    Diam {
+        lo: f64,
+        hi: f64,
+    },
     /// `RAD,lotol,uptol`.
-    Rad { lo: f64, hi: f64 },
+    Rad {
+        lo: f64,
+        hi: f64,
+    },
     /// `POS,2D|3D,zone,RFS|MMC|LMC[,DAT(A),…]`.
-    Pos { three_d: bool, zone: f64, cond: MatCond, datums: Vec<Label> },
+    Pos {
+        three_d: bool,
+        zone: f64,
+        cond: MatCond,
+        datums: Vec<Label>,
+    },
     /// `PERP,zone,DAT(A)`.
-    Perp { zone: f64, datum: Label },
+    Perp {
+        zone: f64,
+        datum: Label,
+    },
     /// `PARLEL,zone,DAT(A)`.
-    Parlel { zone: f64, datum: Label },
+    Parlel {
+        zone: f64,
+        datum: Label,
+    },
     /// `ANGLB,angle,lotol,uptol`.
-    Anglb { angle: f64, lo: f64, hi: f64 },
+    Anglb {
+        angle: f64,
+        lo: f64,
+        hi: f64,
+    },
     /// `DISTB,NOMINL,dist,lotol,uptol[,XAXIS|YAXIS|ZAXIS|PT2PT]`.
-    Distb { dist: f64, lo: f64, hi: f64, axis: Option<DistAxis> },
+    Distb {
+        dist: f64,
+        lo: f64,
+        hi: f64,
+        axis: Option<DistAxis>,
+    },
 }
 
 impl Tol {
@@ -341,45 +367,115 @@ impl Tol {
 /// One statement of the subset.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Statement {
-    Dmismn { title: String, version: Option<f64> },
-    Dmismd { title: String, version: Option<f64> },
+    Dmismn {
+        title: String,
+        version: Option<f64>,
+    },
+    Dmismd {
+        title: String,
+        version: Option<f64>,
+    },
     Endfil,
-    Filnam { name: String, version: Option<f64> },
-    Units { length: LengthUnit, angle: AngleUnit, temp: Option<TempUnit> },
+    Filnam {
+        name: String,
+        version: Option<f64>,
+    },
+    Units {
+        length: LengthUnit,
+        angle: AngleUnit,
+        temp: Option<TempUnit>,
+    },
     /// `DISPLY/OFF` or `DISPLY/TERM,DMIS,STOR,DMIS,…`: words and device labels.
     Disply(Vec<DisplyItem>),
     Prcomp(bool),
     Mode(Vec<ModeWord>),
-    Fedrat { kind: FeedKind, unit: FeedUnit, value: Option<f64> },
+    Fedrat {
+        kind: FeedKind,
+        unit: FeedUnit,
+        value: Option<f64>,
+    },
     Snset(Snset),
     /// `S(l)=SNSDEF/PROBE,FIXED,CART,x,y,z,i,j,k,diam`: a fixed probe, its tip offset from the
     /// probe mount, its direction and its tip diameter.
-    Snsdef { label: Label, offset: Xyz, dir: Xyz, diam: f64 },
+    Snsdef {
+        label: Label,
+        offset: Xyz,
+        dir: Xyz,
+        diam: f64,
+    },
     Snslct(Label),
     /// `SNSMNT/XVEC,i,j,k,ZVEC,i,j,k,MNTLEN,x,y,z`.
-    Snsmnt { xvec: Xyz, zvec: Xyz, mntlen: Xyz },
+    Snsmnt {
+        xvec: Xyz,
+        zvec: Xyz,
+        mntlen: Xyz,
+    },
     Goto(Goto),
-    Feat { label: Label, geom: FeatGeom },
-    Meas { ftype: FeatType, feature: Label, n: u32 },
+    Feat {
+        label: Label,
+        geom: FeatGeom,
+    },
+    Meas {
+        ftype: FeatType,
+        feature: Label,
+        n: u32,
+    },
     Endmes,
     /// `PTMEAS/CART,x,y,z[,i,j,k]`.
-    Ptmeas { p: Xyz, n: Option<Xyz> },
-    Const { ftype: FeatType, feature: Label, method: ConstMethod },
+    Ptmeas {
+        p: Xyz,
+        n: Option<Xyz>,
+    },
+    Const {
+        ftype: FeatType,
+        feature: Label,
+        method: ConstMethod,
+    },
     /// `DAT(A)=DATDEF/FA(x)` (`assigned`) or DMIS 3's `DATDEF/FA(x),DA(A)`.
-    Datdef { datum: Label, feature: Label, assigned: bool },
-    Datset { label: Label, def: Datset },
-    Trans { label: Option<Label>, items: Vec<(Origin, TransBy)> },
-    Rotate { label: Option<Label>, axis: RotAxis, by: RotateBy },
+    Datdef {
+        datum: Label,
+        feature: Label,
+        assigned: bool,
+    },
+    Datset {
+        label: Label,
+        def: Datset,
+    },
+    Trans {
+        label: Option<Label>,
+        items: Vec<(Origin, TransBy)>,
+    },
+    Rotate {
+        label: Option<Label>,
+        axis: RotAxis,
+        by: RotateBy,
+    },
     Save(Label),
     Recall(Label),
-    Tol { label: Label, tol: Tol },
+    Tol {
+        label: Label,
+        tol: Tol,
+    },
     Output(Vec<Label>),
-    Text { kind: TextKind, text: String },
-    Device { label: Label, kind: DeviceKind, file: Option<String> },
+    Text {
+        kind: TextKind,
+        text: String,
+    },
+    Device {
+        label: Label,
+        kind: DeviceKind,
+        file: Option<String>,
+    },
     /// `OPEN/DID(x),DIRECT,OUTPUT[,OVERWR|APPEND]`.
-    Open { device: Label, words: Vec<String> },
+    Open {
+        device: Label,
+        words: Vec<String>,
+    },
     /// `CLOSE/DID(x)[,KEEP|DELETE]`.
-    Close { device: Label, word: Option<String> },
+    Close {
+        device: Label,
+        word: Option<String>,
+    },
 }
 
 /// One item of `DISPLY`.
@@ -654,7 +750,9 @@ impl Display for Statement {
             Statement::Tol { label, tol } => {
                 write!(s, "{label}=TOL/{}", tol.word())?;
                 match tol {
-                    Tol::Flat(v) | Tol::Strght(v) | Tol::Cirlty(v) | Tol::Cylcty(v) => push_nums(&mut s, &[*v]),
+                    Tol::Flat(v) | Tol::Strght(v) | Tol::Cirlty(v) | Tol::Cylcty(v) => {
+                        push_nums(&mut s, &[*v])
+                    }
                     Tol::Diam { lo, hi } | Tol::Rad { lo, hi } => push_nums(&mut s, &[*lo, *hi]),
                     Tol::Pos { three_d, zone, cond, datums } => {
                         s.push_str(if *three_d { ",3D" } else { ",2D" });

@@ -101,7 +101,10 @@ impl Geom {
     /// The location of the feature (point, centre, axis point, apex, plane point).
     pub fn position(&self) -> Point3 {
         match self {
-            Geom::Point { p, .. } | Geom::Plane { p, .. } | Geom::Line { p, .. } | Geom::Cylinder { p, .. } => *p,
+            Geom::Point { p, .. }
+            | Geom::Plane { p, .. }
+            | Geom::Line { p, .. }
+            | Geom::Cylinder { p, .. } => *p,
             Geom::Circle { c, .. } | Geom::Sphere { c, .. } => *c,
             Geom::Cone { apex, .. } => *apex,
         }
@@ -132,7 +135,9 @@ impl Geom {
             Nominal::Circle { c, n, r } => Geom::Circle { c: p(c), n: d(n), r: *r },
             Nominal::Cylinder { p: q, axis, r, .. } => Geom::Cylinder { p: p(q), axis: d(axis), r: *r },
             Nominal::Sphere { c, r } => Geom::Sphere { c: p(c), r: *r },
-            Nominal::Cone { apex, axis, half_angle } => Geom::Cone { apex: p(apex), axis: d(axis), half_angle: *half_angle },
+            Nominal::Cone { apex, axis, half_angle } => {
+                Geom::Cone { apex: p(apex), axis: d(axis), half_angle: *half_angle }
+            }
         }
     }
     /// The surface normal (out of the material) of a nominal feature at a point near it.
@@ -263,13 +268,18 @@ pub fn run(
 ) -> Result<RunResult, RunError> {
     let t0 = Instant::now();
     // Tools for the selected sensors, before any motion.
-    let listed = machine
-        .tool_names()
-        .map_err(|e| RunError::Device { file: plan.file.clone(), line: 0, source: e })?;
+    let listed = machine.tool_names().map_err(|e| RunError::Device {
+        file: plan.file.clone(),
+        line: plan.steps.first().map_or(1, |s| s.pos.line),
+        source: e,
+    })?;
     let mut tool_of: Vec<String> = Vec::new();
     for s in &plan.sensors {
         let tool = opts.sensors.get(&s.name.to_ascii_uppercase()).cloned().unwrap_or_else(|| s.name.clone());
-        let used = plan.steps.iter().any(|st| matches!(st.op, Op::SelectSensor(k) if plan.sensors[k].name == s.name));
+        let used = plan
+            .steps
+            .iter()
+            .any(|st| matches!(st.op, Op::SelectSensor(k) if plan.sensors[k].name == s.name));
         if used && !listed.is_empty() && !listed.iter().any(|t| t == &tool) {
             return Err(RunError::Input(DmisError::new(
                 &plan.file,
@@ -317,7 +327,10 @@ pub fn run(
         n_points: 0,
         at: None,
     };
-    ex.out.push(format!("FILNAM/'{}'", plan.filnam.clone().unwrap_or_else(|| plan.title.clone()).replace('\'', "''")));
+    ex.out.push(format!(
+        "FILNAM/'{}'",
+        plan.filnam.clone().unwrap_or_else(|| plan.title.clone()).replace('\'', "''")
+    ));
     for step in &plan.steps {
         let line = step.pos.line;
         let dev = |e: DeviceError| RunError::Device { file: plan.file.clone(), line, source: e };
@@ -349,7 +362,8 @@ pub fn run(
             Op::SelectSensor(k) => {
                 let tool = &tool_of[*k];
                 let info = machine.select_tool(tool).map_err(dev)?;
-                ex.motions.push(format!("line {line}: tool {} (tip radius {} mm)", info.name, info.tip_radius_mm));
+                ex.motions
+                    .push(format!("line {line}: tool {} (tip radius {} mm)", info.name, info.tip_radius_mm));
                 ex.tip_radius = Some(info.tip_radius_mm);
                 ex.at = None;
             }
@@ -399,11 +413,18 @@ pub fn run(
                             return Err(RunError::Evaluation {
                                 file: plan.file.clone(),
                                 line,
-                                message: format!("ROTATE: F({})'s direction lies along the rotation axis", plan.features[*k].name),
+                                message: format!(
+                                    "ROTATE: F({})'s direction lies along the rotation axis",
+                                    plan.features[*k].name
+                                ),
                             });
                         }
                         let phi = y.atan2(x);
-                        if *target == i { phi } else { phi - std::f64::consts::FRAC_PI_2 }
+                        if *target == i {
+                            phi
+                        } else {
+                            phi - std::f64::consts::FRAC_PI_2
+                        }
                     }
                 };
                 let (s, c) = theta.sin_cos();
@@ -427,7 +448,7 @@ pub fn run(
                 ex.length = *length;
                 ex.angle = *angle;
             }
-            Op::Output(items) => ex.output(items, step, line)?,
+            Op::Output(items) => ex.output(items, line)?,
             Op::Text { kind, text } => match kind {
                 TextKind::Outfil => ex.out.push(format!("TEXT/OUTFIL,'{}'", text.replace('\'', "''"))),
                 _ => progress(&format!("line {line}: TEXT/{kind}: {text}")),
@@ -466,7 +487,13 @@ impl Exec<'_> {
         }
     }
 
-    fn measure(&mut self, m: &mut dyn ProbingMachine, k: usize, moves: &[(Move, Pos)], mpos: Pos) -> Result<(), RunError> {
+    fn measure(
+        &mut self,
+        m: &mut dyn ProbingMachine,
+        k: usize,
+        moves: &[(Move, Pos)],
+        mpos: Pos,
+    ) -> Result<(), RunError> {
         let plan = self.plan;
         let feat = &plan.features[k];
         let nominal = self.nominal[k].clone().unwrap_or_else(|| Geom::in_frame(&feat.nominal, &self.frame));
@@ -493,7 +520,13 @@ impl Exec<'_> {
                     let n = match dir {
                         Some(d) => self.frame.dir_to_machine(d),
                         None => nominal.normal_at(&q, feat.side).ok_or_else(|| {
-                            self.eval_err(line, format!("PTMEAS: no surface normal of F({}) at this point; give the direction", feat.name))
+                            self.eval_err(
+                                line,
+                                format!(
+                                    "PTMEAS: no surface normal of F({}) at this point; give the direction",
+                                    feat.name
+                                ),
+                            )
                         })?,
                     };
                     let req = ProbeRequest {
@@ -505,7 +538,13 @@ impl Exec<'_> {
                         retract_mm: self.retract,
                         feed_mm_s: self.feed,
                     };
-                    self.motions.push(format!("PTMEAS {} along ({:.4}, {:.4}, {:.4})", fmt_xyz(&q), n.x, n.y, n.z));
+                    self.motions.push(format!(
+                        "PTMEAS {} along ({:.4}, {:.4}, {:.4})",
+                        fmt_xyz(&q),
+                        n.x,
+                        n.y,
+                        n.z
+                    ));
                     let hit = match m.probe(&req) {
                         Ok(h) => h,
                         Err(e) => {
@@ -524,7 +563,8 @@ impl Exec<'_> {
             }
         }
         self.n_points += points.len();
-        let a = fit_feature(feat.ftype, &nominal, points).map_err(|e| self.eval_err(mpos.line, format!("F({}): {e}", feat.name)))?;
+        let a = fit_feature(feat.ftype, &nominal, points)
+            .map_err(|e| self.eval_err(mpos.line, format!("F({}): {e}", feat.name)))?;
         self.actual[k] = Some(a);
         Ok(())
     }
@@ -532,12 +572,18 @@ impl Exec<'_> {
     fn construct(&mut self, k: usize, method: &Construction, line: u32) -> Result<(), RunError> {
         let feat = &self.plan.features[k];
         let nominal = self.nominal[k].clone().unwrap_or_else(|| Geom::in_frame(&feat.nominal, &self.frame));
-        let err = |m: String| RunError::Evaluation { file: self.plan.file.clone(), line, message: format!("CONST F({}): {m}", feat.name) };
+        let err = |m: String| RunError::Evaluation {
+            file: self.plan.file.clone(),
+            line,
+            message: format!("CONST F({}): {m}", feat.name),
+        };
         let a = match method {
             Construction::Bf(ks) => {
                 let pts: Vec<Point3> = ks.iter().map(|k| self.actual_geom(*k).position()).collect();
                 let mut a = fit_feature(feat.ftype, &nominal, pts).map_err(err)?;
-                if let (Geom::Line { dir, .. }, Some(first), Some(last)) = (&mut a.geom, ks.first(), ks.last()) {
+                if let (Geom::Line { dir, .. }, Some(first), Some(last)) =
+                    (&mut a.geom, ks.first(), ks.last())
+                {
                     let along = self.actual_geom(*last).position() - self.actual_geom(*first).position();
                     if dir.dot(&along) < 0.0 {
                         *dir = -*dir;
@@ -547,8 +593,14 @@ impl Exec<'_> {
             }
             Construction::Intof(x, y) => {
                 let (gx, gy) = (self.actual_geom(*x), self.actual_geom(*y));
-                let g = intersect(&gx, &gy).ok_or_else(|| err("the features do not intersect (parallel)".into()))?;
-                Actual { geom: orient_like(g, &nominal), points: vec![], u_position_mm: None, u_diameter_mm: None }
+                let g = intersect(&gx, &gy)
+                    .ok_or_else(|| err("the features do not intersect (parallel)".into()))?;
+                Actual {
+                    geom: orient_like(g, &nominal),
+                    points: vec![],
+                    u_position_mm: None,
+                    u_diameter_mm: None,
+                }
             }
             Construction::Projct(x, y) => {
                 let (gx, gy) = (self.actual_geom(*x), self.actual_geom(*y));
@@ -565,7 +617,12 @@ impl Exec<'_> {
                     }
                     other => Geom::Point { p: proj(other.position()), n: pn },
                 };
-                Actual { geom: orient_like(g, &nominal), points: vec![], u_position_mm: None, u_diameter_mm: None }
+                Actual {
+                    geom: orient_like(g, &nominal),
+                    points: vec![],
+                    u_position_mm: None,
+                    u_diameter_mm: None,
+                }
             }
             Construction::Midpt(x, y) => {
                 let (px, py) = (self.actual_geom(*x).position(), self.actual_geom(*y).position());
@@ -650,7 +707,7 @@ impl Exec<'_> {
         Ok(())
     }
 
-    fn output(&mut self, items: &[OutputItem], step: &Step, line: u32) -> Result<(), RunError> {
+    fn output(&mut self, items: &[OutputItem], line: u32) -> Result<(), RunError> {
         let plan = self.plan;
         let labels: Vec<String> = items
             .iter()
@@ -664,16 +721,21 @@ impl Exec<'_> {
             })
             .collect();
         self.out.push(format!("OUTPUT/{}", labels.join(",")));
-        let _ = step;
         for it in items {
             match it {
                 OutputItem::Feature { feature, actual } => {
                     let f = &plan.features[*feature];
                     let (g, a) = if *actual {
-                        let a = self.actual[*feature].clone().ok_or_else(|| self.eval_err(line, "no actual"))?;
+                        let a =
+                            self.actual[*feature].clone().ok_or_else(|| self.eval_err(line, "no actual"))?;
                         (a.geom.clone(), Some(a))
                     } else {
-                        (self.nominal[*feature].clone().unwrap_or_else(|| Geom::in_frame(&f.nominal, &self.frame)), None)
+                        (
+                            self.nominal[*feature]
+                                .clone()
+                                .unwrap_or_else(|| Geom::in_frame(&f.nominal, &self.frame)),
+                            None,
+                        )
                     };
                     let part = self.to_part_geom(&g);
                     self.out.push(crate::report::feat_line(
@@ -720,14 +782,18 @@ impl Exec<'_> {
             Geom::Circle { c, n, r } => Geom::Circle { c: p(c), n: d(n), r: *r },
             Geom::Cylinder { p: q, axis, r } => Geom::Cylinder { p: p(q), axis: d(axis), r: *r },
             Geom::Sphere { c, r } => Geom::Sphere { c: p(c), r: *r },
-            Geom::Cone { apex, axis, half_angle } => Geom::Cone { apex: p(apex), axis: d(axis), half_angle: *half_angle },
+            Geom::Cone { apex, axis, half_angle } => {
+                Geom::Cone { apex: p(apex), axis: d(axis), half_angle: *half_angle }
+            }
         }
     }
 
     fn evaluate(&self, t: &Tolerance, fs: &[usize], line: u32) -> Result<TolResult, RunError> {
         let plan = self.plan;
         let a = |k: usize| self.actual[k].clone().ok_or_else(|| self.eval_err(line, "no actual"));
-        let nom = |k: usize| self.nominal[k].clone().unwrap_or_else(|| Geom::in_frame(&plan.features[k].nominal, &self.frame));
+        let nom = |k: usize| {
+            self.nominal[k].clone().unwrap_or_else(|| Geom::in_frame(&plan.features[k].nominal, &self.frame))
+        };
         let fe = |e: truepos_fit::FitError| self.eval_err(line, format!("T({}): {e}", t.name));
         let names: Vec<String> = fs.iter().map(|k| plan.features[*k].name.clone()).collect();
         let within = |v: f64, z: f64| v <= z;
@@ -799,7 +865,10 @@ impl Exec<'_> {
                         } else {
                             let u = n - d * n.dot(&d);
                             if u.norm() < 1e-9 {
-                                return Err(self.eval_err(line, format!("T({}): the plane is parallel to its datum's direction", t.name)));
+                                return Err(self.eval_err(
+                                    line,
+                                    format!("T({}): the plane is parallel to its datum's direction", t.name),
+                                ));
                             }
                             u / u.norm()
                         };
@@ -811,7 +880,11 @@ impl Exec<'_> {
                         let s = ax * (hi - lo);
                         let along = s.dot(&d).abs();
                         let across = (s - d * s.dot(&d)).norm();
-                        if perp == datum_is_plane { across } else { along }
+                        if perp == datum_is_plane {
+                            across
+                        } else {
+                            along
+                        }
                     }
                 };
                 (v, (0.0, *zone), within(v, *zone), false)
@@ -826,9 +899,8 @@ impl Exec<'_> {
                 let (ga, gb) = (a(fs[0])?.geom, a(fs[1])?.geom);
                 let delta = gb.position() - ga.position();
                 let v = match (&ga, &gb, axis) {
-                    (Geom::Plane { n, .. }, _, None | Some(DistAxis::Pt2Pt)) | (_, Geom::Plane { n, .. }, None | Some(DistAxis::Pt2Pt)) => {
-                        delta.dot(n).abs()
-                    }
+                    (Geom::Plane { n, .. }, _, None | Some(DistAxis::Pt2Pt))
+                    | (_, Geom::Plane { n, .. }, None | Some(DistAxis::Pt2Pt)) => delta.dot(n).abs(),
                     (_, _, Some(DistAxis::XAxis)) => delta.dot(&self.frame.axis(0)).abs(),
                     (_, _, Some(DistAxis::YAxis)) => delta.dot(&self.frame.axis(1)).abs(),
                     (_, _, Some(DistAxis::ZAxis)) => delta.dot(&self.frame.axis(2)).abs(),
@@ -987,7 +1059,11 @@ pub fn fit_feature(t: FeatType, nominal: &Geom, points: Vec<Point3>) -> Result<A
         }
         FeatType::Cone => {
             let f = truepos_fit::cone(&points).map_err(e)?;
-            (Geom::Cone { apex: f.apex, axis: f.axis, half_angle: f.apex_angle / 2.0 }, Some(f.u_apex.norm()), None)
+            (
+                Geom::Cone { apex: f.apex, axis: f.axis, half_angle: f.apex_angle / 2.0 },
+                Some(f.u_apex.norm()),
+                None,
+            )
         }
     };
     Ok(Actual { geom, points, u_position_mm: up, u_diameter_mm: ud })
@@ -1009,7 +1085,8 @@ impl DryRun {
             .sensors
             .iter()
             .map(|s| {
-                let name = opts.sensors.get(&s.name.to_ascii_uppercase()).cloned().unwrap_or_else(|| s.name.clone());
+                let name =
+                    opts.sensors.get(&s.name.to_ascii_uppercase()).cloned().unwrap_or_else(|| s.name.clone());
                 (name, s.tip_diameter_mm / 2.0)
             })
             .collect();
@@ -1049,7 +1126,10 @@ impl ProbingMachine for DryRun {
 /// levels at the same angles lie on several cylinders (four points a level at 0°, 90°, 180°,
 /// 270° lie as well on a cylinder about a diagonal); the nominal picks the one the program means.
 /// Returns axis point, unit axis, radius and the standard uncertainties of point and radius.
-fn cylinder_from_nominal(nominal: &Geom, points: &[Point3]) -> Result<(Point3, Vector3, f64, f64, f64), String> {
+fn cylinder_from_nominal(
+    nominal: &Geom,
+    points: &[Point3],
+) -> Result<(Point3, Vector3, f64, f64, f64), String> {
     use truepos_math::lsq::{solve, LsqOptions, Residuals};
     let Geom::Cylinder { p: p0, axis: a0, r: r0 } = nominal else {
         return Err("not a cylinder".into());
@@ -1102,7 +1182,8 @@ fn cylinder_from_nominal(nominal: &Geom, points: &[Point3]) -> Result<(Point3, V
         }
     }
     let prob = Cyl { pts: points, c0, a0, u, v };
-    let sol = solve(&prob, &[0.0, 0.0, 0.0, 0.0, *r0], &LsqOptions::default()).map_err(|e| format!("cylinder: {e}"))?;
+    let sol = solve(&prob, &[0.0, 0.0, 0.0, 0.0, *r0], &LsqOptions::default())
+        .map_err(|e| format!("cylinder: {e}"))?;
     if sol.rank < 5 {
         return Err("cylinder: the points do not determine the cylinder".into());
     }

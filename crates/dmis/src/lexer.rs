@@ -125,9 +125,8 @@ fn is_name_char(c: char) -> bool {
 
 /// Lex one physical line, appending its tokens.
 fn lex_line(file: &str, line: &str, line_no: u32, toks: &mut Vec<(Tok, Pos)>) -> Result<LineEnd, DmisError> {
-    let err = |col: usize, msg: String| {
-        DmisError::new(file, Pos::new(line_no, col as u32), ErrorKind::Syntax, msg)
-    };
+    let err =
+        |col: usize, msg: String| DmisError::new(file, Pos::new(line_no, col as u32), ErrorKind::Syntax, msg);
     // Characters with their 1-based columns; ASCII fast path via bytes.
     let chars: Vec<char> = line.chars().collect();
     let n = chars.len();
@@ -149,7 +148,8 @@ fn lex_line(file: &str, line: &str, line_no: u32, toks: &mut Vec<(Tok, Pos)>) ->
                 }
                 return Err(err(
                     col,
-                    "a single '$' continues a statement only at the end of a line ('$$' starts a comment)".into(),
+                    "a single '$' continues a statement only at the end of a line ('$$' starts a comment)"
+                        .into(),
                 ));
             }
             ',' | '/' | '=' => {

@@ -15,6 +15,7 @@
 //! - [`exec`]: the plan run on a machine ([`exec::run`]): moves, probing with compensation, fits,
 //!   constructions, coordinate systems, tolerance evaluation; `--dry-run` lists the motions.
 //! - [`report`]: the DMIS output file and the JSON of a run.
+//! - [`task`]: `truepos dmis run`'s file reading ([`task::load`]) and results path.
 //!
 //! Every problem in a program is a [`DmisError`] naming file, line and column (exit 2 in the
 //! binary); a machine failure during the run is [`exec::RunError::Device`] naming the program line

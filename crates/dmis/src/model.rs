@@ -25,14 +25,41 @@ use truepos_math::{Point3, Vector3};
 /// A nominal feature in mm (and rad), in the coordinate system active where it was defined.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Nominal {
-    Point { p: Point3, n: Vector3 },
-    Plane { p: Point3, n: Vector3 },
-    Line { p: Point3, dir: Vector3, plane: Option<Vector3>, length: Option<f64> },
-    Circle { c: Point3, n: Vector3, r: f64 },
-    Cylinder { p: Point3, axis: Vector3, r: f64, length: Option<f64> },
-    Sphere { c: Point3, r: f64 },
+    Point {
+        p: Point3,
+        n: Vector3,
+    },
+    Plane {
+        p: Point3,
+        n: Vector3,
+    },
+    Line {
+        p: Point3,
+        dir: Vector3,
+        plane: Option<Vector3>,
+        length: Option<f64>,
+    },
+    Circle {
+        c: Point3,
+        n: Vector3,
+        r: f64,
+    },
+    Cylinder {
+        p: Point3,
+        axis: Vector3,
+        r: f64,
+        length: Option<f64>,
+    },
+    Sphere {
+        c: Point3,
+        r: f64,
+    },
     /// Apex, unit axis from the apex into the cone, half of the included angle (rad).
-    Cone { apex: Point3, axis: Vector3, half_angle: f64 },
+    Cone {
+        apex: Point3,
+        axis: Vector3,
+        half_angle: f64,
+    },
 }
 
 /// A feature of the program.
@@ -61,15 +88,39 @@ pub enum TolKind {
     Strght(f64),
     Cirlty(f64),
     Cylcty(f64),
-    Diam { lo: f64, hi: f64 },
-    Rad { lo: f64, hi: f64 },
-    Pos { three_d: bool, zone: f64 },
+    Diam {
+        lo: f64,
+        hi: f64,
+    },
+    Rad {
+        lo: f64,
+        hi: f64,
+    },
+    Pos {
+        three_d: bool,
+        zone: f64,
+    },
     /// Zone and the datum feature.
-    Perp { zone: f64, datum: usize },
-    Parlel { zone: f64, datum: usize },
+    Perp {
+        zone: f64,
+        datum: usize,
+    },
+    Parlel {
+        zone: f64,
+        datum: usize,
+    },
     /// Nominal angle and deviations (rad).
-    Anglb { angle: f64, lo: f64, hi: f64 },
-    Distb { dist: f64, lo: f64, hi: f64, axis: Option<DistAxis> },
+    Anglb {
+        angle: f64,
+        lo: f64,
+        hi: f64,
+    },
+    Distb {
+        dist: f64,
+        lo: f64,
+        hi: f64,
+        axis: Option<DistAxis>,
+    },
 }
 
 impl TolKind {
@@ -99,7 +150,10 @@ pub enum Move {
     GotoIncr(Vector3),
     /// A point to probe and its approach direction (out of the material); `None`: from the
     /// nominal feature.
-    Probe { p: Point3, dir: Option<Vector3> },
+    Probe {
+        p: Point3,
+        dir: Option<Vector3>,
+    },
 }
 
 /// How a feature is constructed (indices of features).
@@ -133,7 +187,10 @@ pub enum Op {
     Goto(Point3),
     GotoIncr(Vector3),
     /// Feed of `FEDRAT` (mm/s; `None`: the machine's default).
-    Feed { kind: FeedKind, mm_s: Option<f64> },
+    Feed {
+        kind: FeedKind,
+        mm_s: Option<f64>,
+    },
     Approach(f64),
     Search(f64),
     Retract(f64),
@@ -143,19 +200,41 @@ pub enum Op {
     /// `FEAT`: the nominal takes the active coordinate system.
     Define(usize),
     /// `MEAS … ENDMES`, each motion with its statement's position.
-    Measure { feature: usize, moves: Vec<(Move, Pos)> },
-    Construct { feature: usize, method: Construction },
-    Datset { name: String, def: DatsetOp },
+    Measure {
+        feature: usize,
+        moves: Vec<(Move, Pos)>,
+    },
+    Construct {
+        feature: usize,
+        method: Construction,
+    },
+    Datset {
+        name: String,
+        def: DatsetOp,
+    },
     /// `TRANS`: origins along axes 0..3 to a value (mm) or a feature's position.
-    Trans { name: Option<String>, items: Vec<(usize, TransTo)> },
+    Trans {
+        name: Option<String>,
+        items: Vec<(usize, TransTo)>,
+    },
     /// `ROTATE` about axis 0..3.
-    Rotate { name: Option<String>, axis: usize, by: RotateTo },
+    Rotate {
+        name: Option<String>,
+        axis: usize,
+        by: RotateTo,
+    },
     Save(String),
     Recall(String),
     /// `UNITS` (what the output file is written in from here on).
-    Units { length: LengthUnit, angle: AngleUnit },
+    Units {
+        length: LengthUnit,
+        angle: AngleUnit,
+    },
     Output(Vec<OutputItem>),
-    Text { kind: TextKind, text: String },
+    Text {
+        kind: TextKind,
+        text: String,
+    },
 }
 
 /// Where `TRANS` moves an origin.
@@ -239,6 +318,9 @@ fn point_like(t: FeatType) -> bool {
     matches!(t, FeatType::Point | FeatType::Circle | FeatType::Sphere)
 }
 
+/// A `MEAS` being read: feature, announced points, its position, the motions so far.
+type OpenMeas = (usize, u32, Pos, Vec<(Move, Pos)>);
+
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Have {
     /// Defined by FEAT only.
@@ -317,7 +399,10 @@ impl Checker<'_> {
             (k, Have::Actual { points }) => Ok((k, points)),
             (_, Have::Nominal) => Err(self.sem(
                 pos,
-                format!("FA({}) has not been measured (MEAS) or constructed (CONST) before this statement", l.name),
+                format!(
+                    "FA({}) has not been measured (MEAS) or constructed (CONST) before this statement",
+                    l.name
+                ),
             )),
         }
     }
@@ -371,7 +456,7 @@ pub fn check(program: &Program) -> Result<Plan, DmisError> {
             return Err(c.sem(first.pos, format!("a part program starts with DMISMN, not {}", other.major())))
         }
     }
-    let mut meas: Option<(usize, u32, Pos, Vec<(Move, Pos)>)> = None;
+    let mut meas: Option<OpenMeas> = None;
     let mut ended = false;
     for st in &sts[1..] {
         if ended {
@@ -405,13 +490,19 @@ pub fn check(program: &Program) -> Result<Plan, DmisError> {
                     if probes != *n as usize {
                         return Err(c.sem(
                             pos,
-                            format!("the MEAS at line {} announces {n} points but measures {probes}", mpos.line),
+                            format!(
+                                "the MEAS at line {} announces {n} points but measures {probes}",
+                                mpos.line
+                            ),
                         ));
                     }
                     if probes < min_points(ft) {
                         return Err(c.sem(
                             *mpos,
-                            format!("a {ft} needs at least {} points, this MEAS has {probes}", min_points(ft)),
+                            format!(
+                                "a {ft} needs at least {} points, this MEAS has {probes}",
+                                min_points(ft)
+                            ),
                         ));
                     }
                     let (fid, moves, mpos) = (*fid, std::mem::take(moves), *mpos);
@@ -420,7 +511,11 @@ pub fn check(program: &Program) -> Result<Plan, DmisError> {
                     c.feat.insert(name, (fid, Have::Actual { points: true }));
                     meas = None;
                     // The step is located at its MEAS (progress and errors name that line).
-                    c.plan.steps.push(Step { op: Op::Measure { feature: fid, moves }, pos: mpos, echo: None });
+                    c.plan.steps.push(Step {
+                        op: Op::Measure { feature: fid, moves },
+                        pos: mpos,
+                        echo: None,
+                    });
                 }
                 other => {
                     return Err(c.sem(
@@ -566,8 +661,9 @@ pub fn check(program: &Program) -> Result<Plan, DmisError> {
                 c.feat.insert(feature.key(), (k, Have::Actual { points }));
                 push(&mut c, Op::Construct { feature: k, method: m });
             }
-            Statement::Datdef { datum, feature, assigned } => {
-                let fpos = if *assigned { st.arg(0) } else { st.arg(0) };
+            Statement::Datdef { datum, feature, .. } => {
+                // The feature is the first argument in both forms.
+                let fpos = st.arg(0);
                 let (k, _) = c.actual(feature, fpos)?;
                 c.datums.insert(datum.key(), k);
             }
@@ -764,8 +860,12 @@ fn nominal(c: &Checker, g: &FeatGeom, st: &Stmt) -> Result<(Option<Side>, Nomina
     // Argument indices: 0 type, then (side), CART, numbers.
     let a = |k: usize| st.arg(k);
     Ok(match g {
-        FeatGeom::Point { p, n } => (None, Nominal::Point { p: c.finite_pt(p, st, 2)?, n: c.unit(n, a(5), "the normal")? }),
-        FeatGeom::Plane { p, n } => (None, Nominal::Plane { p: c.finite_pt(p, st, 2)?, n: c.unit(n, a(5), "the normal")? }),
+        FeatGeom::Point { p, n } => {
+            (None, Nominal::Point { p: c.finite_pt(p, st, 2)?, n: c.unit(n, a(5), "the normal")? })
+        }
+        FeatGeom::Plane { p, n } => {
+            (None, Nominal::Plane { p: c.finite_pt(p, st, 2)?, n: c.unit(n, a(5), "the normal")? })
+        }
         FeatGeom::LineUnbnd { p, dir, plane } => (
             None,
             Nominal::Line {
@@ -816,24 +916,41 @@ fn nominal(c: &Checker, g: &FeatGeom, st: &Stmt) -> Result<(Option<Side>, Nomina
             }
             (
                 Some(*side),
-                Nominal::Sphere { c: c.finite_pt(cc, st, 3)?, r: c.len(c.positive(*diam, a(dk), "the diameter")?) / 2.0 },
+                Nominal::Sphere {
+                    c: c.finite_pt(cc, st, 3)?,
+                    r: c.len(c.positive(*diam, a(dk), "the diameter")?) / 2.0,
+                },
             )
         }
         FeatGeom::Cone { side, apex, axis, angle } => {
             let full = angle * rad_per(c.angle);
             if !(full > 0.0 && full < std::f64::consts::PI) {
-                return Err(c.sem(a(9), format!("the cone's included angle must be between 0 and 180°, not {angle}")));
+                return Err(c.sem(
+                    a(9),
+                    format!("the cone's included angle must be between 0 and 180°, not {angle}"),
+                ));
             }
             (
                 Some(*side),
-                Nominal::Cone { apex: c.finite_pt(apex, st, 3)?, axis: c.unit(axis, a(6), "the axis")?, half_angle: full / 2.0 },
+                Nominal::Cone {
+                    apex: c.finite_pt(apex, st, 3)?,
+                    axis: c.unit(axis, a(6), "the axis")?,
+                    half_angle: full / 2.0,
+                },
             )
         }
     })
 }
 
-fn construction(c: &Checker, t: FeatType, m: &ConstMethod, st: &Stmt) -> Result<(Construction, bool), DmisError> {
-    let bad = |pos: Pos, what: String| c.err(pos, ErrorKind::Unsupported, format!("CONST/{t},…,{what} is not supported"));
+fn construction(
+    c: &Checker,
+    t: FeatType,
+    m: &ConstMethod,
+    st: &Stmt,
+) -> Result<(Construction, bool), DmisError> {
+    let bad = |pos: Pos, what: String| {
+        c.err(pos, ErrorKind::Unsupported, format!("CONST/{t},…,{what} is not supported"))
+    };
     Ok(match m {
         ConstMethod::Bf(ls) => {
             let need = match t {
@@ -846,12 +963,21 @@ fn construction(c: &Checker, t: FeatType, m: &ConstMethod, st: &Stmt) -> Result<
             for (j, l) in ls.iter().enumerate() {
                 let (k, _) = c.actual(l, st.arg(3 + j))?;
                 if !point_like(c.ftype(k)) {
-                    return Err(c.sem(st.arg(3 + j), format!("BF takes the positions of points, circles and spheres, not of a {}", c.ftype(k))));
+                    return Err(c.sem(
+                        st.arg(3 + j),
+                        format!(
+                            "BF takes the positions of points, circles and spheres, not of a {}",
+                            c.ftype(k)
+                        ),
+                    ));
                 }
                 ks.push(k);
             }
             if ks.len() < need {
-                return Err(c.sem(st.arg(2), format!("a best-fit {t} needs at least {need} features, not {}", ks.len())));
+                return Err(c.sem(
+                    st.arg(2),
+                    format!("a best-fit {t} needs at least {need} features, not {}", ks.len()),
+                ));
             }
             (Construction::Bf(ks), true)
         }
@@ -866,7 +992,11 @@ fn construction(c: &Checker, t: FeatType, m: &ConstMethod, st: &Stmt) -> Result<
                     match t {
                         F::Point => matches!(
                             (ta, tb),
-                            (F::Line, F::Line) | (F::Line, F::Plane) | (F::Plane, F::Line) | (F::Cylndr, F::Plane) | (F::Plane, F::Cylndr)
+                            (F::Line, F::Line)
+                                | (F::Line, F::Plane)
+                                | (F::Plane, F::Line)
+                                | (F::Cylndr, F::Plane)
+                                | (F::Plane, F::Cylndr)
                         ),
                         F::Line => (ta, tb) == (F::Plane, F::Plane),
                         _ => false,
@@ -900,7 +1030,7 @@ fn construction(c: &Checker, t: FeatType, m: &ConstMethod, st: &Stmt) -> Result<
 fn tolerance(c: &Checker, t: &Tol, st: &Stmt) -> Result<TolKind, DmisError> {
     let zone = |v: f64, k: usize| c.positive(v, st.arg(k), "the tolerance zone").map(|v| c.len(v));
     let range = |lo: f64, hi: f64, k: usize, f: f64| -> Result<(f64, f64), DmisError> {
-        if !(lo <= hi) {
+        if lo > hi || lo.is_nan() || hi.is_nan() {
             return Err(c.sem(st.arg(k), format!("the lower deviation {lo} is above the upper {hi}")));
         }
         Ok((lo * f, hi * f))
@@ -935,7 +1065,9 @@ fn tolerance(c: &Checker, t: &Tol, st: &Stmt) -> Result<TolKind, DmisError> {
         Tol::Perp { zone: z, datum } | Tol::Parlel { zone: z, datum } => {
             let k = c.datum(datum, st.arg(2))?;
             if !has_direction(c.ftype(k)) {
-                return Err(c.sem(st.arg(2), format!("the datum is a {}, which has no direction", c.ftype(k))));
+                return Err(
+                    c.sem(st.arg(2), format!("the datum is a {}, which has no direction", c.ftype(k)))
+                );
             }
             let zone = zone(*z, 1)?;
             if matches!(t, Tol::Perp { .. }) {
@@ -980,7 +1112,10 @@ fn output(c: &Checker, ls: &[Label], st: &Stmt) -> Result<Vec<OutputItem>, DmisE
             return Err(c.sem(pos, "OUTPUT lists features first, then tolerances"));
         }
         let Some(&k) = c.tols.get(&l.key()) else {
-            return Err(c.sem(pos, format!("the tolerance T({}) is not defined (TOL) before this statement", l.name)));
+            return Err(c.sem(
+                pos,
+                format!("the tolerance T({}) is not defined (TOL) before this statement", l.name),
+            ));
         };
         if l.kind == LabelKind::T {
             items.push(OutputItem::Tolerance { tolerance: k, features: vec![], actual: false });
@@ -991,14 +1126,21 @@ fn output(c: &Checker, ls: &[Label], st: &Stmt) -> Result<Vec<OutputItem>, DmisE
         if feats.len() != need {
             return Err(c.sem(
                 pos,
-                format!("TA({}) ({}) applies to {need} feature(s), this OUTPUT lists {}", l.name, tol.statement_word(), feats.len()),
+                format!(
+                    "TA({}) ({}) applies to {need} feature(s), this OUTPUT lists {}",
+                    l.name,
+                    tol.statement_word(),
+                    feats.len()
+                ),
             ));
         }
         for (fi, (f, actual, points)) in feats.iter().enumerate() {
             let t = c.ftype(*f);
             let fpos = st.arg(fi);
             if !actual {
-                return Err(c.sem(fpos, format!("TA({}) is evaluated on actual features: FA(…), not F(…)", l.name)));
+                return Err(
+                    c.sem(fpos, format!("TA({}) is evaluated on actual features: FA(…), not F(…)", l.name))
+                );
             }
             use FeatType as F;
             let ok = match &tol.kind {
@@ -1010,19 +1152,40 @@ fn output(c: &Checker, ls: &[Label], st: &Stmt) -> Result<Vec<OutputItem>, DmisE
                 TolKind::Pos { three_d, .. } => {
                     matches!(t, F::Point | F::Circle | F::Cylndr) || (*three_d && t == F::Sphere)
                 }
-                TolKind::Perp { .. } | TolKind::Parlel { .. } => matches!(t, F::Plane | F::Line | F::Cylndr | F::Cone),
+                TolKind::Perp { .. } | TolKind::Parlel { .. } => {
+                    matches!(t, F::Plane | F::Line | F::Cylndr | F::Cone)
+                }
                 TolKind::Anglb { .. } => has_direction(t),
                 TolKind::Distb { .. } => point_like(t) || matches!(t, F::Plane | F::Cylndr),
             };
             if !ok {
-                return Err(c.sem(fpos, format!("TA({}) ({}) does not apply to a {t}", l.name, tol.statement_word())));
+                return Err(c.sem(
+                    fpos,
+                    format!("TA({}) ({}) does not apply to a {t}", l.name, tol.statement_word()),
+                ));
             }
-            let form = matches!(tol.kind, TolKind::Flat(_) | TolKind::Strght(_) | TolKind::Cirlty(_) | TolKind::Cylcty(_) | TolKind::Perp { .. } | TolKind::Parlel { .. });
+            let form = matches!(
+                tol.kind,
+                TolKind::Flat(_)
+                    | TolKind::Strght(_)
+                    | TolKind::Cirlty(_)
+                    | TolKind::Cylcty(_)
+                    | TolKind::Perp { .. }
+                    | TolKind::Parlel { .. }
+            );
             if form && !points {
-                return Err(c.sem(fpos, format!("TA({}) needs measured points, and this feature was constructed without any", l.name)));
+                return Err(c.sem(
+                    fpos,
+                    format!(
+                        "TA({}) needs measured points, and this feature was constructed without any",
+                        l.name
+                    ),
+                ));
             }
         }
-        if let (TolKind::Pos { .. }, Statement::Tol { tol: Tol::Pos { datums, .. }, .. }) = (&tol.kind, &tol.statement) {
+        if let (TolKind::Pos { .. }, Statement::Tol { tol: Tol::Pos { datums, .. }, .. }) =
+            (&tol.kind, &tol.statement)
+        {
             if !datums.is_empty() {
                 let want: Vec<usize> = datums.iter().filter_map(|d| c.datum(d, pos).ok()).collect();
                 let active = c.active_datums.clone().unwrap_or_default();
@@ -1037,7 +1200,11 @@ fn output(c: &Checker, ls: &[Label], st: &Stmt) -> Result<Vec<OutputItem>, DmisE
                 }
             }
         }
-        items.push(OutputItem::Tolerance { tolerance: k, features: feats.iter().map(|f| f.0).collect(), actual: true });
+        items.push(OutputItem::Tolerance {
+            tolerance: k,
+            features: feats.iter().map(|f| f.0).collect(),
+            actual: true,
+        });
     }
     Ok(items)
 }

@@ -80,8 +80,16 @@ impl<'a> Cursor<'a> {
     }
     fn missing(&self, what: &str) -> DmisError {
         match self.args.get(self.k) {
-            None => self.err(self.end, ErrorKind::Syntax, format!("{}: {what} expected at the end of the statement", self.major)),
-            Some((t, p)) => self.err(*p, ErrorKind::Syntax, format!("{}: {what} expected, found {}", self.major, t.describe())),
+            None => self.err(
+                self.end,
+                ErrorKind::Syntax,
+                format!("{}: {what} expected at the end of the statement", self.major),
+            ),
+            Some((t, p)) => self.err(
+                *p,
+                ErrorKind::Syntax,
+                format!("{}: {what} expected, found {}", self.major, t.describe()),
+            ),
         }
     }
     fn num(&mut self, what: &str) -> Result<f64, DmisError> {
@@ -116,7 +124,12 @@ impl<'a> Cursor<'a> {
         }
     }
     /// A word of the given kind; a word outside it is Unsupported if `known` says DMIS has it.
-    fn word_of<T: Copy>(&mut self, what: &str, from: impl Fn(&str) -> Option<T>, all: &[&str]) -> Result<T, DmisError> {
+    fn word_of<T: Copy>(
+        &mut self,
+        what: &str,
+        from: impl Fn(&str) -> Option<T>,
+        all: &[&str],
+    ) -> Result<T, DmisError> {
         match self.peek() {
             Some(Tok::Word(w)) => match from(w) {
                 Some(v) => {
@@ -185,7 +198,11 @@ impl<'a> Cursor<'a> {
     fn done(&self) -> Result<(), DmisError> {
         match self.args.get(self.k) {
             None => Ok(()),
-            Some((t, p)) => Err(self.err(*p, ErrorKind::Syntax, format!("{}: unexpected {} (too many arguments)", self.major, t.describe()))),
+            Some((t, p)) => Err(self.err(
+                *p,
+                ErrorKind::Syntax,
+                format!("{}: unexpected {} (too many arguments)", self.major, t.describe()),
+            )),
         }
     }
 }
@@ -196,19 +213,112 @@ fn words_of<T: Copy>(all: &[T], f: impl Fn(T) -> &'static str) -> Vec<&'static s
 
 /// Majors of DMIS outside the subset: refused as Unsupported rather than "unknown".
 const OTHER_MAJORS: &[&str] = &[
-    "ACLRAT", "ALGDEF", "ASSIGN", "BADTST", "BOUND", "CALIB", "CALL", "CASE", "CLMPID", "CLMPSN", "CRGDEF",
-    "CRMODE", "CROSCL", "CRSLCT", "CUTCOM", "CZONE", "CZSLCT", "DECL", "DECPL", "DEFALT", "DMEHW", "DMESW",
-    "DMESWI", "DMESWV", "DO", "ELSE", "ENDAXS", "ENDCAS", "ENDDO", "ENDGO", "ENDIF", "ENDMAC", "ENDSEL",
-    "ENDSIM", "ENDX", "EQUATE", "ERROR", "EVAL", "EXTENS", "EXTFIL", "FILDEF", "FINPOS", "FIXTID", "FIXTSN",
-    "FROM", "GECOMP", "GEOALG", "GEOM", "GOHOME", "GOTARG", "GROUP", "IF", "INCLUD", "ITERAT", "JUMPTO",
-    "KEYCHAR", "LITDEF", "LOCATE", "LOTID", "MACRO", "MFGDEV", "OBTAIN", "OPERID", "PAMEAS", "PARTID",
-    "PARTRV", "PARTSN", "PLANID", "POP", "PREVOP", "PROCID", "PUSH", "QISDEF", "RAPID", "READ", "REPORT",
-    "RESUME", "RMEAS", "ROTAB", "ROTDEF", "ROTSET", "SCNMOD", "SCNSET", "SELECT", "SENSOR", "SNSGRP",
-    "TECOMP", "THLDEF", "TOOLDF", "UNCERTALG", "UNCERTSET", "VALUE", "VFORM", "WINDEF",
-    "WKPLAN", "WRIST", "WRITE", "XTERN", "XTRACT",
+    "ACLRAT",
+    "ALGDEF",
+    "ASSIGN",
+    "BADTST",
+    "BOUND",
+    "CALIB",
+    "CALL",
+    "CASE",
+    "CLMPID",
+    "CLMPSN",
+    "CRGDEF",
+    "CRMODE",
+    "CROSCL",
+    "CRSLCT",
+    "CUTCOM",
+    "CZONE",
+    "CZSLCT",
+    "DECL",
+    "DECPL",
+    "DEFALT",
+    "DMEHW",
+    "DMESW",
+    "DMESWI",
+    "DMESWV",
+    "DO",
+    "ELSE",
+    "ENDAXS",
+    "ENDCAS",
+    "ENDDO",
+    "ENDGO",
+    "ENDIF",
+    "ENDMAC",
+    "ENDSEL",
+    "ENDSIM",
+    "ENDX",
+    "EQUATE",
+    "ERROR",
+    "EVAL",
+    "EXTENS",
+    "EXTFIL",
+    "FILDEF",
+    "FINPOS",
+    "FIXTID",
+    "FIXTSN",
+    "FROM",
+    "GECOMP",
+    "GEOALG",
+    "GEOM",
+    "GOHOME",
+    "GOTARG",
+    "GROUP",
+    "IF",
+    "INCLUD",
+    "ITERAT",
+    "JUMPTO",
+    "KEYCHAR",
+    "LITDEF",
+    "LOCATE",
+    "LOTID",
+    "MACRO",
+    "MFGDEV",
+    "OBTAIN",
+    "OPERID",
+    "PAMEAS",
+    "PARTID",
+    "PARTRV",
+    "PARTSN",
+    "PLANID",
+    "POP",
+    "PREVOP",
+    "PROCID",
+    "PUSH",
+    "QISDEF",
+    "RAPID",
+    "READ",
+    "REPORT",
+    "RESUME",
+    "RMEAS",
+    "ROTAB",
+    "ROTDEF",
+    "ROTSET",
+    "SCNMOD",
+    "SCNSET",
+    "SELECT",
+    "SENSOR",
+    "SNSGRP",
+    "TECOMP",
+    "THLDEF",
+    "TOOLDF",
+    "UNCERTALG",
+    "UNCERTSET",
+    "VALUE",
+    "VFORM",
+    "WINDEF",
+    "WKPLAN",
+    "WRIST",
+    "WRITE",
+    "XTERN",
+    "XTRACT",
 ];
 
-fn split(file: &str, raw: &RawStatement) -> Result<(Option<(Label, Pos)>, String, Pos, Vec<(usize, Pos)>, bool), DmisError> {
+/// A statement split into its label, major word (and its position), argument token indices and
+/// whether it has a `/`.
+type Split = (Option<(Label, Pos)>, String, Pos, Vec<(usize, Pos)>, bool);
+
+fn split(file: &str, raw: &RawStatement) -> Result<Split, DmisError> {
     let toks = &raw.toks;
     let syn = |p: Pos, m: String| DmisError::new(file, p, ErrorKind::Syntax, m);
     let mut k = 0;
@@ -222,7 +332,9 @@ fn split(file: &str, raw: &RawStatement) -> Result<(Option<(Label, Pos)>, String
                         file,
                         toks[0].1,
                         ErrorKind::Unsupported,
-                        format!("labels {p}() are not supported (supported: F, FA, D, DA, DAT, T, TA, S, SA, DID)"),
+                        format!(
+                        "labels {p}() are not supported (supported: F, FA, D, DA, DAT, T, TA, S, SA, DID)"
+                    ),
                     ))
                 }
             },
@@ -232,7 +344,12 @@ fn split(file: &str, raw: &RawStatement) -> Result<(Option<(Label, Pos)>, String
     }
     let (major, mpos) = match toks.get(k) {
         Some((Tok::Word(w), p)) => (w.clone(), *p),
-        Some((t, p)) => return Err(syn(*p, format!("a statement must start with its major word, found {}", t.describe()))),
+        Some((t, p)) => {
+            return Err(syn(
+                *p,
+                format!("a statement must start with its major word, found {}", t.describe()),
+            ))
+        }
         None => return Err(syn(raw.end, "a statement expected after '='".into())),
     };
     k += 1;
@@ -240,7 +357,10 @@ fn split(file: &str, raw: &RawStatement) -> Result<(Option<(Label, Pos)>, String
     let mut slash = false;
     if k < toks.len() {
         if toks[k].0 != Tok::Slash {
-            return Err(syn(toks[k].1, format!("{major}: '/' expected after the major word, found {}", toks[k].0.describe())));
+            return Err(syn(
+                toks[k].1,
+                format!("{major}: '/' expected after the major word, found {}", toks[k].0.describe()),
+            ));
         }
         slash = true;
         k += 1;
@@ -248,7 +368,10 @@ fn split(file: &str, raw: &RawStatement) -> Result<(Option<(Label, Pos)>, String
             match toks.get(k) {
                 None => break,
                 Some((Tok::Comma, p)) | Some((Tok::Slash, p)) | Some((Tok::Eq, p)) => {
-                    return Err(syn(*p, format!("{major}: an argument expected, found {}", toks[k].0.describe())))
+                    return Err(syn(
+                        *p,
+                        format!("{major}: an argument expected, found {}", toks[k].0.describe()),
+                    ))
                 }
                 Some((_, p)) => args.push((k, *p)),
             }
@@ -261,7 +384,12 @@ fn split(file: &str, raw: &RawStatement) -> Result<(Option<(Label, Pos)>, String
                     }
                     k += 1;
                 }
-                Some((t, p)) => return Err(syn(*p, format!("{major}: ',' expected between arguments, found {}", t.describe()))),
+                Some((t, p)) => {
+                    return Err(syn(
+                        *p,
+                        format!("{major}: ',' expected between arguments, found {}", t.describe()),
+                    ))
+                }
             }
         }
     }
@@ -282,13 +410,25 @@ pub fn parse_statement(file: &str, raw: &RawStatement) -> Result<Stmt, DmisError
                 let _ = p;
                 Ok(l.clone())
             }
-            Some((l, p)) => Err(DmisError::new(file, *p, ErrorKind::Syntax, format!("{major} needs a {names} label, found {l}"))),
-            None => Err(DmisError::new(file, mpos, ErrorKind::Syntax, format!("{major} needs a label: {names} = {major}/…"))),
+            Some((l, p)) => Err(DmisError::new(
+                file,
+                *p,
+                ErrorKind::Syntax,
+                format!("{major} needs a {names} label, found {l}"),
+            )),
+            None => Err(DmisError::new(
+                file,
+                mpos,
+                ErrorKind::Syntax,
+                format!("{major} needs a label: {names} = {major}/…"),
+            )),
         }
     };
     let no_label = || -> Result<(), DmisError> {
         match &label {
-            Some((l, p)) => Err(DmisError::new(file, *p, ErrorKind::Syntax, format!("{major} takes no label ({l} =)"))),
+            Some((l, p)) => {
+                Err(DmisError::new(file, *p, ErrorKind::Syntax, format!("{major} takes no label ({l} =)")))
+            }
             None => Ok(()),
         }
     };
@@ -320,10 +460,22 @@ pub fn parse_statement(file: &str, raw: &RawStatement) -> Result<Stmt, DmisError
         }
         "UNITS" => {
             no_label()?;
-            let length = c.word_of("the length unit", LengthUnit::from_word, &words_of(LengthUnit::ALL, LengthUnit::word))?;
-            let angle = c.word_of("the angle unit", AngleUnit::from_word, &words_of(AngleUnit::ALL, AngleUnit::word))?;
+            let length = c.word_of(
+                "the length unit",
+                LengthUnit::from_word,
+                &words_of(LengthUnit::ALL, LengthUnit::word),
+            )?;
+            let angle = c.word_of(
+                "the angle unit",
+                AngleUnit::from_word,
+                &words_of(AngleUnit::ALL, AngleUnit::word),
+            )?;
             let temp = if c.peek().is_some() {
-                Some(c.word_of("the temperature unit", TempUnit::from_word, &words_of(TempUnit::ALL, TempUnit::word))?)
+                Some(c.word_of(
+                    "the temperature unit",
+                    TempUnit::from_word,
+                    &words_of(TempUnit::ALL, TempUnit::word),
+                )?)
             } else {
                 None
             };
@@ -338,7 +490,11 @@ pub fn parse_statement(file: &str, raw: &RawStatement) -> Result<Stmt, DmisError
                 } else {
                     let w = c.any_word("OFF, TERM, STOR, PRINT, DMIS, V or a DID() label")?;
                     if !matches!(w.as_str(), "OFF" | "TERM" | "STOR" | "PRINT" | "COMM" | "DMIS" | "V") {
-                        return Err(c.err(c.args[c.k - 1].1, ErrorKind::Unsupported, format!("DISPLY: {w} is not supported (OFF, TERM, STOR, PRINT, COMM, DMIS, V)")));
+                        return Err(c.err(
+                            c.args[c.k - 1].1,
+                            ErrorKind::Unsupported,
+                            format!("DISPLY: {w} is not supported (OFF, TERM, STOR, PRINT, COMM, DMIS, V)"),
+                        ));
                     }
                     items.push(DisplyItem::Word(w));
                 }
@@ -350,25 +506,36 @@ pub fn parse_statement(file: &str, raw: &RawStatement) -> Result<Stmt, DmisError
         }
         "PRCOMP" => {
             no_label()?;
-            let on = c.word_of("the switch", |w| match w {
-                "ON" => Some(true),
-                "OFF" => Some(false),
-                _ => None,
-            }, &["ON", "OFF"])?;
+            let on = c.word_of(
+                "the switch",
+                |w| match w {
+                    "ON" => Some(true),
+                    "OFF" => Some(false),
+                    _ => None,
+                },
+                &["ON", "OFF"],
+            )?;
             Statement::Prcomp(on)
         }
         "MODE" => {
             no_label()?;
-            let mut w = vec![c.word_of("the mode", ModeWord::from_word, &words_of(ModeWord::ALL, ModeWord::word))?];
+            let mut w =
+                vec![c.word_of("the mode", ModeWord::from_word, &words_of(ModeWord::ALL, ModeWord::word))?];
             while c.peek().is_some() {
-                w.push(c.word_of("the mode", ModeWord::from_word, &words_of(ModeWord::ALL, ModeWord::word))?);
+                w.push(c.word_of(
+                    "the mode",
+                    ModeWord::from_word,
+                    &words_of(ModeWord::ALL, ModeWord::word),
+                )?);
             }
             Statement::Mode(w)
         }
         "FEDRAT" => {
             no_label()?;
-            let kind = c.word_of("the speed", FeedKind::from_word, &words_of(FeedKind::ALL, FeedKind::word))?;
-            let unit = c.word_of("the unit", FeedUnit::from_word, &words_of(FeedUnit::ALL, FeedUnit::word))?;
+            let kind =
+                c.word_of("the speed", FeedKind::from_word, &words_of(FeedKind::ALL, FeedKind::word))?;
+            let unit =
+                c.word_of("the unit", FeedUnit::from_word, &words_of(FeedUnit::ALL, FeedUnit::word))?;
             let value = match unit {
                 FeedUnit::High | FeedUnit::Low | FeedUnit::Defalt => None,
                 _ => Some(c.num("the speed")?),
@@ -388,12 +555,20 @@ pub fn parse_statement(file: &str, raw: &RawStatement) -> Result<Stmt, DmisError
                         c.k += 1;
                         Snset::ClrsrfOff
                     } else {
-                        let f = if c.is_label() { Some(c.label(&[L::F, L::Fa], "the clearance plane")?) } else { None };
+                        let f = if c.is_label() {
+                            Some(c.label(&[L::F, L::Fa], "the clearance plane")?)
+                        } else {
+                            None
+                        };
                         Snset::Clrsrf(f, c.num("the clearance distance")?)
                     }
                 }
                 other => {
-                    return Err(c.err(c.args[0].1, ErrorKind::Unsupported, format!("SNSET/{other} is not supported (APPRCH, RETRCT, SEARCH, DEPTH, CLRSRF)")))
+                    return Err(c.err(
+                        c.args[0].1,
+                        ErrorKind::Unsupported,
+                        format!("SNSET/{other} is not supported (APPRCH, RETRCT, SEARCH, DEPTH, CLRSRF)"),
+                    ))
                 }
             };
             Statement::Snset(it)
@@ -437,30 +612,48 @@ pub fn parse_statement(file: &str, raw: &RawStatement) -> Result<Stmt, DmisError
         }
         "FEAT" => {
             let label = need_label(&[L::F, L::Fa])?;
-            let ft = c.word_of("the feature type", FeatType::from_word, &words_of(FeatType::ALL, FeatType::word))?;
+            let ft =
+                c.word_of("the feature type", FeatType::from_word, &words_of(FeatType::ALL, FeatType::word))?;
             let geom = match ft {
                 FeatType::Point | FeatType::Plane => {
                     c.keyword("CART")?;
                     let p = c.xyz("the point")?;
                     let n = c.xyz("the normal")?;
-                    if ft == FeatType::Point { FeatGeom::Point { p, n } } else { FeatGeom::Plane { p, n } }
+                    if ft == FeatType::Point {
+                        FeatGeom::Point { p, n }
+                    } else {
+                        FeatGeom::Plane { p, n }
+                    }
                 }
                 FeatType::Line => {
-                    let bnd = c.word_of("UNBND or BND", |w| match w {
-                        "UNBND" => Some(false),
-                        "BND" => Some(true),
-                        _ => None,
-                    }, &["UNBND", "BND"])?;
+                    let bnd = c.word_of(
+                        "UNBND or BND",
+                        |w| match w {
+                            "UNBND" => Some(false),
+                            "BND" => Some(true),
+                            _ => None,
+                        },
+                        &["UNBND", "BND"],
+                    )?;
                     c.keyword("CART")?;
                     let a = c.xyz(if bnd { "the start point" } else { "the point" })?;
                     let b = c.xyz(if bnd { "the end point" } else { "the direction" })?;
                     let plane = if c.has_num() { Some(c.xyz("the plane normal")?) } else { None };
-                    if bnd { FeatGeom::LineBnd { p1: a, p2: b, plane } } else { FeatGeom::LineUnbnd { p: a, dir: b, plane } }
+                    if bnd {
+                        FeatGeom::LineBnd { p1: a, p2: b, plane }
+                    } else {
+                        FeatGeom::LineUnbnd { p: a, dir: b, plane }
+                    }
                 }
                 FeatType::Circle => {
                     let side = c.side()?;
                     c.keyword("CART")?;
-                    FeatGeom::Circle { side, c: c.xyz("the centre")?, n: c.xyz("the normal")?, diam: c.num("the diameter")? }
+                    FeatGeom::Circle {
+                        side,
+                        c: c.xyz("the centre")?,
+                        n: c.xyz("the normal")?,
+                        diam: c.num("the diameter")?,
+                    }
                 }
                 FeatType::Cylndr => {
                     let side = c.side()?;
@@ -481,19 +674,29 @@ pub fn parse_statement(file: &str, raw: &RawStatement) -> Result<Stmt, DmisError
                 FeatType::Cone => {
                     let side = c.side()?;
                     c.keyword("CART")?;
-                    FeatGeom::Cone { side, apex: c.xyz("the apex")?, axis: c.xyz("the axis")?, angle: c.num("the included angle")? }
+                    FeatGeom::Cone {
+                        side,
+                        apex: c.xyz("the apex")?,
+                        axis: c.xyz("the axis")?,
+                        angle: c.num("the included angle")?,
+                    }
                 }
             };
             Statement::Feat { label, geom }
         }
         "MEAS" => {
             no_label()?;
-            let ftype = c.word_of("the feature type", FeatType::from_word, &words_of(FeatType::ALL, FeatType::word))?;
+            let ftype =
+                c.word_of("the feature type", FeatType::from_word, &words_of(FeatType::ALL, FeatType::word))?;
             let feature = c.label(&[L::F], "the feature")?;
             let p = c.here();
             let n = c.num("the number of points")?;
-            if !(n >= 1.0 && n <= 100_000.0 && n.fract() == 0.0) {
-                return Err(c.err(p, ErrorKind::Syntax, format!("MEAS: the number of points must be a whole number from 1 to 100000, not {n}")));
+            if !((1.0..=100_000.0).contains(&n) && n.fract() == 0.0) {
+                return Err(c.err(
+                    p,
+                    ErrorKind::Syntax,
+                    format!("MEAS: the number of points must be a whole number from 1 to 100000, not {n}"),
+                ));
             }
             Statement::Meas { ftype, feature, n: n as u32 }
         }
@@ -506,7 +709,8 @@ pub fn parse_statement(file: &str, raw: &RawStatement) -> Result<Stmt, DmisError
         }
         "CONST" => {
             no_label()?;
-            let ftype = c.word_of("the feature type", FeatType::from_word, &words_of(FeatType::ALL, FeatType::word))?;
+            let ftype =
+                c.word_of("the feature type", FeatType::from_word, &words_of(FeatType::ALL, FeatType::word))?;
             let feature = c.label(&[L::F], "the constructed feature")?;
             let m = c.any_word("BF, INTOF, PROJCT or MIDPT")?;
             let src = &[L::Fa, L::F];
@@ -518,11 +722,23 @@ pub fn parse_statement(file: &str, raw: &RawStatement) -> Result<Stmt, DmisError
                     }
                     ConstMethod::Bf(ls)
                 }
-                "INTOF" => ConstMethod::Intof(c.label(src, "the first feature")?, c.label(src, "the second feature")?),
-                "PROJCT" => ConstMethod::Projct(c.label(src, "the feature to project")?, c.label(src, "the plane")?),
-                "MIDPT" => ConstMethod::Midpt(c.label(src, "the first feature")?, c.label(src, "the second feature")?),
+                "INTOF" => ConstMethod::Intof(
+                    c.label(src, "the first feature")?,
+                    c.label(src, "the second feature")?,
+                ),
+                "PROJCT" => {
+                    ConstMethod::Projct(c.label(src, "the feature to project")?, c.label(src, "the plane")?)
+                }
+                "MIDPT" => ConstMethod::Midpt(
+                    c.label(src, "the first feature")?,
+                    c.label(src, "the second feature")?,
+                ),
                 other => {
-                    return Err(c.err(c.args[2].1, ErrorKind::Unsupported, format!("CONST: {other} is not supported (BF, INTOF, PROJCT, MIDPT)")))
+                    return Err(c.err(
+                        c.args[2].1,
+                        ErrorKind::Unsupported,
+                        format!("CONST: {other} is not supported (BF, INTOF, PROJCT, MIDPT)"),
+                    ))
                 }
             };
             Statement::Const { ftype, feature, method }
@@ -530,7 +746,11 @@ pub fn parse_statement(file: &str, raw: &RawStatement) -> Result<Stmt, DmisError
         "DATDEF" => {
             if label.is_some() {
                 let datum = need_label(&[L::Dat, L::Da])?;
-                Statement::Datdef { datum, feature: c.label(&[L::Fa, L::F], "the datum feature")?, assigned: true }
+                Statement::Datdef {
+                    datum,
+                    feature: c.label(&[L::Fa, L::F], "the datum feature")?,
+                    assigned: true,
+                }
             } else {
                 let feature = c.label(&[L::Fa, L::F], "the datum feature")?;
                 Statement::Datdef { feature, datum: c.label(&[L::Dat, L::Da], "the datum")?, assigned: false }
@@ -547,7 +767,11 @@ pub fn parse_statement(file: &str, raw: &RawStatement) -> Result<Stmt, DmisError
                     let d = c.label(&[L::Dat, L::Da, L::Fa], "a datum")?;
                     let mut ws = Vec::new();
                     while matches!(c.peek(), Some(Tok::Word(_))) {
-                        ws.push(c.word_of("an axis or origin", DatsetWord::from_word, &words_of(DatsetWord::ALL, DatsetWord::word))?);
+                        ws.push(c.word_of(
+                            "an axis or origin",
+                            DatsetWord::from_word,
+                            &words_of(DatsetWord::ALL, DatsetWord::word),
+                        )?);
                     }
                     if ws.is_empty() {
                         return Err(c.missing("an axis or origin (XDIR, YDIR, ZDIR, XORIG, YORIG, ZORIG)"));
@@ -565,7 +789,11 @@ pub fn parse_statement(file: &str, raw: &RawStatement) -> Result<Stmt, DmisError
             let mut items = Vec::new();
             loop {
                 let o = c.word_of("the origin", Origin::from_word, &words_of(Origin::ALL, Origin::word))?;
-                let by = if c.is_label() { TransBy::Feature(c.label(&[L::Fa, L::F], "the feature")?) } else { TransBy::Value(c.num("the new origin")?) };
+                let by = if c.is_label() {
+                    TransBy::Feature(c.label(&[L::Fa, L::F], "the feature")?)
+                } else {
+                    TransBy::Value(c.num("the new origin")?)
+                };
                 items.push((o, by));
                 if c.peek().is_none() {
                     break;
@@ -578,7 +806,10 @@ pub fn parse_statement(file: &str, raw: &RawStatement) -> Result<Stmt, DmisError
             let axis = c.word_of("the axis", RotAxis::from_word, &words_of(RotAxis::ALL, RotAxis::word))?;
             let by = if c.is_label() {
                 let f = c.label(&[L::Fa, L::F], "the feature")?;
-                RotateBy::Feature(f, c.word_of("the direction", AxisDir::from_word, &words_of(AxisDir::ALL, AxisDir::word))?)
+                RotateBy::Feature(
+                    f,
+                    c.word_of("the direction", AxisDir::from_word, &words_of(AxisDir::ALL, AxisDir::word))?,
+                )
             } else {
                 RotateBy::Angle(c.num("the angle")?)
             };
@@ -587,7 +818,11 @@ pub fn parse_statement(file: &str, raw: &RawStatement) -> Result<Stmt, DmisError
         "SAVE" | "RECALL" => {
             no_label()?;
             let l = c.label(&[L::D, L::Da], "the coordinate system")?;
-            if major == "SAVE" { Statement::Save(l) } else { Statement::Recall(l) }
+            if major == "SAVE" {
+                Statement::Save(l)
+            } else {
+                Statement::Recall(l)
+            }
         }
         "TOL" => {
             let l = need_label(&[L::T])?;
@@ -647,12 +882,17 @@ pub fn parse_statement(file: &str, raw: &RawStatement) -> Result<Stmt, DmisError
         }
         "TEXT" => {
             no_label()?;
-            let kind = c.word_of("the destination", TextKind::from_word, &words_of(TextKind::ALL, TextKind::word))?;
+            let kind =
+                c.word_of("the destination", TextKind::from_word, &words_of(TextKind::ALL, TextKind::word))?;
             Statement::Text { kind, text: c.text("the text")? }
         }
         "DEVICE" => {
             let l = need_label(&[L::Did])?;
-            let kind = c.word_of("the device kind", DeviceKind::from_word, &words_of(DeviceKind::ALL, DeviceKind::word))?;
+            let kind = c.word_of(
+                "the device kind",
+                DeviceKind::from_word,
+                &words_of(DeviceKind::ALL, DeviceKind::word),
+            )?;
             let file = if c.peek().is_some() { Some(c.text("the file or device name")?) } else { None };
             Statement::Device { label: l, kind, file }
         }
@@ -663,7 +903,11 @@ pub fn parse_statement(file: &str, raw: &RawStatement) -> Result<Stmt, DmisError
             while c.peek().is_some() {
                 let w = c.any_word("DIRECT, OUTPUT, OVERWR or APPEND")?;
                 if !matches!(w.as_str(), "DIRECT" | "OUTPUT" | "OVERWR" | "APPEND") {
-                    return Err(c.err(c.args[c.k - 1].1, ErrorKind::Unsupported, format!("OPEN: {w} is not supported (DIRECT, OUTPUT, OVERWR, APPEND)")));
+                    return Err(c.err(
+                        c.args[c.k - 1].1,
+                        ErrorKind::Unsupported,
+                        format!("OPEN: {w} is not supported (DIRECT, OUTPUT, OVERWR, APPEND)"),
+                    ));
                 }
                 words.push(w);
             }
@@ -673,20 +917,39 @@ pub fn parse_statement(file: &str, raw: &RawStatement) -> Result<Stmt, DmisError
             no_label()?;
             let device = c.label(&[L::Did], "the device")?;
             let word = if c.peek().is_some() {
-                Some(c.word_of("KEEP or DELETE", |w| match w {
-                    "KEEP" => Some("KEEP"),
-                    "DELETE" => Some("DELETE"),
-                    _ => None,
-                }, &["KEEP", "DELETE"])?.to_string())
+                Some(
+                    c.word_of(
+                        "KEEP or DELETE",
+                        |w| match w {
+                            "KEEP" => Some("KEEP"),
+                            "DELETE" => Some("DELETE"),
+                            _ => None,
+                        },
+                        &["KEEP", "DELETE"],
+                    )?
+                    .to_string(),
+                )
             } else {
                 None
             };
             Statement::Close { device, word }
         }
         other if OTHER_MAJORS.contains(&other) => {
-            return Err(DmisError::new(file, mpos, ErrorKind::Unsupported, format!("{other} is outside the DMIS subset truepos runs (see docs/dmis.md)")))
+            return Err(DmisError::new(
+                file,
+                mpos,
+                ErrorKind::Unsupported,
+                format!("{other} is outside the DMIS subset truepos runs (see docs/dmis.md)"),
+            ))
         }
-        other => return Err(DmisError::new(file, mpos, ErrorKind::Syntax, format!("{other} is not a DMIS statement"))),
+        other => {
+            return Err(DmisError::new(
+                file,
+                mpos,
+                ErrorKind::Syntax,
+                format!("{other} is not a DMIS statement"),
+            ))
+        }
     };
     c.done()?;
     Ok(Stmt { statement: st, pos: start, label_pos: start, args: arg_pos })

@@ -30,14 +30,20 @@ pub fn feat_line(label: &str, f: &Feature, g: &Geom, length: LengthUnit, angle: 
     let (head, values) = match g {
         Geom::Point { p, n } => ("POINT, CART".to_string(), format!("{}, {}", xyz(&a(p)), ijk(&b(n)))),
         Geom::Plane { p, n } => ("PLANE, CART".to_string(), format!("{}, {}", xyz(&a(p)), ijk(&b(n)))),
-        Geom::Line { p, dir } => ("LINE, UNBND, CART".to_string(), format!("{}, {}", xyz(&a(p)), ijk(&b(dir)))),
-        Geom::Circle { c, n, r } => {
-            (format!("CIRCLE, {}CART", side(f.side)), format!("{}, {}, {}", xyz(&a(c)), ijk(&b(n)), l(2.0 * r)))
+        Geom::Line { p, dir } => {
+            ("LINE, UNBND, CART".to_string(), format!("{}, {}", xyz(&a(p)), ijk(&b(dir))))
         }
-        Geom::Cylinder { p, axis, r } => {
-            (format!("CYLNDR, {}CART", side(f.side)), format!("{}, {}, {}", xyz(&a(p)), ijk(&b(axis)), l(2.0 * r)))
+        Geom::Circle { c, n, r } => (
+            format!("CIRCLE, {}CART", side(f.side)),
+            format!("{}, {}, {}", xyz(&a(c)), ijk(&b(n)), l(2.0 * r)),
+        ),
+        Geom::Cylinder { p, axis, r } => (
+            format!("CYLNDR, {}CART", side(f.side)),
+            format!("{}, {}, {}", xyz(&a(p)), ijk(&b(axis)), l(2.0 * r)),
+        ),
+        Geom::Sphere { c, r } => {
+            (format!("SPHERE, {}CART", side(f.side)), format!("{}, {}", xyz(&a(c)), l(2.0 * r)))
         }
-        Geom::Sphere { c, r } => (format!("SPHERE, {}CART", side(f.side)), format!("{}, {}", xyz(&a(c)), l(2.0 * r))),
         Geom::Cone { apex, axis, half_angle } => (
             format!("CONE, {}CART", side(f.side)),
             format!("{}, {}, {}", xyz(&a(apex)), ijk(&b(axis)), n5(2.0 * half_angle / rad_per(angle))),

@@ -15,9 +15,11 @@ pub fn load(path: &Path) -> Result<Plan, DmisError> {
         Err(e) => {
             let good = &e.as_bytes()[..e.utf8_error().valid_up_to()];
             let line = 1 + good.iter().filter(|b| **b == b'\n').count() as u32;
-            let col = 1 + String::from_utf8_lossy(&good[good.iter().rposition(|b| *b == b'\n').map_or(0, |k| k + 1)..])
-                .chars()
-                .count() as u32;
+            let col = 1 + String::from_utf8_lossy(
+                &good[good.iter().rposition(|b| *b == b'\n').map_or(0, |k| k + 1)..],
+            )
+            .chars()
+            .count() as u32;
             return Err(DmisError::new(&name, Pos::new(line, col), ErrorKind::Syntax, "not UTF-8 text"));
         }
     };
@@ -34,7 +36,10 @@ pub fn output_path(plan: &Plan, program: &Path, explicit: Option<&Path>) -> Path
     match &plan.output_file {
         Some(f) => dir.join(f),
         None => {
-            let stem = program.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "program".into());
+            let stem = program
+                .file_stem()
+                .map(|s| s.to_string_lossy().to_string())
+                .unwrap_or_else(|| "program".into());
             dir.join(format!("{stem}_output.dms"))
         }
     }

@@ -92,12 +92,15 @@ fn inches_and_radians_are_converted() {
     let ops: Vec<&Op> = p.steps.iter().map(|s| &s.op).collect();
     assert!(ops.iter().any(|o| matches!(o, Op::Goto(q) if q.x == 25.4)));
     assert!(ops.iter().any(|o| matches!(o, Op::Feed { mm_s: Some(v), .. } if (v - 2.54).abs() < 1e-12)));
-    assert!(ops.iter().any(|o| matches!(o, Op::Rotate { by: truepos_dmis::model::RotateTo::Angle(a), .. } if *a == 0.5)));
+    assert!(ops
+        .iter()
+        .any(|o| matches!(o, Op::Rotate { by: truepos_dmis::model::RotateTo::Angle(a), .. } if *a == 0.5)));
 }
 
 #[test]
 fn the_full_test_program_checks() {
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/programs/full.dms")).unwrap();
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/programs/full.dms")).unwrap();
     let p = check(&parse("full.dms", &text).unwrap()).unwrap();
     assert_eq!(p.n_probes, 4 + 8 + 4 + 4 + 5);
     assert_eq!(p.output_file.as_deref(), Some("full_output.dms"));

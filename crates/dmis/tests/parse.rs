@@ -21,10 +21,7 @@ fn the_nist_example_parses_to_its_statements() {
     assert_eq!(p.statements.len(), 24);
     let s = p.statements();
     assert_eq!(s[0], &Statement::Dmismn { title: "IPP SIMPLE DMIS program".into(), version: None });
-    assert_eq!(
-        s[2],
-        &Statement::Units { length: LengthUnit::Mm, angle: AngleUnit::AngDec, temp: None }
-    );
+    assert_eq!(s[2], &Statement::Units { length: LengthUnit::Mm, angle: AngleUnit::AngDec, temp: None });
     assert_eq!(
         s[5],
         &Statement::Snsdef {
@@ -39,7 +36,12 @@ fn the_nist_example_parses_to_its_statements() {
         s[12],
         &Statement::Feat {
             label: Label::new(LabelKind::F, "A_CIRCLE"),
-            geom: FeatGeom::Circle { side: Side::Inner, c: [50.0, 50.0, 40.0], n: [0.0, 0.0, 1.0], diam: 50.0 }
+            geom: FeatGeom::Circle {
+                side: Side::Inner,
+                c: [50.0, 50.0, 40.0],
+                n: [0.0, 0.0, 1.0],
+                diam: 50.0
+            }
         }
     );
     assert_eq!(
@@ -63,7 +65,12 @@ fn the_nist_output_file_parses_with_its_continuation() {
         s[4],
         &Statement::Feat {
             label: Label::new(LabelKind::Fa, "A_CIRCLE"),
-            geom: FeatGeom::Circle { side: Side::Inner, c: [50.0, 50.0, 40.0], n: [0.0, 0.0, 1.0], diam: 50.0 }
+            geom: FeatGeom::Circle {
+                side: Side::Inner,
+                c: [50.0, 50.0, 40.0],
+                n: [0.0, 0.0, 1.0],
+                diam: 50.0
+            }
         }
     );
 }
@@ -74,14 +81,17 @@ fn every_statement_kind_parses_and_prints_back() {
     let p = parse("every_statement.dms", &text).unwrap();
     let majors: std::collections::BTreeSet<&str> = p.statements().iter().map(|s| s.major()).collect();
     for m in [
-        "DMISMN", "FILNAM", "UNITS", "DISPLY", "PRCOMP", "MODE", "FEDRAT", "DEVICE", "OPEN", "SNSDEF", "SNSMNT",
-        "SNSLCT", "SNSET", "GOTO", "DATSET", "FEAT", "MEAS", "PTMEAS", "ENDMES", "CONST", "DATDEF", "TRANS",
-        "ROTATE", "SAVE", "RECALL", "TOL", "OUTPUT", "TEXT", "CLOSE", "ENDFIL",
+        "DMISMN", "FILNAM", "UNITS", "DISPLY", "PRCOMP", "MODE", "FEDRAT", "DEVICE", "OPEN", "SNSDEF",
+        "SNSMNT", "SNSLCT", "SNSET", "GOTO", "DATSET", "FEAT", "MEAS", "PTMEAS", "ENDMES", "CONST", "DATDEF",
+        "TRANS", "ROTATE", "SAVE", "RECALL", "TOL", "OUTPUT", "TEXT", "CLOSE", "ENDFIL",
     ] {
         assert!(majors.contains(m), "{m} missing");
     }
     // Lower case is the same statement.
-    assert_eq!(p.statements[1].statement, Statement::Filnam { name: "every statement".into(), version: Some(5.2) });
+    assert_eq!(
+        p.statements[1].statement,
+        Statement::Filnam { name: "every statement".into(), version: Some(5.2) }
+    );
     let printed = p.print();
     let again = parse("printed", &printed).unwrap();
     assert_eq!(again.statements(), p.statements());
@@ -184,14 +194,32 @@ fn geom() -> impl Strategy<Value = FeatGeom> {
     prop_oneof![
         (xyz(), xyz()).prop_map(|(p, n)| FeatGeom::Point { p, n }),
         (xyz(), xyz()).prop_map(|(p, n)| FeatGeom::Plane { p, n }),
-        (xyz(), xyz(), prop::option::of(xyz())).prop_map(|(p, dir, plane)| FeatGeom::LineUnbnd { p, dir, plane }),
-        (xyz(), xyz(), prop::option::of(xyz())).prop_map(|(p1, p2, plane)| FeatGeom::LineBnd { p1, p2, plane }),
-        (pick(Side::ALL), xyz(), xyz(), number()).prop_map(|(side, c, n, diam)| FeatGeom::Circle { side, c, n, diam }),
+        (xyz(), xyz(), prop::option::of(xyz())).prop_map(|(p, dir, plane)| FeatGeom::LineUnbnd {
+            p,
+            dir,
+            plane
+        }),
+        (xyz(), xyz(), prop::option::of(xyz())).prop_map(|(p1, p2, plane)| FeatGeom::LineBnd {
+            p1,
+            p2,
+            plane
+        }),
+        (pick(Side::ALL), xyz(), xyz(), number()).prop_map(|(side, c, n, diam)| FeatGeom::Circle {
+            side,
+            c,
+            n,
+            diam
+        }),
         (pick(Side::ALL), xyz(), xyz(), number(), prop::option::of(number()))
             .prop_map(|(side, p, axis, diam, length)| FeatGeom::Cylndr { side, p, axis, diam, length }),
         (pick(Side::ALL), xyz(), prop::option::of(xyz()), number())
             .prop_map(|(side, c, n, diam)| FeatGeom::Sphere { side, c, n, diam }),
-        (pick(Side::ALL), xyz(), xyz(), number()).prop_map(|(side, apex, axis, angle)| FeatGeom::Cone { side, apex, axis, angle }),
+        (pick(Side::ALL), xyz(), xyz(), number()).prop_map(|(side, apex, axis, angle)| FeatGeom::Cone {
+            side,
+            apex,
+            axis,
+            angle
+        }),
     ]
 }
 
@@ -221,8 +249,10 @@ fn statement() -> impl Strategy<Value = Statement> {
     const DATSRC: &[LabelKind] = &[L::Dat, L::Da, L::Fa];
     const OUT: &[LabelKind] = &[L::Fa, L::F, L::Ta, L::T];
     let header = prop_oneof![
-        (text(), prop::option::of(number())).prop_map(|(title, version)| Statement::Dmismn { title, version }),
-        (text(), prop::option::of(number())).prop_map(|(title, version)| Statement::Dmismd { title, version }),
+        (text(), prop::option::of(number()))
+            .prop_map(|(title, version)| Statement::Dmismn { title, version }),
+        (text(), prop::option::of(number()))
+            .prop_map(|(title, version)| Statement::Dmismd { title, version }),
         (text(), prop::option::of(number())).prop_map(|(name, version)| Statement::Filnam { name, version }),
         Just(Statement::Endfil),
         Just(Statement::Endmes),
@@ -252,7 +282,12 @@ fn statement() -> impl Strategy<Value = Statement> {
         number().prop_map(|v| Statement::Snset(Snset::Depth(v))),
         (prop::option::of(label_of(SRC)), number()).prop_map(|(l, v)| Statement::Snset(Snset::Clrsrf(l, v))),
         Just(Statement::Snset(Snset::ClrsrfOff)),
-        (label(L::S), xyz(), xyz(), number()).prop_map(|(label, offset, dir, diam)| Statement::Snsdef { label, offset, dir, diam }),
+        (label(L::S), xyz(), xyz(), number()).prop_map(|(label, offset, dir, diam)| Statement::Snsdef {
+            label,
+            offset,
+            dir,
+            diam
+        }),
         label_of(&[L::S, L::Sa]).prop_map(Statement::Snslct),
         (xyz(), xyz(), xyz()).prop_map(|(xvec, zvec, mntlen)| Statement::Snsmnt { xvec, zvec, mntlen }),
         xyz().prop_map(|p| Statement::Goto(Goto::Abs(p))),
@@ -261,7 +296,11 @@ fn statement() -> impl Strategy<Value = Statement> {
     ];
     let features = prop_oneof![
         (label_of(&[L::F, L::Fa]), geom()).prop_map(|(label, geom)| Statement::Feat { label, geom }),
-        (pick(FeatType::ALL), label(L::F), 1u32..100_000).prop_map(|(ftype, feature, n)| Statement::Meas { ftype, feature, n }),
+        (pick(FeatType::ALL), label(L::F), 1u32..100_000).prop_map(|(ftype, feature, n)| Statement::Meas {
+            ftype,
+            feature,
+            n
+        }),
         (
             pick(FeatType::ALL),
             label(L::F),
@@ -279,15 +318,21 @@ fn statement() -> impl Strategy<Value = Statement> {
             label(L::D),
             prop_oneof![
                 Just(Datset::Mcs),
-                prop::collection::vec((label_of(DATSRC), prop::collection::vec(pick(DatsetWord::ALL), 1..4)), 1..4)
-                    .prop_map(Datset::Datums)
+                prop::collection::vec(
+                    (label_of(DATSRC), prop::collection::vec(pick(DatsetWord::ALL), 1..4)),
+                    1..4
+                )
+                .prop_map(Datset::Datums)
             ]
         )
             .prop_map(|(label, def)| Statement::Datset { label, def }),
         (
             prop::option::of(label(L::D)),
             prop::collection::vec(
-                (pick(Origin::ALL), prop_oneof![number().prop_map(TransBy::Value), label_of(SRC).prop_map(TransBy::Feature)]),
+                (
+                    pick(Origin::ALL),
+                    prop_oneof![number().prop_map(TransBy::Value), label_of(SRC).prop_map(TransBy::Feature)]
+                ),
                 1..4
             )
         )
@@ -310,10 +355,16 @@ fn statement() -> impl Strategy<Value = Statement> {
             .prop_map(|(label, kind, file)| Statement::Device { label, kind, file }),
         (
             label(L::Did),
-            prop::collection::vec(prop::sample::select(&["DIRECT", "OUTPUT", "OVERWR", "APPEND"][..]).prop_map(String::from), 0..4)
+            prop::collection::vec(
+                prop::sample::select(&["DIRECT", "OUTPUT", "OVERWR", "APPEND"][..]).prop_map(String::from),
+                0..4
+            )
         )
             .prop_map(|(device, words)| Statement::Open { device, words }),
-        (label(L::Did), prop::option::of(prop::sample::select(&["KEEP", "DELETE"][..]).prop_map(String::from)))
+        (
+            label(L::Did),
+            prop::option::of(prop::sample::select(&["KEEP", "DELETE"][..]).prop_map(String::from))
+        )
             .prop_map(|(device, word)| Statement::Close { device, word }),
     ];
     prop_oneof![header, sensors, features]
@@ -330,7 +381,12 @@ fn reformat(s: &str, seed: u64) -> String {
         if c == '\'' {
             in_text = !in_text;
         }
-        if !in_text && i < 3 && c.is_ascii_alphabetic() && s.contains('/') && !s.starts_with(char::is_lowercase) {
+        if !in_text
+            && i < 3
+            && c.is_ascii_alphabetic()
+            && s.contains('/')
+            && !s.starts_with(char::is_lowercase)
+        {
             // lower-case the first letters of the major word (not of labels)
             if s[..s.find(['/', '=', '(']).unwrap_or(0)].len() > i {
                 out.push(c.to_ascii_lowercase());

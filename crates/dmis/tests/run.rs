@@ -18,7 +18,9 @@ fn plan_of(rel: &str) -> truepos_dmis::model::Plan {
 }
 
 fn sensors(pairs: &[(&str, &str)]) -> RunOptions {
-    RunOptions { sensors: pairs.iter().map(|(a, b)| (a.to_string(), b.to_string())).collect::<HashMap<_, _>>() }
+    RunOptions {
+        sensors: pairs.iter().map(|(a, b)| (a.to_string(), b.to_string())).collect::<HashMap<_, _>>(),
+    }
 }
 
 #[test]
@@ -30,17 +32,28 @@ fn the_nist_example_dry_runs_to_its_output() {
     let r = run(&plan, &mut m, &opts, &mut |_| {}).unwrap();
     let out = r.output.join("\n");
     assert!(out.contains("FA(A_CIRCLE) = FEAT/CIRCLE, INNER, CART,  $\n  50.00000, 50.00000, 40.00000, 0.00000, 0.00000, 1.00000, 50.00000"), "{out}");
-    assert!(out.starts_with("FILNAM/'IPP SIMPLE DMIS output'\nUNITS/MM,ANGDEC\nD(START)=DATSET/MCS\n"), "{out}");
+    assert!(
+        out.starts_with("FILNAM/'IPP SIMPLE DMIS output'\nUNITS/MM,ANGDEC\nD(START)=DATSET/MCS\n"),
+        "{out}"
+    );
     assert!(out.ends_with("OUTPUT/FA(A_CIRCLE)\nFA(A_CIRCLE) = FEAT/CIRCLE, INNER, CART,  $\n  50.00000, 50.00000, 40.00000, 0.00000, 0.00000, 1.00000, 50.00000\nENDFIL"), "{out}");
     // The motions of simple.prg: GoTo 175, 75, 40, four PtMeas, GoTo 40, 100.
     let kinds: Vec<&str> = r.motions.iter().filter_map(|m| m.split(' ').next()).collect();
-    assert_eq!(kinds, ["GOTO", "line", "GOTO", "GOTO", "PTMEAS", "PTMEAS", "PTMEAS", "PTMEAS", "GOTO", "GOTO"]);
-    assert!(r.motions[4].starts_with("PTMEAS (75.0000, 50.0000, 40.0000) along (-1.0000, 0.0000, 0.0000)"), "{:?}", r.motions);
+    assert_eq!(
+        kinds,
+        ["GOTO", "line", "GOTO", "GOTO", "PTMEAS", "PTMEAS", "PTMEAS", "PTMEAS", "GOTO", "GOTO"]
+    );
+    assert!(
+        r.motions[4].starts_with("PTMEAS (75.0000, 50.0000, 40.0000) along (-1.0000, 0.0000, 0.0000)"),
+        "{:?}",
+        r.motions
+    );
 }
 
 #[test]
 fn the_nist_example_runs_on_the_virtual_cmm_through_ippdme() {
-    let cmm = truepos_cell::cmm::serve_loopback(Some(&repo().join("data/dmis/simple_part.toml")), None).unwrap();
+    let cmm =
+        truepos_cell::cmm::serve_loopback(Some(&repo().join("data/dmis/simple_part.toml")), None).unwrap();
     let mut client = truepos_ippdme::connect(&cmm.url).unwrap();
     let plan = plan_of("data/dmis/simple_in.dms");
     let moves = || cmm.handle.shared.with_machine(|m| (m.counters.moves, m.counters.probes));
@@ -56,7 +69,8 @@ fn the_nist_example_runs_on_the_virtual_cmm_through_ippdme() {
     }
     assert_eq!(moves(), before);
     let mut lines = Vec::new();
-    let r = run(&plan, &mut client, &sensors(&[("PROBE6", "Probe1")]), &mut |l| lines.push(l.to_string())).unwrap();
+    let r = run(&plan, &mut client, &sensors(&[("PROBE6", "Probe1")]), &mut |l| lines.push(l.to_string()))
+        .unwrap();
     assert_eq!(r.n_points, 4);
     assert_eq!(lines.len(), 1, "{lines:?}");
     assert!(lines[0].starts_with("line 23: MEAS/CIRCLE,F(A_CIRCLE): 4 points"), "{lines:?}");
@@ -85,7 +99,8 @@ fn datums_constructions_and_every_tolerance_on_the_virtual_cmm() {
     // Truth (machine frame): top z = 40, bores at (30, 30) and (130, 30) Ø20, pin (80, 80) Ø12,
     // sphere (80, 150, 60) Ø25. Part frame: origin (30, 30, 40), X along +x. The realistic
     // virtual CMM errs by a few µm: 10 µm bounds.
-    let feat = |label: &str, k: usize| r.features.iter().filter(|f| f.label == label).nth(k).unwrap().geom.clone();
+    let feat =
+        |label: &str, k: usize| r.features.iter().filter(|f| f.label == label).nth(k).unwrap().geom.clone();
     let Geom::Circle { c, r: rad, .. } = feat("PIN", 0) else { panic!() };
     assert!((c.x - 50.0).abs() < 0.01 && (c.y - 50.0).abs() < 0.01 && (c.z - 10.0).abs() < 0.01, "{c:?}");
     assert!((2.0 * rad - 12.0).abs() < 0.01, "{rad}");
@@ -104,7 +119,13 @@ fn datums_constructions_and_every_tolerance_on_the_virtual_cmm() {
             g => panic!("{g:?}"),
         })
         .collect();
-    for (got, want) in centres.iter().zip([[100.0, 0.0, -5.0], [100.0, 0.0, -5.0], [0.0, -100.0, -5.0], [-50.0, -100.0, -5.0], [100.0, 0.0, -5.0]]) {
+    for (got, want) in centres.iter().zip([
+        [100.0, 0.0, -5.0],
+        [100.0, 0.0, -5.0],
+        [0.0, -100.0, -5.0],
+        [-50.0, -100.0, -5.0],
+        [100.0, 0.0, -5.0],
+    ]) {
         assert!((got - truepos_math::Point3::from(want)).norm() < 0.01, "{got:?} vs {want:?}");
     }
     // Tolerances: form of exact solids is the machine's error only (µm); positions and sizes
@@ -151,7 +172,8 @@ fn a_probing_without_surface_stops_at_its_line_with_the_machine_retracted() {
         .unwrap()
         .replace("PTMEAS/CART, 75.0, 50.0, 40.0", "PTMEAS/CART, 60.0, 50.0, 40.0");
     let plan = check(&parse("moved.dms", &text).unwrap()).unwrap();
-    let cmm = truepos_cell::cmm::serve_loopback(Some(&repo().join("data/dmis/simple_part.toml")), None).unwrap();
+    let cmm =
+        truepos_cell::cmm::serve_loopback(Some(&repo().join("data/dmis/simple_part.toml")), None).unwrap();
     let mut client = truepos_ippdme::connect(&cmm.url).unwrap();
     let e = run(&plan, &mut client, &sensors(&[("PROBE6", "Probe1")]), &mut |_| {}).unwrap_err();
     match &e {

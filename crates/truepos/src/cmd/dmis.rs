@@ -9,7 +9,9 @@ use std::path::PathBuf;
 use truepos_dmis::exec::{self, DryRun, RunOptions};
 
 #[derive(clap::Args, Debug)]
-#[command(after_help = "Example:\n  truepos dmis run data/dmis/simple_in.dms --part data/dmis/simple_part.toml --sensor PROBE6=Probe1")]
+#[command(
+    after_help = "Example:\n  truepos dmis run data/dmis/simple_in.dms --part data/dmis/simple_part.toml --sensor PROBE6=Probe1"
+)]
 pub struct Args {
     #[command(subcommand)]
     pub command: DmisCommand,
@@ -62,7 +64,8 @@ pub fn run(args: Args) -> Result<Outcome> {
     let DmisCommand::Run(a) = args.command;
     let mut sensors = HashMap::new();
     for s in &a.sensors {
-        let Some((l, t)) = s.split_once('=').filter(|(l, t)| !l.trim().is_empty() && !t.trim().is_empty()) else {
+        let Some((l, t)) = s.split_once('=').filter(|(l, t)| !l.trim().is_empty() && !t.trim().is_empty())
+        else {
             return Err(UsageError(format!("--sensor {s:?}: expected LABEL=TOOL, e.g. PROBE6=Probe1")).into());
         };
         sensors.insert(l.trim().to_ascii_uppercase(), t.trim().to_string());
@@ -89,20 +92,29 @@ pub fn run(args: Args) -> Result<Outcome> {
     // The virtual CMM lives as long as the run.
     let mut _virtual = None;
     let url = if a.controller == "virtual" {
-        let cmm = truepos_cell::cmm::serve_loopback(a.part.as_deref(), a.machine.as_deref()).map_err(|e| match e {
-            truepos_cell::cmm::ServeError::Bind { .. } => anyhow::Error::new(DeviceError(e.to_string())),
-            other => anyhow::Error::new(UsageError(other.to_string())),
-        })?;
+        let cmm = truepos_cell::cmm::serve_loopback(a.part.as_deref(), a.machine.as_deref()).map_err(
+            |e| match e {
+                truepos_cell::cmm::ServeError::Bind { .. } => anyhow::Error::new(DeviceError(e.to_string())),
+                other => anyhow::Error::new(UsageError(other.to_string())),
+            },
+        )?;
         let url = cmm.url.clone();
         _virtual = Some(cmm);
         url
     } else if a.controller.starts_with("ippdme://") {
         if a.part.is_some() || a.machine.is_some() {
-            return Err(UsageError("--part and --machine describe the virtual CMM: only with --controller virtual".into()).into());
+            return Err(UsageError(
+                "--part and --machine describe the virtual CMM: only with --controller virtual".into(),
+            )
+            .into());
         }
         a.controller.clone()
     } else {
-        return Err(UsageError(format!("--controller `{}`: expected `virtual` or `ippdme://HOST:PORT`", a.controller)).into());
+        return Err(UsageError(format!(
+            "--controller `{}`: expected `virtual` or `ippdme://HOST:PORT`",
+            a.controller
+        ))
+        .into());
     };
     let mut client = truepos_ippdme::client::connect(&url)?;
     let r = exec::run(&plan, &mut client, &opts, &mut progress)?;
@@ -110,10 +122,21 @@ pub fn run(args: Args) -> Result<Outcome> {
     truepos_io::atomic::write_atomic(&out, text.as_bytes())?;
     drop(client);
     if a.json {
-        crate::output::print_json(&truepos_dmis::report::json(&plan.file, &r, Some(&out.display().to_string())))?;
+        crate::output::print_json(&truepos_dmis::report::json(
+            &plan.file,
+            &r,
+            Some(&out.display().to_string()),
+        ))?;
     } else {
         for t in &r.tolerances {
-            eprintln!("dmis: {}", truepos_dmis::report::tol_line(t, truepos_dmis::ast::LengthUnit::Mm, truepos_dmis::ast::AngleUnit::AngDec));
+            eprintln!(
+                "dmis: {}",
+                truepos_dmis::report::tol_line(
+                    t,
+                    truepos_dmis::ast::LengthUnit::Mm,
+                    truepos_dmis::ast::AngleUnit::AngDec
+                )
+            );
         }
         eprintln!("dmis: {} points, {:.2} s; results in {}", r.n_points, r.elapsed_s, out.display());
     }
