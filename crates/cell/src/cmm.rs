@@ -1106,6 +1106,46 @@ pub fn bind_virtual(opts: &ServeOptions) -> Result<truepos_ippdme::Server<Ippdme
         .map_err(|source| ServeError::Bind { address, source })
 }
 
+/// The virtual CMM served for one client program on an ephemeral loopback port, homed as an
+/// operator would before the program runs (`truepos dmis run --controller virtual`). The server
+/// stops when the handle is dropped.
+pub struct LoopbackCmm {
+    pub handle: truepos_ippdme::server::ServerHandle<IppdmeCmm>,
+    /// `ippdme://127.0.0.1:PORT`.
+    pub url: String,
+}
+
+/// Build the virtual CMM from the files (as `truepos ippdme serve`), serve it on
+/// `127.0.0.1:0` and home it.
+pub fn serve_loopback(
+    part: Option<&std::path::Path>,
+    machine: Option<&std::path::Path>,
+) -> Result<LoopbackCmm, ServeError> {
+    let opts = ServeOptions {
+        bind: "127.0.0.1".into(),
+        port: 0,
+        part: part.map(|p| p.to_path_buf()),
+        machine: machine.map(|p| p.to_path_buf()),
+        log: None,
+    };
+    let server = bind_virtual(&opts)?;
+    let address = "127.0.0.1:0".to_string();
+    let mut session = truepos_ippdme::server::Session::new(server.shared());
+    let mut out = Vec::new();
+    for line in ["00001 StartSession()", "00002 Home()", "00003 EndSession()"] {
+        let _ = session.handle_line(line.as_bytes(), &mut out);
+    }
+    if let Some(bad) = out.iter().map(|r| r.format()).find(|l| l.contains(" ! ")) {
+        return Err(ServeError::Bind {
+            address,
+            source: std::io::Error::other(format!("homing refused: {bad}")),
+        });
+    }
+    let handle = server.spawn().map_err(|source| ServeError::Bind { address: address.clone(), source })?;
+    let url = format!("ippdme://{}", handle.addr);
+    Ok(LoopbackCmm { handle, url })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -140,6 +140,14 @@ pub struct ProbeHit {
     pub normal: Option<Vector3>,
 }
 
+/// A tool (stylus) of a machine as the machine reports it ([`ProbingMachine::select_tool`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ToolInfo {
+    pub name: String,
+    /// The calibrated tip radius the machine uses (mm).
+    pub tip_radius_mm: f64,
+}
+
 /// The rotary axes a probing machine orients its head and table with
 /// ([`ProbingMachine::rotary_axes`]), as the head-offset contract defines them: B swivels the
 /// head about Y, C turns the table about an axis parallel to Z.
@@ -207,6 +215,20 @@ pub trait ProbingMachine {
     fn probe(&mut self, request: &ProbeRequest) -> Result<ProbeHit, DeviceError>;
     /// Stop all motion now (best effort; also used on the way out of a failure).
     fn abort(&mut self) -> Result<(), DeviceError>;
+    /// The names of the tools (styli) the machine can select, where it can list them (default:
+    /// none listed — the machine has one stylus, or cannot say).
+    fn tool_names(&mut self) -> Result<Vec<String>, DeviceError> {
+        Ok(Vec::new())
+    }
+    /// Make the tool `name` active (a tool change where the machine needs one) and return it with
+    /// the tip radius the machine uses for it. Default: refused (no tool table).
+    fn select_tool(&mut self, name: &str) -> Result<ToolInfo, DeviceError> {
+        Err(DeviceError::Rejected {
+            address: self.info().address,
+            what: format!("selecting the tool {name}"),
+            message: "this machine has no tool table".into(),
+        })
+    }
     /// The rotary axes this machine can orient (default: none, a 3-axis machine).
     fn rotary_axes(&self) -> RotaryAxes {
         RotaryAxes::default()

@@ -14,7 +14,7 @@ use crate::protocol::{parse_data_items, Body, Response, Tag};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
 use std::time::{Duration, Instant};
-use truepos_device::{DeviceError, DeviceInfo, ProbeHit, ProbeRequest, ProbingMachine, RotaryAxes};
+use truepos_device::{DeviceError, DeviceInfo, ProbeHit, ProbeRequest, ProbingMachine, RotaryAxes, ToolInfo};
 use truepos_math::{Point3, Vector3};
 
 /// Default I++ DME port.
@@ -510,6 +510,33 @@ impl ProbingMachine for IppClient {
     fn abort(&mut self) -> Result<(), DeviceError> {
         self.transact_raw("AbortE()", "aborting", false)?;
         self.clear_errors()
+    }
+
+    /// The server's tool table (`EnumTools`).
+    fn tool_names(&mut self) -> Result<Vec<String>, DeviceError> {
+        let d = self.transact("EnumTools()", "listing the tools")?;
+        Ok(d.iter().map(|l| l.trim().trim_matches('"').to_string()).collect())
+    }
+
+    /// `ChangeTool(name)`, then the tool's name and radius as the server reports them. The
+    /// PtMeas parameters belong to the tool: they are set again before the next probing.
+    fn select_tool(&mut self, name: &str) -> Result<ToolInfo, DeviceError> {
+        let what = format!("changing the tool to {name}");
+        self.transact_raw(&Command::ChangeTool(name.to_string()).to_call_string(), &what, true)?;
+        self.ptmeas_set = None;
+        let d = self.transact("GetProp(Tool.Name())", "reading the active tool")?;
+        self.tool_name = d.first().and_then(|d| d.split('"').nth(1)).unwrap_or(name).to_string();
+        let r = self.transact("GetProp(Tool.AvrRadius())", "reading the tool radius")?;
+        self.tip_radius_mm = r
+            .first()
+            .and_then(|s| parse_data_items(s).ok())
+            .and_then(|items| items.first().and_then(|(_, v)| v.first().copied()))
+            .ok_or_else(|| DeviceError::Protocol {
+                address: self.address.clone(),
+                what: "reading the tool radius".into(),
+                message: format!("no radius in {r:?}"),
+            })?;
+        Ok(ToolInfo { name: self.tool_name.clone(), tip_radius_mm: self.tip_radius_mm })
     }
 }
 

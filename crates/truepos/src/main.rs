@@ -73,6 +73,15 @@ fn exit_code(err: &anyhow::Error) -> u8 {
         if let Some(e) = cause.downcast_ref::<truepos_audit::AuditError>() {
             return if e.is_usage() { 2 } else { 3 };
         }
+        if cause.is::<truepos_dmis::DmisError>() {
+            return 2;
+        }
+        if let Some(e) = cause.downcast_ref::<truepos_dmis::exec::RunError>() {
+            return match e {
+                truepos_dmis::exec::RunError::Input(_) => 2,
+                _ => 3,
+            };
+        }
         if cause.is::<DeviceError>() || cause.is::<truepos_device::DeviceError>() {
             return 3;
         }

@@ -10,6 +10,7 @@ pub mod audit;
 pub mod cli_tree;
 pub mod comp;
 pub mod demo;
+pub mod dmis;
 pub mod fit;
 pub mod head;
 pub mod ippdme;
@@ -71,6 +72,8 @@ pub enum Command {
     Ippdme(ippdme::Args),
     /// The audit trail (SQLite or shared PostgreSQL): list, show and export runs, verify the hash chain.
     Audit(audit::Args),
+    /// DMIS part programs on a CMM (I++ DME or the virtual CMM): `truepos dmis run`.
+    Dmis(dmis::Args),
     /// The command line as JSON (every command and argument with its help), for the tests.
     #[command(name = "__cli-tree", hide = true)]
     CliTree,
@@ -137,6 +140,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Command::Demo(a) => demo::run(a),
         Command::Ippdme(a) => ippdme::run(a),
         Command::Audit(a) => audit::run(a),
+        Command::Dmis(a) => dmis::run(a),
         Command::CliTree => cli_tree::run(),
     }
 }

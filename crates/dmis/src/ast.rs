@@ -1,0 +1,805 @@
+//! Typed DMIS statements of the supported subset, and their printing.
+//!
+//! Values are kept as the program writes them (its units, its label names); the semantic model
+//! ([`crate::model`]) converts them. `Display` prints a statement in canonical DMIS (upper-case
+//! words, no blanks, numbers in their shortest exact form), so that parsing the printed text gives
+//! the same statement back: `parse(print(parse(p))) == parse(p)`.
+
+use std::fmt::{self, Display, Formatter, Write as _};
+
+/// The kinds of label of the subset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum LabelKind {
+    /// Nominal feature `F()`.
+    F,
+    /// Actual feature `FA()`.
+    Fa,
+    /// Coordinate system (datum reference frame) `D()`.
+    D,
+    /// Actual coordinate system `DA()` (DMIS 3 also names datums so).
+    Da,
+    /// Datum `DAT()` (DMIS 4 and later).
+    Dat,
+    /// Tolerance `T()`.
+    T,
+    /// Actual tolerance `TA()`.
+    Ta,
+    /// Sensor `S()`.
+    S,
+    /// Actual (calibrated) sensor `SA()`.
+    Sa,
+    /// Input/output device `DID()`.
+    Did,
+}
+
+impl LabelKind {
+    pub fn from_prefix(p: &str) -> Option<LabelKind> {
+        Some(match p {
+            "F" => LabelKind::F,
+            "FA" => LabelKind::Fa,
+            "D" => LabelKind::D,
+            "DA" => LabelKind::Da,
+            "DAT" => LabelKind::Dat,
+            "T" => LabelKind::T,
+            "TA" => LabelKind::Ta,
+            "S" => LabelKind::S,
+            "SA" => LabelKind::Sa,
+            "DID" => LabelKind::Did,
+            _ => return None,
+        })
+    }
+    pub fn prefix(self) -> &'static str {
+        match self {
+            LabelKind::F => "F",
+            LabelKind::Fa => "FA",
+            LabelKind::D => "D",
+            LabelKind::Da => "DA",
+            LabelKind::Dat => "DAT",
+            LabelKind::T => "T",
+            LabelKind::Ta => "TA",
+            LabelKind::S => "S",
+            LabelKind::Sa => "SA",
+            LabelKind::Did => "DID",
+        }
+    }
+}
+
+/// A label: `F(A_CIRCLE)`. Names compare case-insensitively in the semantic model ([`Label::key`]).
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub struct Label {
+    pub kind: LabelKind,
+    pub name: String,
+}
+
+impl Label {
+    pub fn new(kind: LabelKind, name: &str) -> Label {
+        Label { kind, name: name.to_string() }
+    }
+    /// The name upper-cased: the identity of what the label names.
+    pub fn key(&self) -> String {
+        self.name.to_ascii_uppercase()
+    }
+}
+
+impl Display for Label {
+    fn fmt(&self, f: &mut Formatter<'_>) -> fmt::Result {
+        write!(f, "{}({})", self.kind.prefix(), self.name)
+    }
+}
+
+macro_rules! words {
+    ($(#[$m:meta])* $name:ident { $($v:ident = $s:literal),* $(,)? }) => {
+        $(#[$m])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+        pub enum $name { $($v),* }
+        impl $name {
+            /// Every word of this kind, in order.
+            pub const ALL: &'static [$name] = &[$($name::$v),*];
+            pub fn word(self) -> &'static str {
+                match self { $($name::$v => $s),* }
+            }
+            pub fn from_word(w: &str) -> Option<$name> {
+                match w { $($s => Some($name::$v),)* _ => None }
+            }
+        }
+        impl Display for $name {
+            fn fmt(&self, f: &mut Formatter<'_>) -> fmt::Result { f.write_str(self.word()) }
+        }
+    };
+}
+
+words!(
+    /// Length unit of `UNITS`.
+    LengthUnit { Mm = "MM", Cm = "CM", M = "M", Inch = "INCH", Feet = "FEET" }
+);
+words!(
+    /// Angle unit of `UNITS`.
+    AngleUnit { AngDec = "ANGDEC", AngRad = "ANGRAD", AngDms = "ANGDMS" }
+);
+words!(
+    /// Temperature unit of `UNITS` (DMIS 4 and later).
+    TempUnit { TempC = "TEMPC", TempF = "TEMPF" }
+);
+words!(
+    /// Feature types of `FEAT`, `MEAS` and `CONST`.
+    FeatType {
+        Point = "POINT",
+        Plane = "PLANE",
+        Line = "LINE",
+        Circle = "CIRCLE",
+        Cylndr = "CYLNDR",
+        Sphere = "SPHERE",
+        Cone = "CONE",
+    }
+);
+words!(
+    /// Inner (hole) or outer (boss) feature.
+    Side { Inner = "INNER", Outer = "OUTER" }
+);
+words!(
+    /// The speeds of `FEDRAT`.
+    FeedKind { MesVel = "MESVEL", PosVel = "POSVEL", ScnVel = "SCNVEL" }
+);
+words!(
+    /// The units of `FEDRAT`.
+    FeedUnit {
+        Mpm = "MPM",
+        Mmps = "MMPS",
+        Ipm = "IPM",
+        Ips = "IPS",
+        Pcent = "PCENT",
+        High = "HIGH",
+        Low = "LOW",
+        Defalt = "DEFALT",
+    }
+);
+words!(
+    /// The words of `MODE`.
+    ModeWord { Auto = "AUTO", Prog = "PROG", Man = "MAN" }
+);
+words!(
+    /// Axis and origin words of `DATSET`.
+    DatsetWord {
+        XDir = "XDIR",
+        YDir = "YDIR",
+        ZDir = "ZDIR",
+        XOrig = "XORIG",
+        YOrig = "YORIG",
+        ZOrig = "ZORIG",
+    }
+);
+words!(
+    /// Origins moved by `TRANS`.
+    Origin { XOrig = "XORIG", YOrig = "YORIG", ZOrig = "ZORIG" }
+);
+words!(
+    /// Axes of `ROTATE`.
+    RotAxis { XAxis = "XAXIS", YAxis = "YAXIS", ZAxis = "ZAXIS" }
+);
+words!(
+    /// Directions a feature sets in `ROTATE/…,FA(x),XDIR`.
+    AxisDir { XDir = "XDIR", YDir = "YDIR", ZDir = "ZDIR" }
+);
+words!(
+    /// Material condition of a position tolerance.
+    MatCond { Rfs = "RFS", Mmc = "MMC", Lmc = "LMC" }
+);
+words!(
+    /// Direction of a `DISTB` tolerance.
+    DistAxis { XAxis = "XAXIS", YAxis = "YAXIS", ZAxis = "ZAXIS", Pt2Pt = "PT2PT" }
+);
+words!(
+    /// Destinations of `TEXT`.
+    TextKind { Oper = "OPER", Outfil = "OUTFIL", Man = "MAN", Query = "QUERY" }
+);
+words!(
+    /// Kinds of `DEVICE`.
+    DeviceKind { Stor = "STOR", Print = "PRINT", Term = "TERM", Comm = "COMM" }
+);
+
+/// Three numbers (a point or a direction as written).
+pub type Xyz = [f64; 3];
+
+/// The nominal geometry of `FEAT` (Cartesian, as the program writes it).
+#[derive(Debug, Clone, PartialEq)]
+pub enum FeatGeom {
+    /// `POINT,CART,x,y,z,i,j,k`: a surface point and its normal.
+    Point { p: Xyz, n: Xyz },
+    /// `PLANE,CART,x,y,z,i,j,k`.
+    Plane { p: Xyz, n: Xyz },
+    /// `LINE,UNBND,CART,x,y,z,i,j,k[,pi,pj,pk]` (point, direction, plane normal).
+    LineUnbnd { p: Xyz, dir: Xyz, plane: Option<Xyz> },
+    /// `LINE,BND,CART,x1,y1,z1,x2,y2,z2[,pi,pj,pk]`.
+    LineBnd { p1: Xyz, p2: Xyz, plane: Option<Xyz> },
+    /// `CIRCLE,INNER|OUTER,CART,x,y,z,i,j,k,diam`.
+    Circle { side: Side, c: Xyz, n: Xyz, diam: f64 },
+    /// `CYLNDR,INNER|OUTER,CART,x,y,z,i,j,k,diam[,length]`.
+    Cylndr { side: Side, p: Xyz, axis: Xyz, diam: f64, length: Option<f64> },
+    /// `SPHERE,INNER|OUTER,CART,x,y,z[,i,j,k],diam`.
+    Sphere { side: Side, c: Xyz, n: Option<Xyz>, diam: f64 },
+    /// `CONE,INNER|OUTER,CART,x,y,z,i,j,k,angle` (apex, axis from the apex into the cone,
+    /// included angle).
+    Cone { side: Side, apex: Xyz, axis: Xyz, angle: f64 },
+}
+
+impl FeatGeom {
+    pub fn feat_type(&self) -> FeatType {
+        match self {
+            FeatGeom::Point { .. } => FeatType::Point,
+            FeatGeom::Plane { .. } => FeatType::Plane,
+            FeatGeom::LineUnbnd { .. } | FeatGeom::LineBnd { .. } => FeatType::Line,
+            FeatGeom::Circle { .. } => FeatType::Circle,
+            FeatGeom::Cylndr { .. } => FeatType::Cylndr,
+            FeatGeom::Sphere { .. } => FeatType::Sphere,
+            FeatGeom::Cone { .. } => FeatType::Cone,
+        }
+    }
+}
+
+/// `SNSET` items.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Snset {
+    Apprch(f64),
+    Retrct(f64),
+    Search(f64),
+    Depth(f64),
+    /// `CLRSRF,dist` or `CLRSRF,F(plane),dist`.
+    Clrsrf(Option<Label>, f64),
+    /// `CLRSRF,OFF`.
+    ClrsrfOff,
+}
+
+/// `GOTO`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Goto {
+    /// `GOTO/x,y,z`.
+    Abs(Xyz),
+    /// `GOTO/INCR,dist,i,j,k`.
+    Incr { dist: f64, dir: Xyz },
+}
+
+/// How `CONST` builds a feature.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ConstMethod {
+    /// `BF,FA(a),FA(b),…`: least-squares best fit through actual features' points.
+    Bf(Vec<Label>),
+    /// `INTOF,FA(a),FA(b)`: intersection.
+    Intof(Label, Label),
+    /// `PROJCT,FA(a),FA(b)`: `a` projected onto the plane `b`.
+    Projct(Label, Label),
+    /// `MIDPT,FA(a),FA(b)`: the point midway between two features' positions.
+    Midpt(Label, Label),
+}
+
+/// `DATSET`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Datset {
+    /// `DATSET/MCS`: the machine coordinate system.
+    Mcs,
+    /// `DATSET/DAT(A),ZDIR,ZORIG,DAT(B),XDIR,YORIG,…`.
+    Datums(Vec<(Label, Vec<DatsetWord>)>),
+}
+
+/// What `TRANS` moves an origin to.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TransBy {
+    Value(f64),
+    Feature(Label),
+}
+
+/// What `ROTATE` turns by.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RotateBy {
+    /// An angle in the program's angle unit.
+    Angle(f64),
+    /// A feature whose direction becomes the given axis.
+    Feature(Label, AxisDir),
+}
+
+/// `TOL` definitions.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Tol {
+    Flat(f64),
+    Strght(f64),
+    Cirlty(f64),
+    Cylcty(f64),
+    /// `DIAM,lotol,uptol`: deviations from nominal.
+    Diam {
+        lo: f64,
+        hi: f64,
+    },
+    /// `RAD,lotol,uptol`.
+    Rad {
+        lo: f64,
+        hi: f64,
+    },
+    /// `POS,2D|3D,zone,RFS|MMC|LMC[,DAT(A),…]`.
+    Pos {
+        three_d: bool,
+        zone: f64,
+        cond: MatCond,
+        datums: Vec<Label>,
+    },
+    /// `PERP,zone,DAT(A)`.
+    Perp {
+        zone: f64,
+        datum: Label,
+    },
+    /// `PARLEL,zone,DAT(A)`.
+    Parlel {
+        zone: f64,
+        datum: Label,
+    },
+    /// `ANGLB,angle,lotol,uptol`.
+    Anglb {
+        angle: f64,
+        lo: f64,
+        hi: f64,
+    },
+    /// `DISTB,NOMINL,dist,lotol,uptol[,XAXIS|YAXIS|ZAXIS|PT2PT]`.
+    Distb {
+        dist: f64,
+        lo: f64,
+        hi: f64,
+        axis: Option<DistAxis>,
+    },
+}
+
+impl Tol {
+    /// The minor word.
+    pub fn word(&self) -> &'static str {
+        match self {
+            Tol::Flat(_) => "FLAT",
+            Tol::Strght(_) => "STRGHT",
+            Tol::Cirlty(_) => "CIRLTY",
+            Tol::Cylcty(_) => "CYLCTY",
+            Tol::Diam { .. } => "DIAM",
+            Tol::Rad { .. } => "RAD",
+            Tol::Pos { .. } => "POS",
+            Tol::Perp { .. } => "PERP",
+            Tol::Parlel { .. } => "PARLEL",
+            Tol::Anglb { .. } => "ANGLB",
+            Tol::Distb { .. } => "DISTB",
+        }
+    }
+}
+
+/// One statement of the subset.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Statement {
+    Dmismn {
+        title: String,
+        version: Option<f64>,
+    },
+    Dmismd {
+        title: String,
+        version: Option<f64>,
+    },
+    Endfil,
+    Filnam {
+        name: String,
+        version: Option<f64>,
+    },
+    Units {
+        length: LengthUnit,
+        angle: AngleUnit,
+        temp: Option<TempUnit>,
+    },
+    /// `DISPLY/OFF` or `DISPLY/TERM,DMIS,STOR,DMIS,…`: words and device labels.
+    Disply(Vec<DisplyItem>),
+    Prcomp(bool),
+    Mode(Vec<ModeWord>),
+    Fedrat {
+        kind: FeedKind,
+        unit: FeedUnit,
+        value: Option<f64>,
+    },
+    Snset(Snset),
+    /// `S(l)=SNSDEF/PROBE,FIXED,CART,x,y,z,i,j,k,diam`: a fixed probe, its tip offset from the
+    /// probe mount, its direction and its tip diameter.
+    Snsdef {
+        label: Label,
+        offset: Xyz,
+        dir: Xyz,
+        diam: f64,
+    },
+    Snslct(Label),
+    /// `SNSMNT/XVEC,i,j,k,ZVEC,i,j,k,MNTLEN,x,y,z`.
+    Snsmnt {
+        xvec: Xyz,
+        zvec: Xyz,
+        mntlen: Xyz,
+    },
+    Goto(Goto),
+    Feat {
+        label: Label,
+        geom: FeatGeom,
+    },
+    Meas {
+        ftype: FeatType,
+        feature: Label,
+        n: u32,
+    },
+    Endmes,
+    /// `PTMEAS/CART,x,y,z[,i,j,k]`.
+    Ptmeas {
+        p: Xyz,
+        n: Option<Xyz>,
+    },
+    Const {
+        ftype: FeatType,
+        feature: Label,
+        method: ConstMethod,
+    },
+    /// `DAT(A)=DATDEF/FA(x)` (`assigned`) or DMIS 3's `DATDEF/FA(x),DA(A)`.
+    Datdef {
+        datum: Label,
+        feature: Label,
+        assigned: bool,
+    },
+    Datset {
+        label: Label,
+        def: Datset,
+    },
+    Trans {
+        label: Option<Label>,
+        items: Vec<(Origin, TransBy)>,
+    },
+    Rotate {
+        label: Option<Label>,
+        axis: RotAxis,
+        by: RotateBy,
+    },
+    Save(Label),
+    Recall(Label),
+    Tol {
+        label: Label,
+        tol: Tol,
+    },
+    Output(Vec<Label>),
+    Text {
+        kind: TextKind,
+        text: String,
+    },
+    Device {
+        label: Label,
+        kind: DeviceKind,
+        file: Option<String>,
+    },
+    /// `OPEN/DID(x),DIRECT,OUTPUT[,OVERWR|APPEND]`.
+    Open {
+        device: Label,
+        words: Vec<String>,
+    },
+    /// `CLOSE/DID(x)[,KEEP|DELETE]`.
+    Close {
+        device: Label,
+        word: Option<String>,
+    },
+}
+
+/// One item of `DISPLY`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DisplyItem {
+    Word(String),
+    Device(Label),
+}
+
+impl Statement {
+    /// The major word.
+    pub fn major(&self) -> &'static str {
+        match self {
+            Statement::Dmismn { .. } => "DMISMN",
+            Statement::Dmismd { .. } => "DMISMD",
+            Statement::Endfil => "ENDFIL",
+            Statement::Filnam { .. } => "FILNAM",
+            Statement::Units { .. } => "UNITS",
+            Statement::Disply(_) => "DISPLY",
+            Statement::Prcomp(_) => "PRCOMP",
+            Statement::Mode(_) => "MODE",
+            Statement::Fedrat { .. } => "FEDRAT",
+            Statement::Snset(_) => "SNSET",
+            Statement::Snsdef { .. } => "SNSDEF",
+            Statement::Snslct(_) => "SNSLCT",
+            Statement::Snsmnt { .. } => "SNSMNT",
+            Statement::Goto(_) => "GOTO",
+            Statement::Feat { .. } => "FEAT",
+            Statement::Meas { .. } => "MEAS",
+            Statement::Endmes => "ENDMES",
+            Statement::Ptmeas { .. } => "PTMEAS",
+            Statement::Const { .. } => "CONST",
+            Statement::Datdef { .. } => "DATDEF",
+            Statement::Datset { .. } => "DATSET",
+            Statement::Trans { .. } => "TRANS",
+            Statement::Rotate { .. } => "ROTATE",
+            Statement::Save(_) => "SAVE",
+            Statement::Recall(_) => "RECALL",
+            Statement::Tol { .. } => "TOL",
+            Statement::Output(_) => "OUTPUT",
+            Statement::Text { .. } => "TEXT",
+            Statement::Device { .. } => "DEVICE",
+            Statement::Open { .. } => "OPEN",
+            Statement::Close { .. } => "CLOSE",
+        }
+    }
+}
+
+/// A number in its shortest exact form (`50`, `0.5`, `-1`, `1e-7` as `0.0000001`).
+pub fn num(v: f64) -> String {
+    format!("{v}")
+}
+
+fn push_nums(s: &mut String, v: &[f64]) {
+    for x in v {
+        s.push(',');
+        s.push_str(&num(*x));
+    }
+}
+
+fn text(t: &str) -> String {
+    format!("'{}'", t.replace('\'', "''"))
+}
+
+impl Display for Statement {
+    fn fmt(&self, f: &mut Formatter<'_>) -> fmt::Result {
+        let mut s = String::new();
+        match self {
+            Statement::Dmismn { title, version }
+            | Statement::Dmismd { title, version }
+            | Statement::Filnam { name: title, version } => {
+                write!(s, "{}/{}", self.major(), text(title))?;
+                if let Some(v) = version {
+                    push_nums(&mut s, &[*v]);
+                }
+            }
+            Statement::Endfil | Statement::Endmes => s.push_str(self.major()),
+            Statement::Units { length, angle, temp } => {
+                write!(s, "UNITS/{length},{angle}")?;
+                if let Some(t) = temp {
+                    write!(s, ",{t}")?;
+                }
+            }
+            Statement::Disply(items) => {
+                s.push_str("DISPLY/");
+                for (k, it) in items.iter().enumerate() {
+                    if k > 0 {
+                        s.push(',');
+                    }
+                    match it {
+                        DisplyItem::Word(w) => s.push_str(w),
+                        DisplyItem::Device(l) => write!(s, "{l}")?,
+                    }
+                }
+            }
+            Statement::Prcomp(on) => write!(s, "PRCOMP/{}", if *on { "ON" } else { "OFF" })?,
+            Statement::Mode(w) => {
+                s.push_str("MODE/");
+                s.push_str(&w.iter().map(|w| w.word()).collect::<Vec<_>>().join(","));
+            }
+            Statement::Fedrat { kind, unit, value } => {
+                write!(s, "FEDRAT/{kind},{unit}")?;
+                if let Some(v) = value {
+                    push_nums(&mut s, &[*v]);
+                }
+            }
+            Statement::Snset(it) => {
+                s.push_str("SNSET/");
+                match it {
+                    Snset::Apprch(v) => write!(s, "APPRCH,{}", num(*v))?,
+                    Snset::Retrct(v) => write!(s, "RETRCT,{}", num(*v))?,
+                    Snset::Search(v) => write!(s, "SEARCH,{}", num(*v))?,
+                    Snset::Depth(v) => write!(s, "DEPTH,{}", num(*v))?,
+                    Snset::Clrsrf(None, v) => write!(s, "CLRSRF,{}", num(*v))?,
+                    Snset::Clrsrf(Some(l), v) => write!(s, "CLRSRF,{l},{}", num(*v))?,
+                    Snset::ClrsrfOff => s.push_str("CLRSRF,OFF"),
+                }
+            }
+            Statement::Snsdef { label, offset, dir, diam } => {
+                write!(s, "{label}=SNSDEF/PROBE,FIXED,CART")?;
+                push_nums(&mut s, offset);
+                push_nums(&mut s, dir);
+                push_nums(&mut s, &[*diam]);
+            }
+            Statement::Snslct(l) => write!(s, "SNSLCT/{l}")?,
+            Statement::Snsmnt { xvec, zvec, mntlen } => {
+                s.push_str("SNSMNT/XVEC");
+                push_nums(&mut s, xvec);
+                s.push_str(",ZVEC");
+                push_nums(&mut s, zvec);
+                s.push_str(",MNTLEN");
+                push_nums(&mut s, mntlen);
+            }
+            Statement::Goto(Goto::Abs(p)) => {
+                s.push_str("GOTO/");
+                s.push_str(&p.iter().map(|v| num(*v)).collect::<Vec<_>>().join(","));
+            }
+            Statement::Goto(Goto::Incr { dist, dir }) => {
+                write!(s, "GOTO/INCR,{}", num(*dist))?;
+                push_nums(&mut s, dir);
+            }
+            Statement::Feat { label, geom } => {
+                write!(s, "{label}=FEAT/{}", geom.feat_type())?;
+                match geom {
+                    FeatGeom::Point { p, n } | FeatGeom::Plane { p, n } => {
+                        s.push_str(",CART");
+                        push_nums(&mut s, p);
+                        push_nums(&mut s, n);
+                    }
+                    FeatGeom::LineUnbnd { p, dir, plane } => {
+                        s.push_str(",UNBND,CART");
+                        push_nums(&mut s, p);
+                        push_nums(&mut s, dir);
+                        if let Some(pl) = plane {
+                            push_nums(&mut s, pl);
+                        }
+                    }
+                    FeatGeom::LineBnd { p1, p2, plane } => {
+                        s.push_str(",BND,CART");
+                        push_nums(&mut s, p1);
+                        push_nums(&mut s, p2);
+                        if let Some(pl) = plane {
+                            push_nums(&mut s, pl);
+                        }
+                    }
+                    FeatGeom::Circle { side, c, n, diam } => {
+                        write!(s, ",{side},CART")?;
+                        push_nums(&mut s, c);
+                        push_nums(&mut s, n);
+                        push_nums(&mut s, &[*diam]);
+                    }
+                    FeatGeom::Cylndr { side, p, axis, diam, length } => {
+                        write!(s, ",{side},CART")?;
+                        push_nums(&mut s, p);
+                        push_nums(&mut s, axis);
+                        push_nums(&mut s, &[*diam]);
+                        if let Some(l) = length {
+                            push_nums(&mut s, &[*l]);
+                        }
+                    }
+                    FeatGeom::Sphere { side, c, n, diam } => {
+                        write!(s, ",{side},CART")?;
+                        push_nums(&mut s, c);
+                        if let Some(n) = n {
+                            push_nums(&mut s, n);
+                        }
+                        push_nums(&mut s, &[*diam]);
+                    }
+                    FeatGeom::Cone { side, apex, axis, angle } => {
+                        write!(s, ",{side},CART")?;
+                        push_nums(&mut s, apex);
+                        push_nums(&mut s, axis);
+                        push_nums(&mut s, &[*angle]);
+                    }
+                }
+            }
+            Statement::Meas { ftype, feature, n } => write!(s, "MEAS/{ftype},{feature},{n}")?,
+            Statement::Ptmeas { p, n } => {
+                s.push_str("PTMEAS/CART");
+                push_nums(&mut s, p);
+                if let Some(n) = n {
+                    push_nums(&mut s, n);
+                }
+            }
+            Statement::Const { ftype, feature, method } => {
+                write!(s, "CONST/{ftype},{feature},")?;
+                match method {
+                    ConstMethod::Bf(ls) => {
+                        s.push_str("BF");
+                        for l in ls {
+                            write!(s, ",{l}")?;
+                        }
+                    }
+                    ConstMethod::Intof(a, b) => write!(s, "INTOF,{a},{b}")?,
+                    ConstMethod::Projct(a, b) => write!(s, "PROJCT,{a},{b}")?,
+                    ConstMethod::Midpt(a, b) => write!(s, "MIDPT,{a},{b}")?,
+                }
+            }
+            Statement::Datdef { datum, feature, assigned } => {
+                if *assigned {
+                    write!(s, "{datum}=DATDEF/{feature}")?;
+                } else {
+                    write!(s, "DATDEF/{feature},{datum}")?;
+                }
+            }
+            Statement::Datset { label, def } => {
+                write!(s, "{label}=DATSET/")?;
+                match def {
+                    Datset::Mcs => s.push_str("MCS"),
+                    Datset::Datums(ds) => {
+                        let mut first = true;
+                        for (l, ws) in ds {
+                            if !first {
+                                s.push(',');
+                            }
+                            first = false;
+                            write!(s, "{l}")?;
+                            for w in ws {
+                                write!(s, ",{w}")?;
+                            }
+                        }
+                    }
+                }
+            }
+            Statement::Trans { label, items } => {
+                if let Some(l) = label {
+                    write!(s, "{l}=")?;
+                }
+                s.push_str("TRANS/");
+                for (k, (o, by)) in items.iter().enumerate() {
+                    if k > 0 {
+                        s.push(',');
+                    }
+                    match by {
+                        TransBy::Value(v) => write!(s, "{o},{}", num(*v))?,
+                        TransBy::Feature(l) => write!(s, "{o},{l}")?,
+                    }
+                }
+            }
+            Statement::Rotate { label, axis, by } => {
+                if let Some(l) = label {
+                    write!(s, "{l}=")?;
+                }
+                write!(s, "ROTATE/{axis},")?;
+                match by {
+                    RotateBy::Angle(a) => s.push_str(&num(*a)),
+                    RotateBy::Feature(l, d) => write!(s, "{l},{d}")?,
+                }
+            }
+            Statement::Save(l) => write!(s, "SAVE/{l}")?,
+            Statement::Recall(l) => write!(s, "RECALL/{l}")?,
+            Statement::Tol { label, tol } => {
+                write!(s, "{label}=TOL/{}", tol.word())?;
+                match tol {
+                    Tol::Flat(v) | Tol::Strght(v) | Tol::Cirlty(v) | Tol::Cylcty(v) => {
+                        push_nums(&mut s, &[*v])
+                    }
+                    Tol::Diam { lo, hi } | Tol::Rad { lo, hi } => push_nums(&mut s, &[*lo, *hi]),
+                    Tol::Pos { three_d, zone, cond, datums } => {
+                        s.push_str(if *three_d { ",3D" } else { ",2D" });
+                        push_nums(&mut s, &[*zone]);
+                        write!(s, ",{cond}")?;
+                        for d in datums {
+                            write!(s, ",{d}")?;
+                        }
+                    }
+                    Tol::Perp { zone, datum } | Tol::Parlel { zone, datum } => {
+                        push_nums(&mut s, &[*zone]);
+                        write!(s, ",{datum}")?;
+                    }
+                    Tol::Anglb { angle, lo, hi } => push_nums(&mut s, &[*angle, *lo, *hi]),
+                    Tol::Distb { dist, lo, hi, axis } => {
+                        s.push_str(",NOMINL");
+                        push_nums(&mut s, &[*dist, *lo, *hi]);
+                        if let Some(a) = axis {
+                            write!(s, ",{a}")?;
+                        }
+                    }
+                }
+            }
+            Statement::Output(ls) => {
+                s.push_str("OUTPUT/");
+                s.push_str(&ls.iter().map(|l| l.to_string()).collect::<Vec<_>>().join(","));
+            }
+            Statement::Text { kind, text: t } => write!(s, "TEXT/{kind},{}", text(t))?,
+            Statement::Device { label, kind, file } => {
+                write!(s, "{label}=DEVICE/{kind}")?;
+                if let Some(fl) = file {
+                    write!(s, ",{}", text(fl))?;
+                }
+            }
+            Statement::Open { device, words } => {
+                write!(s, "OPEN/{device}")?;
+                for w in words {
+                    write!(s, ",{w}")?;
+                }
+            }
+            Statement::Close { device, word } => {
+                write!(s, "CLOSE/{device}")?;
+                if let Some(w) = word {
+                    write!(s, ",{w}")?;
+                }
+            }
+        }
+        f.write_str(&s)
+    }
+}

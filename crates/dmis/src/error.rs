@@ -1,0 +1,50 @@
+//! The one error type of the crate: every problem in a program names its file, line and column.
+
+use thiserror::Error;
+
+/// A position in a program: 1-based line and column (columns count characters).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Default)]
+pub struct Pos {
+    pub line: u32,
+    pub col: u32,
+}
+
+impl Pos {
+    pub fn new(line: u32, col: u32) -> Pos {
+        Pos { line, col }
+    }
+}
+
+impl std::fmt::Display for Pos {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}:{}", self.line, self.col)
+    }
+}
+
+/// What kind of problem a [`DmisError`] is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ErrorKind {
+    /// Not DMIS: bad characters, unterminated text, a statement that does not follow the grammar.
+    Syntax,
+    /// Valid DMIS, but outside the subset truepos runs (named in `docs/dmis.md`).
+    Unsupported,
+    /// A well-formed statement that makes no sense where it stands (undefined label, feature not
+    /// measured, PTMEAS outside MEAS, …).
+    Semantic,
+}
+
+/// A located problem in a DMIS program (exit code 2 in the binary).
+#[derive(Debug, Clone, PartialEq, Error)]
+#[error("{file}:{line}:{col}: {message}", line = pos.line, col = pos.col)]
+pub struct DmisError {
+    pub file: String,
+    pub pos: Pos,
+    pub kind: ErrorKind,
+    pub message: String,
+}
+
+impl DmisError {
+    pub fn new(file: &str, pos: Pos, kind: ErrorKind, message: impl Into<String>) -> DmisError {
+        DmisError { file: file.to_string(), pos, kind, message: message.into() }
+    }
+}

@@ -1,0 +1,1193 @@
+//! The executor: a checked [`Plan`] run on any [`ProbingMachine`].
+//!
+//! Coordinates: the plan's numbers are part coordinates of the coordinate system active at each
+//! step ([`Frame`]: `p_machine = o + R·p_part`); `DATSET`, `TRANS`, `ROTATE`, `RECALL` change it.
+//! Nominal features take the frame active at their `FEAT`; actual features are kept in the
+//! machine frame and reported in the frame active at their `OUTPUT`.
+//!
+//! Probing: each `PTMEAS` is one [`ProbeRequest`] (approach, search and retract distances of
+//! `SNSET`, the measuring feed of `FEDRAT/MESVEL`), with the tip radius the machine reports for
+//! the selected tool; the contact point is the reported tip centre minus the radius along the
+//! reported surface normal (the approach direction when the machine reports none), unless
+//! `PRCOMP/OFF`. A `PTMEAS` without direction takes the nominal feature's surface normal at the
+//! point. After `ENDMES` the feature is the least-squares fit of its points (circles in the
+//! plane of their nominal, directions signed like the nominal); form tolerances are minimum zone.
+//!
+//! Failures: a probing without contact or any controller error stops the run with
+//! [`RunError::Device`] naming the program line; the machine is stopped and moved back to where
+//! the failed probing started (best effort). A sensor the machine has no tool for is refused
+//! before the first motion ([`RunError::Input`]).
+//!
+//! Entry points: [`run`], [`DryRun`] (a machine that moves nowhere and touches every nominal
+//! point: `--dry-run`).
+
+use crate::ast::{AngleUnit, DatsetWord, DistAxis, FeatType, FeedKind, LengthUnit, Side, TextKind};
+use crate::error::{DmisError, ErrorKind, Pos};
+use crate::model::*;
+use std::collections::HashMap;
+use std::time::Instant;
+use thiserror::Error;
+use truepos_device::{DeviceError, DeviceInfo, ProbeHit, ProbeRequest, ProbingMachine, ToolInfo};
+use truepos_fit::minzone::{self, Criterion};
+use truepos_math::{Matrix3, Point3, Vector3};
+
+/// Why a run stopped.
+#[derive(Debug, Error)]
+pub enum RunError {
+    /// The program cannot run on this machine (a sensor without a tool): nothing moved (exit 2).
+    #[error(transparent)]
+    Input(#[from] DmisError),
+    /// The machine failed at a program line (exit 3).
+    #[error("{file}:{line}: {source}")]
+    Device {
+        file: String,
+        line: u32,
+        #[source]
+        source: DeviceError,
+    },
+    /// The measured points do not define the feature (collinear points for a circle, …) (exit 3).
+    #[error("{file}:{line}: {message}")]
+    Evaluation { file: String, line: u32, message: String },
+}
+
+/// Options of a run.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// DMIS sensor name (upper-case) → the machine's tool name (`--sensor PROBE6=Probe1`).
+    pub sensors: HashMap<String, String>,
+}
+
+/// A coordinate system: part axes (columns of `r`) and origin `o` in the machine frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Frame {
+    pub r: Matrix3,
+    pub o: Vector3,
+}
+
+impl Frame {
+    pub fn machine() -> Frame {
+        Frame { r: Matrix3::identity(), o: Vector3::zeros() }
+    }
+    pub fn to_machine(&self, p: &Point3) -> Point3 {
+        Point3::from(self.o + self.r * p.coords)
+    }
+    pub fn dir_to_machine(&self, v: &Vector3) -> Vector3 {
+        self.r * v
+    }
+    pub fn to_part(&self, p: &Point3) -> Point3 {
+        Point3::from(self.r.transpose() * (p.coords - self.o))
+    }
+    pub fn dir_to_part(&self, v: &Vector3) -> Vector3 {
+        self.r.transpose() * v
+    }
+    fn axis(&self, k: usize) -> Vector3 {
+        self.r.column(k).into_owned()
+    }
+}
+
+/// A feature's geometry in the machine frame (mm, rad).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Geom {
+    Point { p: Point3, n: Vector3 },
+    Plane { p: Point3, n: Vector3 },
+    Line { p: Point3, dir: Vector3 },
+    Circle { c: Point3, n: Vector3, r: f64 },
+    Cylinder { p: Point3, axis: Vector3, r: f64 },
+    Sphere { c: Point3, r: f64 },
+    Cone { apex: Point3, axis: Vector3, half_angle: f64 },
+}
+
+impl Geom {
+    /// The location of the feature (point, centre, axis point, apex, plane point).
+    pub fn position(&self) -> Point3 {
+        match self {
+            Geom::Point { p, .. }
+            | Geom::Plane { p, .. }
+            | Geom::Line { p, .. }
+            | Geom::Cylinder { p, .. } => *p,
+            Geom::Circle { c, .. } | Geom::Sphere { c, .. } => *c,
+            Geom::Cone { apex, .. } => *apex,
+        }
+    }
+    /// The direction (normal or axis), if the feature has one.
+    pub fn direction(&self) -> Option<Vector3> {
+        match self {
+            Geom::Point { n, .. } | Geom::Plane { n, .. } | Geom::Circle { n, .. } => Some(*n),
+            Geom::Line { dir, .. } => Some(*dir),
+            Geom::Cylinder { axis, .. } | Geom::Cone { axis, .. } => Some(*axis),
+            Geom::Sphere { .. } => None,
+        }
+    }
+    /// Radius of round features.
+    pub fn radius(&self) -> Option<f64> {
+        match self {
+            Geom::Circle { r, .. } | Geom::Cylinder { r, .. } | Geom::Sphere { r, .. } => Some(*r),
+            _ => None,
+        }
+    }
+    fn in_frame(nom: &Nominal, f: &Frame) -> Geom {
+        let p = |q: &Point3| f.to_machine(q);
+        let d = |v: &Vector3| f.dir_to_machine(v);
+        match nom {
+            Nominal::Point { p: q, n } => Geom::Point { p: p(q), n: d(n) },
+            Nominal::Plane { p: q, n } => Geom::Plane { p: p(q), n: d(n) },
+            Nominal::Line { p: q, dir, .. } => Geom::Line { p: p(q), dir: d(dir) },
+            Nominal::Circle { c, n, r } => Geom::Circle { c: p(c), n: d(n), r: *r },
+            Nominal::Cylinder { p: q, axis, r, .. } => Geom::Cylinder { p: p(q), axis: d(axis), r: *r },
+            Nominal::Sphere { c, r } => Geom::Sphere { c: p(c), r: *r },
+            Nominal::Cone { apex, axis, half_angle } => {
+                Geom::Cone { apex: p(apex), axis: d(axis), half_angle: *half_angle }
+            }
+        }
+    }
+    /// The surface normal (out of the material) of a nominal feature at a point near it.
+    fn normal_at(&self, q: &Point3, side: Option<Side>) -> Option<Vector3> {
+        let out = if side == Some(Side::Inner) { -1.0 } else { 1.0 };
+        let radial = |c: &Point3, axis: &Vector3| {
+            let v = q - c;
+            let v = v - axis * v.dot(axis);
+            (v.norm() > 1e-9).then(|| v / v.norm() * out)
+        };
+        match self {
+            Geom::Point { n, .. } | Geom::Plane { n, .. } => Some(*n),
+            Geom::Line { .. } => None,
+            Geom::Circle { c, n, .. } => radial(c, n),
+            Geom::Cylinder { p, axis, .. } => radial(p, axis),
+            Geom::Sphere { c, .. } => {
+                let v = q - c;
+                (v.norm() > 1e-9).then(|| v / v.norm() * out)
+            }
+            Geom::Cone { apex, axis, half_angle } => {
+                let v = q - apex;
+                let radial = v - axis * v.dot(axis);
+                if radial.norm() < 1e-9 {
+                    return None;
+                }
+                let n = radial / radial.norm() * half_angle.cos() - axis * half_angle.sin();
+                Some(n * out)
+            }
+        }
+    }
+}
+
+/// An actual feature: geometry (machine frame), its surface points and standard uncertainties.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Actual {
+    pub geom: Geom,
+    pub points: Vec<Point3>,
+    /// Standard uncertainty of the position (mm), where a fit gives it.
+    pub u_position_mm: Option<f64>,
+    /// Standard uncertainty of the diameter (mm), for round features.
+    pub u_diameter_mm: Option<f64>,
+}
+
+/// One output feature.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FeatureResult {
+    pub label: String,
+    pub ftype: FeatType,
+    pub side: Option<Side>,
+    /// In the coordinate system active at the OUTPUT (mm, rad).
+    pub geom: Geom,
+    pub u_position_mm: Option<f64>,
+    pub u_diameter_mm: Option<f64>,
+    pub n_points: usize,
+    pub actual: bool,
+}
+
+/// One evaluated tolerance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TolResult {
+    pub label: String,
+    pub features: Vec<String>,
+    pub kind: &'static str,
+    /// The actual value: mm, or rad for ANGLB.
+    pub value: f64,
+    /// The limits the value is judged against (mm, or rad for ANGLB).
+    pub limits: (f64, f64),
+    pub angular: bool,
+    pub in_tolerance: bool,
+}
+
+/// What a run produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunResult {
+    pub machine: DeviceInfo,
+    pub features: Vec<FeatureResult>,
+    pub tolerances: Vec<TolResult>,
+    pub n_points: usize,
+    pub elapsed_s: f64,
+    /// The DMIS output file, line by line.
+    pub output: Vec<String>,
+    /// Motions in order (what `--dry-run` lists).
+    pub motions: Vec<String>,
+}
+
+impl RunResult {
+    /// Any tolerance out (exit 1).
+    pub fn any_out_of_tolerance(&self) -> bool {
+        self.tolerances.iter().any(|t| !t.in_tolerance)
+    }
+}
+
+struct Exec<'a> {
+    plan: &'a Plan,
+    frame: Frame,
+    saved: HashMap<String, Frame>,
+    nominal: Vec<Option<Geom>>,
+    /// The frame each nominal was defined in.
+    def_frame: Vec<Option<Frame>>,
+    actual: Vec<Option<Actual>>,
+    tip_radius: Option<f64>,
+    approach: f64,
+    search: f64,
+    retract: f64,
+    feed: f64,
+    compensate: bool,
+    length: LengthUnit,
+    angle: AngleUnit,
+    out: Vec<String>,
+    motions: Vec<String>,
+    features: Vec<FeatureResult>,
+    tolerances: Vec<TolResult>,
+    n_points: usize,
+    /// Where the tip centre was last sent (machine frame), if known.
+    at: Option<Point3>,
+}
+
+fn fmt_xyz(p: &Point3) -> String {
+    format!("({:.4}, {:.4}, {:.4})", p.x, p.y, p.z)
+}
+
+/// Run `plan` on `machine`. `progress` gets one line per `MEAS` (and the texts of `TEXT/OPER`).
+pub fn run(
+    plan: &Plan,
+    machine: &mut dyn ProbingMachine,
+    opts: &RunOptions,
+    progress: &mut dyn FnMut(&str),
+) -> Result<RunResult, RunError> {
+    let t0 = Instant::now();
+    // Tools for the selected sensors, before any motion.
+    let listed = machine.tool_names().map_err(|e| RunError::Device {
+        file: plan.file.clone(),
+        line: plan.steps.first().map_or(1, |s| s.pos.line),
+        source: e,
+    })?;
+    let mut tool_of: Vec<String> = Vec::new();
+    for s in &plan.sensors {
+        let tool = opts.sensors.get(&s.name.to_ascii_uppercase()).cloned().unwrap_or_else(|| s.name.clone());
+        let used = plan
+            .steps
+            .iter()
+            .any(|st| matches!(st.op, Op::SelectSensor(k) if plan.sensors[k].name == s.name));
+        if used && !listed.is_empty() && !listed.iter().any(|t| t == &tool) {
+            return Err(RunError::Input(DmisError::new(
+                &plan.file,
+                s.pos,
+                ErrorKind::Semantic,
+                format!(
+                    "the CMM has no tool {tool} for the sensor S({}) (its tools: {}); map it with --sensor {}=TOOL",
+                    s.name,
+                    listed.join(", "),
+                    s.name
+                ),
+            )));
+        }
+        tool_of.push(tool);
+    }
+    for key in opts.sensors.keys() {
+        if !plan.sensors.iter().any(|s| s.name.eq_ignore_ascii_case(key)) {
+            return Err(RunError::Input(DmisError::new(
+                &plan.file,
+                Pos::new(1, 1),
+                ErrorKind::Semantic,
+                format!("--sensor {key}=…: the program defines no sensor S({key})"),
+            )));
+        }
+    }
+    let mut ex = Exec {
+        plan,
+        frame: Frame::machine(),
+        saved: HashMap::new(),
+        nominal: vec![None; plan.features.len()],
+        def_frame: vec![None; plan.features.len()],
+        actual: vec![None; plan.features.len()],
+        tip_radius: None,
+        approach: 2.0,
+        search: 4.0,
+        retract: 2.0,
+        feed: 5.0,
+        compensate: true,
+        length: LengthUnit::Mm,
+        angle: AngleUnit::AngDec,
+        out: Vec::new(),
+        motions: Vec::new(),
+        features: Vec::new(),
+        tolerances: Vec::new(),
+        n_points: 0,
+        at: None,
+    };
+    ex.out.push(format!(
+        "FILNAM/'{}'",
+        plan.filnam.clone().unwrap_or_else(|| plan.title.clone()).replace('\'', "''")
+    ));
+    for step in &plan.steps {
+        let line = step.pos.line;
+        let dev = |e: DeviceError| RunError::Device { file: plan.file.clone(), line, source: e };
+        if let Some(e) = &step.echo {
+            ex.out.push(e.clone());
+        }
+        match &step.op {
+            Op::Goto(p) => {
+                let q = ex.frame.to_machine(p);
+                ex.goto(machine, q).map_err(dev)?;
+            }
+            Op::GotoIncr(v) => {
+                let from = match ex.at {
+                    Some(a) => a,
+                    None => machine.position().map_err(dev)?,
+                };
+                let q = from + ex.frame.dir_to_machine(v);
+                ex.goto(machine, q).map_err(dev)?;
+            }
+            Op::Feed { kind, mm_s } => {
+                if let (FeedKind::MesVel, Some(v)) = (kind, mm_s) {
+                    ex.feed = *v;
+                }
+            }
+            Op::Approach(v) => ex.approach = *v,
+            Op::Search(v) => ex.search = *v,
+            Op::Retract(v) => ex.retract = *v,
+            Op::Compensation(on) => ex.compensate = *on,
+            Op::SelectSensor(k) => {
+                let tool = &tool_of[*k];
+                let info = machine.select_tool(tool).map_err(dev)?;
+                ex.motions
+                    .push(format!("line {line}: tool {} (tip radius {} mm)", info.name, info.tip_radius_mm));
+                ex.tip_radius = Some(info.tip_radius_mm);
+                ex.at = None;
+            }
+            Op::Define(k) => {
+                ex.nominal[*k] = Some(Geom::in_frame(&plan.features[*k].nominal, &ex.frame));
+                ex.def_frame[*k] = Some(ex.frame);
+            }
+            Op::Measure { feature, moves } => {
+                let t = Instant::now();
+                ex.measure(machine, *feature, moves, step.pos)?;
+                let f = &plan.features[*feature];
+                progress(&format!(
+                    "line {line}: MEAS/{},F({}): {} points in {:.2} s",
+                    f.ftype,
+                    f.name,
+                    moves.iter().filter(|m| matches!(m.0, Move::Probe { .. })).count(),
+                    t.elapsed().as_secs_f64()
+                ));
+            }
+            Op::Construct { feature, method } => ex.construct(*feature, method, line)?,
+            Op::Datset { name, def } => {
+                ex.datset(def, line)?;
+                ex.saved.insert(name.to_ascii_uppercase(), ex.frame);
+            }
+            Op::Trans { name, items } => {
+                for (axis, to) in items {
+                    let e = ex.frame.axis(*axis);
+                    let v = match to {
+                        TransTo::Value(v) => *v,
+                        TransTo::Feature(k) => e.dot(&(ex.actual_geom(*k).position().coords - ex.frame.o)),
+                    };
+                    ex.frame.o += e * v;
+                }
+                if let Some(n) = name {
+                    ex.saved.insert(n.to_ascii_uppercase(), ex.frame);
+                }
+            }
+            Op::Rotate { name, axis, by } => {
+                let (i, j) = ((axis + 1) % 3, (axis + 2) % 3);
+                let (ei, ej, ek) = (ex.frame.axis(i), ex.frame.axis(j), ex.frame.axis(*axis));
+                let theta = match by {
+                    RotateTo::Angle(a) => *a,
+                    RotateTo::Feature(k, target) => {
+                        let d = ex.actual_geom(*k).direction().unwrap_or(ek);
+                        let (x, y) = (d.dot(&ei), d.dot(&ej));
+                        if x.hypot(y) < 1e-9 {
+                            return Err(RunError::Evaluation {
+                                file: plan.file.clone(),
+                                line,
+                                message: format!(
+                                    "ROTATE: F({})'s direction lies along the rotation axis",
+                                    plan.features[*k].name
+                                ),
+                            });
+                        }
+                        let phi = y.atan2(x);
+                        if *target == i {
+                            phi
+                        } else {
+                            phi - std::f64::consts::FRAC_PI_2
+                        }
+                    }
+                };
+                let (s, c) = theta.sin_cos();
+                let ni = ei * c + ej * s;
+                let nj = -ei * s + ej * c;
+                ex.frame.r.set_column(i, &ni);
+                ex.frame.r.set_column(j, &nj);
+                if let Some(n) = name {
+                    ex.saved.insert(n.to_ascii_uppercase(), ex.frame);
+                }
+            }
+            Op::Save(n) => {
+                ex.saved.insert(n.to_ascii_uppercase(), ex.frame);
+            }
+            Op::Recall(n) => {
+                if let Some(f) = ex.saved.get(&n.to_ascii_uppercase()) {
+                    ex.frame = *f;
+                }
+            }
+            Op::Units { length, angle } => {
+                ex.length = *length;
+                ex.angle = *angle;
+            }
+            Op::Output(items) => ex.output(items, line)?,
+            Op::Text { kind, text } => match kind {
+                TextKind::Outfil => ex.out.push(format!("TEXT/OUTFIL,'{}'", text.replace('\'', "''"))),
+                _ => progress(&format!("line {line}: TEXT/{kind}: {text}")),
+            },
+        }
+    }
+    ex.out.push("ENDFIL".into());
+    Ok(RunResult {
+        machine: machine.info(),
+        features: ex.features,
+        tolerances: ex.tolerances,
+        n_points: ex.n_points,
+        elapsed_s: t0.elapsed().as_secs_f64(),
+        output: ex.out,
+        motions: ex.motions,
+    })
+}
+
+impl Exec<'_> {
+    fn eval_err(&self, line: u32, m: impl Into<String>) -> RunError {
+        RunError::Evaluation { file: self.plan.file.clone(), line, message: m.into() }
+    }
+
+    fn goto(&mut self, m: &mut dyn ProbingMachine, q: Point3) -> Result<(), DeviceError> {
+        self.motions.push(format!("GOTO {}", fmt_xyz(&q)));
+        m.move_to(q)?;
+        self.at = Some(q);
+        Ok(())
+    }
+
+    fn actual_geom(&self, k: usize) -> Geom {
+        match &self.actual[k] {
+            Some(a) => a.geom.clone(),
+            // The checker guarantees actuals where they are used; the nominal is a safe stand-in.
+            None => self.nominal[k].clone().unwrap_or(Geom::Point { p: Point3::origin(), n: Vector3::z() }),
+        }
+    }
+
+    fn measure(
+        &mut self,
+        m: &mut dyn ProbingMachine,
+        k: usize,
+        moves: &[(Move, Pos)],
+        mpos: Pos,
+    ) -> Result<(), RunError> {
+        let plan = self.plan;
+        let feat = &plan.features[k];
+        let nominal = self.nominal[k].clone().unwrap_or_else(|| Geom::in_frame(&feat.nominal, &self.frame));
+        let r = self.tip_radius.unwrap_or(0.0);
+        let mut points = Vec::new();
+        for (mv, pos) in moves {
+            let line = pos.line;
+            let dev = |e: DeviceError| RunError::Device { file: plan.file.clone(), line, source: e };
+            match mv {
+                Move::Goto(p) => {
+                    let q = self.frame.to_machine(p);
+                    self.goto(m, q).map_err(dev)?;
+                }
+                Move::GotoIncr(v) => {
+                    let from = match self.at {
+                        Some(a) => a,
+                        None => m.position().map_err(dev)?,
+                    };
+                    let q = from + self.frame.dir_to_machine(v);
+                    self.goto(m, q).map_err(dev)?;
+                }
+                Move::Probe { p, dir } => {
+                    let q = self.frame.to_machine(p);
+                    let n = match dir {
+                        Some(d) => self.frame.dir_to_machine(d),
+                        None => nominal.normal_at(&q, feat.side).ok_or_else(|| {
+                            self.eval_err(
+                                line,
+                                format!(
+                                    "PTMEAS: no surface normal of F({}) at this point; give the direction",
+                                    feat.name
+                                ),
+                            )
+                        })?,
+                    };
+                    let req = ProbeRequest {
+                        nominal_mm: q,
+                        approach: n,
+                        tip_radius_mm: r,
+                        approach_mm: self.approach,
+                        search_mm: self.search,
+                        retract_mm: self.retract,
+                        feed_mm_s: self.feed,
+                    };
+                    self.motions.push(format!(
+                        "PTMEAS {} along ({:.4}, {:.4}, {:.4})",
+                        fmt_xyz(&q),
+                        n.x,
+                        n.y,
+                        n.z
+                    ));
+                    let hit = match m.probe(&req) {
+                        Ok(h) => h,
+                        Err(e) => {
+                            if !matches!(e, DeviceError::NoContact { .. }) {
+                                let _ = m.abort();
+                                let _ = m.move_to(req.start_mm());
+                            }
+                            return Err(dev(e));
+                        }
+                    };
+                    self.at = None;
+                    let normal = hit.normal.filter(|v| v.norm() > 0.5).map(|v| v / v.norm()).unwrap_or(n);
+                    let s = if self.compensate { hit.tip_center_mm - normal * r } else { hit.tip_center_mm };
+                    points.push(s);
+                }
+            }
+        }
+        self.n_points += points.len();
+        let a = fit_feature(feat.ftype, &nominal, points)
+            .map_err(|e| self.eval_err(mpos.line, format!("F({}): {e}", feat.name)))?;
+        self.actual[k] = Some(a);
+        Ok(())
+    }
+
+    fn construct(&mut self, k: usize, method: &Construction, line: u32) -> Result<(), RunError> {
+        let feat = &self.plan.features[k];
+        let nominal = self.nominal[k].clone().unwrap_or_else(|| Geom::in_frame(&feat.nominal, &self.frame));
+        let err = |m: String| RunError::Evaluation {
+            file: self.plan.file.clone(),
+            line,
+            message: format!("CONST F({}): {m}", feat.name),
+        };
+        let a = match method {
+            Construction::Bf(ks) => {
+                let pts: Vec<Point3> = ks.iter().map(|k| self.actual_geom(*k).position()).collect();
+                let mut a = fit_feature(feat.ftype, &nominal, pts).map_err(err)?;
+                if let (Geom::Line { dir, .. }, Some(first), Some(last)) =
+                    (&mut a.geom, ks.first(), ks.last())
+                {
+                    let along = self.actual_geom(*last).position() - self.actual_geom(*first).position();
+                    if dir.dot(&along) < 0.0 {
+                        *dir = -*dir;
+                    }
+                }
+                a
+            }
+            Construction::Intof(x, y) => {
+                let (gx, gy) = (self.actual_geom(*x), self.actual_geom(*y));
+                let g = intersect(&gx, &gy)
+                    .ok_or_else(|| err("the features do not intersect (parallel)".into()))?;
+                Actual {
+                    geom: orient_like(g, &nominal),
+                    points: vec![],
+                    u_position_mm: None,
+                    u_diameter_mm: None,
+                }
+            }
+            Construction::Projct(x, y) => {
+                let (gx, gy) = (self.actual_geom(*x), self.actual_geom(*y));
+                let Geom::Plane { p: pp, n: pn } = gy else { return Err(err("not onto a plane".into())) };
+                let proj = |q: Point3| q - pn * (q - pp).dot(&pn);
+                let g = match gx {
+                    Geom::Circle { c, r, .. } => Geom::Circle { c: proj(c), n: pn, r },
+                    Geom::Line { p, dir } => {
+                        let d = dir - pn * dir.dot(&pn);
+                        if d.norm() < 1e-9 {
+                            return Err(err("the line is perpendicular to the plane".into()));
+                        }
+                        Geom::Line { p: proj(p), dir: d / d.norm() }
+                    }
+                    other => Geom::Point { p: proj(other.position()), n: pn },
+                };
+                Actual {
+                    geom: orient_like(g, &nominal),
+                    points: vec![],
+                    u_position_mm: None,
+                    u_diameter_mm: None,
+                }
+            }
+            Construction::Midpt(x, y) => {
+                let (px, py) = (self.actual_geom(*x).position(), self.actual_geom(*y).position());
+                let n = nominal.direction().unwrap_or(Vector3::z());
+                Actual {
+                    geom: Geom::Point { p: Point3::from((px.coords + py.coords) / 2.0), n },
+                    points: vec![],
+                    u_position_mm: None,
+                    u_diameter_mm: None,
+                }
+            }
+        };
+        self.actual[k] = Some(a);
+        Ok(())
+    }
+
+    fn datset(&mut self, def: &DatsetOp, line: u32) -> Result<(), RunError> {
+        let ds = match def {
+            DatsetOp::Mcs => {
+                self.frame = Frame::machine();
+                return Ok(());
+            }
+            DatsetOp::Datums(ds) => ds,
+        };
+        let cur = self.frame;
+        let mut dirs: Vec<(usize, Vector3)> = Vec::new();
+        for (k, ws) in ds {
+            for w in ws {
+                let ax = match w {
+                    DatsetWord::XDir => 0,
+                    DatsetWord::YDir => 1,
+                    DatsetWord::ZDir => 2,
+                    _ => continue,
+                };
+                let d = self.actual_geom(*k).direction().unwrap_or(Vector3::z());
+                dirs.push((ax, d / d.norm()));
+            }
+        }
+        let mut r = cur.r;
+        if !dirs.is_empty() {
+            let (k1, v1) = dirs[0];
+            let (k2, v2) = match dirs.get(1) {
+                Some(&(k2, v)) => (k2, v),
+                None => {
+                    let k2 = (k1 + 1) % 3;
+                    let c = cur.axis(k2);
+                    if (c - v1 * c.dot(&v1)).norm() > 1e-6 {
+                        (k2, c)
+                    } else {
+                        let k2 = (k1 + 2) % 3;
+                        (k2, cur.axis(k2))
+                    }
+                }
+            };
+            let u2 = v2 - v1 * v2.dot(&v1);
+            if u2.norm() < 1e-9 {
+                return Err(self.eval_err(line, "DATSET: the two datum directions are parallel"));
+            }
+            let u2 = u2 / u2.norm();
+            let k3 = 3 - k1 - k2;
+            let mut e = [Vector3::zeros(); 3];
+            e[k1] = v1;
+            e[k2] = u2;
+            e[k3] = e[(k3 + 1) % 3].cross(&e[(k3 + 2) % 3]);
+            r = Matrix3::from_columns(&e);
+        }
+        let mut o = cur.o;
+        for (k, ws) in ds {
+            for w in ws {
+                let ax = match w {
+                    DatsetWord::XOrig => 0,
+                    DatsetWord::YOrig => 1,
+                    DatsetWord::ZOrig => 2,
+                    _ => continue,
+                };
+                let e = r.column(ax).into_owned();
+                let p = self.actual_geom(*k).position();
+                o += e * e.dot(&(p.coords - o));
+            }
+        }
+        self.frame = Frame { r, o };
+        Ok(())
+    }
+
+    fn output(&mut self, items: &[OutputItem], line: u32) -> Result<(), RunError> {
+        let plan = self.plan;
+        let labels: Vec<String> = items
+            .iter()
+            .map(|it| match it {
+                OutputItem::Feature { feature, actual } => {
+                    format!("{}({})", if *actual { "FA" } else { "F" }, plan.features[*feature].name)
+                }
+                OutputItem::Tolerance { tolerance, actual, .. } => {
+                    format!("{}({})", if *actual { "TA" } else { "T" }, plan.tolerances[*tolerance].name)
+                }
+            })
+            .collect();
+        self.out.push(format!("OUTPUT/{}", labels.join(",")));
+        for it in items {
+            match it {
+                OutputItem::Feature { feature, actual } => {
+                    let f = &plan.features[*feature];
+                    let (g, a) = if *actual {
+                        let a =
+                            self.actual[*feature].clone().ok_or_else(|| self.eval_err(line, "no actual"))?;
+                        (a.geom.clone(), Some(a))
+                    } else {
+                        (
+                            self.nominal[*feature]
+                                .clone()
+                                .unwrap_or_else(|| Geom::in_frame(&f.nominal, &self.frame)),
+                            None,
+                        )
+                    };
+                    let part = self.to_part_geom(&g);
+                    self.out.push(crate::report::feat_line(
+                        &format!("{}({})", if *actual { "FA" } else { "F" }, f.name),
+                        f,
+                        &part,
+                        self.length,
+                        self.angle,
+                    ));
+                    self.features.push(FeatureResult {
+                        label: f.name.clone(),
+                        ftype: f.ftype,
+                        side: f.side,
+                        geom: part,
+                        u_position_mm: a.as_ref().and_then(|a| a.u_position_mm),
+                        u_diameter_mm: a.as_ref().and_then(|a| a.u_diameter_mm),
+                        n_points: a.as_ref().map(|a| a.points.len()).unwrap_or(0),
+                        actual: *actual,
+                    });
+                }
+                OutputItem::Tolerance { tolerance, features, actual } => {
+                    let t = &plan.tolerances[*tolerance];
+                    self.out.push(t.statement.to_string());
+                    if !*actual {
+                        continue;
+                    }
+                    let r = self.evaluate(t, features, line)?;
+                    self.out.push(crate::report::tol_line(&r, self.length, self.angle));
+                    self.tolerances.push(r);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn to_part_geom(&self, g: &Geom) -> Geom {
+        let f = &self.frame;
+        let p = |q: &Point3| f.to_part(q);
+        let d = |v: &Vector3| f.dir_to_part(v);
+        match g {
+            Geom::Point { p: q, n } => Geom::Point { p: p(q), n: d(n) },
+            Geom::Plane { p: q, n } => Geom::Plane { p: p(q), n: d(n) },
+            Geom::Line { p: q, dir } => Geom::Line { p: p(q), dir: d(dir) },
+            Geom::Circle { c, n, r } => Geom::Circle { c: p(c), n: d(n), r: *r },
+            Geom::Cylinder { p: q, axis, r } => Geom::Cylinder { p: p(q), axis: d(axis), r: *r },
+            Geom::Sphere { c, r } => Geom::Sphere { c: p(c), r: *r },
+            Geom::Cone { apex, axis, half_angle } => {
+                Geom::Cone { apex: p(apex), axis: d(axis), half_angle: *half_angle }
+            }
+        }
+    }
+
+    fn evaluate(&self, t: &Tolerance, fs: &[usize], line: u32) -> Result<TolResult, RunError> {
+        let plan = self.plan;
+        let a = |k: usize| self.actual[k].clone().ok_or_else(|| self.eval_err(line, "no actual"));
+        let nom = |k: usize| {
+            self.nominal[k].clone().unwrap_or_else(|| Geom::in_frame(&plan.features[k].nominal, &self.frame))
+        };
+        let fe = |e: truepos_fit::FitError| self.eval_err(line, format!("T({}): {e}", t.name));
+        let names: Vec<String> = fs.iter().map(|k| plan.features[*k].name.clone()).collect();
+        let within = |v: f64, z: f64| v <= z;
+        let (value, limits, ok, angular) = match &t.kind {
+            TolKind::Flat(z) => {
+                let v = minzone::plane_zone(&a(fs[0])?.points).map_err(fe)?.form;
+                (v, (0.0, *z), within(v, *z), false)
+            }
+            TolKind::Strght(z) => {
+                let act = a(fs[0])?;
+                let pts = match &plan.features[fs[0]].nominal {
+                    Nominal::Line { plane: Some(pn), .. } => {
+                        let n = self.nominal_frame_dir(fs[0], pn);
+                        let c = act.geom.position();
+                        act.points.iter().map(|q| q - n * (q - c).dot(&n)).collect()
+                    }
+                    _ => act.points.clone(),
+                };
+                let v = if pts.len() < 3 { 0.0 } else { minzone::line_zone(&pts).map_err(fe)?.form };
+                (v, (0.0, *z), within(v, *z), false)
+            }
+            TolKind::Cirlty(z) => {
+                let act = a(fs[0])?;
+                let v = minzone::circle_fit(&act.points, Criterion::MinimumZone).map_err(fe)?.form;
+                (v, (0.0, *z), within(v, *z), false)
+            }
+            TolKind::Cylcty(z) => {
+                let v = minzone::cylinder_fit(&a(fs[0])?.points, Criterion::MinimumZone).map_err(fe)?.form;
+                (v, (0.0, *z), within(v, *z), false)
+            }
+            TolKind::Diam { lo, hi } | TolKind::Rad { lo, hi } => {
+                let f = if matches!(t.kind, TolKind::Diam { .. }) { 2.0 } else { 1.0 };
+                let ra = a(fs[0])?.geom.radius().unwrap_or(0.0);
+                let rn = nom(fs[0]).radius().unwrap_or(0.0);
+                let v = f * (ra - rn);
+                (v, (*lo, *hi), v >= *lo && v <= *hi, false)
+            }
+            TolKind::Pos { three_d, zone } => {
+                let (ga, gn) = (a(fs[0])?.geom, nom(fs[0]));
+                let pn = gn.position();
+                let mut d = match (&ga, gn.direction()) {
+                    (Geom::Cylinder { p, axis, .. }, _) => {
+                        let q = p + axis * (pn - p).dot(axis);
+                        q - pn
+                    }
+                    _ => ga.position() - pn,
+                };
+                if !three_d {
+                    if let Some(ax) = gn.direction() {
+                        d -= ax * d.dot(&ax);
+                    }
+                }
+                let v = 2.0 * d.norm();
+                (v, (0.0, *zone), within(v, *zone), false)
+            }
+            TolKind::Perp { zone, datum } | TolKind::Parlel { zone, datum } => {
+                let perp = matches!(t.kind, TolKind::Perp { .. });
+                let act = a(fs[0])?;
+                let dg = self.actual_geom(*datum);
+                let d = dg.direction().unwrap_or(Vector3::z());
+                let d = d / d.norm();
+                let datum_is_plane = matches!(dg, Geom::Plane { .. });
+                let v = match &act.geom {
+                    Geom::Plane { n, .. } => {
+                        // Zone: two planes; their normal is d or n made perpendicular to d.
+                        let use_d = perp != datum_is_plane;
+                        let u = if use_d {
+                            d
+                        } else {
+                            let u = n - d * n.dot(&d);
+                            if u.norm() < 1e-9 {
+                                return Err(self.eval_err(
+                                    line,
+                                    format!("T({}): the plane is parallel to its datum's direction", t.name),
+                                ));
+                            }
+                            u / u.norm()
+                        };
+                        range(&act.points, &u)
+                    }
+                    g => {
+                        let ax = g.direction().unwrap_or(Vector3::z());
+                        let (lo, hi) = extent(&act.points, &ax);
+                        let s = ax * (hi - lo);
+                        let along = s.dot(&d).abs();
+                        let across = (s - d * s.dot(&d)).norm();
+                        if perp == datum_is_plane {
+                            across
+                        } else {
+                            along
+                        }
+                    }
+                };
+                (v, (0.0, *zone), within(v, *zone), false)
+            }
+            TolKind::Anglb { angle, lo, hi } => {
+                let da = a(fs[0])?.geom.direction().unwrap_or(Vector3::z());
+                let db = a(fs[1])?.geom.direction().unwrap_or(Vector3::z());
+                let v = (da.dot(&db) / (da.norm() * db.norm())).clamp(-1.0, 1.0).acos();
+                (v, (angle + lo, angle + hi), v >= angle + lo && v <= angle + hi, true)
+            }
+            TolKind::Distb { dist, lo, hi, axis } => {
+                let (ga, gb) = (a(fs[0])?.geom, a(fs[1])?.geom);
+                let delta = gb.position() - ga.position();
+                let v = match (&ga, &gb, axis) {
+                    (Geom::Plane { n, .. }, _, None | Some(DistAxis::Pt2Pt))
+                    | (_, Geom::Plane { n, .. }, None | Some(DistAxis::Pt2Pt)) => delta.dot(n).abs(),
+                    (_, _, Some(DistAxis::XAxis)) => delta.dot(&self.frame.axis(0)).abs(),
+                    (_, _, Some(DistAxis::YAxis)) => delta.dot(&self.frame.axis(1)).abs(),
+                    (_, _, Some(DistAxis::ZAxis)) => delta.dot(&self.frame.axis(2)).abs(),
+                    _ => delta.norm(),
+                };
+                (v, (dist + lo, dist + hi), v >= dist + lo && v <= dist + hi, false)
+            }
+        };
+        Ok(TolResult {
+            label: t.name.clone(),
+            features: names,
+            kind: t.statement_word(),
+            value,
+            limits,
+            angular,
+            in_tolerance: ok,
+        })
+    }
+
+    /// A nominal's direction (given in the part frame active at its FEAT) in the machine frame.
+    fn nominal_frame_dir(&self, k: usize, v: &Vector3) -> Vector3 {
+        self.def_frame[k].unwrap_or(self.frame).dir_to_machine(v)
+    }
+}
+
+fn extent(points: &[Point3], u: &Vector3) -> (f64, f64) {
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    for p in points {
+        let s = p.coords.dot(u);
+        lo = lo.min(s);
+        hi = hi.max(s);
+    }
+    if points.is_empty() {
+        (0.0, 0.0)
+    } else {
+        (lo, hi)
+    }
+}
+
+fn range(points: &[Point3], u: &Vector3) -> f64 {
+    let (lo, hi) = extent(points, u);
+    hi - lo
+}
+
+fn orient(v: Vector3, like: Option<Vector3>) -> Vector3 {
+    match like {
+        Some(n) if v.dot(&n) < 0.0 => -v,
+        _ => v,
+    }
+}
+
+fn orient_like(g: Geom, nominal: &Geom) -> Geom {
+    let like = nominal.direction();
+    match g {
+        Geom::Point { p, n } => Geom::Point { p, n: orient(n, like) },
+        Geom::Plane { p, n } => Geom::Plane { p, n: orient(n, like) },
+        Geom::Line { p, dir } => Geom::Line { p, dir: orient(dir, like) },
+        Geom::Circle { c, n, r } => Geom::Circle { c, n: orient(n, like), r },
+        Geom::Cylinder { p, axis, r } => Geom::Cylinder { p, axis: orient(axis, like), r },
+        other => other,
+    }
+}
+
+fn line_plane(p: Point3, d: Vector3, pp: Point3, pn: Vector3) -> Option<Point3> {
+    let den = d.dot(&pn);
+    if den.abs() < 1e-9 {
+        return None;
+    }
+    Some(p + d * ((pp - p).dot(&pn) / den))
+}
+
+/// Intersection of two actual features (the combinations the checker allows).
+fn intersect(a: &Geom, b: &Geom) -> Option<Geom> {
+    match (a, b) {
+        (Geom::Line { p, dir }, Geom::Plane { p: pp, n })
+        | (Geom::Plane { p: pp, n }, Geom::Line { p, dir })
+        | (Geom::Cylinder { p, axis: dir, .. }, Geom::Plane { p: pp, n })
+        | (Geom::Plane { p: pp, n }, Geom::Cylinder { p, axis: dir, .. }) => {
+            line_plane(*p, *dir, *pp, *n).map(|q| Geom::Point { p: q, n: *n })
+        }
+        (Geom::Line { p: p1, dir: d1 }, Geom::Line { p: p2, dir: d2 }) => {
+            // Midpoint of the shortest segment between the lines.
+            let w = p1 - p2;
+            let (a11, a12, a22) = (d1.dot(d1), d1.dot(d2), d2.dot(d2));
+            let den = a11 * a22 - a12 * a12;
+            if den.abs() < 1e-12 {
+                return None;
+            }
+            let (b1, b2) = (d1.dot(&w), d2.dot(&w));
+            let s = (a12 * b2 - a22 * b1) / den;
+            let t = (a11 * b2 - a12 * b1) / den;
+            let q = Point3::from(((p1 + d1 * s).coords + (p2 + d2 * t).coords) / 2.0);
+            let n = d1.cross(d2);
+            Some(Geom::Point { p: q, n: n / n.norm() })
+        }
+        (Geom::Plane { p: p1, n: n1 }, Geom::Plane { p: p2, n: n2 }) => {
+            let dir = n1.cross(n2);
+            if dir.norm() < 1e-9 {
+                return None;
+            }
+            let dir = dir / dir.norm();
+            // The point of the line nearest the first plane's point.
+            let m = Matrix3::from_rows(&[n1.transpose(), n2.transpose(), dir.transpose()]);
+            let rhs = Vector3::new(n1.dot(&p1.coords), n2.dot(&p2.coords), dir.dot(&p1.coords));
+            let q = m.lu().solve(&rhs)?;
+            Some(Geom::Line { p: Point3::from(q), dir })
+        }
+        _ => None,
+    }
+}
+
+/// The least-squares feature of `points` (machine frame), signed like `nominal`.
+pub fn fit_feature(t: FeatType, nominal: &Geom, points: Vec<Point3>) -> Result<Actual, String> {
+    let like = nominal.direction();
+    let e = |e: truepos_fit::FitError| e.to_string();
+    let (geom, up, ud) = match t {
+        FeatType::Point => {
+            let n = points.len() as f64;
+            let c = points.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / n;
+            (Geom::Point { p: Point3::from(c), n: like.unwrap_or(Vector3::z()) }, None, None)
+        }
+        FeatType::Plane => {
+            let f = truepos_fit::plane(&points).map_err(e)?;
+            (Geom::Plane { p: f.point, n: orient(f.normal, like) }, Some(f.u_offset), None)
+        }
+        FeatType::Line => {
+            if points.len() == 2 {
+                let d = points[1] - points[0];
+                if d.norm() < 1e-9 {
+                    return Err("the two points of the line coincide".into());
+                }
+                (Geom::Line { p: points[0], dir: orient(d / d.norm(), like) }, None, None)
+            } else {
+                let f = truepos_fit::line(&points).map_err(e)?;
+                (Geom::Line { p: f.point, dir: orient(f.direction, like) }, Some(f.u_point), None)
+            }
+        }
+        FeatType::Circle => {
+            // In the plane of the nominal, through the points' mean height.
+            let n = like.unwrap_or(Vector3::z());
+            let m = points.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / points.len() as f64;
+            let h = m.dot(&n);
+            let proj: Vec<Point3> = points.iter().map(|p| p - n * (p.coords.dot(&n) - h)).collect();
+            let f = truepos_fit::circle(&proj).map_err(e)?;
+            let u = f.u_center.norm();
+            (Geom::Circle { c: f.center, n, r: f.radius }, Some(u), Some(2.0 * f.u_radius))
+        }
+        FeatType::Cylndr => {
+            let (p, axis, r, up, ur) = cylinder_from_nominal(nominal, &points)?;
+            (Geom::Cylinder { p, axis: orient(axis, like), r }, Some(up), Some(2.0 * ur))
+        }
+        FeatType::Sphere => {
+            let f = truepos_fit::sphere(&points).map_err(e)?;
+            (Geom::Sphere { c: f.center, r: f.radius }, Some(f.u_center.norm()), Some(2.0 * f.u_radius))
+        }
+        FeatType::Cone => {
+            let f = truepos_fit::cone(&points).map_err(e)?;
+            (
+                Geom::Cone { apex: f.apex, axis: f.axis, half_angle: f.apex_angle / 2.0 },
+                Some(f.u_apex.norm()),
+                None,
+            )
+        }
+    };
+    Ok(Actual { geom, points, u_position_mm: up, u_diameter_mm: ud })
+}
+
+/// A machine that moves nowhere: every probing touches its nominal point exactly (tip centre at
+/// nominal + radius along the approach). `--dry-run` runs the plan on it and lists the motions.
+#[derive(Debug, Clone)]
+pub struct DryRun {
+    at: Point3,
+    radius: f64,
+    /// Tip radii of tools by name (the program's `SNSDEF` diameters).
+    pub tools: HashMap<String, f64>,
+}
+
+impl DryRun {
+    pub fn new(plan: &Plan, opts: &RunOptions) -> DryRun {
+        let tools = plan
+            .sensors
+            .iter()
+            .map(|s| {
+                let name =
+                    opts.sensors.get(&s.name.to_ascii_uppercase()).cloned().unwrap_or_else(|| s.name.clone());
+                (name, s.tip_diameter_mm / 2.0)
+            })
+            .collect();
+        DryRun { at: Point3::origin(), radius: 0.0, tools }
+    }
+}
+
+impl ProbingMachine for DryRun {
+    fn info(&self) -> DeviceInfo {
+        DeviceInfo { address: "dry-run".into(), version: "no machine: nominal points".into() }
+    }
+    fn position(&mut self) -> Result<Point3, DeviceError> {
+        Ok(self.at)
+    }
+    fn move_to(&mut self, target_mm: Point3) -> Result<(), DeviceError> {
+        self.at = target_mm;
+        Ok(())
+    }
+    fn probe(&mut self, r: &ProbeRequest) -> Result<ProbeHit, DeviceError> {
+        let tip = r.nominal_mm + r.approach * self.radius;
+        self.at = tip + r.approach * r.retract_mm;
+        Ok(ProbeHit { tip_center_mm: tip, normal: Some(r.approach) })
+    }
+    fn abort(&mut self) -> Result<(), DeviceError> {
+        Ok(())
+    }
+    fn tool_names(&mut self) -> Result<Vec<String>, DeviceError> {
+        Ok(self.tools.keys().cloned().collect())
+    }
+    fn select_tool(&mut self, name: &str) -> Result<ToolInfo, DeviceError> {
+        self.radius = self.tools.get(name).copied().unwrap_or(0.0);
+        Ok(ToolInfo { name: name.to_string(), tip_radius_mm: self.radius })
+    }
+}
+
+/// The least-squares cylinder started from the nominal (axis, radius). Points taken on two
+/// levels at the same angles lie on several cylinders (four points a level at 0°, 90°, 180°,
+/// 270° lie as well on a cylinder about a diagonal); the nominal picks the one the program means.
+/// Returns axis point, unit axis, radius and the standard uncertainties of point and radius.
+fn cylinder_from_nominal(
+    nominal: &Geom,
+    points: &[Point3],
+) -> Result<(Point3, Vector3, f64, f64, f64), String> {
+    use truepos_math::lsq::{solve, LsqOptions, Residuals};
+    let Geom::Cylinder { p: p0, axis: a0, r: r0 } = nominal else {
+        return Err("not a cylinder".into());
+    };
+    let n = points.len() as f64;
+    let centroid = Point3::from(points.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / n);
+    let a0 = a0 / a0.norm();
+    let c0 = p0 + a0 * (centroid - p0).dot(&a0);
+    let u = a0.cross(&if a0.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() });
+    let u = u / u.norm();
+    let v = a0.cross(&u);
+    struct Cyl<'a> {
+        pts: &'a [Point3],
+        c0: Point3,
+        a0: Vector3,
+        u: Vector3,
+        v: Vector3,
+    }
+    impl Cyl<'_> {
+        fn geom(&self, x: &[f64]) -> (Point3, Vector3) {
+            let o = self.c0 + self.u * x[0] + self.v * x[1];
+            let a = self.a0 + self.u * x[2] + self.v * x[3];
+            (o, a / a.norm())
+        }
+        fn res(&self, x: &[f64], i: usize) -> f64 {
+            let (o, a) = self.geom(x);
+            (self.pts[i] - o).cross(&a).norm() - x[4]
+        }
+    }
+    impl Residuals for Cyl<'_> {
+        fn n_params(&self) -> usize {
+            5
+        }
+        fn n_residuals(&self) -> usize {
+            self.pts.len()
+        }
+        fn eval(&self, x: &[f64], i: usize, jac: &mut [f64]) -> f64 {
+            let r = self.res(x, i);
+            let mut y = x.to_vec();
+            for j in 0..5 {
+                let h = 1e-7 * (1.0 + x[j].abs());
+                y[j] = x[j] + h;
+                let rp = self.res(&y, i);
+                y[j] = x[j] - h;
+                let rm = self.res(&y, i);
+                y[j] = x[j];
+                jac[j] = (rp - rm) / (2.0 * h);
+            }
+            r
+        }
+    }
+    let prob = Cyl { pts: points, c0, a0, u, v };
+    let sol = solve(&prob, &[0.0, 0.0, 0.0, 0.0, *r0], &LsqOptions::default())
+        .map_err(|e| format!("cylinder: {e}"))?;
+    if sol.rank < 5 {
+        return Err("cylinder: the points do not determine the cylinder".into());
+    }
+    let (o, a) = prob.geom(&sol.params);
+    let up = (sol.covariance[(0, 0)] + sol.covariance[(1, 1)]).max(0.0).sqrt();
+    Ok((o, a, sol.params[4].abs(), up, sol.std_dev(4)))
+}

@@ -1,0 +1,357 @@
+//! The lexical layer: DMIS text → statements of tokens ([`RawStatement`]), each token with its
+//! line and column.
+//!
+//! Rules (DMIS 3.0–5.x, ISO 22093 clause 5):
+//! - A statement ends at the end of its line unless the line ends with `$` (blanks may follow),
+//!   which continues it on the next line. `$$` starts a comment running to the end of the line
+//!   (anywhere outside text). A `$` elsewhere is an error.
+//! - Blanks (spaces, tabs, carriage returns, form feeds) separate nothing and are ignored.
+//! - Words are case-insensitive (`units/mm` is `UNITS/MM`); they are kept upper-case.
+//! - Numbers: `50`, `50.`, `.5`, `-1.0`, `+1`, `1.5E-3`, `1e3`; a number must be finite.
+//!   A number directly followed by letters is a word (`2D`, `3D`).
+//! - Text is between apostrophes on one line; `''` is one apostrophe inside text.
+//! - A word directly followed by `(` is a label: `F(A_CIRCLE)`, `DID(OUT1)`; the name runs to the
+//!   next `)` on the line and may hold letters, digits, `_`, `-` and `.`.
+//!
+//! Entry point: [`statements`] (an iterator; the whole file is never tokenised at once).
+
+use crate::error::{DmisError, ErrorKind, Pos};
+
+/// One token's value.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Tok {
+    /// A word, upper-cased.
+    Word(String),
+    Num(f64),
+    Text(String),
+    /// `PREFIX(name)`: prefix upper-cased, name as written.
+    Label(String, String),
+    Comma,
+    Slash,
+    Eq,
+}
+
+impl Tok {
+    /// How the token is named in messages.
+    pub fn describe(&self) -> String {
+        match self {
+            Tok::Word(w) => format!("the word {w}"),
+            Tok::Num(v) => format!("the number {v}"),
+            Tok::Text(_) => "a text".to_string(),
+            Tok::Label(p, n) => format!("the label {p}({n})"),
+            Tok::Comma => "','".to_string(),
+            Tok::Slash => "'/'".to_string(),
+            Tok::Eq => "'='".to_string(),
+        }
+    }
+}
+
+/// One statement's tokens, with where it starts and where it ends.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawStatement {
+    pub toks: Vec<(Tok, Pos)>,
+    /// Position just after the statement's last token (for "expected … at the end").
+    pub end: Pos,
+}
+
+/// The statements of `text`, in order; the first lexical error ends the iteration.
+pub fn statements<'a>(file: &'a str, text: &'a str) -> Statements<'a> {
+    Statements { file, text, offset: 0, line: 1, done: false }
+}
+
+/// Iterator over the statements of a text (see [`statements`]).
+pub struct Statements<'a> {
+    file: &'a str,
+    text: &'a str,
+    offset: usize,
+    line: u32,
+    done: bool,
+}
+
+impl Iterator for Statements<'_> {
+    type Item = Result<RawStatement, DmisError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.done {
+            return None;
+        }
+        let mut toks: Vec<(Tok, Pos)> = Vec::new();
+        let mut end = Pos::new(self.line, 1);
+        loop {
+            if self.offset >= self.text.len() {
+                self.done = true;
+                if toks.is_empty() {
+                    return None;
+                }
+                return Some(Ok(RawStatement { toks, end }));
+            }
+            let rest = &self.text[self.offset..];
+            let (line_text, advance) = match rest.find('\n') {
+                Some(k) => (&rest[..k], k + 1),
+                None => (rest, rest.len()),
+            };
+            let line_no = self.line;
+            self.offset += advance;
+            self.line = self.line.saturating_add(1);
+            match lex_line(self.file, line_text, line_no, &mut toks) {
+                Err(e) => {
+                    self.done = true;
+                    return Some(Err(e));
+                }
+                Ok(LineEnd { continued, end: e }) => {
+                    if let Some(e) = e {
+                        end = e;
+                    }
+                    if continued {
+                        continue;
+                    }
+                    if !toks.is_empty() {
+                        return Some(Ok(RawStatement { toks, end }));
+                    }
+                }
+            }
+        }
+    }
+}
+
+struct LineEnd {
+    continued: bool,
+    end: Option<Pos>,
+}
+
+fn is_name_char(c: char) -> bool {
+    c.is_ascii_alphanumeric() || c == '_' || c == '-' || c == '.'
+}
+
+/// Lex one physical line, appending its tokens.
+fn lex_line(file: &str, line: &str, line_no: u32, toks: &mut Vec<(Tok, Pos)>) -> Result<LineEnd, DmisError> {
+    let err =
+        |col: usize, msg: String| DmisError::new(file, Pos::new(line_no, col as u32), ErrorKind::Syntax, msg);
+    // Characters with their 1-based columns; ASCII fast path via bytes.
+    let chars: Vec<char> = line.chars().collect();
+    let n = chars.len();
+    let mut i = 0;
+    let mut end = None;
+    while i < n {
+        let c = chars[i];
+        let col = i + 1;
+        match c {
+            ' ' | '\t' | '\r' | '\x0c' => {
+                i += 1;
+            }
+            '$' => {
+                if i + 1 < n && chars[i + 1] == '$' {
+                    break; // comment to the end of the line
+                }
+                if chars[i + 1..].iter().all(|c| matches!(c, ' ' | '\t' | '\r' | '\x0c')) {
+                    return Ok(LineEnd { continued: true, end });
+                }
+                return Err(err(
+                    col,
+                    "a single '$' continues a statement only at the end of a line ('$$' starts a comment)"
+                        .into(),
+                ));
+            }
+            ',' | '/' | '=' => {
+                let t = match c {
+                    ',' => Tok::Comma,
+                    '/' => Tok::Slash,
+                    _ => Tok::Eq,
+                };
+                toks.push((t, Pos::new(line_no, col as u32)));
+                i += 1;
+                end = Some(Pos::new(line_no, (col + 1) as u32));
+            }
+            '\'' => {
+                let mut s = String::new();
+                let mut j = i + 1;
+                loop {
+                    if j >= n {
+                        return Err(err(col, "text without its closing apostrophe on this line".into()));
+                    }
+                    if chars[j] == '\'' {
+                        if j + 1 < n && chars[j + 1] == '\'' {
+                            s.push('\'');
+                            j += 2;
+                            continue;
+                        }
+                        break;
+                    }
+                    s.push(chars[j]);
+                    j += 1;
+                }
+                toks.push((Tok::Text(s), Pos::new(line_no, col as u32)));
+                i = j + 1;
+                end = Some(Pos::new(line_no, (i + 1) as u32));
+            }
+            c if c.is_ascii_digit()
+                || c == '.'
+                || ((c == '+' || c == '-')
+                    && i + 1 < n
+                    && (chars[i + 1].is_ascii_digit()
+                        || (chars[i + 1] == '.' && i + 2 < n && chars[i + 2].is_ascii_digit()))) =>
+            {
+                let start = i;
+                let mut j = i;
+                if chars[j] == '+' || chars[j] == '-' {
+                    j += 1;
+                }
+                let mut digits = 0;
+                while j < n && chars[j].is_ascii_digit() {
+                    j += 1;
+                    digits += 1;
+                }
+                if j < n && chars[j] == '.' {
+                    j += 1;
+                    while j < n && chars[j].is_ascii_digit() {
+                        j += 1;
+                        digits += 1;
+                    }
+                }
+                if digits == 0 {
+                    return Err(err(col, format!("'{c}' is not a number")));
+                }
+                if j < n && (chars[j] == 'e' || chars[j] == 'E') {
+                    let mut k = j + 1;
+                    if k < n && (chars[k] == '+' || chars[k] == '-') {
+                        k += 1;
+                    }
+                    if k < n && chars[k].is_ascii_digit() {
+                        while k < n && chars[k].is_ascii_digit() {
+                            k += 1;
+                        }
+                        j = k;
+                    }
+                }
+                if j < n && (chars[j].is_ascii_alphabetic() || chars[j] == '_') {
+                    // `2D`, `3D`: a word that starts with digits.
+                    if chars[start] == '+' || chars[start] == '-' {
+                        return Err(err(col, "a sign before a word".into()));
+                    }
+                    let mut k = j;
+                    while k < n && (chars[k].is_ascii_alphanumeric() || chars[k] == '_') {
+                        k += 1;
+                    }
+                    let w: String = chars[start..k].iter().collect::<String>().to_ascii_uppercase();
+                    toks.push((Tok::Word(w), Pos::new(line_no, col as u32)));
+                    i = k;
+                } else {
+                    let s: String = chars[start..j].iter().collect();
+                    let v: f64 = s.parse().map_err(|_| err(col, format!("{s:?} is not a number")))?;
+                    if !v.is_finite() {
+                        return Err(err(col, format!("the number {s} is out of range")));
+                    }
+                    toks.push((Tok::Num(v), Pos::new(line_no, col as u32)));
+                    i = j;
+                }
+                end = Some(Pos::new(line_no, (i + 1) as u32));
+            }
+            c if c.is_ascii_alphabetic() => {
+                let mut j = i;
+                while j < n && (chars[j].is_ascii_alphanumeric() || chars[j] == '_') {
+                    j += 1;
+                }
+                let w: String = chars[i..j].iter().collect::<String>().to_ascii_uppercase();
+                if j < n && chars[j] == '(' {
+                    let mut k = j + 1;
+                    while k < n && chars[k] != ')' {
+                        if !is_name_char(chars[k]) {
+                            return Err(err(
+                                k + 1,
+                                format!(
+                                    "{:?} cannot be part of a label name (letters, digits, '_', '-', '.')",
+                                    chars[k]
+                                ),
+                            ));
+                        }
+                        k += 1;
+                    }
+                    if k >= n {
+                        return Err(err(j + 1, format!("the label {w}( has no closing ')' on this line")));
+                    }
+                    if k == j + 1 {
+                        return Err(err(j + 2, format!("the label {w}() has no name")));
+                    }
+                    let name: String = chars[j + 1..k].iter().collect();
+                    toks.push((Tok::Label(w, name), Pos::new(line_no, col as u32)));
+                    i = k + 1;
+                } else {
+                    toks.push((Tok::Word(w), Pos::new(line_no, col as u32)));
+                    i = j;
+                }
+                end = Some(Pos::new(line_no, (i + 1) as u32));
+            }
+            other => {
+                return Err(err(col, format!("unexpected character {other:?}")));
+            }
+        }
+    }
+    Ok(LineEnd { continued: false, end })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lex(t: &str) -> Vec<Vec<Tok>> {
+        statements("t.dms", t).map(|s| s.unwrap().toks.into_iter().map(|(t, _)| t).collect()).collect()
+    }
+
+    #[test]
+    fn numbers_in_every_form() {
+        let s = lex("GOTO/50, 50., .5, -1.0, +1, 1.5E-3, 1e3, -.25, 2D\n");
+        assert_eq!(
+            s[0],
+            vec![
+                Tok::Word("GOTO".into()),
+                Tok::Slash,
+                Tok::Num(50.0),
+                Tok::Comma,
+                Tok::Num(50.0),
+                Tok::Comma,
+                Tok::Num(0.5),
+                Tok::Comma,
+                Tok::Num(-1.0),
+                Tok::Comma,
+                Tok::Num(1.0),
+                Tok::Comma,
+                Tok::Num(1.5e-3),
+                Tok::Comma,
+                Tok::Num(1e3),
+                Tok::Comma,
+                Tok::Num(-0.25),
+                Tok::Comma,
+                Tok::Word("2D".into()),
+            ]
+        );
+    }
+
+    #[test]
+    fn continuations_comments_and_case() {
+        let s = lex("$$ comment\n\nf(c1) = feat/circle, $  \n  inner $$ not a continuation? no: comment\n");
+        // The `$` continues; the comment line after `inner` ends the statement.
+        assert_eq!(s.len(), 1);
+        assert_eq!(s[0][0], Tok::Label("F".into(), "c1".into()));
+        assert_eq!(s[0].last().unwrap(), &Tok::Word("INNER".into()));
+    }
+
+    #[test]
+    fn text_with_apostrophes() {
+        let s = lex("TEXT/OPER,'it''s $$ here'\n");
+        assert_eq!(s[0][4], Tok::Text("it's $$ here".into()));
+    }
+
+    #[test]
+    fn errors_are_located() {
+        let e = statements("p.dms", "UNITS/MM\nTEXT/OPER,'open\n").nth(1).unwrap().unwrap_err();
+        assert_eq!((e.pos.line, e.pos.col), (2, 11));
+        let e = statements("p.dms", "GOTO/1,2 $ 3\n").next().unwrap().unwrap_err();
+        assert_eq!((e.pos.line, e.pos.col), (1, 10));
+        let e = statements("p.dms", "GOTO/1,2,3#\n").next().unwrap().unwrap_err();
+        assert_eq!((e.pos.line, e.pos.col), (1, 11));
+        let e = statements("p.dms", "GOTO/1e999,2,3\n").next().unwrap().unwrap_err();
+        assert_eq!((e.pos.line, e.pos.col), (1, 6));
+        let e = statements("p.dms", "F(A B)=FEAT/POINT\n").next().unwrap().unwrap_err();
+        assert_eq!((e.pos.line, e.pos.col), (1, 4));
+    }
+}

@@ -1,0 +1,1220 @@
+//! The semantic model: a parsed program checked as a whole before anything moves, and turned
+//! into a [`Plan`] in internal units (mm, rad; unit vectors normalised).
+//!
+//! What is checked (each refusal names file, line and column): the program starts with
+//! `DMISMN`/`DMISMD` and ends with `ENDFIL`; units (`ANGDMS` is refused); sensors defined
+//! (`SNSDEF`) before they are selected, and selected before `MEAS`; features defined (`FEAT`)
+//! before they are measured, constructed or output, with the matching type, their vectors not
+//! zero and sizes positive; `MEAS` blocks hold only `GOTO` and `PTMEAS`, as many points as
+//! announced and at least as many as the fit needs; constructions from features that exist by
+//! then, of types the construction can combine; datums defined from measured features; `DATSET`
+//! axes and origins each set once, two directions at most on different axes; `TRANS`, `ROTATE`,
+//! `SAVE`, `RECALL` on known coordinate systems; tolerances with positive zones, applied by
+//! `OUTPUT` to actual features of a type they apply to (two features for `ANGLB`, `DISTB`);
+//! `POS` with `MMC`/`LMC` (bonus tolerance) refused; datums named by `POS` must be those the
+//! active coordinate system was set from; devices defined before they are opened.
+//!
+//! Entry point: [`check`].
+
+use crate::ast::*;
+use crate::error::{DmisError, ErrorKind, Pos};
+use crate::parse::{Program, Stmt};
+use std::collections::HashMap;
+use truepos_math::{Point3, Vector3};
+
+/// A nominal feature in mm (and rad), in the coordinate system active where it was defined.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Nominal {
+    Point {
+        p: Point3,
+        n: Vector3,
+    },
+    Plane {
+        p: Point3,
+        n: Vector3,
+    },
+    Line {
+        p: Point3,
+        dir: Vector3,
+        plane: Option<Vector3>,
+        length: Option<f64>,
+    },
+    Circle {
+        c: Point3,
+        n: Vector3,
+        r: f64,
+    },
+    Cylinder {
+        p: Point3,
+        axis: Vector3,
+        r: f64,
+        length: Option<f64>,
+    },
+    Sphere {
+        c: Point3,
+        r: f64,
+    },
+    /// Apex, unit axis from the apex into the cone, half of the included angle (rad).
+    Cone {
+        apex: Point3,
+        axis: Vector3,
+        half_angle: f64,
+    },
+}
+
+/// A feature of the program.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Feature {
+    /// The label's name as written.
+    pub name: String,
+    pub ftype: FeatType,
+    pub side: Option<Side>,
+    pub nominal: Nominal,
+    pub pos: Pos,
+}
+
+/// A sensor (`SNSDEF`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sensor {
+    pub name: String,
+    pub tip_diameter_mm: f64,
+    pub pos: Pos,
+}
+
+/// A tolerance in internal units.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TolKind {
+    Flat(f64),
+    Strght(f64),
+    Cirlty(f64),
+    Cylcty(f64),
+    Diam {
+        lo: f64,
+        hi: f64,
+    },
+    Rad {
+        lo: f64,
+        hi: f64,
+    },
+    Pos {
+        three_d: bool,
+        zone: f64,
+    },
+    /// Zone and the datum feature.
+    Perp {
+        zone: f64,
+        datum: usize,
+    },
+    Parlel {
+        zone: f64,
+        datum: usize,
+    },
+    /// Nominal angle and deviations (rad).
+    Anglb {
+        angle: f64,
+        lo: f64,
+        hi: f64,
+    },
+    Distb {
+        dist: f64,
+        lo: f64,
+        hi: f64,
+        axis: Option<DistAxis>,
+    },
+}
+
+impl TolKind {
+    /// How many features the tolerance relates (1, or 2 for ANGLB and DISTB).
+    pub fn n_features(&self) -> usize {
+        match self {
+            TolKind::Anglb { .. } | TolKind::Distb { .. } => 2,
+            _ => 1,
+        }
+    }
+}
+
+/// A tolerance (`TOL`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tolerance {
+    pub name: String,
+    pub kind: TolKind,
+    /// The statement as written (echoed in the output file, in the program's units).
+    pub statement: Statement,
+    pub pos: Pos,
+}
+
+/// One motion inside `MEAS` (part coordinates of the active coordinate system, mm).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Move {
+    Goto(Point3),
+    GotoIncr(Vector3),
+    /// A point to probe and its approach direction (out of the material); `None`: from the
+    /// nominal feature.
+    Probe {
+        p: Point3,
+        dir: Option<Vector3>,
+    },
+}
+
+/// How a feature is constructed (indices of features).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Construction {
+    Bf(Vec<usize>),
+    Intof(usize, usize),
+    Projct(usize, usize),
+    Midpt(usize, usize),
+}
+
+/// `DATSET` in indices of features.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DatsetOp {
+    Mcs,
+    Datums(Vec<(usize, Vec<DatsetWord>)>),
+}
+
+/// One item of `OUTPUT`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum OutputItem {
+    /// A feature's actual (`FA`) or nominal (`F`) values.
+    Feature { feature: usize, actual: bool },
+    /// A tolerance evaluated on the output's features (`TA`), or only echoed (`T`).
+    Tolerance { tolerance: usize, features: Vec<usize>, actual: bool },
+}
+
+/// One step of the plan.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Op {
+    Goto(Point3),
+    GotoIncr(Vector3),
+    /// Feed of `FEDRAT` (mm/s; `None`: the machine's default).
+    Feed {
+        kind: FeedKind,
+        mm_s: Option<f64>,
+    },
+    Approach(f64),
+    Search(f64),
+    Retract(f64),
+    /// `PRCOMP`: compensate probed points by the tip radius.
+    Compensation(bool),
+    SelectSensor(usize),
+    /// `FEAT`: the nominal takes the active coordinate system.
+    Define(usize),
+    /// `MEAS … ENDMES`, each motion with its statement's position.
+    Measure {
+        feature: usize,
+        moves: Vec<(Move, Pos)>,
+    },
+    Construct {
+        feature: usize,
+        method: Construction,
+    },
+    Datset {
+        name: String,
+        def: DatsetOp,
+    },
+    /// `TRANS`: origins along axes 0..3 to a value (mm) or a feature's position.
+    Trans {
+        name: Option<String>,
+        items: Vec<(usize, TransTo)>,
+    },
+    /// `ROTATE` about axis 0..3.
+    Rotate {
+        name: Option<String>,
+        axis: usize,
+        by: RotateTo,
+    },
+    Save(String),
+    Recall(String),
+    /// `UNITS` (what the output file is written in from here on).
+    Units {
+        length: LengthUnit,
+        angle: AngleUnit,
+    },
+    Output(Vec<OutputItem>),
+    Text {
+        kind: TextKind,
+        text: String,
+    },
+}
+
+/// Where `TRANS` moves an origin.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TransTo {
+    Value(f64),
+    Feature(usize),
+}
+
+/// What `ROTATE` turns by.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RotateTo {
+    Angle(f64),
+    /// The feature's direction becomes this axis (0..3).
+    Feature(usize, usize),
+}
+
+/// A step with where it comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Step {
+    pub op: Op,
+    pub pos: Pos,
+    /// The statement in canonical DMIS where the output file repeats it (`UNITS`, `DATSET`,
+    /// `TRANS`, `ROTATE`, `SAVE`, `RECALL`).
+    pub echo: Option<String>,
+}
+
+/// A checked program, ready to run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    pub file: String,
+    pub title: String,
+    pub filnam: Option<String>,
+    pub features: Vec<Feature>,
+    pub sensors: Vec<Sensor>,
+    pub tolerances: Vec<Tolerance>,
+    pub steps: Vec<Step>,
+    /// The file named by the `DEVICE/STOR` that is opened for `OUTPUT`, as written.
+    pub output_file: Option<String>,
+    /// Statements echoed at the top of the output file (`FILNAM`, `UNITS`, `DATSET` …) come from
+    /// the program; this is the first `UNITS` (default MM, ANGDEC).
+    pub n_probes: usize,
+}
+
+/// Length unit → mm.
+pub fn mm_per(u: LengthUnit) -> f64 {
+    match u {
+        LengthUnit::Mm => 1.0,
+        LengthUnit::Cm => 10.0,
+        LengthUnit::M => 1000.0,
+        LengthUnit::Inch => 25.4,
+        LengthUnit::Feet => 304.8,
+    }
+}
+
+/// Angle unit → rad (ANGDMS is refused by [`check`]).
+pub fn rad_per(u: AngleUnit) -> f64 {
+    match u {
+        AngleUnit::AngDec => std::f64::consts::PI / 180.0,
+        AngleUnit::AngRad | AngleUnit::AngDms => 1.0,
+    }
+}
+
+/// Fewest points a feature type can be fitted from.
+pub fn min_points(t: FeatType) -> usize {
+    match t {
+        FeatType::Point => 1,
+        FeatType::Line => 2,
+        FeatType::Plane | FeatType::Circle => 3,
+        FeatType::Sphere => 4,
+        FeatType::Cylndr => 5,
+        FeatType::Cone => 6,
+    }
+}
+
+fn has_direction(t: FeatType) -> bool {
+    matches!(t, FeatType::Plane | FeatType::Line | FeatType::Cylndr | FeatType::Cone | FeatType::Circle)
+}
+
+fn point_like(t: FeatType) -> bool {
+    matches!(t, FeatType::Point | FeatType::Circle | FeatType::Sphere)
+}
+
+/// A `MEAS` being read: feature, announced points, its position, the motions so far.
+type OpenMeas = (usize, u32, Pos, Vec<(Move, Pos)>);
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Have {
+    /// Defined by FEAT only.
+    Nominal,
+    /// Measured or constructed; `points`: has measured points (form can be evaluated).
+    Actual { points: bool },
+}
+
+struct Checker<'a> {
+    file: &'a str,
+    length: LengthUnit,
+    angle: AngleUnit,
+    plan: Plan,
+    feat: HashMap<String, (usize, Have)>,
+    sensors: HashMap<String, usize>,
+    selected: bool,
+    datums: HashMap<String, usize>,
+    csys: HashMap<String, Option<Vec<usize>>>,
+    /// Datum features the active coordinate system was set from (`None`: MCS or not by datums).
+    active_datums: Option<Vec<usize>>,
+    tols: HashMap<String, usize>,
+    devices: HashMap<String, (DeviceKind, Option<String>, bool)>,
+}
+
+impl Checker<'_> {
+    fn err(&self, pos: Pos, kind: ErrorKind, m: impl Into<String>) -> DmisError {
+        DmisError::new(self.file, pos, kind, m)
+    }
+    fn sem(&self, pos: Pos, m: impl Into<String>) -> DmisError {
+        self.err(pos, ErrorKind::Semantic, m)
+    }
+    fn len(&self, v: f64) -> f64 {
+        v * mm_per(self.length)
+    }
+    fn pt(&self, v: &Xyz) -> Point3 {
+        Point3::new(self.len(v[0]), self.len(v[1]), self.len(v[2]))
+    }
+    fn unit(&self, v: &Xyz, pos: Pos, what: &str) -> Result<Vector3, DmisError> {
+        let u = Vector3::new(v[0], v[1], v[2]);
+        let n = u.norm();
+        if !(n.is_finite() && n > 1e-12) {
+            return Err(self.sem(pos, format!("{what} ({}, {}, {}) has no direction", v[0], v[1], v[2])));
+        }
+        Ok(u / n)
+    }
+    fn positive(&self, v: f64, pos: Pos, what: &str) -> Result<f64, DmisError> {
+        if v > 0.0 && v.is_finite() {
+            Ok(v)
+        } else {
+            Err(self.sem(pos, format!("{what} must be positive, not {v}")))
+        }
+    }
+    fn finite_mm(&self, v: f64, pos: Pos) -> Result<f64, DmisError> {
+        let x = self.len(v);
+        if x.is_finite() {
+            Ok(x)
+        } else {
+            Err(self.sem(pos, format!("{v} is out of range in mm")))
+        }
+    }
+    fn finite_pt(&self, v: &Xyz, st: &Stmt, first_arg: usize) -> Result<Point3, DmisError> {
+        for k in 0..3 {
+            self.finite_mm(v[k], st.arg(first_arg + k))?;
+        }
+        Ok(self.pt(v))
+    }
+    /// A feature by label: its index, type and state.
+    fn feature(&self, l: &Label, pos: Pos) -> Result<(usize, Have), DmisError> {
+        self.feat.get(&l.key()).copied().ok_or_else(|| {
+            self.sem(pos, format!("F({}) is not defined (FEAT) before this statement", l.name))
+        })
+    }
+    /// A feature that must have actual values by now.
+    fn actual(&self, l: &Label, pos: Pos) -> Result<(usize, bool), DmisError> {
+        match self.feature(l, pos)? {
+            (k, Have::Actual { points }) => Ok((k, points)),
+            (_, Have::Nominal) => Err(self.sem(
+                pos,
+                format!(
+                    "FA({}) has not been measured (MEAS) or constructed (CONST) before this statement",
+                    l.name
+                ),
+            )),
+        }
+    }
+    fn ftype(&self, k: usize) -> FeatType {
+        self.plan.features[k].ftype
+    }
+    fn datum(&self, l: &Label, pos: Pos) -> Result<usize, DmisError> {
+        match l.kind {
+            LabelKind::Fa | LabelKind::F => Ok(self.actual(l, pos)?.0),
+            _ => self.datums.get(&l.key()).copied().ok_or_else(|| {
+                self.sem(pos, format!("the datum {l} is not defined (DATDEF) before this statement"))
+            }),
+        }
+    }
+}
+
+/// Check a program as a whole and build its plan. Nothing outside the subset, nothing malformed
+/// and nothing inconsistent passes: the first problem is returned with its place.
+pub fn check(program: &Program) -> Result<Plan, DmisError> {
+    let mut c = Checker {
+        file: &program.file,
+        length: LengthUnit::Mm,
+        angle: AngleUnit::AngDec,
+        plan: Plan {
+            file: program.file.clone(),
+            title: String::new(),
+            filnam: None,
+            features: Vec::new(),
+            sensors: Vec::new(),
+            tolerances: Vec::new(),
+            steps: Vec::new(),
+            output_file: None,
+            n_probes: 0,
+        },
+        feat: HashMap::new(),
+        sensors: HashMap::new(),
+        selected: false,
+        datums: HashMap::new(),
+        csys: HashMap::new(),
+        active_datums: None,
+        tols: HashMap::new(),
+        devices: HashMap::new(),
+    };
+    let sts = &program.statements;
+    let Some(first) = sts.first() else {
+        return Err(c.sem(Pos::new(1, 1), "the program is empty (a part program starts with DMISMN)"));
+    };
+    match &first.statement {
+        Statement::Dmismn { title, .. } | Statement::Dmismd { title, .. } => c.plan.title = title.clone(),
+        other => {
+            return Err(c.sem(first.pos, format!("a part program starts with DMISMN, not {}", other.major())))
+        }
+    }
+    let mut meas: Option<OpenMeas> = None;
+    let mut ended = false;
+    for st in &sts[1..] {
+        if ended {
+            return Err(c.sem(st.pos, "statement after ENDFIL"));
+        }
+        let pos = st.pos;
+        let push = |c: &mut Checker, op: Op| c.plan.steps.push(Step { op, pos, echo: None });
+        let n_steps = c.plan.steps.len();
+        if let Some((fid, n, mpos, moves)) = meas.as_mut() {
+            match &st.statement {
+                Statement::Goto(Goto::Abs(p)) => {
+                    let q = c.finite_pt(p, st, 0)?;
+                    moves.push((Move::Goto(q), pos));
+                }
+                Statement::Goto(Goto::Incr { dist, dir }) => {
+                    let d = c.finite_mm(*dist, st.arg(1))?;
+                    let u = c.unit(dir, st.arg(2), "the direction")?;
+                    moves.push((Move::GotoIncr(u * d), pos));
+                }
+                Statement::Ptmeas { p, n: dir } => {
+                    let q = c.finite_pt(p, st, 1)?;
+                    let d = match dir {
+                        Some(d) => Some(c.unit(d, st.arg(4), "the approach direction")?),
+                        None => None,
+                    };
+                    moves.push((Move::Probe { p: q, dir: d }, pos));
+                }
+                Statement::Endmes => {
+                    let probes = moves.iter().filter(|m| matches!(m.0, Move::Probe { .. })).count();
+                    let ft = c.ftype(*fid);
+                    if probes != *n as usize {
+                        return Err(c.sem(
+                            pos,
+                            format!(
+                                "the MEAS at line {} announces {n} points but measures {probes}",
+                                mpos.line
+                            ),
+                        ));
+                    }
+                    if probes < min_points(ft) {
+                        return Err(c.sem(
+                            *mpos,
+                            format!(
+                                "a {ft} needs at least {} points, this MEAS has {probes}",
+                                min_points(ft)
+                            ),
+                        ));
+                    }
+                    let (fid, moves, mpos) = (*fid, std::mem::take(moves), *mpos);
+                    c.plan.n_probes += probes;
+                    let name = c.plan.features[fid].name.to_ascii_uppercase();
+                    c.feat.insert(name, (fid, Have::Actual { points: true }));
+                    meas = None;
+                    // The step is located at its MEAS (progress and errors name that line).
+                    c.plan.steps.push(Step {
+                        op: Op::Measure { feature: fid, moves },
+                        pos: mpos,
+                        echo: None,
+                    });
+                }
+                other => {
+                    return Err(c.sem(
+                        pos,
+                        format!(
+                            "{} is not allowed between MEAS (line {}) and ENDMES (only GOTO and PTMEAS)",
+                            other.major(),
+                            mpos.line
+                        ),
+                    ))
+                }
+            }
+            continue;
+        }
+        match &st.statement {
+            Statement::Dmismn { .. } | Statement::Dmismd { .. } => {
+                return Err(c.sem(pos, format!("{} may only be the first statement", st.statement.major())))
+            }
+            Statement::Endfil => ended = true,
+            Statement::Filnam { name, .. } => c.plan.filnam = Some(name.clone()),
+            Statement::Units { length, angle, .. } => {
+                if *angle == AngleUnit::AngDms {
+                    return Err(c.err(st.arg(1), ErrorKind::Unsupported, "UNITS: ANGDMS is not supported (ANGDEC, ANGRAD)"));
+                }
+                c.length = *length;
+                c.angle = *angle;
+                push(&mut c, Op::Units { length: *length, angle: *angle });
+            }
+            Statement::Disply(_) | Statement::Snsmnt { .. } => {}
+            Statement::Prcomp(on) => push(&mut c, Op::Compensation(*on)),
+            Statement::Mode(ws) => {
+                if !ws.iter().any(|w| matches!(w, ModeWord::Auto | ModeWord::Prog)) {
+                    return Err(c.err(
+                        st.arg(0),
+                        ErrorKind::Unsupported,
+                        "MODE/MAN (manual measurement) is not supported: truepos runs programs automatically",
+                    ));
+                }
+            }
+            Statement::Fedrat { kind, unit, value } => {
+                let mm_s = match (unit, value) {
+                    (FeedUnit::Mpm, Some(v)) => Some(c.positive(*v, st.arg(2), "the speed")? * 1000.0 / 60.0),
+                    (FeedUnit::Mmps, Some(v)) => Some(c.positive(*v, st.arg(2), "the speed")?),
+                    (FeedUnit::Ipm, Some(v)) => Some(c.positive(*v, st.arg(2), "the speed")? * 25.4 / 60.0),
+                    (FeedUnit::Ips, Some(v)) => Some(c.positive(*v, st.arg(2), "the speed")? * 25.4),
+                    (FeedUnit::Pcent, Some(v)) => {
+                        if !(*v > 0.0 && *v <= 100.0) {
+                            return Err(c.sem(st.arg(2), format!("a speed in percent is in (0, 100], not {v}")));
+                        }
+                        None
+                    }
+                    _ => None,
+                };
+                push(&mut c, Op::Feed { kind: *kind, mm_s });
+            }
+            Statement::Snset(s) => match s {
+                Snset::Apprch(v) | Snset::Retrct(v) | Snset::Search(v) => {
+                    let mm = c.finite_mm(*v, st.arg(1))?;
+                    let ok = if matches!(s, Snset::Search(_)) { mm > 0.0 } else { mm >= 0.0 };
+                    if !ok {
+                        return Err(c.sem(st.arg(1), format!("SNSET: the distance must be positive, not {v}")));
+                    }
+                    push(
+                        &mut c,
+                        match s {
+                            Snset::Apprch(_) => Op::Approach(mm),
+                            Snset::Retrct(_) => Op::Retract(mm),
+                            _ => Op::Search(mm),
+                        },
+                    );
+                }
+                Snset::Depth(v) | Snset::Clrsrf(None, v) => {
+                    c.finite_mm(*v, st.arg(1))?;
+                }
+                Snset::Clrsrf(Some(l), v) => {
+                    c.feature(l, st.arg(1))?;
+                    c.finite_mm(*v, st.arg(2))?;
+                }
+                Snset::ClrsrfOff => {}
+            },
+            Statement::Snsdef { label, dir, diam, .. } => {
+                c.unit(dir, st.arg(6), "the probe direction")?;
+                let d = c.len(c.positive(*diam, st.arg(9), "the tip diameter")?);
+                if let Some(k) = c.sensors.get(&label.key()) {
+                    return Err(c.sem(
+                        st.label_pos,
+                        format!("{label} is already defined at line {}", c.plan.sensors[*k].pos.line),
+                    ));
+                }
+                c.sensors.insert(label.key(), c.plan.sensors.len());
+                c.plan.sensors.push(Sensor { name: label.name.clone(), tip_diameter_mm: d, pos });
+            }
+            Statement::Snslct(l) => {
+                let Some(k) = c.sensors.get(&l.key()).copied() else {
+                    return Err(c.sem(st.arg(0), format!("the sensor S({}) is not defined (SNSDEF) before this statement", l.name)));
+                };
+                c.selected = true;
+                push(&mut c, Op::SelectSensor(k));
+            }
+            Statement::Goto(Goto::Abs(p)) => {
+                let q = c.finite_pt(p, st, 0)?;
+                push(&mut c, Op::Goto(q));
+            }
+            Statement::Goto(Goto::Incr { dist, dir }) => {
+                let d = c.finite_mm(*dist, st.arg(1))?;
+                let u = c.unit(dir, st.arg(2), "the direction")?;
+                push(&mut c, Op::GotoIncr(u * d));
+            }
+            Statement::Feat { label, geom } => {
+                if label.kind == LabelKind::Fa {
+                    return Err(c.sem(st.label_pos, "FA(…)=FEAT is a result (output file) statement, not part of a program"));
+                }
+                if let Some((k, _)) = c.feat.get(&label.key()) {
+                    return Err(c.sem(
+                        st.label_pos,
+                        format!("{label} is already defined at line {}", c.plan.features[*k].pos.line),
+                    ));
+                }
+                let (side, nominal) = nominal(&c, geom, st)?;
+                let k = c.plan.features.len();
+                c.plan.features.push(Feature { name: label.name.clone(), ftype: geom.feat_type(), side, nominal, pos });
+                c.feat.insert(label.key(), (k, Have::Nominal));
+                push(&mut c, Op::Define(k));
+            }
+            Statement::Meas { ftype, feature, n } => {
+                let (k, _) = c.feature(feature, st.arg(1))?;
+                if c.ftype(k) != *ftype {
+                    return Err(c.sem(st.arg(0), format!("MEAS/{ftype} of {feature}, which is a {}", c.ftype(k))));
+                }
+                if !c.selected {
+                    return Err(c.sem(pos, "no sensor is selected (SNSLCT) before this MEAS"));
+                }
+                meas = Some((k, *n, pos, Vec::new()));
+            }
+            Statement::Endmes => return Err(c.sem(pos, "ENDMES without MEAS")),
+            Statement::Ptmeas { .. } => return Err(c.sem(pos, "PTMEAS outside MEAS … ENDMES")),
+            Statement::Const { ftype, feature, method } => {
+                let (k, _) = c.feature(feature, st.arg(1))?;
+                if c.ftype(k) != *ftype {
+                    return Err(c.sem(st.arg(0), format!("CONST/{ftype} of {feature}, which is a {}", c.ftype(k))));
+                }
+                let (m, points) = construction(&c, *ftype, method, st)?;
+                c.feat.insert(feature.key(), (k, Have::Actual { points }));
+                push(&mut c, Op::Construct { feature: k, method: m });
+            }
+            Statement::Datdef { datum, feature, .. } => {
+                // The feature is the first argument in both forms.
+                let fpos = st.arg(0);
+                let (k, _) = c.actual(feature, fpos)?;
+                c.datums.insert(datum.key(), k);
+            }
+            Statement::Datset { label, def } => {
+                let op = match def {
+                    Datset::Mcs => {
+                        c.active_datums = None;
+                        DatsetOp::Mcs
+                    }
+                    Datset::Datums(ds) => {
+                        let mut seen: Vec<DatsetWord> = Vec::new();
+                        let mut dirs: Vec<DatsetWord> = Vec::new();
+                        let mut out = Vec::new();
+                        let mut argk = 0;
+                        for (l, ws) in ds {
+                            let lpos = st.arg(argk);
+                            let k = c.datum(l, lpos)?;
+                            let t = c.ftype(k);
+                            for (j, w) in ws.iter().enumerate() {
+                                let wpos = st.arg(argk + 1 + j);
+                                if seen.contains(w) {
+                                    return Err(c.sem(wpos, format!("DATSET: {w} is set twice")));
+                                }
+                                seen.push(*w);
+                                if matches!(w, DatsetWord::XDir | DatsetWord::YDir | DatsetWord::ZDir) {
+                                    if !has_direction(t) {
+                                        return Err(c.sem(wpos, format!("DATSET: a {t} has no direction for {w}")));
+                                    }
+                                    dirs.push(*w);
+                                }
+                            }
+                            argk += 1 + ws.len();
+                            out.push((k, ws.clone()));
+                        }
+                        if dirs.len() > 2 {
+                            return Err(c.sem(pos, "DATSET: at most two directions (the third follows)"));
+                        }
+                        c.active_datums = Some(out.iter().map(|(k, _)| *k).collect());
+                        DatsetOp::Datums(out)
+                    }
+                };
+                c.csys.insert(label.key(), c.active_datums.clone());
+                push(&mut c, Op::Datset { name: label.name.clone(), def: op });
+            }
+            Statement::Trans { label, items } => {
+                let mut seen = Vec::new();
+                let mut out = Vec::new();
+                for (j, (o, by)) in items.iter().enumerate() {
+                    let axis = match o {
+                        Origin::XOrig => 0,
+                        Origin::YOrig => 1,
+                        Origin::ZOrig => 2,
+                    };
+                    if seen.contains(&axis) {
+                        return Err(c.sem(st.arg(2 * j), format!("TRANS: {o} is set twice")));
+                    }
+                    seen.push(axis);
+                    out.push((
+                        axis,
+                        match by {
+                            TransBy::Value(v) => TransTo::Value(c.finite_mm(*v, st.arg(2 * j + 1))?),
+                            TransBy::Feature(l) => TransTo::Feature(c.actual(l, st.arg(2 * j + 1))?.0),
+                        },
+                    ));
+                }
+                if let Some(l) = label {
+                    c.csys.insert(l.key(), c.active_datums.clone());
+                }
+                push(&mut c, Op::Trans { name: label.as_ref().map(|l| l.name.clone()), items: out });
+            }
+            Statement::Rotate { label, axis, by } => {
+                let ax = match axis {
+                    RotAxis::XAxis => 0,
+                    RotAxis::YAxis => 1,
+                    RotAxis::ZAxis => 2,
+                };
+                let by = match by {
+                    RotateBy::Angle(a) => {
+                        let r = a * rad_per(c.angle);
+                        if !r.is_finite() {
+                            return Err(c.sem(st.arg(1), "the angle is out of range"));
+                        }
+                        RotateTo::Angle(r)
+                    }
+                    RotateBy::Feature(l, d) => {
+                        let (k, _) = c.actual(l, st.arg(1))?;
+                        if !has_direction(c.ftype(k)) {
+                            return Err(c.sem(st.arg(1), format!("ROTATE: a {} has no direction", c.ftype(k))));
+                        }
+                        let dk = match d {
+                            AxisDir::XDir => 0,
+                            AxisDir::YDir => 1,
+                            AxisDir::ZDir => 2,
+                        };
+                        if dk == ax {
+                            return Err(c.sem(st.arg(2), format!("ROTATE/{axis}: {d} lies along the rotation axis")));
+                        }
+                        RotateTo::Feature(k, dk)
+                    }
+                };
+                if let Some(l) = label {
+                    c.csys.insert(l.key(), c.active_datums.clone());
+                }
+                push(&mut c, Op::Rotate { name: label.as_ref().map(|l| l.name.clone()), axis: ax, by });
+            }
+            Statement::Save(l) => {
+                c.csys.insert(l.key(), c.active_datums.clone());
+                push(&mut c, Op::Save(l.name.clone()));
+            }
+            Statement::Recall(l) => match c.csys.get(&l.key()) {
+                Some(d) => {
+                    c.active_datums = d.clone();
+                    push(&mut c, Op::Recall(l.name.clone()));
+                }
+                None => {
+                    return Err(c.sem(
+                        st.arg(0),
+                        format!("the coordinate system {} is neither defined (DATSET, TRANS, ROTATE) nor saved (SAVE) before this statement", l.name),
+                    ))
+                }
+            },
+            Statement::Tol { label, tol } => {
+                if let Some(k) = c.tols.get(&label.key()) {
+                    return Err(c.sem(
+                        st.label_pos,
+                        format!("{label} is already defined at line {}", c.plan.tolerances[*k].pos.line),
+                    ));
+                }
+                let kind = tolerance(&c, tol, st)?;
+                c.tols.insert(label.key(), c.plan.tolerances.len());
+                c.plan.tolerances.push(Tolerance { name: label.name.clone(), kind, statement: st.statement.clone(), pos });
+            }
+            Statement::Output(ls) => {
+                let items = output(&c, ls, st)?;
+                push(&mut c, Op::Output(items));
+            }
+            Statement::Text { kind, text } => {
+                if *kind == TextKind::Query {
+                    return Err(c.err(st.arg(0), ErrorKind::Unsupported, "TEXT/QUERY (operator input) is not supported"));
+                }
+                push(&mut c, Op::Text { kind: *kind, text: text.clone() });
+            }
+            Statement::Device { label, kind, file } => {
+                c.devices.insert(label.key(), (*kind, file.clone(), false));
+            }
+            Statement::Open { device, words } => {
+                let Some(d) = c.devices.get(&device.key()).cloned() else {
+                    return Err(c.sem(st.arg(0), format!("{device} is not defined (DEVICE) before this statement")));
+                };
+                if words.iter().any(|w| w == "OUTPUT") && d.0 == DeviceKind::Stor {
+                    match &d.1 {
+                        Some(f) if c.plan.output_file.is_none() => c.plan.output_file = Some(f.clone()),
+                        Some(_) => {
+                            return Err(c.err(st.arg(0), ErrorKind::Unsupported, "a second output file: truepos writes one output file"))
+                        }
+                        None => return Err(c.sem(st.arg(0), format!("{device} names no file"))),
+                    }
+                }
+                c.devices.insert(device.key(), (d.0, d.1, true));
+            }
+            Statement::Close { device, .. } => match c.devices.get(&device.key()) {
+                Some((_, _, true)) => {}
+                Some(_) => return Err(c.sem(st.arg(0), format!("{device} is not open"))),
+                None => return Err(c.sem(st.arg(0), format!("{device} is not defined (DEVICE) before this statement"))),
+            },
+        }
+        if c.plan.steps.len() > n_steps
+            && matches!(
+                st.statement,
+                Statement::Units { .. }
+                    | Statement::Datset { .. }
+                    | Statement::Trans { .. }
+                    | Statement::Rotate { .. }
+                    | Statement::Save(_)
+                    | Statement::Recall(_)
+            )
+        {
+            if let Some(s) = c.plan.steps.last_mut() {
+                s.echo = Some(st.statement.to_string());
+            }
+        }
+    }
+    if let Some((_, _, mpos, _)) = meas {
+        return Err(c.sem(mpos, "MEAS without ENDMES"));
+    }
+    if !ended {
+        let last = sts.last().map(|s| s.pos).unwrap_or_default();
+        return Err(c.sem(last, "the program has no ENDFIL"));
+    }
+    Ok(c.plan)
+}
+
+fn nominal(c: &Checker, g: &FeatGeom, st: &Stmt) -> Result<(Option<Side>, Nominal), DmisError> {
+    // Argument indices: 0 type, then (side), CART, numbers.
+    let a = |k: usize| st.arg(k);
+    Ok(match g {
+        FeatGeom::Point { p, n } => {
+            (None, Nominal::Point { p: c.finite_pt(p, st, 2)?, n: c.unit(n, a(5), "the normal")? })
+        }
+        FeatGeom::Plane { p, n } => {
+            (None, Nominal::Plane { p: c.finite_pt(p, st, 2)?, n: c.unit(n, a(5), "the normal")? })
+        }
+        FeatGeom::LineUnbnd { p, dir, plane } => (
+            None,
+            Nominal::Line {
+                p: c.finite_pt(p, st, 3)?,
+                dir: c.unit(dir, a(6), "the direction")?,
+                plane: plane.as_ref().map(|v| c.unit(v, a(9), "the plane normal")).transpose()?,
+                length: None,
+            },
+        ),
+        FeatGeom::LineBnd { p1, p2, plane } => {
+            let q1 = c.finite_pt(p1, st, 3)?;
+            let q2 = c.finite_pt(p2, st, 6)?;
+            let d = q2 - q1;
+            if d.norm() < 1e-9 {
+                return Err(c.sem(a(6), "the bounded line's end points coincide"));
+            }
+            (
+                None,
+                Nominal::Line {
+                    p: q1,
+                    dir: d / d.norm(),
+                    plane: plane.as_ref().map(|v| c.unit(v, a(9), "the plane normal")).transpose()?,
+                    length: Some(d.norm()),
+                },
+            )
+        }
+        FeatGeom::Circle { side, c: cc, n, diam } => (
+            Some(*side),
+            Nominal::Circle {
+                c: c.finite_pt(cc, st, 3)?,
+                n: c.unit(n, a(6), "the normal")?,
+                r: c.len(c.positive(*diam, a(9), "the diameter")?) / 2.0,
+            },
+        ),
+        FeatGeom::Cylndr { side, p, axis, diam, length } => (
+            Some(*side),
+            Nominal::Cylinder {
+                p: c.finite_pt(p, st, 3)?,
+                axis: c.unit(axis, a(6), "the axis")?,
+                r: c.len(c.positive(*diam, a(9), "the diameter")?) / 2.0,
+                length: length.map(|l| c.positive(l, a(10), "the length").map(|l| c.len(l))).transpose()?,
+            },
+        ),
+        FeatGeom::Sphere { side, c: cc, n, diam } => {
+            let dk = if n.is_some() { 9 } else { 6 };
+            if let Some(n) = n {
+                c.unit(n, a(6), "the direction")?;
+            }
+            (
+                Some(*side),
+                Nominal::Sphere {
+                    c: c.finite_pt(cc, st, 3)?,
+                    r: c.len(c.positive(*diam, a(dk), "the diameter")?) / 2.0,
+                },
+            )
+        }
+        FeatGeom::Cone { side, apex, axis, angle } => {
+            let full = angle * rad_per(c.angle);
+            if !(full > 0.0 && full < std::f64::consts::PI) {
+                return Err(c.sem(
+                    a(9),
+                    format!("the cone's included angle must be between 0 and 180°, not {angle}"),
+                ));
+            }
+            (
+                Some(*side),
+                Nominal::Cone {
+                    apex: c.finite_pt(apex, st, 3)?,
+                    axis: c.unit(axis, a(6), "the axis")?,
+                    half_angle: full / 2.0,
+                },
+            )
+        }
+    })
+}
+
+fn construction(
+    c: &Checker,
+    t: FeatType,
+    m: &ConstMethod,
+    st: &Stmt,
+) -> Result<(Construction, bool), DmisError> {
+    let bad = |pos: Pos, what: String| {
+        c.err(pos, ErrorKind::Unsupported, format!("CONST/{t},…,{what} is not supported"))
+    };
+    Ok(match m {
+        ConstMethod::Bf(ls) => {
+            let need = match t {
+                FeatType::Line => 2,
+                FeatType::Plane | FeatType::Circle => 3,
+                FeatType::Sphere => 4,
+                _ => return Err(bad(st.arg(2), "BF".into())),
+            };
+            let mut ks = Vec::new();
+            for (j, l) in ls.iter().enumerate() {
+                let (k, _) = c.actual(l, st.arg(3 + j))?;
+                if !point_like(c.ftype(k)) {
+                    return Err(c.sem(
+                        st.arg(3 + j),
+                        format!(
+                            "BF takes the positions of points, circles and spheres, not of a {}",
+                            c.ftype(k)
+                        ),
+                    ));
+                }
+                ks.push(k);
+            }
+            if ks.len() < need {
+                return Err(c.sem(
+                    st.arg(2),
+                    format!("a best-fit {t} needs at least {need} features, not {}", ks.len()),
+                ));
+            }
+            (Construction::Bf(ks), true)
+        }
+        ConstMethod::Intof(a, b) | ConstMethod::Projct(a, b) | ConstMethod::Midpt(a, b) => {
+            let (ka, _) = c.actual(a, st.arg(3))?;
+            let (kb, _) = c.actual(b, st.arg(4))?;
+            let (ta, tb) = (c.ftype(ka), c.ftype(kb));
+            use FeatType as F;
+            let (word, ok) = match m {
+                ConstMethod::Intof(..) => (
+                    "INTOF",
+                    match t {
+                        F::Point => matches!(
+                            (ta, tb),
+                            (F::Line, F::Line)
+                                | (F::Line, F::Plane)
+                                | (F::Plane, F::Line)
+                                | (F::Cylndr, F::Plane)
+                                | (F::Plane, F::Cylndr)
+                        ),
+                        F::Line => (ta, tb) == (F::Plane, F::Plane),
+                        _ => false,
+                    },
+                ),
+                ConstMethod::Projct(..) => (
+                    "PROJCT",
+                    tb == F::Plane
+                        && match t {
+                            F::Point => point_like(ta) || ta == F::Cylndr,
+                            F::Circle => ta == F::Circle,
+                            F::Line => ta == F::Line,
+                            _ => false,
+                        },
+                ),
+                _ => ("MIDPT", t == F::Point && point_like(ta) && point_like(tb)),
+            };
+            if !ok {
+                return Err(bad(st.arg(2), format!("{word},{ta},{tb}")));
+            }
+            let m = match m {
+                ConstMethod::Intof(..) => Construction::Intof(ka, kb),
+                ConstMethod::Projct(..) => Construction::Projct(ka, kb),
+                _ => Construction::Midpt(ka, kb),
+            };
+            (m, false)
+        }
+    })
+}
+
+fn tolerance(c: &Checker, t: &Tol, st: &Stmt) -> Result<TolKind, DmisError> {
+    let zone = |v: f64, k: usize| c.positive(v, st.arg(k), "the tolerance zone").map(|v| c.len(v));
+    let range = |lo: f64, hi: f64, k: usize, f: f64| -> Result<(f64, f64), DmisError> {
+        if lo > hi || lo.is_nan() || hi.is_nan() {
+            return Err(c.sem(st.arg(k), format!("the lower deviation {lo} is above the upper {hi}")));
+        }
+        Ok((lo * f, hi * f))
+    };
+    let lf = mm_per(c.length);
+    Ok(match t {
+        Tol::Flat(v) => TolKind::Flat(zone(*v, 1)?),
+        Tol::Strght(v) => TolKind::Strght(zone(*v, 1)?),
+        Tol::Cirlty(v) => TolKind::Cirlty(zone(*v, 1)?),
+        Tol::Cylcty(v) => TolKind::Cylcty(zone(*v, 1)?),
+        Tol::Diam { lo, hi } => {
+            let (lo, hi) = range(*lo, *hi, 1, lf)?;
+            TolKind::Diam { lo, hi }
+        }
+        Tol::Rad { lo, hi } => {
+            let (lo, hi) = range(*lo, *hi, 1, lf)?;
+            TolKind::Rad { lo, hi }
+        }
+        Tol::Pos { three_d, zone: z, cond, datums } => {
+            if *cond != MatCond::Rfs {
+                return Err(c.err(
+                    st.arg(3),
+                    ErrorKind::Unsupported,
+                    format!("TOL/POS with {cond} (bonus tolerance) is not supported: RFS only"),
+                ));
+            }
+            for (j, d) in datums.iter().enumerate() {
+                c.datum(d, st.arg(4 + j))?;
+            }
+            TolKind::Pos { three_d: *three_d, zone: zone(*z, 2)? }
+        }
+        Tol::Perp { zone: z, datum } | Tol::Parlel { zone: z, datum } => {
+            let k = c.datum(datum, st.arg(2))?;
+            if !has_direction(c.ftype(k)) {
+                return Err(
+                    c.sem(st.arg(2), format!("the datum is a {}, which has no direction", c.ftype(k)))
+                );
+            }
+            let zone = zone(*z, 1)?;
+            if matches!(t, Tol::Perp { .. }) {
+                TolKind::Perp { zone, datum: k }
+            } else {
+                TolKind::Parlel { zone, datum: k }
+            }
+        }
+        Tol::Anglb { angle, lo, hi } => {
+            let f = rad_per(c.angle);
+            let (lo, hi) = range(*lo, *hi, 2, f)?;
+            TolKind::Anglb { angle: angle * f, lo, hi }
+        }
+        Tol::Distb { dist, lo, hi, axis } => {
+            let (lo, hi) = range(*lo, *hi, 3, lf)?;
+            TolKind::Distb { dist: c.len(*dist), lo, hi, axis: *axis }
+        }
+    })
+}
+
+fn output(c: &Checker, ls: &[Label], st: &Stmt) -> Result<Vec<OutputItem>, DmisError> {
+    let mut items = Vec::new();
+    let mut feats: Vec<(usize, bool, bool)> = Vec::new();
+    let mut j = 0;
+    while j < ls.len() && matches!(ls[j].kind, LabelKind::Fa | LabelKind::F) {
+        let l = &ls[j];
+        let pos = st.arg(j);
+        if l.kind == LabelKind::Fa {
+            let (k, points) = c.actual(l, pos)?;
+            feats.push((k, true, points));
+            items.push(OutputItem::Feature { feature: k, actual: true });
+        } else {
+            let (k, _) = c.feature(l, pos)?;
+            feats.push((k, false, false));
+            items.push(OutputItem::Feature { feature: k, actual: false });
+        }
+        j += 1;
+    }
+    for (jj, l) in ls.iter().enumerate().skip(j) {
+        let pos = st.arg(jj);
+        if matches!(l.kind, LabelKind::Fa | LabelKind::F) {
+            return Err(c.sem(pos, "OUTPUT lists features first, then tolerances"));
+        }
+        let Some(&k) = c.tols.get(&l.key()) else {
+            return Err(c.sem(
+                pos,
+                format!("the tolerance T({}) is not defined (TOL) before this statement", l.name),
+            ));
+        };
+        if l.kind == LabelKind::T {
+            items.push(OutputItem::Tolerance { tolerance: k, features: vec![], actual: false });
+            continue;
+        }
+        let tol = &c.plan.tolerances[k];
+        let need = tol.kind.n_features();
+        if feats.len() != need {
+            return Err(c.sem(
+                pos,
+                format!(
+                    "TA({}) ({}) applies to {need} feature(s), this OUTPUT lists {}",
+                    l.name,
+                    tol.statement_word(),
+                    feats.len()
+                ),
+            ));
+        }
+        for (fi, (f, actual, points)) in feats.iter().enumerate() {
+            let t = c.ftype(*f);
+            let fpos = st.arg(fi);
+            if !actual {
+                return Err(
+                    c.sem(fpos, format!("TA({}) is evaluated on actual features: FA(…), not F(…)", l.name))
+                );
+            }
+            use FeatType as F;
+            let ok = match &tol.kind {
+                TolKind::Flat(_) => t == F::Plane,
+                TolKind::Strght(_) => t == F::Line,
+                TolKind::Cirlty(_) => t == F::Circle,
+                TolKind::Cylcty(_) => t == F::Cylndr,
+                TolKind::Diam { .. } | TolKind::Rad { .. } => matches!(t, F::Circle | F::Cylndr | F::Sphere),
+                TolKind::Pos { three_d, .. } => {
+                    matches!(t, F::Point | F::Circle | F::Cylndr) || (*three_d && t == F::Sphere)
+                }
+                TolKind::Perp { .. } | TolKind::Parlel { .. } => {
+                    matches!(t, F::Plane | F::Line | F::Cylndr | F::Cone)
+                }
+                TolKind::Anglb { .. } => has_direction(t),
+                TolKind::Distb { .. } => point_like(t) || matches!(t, F::Plane | F::Cylndr),
+            };
+            if !ok {
+                return Err(c.sem(
+                    fpos,
+                    format!("TA({}) ({}) does not apply to a {t}", l.name, tol.statement_word()),
+                ));
+            }
+            let form = matches!(
+                tol.kind,
+                TolKind::Flat(_)
+                    | TolKind::Strght(_)
+                    | TolKind::Cirlty(_)
+                    | TolKind::Cylcty(_)
+                    | TolKind::Perp { .. }
+                    | TolKind::Parlel { .. }
+            );
+            if form && !points {
+                return Err(c.sem(
+                    fpos,
+                    format!(
+                        "TA({}) needs measured points, and this feature was constructed without any",
+                        l.name
+                    ),
+                ));
+            }
+        }
+        if let (TolKind::Pos { .. }, Statement::Tol { tol: Tol::Pos { datums, .. }, .. }) =
+            (&tol.kind, &tol.statement)
+        {
+            if !datums.is_empty() {
+                let want: Vec<usize> = datums.iter().filter_map(|d| c.datum(d, pos).ok()).collect();
+                let active = c.active_datums.clone().unwrap_or_default();
+                if active.len() < want.len() || active[..want.len()] != want[..] {
+                    return Err(c.sem(
+                        pos,
+                        format!(
+                            "TA({}) refers to datums that the active coordinate system was not set from (DATSET with those datums first): position is reported in the active coordinate system",
+                            l.name
+                        ),
+                    ));
+                }
+            }
+        }
+        items.push(OutputItem::Tolerance {
+            tolerance: k,
+            features: feats.iter().map(|f| f.0).collect(),
+            actual: true,
+        });
+    }
+    Ok(items)
+}
+
+impl Tolerance {
+    /// The tolerance kind's DMIS word (`FLAT`, `POS`, …).
+    pub fn statement_word(&self) -> &'static str {
+        match &self.statement {
+            Statement::Tol { tol, .. } => tol.word(),
+            _ => "TOL",
+        }
+    }
+}

@@ -1,0 +1,151 @@
+//! Results of a run: the DMIS output file's lines (`FA(label)=FEAT/…`, `TA(label)=TOL/…`, in the
+//! program's units) and the contract's JSON.
+//!
+//! Entry points: [`feat_line`], [`tol_line`], [`json`].
+
+use crate::ast::{AngleUnit, FeatType, LengthUnit, Side};
+use crate::exec::{FeatureResult, Geom, RunResult, TolResult};
+use crate::model::{mm_per, rad_per, Feature};
+use serde_json::{json, Value};
+
+fn n5(v: f64) -> String {
+    // Five decimals as the NIST output file; no "-0.00000".
+    let s = format!("{v:.5}");
+    if s.trim_start_matches('-').chars().all(|c| c == '0' || c == '.') {
+        s.trim_start_matches('-').to_string()
+    } else {
+        s
+    }
+}
+
+/// `FA(label) = FEAT/…` with the values of `g` (part frame, mm) in `length`/`angle` units,
+/// continued over two lines as DMIS output files write it.
+pub fn feat_line(label: &str, f: &Feature, g: &Geom, length: LengthUnit, angle: AngleUnit) -> String {
+    let l = |v: f64| n5(v / mm_per(length));
+    let side = |s: Option<Side>| s.map(|s| format!("{s}, ")).unwrap_or_default();
+    let xyz = |p: &[f64; 3]| format!("{}, {}, {}", l(p[0]), l(p[1]), l(p[2]));
+    let ijk = |v: &[f64; 3]| format!("{}, {}, {}", n5(v[0]), n5(v[1]), n5(v[2]));
+    let a = |p: &truepos_math::Point3| [p.x, p.y, p.z];
+    let b = |v: &truepos_math::Vector3| [v.x, v.y, v.z];
+    let (head, values) = match g {
+        Geom::Point { p, n } => ("POINT, CART".to_string(), format!("{}, {}", xyz(&a(p)), ijk(&b(n)))),
+        Geom::Plane { p, n } => ("PLANE, CART".to_string(), format!("{}, {}", xyz(&a(p)), ijk(&b(n)))),
+        Geom::Line { p, dir } => {
+            ("LINE, UNBND, CART".to_string(), format!("{}, {}", xyz(&a(p)), ijk(&b(dir))))
+        }
+        Geom::Circle { c, n, r } => (
+            format!("CIRCLE, {}CART", side(f.side)),
+            format!("{}, {}, {}", xyz(&a(c)), ijk(&b(n)), l(2.0 * r)),
+        ),
+        Geom::Cylinder { p, axis, r } => (
+            format!("CYLNDR, {}CART", side(f.side)),
+            format!("{}, {}, {}", xyz(&a(p)), ijk(&b(axis)), l(2.0 * r)),
+        ),
+        Geom::Sphere { c, r } => {
+            (format!("SPHERE, {}CART", side(f.side)), format!("{}, {}", xyz(&a(c)), l(2.0 * r)))
+        }
+        Geom::Cone { apex, axis, half_angle } => (
+            format!("CONE, {}CART", side(f.side)),
+            format!("{}, {}, {}", xyz(&a(apex)), ijk(&b(axis)), n5(2.0 * half_angle / rad_per(angle))),
+        ),
+    };
+    format!("{label} = FEAT/{head},  $\n  {values}")
+}
+
+/// `TA(label) = TOL/<kind>, <value>, INTOL|OUTOL` in the program's units.
+pub fn tol_line(t: &TolResult, length: LengthUnit, angle: AngleUnit) -> String {
+    let v = if t.angular { t.value / rad_per(angle) } else { t.value / mm_per(length) };
+    format!("TA({}) = TOL/{}, {}, {}", t.label, t.kind, n5(v), if t.in_tolerance { "INTOL" } else { "OUTOL" })
+}
+
+fn arr(v: &truepos_math::Vector3) -> Value {
+    json!([v.x, v.y, v.z])
+}
+
+fn feature_json(f: &FeatureResult) -> Value {
+    let mut o = json!({
+        "label": f.label,
+        "type": f.ftype.word(),
+        "actual": f.actual,
+        "n_points": f.n_points,
+    });
+    let m = o.as_object_mut().expect("object");
+    if let Some(s) = f.side {
+        m.insert("side".into(), json!(s.word()));
+    }
+    match &f.geom {
+        Geom::Point { p, n } | Geom::Plane { p, n } => {
+            m.insert("point_mm".into(), arr(&p.coords));
+            m.insert("normal".into(), arr(n));
+        }
+        Geom::Line { p, dir } => {
+            m.insert("point_mm".into(), arr(&p.coords));
+            m.insert("direction".into(), arr(dir));
+        }
+        Geom::Circle { c, n, r } => {
+            m.insert("center_mm".into(), arr(&c.coords));
+            m.insert("normal".into(), arr(n));
+            m.insert("diameter_mm".into(), json!(2.0 * r));
+        }
+        Geom::Cylinder { p, axis, r } => {
+            m.insert("point_mm".into(), arr(&p.coords));
+            m.insert("axis".into(), arr(axis));
+            m.insert("diameter_mm".into(), json!(2.0 * r));
+        }
+        Geom::Sphere { c, r } => {
+            m.insert("center_mm".into(), arr(&c.coords));
+            m.insert("diameter_mm".into(), json!(2.0 * r));
+        }
+        Geom::Cone { apex, axis, half_angle } => {
+            m.insert("apex_mm".into(), arr(&apex.coords));
+            m.insert("axis".into(), arr(axis));
+            m.insert("apex_angle_deg".into(), json!(2.0 * half_angle.to_degrees()));
+        }
+    }
+    m.insert("u_position_mm".into(), json!(f.u_position_mm));
+    if matches!(f.ftype, FeatType::Circle | FeatType::Cylndr | FeatType::Sphere) {
+        m.insert("u_diameter_mm".into(), json!(f.u_diameter_mm));
+    }
+    o
+}
+
+fn tol_json(t: &TolResult) -> Value {
+    let verdict = if t.in_tolerance { "INTOL" } else { "OUTOL" };
+    if t.angular {
+        json!({
+            "label": t.label,
+            "feature": t.features.first(),
+            "features": t.features,
+            "kind": t.kind,
+            "value_mm": null,
+            "limits_mm": null,
+            "value_deg": t.value.to_degrees(),
+            "limits_deg": [t.limits.0.to_degrees(), t.limits.1.to_degrees()],
+            "verdict": verdict,
+        })
+    } else {
+        json!({
+            "label": t.label,
+            "feature": t.features.first(),
+            "features": t.features,
+            "kind": t.kind,
+            "value_mm": t.value,
+            "limits_mm": [t.limits.0, t.limits.1],
+            "verdict": verdict,
+        })
+    }
+}
+
+/// The contract's JSON of a run.
+pub fn json(program: &str, r: &RunResult, output_file: Option<&str>) -> Value {
+    json!({
+        "program": program,
+        "machine": { "address": r.machine.address, "version": r.machine.version },
+        "features": r.features.iter().map(feature_json).collect::<Vec<_>>(),
+        "tolerances": r.tolerances.iter().map(tol_json).collect::<Vec<_>>(),
+        "n_points": r.n_points,
+        "elapsed_s": r.elapsed_s,
+        "output": output_file,
+        "verdict": if r.any_out_of_tolerance() { "OUTOL" } else { "INTOL" },
+    })
+}

@@ -1,0 +1,160 @@
+//! `truepos dmis run` as a process: the NIST example on the virtual CMM (output file, JSON,
+//! progress), the same through `truepos ippdme serve`, `--dry-run`, a malformed program (exit 2
+//! naming file, line and column, no output file), an unknown sensor (exit 2, nothing moved), a
+//! probing without surface (exit 3 naming the line, no output file), a tolerance out (exit 1).
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+fn truepos() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_truepos"))
+}
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn copy_example(dir: &Path) -> (PathBuf, PathBuf) {
+    let prog = dir.join("simple_in.dms");
+    let part = dir.join("part.toml");
+    std::fs::copy(repo().join("data/dmis/simple_in.dms"), &prog).unwrap();
+    std::fs::copy(repo().join("data/dmis/simple_part.toml"), &part).unwrap();
+    (prog, part)
+}
+
+#[test]
+fn the_nist_example_runs_on_the_virtual_cmm() {
+    let dir = tempfile::tempdir().unwrap();
+    let (prog, part) = copy_example(dir.path());
+    let out = truepos()
+        .args(["dmis", "run"])
+        .arg(&prog)
+        .arg("--part")
+        .arg(&part)
+        .args(["--sensor", "PROBE6=Probe1", "--json"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(stderr.contains("dmis: line 23: MEAS/CIRCLE,F(A_CIRCLE): 4 points"), "{stderr}");
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(j["n_points"], 4);
+    let f = &j["features"][0];
+    assert_eq!(f["label"], "A_CIRCLE");
+    assert_eq!(f["type"], "CIRCLE");
+    assert!((f["diameter_mm"].as_f64().unwrap() - 50.0).abs() < 0.01, "{f}");
+    assert!((f["center_mm"][0].as_f64().unwrap() - 50.0).abs() < 0.01, "{f}");
+    // No DEVICE in the program: the results go beside it.
+    let results = std::fs::read_to_string(dir.path().join("simple_in_output.dms")).unwrap();
+    assert!(results.starts_with("FILNAM/'IPP SIMPLE DMIS output'\nUNITS/MM,ANGDEC\nD(START)=DATSET/MCS\nOUTPUT/FA(A_CIRCLE)\nFA(A_CIRCLE) = FEAT/CIRCLE, INNER, CART,  $\n  "), "{results}");
+    assert!(results.ends_with("ENDFIL\n"));
+}
+
+#[test]
+fn the_nist_example_runs_through_an_ippdme_server_process() {
+    let dir = tempfile::tempdir().unwrap();
+    let (prog, part) = copy_example(dir.path());
+    let mut server = truepos()
+        .args(["ippdme", "serve", "--port", "0", "--part"])
+        .arg(&part)
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = BufReader::new(server.stderr.take().unwrap());
+    let mut first = String::new();
+    err.read_line(&mut first).unwrap();
+    let addr = first.trim().strip_prefix("ippdme: listening on ").unwrap().to_string();
+    // The operator homes the machine (truepos never does).
+    {
+        use std::io::Write;
+        let s = std::net::TcpStream::connect(&addr).unwrap();
+        let mut w = s.try_clone().unwrap();
+        w.write_all(b"00001 StartSession()\r\n00002 Home()\r\n00003 EndSession()\r\n").unwrap();
+        let mut r = BufReader::new(s);
+        let mut l = String::new();
+        while r.read_line(&mut l).unwrap() > 0 {
+            if l.starts_with("00003 %") {
+                break;
+            }
+            l.clear();
+        }
+    }
+    let results = dir.path().join("results.dms");
+    let out = truepos()
+        .args(["dmis", "run"])
+        .arg(&prog)
+        .args(["--controller", &format!("ippdme://{addr}"), "--sensor", "PROBE6=Probe1", "--output"])
+        .arg(&results)
+        .output()
+        .unwrap();
+    let _ = server.kill();
+    let _ = server.wait();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(std::fs::read_to_string(&results).unwrap().contains("FA(A_CIRCLE) = FEAT/CIRCLE, INNER, CART"));
+}
+
+#[test]
+fn dry_run_lists_the_motions_without_a_machine() {
+    let out = truepos()
+        .args(["dmis", "run", "--dry-run"])
+        .arg(repo().join("data/dmis/simple_in.dms"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(text.lines().filter(|l| l.starts_with("PTMEAS")).count(), 4, "{text}");
+    assert!(text.lines().next().unwrap().starts_with("GOTO (50.0000, 50.0000, 175.0000)"), "{text}");
+}
+
+#[test]
+fn refusals_have_their_exit_codes_and_leave_no_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let (prog, part) = copy_example(dir.path());
+    let run = |prog: &Path, extra: &[&str]| {
+        truepos().args(["dmis", "run"]).arg(prog).arg("--part").arg(&part).args(extra).output().unwrap()
+    };
+    // Malformed: exit 2 with file:line:col.
+    let bad = dir.path().join("bad.dms");
+    std::fs::write(
+        &bad,
+        std::fs::read_to_string(&prog).unwrap().replace("PTMEAS/CART, 25.0", "PTMEAS/CART, 25.0.0"),
+    )
+    .unwrap();
+    let out = run(&bad, &["--sensor", "PROBE6=Probe1"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("bad.dms:26:"), "{stderr}");
+    assert!(!dir.path().join("bad_output.dms").exists());
+    // A sensor the CMM has no tool for: exit 2 before any motion.
+    let out = run(&prog, &[]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("simple_in.dms:12:") && stderr.contains("--sensor PROBE6=TOOL"), "{stderr}");
+    assert!(!stderr.contains("MEAS/"), "{stderr}");
+    // No surface: exit 3 naming the PTMEAS line; no results file.
+    let lost = dir.path().join("lost.dms");
+    std::fs::write(
+        &lost,
+        std::fs::read_to_string(&prog).unwrap().replace("PTMEAS/CART, 75.0", "PTMEAS/CART, 60.0"),
+    )
+    .unwrap();
+    let out = run(&lost, &["--sensor", "PROBE6=Probe1"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{stderr}");
+    assert!(stderr.contains("lost.dms:25:") && stderr.contains("without contact"), "{stderr}");
+    assert!(!dir.path().join("lost_output.dms").exists());
+    // A tolerance out: exit 1, results written.
+    let tight = dir.path().join("tight.dms");
+    std::fs::write(
+        &tight,
+        std::fs::read_to_string(&prog)
+            .unwrap()
+            .replace("OUTPUT/FA(A_CIRCLE)", "T(D)=TOL/DIAM,-0.00001,0.00001\nOUTPUT/FA(A_CIRCLE),TA(D)"),
+    )
+    .unwrap();
+    let out = run(&tight, &["--sensor", "PROBE6=Probe1"]);
+    assert_eq!(out.status.code(), Some(1), "{}", String::from_utf8_lossy(&out.stderr));
+    let results = std::fs::read_to_string(dir.path().join("tight_output.dms")).unwrap();
+    assert!(results.contains("TA(D) = TOL/DIAM, ") && results.contains(", OUTOL"), "{results}");
+}
