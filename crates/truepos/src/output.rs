@@ -51,6 +51,37 @@ pub fn progress(len: u64, message: &str) -> indicatif::ProgressBar {
     pb
 }
 
+/// A size, feed, rate or limit: a finite number above zero (`--diameter-mm -25` and
+/// `--diameter-mm=-25` both end here: every option accepts negative numbers as values, see
+/// `cmd::command`).
+pub fn positive(s: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("must be positive (got {v})"))
+    }
+}
+
+/// A radius, noise level or amount that may be zero but not negative.
+pub fn non_negative(s: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    if v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("must be zero or positive (got {v})"))
+    }
+}
+
+/// A finite number.
+pub fn number(s: &str) -> Result<f64, String> {
+    s.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|v| v.is_finite())
+        .ok_or_else(|| format!("'{}' is not a finite number", s.trim()))
+}
+
 /// Parse `"x,y,z"` (for `--something-mm X,Y,Z` options).
 pub fn parse_triple(s: &str) -> Result<[f64; 3], String> {
     let v = parse_list(s)?;

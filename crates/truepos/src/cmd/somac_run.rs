@@ -15,7 +15,7 @@ use truepos_io::InputError;
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos simulate somac --out spar && truepos somac run --program spar/program.nc --cell spar/cell.toml --json\n\nExit code 1 when a stop is not SUCCESS, the run halted, or an alarm other than an\nautomatically recovered beam break fired."
+    after_help = "Exit code 1 when a stop is not SUCCESS, the run halted, or an alarm other than an\nautomatically recovered beam break fired."
 )]
 pub struct RunArgs {
     /// The G-code program; measurement blocks carry the loop's keyword comment ([loop] keyword, default `(MSG,Measure SOMaC)`).
@@ -47,9 +47,6 @@ pub struct RunArgs {
 }
 
 #[derive(clap::Args, Debug)]
-#[command(
-    after_help = "Example:\n  truepos simulate somac --out spar --seed 1   # program.nc, cell.toml, truth.json"
-)]
 pub struct SimArgs {
     #[command(flatten)]
     pub common: super::SimCommon,
