@@ -132,6 +132,68 @@ fn header_hint(path: &Path, header: &[String]) -> Option<String> {
     None
 }
 
+/// The number format that keeps the precision an input CSV carries in `columns`: `Fixed(d)`
+/// with `d` the most decimals among the first 1000 data rows (at least
+/// [`MIN_OUTPUT_DECIMALS`]), when that is at most
+/// [`FULL_PRECISION_DECIMALS`]; the shortest round-trip text when it is more (a machine-written
+/// full-precision double), when a value has an exponent, or when the file is not a CSV that can
+/// be read (Parquet, E57: binary doubles). Reads at most the first 256 KiB.
+pub fn input_precision(path: &Path, columns: &[&str]) -> NumFormat {
+    use std::io::Read;
+    if crate::parquet_file::is_parquet(path) || crate::e57_file::is_e57(path) {
+        return NumFormat::Shortest;
+    }
+    let mut head = Vec::new();
+    let Ok(f) = std::fs::File::open(path) else {
+        return NumFormat::Shortest;
+    };
+    if f.take(256 << 10).read_to_end(&mut head).is_err() {
+        return NumFormat::Shortest;
+    }
+    let text = String::from_utf8_lossy(&head);
+    let mut lines =
+        text.lines().map(trim_line).filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    let Some(header) = lines.next() else {
+        return NumFormat::Shortest;
+    };
+    let names: Vec<&str> = header.split(',').map(str::trim).collect();
+    let idx: Vec<usize> = columns.iter().filter_map(|c| names.iter().position(|n| n == c)).collect();
+    if idx.is_empty() {
+        return NumFormat::Shortest;
+    }
+    let mut most = 0usize;
+    let mut rows = 0;
+    // The last line may be cut by the 256 KiB window: it is not looked at.
+    let complete = text.rfind('\n').map_or("", |e| &text[..e]);
+    let mut lines =
+        complete.lines().map(trim_line).filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    lines.next();
+    for line in lines.take(1000) {
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        for &i in &idx {
+            let Some(f) = fields.get(i) else { continue };
+            if f.contains(['e', 'E']) {
+                return NumFormat::Shortest;
+            }
+            most = most.max(f.split_once('.').map_or(0, |(_, d)| d.len()));
+        }
+        rows += 1;
+    }
+    if rows == 0 || most > FULL_PRECISION_DECIMALS {
+        NumFormat::Shortest
+    } else {
+        NumFormat::Fixed(most.max(MIN_OUTPUT_DECIMALS) as u8)
+    }
+}
+
+/// At least this many decimals (1 nm in mm) whatever the input shows: a correction of a few
+/// micrometres to `250` or `10.5` must not be rounded away.
+pub const MIN_OUTPUT_DECIMALS: usize = 6;
+
+/// More decimals than this (in mm: below a picometre) is a full-precision double written by a
+/// program, not a measured precision: [`input_precision`] then keeps the shortest round-trip text.
+pub const FULL_PRECISION_DECIMALS: usize = 9;
+
 /// What a field that is not a number probably is, when it looks like a known mistake.
 fn value_hint(s: &str) -> Option<&'static str> {
     let t = s.trim().trim_start_matches(['+', '-']);
@@ -2835,5 +2897,22 @@ mod tests {
         std::fs::write(&f, b"PK\x03\x04\x14\x00\x06\x00\x08\x00\x00\x00!\x00").unwrap();
         let e = crate::points::read_points(&f).err().expect("an error").to_string();
         assert!(e.contains("Excel workbook"), "{e}");
+    }
+
+    /// Outputs keep the input's precision: decimals as written, full doubles round-trip.
+    #[test]
+    fn input_precision_follows_the_input() {
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("p.csv");
+        let cols = ["x_mm", "y_mm", "z_mm"];
+        std::fs::write(&f, "# c\nid,x_mm,y_mm,z_mm\nP1,1.5,2.1234567,3\nP2,1,2,3.25\n").unwrap();
+        assert_eq!(input_precision(&f, &cols), NumFormat::Fixed(7));
+        std::fs::write(&f, "x_mm,y_mm,z_mm\n250,10.5,3\n").unwrap();
+        assert_eq!(input_precision(&f, &cols), NumFormat::Fixed(6));
+        std::fs::write(&f, "x_mm,y_mm,z_mm\n379.1898194711725,1,2\n").unwrap();
+        assert_eq!(input_precision(&f, &cols), NumFormat::Shortest);
+        std::fs::write(&f, "x_mm,y_mm,z_mm\n1e-3,1,2\n").unwrap();
+        assert_eq!(input_precision(&f, &cols), NumFormat::Shortest);
+        assert_eq!(input_precision(&dir.path().join("none.csv"), &cols), NumFormat::Shortest);
     }
 }

@@ -82,6 +82,23 @@ pub fn number(s: &str) -> Result<f64, String> {
         .ok_or_else(|| format!("'{}' is not a finite number", s.trim()))
 }
 
+/// A spinner with `message` on stderr while a step of unknown length runs (only when stderr is
+/// a terminal; hidden otherwise, so logs and pipes stay clean). Finish it with
+/// `finish_and_clear`.
+pub fn spinner(message: &str) -> indicatif::ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let pb = indicatif::ProgressBar::with_draw_target(None, indicatif::ProgressDrawTarget::stderr());
+    pb.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} {msg} ({elapsed})")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+    );
+    pb.set_message(message.to_string());
+    pb.enable_steady_tick(std::time::Duration::from_millis(120));
+    pb
+}
+
 /// Parse `"x,y,z"` (for `--something-mm X,Y,Z` options).
 pub fn parse_triple(s: &str) -> Result<[f64; 3], String> {
     let v = parse_list(s)?;

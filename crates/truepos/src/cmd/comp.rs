@@ -100,8 +100,9 @@ pub struct CorrectArgs {
     /// The points are targets: write commanded positions c with c + E(c) = T.
     #[arg(long)]
     pub commanded: bool,
-    /// Write numbers with this many decimals (default: the shortest text that reads back as the
-    /// same number).
+    /// Write numbers with this many decimals (default: as many as the input's coordinates carry,
+    /// at least 6 (1 nm), e.g. 7 for 379.1898195; the shortest round-trip text when they carry
+    /// more than 9 or an exponent, and for Parquet or E57 input).
     #[arg(long)]
     pub decimals: Option<u8>,
     /// Print a JSON summary on stdout.
@@ -148,7 +149,10 @@ pub fn run(a: Args) -> Result<Outcome> {
     match a.command {
         Sub::Correct(a) => {
             let map = a.map.files().read()?;
-            let fmt = NumFormat::from_decimals(a.decimals).map_err(crate::UsageError)?;
+            let fmt = match a.decimals {
+                Some(_) => NumFormat::from_decimals(a.decimals).map_err(crate::UsageError)?,
+                None => truepos_io::csv::input_precision(&a.points, &["x_mm", "y_mm", "z_mm"]),
+            };
             let mode = if a.commanded { Mode::Commanded } else { Mode::Measured };
             emit(&task::correct(&map, a.map.probe_offset(), &a.points, &a.output, mode, fmt)?, a.json)?
         }

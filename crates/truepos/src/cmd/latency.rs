@@ -209,7 +209,11 @@ pub fn run(a: Args) -> Result<Outcome> {
         )
         .into());
     };
-    let r = task::estimate_files(machine, probe, options(&a)?)?;
+    let opts = options(&a)?;
+    let pb = crate::output::spinner("system delay: reading the streams, finding the contacts, estimating");
+    let r = task::estimate_files(machine, probe, opts);
+    pb.finish_and_clear();
+    let r = r?;
     for w in &r.estimate.warnings {
         eprintln!("warning: {w}");
     }

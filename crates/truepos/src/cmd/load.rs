@@ -102,7 +102,9 @@ pub struct CorrectCmd {
     /// Probe offset for --geometric-map (ram frame, mm).
     #[arg(long, value_parser = parse_triple, default_value = "0,0,0")]
     pub probe_offset_mm: [f64; 3],
-    /// Write numbers with this many decimals (default: shortest round-trip text).
+    /// Write numbers with this many decimals (default: as many as the input's coordinates carry,
+    /// at least 6 (1 nm), e.g. 7 for 379.1898195; the shortest round-trip text when they carry
+    /// more than 9 or an exponent, and for Parquet or E57 input).
     #[arg(long)]
     pub decimals: Option<u8>,
     /// Print one JSON object on stdout (human text goes to stderr).
@@ -173,7 +175,10 @@ pub fn run(a: Args) -> Result<Outcome> {
                 Some(m) => Some(map_files(m, &a.squareness).read()?),
                 None => None,
             };
-            let fmt = NumFormat::from_decimals(a.decimals).map_err(crate::UsageError)?;
+            let fmt = match a.decimals {
+                Some(_) => NumFormat::from_decimals(a.decimals).map_err(crate::UsageError)?,
+                None => truepos_io::csv::input_precision(&a.points, &["x_mm", "y_mm", "z_mm"]),
+            };
             let r = task::load_correct(
                 &a.map,
                 &a.load,

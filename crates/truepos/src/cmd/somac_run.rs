@@ -90,7 +90,10 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         })
     } else {
         audit.set_controller("virtual", "truepos virtual gantry cell")?;
-        run_virtual(&text, cfg, targets, &params, &mut audit).map_err(anyhow::Error::from)
+        let pb = crate::output::spinner("somac: running the program on the virtual gantry with the trackers");
+        let r = run_virtual(&text, cfg, targets, &params, &mut audit).map_err(anyhow::Error::from);
+        pb.finish_and_clear();
+        r
     };
     // The run row records its end and final status, whatever happened.
     let (status, message) = match &vr {
