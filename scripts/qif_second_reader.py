@@ -7,7 +7,7 @@ characteristics so they can be compared with `truepos fit --json`.
 Never run in CI. Usage (from the repository root; a throw-away venv):
 
     python3 -m venv /tmp/qifvenv && /tmp/qifvenv/bin/pip install xmlschema
-    /tmp/qifvenv/bin/python scripts/qif_second_reader.py ../shared/schemas/qif3 FILE.qif ...
+    /tmp/qifvenv/bin/python scripts/qif_second_reader.py data/schemas/qif3 FILE.qif ...
 """
 import sys
 import xmlschema

@@ -224,13 +224,16 @@ pub struct Written {
 impl Written {
     /// What `truepos simulate scan` prints: the files and the command that scans the part.
     pub fn text(&self) -> String {
+        // The points go beside the scenario's files, as every other scenario's outputs do.
+        let points = self.features.with_file_name("points.csv");
         format!(
-            "wrote {} and {} ({} features)\nscan with: truepos scan run --features {} --part {} --output points.csv --json\n",
+            "wrote {} and {} ({} features)\nscan with: truepos scan run --features {} --part {} --output {} --json\n",
             self.features.display(),
             self.truth.display(),
             self.n_features,
             self.features.display(),
-            self.truth.display()
+            self.truth.display(),
+            points.display()
         )
     }
 }

@@ -333,9 +333,9 @@ impl MachineFile {
 /// Read and check a [`MachineFile`]: syntax errors and unknown keys name the file, line and
 /// column; out-of-range values name the file and the key.
 pub fn read_machine_file(path: &Path) -> Result<(CmmConfig, ControlParams), InputError> {
-    let file: MachineFile = truepos_io::config::read_toml(path)?;
+    let (file, doc): (MachineFile, _) = truepos_io::config::read_toml_doc(path)?;
     let (m, c) = file.apply();
-    m.check().map_err(|e| InputError::in_file(path, e.to_string()))?;
-    c.check().map_err(|e| InputError::in_file(path, e.to_string()))?;
+    m.check().map_err(|e| doc.locate_error(InputError::in_file(path, e.to_string())))?;
+    c.check().map_err(|e| doc.locate_error(InputError::in_file(path, e.to_string())))?;
     Ok((m, c))
 }

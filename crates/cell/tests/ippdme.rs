@@ -2,9 +2,7 @@
 //! and scan accuracy against the part's truth, every malformed-input class, and the client
 //! (`truepos_ippdme::client`) probing a sphere that `truepos_fit` then fits.
 //!
-//! The NIST files are read from `shared/data/ippdme` beside the repository (or
-//! `$TRUEPOS_IPPDME_DATA`); without them
-//! the conformance test prints `SKIPPED` and returns.
+//! The NIST files are the repository's `data/ippdme` (a missing file is a failure, not a skip).
 
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read, Write};
@@ -94,15 +92,11 @@ fn item(items: &[(String, Vec<f64>)], k: &str) -> Vec<f64> {
 // ---------------------------------------------------------------------------------------------
 // NIST conformance
 
-fn data_dir() -> Option<PathBuf> {
-    // shared/ sits beside the repository (CI), or beside the worktrees' folder.
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let candidates = [
-        std::env::var_os("TRUEPOS_IPPDME_DATA").map(PathBuf::from),
-        Some(root.join("../shared/data/ippdme")),
-        Some(root.join("../../shared/data/ippdme")),
-    ];
-    candidates.into_iter().flatten().find(|d| d.join("PtMeas.prg").exists())
+/// The NIST I++ DME test files shipped in the repository (`data/ippdme`).
+fn data_dir() -> PathBuf {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/ippdme");
+    assert!(dir.join("PtMeas.prg").is_file(), "the NIST I++ DME files are missing from {}", dir.display());
+    dir
 }
 
 /// Records of a NIST `.prg`/`.res` file: lines between `\\` separators, up to the `:` lines.
@@ -236,10 +230,7 @@ fn run_prg(dir: &Path, name: &str) -> (usize, usize, Vec<String>) {
 
 #[test]
 fn nist_conformance_files() {
-    let Some(dir) = data_dir() else {
-        eprintln!("SKIPPED: the NIST I++ DME files (../shared/data/ippdme) are not there");
-        return;
-    };
+    let dir = data_dir();
     let mut names: Vec<String> = std::fs::read_dir(&dir)
         .unwrap()
         .filter_map(|e| e.ok())
@@ -275,10 +266,7 @@ fn nist_conformance_files() {
 
 #[test]
 fn nist_parser_errors_all_get_an_error() {
-    let Some(dir) = data_dir() else {
-        eprintln!("SKIPPED: the NIST I++ DME files are not there");
-        return;
-    };
+    let dir = data_dir();
     let h = start(None, None);
     let mut c = Raw::connect(&h);
     let cmds = records(&dir.join("parserCmdErrors.prg"));

@@ -140,18 +140,59 @@ pub struct BedInfo {
     pub grid: LoadGrid,
 }
 
-/// Read the bed TOML (`[bed]`, `[portal]`, `[grid]`): the one reader of this format.
+/// Read the bed TOML (`[bed]`, `[portal]`, `[grid]`): the one reader of this format. Every value
+/// found wrong (a size that is not positive, a pad off the bed, a portal that cannot be) is
+/// reported at its line and column.
 pub fn read_bed(path: &Path) -> Result<BedInfo, InputError> {
-    let f: BedFile = truepos_io::config::read_toml(path)?;
+    let (f, doc): (BedFile, _) = truepos_io::config::read_toml_doc(path)?;
     let bed = match f.bed {
         None => None,
         Some(b) => {
+            for (key, v) in [
+                ("size_x_mm", b.size_x_mm),
+                ("size_y_mm", b.size_y_mm),
+                ("thickness_mm", b.thickness_mm),
+                ("youngs_modulus_mpa", b.youngs_modulus_mpa),
+            ] {
+                doc.positive(&["bed", key], v)?;
+            }
+            if !(b.poisson.is_finite() && b.poisson > -1.0 && b.poisson < 0.5) {
+                return Err(doc.error_at(
+                    &["bed", "poisson"],
+                    format!("[bed] poisson = {}: must lie between -1 and 0.5", b.poisson),
+                ));
+            }
+            if let Some(k) = b.support_stiffness_n_per_mm {
+                doc.positive(&["bed", "support_stiffness_n_per_mm"], k)?;
+            }
+            if let Some(e) = b.element_size_mm {
+                doc.positive(&["bed", "element_size_mm"], e)?;
+            }
+            let tol = 1e-9 * b.size_x_mm.max(b.size_y_mm);
+            for (i, p) in b.supports_mm.iter().flatten().enumerate() {
+                let inside = p.iter().all(|v| v.is_finite())
+                    && (-tol..=b.size_x_mm + tol).contains(&p[0])
+                    && (-tol..=b.size_y_mm + tol).contains(&p[1]);
+                if !inside {
+                    return Err(doc.error_at(
+                        &["bed", "supports_mm", &i.to_string()],
+                        format!(
+                            "[bed] supports_mm: pad {} at ({}, {}) mm is off the {} × {} mm bed",
+                            i + 1,
+                            p[0],
+                            p[1],
+                            b.size_x_mm,
+                            b.size_y_mm
+                        ),
+                    ));
+                }
+            }
             let supports = match (&b.supports_mm, b.supports.as_deref()) {
-                (Some(_), Some(_)) => return Err(InputError::in_file(path, "[bed]: give either supports_mm or supports, not both")),
+                (Some(_), Some(_)) => return Err(doc.error_at(&["bed", "supports"], "[bed]: give either supports_mm or supports, not both")),
                 (Some(xy), None) => Supports::Points { xy: xy.clone(), stiffness_n_per_mm: b.support_stiffness_n_per_mm },
                 (None, Some("simply-supported-edges")) => Supports::SimplySupportedEdges,
-                (None, Some(other)) => return Err(InputError::in_file(path, format!("[bed] supports = \"{other}\": the only keyword is \"simply-supported-edges\" (or give supports_mm)"))),
-                (None, None) => return Err(InputError::in_file(path, "[bed]: supports_mm = [[x, y], ...] (or supports = \"simply-supported-edges\") is required")),
+                (None, Some(other)) => return Err(doc.error_at(&["bed", "supports"], format!("[bed] supports = \"{other}\": the only keyword is \"simply-supported-edges\" (or give supports_mm)"))),
+                (None, None) => return Err(doc.error_at(&["bed"], "[bed]: supports_mm = [[x, y], ...] (or supports = \"simply-supported-edges\") is required")),
             };
             Some((
                 Bed {
@@ -166,6 +207,10 @@ pub fn read_bed(path: &Path) -> Result<BedInfo, InputError> {
             ))
         }
     };
+    if let Some(p) = &f.portal {
+        doc.positive(&["portal", "bearing_span_mm"], p.bearing_span_mm)?;
+        doc.positive(&["portal", "y_step_mm"], p.y_step_mm)?;
+    }
     let portal = f.portal.map(|p| Portal {
         rail_x: p.rail_x_mm,
         rail_height: p.rail_height_mm,
@@ -174,8 +219,19 @@ pub fn read_bed(path: &Path) -> Result<BedInfo, InputError> {
         y_step: p.y_step_mm,
     });
     if let Some(p) = &portal {
-        p.validate().map_err(|e| InputError::in_file(path, format!("[portal]: {e}")))?;
+        p.validate().map_err(|e| {
+            let key = match e {
+                crate::load::PortalError::Rails(..) => "rail_x_mm",
+                crate::load::PortalError::Span(..) => "bearing_span_mm",
+                crate::load::PortalError::Range(..) => "y_range_mm",
+                _ => "",
+            };
+            let keys: &[&str] = if key.is_empty() { &["portal"] } else { &["portal", key] };
+            doc.error_at(keys, format!("[portal]: {e}"))
+        })?;
     }
+    doc.positive(&["grid", "spacing_mm"], f.grid.spacing_mm)?;
+    doc.positive(&["grid", "unit_load_n"], f.grid.unit_load_n)?;
     Ok(BedInfo {
         bed,
         portal,
@@ -216,8 +272,24 @@ pub const G: f64 = 9.80665;
 /// Read a load case TOML (`mass_kg`/`weight_n`, `cog_mm`, `rest_points_mm` or `[[rest]]`) and
 /// resolve it to point loads.
 pub fn read_load(path: &Path) -> Result<LoadCase, InputError> {
-    let f: LoadToml = truepos_io::config::read_toml(path)?;
+    let (f, doc): (LoadToml, _) = truepos_io::config::read_toml_doc(path)?;
     let err = |m: String| InputError::in_file(path, m);
+    if let Some(m) = f.mass_kg {
+        doc.positive(&["mass_kg"], m)?;
+    }
+    if let Some(w) = f.weight_n {
+        doc.positive(&["weight_n"], w)?;
+    }
+    for (i, r) in f.rest.iter().flatten().enumerate() {
+        for (k, v) in [("x_mm", r.x_mm), ("y_mm", r.y_mm), ("force_n", r.force_n)] {
+            if !v.is_finite() {
+                return Err(doc.error_at(
+                    &["rest", &i.to_string(), k],
+                    format!("[[rest]] #{} {k} is not finite", i + 1),
+                ));
+            }
+        }
+    }
     let weight = match (f.mass_kg, f.weight_n) {
         (Some(m), None) => Some(m * G),
         (None, Some(w)) => Some(w),
@@ -379,7 +451,16 @@ struct SqToml {
 pub fn read_squareness(path: &Path) -> Result<Squareness, InputError> {
     let is_toml = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml"));
     let (xy, xz, yz) = if is_toml {
-        let f: SqFile = truepos_io::config::read_toml(path)?;
+        let (f, doc): (SqFile, _) = truepos_io::config::read_toml_doc(path)?;
+        for (k, v) in [
+            ("xy_urad", f.squareness.xy_urad),
+            ("xz_urad", f.squareness.xz_urad),
+            ("yz_urad", f.squareness.yz_urad),
+        ] {
+            if !v.is_finite() {
+                return Err(doc.error_at(&["squareness", k], format!("[squareness] {k} is not finite")));
+            }
+        }
         (f.squareness.xy_urad, f.squareness.xz_urad, f.squareness.yz_urad)
     } else {
         let t = Table::read(path)?;

@@ -148,6 +148,19 @@ fn fmt3(v: &Value) -> String {
     }
 }
 
+/// An uncertainty in fixed notation with two significant digits (`0.00000024`, `0.00030`,
+/// `1.2`), so that a small one is never shown as zero; an exact zero is `0`.
+pub fn fmt_uncertainty(u: f64) -> String {
+    if !u.is_finite() {
+        return format!("{u}");
+    }
+    if u == 0.0 {
+        return "0".into();
+    }
+    let decimals = (1 - u.abs().log10().floor() as i32).clamp(0, 20) as usize;
+    format!("{u:.decimals$}")
+}
+
 /// The fit object of [`evaluation`] for people: geometry first, then residuals and form, then
 /// expanded uncertainties (k stated) and the characteristics with their verdicts.
 pub fn text(v: &Value) -> String {
@@ -179,11 +192,22 @@ pub fn text(v: &Value) -> String {
     if let Some(u) = v.get("expanded_uncertainty").and_then(|u| u.as_object()) {
         w!(out, "  expanded uncertainties (k = {COVERAGE_FACTOR}):");
         for (k, x) in u {
-            if x.is_array() {
-                w!(out, "    U({k:<16}) {}", fmt3(x));
-            } else {
-                w!(out, "    U({k:<16}) {:.9}", x.as_f64().unwrap_or(f64::NAN));
-            }
+            // The quantity's label and unit as above (`U(centre)`, mm), two significant digits.
+            let (label, unit) = order
+                .iter()
+                .find(|(key, ..)| key == k)
+                .map(|(_, l, u)| (l.to_string(), *u))
+                .unwrap_or_else(|| (k.clone(), ""));
+            let shown = match x.as_array() {
+                Some(a) => a
+                    .iter()
+                    .map(|c| fmt_uncertainty(c.as_f64().unwrap_or(f64::NAN)))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                None => fmt_uncertainty(x.as_f64().unwrap_or(f64::NAN)),
+            };
+            let unit = if unit.is_empty() { "(unit vector components)" } else { unit };
+            w!(out, "    {:<21} {shown}  {unit}", format!("U({label})"));
         }
     }
     if let Some(cs) = v.get("characteristics").and_then(|c| c.as_array()) {
@@ -199,4 +223,18 @@ pub fn text(v: &Value) -> String {
         w!(out, "  verdict: {}", v["verdict"].as_str().unwrap_or(""));
     }
     out
+}
+
+#[cfg(test)]
+mod uncertainty_text_tests {
+    use super::fmt_uncertainty;
+
+    #[test]
+    fn small_uncertainties_keep_two_significant_digits() {
+        assert_eq!(fmt_uncertainty(2.36e-7), "0.00000024");
+        assert_eq!(fmt_uncertainty(0.000298), "0.00030");
+        assert_eq!(fmt_uncertainty(1.234), "1.2");
+        assert_eq!(fmt_uncertainty(25.0), "25");
+        assert_eq!(fmt_uncertainty(0.0), "0");
+    }
 }

@@ -1,4 +1,4 @@
-//! Every NIST reference data set (`../shared/data/nist-fit`) against its certified fit.
+//! Every NIST reference data set (the repository's `data/nist-fit`) against its certified fit.
 //!
 //! Tolerances are the project's target from the data set README: 1e-6 mm for positions and
 //! sizes, 1e-8 rad for orientations. NIST's certified values carry ~20 significant digits; the
@@ -16,10 +16,7 @@ const POS_TOL: f64 = 1e-6;
 const ANG_TOL: f64 = 1e-8;
 
 fn data_dir() -> PathBuf {
-    if let Ok(d) = std::env::var("TRUEPOS_SHARED_DATA") {
-        return PathBuf::from(d).join("nist-fit");
-    }
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/nist-fit")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/nist-fit")
 }
 
 /// `(name, points, certified values)` for every data set of a kind (folder).

@@ -44,6 +44,17 @@ impl std::ops::Deref for Text {
 }
 
 impl Text {
+    /// A file whose lines end in a carriage return alone (classic Mac OS) as LF lines: the same
+    /// lines, numbered the same. Other text is returned as it is (a file with any LF is not
+    /// looked at further; `memchr` finds the first LF within the first line).
+    fn with_lf_lines(self) -> Text {
+        let b = self.as_bytes();
+        if memchr::memchr(b'\n', b).is_none() && memchr::memchr(b'\r', b).is_some() {
+            return Text::Owned(self.replace('\r', "\n"));
+        }
+        self
+    }
+
     /// Let go of the text. A memory map is unmapped on a short-lived thread of its own: tearing
     /// down the page tables of a large map takes milliseconds (about 2 ms for 30 MB) that the
     /// caller, about to compute on what it parsed, need not wait for. (If no thread can be
@@ -68,6 +79,137 @@ pub struct Table {
     /// (`cartesianInvalidState`); 0 for every other format. Commands that read points through
     /// a table can report it as `truepos fit` does.
     pub skipped_invalid: usize,
+}
+
+/// The message for a column the header lacks, with what the header says about the file when it
+/// tells why: separated by `;` or tabs (spreadsheet exports with a decimal comma), or not CSV at
+/// all (TOML, JSON, a spreadsheet by its extension).
+pub(crate) fn missing_column_message(path: &Path, name: &str, header: &[String]) -> String {
+    let mut msg = format!("missing required column '{name}' (columns: {})", header.join(","));
+    if let Some(hint) = header_hint(path, header) {
+        msg.push_str(": ");
+        msg.push_str(&hint);
+    }
+    msg
+}
+
+/// See [`missing_column_message`].
+fn header_hint(path: &Path, header: &[String]) -> Option<String> {
+    if let Some(kind) = crate::limits::other_format(path) {
+        return Some(format!("this is {kind}, not a CSV file{}", crate::limits::export_hint(kind, "CSV")));
+    }
+    let first = header.first().map(String::as_str).unwrap_or("");
+    let whole = header.join(",");
+    if whole.contains('\r') {
+        return Some(
+            "the lines end in a carriage return alone (classic Mac OS): convert them to LF or CRLF \
+             line ends (e.g. tr '\\r' '\\n' < in.csv > out.csv)"
+                .into(),
+        );
+    }
+    let toml_like = (first.starts_with('[') && first.trim_end().ends_with(']'))
+        || (header.len() == 1 && first.contains(" = "));
+    if first.starts_with('{')
+        || (first.starts_with('[') && whole.trim_start_matches('[').trim_start().starts_with(['{', '"']))
+    {
+        return Some("this looks like JSON, not a CSV file (points: x_mm,y_mm,z_mm columns)".into());
+    }
+    if toml_like {
+        return Some("this looks like a TOML file, not a CSV file (points: x_mm,y_mm,z_mm columns)".into());
+    }
+    if header.len() == 1 && first.contains(';') {
+        return Some(
+            "the fields are separated by ';': truepos reads comma-separated files with a decimal point \
+             (export as CSV with ',' between fields and '.' in numbers, e.g. x_mm,y_mm,z_mm / 102.99606)"
+                .into(),
+        );
+    }
+    if header.len() == 1 && first.contains('\t') {
+        return Some(
+            "the fields are separated by tabs: truepos reads comma-separated files (x_mm,y_mm,z_mm)".into(),
+        );
+    }
+    None
+}
+
+/// The number format that keeps the precision an input CSV carries in `columns`: `Fixed(d)`
+/// with `d` the most decimals among the first 1000 data rows (at least
+/// [`MIN_OUTPUT_DECIMALS`]), when that is at most
+/// [`FULL_PRECISION_DECIMALS`]; the shortest round-trip text when it is more (a machine-written
+/// full-precision double), when a value has an exponent, or when the file is not a CSV that can
+/// be read (Parquet, E57: binary doubles). Reads at most the first 256 KiB.
+pub fn input_precision(path: &Path, columns: &[&str]) -> NumFormat {
+    use std::io::Read;
+    if crate::parquet_file::is_parquet(path) || crate::e57_file::is_e57(path) {
+        return NumFormat::Shortest;
+    }
+    let mut head = Vec::new();
+    let Ok(f) = std::fs::File::open(path) else {
+        return NumFormat::Shortest;
+    };
+    if f.take(256 << 10).read_to_end(&mut head).is_err() {
+        return NumFormat::Shortest;
+    }
+    let text = String::from_utf8_lossy(&head);
+    let mut lines =
+        text.lines().map(trim_line).filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    let Some(header) = lines.next() else {
+        return NumFormat::Shortest;
+    };
+    let names: Vec<&str> = header.split(',').map(str::trim).collect();
+    let idx: Vec<usize> = columns.iter().filter_map(|c| names.iter().position(|n| n == c)).collect();
+    if idx.is_empty() {
+        return NumFormat::Shortest;
+    }
+    let mut most = 0usize;
+    let mut rows = 0;
+    // The last line may be cut by the 256 KiB window: it is not looked at.
+    let complete = text.rfind('\n').map_or("", |e| &text[..e]);
+    let mut lines =
+        complete.lines().map(trim_line).filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    lines.next();
+    for line in lines.take(1000) {
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        for &i in &idx {
+            let Some(f) = fields.get(i) else { continue };
+            if f.contains(['e', 'E']) {
+                return NumFormat::Shortest;
+            }
+            most = most.max(f.split_once('.').map_or(0, |(_, d)| d.len()));
+        }
+        rows += 1;
+    }
+    if rows == 0 || most > FULL_PRECISION_DECIMALS {
+        NumFormat::Shortest
+    } else {
+        NumFormat::Fixed(most.max(MIN_OUTPUT_DECIMALS) as u8)
+    }
+}
+
+/// At least this many decimals (1 nm in mm) whatever the input shows: a correction of a few
+/// micrometres to `250` or `10.5` must not be rounded away.
+pub const MIN_OUTPUT_DECIMALS: usize = 6;
+
+/// More decimals than this (in mm: below a picometre) is a full-precision double written by a
+/// program, not a measured precision: [`input_precision`] then keeps the shortest round-trip text.
+pub const FULL_PRECISION_DECIMALS: usize = 9;
+
+/// What a field that is not a number probably is, when it looks like a known mistake.
+fn value_hint(s: &str) -> Option<&'static str> {
+    let t = s.trim().trim_start_matches(['+', '-']);
+    let decimal_comma = t.split_once(',').is_some_and(|(a, b)| {
+        !a.is_empty()
+            && !b.is_empty()
+            && a.bytes().all(|c| c.is_ascii_digit())
+            && b.bytes().all(|c| c.is_ascii_digit())
+    });
+    if decimal_comma {
+        Some("a decimal comma: truepos reads a decimal point (102.99606, not 102,99606)")
+    } else if s.contains(';') {
+        Some("fields separated by ';': truepos reads comma-separated files")
+    } else {
+        None
+    }
 }
 
 /// Split one CSV line into field byte ranges (relative to the line), honouring double quotes.
@@ -420,6 +562,7 @@ impl Table {
     }
 
     fn from_text(path: &Path, text: Text) -> Result<Self, InputError> {
+        let text = text.with_lf_lines();
         let (header, comments, data) = Self::head(path, &text)?;
         // The data rows are indexed in parallel (segments split at line ends).
         let rows = index_rows_parallel(&text, data)
@@ -594,6 +737,7 @@ impl Table {
         text: Text,
         names: &[&str; 4],
     ) -> Result<Result<(Vec<f64>, Vec<[f64; 3]>), Table>, InputError> {
+        let text = text.with_lf_lines();
         let (header, _, data) = Self::head(path, &text)?;
         let idx: Option<Vec<usize>> = names.iter().map(|n| header.iter().position(|h| h == n)).collect();
         let rows = match idx {
@@ -623,6 +767,7 @@ impl Table {
         names: &[&str; K],
         segments: Option<Segments>,
     ) -> Result<Result<Vec<[f64; K]>, Table>, InputError> {
+        let text = text.with_lf_lines();
         let (header, _, data) = Self::head(path, &text)?;
         let idx: Option<Vec<usize>> = names.iter().map(|n| header.iter().position(|h| h == n)).collect();
         let plain = !header.iter().any(|h| h == "id");
@@ -659,7 +804,7 @@ impl Table {
                 &self.path,
                 self.header_line(),
                 None,
-                format!("missing required column '{name}' (columns: {})", self.header.join(",")),
+                missing_column_message(&self.path, name, &self.header),
             )
         })
     }
@@ -792,7 +937,11 @@ impl RowError {
         } else if s.parse::<f64>().is_ok() {
             format!("not a finite number: '{s}'")
         } else {
-            format!("not a number: '{}'", s.chars().take(40).collect::<String>())
+            let mut m = format!("not a number: '{}'", s.chars().take(40).collect::<String>());
+            if let Some(h) = value_hint(&s) {
+                m.push_str(&format!(" ({h})"));
+            }
+            m
         };
         InputError::at(path, line, Some(self.col + 1), what).with_column_name(header[self.col].clone())
     }
@@ -2703,5 +2852,67 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The usual mistakes get a message that says what the file is: separated by ';' or tabs,
+    /// decimal commas, TOML or JSON given as points, a spreadsheet, CR-only line ends (read).
+    #[test]
+    fn usual_mistakes_are_named() {
+        let need = ["x_mm", "y_mm", "z_mm"];
+        let err = |text: &str| table(text).and_then(|t| t.f64_rows(&need)).unwrap_err().to_string();
+        let e = err("x_mm;y_mm;z_mm\n102,99606;1,5;2\n");
+        assert!(e.contains("separated by ';'") && e.contains("decimal point"), "{e}");
+        let e = err("x_mm\ty_mm\tz_mm\n1\t2\t3\n");
+        assert!(e.contains("separated by tabs"), "{e}");
+        let e = err("x_mm,y_mm,z_mm\n\"102,996060\",1,2\n");
+        assert!(e.contains("not a number: '102,996060'") && e.contains("decimal comma"), "{e}");
+        assert!(e.starts_with("t.csv:2:1:"), "{e}");
+        let e = err("[bed]\nsize_x_mm = 2000\n");
+        assert!(e.contains("TOML"), "{e}");
+        let e = err("{\"points\": [1, 2, 3]}\n");
+        assert!(e.contains("JSON"), "{e}");
+        // By extension, whatever the text.
+        let e = Table::from_bytes("p.toml", b"a = 1\n".to_vec()).unwrap().f64_rows(&need).unwrap_err();
+        assert!(e.to_string().contains("this is a TOML file"), "{e}");
+        // CR-only line ends are lines.
+        let t = table("# c\rx_mm,y_mm,z_mm\r1,2,3\r4,5,6\r").unwrap();
+        assert_eq!(t.f64_rows(&need).unwrap(), vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
+        assert_eq!(t.line_number(1), 4);
+        match Table::rows_direct(Path::new("t.csv"), Text::Owned("x_mm,y_mm,z_mm\r1,2,3\r".into()), &need) {
+            Ok(Ok(rows)) => assert_eq!(rows, vec![[1.0, 2.0, 3.0]]),
+            Ok(Err(t)) => assert_eq!(t.f64_rows(&need).unwrap(), vec![[1.0, 2.0, 3.0]]),
+            Err(e) => panic!("{e}"),
+        }
+    }
+
+    /// A spreadsheet given as CSV is named by its first bytes (an .xlsx is a ZIP archive).
+    #[test]
+    fn a_spreadsheet_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("points.csv");
+        std::fs::write(&f, b"PK\x03\x04\x14\x00\x06\x00\x08\x00\x00\x00!\x00").unwrap();
+        let e = Table::read(&f).unwrap_err().to_string();
+        assert!(e.contains("ZIP archive") && e.contains("save the sheet as CSV"), "{e}");
+        let f = dir.path().join("points.xlsx");
+        std::fs::write(&f, b"PK\x03\x04\x14\x00\x06\x00\x08\x00\x00\x00!\x00").unwrap();
+        let e = crate::points::read_points(&f).err().expect("an error").to_string();
+        assert!(e.contains("Excel workbook"), "{e}");
+    }
+
+    /// Outputs keep the input's precision: decimals as written, full doubles round-trip.
+    #[test]
+    fn input_precision_follows_the_input() {
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("p.csv");
+        let cols = ["x_mm", "y_mm", "z_mm"];
+        std::fs::write(&f, "# c\nid,x_mm,y_mm,z_mm\nP1,1.5,2.1234567,3\nP2,1,2,3.25\n").unwrap();
+        assert_eq!(input_precision(&f, &cols), NumFormat::Fixed(7));
+        std::fs::write(&f, "x_mm,y_mm,z_mm\n250,10.5,3\n").unwrap();
+        assert_eq!(input_precision(&f, &cols), NumFormat::Fixed(6));
+        std::fs::write(&f, "x_mm,y_mm,z_mm\n379.1898194711725,1,2\n").unwrap();
+        assert_eq!(input_precision(&f, &cols), NumFormat::Shortest);
+        std::fs::write(&f, "x_mm,y_mm,z_mm\n1e-3,1,2\n").unwrap();
+        assert_eq!(input_precision(&f, &cols), NumFormat::Shortest);
+        assert_eq!(input_precision(&dir.path().join("none.csv"), &cols), NumFormat::Shortest);
     }
 }

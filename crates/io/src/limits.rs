@@ -79,9 +79,54 @@ pub fn line_too_long(path: &Path, line: usize) -> InputError {
     )
 }
 
-/// The error for a NUL byte (binary data).
+/// The error for a NUL byte (binary data); a file of a known other kind (a spreadsheet, a ZIP
+/// archive) is named as such ([`other_format`]).
 pub fn binary(path: &Path, line: usize, what: &str) -> InputError {
-    InputError::at(path, line, None, format!("binary data (NUL byte): not a {what} text file"))
+    let mut msg = format!("binary data (NUL byte): not a {what} text file");
+    if let Some(kind) = other_format(path) {
+        msg = format!("this is {kind}, not a {what} text file{}", export_hint(kind, what));
+    }
+    InputError::at(path, line, None, msg)
+}
+
+/// What to do with a file of another kind given where text of kind `what` was expected.
+pub fn export_hint(kind: &str, what: &str) -> &'static str {
+    if what != "CSV" {
+        return "";
+    }
+    if kind.contains("spreadsheet") || kind.contains("workbook") || kind.contains("ZIP") {
+        "; save the sheet as CSV (comma-separated, decimal point; points need the columns x_mm,y_mm,z_mm)"
+    } else {
+        "; points are CSV with the columns x_mm,y_mm,z_mm (or .ds, .parquet, .e57)"
+    }
+}
+
+/// A file of a known kind other than text, or a text format that is not CSV, from its
+/// extension or its first bytes: "an Excel workbook (.xlsx)", "a TOML file", … `None` when it
+/// is none of these (or cannot be read).
+pub fn other_format(path: &Path) -> Option<&'static str> {
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let by_ext = match ext.as_str() {
+        "xlsx" | "xlsm" | "xlsb" => Some("an Excel workbook (.xlsx)"),
+        "xls" => Some("an Excel 97-2003 workbook (.xls)"),
+        "ods" => Some("an OpenDocument spreadsheet (.ods)"),
+        "numbers" => Some("a Numbers spreadsheet"),
+        "toml" => Some("a TOML file"),
+        "json" => Some("a JSON file"),
+        "zip" => Some("a ZIP archive"),
+        _ => None,
+    };
+    if by_ext.is_some() {
+        return by_ext;
+    }
+    let mut head = [0u8; 8];
+    let n = std::fs::File::open(path).and_then(|mut f| f.read(&mut head)).ok()?;
+    match &head[..n] {
+        [b'P', b'K', 3, 4, ..] => Some("a ZIP archive (an .xlsx or .ods spreadsheet?)"),
+        [0xD0, 0xCF, 0x11, 0xE0, 0xA1, 0xB1, 0x1A, 0xE1] => Some("an Excel 97-2003 workbook (.xls)"),
+        [b'P', b'A', b'R', b'1', ..] => Some("a Parquet file without the .parquet extension"),
+        _ => None,
+    }
 }
 
 /// Refuse a regular file over the limit from its metadata (cheap, before any read).

@@ -69,6 +69,14 @@ pub fn parse_ds(path: &Path, bytes: &[u8]) -> Result<Vec<Point3>, InputError> {
     if text.contains('\0') {
         return Err(InputError::in_file(path, "binary data (NUL byte): not a .ds file"));
     }
+    // Lines ending in a carriage return alone (classic Mac OS) read as lines.
+    let owned;
+    let text = if !text.contains('\n') && text.contains('\r') {
+        owned = text.replace('\r', "\n");
+        owned.as_str()
+    } else {
+        text
+    };
     let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
     let Some((l0, first)) = lines.next() else {
         return Err(InputError::in_file(path, "empty file: expected a point count on the first line"));

@@ -117,10 +117,9 @@ impl Source {
                 input,
                 format!("column '{name}' holds text, a number column is needed"),
             )),
-            None => Err(InputError::in_file(
-                input,
-                format!("missing required column '{name}' (columns: {})", self.names.join(",")),
-            )),
+            None => {
+                Err(InputError::in_file(input, crate::csv::missing_column_message(input, name, &self.names)))
+            }
         }
     }
 }

@@ -426,7 +426,7 @@ impl CsvStream {
                 self.path.as_path(),
                 self.header_line,
                 None,
-                format!("missing required column '{name}' (columns: {})", self.header.join(",")),
+                crate::csv::missing_column_message(&self.path, name, &self.header),
             )
         })
     }

@@ -14,21 +14,14 @@ use truepos_math::{Point3, Vector3};
 use truepos_qif::{read_plan, results_from_evaluation, write_results, FeatureKind};
 
 fn schema() -> PathBuf {
-    let base = match std::env::var("TRUEPOS_SHARED_DATA") {
-        Ok(d) => PathBuf::from(d).join(".."),
-        Err(_) => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared"),
-    };
-    base.join("schemas/qif3/QIFApplications/QIFDocument.xsd")
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/schemas/qif3/QIFApplications/QIFDocument.xsd")
 }
 
 /// `Some(true)` all valid, `Some(false)` some invalid (with xmllint's messages printed), `None`
 /// skipped. One xmllint run for all files: loading the schema set is most of the time.
 fn xmllint(paths: &[PathBuf]) -> Option<bool> {
     let xsd = schema();
-    if !xsd.is_file() {
-        eprintln!("SKIPPED: QIF schemas not found at {}", xsd.display());
-        return None;
-    }
+    assert!(xsd.is_file(), "QIF schemas missing at {} (they ship in data/schemas)", xsd.display());
     match Command::new("xmllint").args(["--noout", "--nonet", "--schema"]).arg(&xsd).args(paths).output() {
         Ok(o) => {
             if !o.status.success() {

@@ -174,6 +174,18 @@ pub fn read_features(path: &Path, c: &ParamOverrides) -> Result<(Vec<Feature>, P
             Err(feature_error(path, &text, &id, format!("feature '{id}': {why}")).into())
         }
         Err(e @ ScanError::ApproachAngle(_)) => Err(FeaturesError::Usage(e)),
+        // A parameter of the file: at its line (a key the file does not have came from an option).
+        Err(e @ (ScanError::Parameter(..) | ScanError::Bands(..))) => {
+            let key = match e {
+                ScanError::Parameter(k, _) => k,
+                _ => "quality_bands_mm",
+            };
+            let doc = truepos_io::config::TomlDoc { path: path.to_path_buf(), text };
+            match doc.locate(&[key]) {
+                Some(_) => Err(doc.error_at(&[key], e.to_string()).into()),
+                None => Err(FeaturesError::Usage(e)),
+            }
+        }
         Err(e) => Err(InputError::in_file(path, e.to_string()).into()),
     }
 }

@@ -11,7 +11,6 @@ mod cmd;
 #[allow(dead_code)] // helpers used as capabilities land
 mod output;
 
-use clap::Parser;
 use std::process::ExitCode;
 
 /// What a command that finished reports.
@@ -146,11 +145,25 @@ fn main() -> ExitCode {
 }
 
 fn real_main() -> ExitCode {
-    let cli = match cmd::Cli::try_parse() {
+    let parsed = cmd::command()
+        .try_get_matches()
+        .and_then(|m| <cmd::Cli as clap::FromArgMatches>::from_arg_matches(&m));
+    let cli = match parsed {
         Ok(c) => c,
         Err(e) => {
             // --help and --version print to stdout and exit 0; usage errors exit 2.
             let _ = e.print();
+            if e.kind() == clap::error::ErrorKind::DisplayHelp {
+                // The examples, verbatim (clap re-wraps its own text to the terminal).
+                let args: Vec<String> = std::env::args().skip(1).collect();
+                let path = cmd::examples::help_path(&cmd::command(), &args);
+                let block = cmd::examples::block(&path);
+                if !block.is_empty() {
+                    use std::io::Write;
+                    let mut out = std::io::stdout().lock();
+                    let _ = out.write_all(block.as_bytes()).and_then(|_| out.flush());
+                }
+            }
             return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
         }
     };

@@ -51,6 +51,54 @@ pub fn progress(len: u64, message: &str) -> indicatif::ProgressBar {
     pb
 }
 
+/// A size, feed, rate or limit: a finite number above zero (`--diameter-mm -25` and
+/// `--diameter-mm=-25` both end here: every option accepts negative numbers as values, see
+/// `cmd::command`).
+pub fn positive(s: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("must be positive (got {v})"))
+    }
+}
+
+/// A radius, noise level or amount that may be zero but not negative.
+pub fn non_negative(s: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    if v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("must be zero or positive (got {v})"))
+    }
+}
+
+/// A finite number.
+pub fn number(s: &str) -> Result<f64, String> {
+    s.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|v| v.is_finite())
+        .ok_or_else(|| format!("'{}' is not a finite number", s.trim()))
+}
+
+/// A spinner with `message` on stderr while a step of unknown length runs (only when stderr is
+/// a terminal; hidden otherwise, so logs and pipes stay clean). Finish it with
+/// `finish_and_clear`.
+pub fn spinner(message: &str) -> indicatif::ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let pb = indicatif::ProgressBar::with_draw_target(None, indicatif::ProgressDrawTarget::stderr());
+    pb.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} {msg} ({elapsed})")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+    );
+    pb.set_message(message.to_string());
+    pb.enable_steady_tick(std::time::Duration::from_millis(120));
+    pb
+}
+
 /// Parse `"x,y,z"` (for `--something-mm X,Y,Z` options).
 pub fn parse_triple(s: &str) -> Result<[f64; 3], String> {
     let v = parse_list(s)?;

@@ -11,11 +11,13 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_truepos"))
 }
 
+/// The repository's reference data (`data/`).
+fn data_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data")
+}
+
 fn nist_dir() -> PathBuf {
-    if let Ok(d) = std::env::var("TRUEPOS_SHARED_DATA") {
-        return PathBuf::from(d).join("nist-fit");
-    }
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/nist-fit")
+    data_dir().join("nist-fit")
 }
 
 fn run_json(kind: &str, file: &Path) -> Value {
@@ -404,11 +406,8 @@ fn degenerate_data_beyond_exact_integers() {
 }
 
 fn xmllint_ok(path: &Path) -> Option<bool> {
-    let xsd = nist_dir().join("../../schemas/qif3/QIFApplications/QIFDocument.xsd");
-    if !xsd.is_file() {
-        eprintln!("SKIPPED: QIF schemas not found at {}", xsd.display());
-        return None;
-    }
+    let xsd = data_dir().join("schemas/qif3/QIFApplications/QIFDocument.xsd");
+    assert!(xsd.is_file(), "QIF schemas missing at {}", xsd.display());
     match Command::new("xmllint").args(["--noout", "--nonet", "--schema"]).arg(&xsd).arg(path).output() {
         Ok(o) => {
             if !o.status.success() {

@@ -72,7 +72,8 @@ pub fn write_scenario(dir: &Path, seed: u64, mass_kg: f64, noise_um: f64) -> Res
     write_atomic(dir.join("load.toml"), load_toml(&cfg).as_bytes())?;
     let mut f = AtomicFile::create(dir.join("points.csv"))?;
     {
-        let mut w = CsvWriter::new(&mut f);
+        // 7 decimals: 0.1 nm, far below the probing noise; outputs keep this precision.
+        let mut w = CsvWriter::new(&mut f).with_format(truepos_io::num::NumFormat::Fixed(7));
         w.comment(&format!(
             "indicated coordinates on the loaded virtual CMM, seed {seed}, probing noise {} µm per axis",
             cfg.noise_sigma * 1e3

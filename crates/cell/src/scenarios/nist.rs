@@ -1,10 +1,12 @@
 //! The fitting section of the demo: every NIST algorithm-testing data set (ASME B89.4.10 /
-//! ISO 10360-6, in `shared/data/nist-fit`) fitted by `truepos-fit` and compared with NIST's
-//! certified least-squares result. It needs the reference data rather than the virtual plant,
-//! but it is one of the demo's evaluations, so it lives with the others.
+//! ISO 10360-6, shipped in the repository's `data/nist-fit` and embedded in the binary) fitted by
+//! `truepos-fit` and compared with NIST's certified least-squares result. It needs the reference
+//! data rather than the virtual plant, but it is one of the demo's evaluations, so it lives with
+//! the others.
 //!
-//! Entry points: [`shared_data_dir`], [`nist_table`] (the comparison, also used by tests),
-//! [`demo_section`].
+//! Entry points: [`NIST_SETS`] (the data sets, compiled in, so an installed binary runs this
+//! section from any directory), [`nist_table`] (the comparison, also used by tests),
+//! [`nist_table_dir`] (the same on a folder laid out like `data/nist-fit`), [`demo_section`].
 
 use crate::error::Result;
 use crate::report::{self, Report};
@@ -13,14 +15,53 @@ use truepos_fit::evaluate::Kind;
 use truepos_io::InputError;
 use truepos_math::{Point3, Vector3};
 
-/// Where the shared reference data lives: `$TRUEPOS_SHARED_DATA`, else `../shared/data` from the
-/// working directory. (No path of the build tree is baked into the binary.)
-pub fn shared_data_dir() -> Option<PathBuf> {
-    if let Ok(d) = std::env::var("TRUEPOS_SHARED_DATA") {
-        return Some(PathBuf::from(d));
-    }
-    Some(PathBuf::from("../shared/data")).filter(|p| p.join("nist-fit").is_dir())
+/// One NIST data set as shipped: its folder under `data/nist-fit`, its name, the `.ds` points
+/// file and the `.fit` certified values.
+pub struct NistSet {
+    pub kind: Kind,
+    pub folder: &'static str,
+    pub name: &'static str,
+    pub ds: &'static [u8],
+    pub fit: &'static str,
 }
+
+macro_rules! nist_set {
+    ($kind:expr, $folder:literal, $name:literal) => {
+        NistSet {
+            kind: $kind,
+            folder: $folder,
+            name: $name,
+            ds: include_bytes!(concat!("../../../../data/nist-fit/", $folder, "/", $name, ".ds")),
+            fit: include_str!(concat!("../../../../data/nist-fit/", $folder, "/", $name, ".fit")),
+        }
+    };
+}
+
+/// Every data set of `data/nist-fit`, in folder order (line, plane, circle, sphere, cylinder,
+/// cone) and by name within a folder. A test checks that this list and the folder agree.
+pub const NIST_SETS: &[NistSet] = &[
+    nist_set!(Kind::Line, "Line3d", "lin3"),
+    nist_set!(Kind::Plane, "Plane", "pla22"),
+    nist_set!(Kind::Plane, "Plane", "pla7"),
+    nist_set!(Kind::Circle, "Circle3d", "cir10"),
+    nist_set!(Kind::Circle, "Circle3d", "cir20"),
+    nist_set!(Kind::Circle, "Circle3d", "cir5"),
+    nist_set!(Kind::Sphere, "Sphere", "sph14"),
+    nist_set!(Kind::Sphere, "Sphere", "sph22"),
+    nist_set!(Kind::Sphere, "Sphere", "sph5"),
+    nist_set!(Kind::Cylinder, "Cylinder", "cyl21"),
+    nist_set!(Kind::Cone, "Cone", "con17"),
+];
+
+/// The folders of `data/nist-fit` and the element each holds.
+pub const NIST_FOLDERS: [(&str, Kind); 6] = [
+    ("Line3d", Kind::Line),
+    ("Plane", Kind::Plane),
+    ("Circle3d", Kind::Circle),
+    ("Sphere", Kind::Sphere),
+    ("Cylinder", Kind::Cylinder),
+    ("Cone", Kind::Cone),
+];
 
 /// One NIST data set fitted and compared with its certified result.
 pub struct NistRow {
@@ -40,20 +81,25 @@ fn line_dist(p: &Point3, q: &Point3, d: &Vector3) -> f64 {
     (v - d * v.dot(d)).norm()
 }
 
-/// Fit every NIST data set under `dir` (`nist-fit`) and compare with the certified values as
-/// its README says (lines and axes by angle and point-to-line distance, cones at the axis point,
-/// sizes as diameters).
-pub fn nist_table(dir: &Path) -> Result<Vec<NistRow>> {
-    let folders = [
-        ("Line3d", Kind::Line),
-        ("Plane", Kind::Plane),
-        ("Circle3d", Kind::Circle),
-        ("Sphere", Kind::Sphere),
-        ("Cylinder", Kind::Cylinder),
-        ("Cone", Kind::Cone),
-    ];
+/// Fit every embedded NIST data set ([`NIST_SETS`]) and compare with its certified values as
+/// the data's README says (lines and axes by angle and point-to-line distance, cones at the axis
+/// point, sizes as diameters).
+pub fn nist_table() -> Result<Vec<NistRow>> {
+    NIST_SETS
+        .iter()
+        .map(|s| {
+            let ds = PathBuf::from(format!("data/nist-fit/{}/{}.ds", s.folder, s.name));
+            let pts = truepos_io::points::parse_ds(&ds, s.ds)?;
+            compare(s.kind, s.name, &pts, &ds.with_extension("fit"), s.fit)
+        })
+        .collect()
+}
+
+/// [`nist_table`] on a folder laid out like `data/nist-fit` (one sub-folder per element, `.ds`
+/// and `.fit` pairs), read at run time.
+pub fn nist_table_dir(dir: &Path) -> Result<Vec<NistRow>> {
     let mut rows = Vec::new();
-    for (folder, kind) in folders {
+    for (folder, kind) in NIST_FOLDERS {
         let mut files: Vec<PathBuf> = std::fs::read_dir(dir.join(folder))?
             .filter_map(|e| e.ok().map(|e| e.path()))
             .filter(|p| p.extension().is_some_and(|e| e == "ds"))
@@ -63,73 +109,69 @@ pub fn nist_table(dir: &Path) -> Result<Vec<NistRow>> {
             let pts = truepos_io::points::read_ds(&ds)?;
             let fit_path = ds.with_extension("fit");
             let text = std::fs::read_to_string(&fit_path)?;
-            let c: Vec<f64> = text
-                .split_whitespace()
-                .map(|t| {
-                    t.parse::<f64>()
-                        .map_err(|_| InputError::in_file(&fit_path, format!("not a number: '{t}'")))
-                })
-                .collect::<Result<_, _>>()?;
-            let need = match kind {
-                Kind::Sphere => 4,
-                Kind::Line | Kind::Plane => 6,
-                Kind::Circle | Kind::Cylinder => 7,
-                Kind::Cone => 8,
-            };
-            if c.len() < need {
-                return Err(InputError::in_file(
-                    &fit_path,
-                    format!("expected {need} values, found {}", c.len()),
-                )
-                .into());
-            }
-            let p = Point3::new(c[0], c[1], c[2]);
-            let (pos, ang) = match kind {
-                Kind::Sphere => {
-                    let f = truepos_fit::sphere(&pts)?;
-                    ((f.center - p).norm().max((2.0 * f.radius - c[3]).abs()), 0.0)
-                }
-                _ => {
-                    let d = Vector3::new(c[3], c[4], c[5]).normalize();
-                    match kind {
-                        Kind::Line => {
-                            let f = truepos_fit::line(&pts)?;
-                            (line_dist(&p, &f.point, &f.direction), axis_angle(&f.direction, &d))
-                        }
-                        Kind::Plane => {
-                            let f = truepos_fit::plane(&pts)?;
-                            (f.distance(&p).abs(), axis_angle(&f.normal, &d))
-                        }
-                        Kind::Circle => {
-                            let f = truepos_fit::circle(&pts)?;
-                            (
-                                (f.center - p).norm().max((2.0 * f.radius - c[6]).abs()),
-                                axis_angle(&f.normal, &d),
-                            )
-                        }
-                        Kind::Cylinder => {
-                            let f = truepos_fit::cylinder(&pts)?;
-                            (
-                                line_dist(&p, &f.point, &f.axis).max((2.0 * f.radius - c[6]).abs()),
-                                axis_angle(&f.axis, &d),
-                            )
-                        }
-                        _ => {
-                            let f = truepos_fit::cone(&pts)?;
-                            let t = (p - f.point).dot(&f.axis);
-                            let pos =
-                                line_dist(&p, &f.point, &f.axis).max((f.surface_distance_at(t) - c[6]).abs());
-                            let signed = f.axis.cross(&d).norm().atan2(f.axis.dot(&d));
-                            (pos, signed.max((f.apex_angle - c[7].to_radians()).abs()))
-                        }
-                    }
-                }
-            };
             let name = ds.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-            rows.push(NistRow { kind, name, position_dev_mm: pos, angle_dev_rad: ang });
+            rows.push(compare(kind, &name, &pts, &fit_path, &text)?);
         }
     }
     Ok(rows)
+}
+
+/// Fit `pts` as `kind` and compare with the certified values in `fit_text` (from `fit_path`).
+fn compare(kind: Kind, name: &str, pts: &[Point3], fit_path: &Path, fit_text: &str) -> Result<NistRow> {
+    let c: Vec<f64> = fit_text
+        .split_whitespace()
+        .map(|t| t.parse::<f64>().map_err(|_| InputError::in_file(fit_path, format!("not a number: '{t}'"))))
+        .collect::<Result<_, _>>()?;
+    let need = match kind {
+        Kind::Sphere => 4,
+        Kind::Line | Kind::Plane => 6,
+        Kind::Circle | Kind::Cylinder => 7,
+        Kind::Cone => 8,
+    };
+    if c.len() < need {
+        return Err(
+            InputError::in_file(fit_path, format!("expected {need} values, found {}", c.len())).into()
+        );
+    }
+    let p = Point3::new(c[0], c[1], c[2]);
+    let (pos, ang) = match kind {
+        Kind::Sphere => {
+            let f = truepos_fit::sphere(pts)?;
+            ((f.center - p).norm().max((2.0 * f.radius - c[3]).abs()), 0.0)
+        }
+        _ => {
+            let d = Vector3::new(c[3], c[4], c[5]).normalize();
+            match kind {
+                Kind::Line => {
+                    let f = truepos_fit::line(pts)?;
+                    (line_dist(&p, &f.point, &f.direction), axis_angle(&f.direction, &d))
+                }
+                Kind::Plane => {
+                    let f = truepos_fit::plane(pts)?;
+                    (f.distance(&p).abs(), axis_angle(&f.normal, &d))
+                }
+                Kind::Circle => {
+                    let f = truepos_fit::circle(pts)?;
+                    ((f.center - p).norm().max((2.0 * f.radius - c[6]).abs()), axis_angle(&f.normal, &d))
+                }
+                Kind::Cylinder => {
+                    let f = truepos_fit::cylinder(pts)?;
+                    (
+                        line_dist(&p, &f.point, &f.axis).max((2.0 * f.radius - c[6]).abs()),
+                        axis_angle(&f.axis, &d),
+                    )
+                }
+                _ => {
+                    let f = truepos_fit::cone(pts)?;
+                    let t = (p - f.point).dot(&f.axis);
+                    let pos = line_dist(&p, &f.point, &f.axis).max((f.surface_distance_at(t) - c[6]).abs());
+                    let signed = f.axis.cross(&d).norm().atan2(f.axis.dot(&d));
+                    (pos, signed.max((f.apex_angle - c[7].to_radians()).abs()))
+                }
+            }
+        }
+    };
+    Ok(NistRow { kind, name: name.to_string(), position_dev_mm: pos, angle_dev_rad: ang })
 }
 
 /// Acceptance limits of the project (1 nm, 10 nrad); PTB's ISO 10360-6 limits are 100× looser.
@@ -142,8 +184,9 @@ pub const NIST_ANG_TOL_RAD: f64 = 1e-8;
 const NIST_COMPARISON_U_NM: f64 = 0.001;
 
 pub fn demo_section(report: &mut Report) -> Result<()> {
-    let Some(dir) = shared_data_dir() else {
-        let reason = "the NIST reference data (nist-fit) was not found";
+    let rows = nist_table()?;
+    if rows.is_empty() {
+        let reason = "no NIST reference data set is compiled into this build";
         report.verdict(report::Verdict::skipped("fit", "Fitting", reason));
         report.add(
             "fit",
@@ -151,8 +194,7 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
             format!("<p>Not run: {reason}.</p>"),
         );
         return Ok(());
-    };
-    let rows = nist_table(&dir.join("nist-fit"))?;
+    }
     let cells: Vec<Vec<String>> = rows
         .iter()
         .map(|r| {
@@ -208,33 +250,36 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
 mod tests {
     use super::*;
 
-    /// The demo's NIST table covers every data set and every one passes the project's limits
-    /// (the library's own tests check the same sets independently in crates/fit/tests/nist.rs).
+    /// The demo's NIST table covers every data set of `data/nist-fit` (the embedded list and
+    /// the folder agree, so a set added to one and not the other fails), the embedded sets are
+    /// the files byte for byte (same results as reading the folder), and every one passes the
+    /// project's limits (the library's own tests check the same sets independently in
+    /// crates/fit/tests/nist.rs).
     #[test]
     fn nist_table_covers_every_set_and_passes() {
-        // the test (not the binary) may look next to its source tree
-        let dir = shared_data_dir()
-            .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"))
-            .join("nist-fit");
-        if !dir.is_dir() {
-            eprintln!(
-                "SKIPPED: the NIST reference data is not at {} (set TRUEPOS_SHARED_DATA)",
-                dir.display()
-            );
-            return;
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/nist-fit");
+        let mut on_disk = Vec::new();
+        for (folder, _) in NIST_FOLDERS {
+            let mut names: Vec<String> = std::fs::read_dir(dir.join(folder))
+                .unwrap_or_else(|e| panic!("{}: {e}", dir.join(folder).display()))
+                .map(|e| e.unwrap().path())
+                .filter(|p| p.extension().is_some_and(|x| x == "ds"))
+                .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
+                .collect();
+            names.sort();
+            on_disk.extend(names.into_iter().map(|n| format!("{folder}/{n}")));
         }
-        let rows = nist_table(&dir).unwrap();
-        let n_ds = ["Line3d", "Plane", "Circle3d", "Sphere", "Cylinder", "Cone"]
-            .iter()
-            .map(|f| {
-                std::fs::read_dir(dir.join(f))
-                    .unwrap()
-                    .filter(|e| e.as_ref().unwrap().path().extension().is_some_and(|x| x == "ds"))
-                    .count()
-            })
-            .sum::<usize>();
-        assert_eq!(rows.len(), n_ds);
-        for r in &rows {
+        let embedded: Vec<String> = NIST_SETS.iter().map(|s| format!("{}/{}", s.folder, s.name)).collect();
+        assert_eq!(embedded, on_disk, "NIST_SETS and data/nist-fit differ");
+        assert!(embedded.len() >= 11);
+        let rows = nist_table().unwrap();
+        let from_dir = nist_table_dir(&dir).unwrap();
+        assert_eq!(rows.len(), from_dir.len());
+        for (r, d) in rows.iter().zip(&from_dir) {
+            assert_eq!(
+                (&r.name, r.position_dev_mm, r.angle_dev_rad),
+                (&d.name, d.position_dev_mm, d.angle_dev_rad)
+            );
             assert!(r.position_dev_mm < NIST_POS_TOL_MM && r.angle_dev_rad < NIST_ANG_TOL_RAD, "{}", r.name);
         }
         let mut report = Report::new(std::env::temp_dir().join("truepos-fit-demo-test"));

@@ -191,7 +191,9 @@ pub fn write_comp_dataset(dir: &Path, seed: u64) -> Result<CompWritten> {
     )?;
     let mut f = AtomicFile::create(&pts_p)?;
     {
-        let mut w = CsvWriter::new(std::io::BufWriter::new(&mut f));
+        // 7 decimals: 0.1 nm, far below the probing noise; outputs keep this precision.
+        let mut w =
+            CsvWriter::new(std::io::BufWriter::new(&mut f)).with_format(truepos_io::num::NumFormat::Fixed(7));
         w.comment(&format!(
             "{} points measured on the virtual bridge CMM (seed {seed}): x_mm,y_mm,z_mm are the indicated probe-tip coordinates (mm), probe {},{},{} mm from the ram.",
             d.indicated.len(), t.x, t.y, t.z

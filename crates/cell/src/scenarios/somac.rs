@@ -634,8 +634,8 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
 /// parameters. Unknown keys and bad values name the file (and line and column where TOML
 /// parsing finds them).
 pub fn read_cell_file(path: &Path) -> Result<(CellConfig, Targets, Params), InputError> {
-    let file: CellFile = truepos_io::config::read_toml(path)?;
-    file.to_config(path)
+    let (file, doc): (CellFile, _) = truepos_io::config::read_toml_doc(path)?;
+    file.to_config(path).map_err(|e| doc.locate_error(e))
 }
 
 /// What [`write_scenario`] wrote.

@@ -17,7 +17,7 @@ pub enum Method {
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos align --from tracker.csv --to machine.csv --json\n\nBoth files have columns id,x_mm,y_mm,z_mm; points are matched by id. The result maps\n`from` coordinates to `to` coordinates: to = scale · rotation · from + translation."
+    after_help = "Both files have columns id,x_mm,y_mm,z_mm; points are matched by id. The result maps\n`from` coordinates to `to` coordinates: to = scale · rotation · from + translation."
 )]
 pub struct Args {
     /// Points in the source frame (columns id,x_mm,y_mm,z_mm).

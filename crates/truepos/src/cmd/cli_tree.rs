@@ -7,7 +7,6 @@
 
 use crate::output::print_json;
 use crate::Outcome;
-use clap::CommandFactory;
 use serde_json::{json, Value};
 
 /// One command as JSON: `name`, `about`, `args` (`id`, `long`, `positional`, `help`,
@@ -31,6 +30,6 @@ fn tree(c: &clap::Command) -> Value {
 }
 
 pub fn run() -> anyhow::Result<Outcome> {
-    print_json(&tree(&super::Cli::command()))?;
+    print_json(&tree(&super::command()))?;
     Ok(Outcome::Done)
 }

@@ -37,7 +37,7 @@ Tables are interpolated linearly; positions outside a table are an error unless 
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Examples:\n  truepos comp correct --map map.csv --squareness sq.toml --points meas.csv --output corrected.csv\n  truepos comp correct --map map.csv --points targets.csv --output commanded.csv --commanded\n  truepos comp error --map map.csv --at points.csv --probe-offset-mm 0,0,-120 --json\n\nMap columns axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad. Rotation axes:\nX: roll about X, pitch about Y, yaw about Z; Y: roll about Y, pitch about X, yaw about Z;\nZ: roll about Z, pitch about X, yaw about Y. Details: truepos comp correct --help"
+    after_help = "Map columns axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad. Rotation axes:\nX: roll about X, pitch about Y, yaw about Z; Y: roll about Y, pitch about X, yaw about Z;\nZ: roll about Z, pitch about X, yaw about Y. Details: truepos comp correct --help"
 )]
 #[command(long_about = COMPONENTS_HELP)]
 pub struct Args {
@@ -48,10 +48,10 @@ pub struct Args {
 #[derive(clap::Subcommand, Debug)]
 pub enum Sub {
     /// Correct measured points (or compensate targets with --commanded); adds dx_um,dy_um,dz_um.
-    #[command(long_about = COMPONENTS_HELP, after_help = "Example:\n  truepos comp correct --map map.csv --points meas.csv --output corrected.csv --probe-offset-mm 0,0,-150")]
+    #[command(long_about = COMPONENTS_HELP)]
     Correct(CorrectArgs),
     /// Volumetric error E(p − t; t) at the tip points of a file (JSON error_um per point, or --output CSV).
-    #[command(long_about = COMPONENTS_HELP, after_help = "Example:\n  truepos comp error --map map.csv --at points.csv --json")]
+    #[command(long_about = COMPONENTS_HELP)]
     Error(ErrorArgs),
 }
 
@@ -100,8 +100,9 @@ pub struct CorrectArgs {
     /// The points are targets: write commanded positions c with c + E(c) = T.
     #[arg(long)]
     pub commanded: bool,
-    /// Write numbers with this many decimals (default: the shortest text that reads back as the
-    /// same number).
+    /// Write numbers with this many decimals (default: as many as the input's coordinates carry,
+    /// at least 6 (1 nm), e.g. 7 for 379.1898195; the shortest round-trip text when they carry
+    /// more than 9 or an exponent, and for Parquet or E57 input).
     #[arg(long)]
     pub decimals: Option<u8>,
     /// Print a JSON summary on stdout.
@@ -148,7 +149,10 @@ pub fn run(a: Args) -> Result<Outcome> {
     match a.command {
         Sub::Correct(a) => {
             let map = a.map.files().read()?;
-            let fmt = NumFormat::from_decimals(a.decimals).map_err(crate::UsageError)?;
+            let fmt = match a.decimals {
+                Some(_) => NumFormat::from_decimals(a.decimals).map_err(crate::UsageError)?,
+                None => truepos_io::csv::input_precision(&a.points, &["x_mm", "y_mm", "z_mm"]),
+            };
             let mode = if a.commanded { Mode::Commanded } else { Mode::Measured };
             emit(&task::correct(&map, a.map.probe_offset(), &a.points, &a.output, mode, fmt)?, a.json)?
         }
@@ -162,7 +166,7 @@ pub fn run(a: Args) -> Result<Outcome> {
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos simulate comp --out data/comp --seed 1\n\nWrites map.csv (axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad: the\nx, y and z tables of a virtual bridge CMM, every 25 mm), squareness.toml, points.csv (indicated\nprobe-tip points, id,x_mm,y_mm,z_mm) and truth.json (true_points_mm, probe offset), and prints\nthe `truepos comp correct` command that corrects the points."
+    after_help = "Writes map.csv (axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad: the\nx, y and z tables of a virtual bridge CMM, every 25 mm), squareness.toml, points.csv (indicated\nprobe-tip points, id,x_mm,y_mm,z_mm) and truth.json (true_points_mm, probe offset), and prints\nthe `truepos comp correct` command that corrects the points."
 )]
 pub struct SimArgs {
     #[command(flatten)]

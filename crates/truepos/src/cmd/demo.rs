@@ -7,8 +7,7 @@ use truepos_cell::report::Report;
 
 #[derive(clap::Args, Debug)]
 #[command(
-    long_about = "Run every capability end to end on the virtual cell (fitting on the NIST reference data) and compare each result with the simulator's truth.\n\nWrites into --out:\n  index.html    the report: header (version, UTC time, seed, machines, environment, command line), overall verdict, one summary row per capability, one section per capability with tables and plots (self-contained, no network), including the real interfaces: the I++ DME section starts the virtual CMM's I++ DME server on 127.0.0.1 (an ephemeral port) while it runs, and the controller section probes through the same trait as LinuxCNC (LinuxCNC itself is not started)\n  summary.json  the same as data: header, verdicts, every table\n  load/         the influence map of the bed-load section (map.csv)\n\nProgress: one line per capability with its time on stderr. Reruns are byte-identical except the generation time; set SOURCE_DATE_EPOCH (Unix seconds) to fix it too.",
-    after_help = "Example:\n  truepos demo --out demo   # then open demo/index.html"
+    long_about = "Run every capability end to end on the virtual cell (fitting on the NIST reference data) and compare each result with the simulator's truth.\n\nWrites into --out:\n  index.html    the report: header (version, UTC time, seed, machines, environment, command line), overall verdict, one summary row per capability, one section per capability with tables and plots (self-contained, no network), including the real interfaces: the I++ DME section starts the virtual CMM's I++ DME server on 127.0.0.1 (an ephemeral port) while it runs, and the controller section probes through the same trait as LinuxCNC (LinuxCNC itself is not started)\n  summary.json  the same as data: header, verdicts, every table\n  load/         the influence map of the bed-load section (map.csv)\n\nProgress: one line per capability with its time on stderr. Reruns are byte-identical except the generation time; set SOURCE_DATE_EPOCH (Unix seconds) to fix it too."
 )]
 pub struct Args {
     /// Report directory (data sets of each capability go in subdirectories).
@@ -16,7 +15,26 @@ pub struct Args {
     pub out: PathBuf,
 }
 
+/// The report directory, created if missing, checked writable before any work: a bad `--out`
+/// (a file, a read-only place) fails at once, not after the sections have run.
+fn check_out_dir(dir: &std::path::Path) -> Result<(), crate::UsageError> {
+    let bad = |why: String| crate::UsageError(format!("--out {}: {why}", dir.display()));
+    if dir.exists() && !dir.is_dir() {
+        return Err(bad("exists and is not a directory".into()));
+    }
+    std::fs::create_dir_all(dir).map_err(|e| bad(format!("cannot create the directory: {e}")))?;
+    tempfile_probe(dir).map_err(|e| bad(format!("cannot write into the directory: {e}")))
+}
+
+/// Create and remove a file in `dir` (the test that it is writable).
+fn tempfile_probe(dir: &std::path::Path) -> std::io::Result<()> {
+    let p = dir.join(format!(".truepos-write-test-{}", std::process::id()));
+    std::fs::write(&p, b"")?;
+    std::fs::remove_file(&p)
+}
+
 pub fn run(a: Args) -> anyhow::Result<Outcome> {
+    check_out_dir(&a.out)?;
     let mut report = Report::new(&a.out);
     // Generation time: SOURCE_DATE_EPOCH (reproducible builds convention) when set, else now.
     let now = match std::env::var("SOURCE_DATE_EPOCH") {

@@ -71,10 +71,7 @@ pub enum RuleArg {
 }
 
 #[derive(clap::Args, Debug)]
-#[command(
-    after_help = "Examples:\n  truepos fit sphere points.csv --json\n  truepos fit cylinder bore.ds --method minimum-zone --form-tolerance-mm 0.005\n  \
-truepos fit circle hole.csv --nominal-diameter-mm 20 --tolerance-mm=-0.001,0.006 --decision-rule guarded --qif hole.qif\n  \
-truepos fit circle hole.csv --qif-plan plan.qif --qif results.qif\n\n\
+#[command(after_help = "\
 Points: CSV with columns x_mm,y_mm,z_mm (any order, other columns ignored) or a NIST .ds file.\n\
 Least-squares fits are Gaussian (orthogonal distance). A 3D circle is the least-squares plane,\n\
 then the circle of the points projected into it (for every method). form_mm is the largest minus\n\
@@ -87,8 +84,7 @@ rule. Exit code 1 when the verdict is not pass.\n\
 --qif-plan reads the nominal diameter with its tolerance (deviations or limits) and the kind's\n\
 form tolerance (straightness, flatness, circularity, sphericity, cylindricity, conicity) from a\n\
 QIF 3 plan or model; it does not read feature nominals, datums, position or profile\n\
-tolerances, limits-and-fits codes, or files with several diameter characteristics."
-)]
+tolerances, limits-and-fits codes, or files with several diameter characteristics.")]
 pub struct Args {
     /// Geometric element to fit.
     #[arg(value_enum)]
@@ -102,14 +98,14 @@ pub struct Args {
     #[arg(long, value_enum, default_value = "ls")]
     pub method: MethodArg,
     /// Nominal diameter, mm (circle, sphere, cylinder; needs --tolerance-mm).
-    #[arg(long, value_name = "D", allow_hyphen_values = true)]
+    #[arg(long, value_parser = crate::output::positive, value_name = "D", allow_hyphen_values = true)]
     pub nominal_diameter_mm: Option<f64>,
     /// Size tolerance, mm: T for ±T, or LOWER,UPPER signed deviations from the nominal
     /// (e.g. --tolerance-mm=-0.001,0.006).
     #[arg(long, value_name = "T|LOWER,UPPER", allow_hyphen_values = true)]
     pub tolerance_mm: Option<String>,
     /// Form tolerance (zone width), mm.
-    #[arg(long, value_name = "F", allow_hyphen_values = true)]
+    #[arg(long, value_parser = crate::output::positive, value_name = "F", allow_hyphen_values = true)]
     pub form_tolerance_mm: Option<f64>,
     /// Decision rule for the size verdict.
     #[arg(long, value_enum, default_value = "simple")]

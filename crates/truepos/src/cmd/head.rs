@@ -24,14 +24,8 @@ pub enum RefKind {
     Vertex,
 }
 
-const AFTER_HELP: &str = "\
-Examples:
-  truepos head-offset --points points.csv --table-center-mm 500,250,0 --json
-  truepos head-offset --points touch.csv --sphere-diameter-mm 25 --tip-radius-mm 1.5
-  truepos head-offset --points laser.csv --tilt-deg 2,-1.5 --table-center-mm 500,250,0
-  truepos head-offset apply --offset-mm 42.5,-18.3,-165.2 --points raw.csv --output machine.csv
-
-Input columns: b_deg,c_deg,x_mm,y_mm,z_mm (x,y,z: the NC's head reference point P), optional
+const AFTER_HELP: &str =
+    "Input columns: b_deg,c_deg,x_mm,y_mm,z_mm (x,y,z: the NC's head reference point P), optional
 dist_mm (laser reading), face (vertex references), group (orientation id).
 Model: Q = P + Ry(b)·R; a laser surface point is Q + dist·Ry(b)·u, u = unit(tan α, tan β, −1);
 a table point at A for c = 0 is at O + Rz(c)·(A − O), O = --table-center-mm. Head swivel alone
@@ -58,8 +52,7 @@ pub enum Action {
 }
 
 #[derive(clap::Args, Debug)]
-#[command(
-    after_help = "Examples:\n  truepos head-offset acquire --near=600,250,30 --diameter-mm 25 --tip-diameter-mm 3 \\\n      --orientation 0,0 --orientation 0,120 --orientation 0,240 \\\n      --orientation 90,0 --orientation 90,120 --orientation 90,240 \\\n      --nominal-offset-mm=42,-18,-165 --table-center-mm 500,250,0 --output points.csv\n  truepos head-offset --points points.csv --table-center-mm 500,250,0 --json\n\n\
+#[command(after_help = "\
 At each orientation (B swivels the head about Y, C turns the table about the axis through\n\
 --table-center-mm parallel to Z) the sphere is probed over its upper hemisphere as `truepos probe\n\
 sphere` does, around where it appears to the NC: O + Rz(c)·(S − O) − Ry(b)·R with S = --near and\n\
@@ -70,8 +63,7 @@ Orientations need the axes: a machine without B or C (the LinuxCNC test machine 
 refused before it moves (exit 3, naming the address and the missing axes). One orientation\n\
 (--orientation 0,0) can be acquired anywhere, but determines no head offset: head-offset then says\n\
 so. --controller virtual is a machine tool with B and C whose sphere and head offset are off the\n\
-nominal ones by seeded errors (σ 0.1 mm and 0.2 mm per axis); the JSON has that truth."
-)]
+nominal ones by seeded errors (σ 0.1 mm and 0.2 mm per axis); the JSON has that truth.")]
 pub struct AcquireArgs {
     #[command(flatten)]
     pub sphere: super::probe::SphereTarget,
@@ -88,7 +80,7 @@ pub struct AcquireArgs {
     #[arg(long, default_value_t = 12)]
     pub points: usize,
     /// Probing feed (mm/min).
-    #[arg(long, default_value_t = 50.0)]
+    #[arg(long, value_parser = crate::output::positive, default_value_t = 50.0)]
     pub feed_mm_min: f64,
     /// The points file to write (atomically).
     #[arg(long)]
@@ -107,11 +99,11 @@ pub struct CalibrateArgs {
     #[arg(long, value_enum, default_value_t = RefKind::Sphere)]
     pub reference: RefKind,
     /// Sphere diameter (mm): fixes the radius (plus --tip-radius-mm for a touch probe).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub sphere_diameter_mm: Option<f64>,
     /// Touch-probe tip radius (mm): the stylus centre runs on the sphere of radius sphere + tip, or
     /// on the faces moved out by it.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, value_parser = crate::output::non_negative, default_value_t = 0.0)]
     pub tip_radius_mm: f64,
     /// A point of the rotary table's axis (parallel to Z), X,Y,Z in mm. Needed when C varies.
     #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
@@ -132,11 +124,9 @@ pub struct CalibrateArgs {
 }
 
 #[derive(clap::Args, Debug)]
-#[command(
-    after_help = "Example:\n  truepos head-offset apply --offset-mm 42.5,-18.3,-165.2 --points raw.csv --output machine.csv\n\n\
+#[command(after_help = "\
 x_mm,y_mm,z_mm of the output are the measured points (Q = P + Ry(b)·R, or the laser surface point\n\
-Q + dist·Ry(b)·u when a dist_mm column is present); all other columns pass through unchanged."
-)]
+Q + dist·Ry(b)·u when a dist_mm column is present); all other columns pass through unchanged.")]
 pub struct ApplyArgs {
     /// The head offset R (X,Y,Z mm, head frame at b = 0).
     #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
@@ -189,9 +179,6 @@ impl SimVariant {
 }
 
 #[derive(clap::Args, Debug)]
-#[command(
-    after_help = "Example:\n  truepos simulate head-offset --out data/head --seed 1 --variant both\n  truepos head-offset --points data/head/points.csv --table-center-mm 500,250,0 --json"
-)]
 pub struct SimArgs {
     #[command(flatten)]
     pub common: super::SimCommon,

@@ -5,7 +5,6 @@ use crate::{DeviceError, Outcome, UsageError};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
-#[command(after_help = "Example:\n  truepos ippdme serve --port 1294 --part part.toml --log ippdme.log")]
 pub struct Args {
     #[command(subcommand)]
     pub command: IppCommand,
@@ -23,7 +22,7 @@ pub enum IppCommand {
     /// name, tip_diameter_mm` add to the tools `RefTool`, `NoTool`, `Probe1` (3 mm ball). Moves are
     /// instant. `--log` appends every line received (`<`) and sent (`>`) with its UTC time.
     #[command(
-        after_help = "Example:\n  truepos ippdme serve --bind 127.0.0.1 --port 1294 --part sphere.toml\n\nExit codes: 0 after SIGINT/SIGTERM, 2 bad option or part/machine file, 3 port in use."
+        after_help = "Exit codes: 0 after SIGINT/SIGTERM, 2 bad option or part/machine file, 3 port in use."
     )]
     Serve(ServeArgs),
 }

@@ -32,12 +32,8 @@ pub enum MethodArg {
     Inout,
 }
 
-const AFTER_HELP: &str = "Examples:
-  truepos latency --machine machine.csv --probe probe.csv --sphere-diameter-mm 25 --tip-radius-mm 2 --json
-  truepos latency --machine m.csv --probe p.csv --method speeds --per-axis
-  truepos latency apply --delay-s 0.0025 --machine m.csv --probe p.csv --output centres.csv
-
-Files: machine t_s,x_mm,y_mm,z_mm (encoder position of the probe body); probe t_s,a_mm,b_mm,c_mm
+const AFTER_HELP: &str =
+    "Files: machine t_s,x_mm,y_mm,z_mm (encoder position of the probe body); probe t_s,a_mm,b_mm,c_mm
 (stylus deflection along the machine axes, pointing along the surface's outward normal), one
 master clock, any rates. delay_s: the stylus centre at probe stamp t is
 machine(t + delay_s) + deflection(t); positive means the machine data lags.
@@ -64,22 +60,22 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = MethodArg::Auto)]
     pub method: MethodArg,
     /// Known sphere (or ring) diameter, mm (artefact method).
-    #[arg(long, conflicts_with = "gap_mm")]
+    #[arg(long, value_parser = crate::output::positive, conflicts_with = "gap_mm")]
     pub sphere_diameter_mm: Option<f64>,
     /// Known distance between two parallel plates, mm (artefact method).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub gap_mm: Option<f64>,
     /// Stylus tip radius, mm (0: sizes are of the stylus-centre surface).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, value_parser = crate::output::non_negative, default_value_t = 0.0)]
     pub tip_radius_mm: f64,
     /// Contact detection threshold on |deflection|, mm.
-    #[arg(long, default_value_t = 0.005)]
+    #[arg(long, value_parser = crate::output::positive, default_value_t = 0.005)]
     pub threshold_mm: f64,
     /// Separate delays for X, Y, Z (from opposite contacts, or points at several speeds, along each axis).
     #[arg(long)]
     pub per_axis: bool,
     /// Search range of the scan method, ± seconds.
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, value_parser = crate::output::positive, default_value_t = 0.05)]
     pub max_delay_s: f64,
     /// Delay already applied to the data (s): report the residual and the total.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
@@ -99,21 +95,19 @@ pub enum Action {
 }
 
 #[derive(clap::Args, Debug)]
-#[command(after_help = "Example:
-  truepos latency probe --controller linuxcncrsh://127.0.0.1:5007 --near=120,45,30 --diameter-mm 25 \\
-      --tip-diameter-mm 3 --feeds-mm-min 60,120,240,480 --json
-
-The sphere is probed over its upper hemisphere at every feed (as `truepos probe sphere` does) and
+#[command(
+    after_help = "The sphere is probed over its upper hemisphere at every feed (as `truepos probe sphere` does) and
 fitted; the slope of the fitted radius against the feed is minus the delay, with its standard
 uncertainty from the sphere fits (scaled up by the line's scatter when that is larger). A
 controller that samples its probe input every servo period T latches 0…T late: expect about T/2.
 With --controller virtual (servo period 1 ms) the JSON has the virtual machine's true mean
-latch delay, 0.5 ms.")]
+latch delay, 0.5 ms."
+)]
 pub struct ProbeArgs {
     #[command(flatten)]
     pub sphere: super::probe::SphereTarget,
     /// Probing feeds (mm/min), comma-separated; at least two, the highest ≥ 1.5 × the lowest.
-    #[arg(long, value_delimiter = ',', default_value = "60,120,240,480")]
+    #[arg(long, value_parser = crate::output::positive, value_delimiter = ',', default_value = "60,120,240,480")]
     pub feeds_mm_min: Vec<f64>,
     /// Points per sphere.
     #[arg(long, default_value_t = 25)]
@@ -125,7 +119,7 @@ pub struct ProbeArgs {
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos latency apply --delay-s 0.0025 --machine m.csv --probe p.csv --output centres.csv\n\nWrites t_s,x_mm,y_mm,z_mm at every probe stamp whose t + delay the machine data covers, then\nthe probe file's other columns unchanged. Written atomically."
+    after_help = "Writes t_s,x_mm,y_mm,z_mm at every probe stamp whose t + delay the machine data covers, then\nthe probe file's other columns unchanged. Written atomically."
 )]
 pub struct ApplyArgs {
     /// The system delay (s).
@@ -215,7 +209,11 @@ pub fn run(a: Args) -> Result<Outcome> {
         )
         .into());
     };
-    let r = task::estimate_files(machine, probe, options(&a)?)?;
+    let opts = options(&a)?;
+    let pb = crate::output::spinner("system delay: reading the streams, finding the contacts, estimating");
+    let r = task::estimate_files(machine, probe, opts);
+    pb.finish_and_clear();
+    let r = r?;
     for w in &r.estimate.warnings {
         eprintln!("warning: {w}");
     }
@@ -245,7 +243,7 @@ fn probe_feeds(a: ProbeArgs) -> Result<Outcome> {
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos simulate latency --out data/latency --seed 1 --variant speeds --delay-s -0.0012\n\nWrites machine.csv (t_s,x_mm,y_mm,z_mm), probe.csv (t_s,a_mm,b_mm,c_mm) and truth.json\n(delay_s, per_axis_delay_s, artefact, tip radius, speeds, contacts)."
+    after_help = "Writes machine.csv (t_s,x_mm,y_mm,z_mm), probe.csv (t_s,a_mm,b_mm,c_mm) and truth.json\n(delay_s, per_axis_delay_s, artefact, tip radius, speeds, contacts)."
 )]
 pub struct SimArgs {
     #[command(flatten)]
@@ -257,17 +255,17 @@ pub struct SimArgs {
     #[arg(long, allow_hyphen_values = true)]
     pub delay_s: Option<f64>,
     /// Contact (or scan) speed, mm/s.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub speed_mm_s: Option<f64>,
     /// Repeats of the contact pattern (or scan revolutions), 1 to 1000 (default: 24; 8 for
     /// speeds, 12 for scan: enough contacts for the 10 µs goal).
     #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=1000))]
     pub repeats: Option<usize>,
     /// Machine position stream rate, Hz (default 1000).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub machine_rate_hz: Option<f64>,
     /// Probe deflection stream rate, Hz (default 1000; 4000 for multi-rate).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub probe_rate_hz: Option<f64>,
 }
 

@@ -34,7 +34,7 @@ Resting points outside the map's load grid, or measured points outside its porta
 input errors (the map does not cover the part).";
 
 #[derive(clap::Args, Debug)]
-#[command(long_about = SIGN_HELP, after_help = "Examples:\n  truepos load map --bed bed.toml --output map.csv\n  truepos load curves --map map.csv --load load.toml --json\n  truepos load correct --map map.csv --load load.toml --bed bed.toml --points meas.csv --output corrected.csv\n  truepos load deflection --bed bed.toml --load load.toml --at points.csv --json\n\nPitch is about +X, roll about +Y: the portal's physical rotations (right-hand rule), so that\np + (pitch, roll, 0) × (p − o) corrects a measured point (a load ahead of the portal: negative pitch).\nDetails, statics and coverage rules: truepos load correct --help")]
+#[command(long_about = SIGN_HELP, after_help = "Pitch is about +X, roll about +Y: the portal's physical rotations (right-hand rule), so that\np + (pitch, roll, 0) × (p − o) corrects a measured point (a load ahead of the portal: negative pitch).\nDetails, statics and coverage rules: truepos load correct --help")]
 pub struct Args {
     #[command(subcommand)]
     pub command: Sub,
@@ -43,18 +43,15 @@ pub struct Args {
 #[derive(clap::Subcommand, Debug)]
 pub enum Sub {
     /// Influence map from the plate FE model: pitch/roll per unit load against portal Y.
-    #[command(long_about = SIGN_HELP, after_help = "Example:\n  truepos load map --bed bed.toml --output map.csv")]
+    #[command(long_about = SIGN_HELP)]
     Map(MapCmd),
     /// Correct measured points for the load case (adds dx_um,dy_um,dz_um).
-    #[command(long_about = SIGN_HELP, after_help = "Example:\n  truepos load correct --map map.csv --load load.toml --bed bed.toml --points meas.csv --output corrected.csv")]
+    #[command(long_about = SIGN_HELP)]
     Correct(CorrectCmd),
     /// Pitch and roll curves of the load case, and the forces on the resting points.
-    #[command(long_about = SIGN_HELP, after_help = "Example:\n  truepos load curves --map map.csv --load load.toml --json")]
+    #[command(long_about = SIGN_HELP)]
     Curves(CurvesCmd),
     /// Bed deflection uz (mm, positive up) of the load case at given x_mm,y_mm points.
-    #[command(
-        after_help = "Example:\n  truepos load deflection --bed bed.toml --load load.toml --at points.csv --json"
-    )]
     Deflection(DeflectionCmd),
 }
 
@@ -67,7 +64,7 @@ pub struct MapCmd {
     #[arg(long)]
     pub output: PathBuf,
     /// FE element size (mm); default: [bed] element_size_mm, else automatic.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub element_size_mm: Option<f64>,
     /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
@@ -105,7 +102,9 @@ pub struct CorrectCmd {
     /// Probe offset for --geometric-map (ram frame, mm).
     #[arg(long, value_parser = parse_triple, default_value = "0,0,0")]
     pub probe_offset_mm: [f64; 3],
-    /// Write numbers with this many decimals (default: shortest round-trip text).
+    /// Write numbers with this many decimals (default: as many as the input's coordinates carry,
+    /// at least 6 (1 nm), e.g. 7 for 379.1898195; the shortest round-trip text when they carry
+    /// more than 9 or an exponent, and for Parquet or E57 input).
     #[arg(long)]
     pub decimals: Option<u8>,
     /// Print one JSON object on stdout (human text goes to stderr).
@@ -138,7 +137,7 @@ pub struct DeflectionCmd {
     #[arg(long)]
     pub at: PathBuf,
     /// FE element size (mm); default: [bed] element_size_mm, else automatic.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub element_size_mm: Option<f64>,
     /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
@@ -146,17 +145,14 @@ pub struct DeflectionCmd {
 }
 
 #[derive(clap::Args, Debug)]
-#[command(
-    after_help = "Example:\n  truepos simulate load --out data/load --seed 1\n  truepos load map --bed data/load/bed.toml --output data/load/map.csv\n  truepos load correct --map data/load/map.csv --load data/load/load.toml --bed data/load/bed.toml --points data/load/points.csv --output corrected.csv"
-)]
 pub struct SimArgs {
     #[command(flatten)]
     pub common: super::SimCommon,
     /// Mass of the die (kg).
-    #[arg(long, default_value_t = 2000.0)]
+    #[arg(long, value_parser = crate::output::positive, default_value_t = 2000.0)]
     pub mass_kg: f64,
     /// Probing noise, standard deviation per axis (µm).
-    #[arg(long, default_value_t = 0.3)]
+    #[arg(long, value_parser = crate::output::non_negative, default_value_t = 0.3)]
     pub noise_um: f64,
 }
 
@@ -179,7 +175,10 @@ pub fn run(a: Args) -> Result<Outcome> {
                 Some(m) => Some(map_files(m, &a.squareness).read()?),
                 None => None,
             };
-            let fmt = NumFormat::from_decimals(a.decimals).map_err(crate::UsageError)?;
+            let fmt = match a.decimals {
+                Some(_) => NumFormat::from_decimals(a.decimals).map_err(crate::UsageError)?,
+                None => truepos_io::csv::input_precision(&a.points, &["x_mm", "y_mm", "z_mm"]),
+            };
             let r = task::load_correct(
                 &a.map,
                 &a.load,

@@ -11,6 +11,7 @@ pub mod cli_tree;
 pub mod comp;
 pub mod demo;
 pub mod dmis;
+pub mod examples;
 pub mod fit;
 pub mod head;
 pub mod ippdme;
@@ -29,7 +30,7 @@ pub mod somac_run;
 /// JSON object on stdout. Exit codes: 0 done, 1 outside tolerance or alarm, 2 bad usage or
 /// input, 3 device or internal failure.
 #[derive(Parser, Debug)]
-#[command(name = "truepos", version, about, long_about = None, after_help = "Example:\n  truepos demo --out demo\n  truepos fit sphere points.csv --json")]
+#[command(name = "truepos", version, about, long_about = None)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -80,7 +81,6 @@ pub enum Command {
 }
 
 #[derive(clap::Args, Debug)]
-#[command(after_help = "Example:\n  truepos simulate latency --out data/latency --seed 1")]
 pub struct SimulateArgs {
     #[command(subcommand)]
     pub scenario: Scenario,
@@ -112,6 +112,25 @@ pub struct SimCommon {
     /// Random seed: the same seed gives the same files.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+}
+
+/// The command line as parsed: [`Cli`]'s with negative numbers accepted as the value of every
+/// option that takes one (`--diameter-mm -25` reaches the option's range check, which says
+/// "must be positive", instead of clap's "unexpected argument '-2'").
+pub fn command() -> clap::Command {
+    fn numbers(c: clap::Command) -> clap::Command {
+        let c = c.mut_args(|a| {
+            if a.get_action().takes_values() && !a.is_positional() {
+                a.allow_negative_numbers(true)
+            } else {
+                a
+            }
+        });
+        let subs: Vec<String> = c.get_subcommands().map(|s| s.get_name().to_string()).collect();
+        subs.iter().fold(c, |c, n| c.mut_subcommand(n, numbers))
+    }
+    use clap::CommandFactory;
+    numbers(Cli::command())
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<Outcome> {

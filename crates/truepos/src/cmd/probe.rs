@@ -14,9 +14,6 @@ use truepos_head::acquire::{probe_sphere, AcquireError, SphereProbing};
 use truepos_math::Point3;
 
 #[derive(clap::Args, Debug)]
-#[command(
-    after_help = "Example:\n  truepos probe sphere --near=120,45,30 --diameter-mm 25 --tip-diameter-mm 3 --json\n  truepos probe sphere --controller linuxcncrsh://127.0.0.1:5007 --near=-10,2,30 --diameter-mm 25 --feed-mm-min 50 --json"
-)]
 pub struct Args {
     #[command(subcommand)]
     pub what: What,
@@ -30,7 +27,7 @@ pub enum What {
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos probe sphere --controller linuxcncrsh://127.0.0.1:5007 --near=120,45,30 --diameter-mm 25 --tip-diameter-mm 3 --points 25 --feed-mm-min 50 --json\n\nThe machine must be on, homed and idle (truepos never releases an e-stop or switches a machine\non). It first rises to the safe height (nominal top + tip radius + 2 × clearance), then visits\neach point from above. The nominal centre must be known to better than the clearance.\nExit code 3 (naming the address and the move) when the controller cannot be reached, reports\nan error, or a probing move ends without contact (the machine is left retracted)."
+    after_help = "The machine must be on, homed and idle (truepos never releases an e-stop or switches a machine\non). It first rises to the safe height (nominal top + tip radius + 2 × clearance), then visits\neach point from above. The nominal centre must be known to better than the clearance.\nExit code 3 (naming the address and the move) when the controller cannot be reached, reports\nan error, or a probing move ends without contact (the machine is left retracted)."
 )]
 pub struct SphereArgs {
     #[command(flatten)]
@@ -39,7 +36,7 @@ pub struct SphereArgs {
     #[arg(long, default_value_t = 25)]
     pub points: usize,
     /// Probing feed (mm/min).
-    #[arg(long, default_value_t = 50.0)]
+    #[arg(long, value_parser = crate::output::positive, default_value_t = 50.0)]
     pub feed_mm_min: f64,
     #[command(flatten)]
     pub model: ModelArgs,
@@ -102,14 +99,14 @@ pub struct SphereTarget {
     #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
     pub near: [f64; 3],
     /// Nominal sphere diameter (mm).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub diameter_mm: f64,
     /// Distance from the nominal surface where each probing move starts and beyond which it
     /// gives up (mm).
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, value_parser = crate::output::positive, default_value_t = 2.0)]
     pub clearance_mm: f64,
     /// Stylus ball diameter (mm); a reported radius is the tip-centre sphere's minus half this.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, value_parser = crate::output::non_negative, default_value_t = 0.0)]
     pub tip_diameter_mm: f64,
     /// Seed of the virtual machine (where its sphere really is relative to the nominal one).
     #[arg(long, default_value_t = 1)]

@@ -17,9 +17,6 @@ use truepos_scan::file::{read_features, FeaturesError, ParamOverrides};
 use truepos_scan::{plan, Feature, Params, ScanError, Style};
 
 #[derive(clap::Args, Debug)]
-#[command(
-    after_help = "Examples:\n  truepos simulate scan --out data/scan --seed 1\n  truepos scan plan --features data/scan/features.toml --output path.csv\n  truepos scan run --features data/scan/features.toml --part data/scan/truth.json --output points.csv --json\n  truepos scan run --features data/scan/features.toml --style classic --output classic.csv --json"
-)]
 pub struct Args {
     #[command(subcommand)]
     pub action: Action,
@@ -28,15 +25,9 @@ pub struct Args {
 #[derive(clap::Subcommand, Debug)]
 pub enum Action {
     /// Plan the path (no machine): writes t_s,x_mm,y_mm,z_mm,segment,feature,speed_mm_s.
-    #[command(
-        after_help = "Example:\n  truepos scan plan --features data/scan/features.toml --output path.csv --style blended"
-    )]
     Plan(PlanArgs),
     /// Plan and execute on the virtual CMM: writes the measured points with deflection and
     /// quality, prints cycle time, stops and per-feature form error.
-    #[command(
-        after_help = "Example:\n  truepos scan run --features data/scan/features.toml --part data/scan/truth.json --output points.csv --json"
-    )]
     Run(RunArgs),
 }
 
@@ -71,34 +62,34 @@ pub struct Common {
     #[arg(long, allow_hyphen_values = true)]
     pub approach_angle_deg: Option<f64>,
     /// Scanning speed (default 20 mm/s).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub scan_speed_mm_s: Option<f64>,
     /// Positioning speed of transfers (default 200 mm/s).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub move_speed_mm_s: Option<f64>,
     /// Target stylus deflection while scanning (default 0.3 mm).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub deflection_mm: Option<f64>,
     /// How far the settle path goes past the target deflection (default 0.1 mm).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::non_negative)]
     pub overshoot_mm: Option<f64>,
     /// Quality bands on |deflection − target|: A,B (default 0.02,0.05): ≤A → 0, ≤B → 5, else 9.
     #[arg(long, value_parser = parse_pair)]
     pub quality_bands_mm: Option<[f64; 2]>,
     /// Stylus tip radius (default 1.5 mm).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub tip_radius_mm: Option<f64>,
     /// Clearance from the surface at approach start and release end (default 3 mm).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub clearance_mm: Option<f64>,
     /// Path acceleration limit (default 1500 mm/s²).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub accel_mm_s2: Option<f64>,
     /// Path jerk limit (default 20000 mm/s³).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub jerk_mm_s3: Option<f64>,
     /// Classic style: approach (touch) speed along the normal (default 3 mm/s).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub touch_speed_mm_s: Option<f64>,
     /// Print one JSON object on stdout.
     #[arg(long)]
@@ -114,7 +105,7 @@ pub struct PlanArgs {
     #[arg(long)]
     pub output: PathBuf,
     /// Sampling step of the path (s).
-    #[arg(long, default_value_t = 0.001)]
+    #[arg(long, value_parser = crate::output::positive, default_value_t = 0.001)]
     pub dt_s: f64,
 }
 
@@ -244,7 +235,7 @@ fn run_run(a: RunArgs) -> Result<Outcome> {
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos simulate scan --out data/scan --seed 1 --features 12\n\nWrites features.toml (the nominal features and scan parameters) and truth.json (the true,\ndisplaced part: every fifth feature 1.2–1.8 mm off nominal along its normal, alternately\nbefore and beyond). Then: truepos scan run --features DIR/features.toml --part DIR/truth.json ..."
+    after_help = "Writes features.toml (the nominal features and scan parameters) and truth.json (the true,\ndisplaced part: every fifth feature 1.2–1.8 mm off nominal along its normal, alternately\nbefore and beyond). Then: truepos scan run --features DIR/features.toml --part DIR/truth.json ..."
 )]
 pub struct SimArgs {
     #[command(flatten)]

@@ -28,7 +28,7 @@ pub enum SomacCommand {
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos autoscale --reference balls_20C.csv --measured balls_now.csv --cte-ppm-per-c 23.6 --temperature-c 24.1 --json\n\nBoth files: id,x_mm,y_mm,z_mm, matched by id. The scale is the best-fit ratio of measured to\nreference size after removing rotation and translation (similarity fit); two features are\nenough (their distance ratio). Coincident reference or measured features are refused (exit 2)."
+    after_help = "Both files: id,x_mm,y_mm,z_mm, matched by id. The scale is the best-fit ratio of measured to\nreference size after removing rotation and translation (similarity fit); two features are\nenough (their distance ratio). Coincident reference or measured features are refused (exit 2)."
 )]
 pub struct AutoscaleArgs {
     /// Feature positions at the reference temperature (20 °C), e.g. from the drawing.
@@ -53,7 +53,7 @@ pub struct AutoscaleArgs {
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos orient --reference targets_nominal.csv --measured targets_now.csv --program spar.nc --output spar_oriented.nc --scale\n\nAt least three targets (id,x_mm,y_mm,z_mm in both files). Only the coordinates that change are\nrewritten; comments, line numbers, other words and spacing are kept byte for byte."
+    after_help = "At least three targets (id,x_mm,y_mm,z_mm in both files). Only the coordinates that change are\nrewritten; comments, line numbers, other words and spacing are kept byte for byte."
 )]
 pub struct OrientArgs {
     /// Nominal target positions (the program's frame).
@@ -80,7 +80,7 @@ pub struct OrientArgs {
     pub start_mm: Option<[f64; 3]>,
     /// Replace arcs whose plane the transform tilts by G1 chords whose largest distance from the
     /// exact transformed arc is at most this (mm). Without it such arcs are refused.
-    #[arg(long, value_name = "MM")]
+    #[arg(long, value_parser = crate::output::positive, value_name = "MM")]
     pub arc_tolerance_mm: Option<f64>,
     /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
@@ -95,23 +95,23 @@ pub enum FormulaArg {
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos air --temperature-c 20 --pressure-pa 101325 --humidity-pct 50 --json\n\nEquations as in NIST's Refractive Index of Air Calculator (Stone & Zimmerman). Inputs outside the\nrange where NIST states the equation valid are refused (exit 2): Ciddor 300-1700 nm, -40-100 °C,\n10000-140000 Pa, 0-100 % RH, 0-2000 ppm CO2; Edlén 300-1700 nm, 0-40 °C, 60000-140000 Pa,\n0-100 % RH, CO2 450 ppm only."
+    after_help = "Equations as in NIST's Refractive Index of Air Calculator (Stone & Zimmerman). Inputs outside the\nrange where NIST states the equation valid are refused (exit 2): Ciddor 300-1700 nm, -40-100 °C,\n10000-140000 Pa, 0-100 % RH, 0-2000 ppm CO2; Edlén 300-1700 nm, 0-40 °C, 60000-140000 Pa,\n0-100 % RH, CO2 450 ppm only."
 )]
 pub struct AirArgs {
     /// Air temperature, °C.
     #[arg(long)]
     pub temperature_c: f64,
     /// Air pressure, Pa.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub pressure_pa: f64,
     /// Relative humidity, %.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::non_negative)]
     pub humidity_pct: f64,
     /// CO2 mole fraction (µmol/mol); the modified Edlén equation assumes 450.
-    #[arg(long, default_value_t = 450.0)]
+    #[arg(long, value_parser = crate::output::non_negative, default_value_t = 450.0)]
     pub co2_ppm: f64,
     /// Vacuum wavelength.
-    #[arg(long, default_value_t = 633.0)]
+    #[arg(long, value_parser = crate::output::positive, default_value_t = 633.0)]
     pub wavelength_nm: f64,
     /// Equation: ciddor (Ciddor 1996) or edlen (modified Edlén, Birch and Downs 1993/94).
     #[arg(long, value_enum, default_value_t = FormulaArg::Ciddor)]

@@ -16,7 +16,7 @@ use truepos_somac::inspect::{
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Examples:\n  truepos somac inspect --program spar/program.nc --diameter-mm 8 --tip-diameter-mm 3 --json\n  truepos somac inspect --controller linuxcncrsh://127.0.0.1:5007 --holes holes.csv \\\n      --diameter-mm 10 --tip-diameter-mm 3 --feed-mm-min 50\n\nA hole is the nominal centre of its top (machine frame, mm): the target of each program block\nwith the measurement keyword comment (--program), or a row of --holes (id,x_mm,y_mm,z_mm and an\noptional diameter_mm column). Each hole is probed at --depth-mm below its top with --points\nsingle-point probings on the bore wall (G38.2 on LinuxCNC, PtMeas on I++ DME), each starting\n--clearance-mm inside the nominal wall; the machine travels between holes at --safe-height-mm\nabove the highest top. The machine must be on, homed and idle (truepos never releases an\ne-stop). Reported per hole: measured centre, position error (X, Y and its length),\ntrue position (twice the length), diameter and its error, roundness, time.\nExit 3 naming the hole, the address and the move when the controller fails or a probe move\nends without contact (the machine is sent up to the safe height); exit 1 when --tolerance-mm is\ngiven and a hole's position error exceeds it.\n\nWith --controller virtual the holes are bored in a plate on the virtual machine tool, each off\nits nominal by a seeded error (σ = 20 µm per axis, 5 µm on the diameter); the JSON then has\nthe truth per hole (virtual_truth)."
+    after_help = "A hole is the nominal centre of its top (machine frame, mm): the target of each program block\nwith the measurement keyword comment (--program), or a row of --holes (id,x_mm,y_mm,z_mm and an\noptional diameter_mm column). Each hole is probed at --depth-mm below its top with --points\nsingle-point probings on the bore wall (G38.2 on LinuxCNC, PtMeas on I++ DME), each starting\n--clearance-mm inside the nominal wall; the machine travels between holes at --safe-height-mm\nabove the highest top. The machine must be on, homed and idle (truepos never releases an\ne-stop). Reported per hole: measured centre, position error (X, Y and its length),\ntrue position (twice the length), diameter and its error, roundness, time.\nExit 3 naming the hole, the address and the move when the controller fails or a probe move\nends without contact (the machine is sent up to the safe height); exit 1 when --tolerance-mm is\ngiven and a hole's position error exceeds it.\n\nWith --controller virtual the holes are bored in a plate on the virtual machine tool, each off\nits nominal by a seeded error (σ = 20 µm per axis, 5 µm on the diameter); the JSON then has\nthe truth per hole (virtual_truth)."
 )]
 pub struct InspectArgs {
     /// `virtual` (the built-in virtual machine tool), `linuxcncrsh://HOST:PORT[?password=…]`,
@@ -30,32 +30,32 @@ pub struct InspectArgs {
     #[arg(long)]
     pub holes: Option<PathBuf>,
     /// Nominal hole diameter (mm); required unless the hole list has a diameter_mm column.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub diameter_mm: Option<f64>,
     /// The measurement keyword comment that marks the program's hole blocks.
     #[arg(long, default_value = "(MSG,Measure SOMaC)")]
     pub keyword: String,
     /// Probing depth below each hole's top (mm).
-    #[arg(long, default_value_t = 3.0)]
+    #[arg(long, value_parser = crate::output::positive, default_value_t = 3.0)]
     pub depth_mm: f64,
     /// Points per hole (≥ 4), at equal angles.
     #[arg(long, default_value_t = 8)]
     pub points: usize,
     /// Probing feed (mm/min).
-    #[arg(long, default_value_t = 50.0)]
+    #[arg(long, value_parser = crate::output::positive, default_value_t = 50.0)]
     pub feed_mm_min: f64,
     /// Distance from the nominal wall where each probing move starts and beyond which it gives
     /// up (mm): the hole positions must be known to better than this.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, value_parser = crate::output::positive, default_value_t = 0.5)]
     pub clearance_mm: f64,
     /// Stylus ball diameter (mm).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, value_parser = crate::output::non_negative, default_value_t = 0.0)]
     pub tip_diameter_mm: f64,
     /// Travel height above the highest hole top (mm).
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, value_parser = crate::output::positive, default_value_t = 5.0)]
     pub safe_height_mm: f64,
     /// Position tolerance (mm, length of the XY error): exit 1 when a hole exceeds it.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::positive)]
     pub tolerance_mm: Option<f64>,
     /// Seed of the virtual machine (where its holes really are).
     #[arg(long, default_value_t = 1)]

@@ -15,7 +15,7 @@ use truepos_io::InputError;
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos simulate somac --out spar && truepos somac run --program spar/program.nc --cell spar/cell.toml --json\n\nVerdict (JSON `verdict`, `reasons`; the audit run's status says the same):\n  pass   every stop SUCCESS and no alarm: exit 0, status SUCCESS\n  alarm  every stop SUCCESS but an alarm fired, recovered or not (an inclination or\n         temperature alarm means the trackers or the part moved: a person must review\n         the run before the part is accepted, so the contract's exit code is 1): exit 1,\n         status ALARM\n  fail   a stop is not SUCCESS or the run halted: exit 1, status FAILURE\nAn automatically recovered beam break is listed in `reasons` and alone does not change\nthe verdict."
+    after_help = "Verdict (JSON `verdict`, `reasons`; the audit run's status says the same):\n  pass   every stop SUCCESS and no alarm: exit 0, status SUCCESS\n  alarm  every stop SUCCESS but an alarm fired, recovered or not (an inclination or\n         temperature alarm means the trackers or the part moved: a person must review\n         the run before the part is accepted, so the contract's exit code is 1): exit 1,\n         status ALARM\n  fail   a stop is not SUCCESS or the run halted: exit 1, status FAILURE\nAn automatically recovered beam break is listed in `reasons` and alone does not change\nthe verdict."
 )]
 pub struct RunArgs {
     /// The G-code program; measurement blocks carry the loop's keyword comment ([loop] keyword, default `(MSG,Measure SOMaC)`).
@@ -49,9 +49,6 @@ pub struct RunArgs {
 }
 
 #[derive(clap::Args, Debug)]
-#[command(
-    after_help = "Example:\n  truepos simulate somac --out spar --seed 1   # program.nc, cell.toml, truth.json"
-)]
 pub struct SimArgs {
     #[command(flatten)]
     pub common: super::SimCommon,
@@ -92,7 +89,10 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         })
     } else {
         audit.set_controller("virtual", "truepos virtual gantry cell")?;
-        run_virtual(&text, cfg, targets, &params, &mut audit).map_err(anyhow::Error::from)
+        let pb = crate::output::spinner("somac: running the program on the virtual gantry with the trackers");
+        let r = run_virtual(&text, cfg, targets, &params, &mut audit).map_err(anyhow::Error::from);
+        pb.finish_and_clear();
+        r
     };
     if let Some(sig) = truepos_io::atomic::interrupted() {
         let name = truepos_io::atomic::signal_name(sig);
