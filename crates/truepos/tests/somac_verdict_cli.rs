@@ -97,7 +97,7 @@ fn a_run_interrupted_by_sigint_is_closed_as_aborted() {
     let o = bin().args(["simulate", "somac", "--out", s(d.path())]).output().unwrap();
     assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
     let db = d.path().join("audit.sqlite");
-    let mut child = bin()
+    let child = bin()
         .args([
             "somac",
             "run",
