@@ -95,7 +95,19 @@ fn fixtures(dir: &Path) {
     write_points(dir, "targets_nominal.csv", &base, true);
     let shifted: Vec<[f64; 3]> = base.iter().map(|p| [p[0] + 0.3, p[1] - 0.2, p[2] + 0.1]).collect();
     write_points(dir, "targets_now.csv", &shifted, true);
+    // The NIST DMIS example and the part modelled for it (the repository's data).
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/dmis");
+    for f in ["simple_in.dms", "simple_part.toml"] {
+        std::fs::copy(data.join(f), dir.join(f)).unwrap_or_else(|e| panic!("{f}: {e}"));
+    }
 }
+
+/// Examples shown in `--help` but not run here, with the reason: they need a state this test
+/// cannot make (each is run by its own command's tests).
+const SHOWN_NOT_RUN: &[(&str, &str)] = &[(
+    "truepos audit push ",
+    "needs a spool left by a run whose database went away (crates/truepos/tests/audit_cli.rs makes one)",
+)];
 
 /// Run one example in `dir`; `Err` with what went wrong.
 fn run(dir: &Path, example: &str) -> Result<Duration, String> {
@@ -162,7 +174,13 @@ fn every_help_example_runs() {
     fixtures(dir.path());
     let mut failed = Vec::new();
     let mut times = Vec::new();
-    for e in examples.iter().filter(|e| !e.starts_with("truepos demo")) {
+    for (prefix, why) in SHOWN_NOT_RUN {
+        eprintln!("not run here: {prefix}… ({why})");
+    }
+    for e in examples
+        .iter()
+        .filter(|e| !e.starts_with("truepos demo") && !SHOWN_NOT_RUN.iter().any(|(p, _)| e.starts_with(p)))
+    {
         match run(dir.path(), e) {
             Ok(t) => times.push((t, e.clone())),
             Err(why) => failed.push(format!("{e}\n    {why}")),

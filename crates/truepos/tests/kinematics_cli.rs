@@ -193,3 +193,34 @@ fn linuxcnc_five_axis_calibrate_apply_verify_through_the_cli() {
         [five.configured[0], five.configured[1], five.configured[3], five.configured[4]]
     );
 }
+
+/// `--db`: the calibration is one audit-trail run with each parameter before and after, and the
+/// trail's chain verifies.
+#[test]
+fn the_calibration_is_recorded_in_the_audit_trail() {
+    let d = tempfile::tempdir().unwrap();
+    let db = d.path().join("trail.sqlite");
+    let out = bin()
+        .args(["kinematics", "calibrate", "--model", "xyzbc-trt", "--near=60,25,15", "--diameter-mm", "25"])
+        .args(["--tip-diameter-mm", "2", "--clearance-mm", "1", "--apply", "--json", "--db"])
+        .arg(&db)
+        .args(orientation_args(&SET))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let c = rusqlite::Connection::open(&db).unwrap();
+    let (status, message): (String, String) = c
+        .query_row("SELECT status, message FROM runs ORDER BY id DESC LIMIT 1", [], |r| {
+            Ok((r.get(0)?, r.get(1)?))
+        })
+        .unwrap();
+    assert_eq!(status, "SUCCESS");
+    assert!(message.starts_with("applied"), "{message}");
+    let list = bin().args(["audit", "export", "1", "--format", "json", "--db"]).arg(&db).output().unwrap();
+    let text = String::from_utf8_lossy(&list.stdout);
+    for pin in ["x-rot-point", "y-rot-point", "x-offset", "z-offset"] {
+        assert!(text.contains(pin) && text.contains("identified"), "{pin}: {text}");
+    }
+    let v = bin().args(["audit", "verify", "--db"]).arg(&db).output().unwrap();
+    assert_eq!(v.status.code(), Some(0), "{}", String::from_utf8_lossy(&v.stderr));
+}

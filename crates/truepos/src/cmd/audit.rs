@@ -13,7 +13,7 @@ use truepos_audit::{Db, RunSummary, Trail};
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Examples:\n  truepos audit list\n  truepos audit show 3 --db somac-audit.sqlite\n  truepos audit export 3 --format csv > run3.csv\n  PGPASSWORD=… truepos audit verify --db postgresql://cell@db.plant:5432/fleet\n\nThe password of a postgresql:// database comes from PGPASSWORD or ~/.pgpass, never the\naddress. `verify` exits 1 naming the first record whose hash chain is broken (changed,\ninserted or deleted); note the head it prints to detect a later truncation."
+    after_help = "A fleet's shared trail: PGPASSWORD=… truepos audit verify --db postgresql://cell@db.plant:5432/fleet\n\nThe password of a postgresql:// database comes from PGPASSWORD or ~/.pgpass, never the\naddress. `verify` exits 1 naming the first record whose hash chain is broken (changed,\ninserted or deleted); note the head it prints to detect a later truncation."
 )]
 pub struct Args {
     #[command(subcommand)]

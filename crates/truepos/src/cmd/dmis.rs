@@ -10,7 +10,7 @@ use truepos_dmis::exec::{self, DryRun, RunOptions};
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos dmis run data/dmis/simple_in.dms --part data/dmis/simple_part.toml --sensor PROBE6=Probe1"
+    after_help = "A real CMM through I++ DME: truepos dmis run part.dms --controller ippdme://HOST:1294 --sensor PROBE6=Probe1"
 )]
 pub struct Args {
     #[command(subcommand)]
@@ -26,7 +26,7 @@ pub enum DmisCommand {
     /// stderr. The results file is a DMIS output file (FA(label)=FEAT/… with the actual values,
     /// TA(label)=TOL/…,value,INTOL|OUTOL).
     #[command(
-        after_help = "Example:\n  truepos dmis run part.dms --controller ippdme://10.0.0.5:1294 --sensor PROBE6=Probe1\n  truepos dmis run data/dmis/simple_in.dms --part data/dmis/simple_part.toml --sensor PROBE6=Probe1 --json\n\nExit codes: 0 done, 1 a tolerance OUTOL, 2 bad program or option (nothing moved), 3 machine failure (the program line named, the machine retracted)."
+        after_help = "A real CMM through I++ DME:\n  truepos dmis run part.dms --controller ippdme://HOST:1294 --sensor PROBE6=Probe1\n\nExit codes: 0 done, 1 a tolerance OUTOL, 2 bad program or option (nothing moved), 3 machine failure (the program line named, the machine retracted)."
     )]
     Run(RunArgs),
 }

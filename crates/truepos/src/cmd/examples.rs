@@ -106,6 +106,24 @@ pub fn examples(path: &[&str]) -> &'static [&'static str] {
         ["simulate", "scan"] => &["truepos simulate scan --out scan --seed 1 --features 12"],
         ["simulate", "somac"] => &["truepos simulate somac --out spar --seed 1"],
         ["demo"] => &["truepos demo --out demo"],
+        ["audit"] => &[
+            "truepos somac run --program spar/program.nc --cell spar/cell.toml --db spar/audit.sqlite --json",
+            "truepos audit list --db spar/audit.sqlite",
+            "truepos audit verify --db spar/audit.sqlite --json",
+        ],
+        ["audit", "list"] => &["truepos audit list --db spar/audit.sqlite --json"],
+        ["audit", "show"] => &["truepos audit show 1 --db spar/audit.sqlite"],
+        ["audit", "export"] => &["truepos audit export 1 --format csv --db spar/audit.sqlite"],
+        ["audit", "verify"] => &["truepos audit verify --db spar/audit.sqlite"],
+        ["audit", "migrate"] => &["truepos audit migrate --db spar/audit.sqlite"],
+        ["audit", "push"] => &["truepos audit push truepos-audit-spool-0.sqlite --db spar/audit.sqlite"],
+        ["dmis"] | ["dmis", "run"] => &[
+            "truepos dmis run simple_in.dms --part simple_part.toml --sensor PROBE6=Probe1 --json",
+            "truepos dmis run simple_in.dms --part simple_part.toml --sensor PROBE6=Probe1 --dry-run",
+        ],
+        ["kinematics"] | ["kinematics", "calibrate"] => &[
+            "truepos kinematics calibrate --model xyzbc-trt --near=60,25,15 --diameter-mm 25 --tip-diameter-mm 2 --clearance-mm 1 --orientation 0,0 --orientation 0,120 --orientation 0,240 --orientation 45,0 --orientation 90,120 --orientation 90,240 --apply --verify --json",
+        ],
         ["ippdme"] | ["ippdme", "serve"] => &["truepos ippdme serve --bind 127.0.0.1 --port 1294 --log ippdme.log"],
         _ => &[],
     }

@@ -18,7 +18,7 @@ use truepos_math::Point3;
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos kinematics calibrate --controller linuxcncrsh://127.0.0.1:5007 --model xyzbc-trt --near=60,25,15 --diameter-mm 25 --tip-diameter-mm 2 --orientation 0,0 --orientation 0,120 --orientation 0,240 --orientation 45,0 --orientation 90,120 --orientation 90,240 --apply --verify --json"
+    after_help = "On LinuxCNC (one line):\n  truepos kinematics calibrate --controller linuxcncrsh://127.0.0.1:5007 --model xyzbc-trt --near=60,25,15 --diameter-mm 25 --tip-diameter-mm 2 --orientation 0,0 --orientation 0,120 --orientation 0,240 --orientation 45,0 --orientation 90,120 --orientation 90,240 --apply --verify --json"
 )]
 pub struct Args {
     #[command(subcommand)]
@@ -34,7 +34,7 @@ pub enum What {
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  truepos kinematics calibrate --controller linuxcncrsh://127.0.0.1:5007 --model xyzbc-trt --near=60,25,15 --diameter-mm 25 --tip-diameter-mm 2 --orientation 0,0 --orientation 0,120 --orientation 0,240 --orientation 45,0 --orientation 90,120 --orientation 90,240 --apply --verify --json
+    after_help = "On LinuxCNC (one line):\n  truepos kinematics calibrate --controller linuxcncrsh://127.0.0.1:5007 --model xyzbc-trt --near=60,25,15 --diameter-mm 25 --tip-diameter-mm 2 --orientation 0,0 --orientation 0,120 --orientation 0,240 --orientation 45,0 --orientation 90,120 --orientation 90,240 --apply --verify --json
 
 The sphere sits on the rotary table; --near is its nominal centre in the programme frame (the
 table frame at B = C = 0), known to better than the clearance. The controller must run its
@@ -112,6 +112,11 @@ pub struct CalibrateArgs {
     /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
+    /// Record the calibration in an audit trail (SQLite FILE or postgresql://USER@HOST:PORT/DB):
+    /// one run with the controller, each parameter's configured and identified value (before and
+    /// after), and whether it was applied.
+    #[arg(long, value_name = "FILE|URL")]
+    pub db: Option<String>,
 }
 
 pub fn run(a: Args) -> Result<Outcome> {
@@ -160,6 +165,7 @@ fn calibrate(a: CalibrateArgs) -> Result<Outcome> {
     };
     // Options and observability before a controller is opened (and anything moves).
     req.check().map_err(kin_err)?;
+    let db = a.db.as_deref().map(super::audit::parse_db).transpose()?;
     let (mut machine, truth): (Box<dyn ProbingMachine>, _) = if a.controller == "virtual" {
         let (m, t) = VirtualMachineTool::five_axis(
             a.seed,
@@ -191,6 +197,45 @@ fn calibrate(a: CalibrateArgs) -> Result<Outcome> {
     if let Some(t) = truth {
         report.truth = Some((t.truth, t.sphere_centre_mm));
     }
+    match &db {
+        Some(db) => record(db, &report)?,
+        None if report.applied => eprintln!(
+            "note: no --db: the change written into the controller is not recorded in an audit trail"
+        ),
+        None => {}
+    }
     emit(&report, a.json)?;
     Ok(Outcome::Done)
+}
+
+/// The calibration as one audit-trail run: the controller, one record per parameter (configured
+/// = before, identified = after, with its uncertainty), and the outcome as the run's message.
+fn record(db: &truepos_audit::Db, report: &truepos_kinematics::CalibrationReport) -> Result<()> {
+    use truepos_somac::audit::{AuditSink, Event};
+    let now = truepos_audit::now_utc();
+    let mut audit =
+        truepos_audit::Audit::open_noted(db, "kinematics calibrate", Some("kinematics calibrate"), &now)?;
+    audit.set_controller(&report.device.address, &report.device.version)?;
+    for (i, p) in report.parameters.iter().enumerate() {
+        let text = format!(
+            "{}: configured {:.6} mm, identified {:.6} mm (u = {:.6} mm){}",
+            p.name,
+            p.configured_mm,
+            p.identified_mm,
+            p.uncertainty_mm,
+            if report.applied { ", written into the controller" } else { ", not written (dry run)" }
+        );
+        audit
+            .record(&Event::Block { line: i + 1, text, time_s: 0.0 })
+            .map_err(|e| DeviceError(format!("audit trail {}: {e}", db.display())))?;
+    }
+    let message = format!(
+        "{}; centre spread {:.4} mm before, {:.4} mm predicted after",
+        if report.applied { "applied" } else { "dry run" },
+        report.spread_before_mm,
+        report.identification.spread_after_predicted_mm()
+    );
+    audit.finish("SUCCESS", Some(&message), &truepos_audit::now_utc())?;
+    eprintln!("calibration recorded in {} (run {})", db.display(), audit.run_id());
+    Ok(())
 }
