@@ -212,6 +212,7 @@ fn somac_inspect_reports_task_specific_uncertainty_through_ippdme() {
         std::fs::write(&machine, format!("[ippdme.model]\nseed = {}\n", 40 + seed)).unwrap();
         let (child, addr) = server(&part, &machine);
         let out = truepos()
+            .current_dir(dir.path())
             .args(["somac", "inspect", "--controller", &format!("ippdme://{addr}"), "--holes"])
             .arg(&holes)
             .args([
