@@ -96,6 +96,23 @@ fn worst_component(s: &ProbedSphere, centre: Point3, radius: f64) -> (f64, f64) 
         .unwrap_or((f64::NAN, f64::NAN))
 }
 
+/// The words of a task-specific sphere uncertainty (k = 2, µm), simulated on `what`.
+fn task_u_text(tsu: &crate::vcmm::SphereUncertainty, what: &str) -> String {
+    format!(
+        "U = {:.2}, {:.2}, {:.2} µm on the centre coordinates, {:.2} µm on the radius (k = 2; task-specific, ISO/TS 15530-4: the same probing simulated on {} {what})",
+        2e3 * tsu.center_mm.x,
+        2e3 * tsu.center_mm.y,
+        2e3 * tsu.center_mm.z,
+        2e3 * tsu.radius_mm,
+        tsu.runs
+    )
+}
+
+/// The verdict fields of the worst component ([`worst_component`], mm) against `tol_um`.
+fn worst_verdict((error, u): (f64, f64), tol_um: f64) -> Verdict {
+    Verdict::judged(report::Judgement::new(error * 1e3, u * 1e3, tol_um, "µm", report::DecisionRule::Simple))
+}
+
 /// The result table in `unit`.
 fn result_table(rows: &[Vec<String>], unit: &str) -> String {
     let (u, e) = (format!("U, k = 2 ({unit})"), format!("error ({unit})"));
@@ -182,25 +199,11 @@ pub fn ippdme_section(report: &mut Report) -> Result<()> {
         ),
         truth: "the sphere of the virtual CMM's part file".into(),
         result: format!("centre error {:.3} µm, radius error {} µm", ce * 1e3, signed(re, UM, 3)),
-        uncertainty: format!(
-            "U = {:.2}, {:.2}, {:.2} µm on the centre coordinates, {:.2} µm on the radius (k = 2; task-specific, ISO/TS 15530-4: the same probing simulated on {} machines drawn from the server's error model in {:.2} s)",
-            2e3 * tsu.center_mm.x,
-            2e3 * tsu.center_mm.y,
-            2e3 * tsu.center_mm.z,
-            2e3 * tsu.radius_mm,
-            tsu.runs,
-            tsu.elapsed_s
-        ),
+        uncertainty: task_u_text(&tsu, &format!("machines drawn from the server's error model, in {:.2} s", tsu.elapsed_s)),
         tolerance_text: format!(
             "each centre coordinate and the radius within {tol_um} µm (the virtual CMM's default error models: geometric errors, pre-travel lobing, touch noise); judged on the worst of the four"
         ),
-        ..Verdict::judged(report::Judgement::new(
-            judgement.0 * 1e3,
-            judgement.1 * 1e3,
-            tol_um,
-            "µm",
-            report::DecisionRule::Simple,
-        ))
+        ..worst_verdict(judgement, tol_um)
     });
     let _ = (ce, re);
     let html = format!(
@@ -269,25 +272,11 @@ pub fn controller_section(report: &mut Report) -> Result<()> {
         ),
         truth: "the virtual machine's true sphere (set up 0.1 mm σ off nominal)".into(),
         result: format!("centre error {:.2} µm, radius error {} µm", ce * 1e3, signed(re, UM, 2)),
-        uncertainty: format!(
-            "U = {:.2}, {:.2}, {:.2} µm on the centre coordinates, {:.2} µm on the radius (k = 2; task-specific: the same probing simulated on {} realisations of {})",
-            2e3 * tsu.center_mm.x,
-            2e3 * tsu.center_mm.y,
-            2e3 * tsu.center_mm.z,
-            2e3 * tsu.radius_mm,
-            tsu.runs,
-            tsu.basis
-        ),
+        uncertainty: task_u_text(&tsu, &format!("realisations of {}", tsu.basis)),
         tolerance_text: format!(
             "each centre coordinate and the radius within {tol_um} µm (1 ms servo latch at 50 mm/min, 0.5 µm pre-travel); judged on the worst of the four"
         ),
-        ..Verdict::judged(report::Judgement::new(
-            judgement.0 * 1e3,
-            judgement.1 * 1e3,
-            tol_um,
-            "µm",
-            report::DecisionRule::Simple,
-        ))
+        ..worst_verdict(judgement, tol_um)
     });
     let html = format!(
         "<p>The sphere procedure of <code>truepos probe sphere</code> on the virtual machine tool through the controller trait (<code>ProbingMachine</code>: position, moves, single-point probing), what <code>--controller virtual</code> runs: a touch probe with 0.5 µm pre-travel, 0.1 µm noise and a 1 ms servo latch, {} points at 50 mm/min over the upper hemisphere of a Ø {DIAMETER_MM} mm sphere set up near its nominal centre. A LinuxCNC run is what <code>truepos probe sphere --controller linuxcncrsh://HOST:PORT --near=X,Y,Z --diameter-mm 25</code> does: the same procedure through the same trait, with G38.2 moves sent over linuxcncrsh and the latched point read back from <code>#5061..#5063</code>, on a machine that is on, homed and idle. The demo does not start LinuxCNC (the LinuxCNC integration tests do, in <code>crates/linuxcnc</code>).</p>{}",
