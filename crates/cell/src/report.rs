@@ -283,8 +283,8 @@ pub fn utc_string(unix_s: i64) -> String {
 }
 
 const CSS: &str = "body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
-table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #999;padding:3px 8px;text-align:right;vertical-align:top}thead th{background:#eee}
-td:first-child,th:first-child,th[scope=row]{text-align:left}tbody th{font-weight:normal}caption{text-align:left;font-weight:600;padding:0 0 .3em}
+table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #999;padding:3px 8px;text-align:left;vertical-align:top}thead th{background:#eee}
+td.num,th.num{text-align:right;font-variant-numeric:tabular-nums}tbody th{font-weight:normal}caption{text-align:left;font-weight:600;padding:0 0 .3em}
 .wrap{overflow-x:auto;max-width:100%}
 figure{margin:1em 0}figure svg{max-width:100%;height:auto;display:block}figcaption{font-size:.95em;color:#333}
 .legend{list-style:none;padding:0;margin:.3em 0;display:flex;flex-wrap:wrap;gap:1.2em}.swatch{display:inline-block;width:1.2em;height:.8em;margin-right:.4em;vertical-align:middle;border:1px solid #555}
@@ -294,7 +294,7 @@ dl.header{display:grid;grid-template-columns:max-content 1fr;gap:.2em 1em}dl.hea
 .verdict td,.verdict th{text-align:left}
 .banner{border:2px dashed #6b4a00;background:#fff8e6;padding:.4em .8em;font-weight:bold;display:inline-block;margin-left:1em}
 .doccontrol td.fill{min-width:14em;height:1.6em}
-@media print{body{max-width:none;margin:0;font-size:10pt;color:#000}nav{display:none}section{break-before:page}figure,table{break-inside:avoid}a{color:#000;text-decoration:none}.wrap{overflow:visible}h1,h2,h3,caption{break-after:avoid}h2+*,h3+*{break-before:avoid}p{orphans:3;widows:3}}
+@media print{body{max-width:none;margin:0;font-size:10pt;color:#000}nav{display:none}section{break-before:page}figure,.verdict{break-inside:avoid}tr{break-inside:avoid}.summary table{font-size:8.5pt;width:100%}.summary .verdict{break-inside:auto}.summary td,.summary th{padding:2px 4px}a{color:#000;text-decoration:none}.wrap{overflow:visible}h1,h2,h3,caption{break-after:avoid}h2+*,h3+*{break-before:avoid}p{orphans:3;widows:3}}
 ";
 
 /// The page box of a printed report: its ID at the bottom left of every page and "page x of y"
@@ -423,11 +423,13 @@ impl Report {
             })
             .collect();
         html.push_str("<h2 id=\"summary\">Summary</h2>\n");
+        html.push_str("<div class=\"summary\">");
         html.push_str(&table_left(
             "One row per capability",
             &["capability", "measured", "result", "uncertainty", "tolerance", "verdict"],
             &rows,
         ));
+        html.push_str("</div>\n");
         html.push_str(&self.traceability());
         html.push_str("<nav aria-label=\"Sections\"><h2>Sections</h2><ul>\n");
         for s in &self.sections {
@@ -638,13 +640,32 @@ fn table_left(caption: &str, header: &[&str], rows: &[Vec<String>]) -> String {
     t.replacen("<table>", &format!("<table class=\"verdict\"><caption>{}</caption>", escape(caption)), 1)
 }
 
+/// Whether a cell reads as a number (or a tuple of numbers, or a dash for "none"): such cells
+/// are right-aligned so that their digits line up; text stays left-aligned.
+fn is_numeric_cell(c: &str) -> bool {
+    let c = c.trim();
+    c.chars().any(|ch| ch.is_ascii_digit())
+        && c.chars().all(|ch| ch.is_ascii_digit() || " .,()+-−×eE%⁻⁰¹²³⁴⁵⁶⁷⁸⁹".contains(ch))
+        || c == "—"
+}
+
 /// An HTML table from a header and rows of already formatted cells (escaped; `<thead>` with
 /// column headers, the first cell of each row a row header; cells reading `pass` / `FAIL` are
-/// coloured). Wrapped so a wide table scrolls on a narrow screen instead of the page.
+/// coloured; columns whose every cell is a number are right-aligned, the rest left-aligned).
+/// Wrapped so a wide table scrolls on a narrow screen instead of the page.
 pub fn table(header: &[&str], rows: &[Vec<String>]) -> String {
+    let numeric: Vec<bool> = (0..header.len())
+        .map(|i| {
+            i > 0
+                && rows.iter().any(|r| r.get(i).is_some_and(|c| c != "—"))
+                && rows.iter().all(|r| r.get(i).is_none_or(|c| is_numeric_cell(c)))
+        })
+        .collect();
+    let num = |i: usize| numeric.get(i).copied().unwrap_or(false);
     let mut h = String::from("<div class=\"wrap\"><table><thead><tr>");
-    for c in header {
-        h.push_str(&format!("<th scope=\"col\">{}</th>", escape(c)));
+    for (i, c) in header.iter().enumerate() {
+        let class = if num(i) { " class=\"num\"" } else { "" };
+        h.push_str(&format!("<th scope=\"col\"{class}>{}</th>", escape(c)));
     }
     h.push_str("</tr></thead>\n<tbody>\n");
     for r in rows {
@@ -654,6 +675,7 @@ pub fn table(header: &[&str], rows: &[Vec<String>]) -> String {
                 "pass" => " class=\"pass\"",
                 "FAIL" | "fail" => " class=\"fail\"",
                 "inconclusive" | "skipped" => " class=\"incomplete\"",
+                _ if num(i) => " class=\"num\"",
                 _ => "",
             };
             if i == 0 {
@@ -705,6 +727,8 @@ const PALETTE: [RGBColor; 6] = [
 /// narrower than that).
 const CAPTION_PX: u32 = 20;
 const LABEL_PX: u32 = 15;
+/// Radius of a point marker: large enough to see on paper at 70 % scale.
+const MARKER_PX: u32 = 3;
 
 fn bounds(series: &[Series]) -> (f64, f64, f64, f64) {
     let mut b = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
@@ -742,8 +766,30 @@ fn sig(v: f64) -> String {
     }
     let mag = v.abs().log10().floor() as i32;
     let dec = (3 - mag).clamp(0, 9) as usize;
-    format!("{v:.dec$}")
+    format!("{v:.dec$}").replace('-', "\u{2212}")
 }
+
+/// Tick label for `v` on an axis whose labels are about `step` apart: as many decimals as the
+/// step needs, no "−0", and the typographic minus sign (U+2212) that the report's text uses, so
+/// that a figure and the table beside it write negative numbers the same way.
+fn tick_label(v: f64, step: f64) -> String {
+    let dec =
+        if step > 0.0 && step.is_finite() { (-step.log10().floor()).clamp(0.0, 9.0) as usize } else { 3 };
+    let s = format!("{v:.dec$}");
+    if s.starts_with('-') && s[1..].chars().all(|c| c == '0' || c == '.') {
+        return s[1..].to_string();
+    }
+    s.replace('-', "\u{2212}")
+}
+
+/// The label formatter of an axis over `lo..hi` with about `n` labels (see [`tick_label`]).
+fn ticks(lo: f64, hi: f64, n: usize) -> impl Fn(&f64) -> String {
+    let step = (hi - lo).abs() / n.max(1) as f64;
+    move |v: &f64| tick_label(*v, step)
+}
+
+/// Number of tick labels plotters is asked for on each axis.
+const N_TICKS: usize = 10;
 
 /// Wrap a plotters SVG as an accessible figure: `role="img"` with a `<title>`, the legend as
 /// HTML below the drawing (never over the data), and a caption that is the text alternative.
@@ -827,15 +873,23 @@ fn xy_plot_impl(title: &str, x_label: &str, y_label: &str, series: &[Series], eq
             .y_label_area_size(ya)
             .build_cartesian_2d(x0..x1, y0..y1)
             .map_err(plot_err)?;
+        let (fx, fy) = (ticks(x0, x1, N_TICKS), ticks(y0, y1, N_TICKS));
         chart
             .configure_mesh()
             .x_desc(x_label)
             .y_desc(y_label)
+            .x_labels(N_TICKS)
+            .y_labels(N_TICKS)
+            .x_label_formatter(&fx)
+            .y_label_formatter(&fy)
             .label_style(("sans-serif", LABEL_PX))
             .axis_desc_style(("sans-serif", LABEL_PX))
             .draw()
             .map_err(plot_err)?;
-        for (i, s) in series.iter().enumerate() {
+        // Lines first, then point markers on top, so that a fitted line never hides the
+        // measured points it was fitted to.
+        let order = series.iter().enumerate().filter(|(_, s)| s.style == Style::Line);
+        for (i, s) in order.chain(series.iter().enumerate().filter(|(_, s)| s.style == Style::Points)) {
             let color = PALETTE[i % PALETTE.len()];
             match s.style {
                 Style::Line => {
@@ -845,7 +899,7 @@ fn xy_plot_impl(title: &str, x_label: &str, y_label: &str, series: &[Series], eq
                 }
                 Style::Points => {
                     chart
-                        .draw_series(s.points.iter().map(|&p| Circle::new(p, 2, color.filled())))
+                        .draw_series(s.points.iter().map(|&p| Circle::new(p, MARKER_PX, color.filled())))
                         .map_err(plot_err)?;
                 }
             }
@@ -861,28 +915,46 @@ fn xy_plot_impl(title: &str, x_label: &str, y_label: &str, series: &[Series], eq
     Ok(figure(&svg, title, &legend, &alt))
 }
 
+/// A vertical reference line across a histogram: a tolerance limit, a nominal value.
+#[derive(Clone, Copy, Debug)]
+pub struct Mark<'a> {
+    /// Legend text, e.g. "tolerance 5 µm".
+    pub label: &'a str,
+    /// Position on the value axis, in the histogram's unit.
+    pub value: f64,
+}
+
+/// The bin range of a histogram: `range` when given and non-empty, else the finite values' own
+/// range widened to take in every mark, so that a tolerance is always on the drawing.
+fn histogram_range(values: &[f64], range: Option<(f64, f64)>, marks: &[Mark]) -> (f64, f64) {
+    if let Some((a, b)) = range.filter(|(a, b)| b > a && a.is_finite() && b.is_finite()) {
+        return (a, b);
+    }
+    let finite = values.iter().chain(marks.iter().map(|m| &m.value)).copied().filter(|v| v.is_finite());
+    let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| (l.min(v), h.max(v)));
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    // Values that start near zero (errors, magnitudes) keep zero as the left edge.
+    let lo = if lo >= 0.0 && lo <= 0.5 * hi { 0.0 } else { lo };
+    let pad = if hi > lo { 0.03 * (hi - lo) } else { lo.abs().max(1.0) * 0.05 };
+    (if lo == 0.0 { 0.0 } else { lo - pad }, hi + pad)
+}
+
 /// Overlaid histograms of several value sets over common bins from `range` (or the data's own
-/// range when `None`; pass the same range to histograms that are to be compared).
+/// range, widened to take in the marks, when `None`), with each [`Mark`] drawn as a dashed
+/// vertical line named in the legend. Give each histogram its own range unless two are meant to
+/// be compared bin for bin.
 pub fn histogram(
     title: &str,
     x_label: &str,
     sets: &[(&str, &[f64])],
     bins: usize,
     range: Option<(f64, f64)>,
+    marks: &[Mark],
 ) -> Result<String> {
     let all: Vec<f64> = sets.iter().flat_map(|s| s.1.iter().copied()).filter(|v| v.is_finite()).collect();
-    let (lo, hi) = match range {
-        Some((a, b)) if b > a => (a, b),
-        _ => {
-            let lo = all.iter().cloned().fold(f64::INFINITY, f64::min);
-            let hi = all.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-            if lo.is_finite() && hi > lo {
-                (lo, hi)
-            } else {
-                (0.0, 1.0)
-            }
-        }
-    };
+    let (lo, hi) = histogram_range(&all, range, marks);
     let bins = bins.max(1);
     let w = (hi - lo) / bins as f64;
     let counts: Vec<Vec<usize>> = sets
@@ -897,6 +969,7 @@ pub fn histogram(
         })
         .collect();
     let ymax = counts.iter().flatten().copied().max().unwrap_or(1).max(1) as f64;
+    let mark_colour = RGBColor(0, 0, 0);
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (760, 380)).into_drawing_area();
@@ -904,14 +977,18 @@ pub fn histogram(
         let mut chart = ChartBuilder::on(&root)
             .caption(title, ("sans-serif", CAPTION_PX))
             .margin(12)
+            .margin_right(24)
             .x_label_area_size(50)
             .y_label_area_size(70)
             .build_cartesian_2d(lo..hi, 0.0..ymax * 1.1)
             .map_err(plot_err)?;
+        let fx = ticks(lo, hi, N_TICKS);
         chart
             .configure_mesh()
             .x_desc(x_label)
             .y_desc("count")
+            .x_labels(N_TICKS)
+            .x_label_formatter(&fx)
             // Counts are whole numbers: no "70.0".
             .y_label_formatter(&|v| if v.fract() == 0.0 { format!("{v:.0}") } else { format!("{v:.1}") })
             .label_style(("sans-serif", LABEL_PX))
@@ -921,16 +998,27 @@ pub fn histogram(
         for (i, c) in counts.iter().enumerate() {
             let color = PALETTE[i % PALETTE.len()];
             chart
-                .draw_series(c.iter().enumerate().map(|(k, &n)| {
+                .draw_series(c.iter().enumerate().filter(|(_, &n)| n > 0).map(|(k, &n)| {
                     let x0 = lo + k as f64 * w;
                     Rectangle::new([(x0, 0.0), (x0 + w, n as f64)], color.mix(0.55).filled())
                 }))
                 .map_err(plot_err)?;
         }
+        for m in marks.iter().filter(|m| m.value.is_finite() && m.value >= lo && m.value <= hi) {
+            chart
+                .draw_series(DashedLineSeries::new(
+                    [(m.value, 0.0), (m.value, ymax * 1.1)],
+                    8,
+                    5,
+                    mark_colour.stroke_width(2),
+                ))
+                .map_err(plot_err)?;
+        }
         root.present().map_err(plot_err)?;
     }
-    let legend: Vec<(String, RGBColor)> =
+    let mut legend: Vec<(String, RGBColor)> =
         sets.iter().enumerate().map(|(i, s)| (s.0.to_string(), PALETTE[i % PALETTE.len()])).collect();
+    legend.extend(marks.iter().map(|m| (format!("{} (dashed line)", m.label), mark_colour)));
     let parts: Vec<String> = sets
         .iter()
         .map(|(label, v)| {
@@ -940,12 +1028,15 @@ pub fn histogram(
             format!("“{label}”: {} values, mean {}, max {}", f.len(), sig(mean), sig(max))
         })
         .collect();
-    let alt = format!(
+    let mut alt = format!(
         "Text alternative: histogram of {x_label}, {bins} bins from {} to {}; {}.",
         sig(lo),
         sig(hi),
         parts.join("; ")
     );
+    for m in marks {
+        alt.push_str(&format!(" {} at {}.", m.label, sig(m.value)));
+    }
     Ok(figure(&svg, title, &legend, &alt))
 }
 
@@ -962,7 +1053,8 @@ fn diverging(t: f64) -> RGBColor {
 }
 
 /// A colour map of `values[j][i]` over `x` (i) and `y` (j) cell centres (equal aspect), with a
-/// colour bar centred on zero (white = 0, blue negative, red positive, symmetric range).
+/// colour bar over the data's own range labelled with its unit (white = 0, blue negative, red
+/// positive, full colour at the largest magnitude).
 pub fn heatmap(title: &str, x: &[f64], y: &[f64], values: &[Vec<f64>], unit: &str) -> Result<String> {
     let lo = values.iter().flatten().cloned().fold(f64::INFINITY, f64::min);
     let hi = values.iter().flatten().cloned().fold(f64::NEG_INFINITY, f64::max);
@@ -974,7 +1066,7 @@ pub fn heatmap(title: &str, x: &[f64], y: &[f64], values: &[Vec<f64>], unit: &st
     let x1 = x.last().copied().unwrap_or(1.0) + dx / 2.0;
     let y0 = y.first().copied().unwrap_or(0.0) - dy / 2.0;
     let y1 = y.last().copied().unwrap_or(1.0) + dy / 2.0;
-    let (w, bar_w) = (760u32, 130u32);
+    let (w, bar_w) = (760u32, 120u32);
     // Height for equal aspect of the map area.
     let map_w = f64::from(w - bar_w - 80 - 24);
     let map_h = (map_w * (y1 - y0) / (x1 - x0)).clamp(150.0, 700.0);
@@ -991,10 +1083,15 @@ pub fn heatmap(title: &str, x: &[f64], y: &[f64], values: &[Vec<f64>], unit: &st
             .y_label_area_size(80)
             .build_cartesian_2d(x0..x1, y0..y1)
             .map_err(plot_err)?;
+        let (fx, fy) = (ticks(x0, x1, N_TICKS), ticks(y0, y1, N_TICKS));
         chart
             .configure_mesh()
             .x_desc("x (mm)")
             .y_desc("y (mm)")
+            .x_labels(N_TICKS)
+            .y_labels(N_TICKS)
+            .x_label_formatter(&fx)
+            .y_label_formatter(&fy)
             .label_style(("sans-serif", LABEL_PX))
             .axis_desc_style(("sans-serif", LABEL_PX))
             .disable_mesh()
@@ -1011,35 +1108,42 @@ pub fn heatmap(title: &str, x: &[f64], y: &[f64], values: &[Vec<f64>], unit: &st
                 })
             }))
             .map_err(plot_err)?;
+        // The colour bar spans the data's own range (its ends are the smallest and largest
+        // value), coloured on the same scale as the map: white is zero wherever it falls.
+        let (b0, b1) = if hi > lo { (lo, hi) } else { (lo - 0.5 * m, lo + 0.5 * m) };
         let mut bar = ChartBuilder::on(&bar_area)
             .margin_top(12 + CAPTION_PX + 10)
             .margin_bottom(12)
-            .margin_right(12)
+            .margin_left(8)
+            .margin_right(4)
             .x_label_area_size(50)
-            .y_label_area_size(70)
-            .build_cartesian_2d(0.0..1.0, -m..m)
+            // Ticks and unit to the right of the bar, away from the map.
+            .right_y_label_area_size(80)
+            .build_cartesian_2d(0.0..1.0, b0..b1)
             .map_err(plot_err)?;
+        let fb = ticks(b0, b1, 6);
         bar.configure_mesh()
             .disable_x_mesh()
             .disable_x_axis()
             .disable_y_mesh()
-            .y_desc(unit)
-            .y_labels(5)
+            .y_desc(format!("value ({unit})"))
+            .y_labels(6)
+            .y_label_formatter(&fb)
             .label_style(("sans-serif", LABEL_PX))
             .axis_desc_style(("sans-serif", LABEL_PX))
             .draw()
             .map_err(plot_err)?;
         let n = 60;
         bar.draw_series((0..n).map(|k| {
-            let a = -m + 2.0 * m * k as f64 / n as f64;
-            let b = a + 2.0 * m / n as f64;
+            let a = b0 + (b1 - b0) * k as f64 / n as f64;
+            let b = a + (b1 - b0) / n as f64;
             Rectangle::new([(0.0, a), (1.0, b)], diverging((a + b) / (2.0 * m)).filled())
         }))
         .map_err(plot_err)?;
         root.present().map_err(plot_err)?;
     }
     let alt = format!(
-        "Text alternative: colour map of {title} over x {} to {} mm and y {} to {} mm; values from {} to {} {unit}; colour bar centred on zero (white), blue negative, red positive, ±{} {unit}.",
+        "Text alternative: colour map of {title} over x {} to {} mm and y {} to {} mm; values from {} to {} {unit}; colour bar over the data's range, white at zero, blue negative, red positive, full colour at ±{} {unit}.",
         sig(x0),
         sig(x1),
         sig(y0),
@@ -1108,6 +1212,63 @@ mod tests {
         let (a, b) = (build(1_700_000_000).0, build(1_700_000_060).0);
         assert_ne!(a, b);
         assert_eq!(a.replace("22:13:20", "22:14:20"), b, "only the time differs");
+    }
+
+    /// Text of every `<text>` element of an SVG.
+    fn svg_texts(svg: &str) -> Vec<String> {
+        svg.split("<text")
+            .skip(1)
+            .filter_map(|t| Some(t.split_once('>')?.1.split_once("</text>")?.0.trim().to_string()))
+            .collect()
+    }
+
+    #[test]
+    fn tick_labels_use_one_minus_sign_and_the_steps_decimals() {
+        assert_eq!(tick_label(-0.5, 0.1), "\u{2212}0.5");
+        assert_eq!(tick_label(-0.0001, 0.1), "0.0");
+        assert_eq!(tick_label(20.0, 10.0), "20");
+        assert_eq!(tick_label(1.25, 0.05), "1.25");
+        assert_eq!(tick_label(-1500.0, 500.0), "\u{2212}1500");
+        // Every figure kind writes negative ticks with U+2212, never a hyphen-minus.
+        let neg = vec![(-3.0, -2.0), (1.0, 4.0)];
+        let figs = [
+            xy_plot("p", "x", "y", &[Series::points("a", neg.clone())]).unwrap(),
+            xy_plot_equal("p", "x", "y", &[Series::line("a", neg)]).unwrap(),
+            histogram("h", "e", &[("a", &[-2.0, -1.0, 0.5])], 10, None, &[]).unwrap(),
+            heatmap("m", &[-2.0, -1.0], &[-1.0, 0.0], &[vec![-3.0, 1.0], vec![0.5, 2.0]], "µm").unwrap(),
+        ];
+        for f in &figs {
+            let texts = svg_texts(f);
+            assert!(texts.iter().any(|t| t.starts_with('\u{2212}')), "{texts:?}");
+            assert!(!texts.iter().any(|t| t.starts_with('-')), "{texts:?}");
+        }
+    }
+
+    #[test]
+    fn histograms_take_their_own_range_and_draw_the_tolerance() {
+        let tol = [Mark { label: "tolerance 0.5 µm", value: 0.5 }];
+        // Errors from 0.1 to 0.3 with a 0.5 tolerance: the range starts at zero and takes in
+        // the tolerance (3 % margin), so the line is on the drawing.
+        let (lo, hi) = histogram_range(&[0.1, 0.2, 0.3], None, &tol);
+        assert_eq!(lo, 0.0);
+        assert!((hi - 0.515).abs() < 1e-12, "{hi}");
+        // Large errors keep their own range; a tolerance below it widens it downwards.
+        let (lo, hi) = histogram_range(&[40.0, 60.0], None, &[Mark { label: "t", value: 50.0 }]);
+        assert!(lo > 39.0 && lo < 40.0 && hi > 60.0 && hi < 61.0, "{lo} {hi}");
+        // A range that is given wins.
+        assert_eq!(histogram_range(&[0.1], Some((-1.0, 1.0)), &tol), (-1.0, 1.0));
+        let svg = histogram("h", "e (µm)", &[("a", &[0.1, 0.2, 0.3])], 10, None, &tol).unwrap();
+        assert!(svg.contains("tolerance 0.5 µm (dashed line)"), "legend names the mark");
+        // The dashed line is drawn as dashes: the same histogram without the mark has fewer
+        // strokes (a mark outside the range is not drawn at all).
+        let strokes = |svg: &str| svg.matches("<line").count() + svg.matches("<polyline").count();
+        let bare = histogram("h", "e (µm)", &[("a", &[0.1, 0.2, 0.3])], 10, Some((0.0, 0.515)), &[]).unwrap();
+        assert!(strokes(&svg) >= strokes(&bare) + 5, "{} vs {}", strokes(&svg), strokes(&bare));
+        let outside = [Mark { label: "far", value: 9.0 }];
+        let off =
+            histogram("h", "e (µm)", &[("a", &[0.1, 0.2, 0.3])], 10, Some((0.0, 0.515)), &outside).unwrap();
+        assert_eq!(strokes(&off), strokes(&bare));
+        assert!(svg.contains("tolerance 0.5 µm at 0.5000."), "text alternative names the mark");
     }
 
     #[test]

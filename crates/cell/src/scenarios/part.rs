@@ -274,13 +274,27 @@ pub fn comp_section(report: &mut Report) -> Result<()> {
             "the geometric map has no standard-uncertainty columns; a map without them is not judged",
         ))
     });
-    let hist = report::histogram(
-        "3D error of the points before and after map correction",
+    // Two histograms, each on its own range: after correction the errors are a hundred times
+    // smaller and would fill one bin of the uncorrected range. The tolerance is drawn on both.
+    let tol_label = format!("tolerance {tol_um} µm");
+    let tol_mark = [report::Mark { label: &tol_label, value: tol_um }];
+    let hist_before = report::histogram(
+        "3D error of the points before map correction",
         "3D error (µm)",
-        &[("before correction", &before), ("after correction", &after)],
+        &[("before correction", &before)],
         40,
-        Some((0.0, mb * 1.02)),
+        None,
+        &tol_mark,
     )?;
+    let hist_after = report::histogram(
+        "3D error of the points after map correction",
+        "3D error (µm)",
+        &[("after correction", &after)],
+        40,
+        None,
+        &tol_mark,
+    )?;
+    let hist = format!("{hist_before}{hist_after}");
     let rows = vec![
         vec!["before correction".into(), format!("{rb:.2}"), format!("{mb:.2}")],
         vec!["after correction".into(), format!("{ra:.3}"), format!("{ma:.3}")],

@@ -518,22 +518,26 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
             format!("{:.1}", capability_ppm(s1.max_error_mm / 1000.0, r1.diagonal_mm)),
         ],
     ];
-    // Both histograms on the same error axis so their widths compare at a glance.
-    let top = e0.iter().chain(&e1).copied().fold(0.0_f64, f64::max);
-    let range = Some((0.0, top * 1.02));
+    // Each histogram on its own data range (the corrected errors would fill two bins of the
+    // uncorrected range), both with the tolerance drawn.
+    let tol_um = 50.0;
+    let tol_label = format!("tolerance {tol_um:.0} µm");
+    let tol_mark = [report::Mark { label: &tol_label, value: tol_um }];
     let hist0 = report::histogram(
         "True hole position error without correction",
         "error (µm)",
         &[("without correction", &e0)],
         40,
-        range,
+        None,
+        &tol_mark,
     )?;
     let hist1 = report::histogram(
         "True hole position error with correction",
         "error (µm)",
         &[("with truepos end-point control", &e1)],
         40,
-        range,
+        None,
+        &tol_mark,
     )?;
     // Corrections over time: the offset in force (what the machine's own error amounts to at
     // that place and time) and each correction move sent.
@@ -578,7 +582,6 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
         (Some((t, k, _)), None) => format!("Tracker {} is bumped at {:.1} min; no inclination alarm fired.", k + 1, t / 60.0),
         _ => String::new(),
     };
-    let tol_um = 50.0;
     let run_verdict = r1.report.verdict();
     report.verdict(report::Verdict {
         section: "somac".into(),
