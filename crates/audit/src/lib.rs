@@ -29,6 +29,7 @@
 pub mod backend;
 pub mod chain;
 pub mod pg;
+pub mod pg_tls;
 pub mod schema;
 pub mod spool;
 pub mod sqlite;

@@ -1,17 +1,18 @@
 //! The PostgreSQL [`Backend`] (the synchronous `postgres` client) and its address:
-//! `postgresql://USER@HOST[:PORT][/DB][?sslmode=disable|prefer&connect_timeout=S&application_name=N]`.
+//! `postgresql://USER@HOST[:PORT][/DB][?sslmode=MODE&sslrootcert=FILE&connect_timeout=S&application_name=N]`.
 //!
 //! The password is never part of the address: it comes from `PGPASSWORD` or the password file
 //! (`PGPASSFILE`, default `~/.pgpass`, lines `host:port:database:user:password` with `*`
 //! wildcards, ignored when group or others can read it, as libpq does). An address with a
-//! password is refused ([`PgTarget::parse`]) and the password is never printed. This build has
-//! no TLS library: `sslmode=require` (or `verify-ca`, `verify-full`) is refused rather than
-//! silently sent in clear; `prefer` (libpq's default) connects without TLS.
+//! password is refused ([`PgTarget::parse`]) and the password is never printed. TLS follows
+//! libpq's `sslmode` (`disable`, `allow`/`prefer` — the default —, `require`, `verify-ca`,
+//! `verify-full`; see [`crate::pg_tls`]): `require` and stronger never fall back to clear text.
 //!
 //! Writers serialise on a transaction-scoped advisory lock ([`LOCK_KEY`]), which needs no
 //! privilege, so a role that may only INSERT and SELECT can append to the chain.
 
 use crate::backend::{Backend, BackendError, Dialect, Value};
+use crate::pg_tls::{SslMode, TlsSettings};
 use postgres::types::{to_sql_checked, IsNull, ToSql, Type};
 use postgres::{Client, NoTls, Statement};
 use std::collections::HashMap;
@@ -29,6 +30,8 @@ pub struct PgTarget {
     pub dbname: String,
     pub connect_timeout: Duration,
     pub application_name: String,
+    /// `sslmode` and, for the verifying modes, the trusted authorities.
+    pub tls: TlsSettings,
     password: Option<String>,
 }
 
@@ -114,21 +117,19 @@ impl PgTarget {
             dbname,
             connect_timeout: Duration::from_secs(5),
             application_name: "truepos".into(),
+            tls: TlsSettings::new(SslMode::Prefer, None, None)?,
             password: None,
         };
+        let (mut ssl_mode, mut root_cert) = (SslMode::Prefer, None);
         for kv in query.unwrap_or("").split('&').filter(|s| !s.is_empty()) {
             let (k, v) = kv.split_once('=').unwrap_or((kv, ""));
             match k {
-                "sslmode" => match v {
-                    "disable" | "allow" | "prefer" => {}
-                    "require" | "verify-ca" | "verify-full" => {
-                        return Err(format!(
-                            "sslmode={v} is not supported in this build (no TLS library): reach the \
-                             server through a TLS or SSH tunnel, or use sslmode=disable on a trusted network"
-                        ))
-                    }
-                    other => return Err(format!("sslmode '{other}' is not one of disable, prefer, require")),
-                },
+                "sslmode" => ssl_mode = SslMode::parse(v)?,
+                "sslrootcert" => {
+                    root_cert = Some(std::path::PathBuf::from(
+                        pct_decode(v).map_err(|e| format!("sslrootcert: {e}"))?,
+                    ))
+                }
                 "connect_timeout" => {
                     let s: u64 =
                         v.parse().map_err(|_| format!("connect_timeout '{v}' is not whole seconds"))?;
@@ -142,21 +143,35 @@ impl PgTarget {
                         "a password in the address is refused: give it in PGPASSWORD or ~/.pgpass".into()
                     )
                 }
-                other => {
-                    return Err(format!(
-                        "unknown parameter '{other}' (sslmode, connect_timeout, application_name)"
-                    ))
-                }
+                other => return Err(format!(
+                    "unknown parameter '{other}' (sslmode, sslrootcert, connect_timeout, application_name)"
+                )),
             }
         }
+        let home = env("HOME").map(std::path::PathBuf::from);
+        t.tls = TlsSettings::new(ssl_mode, root_cert, home.as_deref())?;
         t.password = env("PGPASSWORD").filter(|p| !p.is_empty()).or_else(|| t.password_from_file(env));
         Ok(t)
     }
 
-    /// The address as given, without any secret.
+    /// The address as given, without any secret (`sslmode` shown when it is not the default).
     pub fn display(&self) -> String {
         let host = if self.host.contains(':') { format!("[{}]", self.host) } else { self.host.clone() };
-        format!("postgresql://{}@{}:{}/{}", self.user, host, self.port, self.dbname)
+        let mut s = format!("postgresql://{}@{}:{}/{}", self.user, host, self.port, self.dbname);
+        if self.tls.mode != SslMode::Prefer {
+            s.push_str(&format!("?sslmode={}", self.tls.mode.name()));
+        }
+        s
+    }
+
+    /// Open a connection as `sslmode` says.
+    pub fn connect(&self) -> Result<Client, postgres::Error> {
+        let mut c = self.config();
+        c.ssl_mode(self.tls.mode.client_mode());
+        match self.tls.connector() {
+            Some(tls) => c.connect(tls),
+            None => c.connect(NoTls),
+        }
     }
 
     pub fn has_password(&self) -> bool {
@@ -407,7 +422,7 @@ impl Backend for PgBackend {
     fn reconnect(&mut self) -> Result<(), BackendError> {
         self.client = None;
         self.statements.clear();
-        let c = self.target.config().connect(NoTls).map_err(|e| classify(e, &self.target))?;
+        let c = self.target.connect().map_err(|e| classify(e, &self.target))?;
         self.client = Some(c);
         Ok(())
     }
@@ -442,7 +457,11 @@ mod tests {
             ("postgresql://cell@db/fleet?password=hunter2", "password"),
             ("postgresql://db/fleet", "user"),
             ("postgresql://cell@db:99999/fleet", "port"),
-            ("postgresql://cell@db/fleet?sslmode=require", "not supported in this build"),
+            ("postgresql://cell@db/fleet?sslmode=on", "verify-full"),
+            (
+                "postgresql://cell@db/fleet?sslmode=verify-full&sslrootcert=/nonexistent/ca.pem",
+                "/nonexistent/ca.pem",
+            ),
             ("postgresql://cell@db/fleet?foo=1", "unknown parameter"),
         ] {
             let e = PgTarget::parse(bad, &env(&[])).expect_err(bad);

@@ -167,10 +167,15 @@ fn audit_commands_on_sqlite_and_tampering_named() {
     common::expect_input_error(&o, &["no audit trail at none.sqlite"]);
     assert!(!dir.join("none.sqlite").exists());
 
-    // Addresses: a password is refused and never printed; no TLS in this build; unreachable.
+    // Addresses: a password is refused and never printed; a verifying TLS mode without a readable
+    // authority file is named before anything runs; unreachable.
     for (db, what) in [
         ("postgresql://cell:hunter2@127.0.0.1:1/fleet", "password in the address is refused"),
-        ("postgresql://cell@127.0.0.1:1/fleet?sslmode=require", "not supported in this build"),
+        (
+            "postgresql://cell@127.0.0.1:1/fleet?sslmode=verify-full&sslrootcert=nope/ca.pem",
+            "sslrootcert nope/ca.pem",
+        ),
+        ("postgresql://cell@127.0.0.1:1/fleet?sslmode=on", "not one of disable"),
         ("mysql://cell@127.0.0.1/fleet", "not a supported database"),
     ] {
         let o = somac_run(dir, db).output().unwrap();

@@ -22,6 +22,9 @@ pub struct Cluster {
     /// it wrote in the OS page cache, so crash tests hold either way; commits still wait for the
     /// WAL write (`synchronous_commit` stays on).
     fsync: bool,
+    /// TLS on (`ssl = on` with `server.crt`/`server.key` in the data directory) and every
+    /// connection logged (the log says whether it used TLS).
+    tls: bool,
 }
 
 pub const OWNER_PW: &str = "owner-pw-7Q";
@@ -67,7 +70,18 @@ impl Cluster {
         Self::start_with(true)
     }
 
+    /// [`Cluster::start`] with TLS: `cert_pem` (the server's certificate chain) and `key_pem`
+    /// (its private key) are installed in the data directory, `ssl = on`, and connections are
+    /// logged ([`Cluster::log`]).
+    pub fn start_tls(cert_pem: &str, key_pem: &str) -> Option<Cluster> {
+        Self::start_full(false, Some((cert_pem, key_pem)))
+    }
+
     fn start_with(fsync: bool) -> Option<Cluster> {
+        Self::start_full(fsync, None)
+    }
+
+    fn start_full(fsync: bool, tls: Option<(&str, &str)>) -> Option<Cluster> {
         let Some(bin) = find_bin() else {
             return skipped("no /usr/lib/postgresql/*/bin/initdb (apt-get install postgresql)");
         };
@@ -100,7 +114,7 @@ impl Cluster {
                 return skipped("cannot chown the data directory to postgres");
             }
         }
-        let c = Cluster { dir, data, bin, port: 0, run_as, fsync };
+        let c = Cluster { dir, data, bin, port: 0, run_as, fsync, tls: tls.is_some() };
         let d = c.data.display().to_string();
         let out = c.run(
             "initdb",
@@ -118,6 +132,27 @@ impl Cluster {
         );
         if !out.as_ref().is_ok_and(|o| o.status.success()) {
             return skipped(&format!("initdb failed: {}", describe(&out)));
+        }
+        if let Some((cert, key)) = tls {
+            let (crt, k) = (c.data.join("server.crt"), c.data.join("server.key"));
+            let written = std::fs::write(&crt, cert).and_then(|_| std::fs::write(&k, key));
+            #[cfg(unix)]
+            {
+                use std::os::unix::fs::PermissionsExt;
+                let _ = std::fs::set_permissions(&k, std::fs::Permissions::from_mode(0o600));
+            }
+            let owned = match &c.run_as {
+                Some(u) => Command::new("chown")
+                    .arg(format!("{u}:"))
+                    .arg(&crt)
+                    .arg(&k)
+                    .status()
+                    .is_ok_and(|s| s.success()),
+                None => true,
+            };
+            if written.is_err() || !owned {
+                return skipped("cannot install the server's TLS certificate and key");
+            }
         }
         let mut c = c;
         for _ in 0..5 {
@@ -167,7 +202,12 @@ impl Cluster {
         let d = self.data.display().to_string();
         let log = self.data.join("log").display().to_string();
         let fsync = if self.fsync { "on" } else { "off" };
-        let opts = format!("-p {} -k {d} -c listen_addresses=127.0.0.1 -c fsync={fsync}", self.port);
+        let mut opts = format!("-p {} -k {d} -c listen_addresses=127.0.0.1 -c fsync={fsync}", self.port);
+        if self.tls {
+            opts.push_str(
+                " -c ssl=on -c ssl_cert_file=server.crt -c ssl_key_file=server.key -c log_connections=on",
+            );
+        }
         self.run("pg_ctl", &["-D", &d, "-w", "-t", "30", "-l", &log, "-o", &opts, "start"])
             .is_ok_and(|o| o.status.success())
     }
@@ -218,6 +258,11 @@ impl Cluster {
     /// `postgresql://USER@127.0.0.1:PORT/DB`.
     pub fn url(&self, user: &str, db: &str) -> String {
         format!("postgresql://{user}@127.0.0.1:{}/{db}", self.port)
+    }
+
+    /// The server's log so far.
+    pub fn log(&self) -> String {
+        std::fs::read_to_string(self.data.join("log")).unwrap_or_default()
     }
 
     pub fn dir(&self) -> &Path {
