@@ -385,6 +385,26 @@ impl Audit {
         self.pending.push(r);
     }
 
+    /// Record one reported quantity (`results`): stored at the next commit.
+    pub fn record_result(&mut self, r: &ResultRecord) {
+        let opt = |v: Option<f64>| v.map_or(Value::Null, Value::real);
+        let v = vec![
+            r.line.map_or(Value::Null, |l| Value::Int(l as i64)),
+            Value::text(&r.kind),
+            Value::text(&r.label),
+            Value::opt_text(r.feature.as_deref()),
+            Value::text(&r.quantity),
+            Value::real(r.value),
+            Value::text(&r.unit),
+            opt(r.expanded_uncertainty),
+            opt(r.limits.map(|l| l.0)),
+            opt(r.limits.map(|l| l.1)),
+            Value::opt_text(r.verdict.as_deref()),
+        ];
+        let rec = self.make("results", v);
+        self.pending.push(rec);
+    }
+
     /// The controller recorded for this run (address, version).
     pub fn controller(&mut self) -> Result<(Option<String>, Option<String>), AuditError> {
         let rows = self
@@ -599,6 +619,30 @@ impl AuditSink for Audit {
 
 /// The writer under its former name (SQLite was its only backend).
 pub type SqliteAudit = Audit;
+
+/// One reported quantity of a measuring command, as [`Audit::record_result`] stores it in
+/// `results`: lengths in mm, angles in rad (the unit is recorded with it).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ResultRecord {
+    /// The program line that produced it, where there is one.
+    pub line: Option<usize>,
+    /// `feature`, `tolerance` or `parameter`.
+    pub kind: String,
+    /// The label (DMIS `F(…)`/`T(…)` label, parameter name).
+    pub label: String,
+    /// For a tolerance: the feature(s) it applies to; for a feature: its type.
+    pub feature: Option<String>,
+    /// What the value is: `x`, `y`, `z`, `diameter`, `apex_angle`, a tolerance kind, …
+    pub quantity: String,
+    pub value: f64,
+    pub unit: String,
+    /// U (k = 2), where the command states one.
+    pub expanded_uncertainty: Option<f64>,
+    /// Lower and upper limit the value is judged against.
+    pub limits: Option<(f64, f64)>,
+    /// The verdict (`INTOL`, `OUTOL`, `pass`, …).
+    pub verdict: Option<String>,
+}
 
 /// Send a spool left by a run that ended while the database was away (`truepos audit push`).
 /// `db` defaults to the database the spool names. Returns the records sent; the spool file is

@@ -143,9 +143,11 @@ impl PgTarget {
                         "a password in the address is refused: give it in PGPASSWORD or ~/.pgpass".into()
                     )
                 }
-                other => return Err(format!(
+                other => {
+                    return Err(format!(
                     "unknown parameter '{other}' (sslmode, sslrootcert, connect_timeout, application_name)"
-                )),
+                ))
+                }
             }
         }
         let home = env("HOME").map(std::path::PathBuf::from);

@@ -7,7 +7,10 @@
 //! one chain), `record_id` (unique, chosen by the writer: resending is idempotent), `prev_hash`
 //! and `hash`. Run rows become append-only too: `run_starts` (the old `runs` table), with the
 //! controller and the end of a run as records of their own (`run_controllers`, `run_ends`), and
-//! `runs` a view of all three with the columns it always had.
+//! `runs` a view of all three with the columns it always had. Version 5 adds `results`: one
+//! row per reported quantity of any measuring command (a DMIS program's features and
+//! tolerances, a calibration's parameters) with its unit, expanded uncertainty, limits and
+//! verdict.
 
 use crate::backend::{Backend, BackendError, Dialect, Value};
 use crate::AuditError;
@@ -140,6 +143,27 @@ pub const MIGRATIONS: &[(i64, &str)] = &[
             s.message) AS message
         FROM run_starts s;",
     ),
+    (
+        5,
+        // Results of any measuring command, one row per reported quantity: a DMIS program's
+        // feature values and tolerances (`dmis run`), a calibration's parameters. Chained as
+        // every record table.
+        "CREATE TABLE results (
+        run_id {int} NOT NULL REFERENCES run_starts(id),
+        line {int},
+        kind TEXT NOT NULL,
+        label TEXT NOT NULL,
+        feature TEXT,
+        quantity TEXT NOT NULL,
+        value {real},
+        unit TEXT NOT NULL,
+        expanded_uncertainty {real},
+        lower_limit {real},
+        upper_limit {real},
+        verdict TEXT
+    );
+    {chain}",
+    ),
 ];
 
 /// The schema version this build writes.
@@ -162,6 +186,7 @@ pub const TABLES: &[&str] = &[
     "refractive_index_updates",
     "stops",
     "inspections",
+    "results",
 ];
 
 /// The kind of a column.
@@ -178,6 +203,8 @@ pub enum Kind {
 pub struct Spec {
     pub table: &'static str,
     pub columns: &'static [(&'static str, Kind)],
+    /// The schema version that created the table (its chain columns come with it).
+    pub since: i64,
 }
 
 use Kind::{Int, Real, Text};
@@ -186,15 +213,22 @@ use Kind::{Int, Real, Text};
 pub const SPECS: &[Spec] = &[
     Spec {
         table: "run_starts",
+        since: 4,
         columns: &[("id", Int), ("uid", Text), ("started_at", Text), ("program", Text), ("note", Text)],
     },
     Spec {
         table: "run_controllers",
+        since: 4,
         columns: &[("run_id", Int), ("controller", Text), ("controller_version", Text), ("at", Text)],
     },
-    Spec { table: "blocks", columns: &[("run_id", Int), ("line", Int), ("text", Text), ("time_s", Real)] },
+    Spec {
+        table: "blocks",
+        since: 4,
+        columns: &[("run_id", Int), ("line", Int), ("text", Text), ("time_s", Real)],
+    },
     Spec {
         table: "measurements",
+        since: 4,
         columns: &[
             ("run_id", Int),
             ("line", Int),
@@ -212,6 +246,7 @@ pub const SPECS: &[Spec] = &[
     },
     Spec {
         table: "corrections",
+        since: 4,
         columns: &[
             ("run_id", Int),
             ("line", Int),
@@ -228,6 +263,7 @@ pub const SPECS: &[Spec] = &[
     },
     Spec {
         table: "alarms",
+        since: 4,
         columns: &[
             ("run_id", Int),
             ("line", Int),
@@ -239,6 +275,7 @@ pub const SPECS: &[Spec] = &[
     },
     Spec {
         table: "orientations",
+        since: 4,
         columns: &[
             ("run_id", Int),
             ("line", Int),
@@ -250,10 +287,12 @@ pub const SPECS: &[Spec] = &[
     },
     Spec {
         table: "refractive_index_updates",
+        since: 4,
         columns: &[("run_id", Int), ("line", Int), ("n_old", Real), ("n_new", Real), ("time_s", Real)],
     },
     Spec {
         table: "stops",
+        since: 4,
         columns: &[
             ("run_id", Int),
             ("line", Int),
@@ -265,6 +304,7 @@ pub const SPECS: &[Spec] = &[
     },
     Spec {
         table: "inspections",
+        since: 4,
         columns: &[
             ("run_id", Int),
             ("hole", Text),
@@ -287,7 +327,26 @@ pub const SPECS: &[Spec] = &[
         ],
     },
     Spec {
+        table: "results",
+        since: 5,
+        columns: &[
+            ("run_id", Int),
+            ("line", Int),
+            ("kind", Text),
+            ("label", Text),
+            ("feature", Text),
+            ("quantity", Text),
+            ("value", Real),
+            ("unit", Text),
+            ("expanded_uncertainty", Real),
+            ("lower_limit", Real),
+            ("upper_limit", Real),
+            ("verdict", Text),
+        ],
+    },
+    Spec {
         table: "run_ends",
+        since: 4,
         columns: &[("run_id", Int), ("ended_at", Text), ("status", Text), ("message", Text)],
     },
 ];
@@ -297,10 +356,10 @@ pub fn spec(table: &str) -> Option<&'static Spec> {
     SPECS.iter().find(|s| s.table == table)
 }
 
-/// The chain columns and their indexes for every record table.
-fn chain_columns() -> String {
+/// The chain columns and their indexes for the record tables created by schema `version`.
+fn chain_columns(version: i64) -> String {
     let mut s = String::new();
-    for sp in SPECS {
+    for sp in SPECS.iter().filter(|sp| sp.since == version) {
         let t = sp.table;
         for c in ["seq {int}", "record_id TEXT", "prev_hash TEXT", "hash TEXT"] {
             s.push_str(&format!("ALTER TABLE {t} ADD COLUMN {c};\n"));
@@ -314,8 +373,10 @@ fn chain_columns() -> String {
     s
 }
 
-fn render(d: Dialect, sql: &str) -> String {
-    d.render(&sql.replace("{chain}", &chain_columns()))
+/// The SQL of migration `version` for dialect `d` (`{chain}`: the chain columns of the tables
+/// it creates).
+pub(crate) fn render(d: Dialect, version: i64, sql: &str) -> String {
+    d.render(&sql.replace("{chain}", &chain_columns(version)))
 }
 
 /// Create or migrate the schema forward, in one exclusive transaction (concurrent openers
@@ -359,7 +420,7 @@ pub fn migrate(b: &mut dyn Backend, shown: &str, applied_at: &str) -> Result<(),
         }
         for (v, sql) in MIGRATIONS.iter().filter(|m| m.0 > found) {
             let d = b.dialect();
-            b.execute_batch(&render(d, sql)).map_err(|e| create_refused(shown, e))?;
+            b.execute_batch(&render(d, *v, sql)).map_err(|e| create_refused(shown, e))?;
             b.execute(
                 "INSERT INTO schema_migrations (version, applied_at) VALUES ($1, $2)",
                 &[Value::Int(*v), Value::text(applied_at)],

@@ -224,6 +224,49 @@ fn old_databases_are_migrated_and_their_rows_kept() {
     }
 }
 
+/// A version 4 trail (before `results`) is migrated to the current version: its records stay
+/// in the chain, results are recorded and read back, and the chain verifies.
+#[test]
+fn a_version_4_trail_gains_results_and_keeps_its_chain() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("v4.sqlite");
+    {
+        let c = Connection::open(&path).unwrap();
+        c.execute_batch(
+            "CREATE TABLE schema_migrations (version INTEGER PRIMARY KEY, applied_at TEXT NOT NULL);",
+        )
+        .unwrap();
+        for (v, sql) in MIGRATIONS.iter().filter(|m| m.0 <= 4) {
+            c.execute_batch(&crate::schema::render(Dialect::Sqlite, *v, sql)).unwrap();
+            c.execute("INSERT INTO schema_migrations VALUES (?1, '2026-01-01T00:00:00Z')", [v]).unwrap();
+        }
+        assert!(c.prepare("SELECT * FROM results").is_err(), "version 4 has no results table");
+    }
+    let mut a = Audit::open(&path, "part.dms", &now_utc()).unwrap();
+    a.record_result(&ResultRecord {
+        line: Some(12),
+        kind: "tolerance".into(),
+        label: "T_DIAM1".into(),
+        feature: Some("F_CIR1".into()),
+        quantity: "DIAM".into(),
+        value: 0.004,
+        unit: "mm".into(),
+        expanded_uncertainty: Some(0.0012),
+        limits: Some((-0.01, 0.01)),
+        verdict: Some("INTOL".into()),
+    });
+    a.finish("SUCCESS", None, &now_utc()).unwrap();
+    let mut t = Trail::open(&sqlite(&path)).unwrap();
+    let recs = t.records(a.run_id()).unwrap();
+    let r = recs.iter().find(|r| r.table == "results").expect("a results record");
+    assert!(r.values.contains(&Value::text("T_DIAM1")) && r.values.contains(&Value::Real(0.0012)), "{r:?}");
+    assert!(t.verify().unwrap().first_broken.is_none());
+    // Changing a recorded result breaks the chain at that record.
+    Connection::open(&path).unwrap().execute_batch("UPDATE results SET value = 0.003").unwrap();
+    let b = Trail::open(&sqlite(&path)).unwrap().verify().unwrap().first_broken.expect("detected");
+    assert_eq!(b.table, "results", "{b:?}");
+}
+
 fn tamper(path: &Path, sql: &str) -> Option<Break> {
     Connection::open(path).unwrap().execute_batch(sql).unwrap();
     Trail::open(&sqlite(path)).unwrap().verify().unwrap().first_broken

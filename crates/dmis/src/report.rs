@@ -149,3 +149,67 @@ pub fn json(program: &str, r: &RunResult, output_file: Option<&str>) -> Value {
         "verdict": if r.any_out_of_tolerance() { "OUTOL" } else { "INTOL" },
     })
 }
+
+/// One reported quantity of a run, as an audit trail stores it: a feature's location and size
+/// (with U, k = 2, where the fit gives one) or a tolerance's actual value, limits and verdict.
+/// Lengths in mm, angles in rad.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Quantity {
+    /// `feature` or `tolerance`.
+    pub kind: &'static str,
+    pub label: String,
+    /// A feature's type (`CIRCLE`, …) or the feature(s) a tolerance applies to.
+    pub feature: String,
+    /// `x`, `y`, `z`, `diameter`, `apex_angle`, or the tolerance kind.
+    pub quantity: String,
+    pub value: f64,
+    pub unit: &'static str,
+    pub expanded_uncertainty: Option<f64>,
+    pub limits: Option<(f64, f64)>,
+    pub verdict: Option<&'static str>,
+}
+
+/// Every quantity of a run in report order: each actual feature's location (x, y, z) and size,
+/// then each tolerance.
+pub fn quantities(r: &RunResult) -> Vec<Quantity> {
+    let k = truepos_math::stats::COVERAGE_FACTOR;
+    let mut out = Vec::new();
+    for f in r.features.iter().filter(|f| f.actual) {
+        let q = |quantity: &str, value: f64, unit: &'static str, u: Option<f64>| Quantity {
+            kind: "feature",
+            label: f.label.clone(),
+            feature: f.ftype.word().to_string(),
+            quantity: quantity.to_string(),
+            value,
+            unit,
+            expanded_uncertainty: u.map(|u| k * u),
+            limits: None,
+            verdict: None,
+        };
+        let p = f.geom.position();
+        for (name, v) in [("x", p.x), ("y", p.y), ("z", p.z)] {
+            out.push(q(name, v, "mm", f.u_position_mm));
+        }
+        match f.geom {
+            Geom::Circle { r, .. } | Geom::Cylinder { r, .. } | Geom::Sphere { r, .. } => {
+                out.push(q("diameter", 2.0 * r, "mm", f.u_diameter_mm))
+            }
+            Geom::Cone { half_angle, .. } => out.push(q("apex_angle", 2.0 * half_angle, "rad", None)),
+            _ => {}
+        }
+    }
+    for t in &r.tolerances {
+        out.push(Quantity {
+            kind: "tolerance",
+            label: t.label.clone(),
+            feature: t.features.join(","),
+            quantity: t.kind.to_string(),
+            value: t.value,
+            unit: if t.angular { "rad" } else { "mm" },
+            expanded_uncertainty: None,
+            limits: Some(t.limits),
+            verdict: Some(if t.in_tolerance { "INTOL" } else { "OUTOL" }),
+        });
+    }
+    out
+}

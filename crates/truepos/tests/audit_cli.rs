@@ -208,7 +208,7 @@ fn audit_commands_on_postgres() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(String::from_utf8_lossy(&o.stdout).contains("audit schema version 4"));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("audit schema version 5"));
     // Runs as the insert-and-read role: password from PGPASSWORD, then from ~/.pgpass.
     let j = ok_json(&somac_run(dir, &cell).env("PGPASSWORD", pgcluster::CELL_PW).output().unwrap());
     let stops = j["stops"].as_array().unwrap().len();

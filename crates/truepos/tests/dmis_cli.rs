@@ -28,6 +28,7 @@ fn the_nist_example_runs_on_the_virtual_cmm() {
     let dir = tempfile::tempdir().unwrap();
     let (prog, part) = copy_example(dir.path());
     let out = truepos()
+        .current_dir(dir.path())
         .args(["dmis", "run"])
         .arg(&prog)
         .arg("--part")
@@ -56,6 +57,7 @@ fn the_nist_example_runs_through_an_ippdme_server_process() {
     let dir = tempfile::tempdir().unwrap();
     let (prog, part) = copy_example(dir.path());
     let mut server = truepos()
+        .current_dir(dir.path())
         .args(["ippdme", "serve", "--port", "0", "--part"])
         .arg(&part)
         .stderr(Stdio::piped())
@@ -82,6 +84,7 @@ fn the_nist_example_runs_through_an_ippdme_server_process() {
     }
     let results = dir.path().join("results.dms");
     let out = truepos()
+        .current_dir(dir.path())
         .args(["dmis", "run"])
         .arg(&prog)
         .args(["--controller", &format!("ippdme://{addr}"), "--sensor", "PROBE6=Probe1", "--output"])
@@ -96,7 +99,9 @@ fn the_nist_example_runs_through_an_ippdme_server_process() {
 
 #[test]
 fn dry_run_lists_the_motions_without_a_machine() {
+    let dir = tempfile::tempdir().unwrap();
     let out = truepos()
+        .current_dir(dir.path())
         .args(["dmis", "run", "--dry-run"])
         .arg(repo().join("data/dmis/simple_in.dms"))
         .output()
@@ -112,7 +117,15 @@ fn refusals_have_their_exit_codes_and_leave_no_output() {
     let dir = tempfile::tempdir().unwrap();
     let (prog, part) = copy_example(dir.path());
     let run = |prog: &Path, extra: &[&str]| {
-        truepos().args(["dmis", "run"]).arg(prog).arg("--part").arg(&part).args(extra).output().unwrap()
+        truepos()
+            .current_dir(dir.path())
+            .args(["dmis", "run"])
+            .arg(prog)
+            .arg("--part")
+            .arg(&part)
+            .args(extra)
+            .output()
+            .unwrap()
     };
     // Malformed: exit 2 with file:line:col.
     let bad = dir.path().join("bad.dms");
@@ -157,4 +170,103 @@ fn refusals_have_their_exit_codes_and_leave_no_output() {
     assert_eq!(out.status.code(), Some(1), "{}", String::from_utf8_lossy(&out.stderr));
     let results = std::fs::read_to_string(dir.path().join("tight_output.dms")).unwrap();
     assert!(results.contains("TA(D) = TOL/DIAM, ") && results.contains(", OUTOL"), "{results}");
+}
+
+/// A run is recorded in the audit trail given by `--db`: the controller, every actual feature's
+/// values and every tolerance with its limits and verdict, the end status; the chain verifies.
+/// A dry run records nothing.
+#[test]
+fn a_run_is_recorded_in_the_audit_trail() {
+    let dir = tempfile::tempdir().unwrap();
+    let (example, part) = copy_example(dir.path());
+    // The example with a diameter tolerance (±0.1 mm: in).
+    let prog = dir.path().join("tol.dms");
+    let text = std::fs::read_to_string(&example).unwrap();
+    std::fs::write(
+        &prog,
+        text.replace("OUTPUT/FA(A_CIRCLE)", "T(D)=TOL/DIAM,-0.1,0.1\nOUTPUT/FA(A_CIRCLE),TA(D)"),
+    )
+    .unwrap();
+    let db = dir.path().join("trail.sqlite");
+    let run_program = |prog: &Path, extra: &[&str]| {
+        truepos()
+            .current_dir(dir.path())
+            .args(["dmis", "run"])
+            .arg(prog)
+            .arg("--part")
+            .arg(&part)
+            .args(["--sensor", "PROBE6=Probe1", "--json", "--db"])
+            .arg(&db)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let run = |extra: &[&str]| run_program(&prog, extra);
+    let o = run(&["--dry-run"]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!db.exists(), "a dry run records nothing");
+    let o = run(&[]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "{stderr}");
+    assert!(stderr.contains("audit trail appended to"), "{stderr}");
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let show = truepos()
+        .current_dir(dir.path())
+        .args(["audit", "show", "1", "--json", "--db"])
+        .arg(&db)
+        .output()
+        .unwrap();
+    assert!(show.status.success(), "{}", String::from_utf8_lossy(&show.stderr));
+    let s: serde_json::Value = serde_json::from_slice(&show.stdout).unwrap();
+    assert_eq!(s["run"]["status"], "SUCCESS");
+    assert_eq!(s["run"]["note"], "dmis run");
+    assert!(s["run"]["controller"].as_str().unwrap().starts_with("ippdme://127.0.0.1"), "{}", s["run"]);
+    let results = s["results"].as_array().unwrap();
+    // Every tolerance of the JSON is in the trail with its value, limits and verdict.
+    let tols = j["tolerances"].as_array().unwrap();
+    assert!(!tols.is_empty());
+    for t in tols {
+        let r = results
+            .iter()
+            .find(|r| r["fields"]["kind"] == "tolerance" && r["fields"]["label"] == t["label"])
+            .unwrap_or_else(|| panic!("tolerance {} not recorded", t["label"]));
+        let f = &r["fields"];
+        assert_eq!(f["verdict"], t["verdict"]);
+        if let Some(v) = t["value_mm"].as_f64() {
+            assert_eq!(f["value"].as_f64().unwrap(), v);
+            assert_eq!(f["lower_limit"].as_f64().unwrap(), t["limits_mm"][0].as_f64().unwrap());
+            assert_eq!(f["unit"], "mm");
+        }
+    }
+    // Every actual feature's centre or point is there, x y z, as the JSON gives it.
+    for f in j["features"].as_array().unwrap().iter().filter(|f| f["actual"] == true) {
+        let p = f.get("center_mm").or_else(|| f.get("point_mm")).or_else(|| f.get("apex_mm")).unwrap();
+        for (k, q) in ["x", "y", "z"].iter().enumerate() {
+            let r = results
+                .iter()
+                .find(|r| r["fields"]["label"] == f["label"] && r["fields"]["quantity"] == *q)
+                .unwrap_or_else(|| panic!("{} {q} not recorded", f["label"]));
+            assert_eq!(r["fields"]["value"].as_f64().unwrap(), p[k].as_f64().unwrap());
+        }
+    }
+    // A tolerance out: exit 1, the run ends FAILURE with the reason, the verdict recorded.
+    let tight = dir.path().join("tight.dms");
+    std::fs::write(
+        &tight,
+        text.replace("OUTPUT/FA(A_CIRCLE)", "T(D)=TOL/DIAM,-0.00001,0.00001\nOUTPUT/FA(A_CIRCLE),TA(D)"),
+    )
+    .unwrap();
+    assert_eq!(run_program(&tight, &[]).status.code(), Some(1));
+    let show = truepos()
+        .current_dir(dir.path())
+        .args(["audit", "show", "2", "--json", "--db"])
+        .arg(&db)
+        .output()
+        .unwrap();
+    let s: serde_json::Value = serde_json::from_slice(&show.stdout).unwrap();
+    assert_eq!(s["run"]["status"], "FAILURE");
+    assert!(s["run"]["message"].as_str().unwrap().contains("OUTOL"), "{}", s["run"]);
+    assert!(s["results"].as_array().unwrap().iter().any(|r| r["fields"]["verdict"] == "OUTOL"));
+    let v = truepos().current_dir(dir.path()).args(["audit", "verify", "--db"]).arg(&db).output().unwrap();
+    assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stderr));
 }

@@ -35,7 +35,8 @@ pub struct DbArg {
 pub enum AuditCommand {
     /// Every run: id, uid, program, start, end, status, controller.
     List(DbArg),
-    /// One run (by id or uid): its summary, record counts, stops and alarms.
+    /// One run (by id or uid): its summary, record counts, stops, alarms, inspected holes and
+    /// results (features and tolerances of `dmis run`).
     Show {
         /// Run id or uid.
         run: String,
@@ -138,6 +139,7 @@ pub fn run(a: Args) -> Result<Outcome> {
                 print_json(&json!({
                     "db": t.display(), "run": r.to_json(), "counts": c,
                     "stops": pick("stops"), "alarms": pick("alarms"), "inspections": pick("inspections"),
+                    "results": pick("results"),
                 }))?;
             } else {
                 println!("run {} ({})  {}", r.id, opt(&r.uid), r.program);
@@ -167,6 +169,29 @@ pub fn run(a: Args) -> Result<Outcome> {
                         g("kind"),
                         g("message"),
                         g("action")
+                    );
+                }
+                for s in records.iter().filter(|x| x.table == "results") {
+                    let g = |c: &str| s.get(c).map(|v| v.to_field()).unwrap_or_default();
+                    let u = g("expanded_uncertainty");
+                    let lim = g("lower_limit");
+                    println!(
+                        "  {} {} {} {} {}{}{}{}",
+                        g("kind"),
+                        g("label"),
+                        g("quantity"),
+                        g("value"),
+                        g("unit"),
+                        if u.is_empty() { String::new() } else { format!(" (U = {u})") },
+                        if lim.is_empty() {
+                            String::new()
+                        } else {
+                            format!(" limits {lim} … {}", g("upper_limit"))
+                        },
+                        s.get("verdict")
+                            .and_then(|v| v.as_str())
+                            .map(|v| format!(" {v}"))
+                            .unwrap_or_default()
                     );
                 }
                 for s in records.iter().filter(|x| x.table == "inspections") {

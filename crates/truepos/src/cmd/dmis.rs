@@ -55,6 +55,11 @@ pub struct RunArgs {
     /// List the motions without a machine (every probing touches its nominal point); no file.
     #[arg(long)]
     pub dry_run: bool,
+    /// Audit trail: a SQLite file (created if missing) or postgresql://USER@HOST:PORT/DB; the run
+    /// is recorded (note `dmis run`) with the controller, every actual feature's values and every
+    /// tolerance's value, limits and verdict, and how it ended. Not with --dry-run.
+    #[arg(long, default_value = "somac-audit.sqlite")]
+    pub db: String,
     /// Print the results as one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
@@ -116,11 +121,24 @@ pub fn run(args: Args) -> Result<Outcome> {
         ))
         .into());
     };
-    let mut client = truepos_ippdme::client::connect(&url)?;
-    let r = exec::run(&plan, &mut client, &opts, &mut progress)?;
+    let db = super::audit::parse_db(&a.db)?;
+    let mut audit = truepos_audit::Audit::open_noted(
+        &db,
+        &a.program.display().to_string(),
+        Some("dmis run"),
+        &truepos_audit::now_utc(),
+    )?;
+    let r = run_and_record(&plan, &url, &opts, &mut progress, &mut audit);
+    let (status, message) = match &r {
+        Ok(r) if r.any_out_of_tolerance() => ("FAILURE", Some("a tolerance is out (OUTOL)".to_string())),
+        Ok(_) => ("SUCCESS", None),
+        Err(e) => ("ERROR", Some(format!("{e:#}"))),
+    };
+    audit.finish(status, message.as_deref(), &truepos_audit::now_utc())?;
+    let r = r?;
     let text = r.output.join("\n") + "\n";
     truepos_io::atomic::write_atomic(&out, text.as_bytes())?;
-    drop(client);
+    eprintln!("dmis: audit trail appended to {} (run {})", db.display(), audit.run_id());
     if a.json {
         crate::output::print_json(&truepos_dmis::report::json(
             &plan.file,
@@ -141,4 +159,33 @@ pub fn run(args: Args) -> Result<Outcome> {
         eprintln!("dmis: {} points, {:.2} s; results in {}", r.n_points, r.elapsed_s, out.display());
     }
     Ok(if r.any_out_of_tolerance() { Outcome::OutOfTolerance } else { Outcome::Done })
+}
+
+/// Connect, run the program, and record the controller and every reported quantity.
+fn run_and_record(
+    plan: &truepos_dmis::model::Plan,
+    url: &str,
+    opts: &RunOptions,
+    progress: &mut dyn FnMut(&str),
+    audit: &mut truepos_audit::Audit,
+) -> Result<exec::RunResult> {
+    let mut client = truepos_ippdme::client::connect(url)?;
+    let r = exec::run(plan, &mut client, opts, progress)?;
+    audit.set_controller(&r.machine.address, &r.machine.version)?;
+    for q in truepos_dmis::report::quantities(&r) {
+        audit.record_result(&truepos_audit::ResultRecord {
+            line: None,
+            kind: q.kind.into(),
+            label: q.label,
+            feature: Some(q.feature),
+            quantity: q.quantity,
+            value: q.value,
+            unit: q.unit.into(),
+            expanded_uncertainty: q.expanded_uncertainty,
+            limits: q.limits,
+            verdict: q.verdict.map(str::to_string),
+        });
+    }
+    audit.flush()?;
+    Ok(r)
 }
