@@ -483,6 +483,123 @@ pub trait Cell {
     fn operator_restores_beam(&mut self, k: usize);
 }
 
+/// A [`ProbingMachine`] that stops commanding motion once `stop` gives a reason (an operator's
+/// SIGINT, a deadline): every move, probe, tool change and orientation first asks, and a stop
+/// is [`DeviceError::Rejected`] with that reason — the machine is left where its last completed
+/// command put it (a probing cycle always ends retracted). Reading the position and `abort`
+/// still pass through.
+pub struct Stoppable<'a, M: ProbingMachine + ?Sized> {
+    inner: &'a mut M,
+    stop: &'a dyn Fn() -> Option<String>,
+}
+
+impl<'a, M: ProbingMachine + ?Sized> Stoppable<'a, M> {
+    pub fn new(inner: &'a mut M, stop: &'a dyn Fn() -> Option<String>) -> Self {
+        Stoppable { inner, stop }
+    }
+
+    fn check(&self, what: &str) -> Result<(), DeviceError> {
+        match (self.stop)() {
+            None => Ok(()),
+            Some(reason) => Err(DeviceError::Rejected {
+                address: self.inner.info().address,
+                what: what.to_string(),
+                message: format!("{reason}: no further motion"),
+            }),
+        }
+    }
+}
+
+impl<M: ProbingMachine + ?Sized> ProbingMachine for Stoppable<'_, M> {
+    fn info(&self) -> DeviceInfo {
+        self.inner.info()
+    }
+    fn position(&mut self) -> Result<Point3, DeviceError> {
+        self.inner.position()
+    }
+    fn move_to(&mut self, target_mm: Point3) -> Result<(), DeviceError> {
+        self.check("moving")?;
+        self.inner.move_to(target_mm)
+    }
+    fn probe(&mut self, request: &ProbeRequest) -> Result<ProbeHit, DeviceError> {
+        self.check("probing")?;
+        self.inner.probe(request)
+    }
+    fn abort(&mut self) -> Result<(), DeviceError> {
+        self.inner.abort()
+    }
+    fn tool_names(&mut self) -> Result<Vec<String>, DeviceError> {
+        self.inner.tool_names()
+    }
+    fn select_tool(&mut self, name: &str) -> Result<ToolInfo, DeviceError> {
+        self.check("changing the tool")?;
+        self.inner.select_tool(name)
+    }
+    fn rotary_axes(&self) -> RotaryAxes {
+        self.inner.rotary_axes()
+    }
+    fn orient(&mut self, b_deg: f64, c_deg: f64) -> Result<(), DeviceError> {
+        self.check("orienting")?;
+        self.inner.orient(b_deg, c_deg)
+    }
+    fn rotary_kinematics(&self) -> Option<RotaryKinematics> {
+        self.inner.rotary_kinematics()
+    }
+    fn orientation(&mut self) -> Result<(f64, f64), DeviceError> {
+        self.inner.orientation()
+    }
+    fn kinematics_parameters(&mut self) -> Result<Vec<KinematicsParameter>, DeviceError> {
+        self.inner.kinematics_parameters()
+    }
+    fn set_kinematics_parameters(&mut self, values: &[KinematicsParameter]) -> Result<(), DeviceError> {
+        self.check("writing the kinematics parameters")?;
+        self.inner.set_kinematics_parameters(values)
+    }
+}
+
+#[cfg(test)]
+mod stoppable_tests {
+    use super::*;
+    use std::cell::Cell;
+
+    /// A machine that counts the moves it was sent.
+    struct Counting(usize);
+    impl ProbingMachine for Counting {
+        fn info(&self) -> DeviceInfo {
+            DeviceInfo { address: "test".into(), version: "t".into() }
+        }
+        fn position(&mut self) -> Result<Point3, DeviceError> {
+            Ok(Point3::origin())
+        }
+        fn move_to(&mut self, _: Point3) -> Result<(), DeviceError> {
+            self.0 += 1;
+            Ok(())
+        }
+        fn probe(&mut self, _: &ProbeRequest) -> Result<ProbeHit, DeviceError> {
+            unreachable!("not probed in this test")
+        }
+        fn abort(&mut self) -> Result<(), DeviceError> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn no_motion_is_sent_after_a_stop() {
+        let mut m = Counting(0);
+        let stopped = Cell::new(false);
+        let stop = || stopped.get().then(|| "interrupted by SIGINT".to_string());
+        {
+            let mut s = Stoppable::new(&mut m, &stop);
+            s.move_to(Point3::origin()).unwrap();
+            stopped.set(true);
+            let e = s.move_to(Point3::origin()).unwrap_err().to_string();
+            assert!(e.contains("interrupted by SIGINT") && e.contains("no further motion"), "{e}");
+            assert!(s.position().is_ok() && s.abort().is_ok(), "reading and stopping still pass");
+        }
+        assert_eq!(m.0, 1);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

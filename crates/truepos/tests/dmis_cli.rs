@@ -270,3 +270,77 @@ fn a_run_is_recorded_in_the_audit_trail() {
     let v = truepos().current_dir(dir.path()).args(["audit", "verify", "--db"]).arg(&db).output().unwrap();
     assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stderr));
 }
+
+/// A run ended by SIGINT sends no motion after the one in progress, writes no results file, is
+/// closed in the audit trail as ABORTED with the signal named, and exits 130.
+#[test]
+fn a_run_interrupted_by_sigint_is_closed_as_aborted() {
+    let dir = tempfile::tempdir().unwrap();
+    let (example, part) = copy_example(dir.path());
+    // The example's circle measured with 20,000 points: long enough to be interrupted.
+    let text = std::fs::read_to_string(&example).unwrap();
+    let n = 20_000;
+    let mut pts = String::new();
+    for k in 0..n {
+        let a = k as f64 / n as f64 * std::f64::consts::TAU;
+        pts.push_str(&format!(
+            "PTMEAS/CART, {:.6}, {:.6}, 40.0, {:.6}, {:.6}, 0.0\n",
+            50.0 + 25.0 * a.cos(),
+            50.0 + 25.0 * a.sin(),
+            -a.cos(),
+            -a.sin()
+        ));
+    }
+    let start = text.find("MEAS/CIRCLE,F(A_CIRCLE),4").unwrap();
+    let end = text.find("GOTO/ 50.0, 50.0, 40.0\nENDMES").unwrap();
+    let long = format!(
+        "{}MEAS/CIRCLE,F(A_CIRCLE),{n}\nGOTO/ 50.0, 50.0, 40.0\n{pts}{}",
+        &text[..start],
+        &text[end..]
+    );
+    let prog = dir.path().join("long.dms");
+    std::fs::write(&prog, long).unwrap();
+    let db = dir.path().join("trail.sqlite");
+    let child = truepos()
+        .current_dir(dir.path())
+        .args(["dmis", "run"])
+        .arg(&prog)
+        .arg("--part")
+        .arg(&part)
+        .args(["--sensor", "PROBE6=Probe1", "--db"])
+        .arg(&db)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until the run row exists (the program was checked, the run started), then interrupt.
+    let t0 = std::time::Instant::now();
+    while !db.exists() && t0.elapsed().as_secs() < 30 {
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(100));
+    let _ = Command::new("kill").args(["-INT", &child.id().to_string()]).status();
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    let show = truepos()
+        .current_dir(dir.path())
+        .args(["audit", "show", "1", "--json", "--db"])
+        .arg(&db)
+        .output()
+        .unwrap();
+    let s: serde_json::Value = serde_json::from_slice(&show.stdout).unwrap();
+    if out.status.code() == Some(0) {
+        eprintln!("note: the run ended before SIGINT arrived");
+        assert_eq!(s["run"]["status"], "SUCCESS");
+        return;
+    }
+    eprintln!("{}", err.lines().last().unwrap_or(""));
+    assert_eq!(out.status.code(), Some(130), "{err}");
+    assert_eq!(s["run"]["status"], "ABORTED", "{err}");
+    assert!(s["run"]["message"].as_str().unwrap().contains("SIGINT"), "{}", s["run"]);
+    assert!(s["run"]["ended_at"].is_string());
+    assert!(err.contains("ABORTED") && err.contains("no results file"), "{err}");
+    assert!(!dir.path().join("long_output.dms").exists());
+    let v = truepos().current_dir(dir.path()).args(["audit", "verify", "--db"]).arg(&db).output().unwrap();
+    assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stderr));
+}

@@ -122,6 +122,8 @@ pub fn run(args: Args) -> Result<Outcome> {
         .into());
     };
     let db = super::audit::parse_db(&a.db)?;
+    // SIGINT/SIGTERM: no motion after the current one, the run closed as ABORTED, exit 128 + n.
+    truepos_io::atomic::defer_interrupts();
     let mut audit = truepos_audit::Audit::open_noted(
         &db,
         &a.program.display().to_string(),
@@ -129,6 +131,17 @@ pub fn run(args: Args) -> Result<Outcome> {
         &truepos_audit::now_utc(),
     )?;
     let r = run_and_record(&plan, &url, &opts, &mut progress, &mut audit);
+    if let Some(sig) = truepos_io::atomic::interrupted() {
+        let name = truepos_io::atomic::signal_name(sig);
+        let at = truepos_audit::now_utc();
+        let _ = audit.finish("ABORTED", Some(&format!("aborted: interrupted by {name} at {at}")), &at);
+        eprintln!(
+            "dmis: aborted by {name}: no results file; the run is closed as ABORTED in {} (run {})",
+            db.display(),
+            audit.run_id()
+        );
+        truepos_io::atomic::exit_interrupted(sig);
+    }
     let (status, message) = match &r {
         Ok(r) if r.any_out_of_tolerance() => ("FAILURE", Some("a tolerance is out (OUTOL)".to_string())),
         Ok(_) => ("SUCCESS", None),
@@ -170,7 +183,12 @@ fn run_and_record(
     audit: &mut truepos_audit::Audit,
 ) -> Result<exec::RunResult> {
     let mut client = truepos_ippdme::client::connect(url)?;
-    let r = exec::run(plan, &mut client, opts, progress)?;
+    let stop = || {
+        truepos_io::atomic::interrupted()
+            .map(|s| format!("interrupted by {}", truepos_io::atomic::signal_name(s)))
+    };
+    let mut machine = truepos_device::Stoppable::new(&mut client, &stop);
+    let r = exec::run(plan, &mut machine, opts, progress)?;
     audit.set_controller(&r.machine.address, &r.machine.version)?;
     for q in truepos_dmis::report::quantities(&r) {
         audit.record_result(&truepos_audit::ResultRecord {
