@@ -215,6 +215,13 @@ pub trait ProbingMachine {
     fn probe(&mut self, request: &ProbeRequest) -> Result<ProbeHit, DeviceError>;
     /// Stop all motion now (best effort; also used on the way out of a failure).
     fn abort(&mut self) -> Result<(), DeviceError>;
+    /// The speed of the following positioning moves (mm/s), where the machine lets a client set
+    /// it (a DMIS `FEDRAT/POSVEL`). Default: the machine keeps its own speed (a positioning
+    /// speed changes no measured value).
+    fn set_move_speed(&mut self, mm_s: f64) -> Result<(), DeviceError> {
+        let _ = mm_s;
+        Ok(())
+    }
     /// The names of the tools (styli) the machine can select, where it can list them (default:
     /// none listed — the machine has one stylus, or cannot say).
     fn tool_names(&mut self) -> Result<Vec<String>, DeviceError> {
@@ -527,6 +534,9 @@ impl<M: ProbingMachine + ?Sized> ProbingMachine for Stoppable<'_, M> {
     }
     fn abort(&mut self) -> Result<(), DeviceError> {
         self.inner.abort()
+    }
+    fn set_move_speed(&mut self, mm_s: f64) -> Result<(), DeviceError> {
+        self.inner.set_move_speed(mm_s)
     }
     fn tool_names(&mut self) -> Result<Vec<String>, DeviceError> {
         self.inner.tool_names()

@@ -350,11 +350,14 @@ pub fn run(
                 let q = from + ex.frame.dir_to_machine(v);
                 ex.goto(machine, q).map_err(dev)?;
             }
-            Op::Feed { kind, mm_s } => {
-                if let (FeedKind::MesVel, Some(v)) = (kind, mm_s) {
-                    ex.feed = *v;
+            Op::Feed { kind, mm_s } => match (kind, mm_s) {
+                (FeedKind::MesVel, Some(v)) => ex.feed = *v,
+                (FeedKind::PosVel, Some(v)) => {
+                    machine.set_move_speed(*v).map_err(dev)?;
+                    ex.motions.push(format!("line {line}: positioning speed {v} mm/s"));
                 }
-            }
+                _ => {}
+            },
             Op::Approach(v) => ex.approach = *v,
             Op::Search(v) => ex.search = *v,
             Op::Retract(v) => ex.retract = *v,

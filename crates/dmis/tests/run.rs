@@ -37,14 +37,16 @@ fn the_nist_example_dry_runs_to_its_output() {
         "{out}"
     );
     assert!(out.ends_with("OUTPUT/FA(A_CIRCLE)\nFA(A_CIRCLE) = FEAT/CIRCLE, INNER, CART,  $\n  50.00000, 50.00000, 40.00000, 0.00000, 0.00000, 1.00000, 50.00000\nENDFIL"), "{out}");
-    // The motions of simple.prg: GoTo 175, 75, 40, four PtMeas, GoTo 40, 100.
+    // The motions of simple.prg: GoTo 175, the tool, 75, FEDRAT/POSVEL (1.8 m/min = 30 mm/s),
+    // 40, four PtMeas, GoTo 40, 100.
     let kinds: Vec<&str> = r.motions.iter().filter_map(|m| m.split(' ').next()).collect();
     assert_eq!(
         kinds,
-        ["GOTO", "line", "GOTO", "GOTO", "PTMEAS", "PTMEAS", "PTMEAS", "PTMEAS", "GOTO", "GOTO"]
+        ["GOTO", "line", "GOTO", "line", "GOTO", "PTMEAS", "PTMEAS", "PTMEAS", "PTMEAS", "GOTO", "GOTO"]
     );
+    assert_eq!(r.motions[3], "line 19: positioning speed 30 mm/s");
     assert!(
-        r.motions[4].starts_with("PTMEAS (75.0000, 50.0000, 40.0000) along (-1.0000, 0.0000, 0.0000)"),
+        r.motions[5].starts_with("PTMEAS (75.0000, 50.0000, 40.0000) along (-1.0000, 0.0000, 0.0000)"),
         "{:?}",
         r.motions
     );

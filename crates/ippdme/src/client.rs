@@ -414,6 +414,23 @@ impl ProbingMachine for IppClient {
         self.transact_raw(&cmd.to_call_string(), &what, true).map(|_| ())
     }
 
+    /// `SetProp(Tool.GoToPar.Speed.Act(v))`: the speed of the following GoTo moves.
+    fn set_move_speed(&mut self, mm_s: f64) -> Result<(), DeviceError> {
+        if !(mm_s.is_finite() && mm_s > 0.0) {
+            return Err(DeviceError::Rejected {
+                address: self.address.clone(),
+                what: "setting the positioning speed".into(),
+                message: format!("{mm_s} mm/s is not a positive speed"),
+            });
+        }
+        let path = PropPath {
+            tool: ToolRef::Tool,
+            item: PropItem::Value(ParBlock::GoToPar, Param::Speed, Some(Field::Act)),
+        };
+        let cmd = Command::SetProp(vec![(path, mm_s)]);
+        self.transact(&cmd.to_call_string(), "setting the positioning speed").map(|_| ())
+    }
+
     fn probe(&mut self, req: &ProbeRequest) -> Result<ProbeHit, DeviceError> {
         let n = req.approach;
         let what = format!(

@@ -344,3 +344,127 @@ fn a_run_interrupted_by_sigint_is_closed_as_aborted() {
     let v = truepos().current_dir(dir.path()).args(["audit", "verify", "--db"]).arg(&db).output().unwrap();
     assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stderr));
 }
+
+/// One I++ DME command of a session, for comparison: its name and its numbers (the tool name
+/// kept for ChangeTool), from a `.prg` line (`00180 PtMeas(X(75.0), …)`) or a server log line.
+fn command_of(call: &str) -> (String, Vec<f64>, String) {
+    let call = call.trim();
+    let name = call.split('(').next().unwrap_or("").to_string();
+    let args = &call[name.len()..];
+    let quoted = args.split('"').nth(1).unwrap_or("").to_string();
+    // Numbers outside quoted strings (a tool name's digits are not arguments).
+    let unquoted: String = args.split('"').step_by(2).collect();
+    let mut nums = Vec::new();
+    let mut cur = String::new();
+    for ch in unquoted.chars().chain(std::iter::once(' ')) {
+        if ch.is_ascii_digit() || ch == '.' || ch == '-' || ch == '+' {
+            cur.push(ch);
+        } else {
+            if let Ok(v) = cur.parse::<f64>() {
+                nums.push(v);
+            }
+            cur.clear();
+        }
+    }
+    (name, nums, quoted)
+}
+
+/// The NIST example through `truepos ippdme serve`: the motions, probings and tool change our
+/// client sends (read back from the server's log) are the ones of the I++ DME session a real
+/// client produced for the same program (`data/dmis/simple.prg`): the same GoTo targets and
+/// PtMeas points and directions in the same order, the tool change (PROBE6 mapped to the CMM's
+/// tool), the approach/search/retract distances of SNSET, and FEDRAT/POSVEL's 1.8 m/min as
+/// the GoTo speed (30 mm/s).
+#[test]
+fn the_nist_example_sends_the_commands_of_the_nist_session() {
+    let dir = tempfile::tempdir().unwrap();
+    let (prog, part) = copy_example(dir.path());
+    let log = dir.path().join("session.log");
+    let mut server = truepos()
+        .current_dir(dir.path())
+        .args(["ippdme", "serve", "--port", "0", "--part"])
+        .arg(&part)
+        .arg("--log")
+        .arg(&log)
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = BufReader::new(server.stderr.take().unwrap());
+    let mut first = String::new();
+    err.read_line(&mut first).unwrap();
+    let addr = first.trim().strip_prefix("ippdme: listening on ").unwrap().to_string();
+    {
+        // The operator homes the machine (truepos never does), as the NIST session's Home().
+        use std::io::Write;
+        let s = std::net::TcpStream::connect(&addr).unwrap();
+        let mut w = s.try_clone().unwrap();
+        w.write_all(b"00001 StartSession()\r\n00002 Home()\r\n00003 EndSession()\r\n").unwrap();
+        let mut r = BufReader::new(s);
+        let mut line = String::new();
+        while r.read_line(&mut line).unwrap() > 0 && !line.starts_with("00003 %") {
+            line.clear();
+        }
+    }
+    let out = truepos()
+        .current_dir(dir.path())
+        .args(["dmis", "run"])
+        .arg(&prog)
+        .args(["--controller", &format!("ippdme://{addr}"), "--sensor", "PROBE6=Probe1"])
+        .output()
+        .unwrap();
+    let _ = server.kill();
+    let _ = server.wait();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = std::fs::read_to_string(&log).unwrap();
+    // The run's session: the client lines after the second StartSession.
+    let sent: Vec<&str> = text.lines().filter_map(|l| l.split_once(" < ").map(|x| x.1)).collect();
+    let start = sent.iter().rposition(|l| l.ends_with("StartSession()")).unwrap();
+    let ours: Vec<(String, Vec<f64>, String)> =
+        sent[start..].iter().map(|l| command_of(l.split_once(' ').map_or(*l, |x| x.1))).collect();
+    let nist_text = std::fs::read_to_string(repo().join("data/dmis/simple.prg")).unwrap();
+    let nist: Vec<(String, Vec<f64>, String)> = nist_text
+        .lines()
+        .filter(|l| l.len() > 6 && l.as_bytes()[0].is_ascii_digit())
+        .map(|l| command_of(&l[6..]))
+        .collect();
+    let moves = |s: &[(String, Vec<f64>, String)]| -> Vec<(String, Vec<f64>)> {
+        s.iter()
+            .filter(|c| ["GoTo", "PtMeas", "ChangeTool"].contains(&c.0.as_str()))
+            .map(|c| (c.0.clone(), c.1.clone()))
+            .collect()
+    };
+    let (a, b) = (moves(&ours), moves(&nist));
+    assert_eq!(a.len(), b.len(), "ours {a:?}\nNIST {b:?}");
+    for (x, y) in a.iter().zip(&b) {
+        assert_eq!(x.0, y.0, "ours {a:?}\nNIST {b:?}");
+        assert_eq!(x.1.len(), y.1.len(), "{x:?} vs {y:?}");
+        for (u, v) in x.1.iter().zip(&y.1) {
+            assert!((u - v).abs() < 1e-9, "{x:?} vs {y:?}");
+        }
+    }
+    // The tool: the session's reference tool, ours the CMM's tool PROBE6 is mapped to.
+    let tool = |s: &[(String, Vec<f64>, String)]| s.iter().find(|c| c.0 == "ChangeTool").map(|c| c.2.clone());
+    assert_eq!((tool(&nist).as_deref(), tool(&ours).as_deref()), (Some("RefTool"), Some("Probe1")));
+    // The properties set before the first PtMeas: approach, search, retract 10 mm; GoTo speed 30.
+    let props = |s: &[(String, Vec<f64>, String)], raw: &[String]| {
+        let first = s.iter().position(|c| c.0 == "PtMeas").unwrap();
+        let set: Vec<&String> = raw[..first].iter().filter(|l| l.contains("SetProp")).collect();
+        let value = |key: &str| {
+            set.iter().find_map(|l| {
+                let i = l.find(key)? + key.len();
+                let rest = &l[i..];
+                let rest = rest.strip_prefix(".Act").unwrap_or(rest);
+                rest.trim_start_matches('(').split(')').next()?.parse::<f64>().ok()
+            })
+        };
+        ["PtMeasPar.Approach", "PtMeasPar.Search", "PtMeasPar.Retract", "GoToPar.Speed"].map(value)
+    };
+    let raw_ours: Vec<String> = sent[start..].iter().map(|l| l.to_string()).collect();
+    let raw_nist: Vec<String> = nist_text
+        .lines()
+        .filter(|l| l.len() > 6 && l.as_bytes()[0].is_ascii_digit())
+        .map(|l| l.to_string())
+        .collect();
+    assert_eq!(props(&nist, &raw_nist), [Some(10.0), Some(10.0), Some(10.0), Some(30.0)]);
+    assert_eq!(props(&ours, &raw_ours), props(&nist, &raw_nist), "{raw_ours:#?}");
+}
