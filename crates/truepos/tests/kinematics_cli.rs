@@ -216,10 +216,25 @@ fn the_calibration_is_recorded_in_the_audit_trail() {
         .unwrap();
     assert_eq!(status, "SUCCESS");
     assert!(message.starts_with("applied"), "{message}");
-    let list = bin().args(["audit", "export", "1", "--format", "json", "--db"]).arg(&db).output().unwrap();
-    let text = String::from_utf8_lossy(&list.stdout);
-    for pin in ["x-rot-point", "y-rot-point", "x-offset", "z-offset"] {
-        assert!(text.contains(pin) && text.contains("identified"), "{pin}: {text}");
+    // Each parameter before and after, as the JSON reports it, in the trail's results.
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let show = bin().args(["audit", "show", "1", "--json", "--db"]).arg(&db).output().unwrap();
+    let s: serde_json::Value = serde_json::from_slice(&show.stdout).unwrap();
+    let results = s["results"].as_array().unwrap();
+    let params = j["parameters"].as_array().unwrap();
+    assert_eq!(params.len(), 4);
+    for p in params {
+        let row = |q: &str| {
+            results
+                .iter()
+                .find(|r| r["fields"]["label"] == p["name"] && r["fields"]["quantity"] == q)
+                .unwrap_or_else(|| panic!("{} {q} not recorded", p["name"]))["fields"]
+                .clone()
+        };
+        assert_eq!(row("configured")["value"], p["configured"]);
+        assert_eq!(row("identified")["value"], p["identified"]);
+        assert_eq!(row("identified")["expanded_uncertainty"], p["expanded_uncertainty"]);
+        assert_eq!(row("identified")["verdict"], "written");
     }
     let v = bin().args(["audit", "verify", "--db"]).arg(&db).output().unwrap();
     assert_eq!(v.status.code(), Some(0), "{}", String::from_utf8_lossy(&v.stderr));

@@ -208,27 +208,36 @@ fn calibrate(a: CalibrateArgs) -> Result<Outcome> {
     Ok(Outcome::Done)
 }
 
-/// The calibration as one audit-trail run: the controller, one record per parameter (configured
-/// = before, identified = after, with its uncertainty), and the outcome as the run's message.
+/// The calibration as one audit-trail run: the controller, two `results` records per parameter
+/// (`configured` = before, `identified` = after with its expanded uncertainty; the verdict says
+/// whether it was written into the controller), and the outcome as the run's message.
 fn record(db: &truepos_audit::Db, report: &truepos_kinematics::CalibrationReport) -> Result<()> {
-    use truepos_somac::audit::{AuditSink, Event};
     let now = truepos_audit::now_utc();
     let mut audit =
         truepos_audit::Audit::open_noted(db, "kinematics calibrate", Some("kinematics calibrate"), &now)?;
     audit.set_controller(&report.device.address, &report.device.version)?;
-    for (i, p) in report.parameters.iter().enumerate() {
-        let text = format!(
-            "{}: configured {:.6} mm, identified {:.6} mm (u = {:.6} mm){}",
-            p.name,
-            p.configured_mm,
-            p.identified_mm,
-            p.uncertainty_mm,
-            if report.applied { ", written into the controller" } else { ", not written (dry run)" }
-        );
-        audit
-            .record(&Event::Block { line: i + 1, text, time_s: 0.0 })
-            .map_err(|e| DeviceError(format!("audit trail {}: {e}", db.display())))?;
+    let k = truepos_math::stats::COVERAGE_FACTOR;
+    let written = if report.applied { "written" } else { "dry run" };
+    for p in &report.parameters {
+        for (quantity, value, u, verdict) in [
+            ("configured", p.configured_mm, None, None),
+            ("identified", p.identified_mm, Some(k * p.uncertainty_mm), Some(written)),
+        ] {
+            audit.record_result(&truepos_audit::ResultRecord {
+                line: None,
+                kind: "parameter".into(),
+                label: p.name.clone(),
+                feature: Some(report.model.name().into()),
+                quantity: quantity.into(),
+                value,
+                unit: "mm".into(),
+                expanded_uncertainty: u,
+                limits: None,
+                verdict: verdict.map(str::to_string),
+            });
+        }
     }
+    audit.flush()?;
     let message = format!(
         "{}; centre spread {:.4} mm before, {:.4} mm predicted after",
         if report.applied { "applied" } else { "dry run" },
