@@ -3,7 +3,8 @@
 //! naming file, line and column, no output file), an unknown sensor (exit 2, nothing moved), a
 //! probing without surface (exit 3 naming the line, no output file), a tolerance out (exit 1).
 
-use std::io::{BufRead, BufReader};
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
@@ -56,32 +57,8 @@ fn the_nist_example_runs_on_the_virtual_cmm() {
 fn the_nist_example_runs_through_an_ippdme_server_process() {
     let dir = tempfile::tempdir().unwrap();
     let (prog, part) = copy_example(dir.path());
-    let mut server = truepos()
-        .current_dir(dir.path())
-        .args(["ippdme", "serve", "--port", "0", "--part"])
-        .arg(&part)
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut err = BufReader::new(server.stderr.take().unwrap());
-    let mut first = String::new();
-    err.read_line(&mut first).unwrap();
-    let addr = first.trim().strip_prefix("ippdme: listening on ").unwrap().to_string();
-    // The operator homes the machine (truepos never does).
-    {
-        use std::io::Write;
-        let s = std::net::TcpStream::connect(&addr).unwrap();
-        let mut w = s.try_clone().unwrap();
-        w.write_all(b"00001 StartSession()\r\n00002 Home()\r\n00003 EndSession()\r\n").unwrap();
-        let mut r = BufReader::new(s);
-        let mut l = String::new();
-        while r.read_line(&mut l).unwrap() > 0 {
-            if l.starts_with("00003 %") {
-                break;
-            }
-            l.clear();
-        }
-    }
+    let (mut server, addr) = common::ippdme_server(dir.path(), &part, &[]);
+    common::home_cmm(&addr, None);
     let results = dir.path().join("results.dms");
     let out = truepos()
         .current_dir(dir.path())
@@ -380,31 +357,9 @@ fn the_nist_example_sends_the_commands_of_the_nist_session() {
     let dir = tempfile::tempdir().unwrap();
     let (prog, part) = copy_example(dir.path());
     let log = dir.path().join("session.log");
-    let mut server = truepos()
-        .current_dir(dir.path())
-        .args(["ippdme", "serve", "--port", "0", "--part"])
-        .arg(&part)
-        .arg("--log")
-        .arg(&log)
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut err = BufReader::new(server.stderr.take().unwrap());
-    let mut first = String::new();
-    err.read_line(&mut first).unwrap();
-    let addr = first.trim().strip_prefix("ippdme: listening on ").unwrap().to_string();
-    {
-        // The operator homes the machine (truepos never does), as the NIST session's Home().
-        use std::io::Write;
-        let s = std::net::TcpStream::connect(&addr).unwrap();
-        let mut w = s.try_clone().unwrap();
-        w.write_all(b"00001 StartSession()\r\n00002 Home()\r\n00003 EndSession()\r\n").unwrap();
-        let mut r = BufReader::new(s);
-        let mut line = String::new();
-        while r.read_line(&mut line).unwrap() > 0 && !line.starts_with("00003 %") {
-            line.clear();
-        }
-    }
+    let (mut server, addr) = common::ippdme_server(dir.path(), &part, &["--log".as_ref(), log.as_os_str()]);
+    // The operator homes the machine (truepos never does), as the NIST session's Home().
+    common::home_cmm(&addr, None);
     let out = truepos()
         .current_dir(dir.path())
         .args(["dmis", "run"])

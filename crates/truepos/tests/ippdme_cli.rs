@@ -1,9 +1,11 @@
 //! `truepos ippdme serve` as a process: listening line, a full session with the log, SIGTERM →
 //! exit 0, bad part file → exit 2 naming file and line, port in use → exit 3.
 
+mod common;
+
 use std::io::{BufRead, BufReader, Write};
 use std::net::TcpStream;
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 fn truepos() -> Command {
@@ -13,19 +15,7 @@ fn truepos() -> Command {
 /// Start `truepos ippdme serve` on a free loopback port with `part` (and `extra` options);
 /// returns the child and the address it printed.
 fn spawn_server(part: &std::path::Path, extra: &[&std::ffi::OsStr]) -> (std::process::Child, String) {
-    let mut child = truepos()
-        .args(["ippdme", "serve", "--port", "0", "--part"])
-        .arg(part)
-        .args(extra)
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut err = BufReader::new(child.stderr.take().unwrap());
-    let mut first = String::new();
-    err.read_line(&mut first).unwrap();
-    let addr =
-        first.trim().strip_prefix("ippdme: listening on ").unwrap_or_else(|| panic!("{first}")).to_string();
-    (child, addr)
+    common::ippdme_server(part.parent().unwrap_or(std::path::Path::new(".")), part, extra)
 }
 
 #[test]
