@@ -136,19 +136,17 @@ impl TlsSettings {
             return None;
         }
         let provider = Arc::new(rustls::crypto::ring::default_provider());
-        let verifier: Arc<dyn ServerCertVerifier> = match (&self.roots, self.mode) {
-            (Some(roots), SslMode::VerifyFull | SslMode::VerifyCa) => {
-                let inner = WebPkiServerVerifier::builder_with_provider(roots.clone(), provider.clone())
-                    .build()
-                    .ok()?;
-                if self.mode == SslMode::VerifyFull {
-                    inner
-                } else {
-                    Arc::new(ChainOnly { inner })
-                }
-            }
-            _ => Arc::new(EncryptOnly { provider: provider.clone() }),
+        let chain = match &self.roots {
+            Some(roots) if self.mode.verifies() => Some(
+                WebPkiServerVerifier::builder_with_provider(roots.clone(), provider.clone()).build().ok()?,
+            ),
+            _ => None,
         };
+        let verifier: Arc<dyn ServerCertVerifier> = Arc::new(ModeVerifier {
+            provider: provider.clone(),
+            chain,
+            check_name: self.mode == SslMode::VerifyFull,
+        });
         let config = ClientConfig::builder_with_provider(provider)
             .with_safe_default_protocol_versions()
             .ok()?
@@ -181,23 +179,34 @@ fn read_roots(path: &Path) -> Result<RootCertStore, String> {
     Ok(store)
 }
 
-/// `require`/`prefer`: the handshake's signatures are checked (the session is encrypted with the
-/// key of the certificate shown), the certificate itself is not (libpq's semantics).
+/// The server-certificate check of a mode. Always: the handshake's signatures are verified
+/// with the certificate shown (the session is encrypted with that certificate's key). With
+/// `chain` (`verify-ca`, `verify-full`): the certificate must lead to a trusted authority; with
+/// `check_name` (`verify-full`) it must also name the address's host. Without `chain`
+/// (`require`, `prefer`): the certificate itself is not checked, libpq's meaning.
 #[derive(Debug)]
-struct EncryptOnly {
+struct ModeVerifier {
     provider: Arc<CryptoProvider>,
+    chain: Option<Arc<WebPkiServerVerifier>>,
+    check_name: bool,
 }
 
-impl ServerCertVerifier for EncryptOnly {
+impl ServerCertVerifier for ModeVerifier {
     fn verify_server_cert(
         &self,
-        _end_entity: &CertificateDer<'_>,
-        _intermediates: &[CertificateDer<'_>],
-        _server_name: &ServerName<'_>,
-        _ocsp: &[u8],
-        _now: UnixTime,
+        end_entity: &CertificateDer<'_>,
+        intermediates: &[CertificateDer<'_>],
+        server_name: &ServerName<'_>,
+        ocsp: &[u8],
+        now: UnixTime,
     ) -> Result<ServerCertVerified, rustls::Error> {
-        Ok(ServerCertVerified::assertion())
+        let Some(chain) = &self.chain else { return Ok(ServerCertVerified::assertion()) };
+        match chain.verify_server_cert(end_entity, intermediates, server_name, ocsp, now) {
+            Err(rustls::Error::InvalidCertificate(
+                CertificateError::NotValidForName | CertificateError::NotValidForNameContext { .. },
+            )) if !self.check_name => Ok(ServerCertVerified::assertion()),
+            other => other,
+        }
     }
 
     fn verify_tls12_signature(
@@ -220,53 +229,6 @@ impl ServerCertVerifier for EncryptOnly {
 
     fn supported_verify_schemes(&self) -> Vec<SignatureScheme> {
         self.provider.signature_verification_algorithms.supported_schemes()
-    }
-}
-
-/// `verify-ca`: the chain must lead to a trusted authority; the name in the certificate is not
-/// compared with the address's host.
-#[derive(Debug)]
-struct ChainOnly {
-    inner: Arc<WebPkiServerVerifier>,
-}
-
-impl ServerCertVerifier for ChainOnly {
-    fn verify_server_cert(
-        &self,
-        end_entity: &CertificateDer<'_>,
-        intermediates: &[CertificateDer<'_>],
-        server_name: &ServerName<'_>,
-        ocsp: &[u8],
-        now: UnixTime,
-    ) -> Result<ServerCertVerified, rustls::Error> {
-        match self.inner.verify_server_cert(end_entity, intermediates, server_name, ocsp, now) {
-            Err(rustls::Error::InvalidCertificate(
-                CertificateError::NotValidForName | CertificateError::NotValidForNameContext { .. },
-            )) => Ok(ServerCertVerified::assertion()),
-            other => other,
-        }
-    }
-
-    fn verify_tls12_signature(
-        &self,
-        message: &[u8],
-        cert: &CertificateDer<'_>,
-        dss: &DigitallySignedStruct,
-    ) -> Result<HandshakeSignatureValid, rustls::Error> {
-        self.inner.verify_tls12_signature(message, cert, dss)
-    }
-
-    fn verify_tls13_signature(
-        &self,
-        message: &[u8],
-        cert: &CertificateDer<'_>,
-        dss: &DigitallySignedStruct,
-    ) -> Result<HandshakeSignatureValid, rustls::Error> {
-        self.inner.verify_tls13_signature(message, cert, dss)
-    }
-
-    fn supported_verify_schemes(&self) -> Vec<SignatureScheme> {
-        self.inner.supported_verify_schemes()
     }
 }
 
