@@ -1326,6 +1326,45 @@ where
         .collect()
 }
 
+/// The readers' kernels one by one, for the criterion bench `crates/io/benches/readers.rs`
+/// (the decision whether each hand-written kernel is worth keeping is measured there). Not part
+/// of the API: hidden from the docs, may change with any commit.
+#[doc(hidden)]
+pub mod kernels {
+    /// Bytes a short-decimal kernel may read from the start of a number.
+    pub const READ: usize = super::SHORT_DECIMAL_READ;
+
+    /// The portable SWAR short decimal ([`super::swar`]); `None` if `b` is shorter than [`READ`].
+    pub fn short_decimal_swar(b: &[u8]) -> Option<(f64, usize)> {
+        (b.len() >= READ).then(|| super::short_decimal_prefix(b)).flatten()
+    }
+
+    /// The SSSE3 short decimal; `None` without SSSE3 or if `b` is shorter than [`READ`].
+    pub fn short_decimal_ssse3(b: &[u8]) -> Option<(f64, usize)> {
+        #[cfg(target_arch = "x86_64")]
+        if super::cpu_has_ssse3() && b.len() >= READ {
+            // SAFETY: the CPU has SSSE3 (checked) and `b` holds the bytes the kernel reads.
+            return unsafe { super::short_decimal_ssse3(b) };
+        }
+        let _ = b;
+        None
+    }
+
+    /// Rows of three numbers of one segment (text of whole lines) into `out`, by the readers'
+    /// own loop: `simd` the SSSE3 copy where the CPU has it, else the portable one. The rows
+    /// read, or `None` at a row the fast path leaves to the general one.
+    pub fn rows3(seg: &[u8], simd: bool, out: &mut Vec<[f64; 3]>) -> Option<usize> {
+        let slots = [0usize, 1, 2];
+        let put = |_: usize, d: [f64; 3]| out.push(d);
+        let r = if simd && super::cpu_has_ssse3() {
+            super::parse_segment_best::<3>(seg, &slots, usize::MAX, put)
+        } else {
+            super::parse_segment::<3, false>(seg, &slots, usize::MAX, put)
+        };
+        r.map(|(n, _)| n)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
