@@ -16,6 +16,9 @@ use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::hint::black_box;
 use truepos_io::csv::kernels;
 
+/// A number reader: the value at the start of the text and the bytes it took.
+type ReadNumber<'a> = &'a dyn Fn(&[u8]) -> Option<(f64, usize)>;
+
 /// `n` numbers of the form `[-]ddd.dddddd` separated by commas, three to a line.
 fn numbers(n: usize) -> Vec<u8> {
     let mut s = String::with_capacity(n * 12);
@@ -44,7 +47,7 @@ fn bench_numbers(c: &mut Criterion) {
     let mut g = c.benchmark_group("number");
     g.throughput(Throughput::Elements(n as u64));
     g.sample_size(20);
-    let walk = |read: &dyn Fn(&[u8]) -> Option<(f64, usize)>| {
+    let walk = |read: ReadNumber| {
         let (mut i, mut sum) = (0, 0.0);
         while i < body.len() {
             let (v, used) = read(&text[i..]).expect("a short decimal");
