@@ -26,7 +26,7 @@ pub enum DmisCommand {
     /// stderr. The results file is a DMIS output file (FA(label)=FEAT/… with the actual values,
     /// TA(label)=TOL/…,value,INTOL|OUTOL).
     #[command(
-        after_help = "A real CMM through I++ DME:\n  truepos dmis run part.dms --controller ippdme://HOST:1294 --sensor PROBE6=Probe1\n\nExit codes: 0 done, 1 a tolerance OUTOL, 2 bad program or option (nothing moved), 3 machine failure (the program line named, the machine retracted)."
+        after_help = "A real CMM through I++ DME:\n  truepos dmis run part.dms --controller ippdme://HOST:1294 --sensor PROBE6=Probe1\n\nWith --machine-model FILE every actual feature's values and every tolerance's value get a\ntask-specific uncertainty: the program (its PTMEAS points and directions, datums, constructions)\nrun again on ≥ 200 machines drawn from the model, each touching the perfect features where this\nrun found them. The verdict stays DMIS's (INTOL/OUTOL on the value); U is reported beside it.\n  truepos dmis run part.dms --part part.toml --machine-model cmm.toml --json\n\nExit codes: 0 done, 1 a tolerance OUTOL, 2 bad program or option (nothing moved), 3 machine failure (the program line named, the machine retracted)."
     )]
     Run(RunArgs),
 }
@@ -55,6 +55,8 @@ pub struct RunArgs {
     /// List the motions without a machine (every probing touches its nominal point); no file.
     #[arg(long)]
     pub dry_run: bool,
+    #[command(flatten)]
+    pub model: super::probe::ModelArgs,
     /// Print the results as one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
@@ -72,6 +74,8 @@ pub fn run(args: Args) -> Result<Outcome> {
     }
     let opts = RunOptions { sensors };
     let plan = truepos_dmis::task::load(&a.program)?;
+    // The machine model is read and checked before anything moves.
+    let model = if a.dry_run { None } else { a.model.read()? };
     let mut progress = |l: &str| eprintln!("dmis: {l}");
     if a.dry_run {
         let mut m = DryRun::new(&plan, &opts);
@@ -121,21 +125,61 @@ pub fn run(args: Args) -> Result<Outcome> {
     let text = r.output.join("\n") + "\n";
     truepos_io::atomic::write_atomic(&out, text.as_bytes())?;
     drop(client);
+    // Task-specific uncertainty: the same program on machines drawn from the model.
+    let task = match &model {
+        Some(m) => {
+            Some(truepos_cell::vcmm::dmis_uncertainty(m, &plan, &opts, &r, a.model.monte_carlo())?)
+        }
+        None => {
+            eprintln!("{}", super::probe::NO_MODEL_WARNING);
+            None
+        }
+    };
+    let u = match &task {
+        Some(t) => t.uncertainty.clone(),
+        None => truepos_dmis::uncertainty::Uncertainty::fit_residuals(&r),
+    };
+    let k = truepos_math::stats::COVERAGE_FACTOR;
     if a.json {
-        crate::output::print_json(&truepos_dmis::report::json(
-            &plan.file,
-            &r,
-            Some(&out.display().to_string()),
-        ))?;
+        let mut j = truepos_dmis::report::json(&plan.file, &r, Some(&out.display().to_string()));
+        u.add_to_json(&r, &mut j, k);
+        j["coverage_factor"] = serde_json::json!(k);
+        match &task {
+            Some(t) => {
+                j["uncertainty_method"] = serde_json::json!("task-specific");
+                j["monte_carlo_runs"] = serde_json::json!(t.spread.runs);
+                j["uncertainty_basis"] = serde_json::json!(t.spread.basis);
+                j["monte_carlo_s"] = serde_json::json!(t.spread.elapsed_s);
+            }
+            None => {
+                j["uncertainty_method"] = serde_json::json!("fit-residuals");
+                j["monte_carlo_runs"] = serde_json::json!(0);
+                j["uncertainty_basis"] = serde_json::json!(
+                    "scatter of each fit's residuals only (machine errors not included; none for directions and tolerances)"
+                );
+            }
+        }
+        crate::output::print_json(&j)?;
     } else {
-        for t in &r.tolerances {
+        for (t, ut) in r.tolerances.iter().zip(&u.tolerances) {
+            let beside = match ut {
+                Some(v) if t.angular => format!(" (U = {:.4}°, k = {k})", (k * v).to_degrees()),
+                Some(v) => format!(" (U = {:.4} mm, k = {k})", k * v),
+                None => " (U not known without --machine-model)".to_string(),
+            };
             eprintln!(
-                "dmis: {}",
+                "dmis: {}{beside}",
                 truepos_dmis::report::tol_line(
                     t,
                     truepos_dmis::ast::LengthUnit::Mm,
                     truepos_dmis::ast::AngleUnit::AngDec
                 )
+            );
+        }
+        if let Some(t) = &task {
+            eprintln!(
+                "dmis: uncertainty: task-specific, {} machine realisations in {:.2} s ({})",
+                t.spread.runs, t.spread.elapsed_s, t.spread.basis
             );
         }
         eprintln!("dmis: {} points, {:.2} s; results in {}", r.n_points, r.elapsed_s, out.display());
