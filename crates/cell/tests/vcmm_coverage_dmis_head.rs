@@ -150,7 +150,7 @@ fn report(label: &str, (cov, median, n, mc_s): (f64, f64, usize, f64), lo: f64, 
 
 #[test]
 fn dmis_uncertainty_covers_the_truth() {
-    report("dmis run (full.dms, default CMM)", dmis_coverage(6), 0.85, 1.0);
+    report("dmis run (full.dms, default CMM)", dmis_coverage(20), 0.90, 0.99);
 }
 
 #[test]
@@ -209,7 +209,7 @@ fn head_coverage(machines: u64, model_text: &str) -> (f64, f64, usize, f64) {
 
 #[test]
 fn head_offset_uncertainty_covers_the_truth() {
-    report("head-offset acquire (default CMM model)", head_coverage(8, "[ippdme.model]\n"), 0.85, 1.0);
+    report("head-offset acquire (default CMM model)", head_coverage(30, "[ippdme.model]\n"), 0.88, 1.0);
 }
 
 #[test]
