@@ -29,7 +29,12 @@
 //! assumptions (uniform within ±MPE). The output says which basis was used.
 //!
 //! Entry points: [`MachineModel`] (read the file), [`sphere_uncertainty`] (a probed sphere),
-//! [`SimulatedCmm`] (one realisation behind the [`ProbingMachine`] trait).
+//! [`inspection_uncertainty`] (`somac inspect`), [`dmis_uncertainty`] (`dmis run`: the program
+//! replayed on the perfect features), [`head_offset_uncertainty`] (`head-offset acquire`),
+//! [`SimulatedCmm`] (one realisation behind the [`ProbingMachine`] trait). The common parts:
+//! [`monte_carlo`] (the one parallel, seeded loop), [`simulate`] (it, over every basis of the
+//! model, summarised as a [`Spread`]), [`PointErrors`] (one realisation as errors of probed
+//! points) and [`ErrorOverlay`] (those errors added to another machine's contacts).
 
 use rayon::prelude::*;
 use std::path::Path;
@@ -361,18 +366,18 @@ where
     F: Fn(u64) -> M + Sync,
 {
     monte_carlo(mc, |seed| {
-            let mut m = make(seed);
-            let s = probe_sphere(&mut m, plan).map_err(|e| {
+        let mut m = make(seed);
+        let s = probe_sphere(&mut m, plan).map_err(|e| {
                 CellError::Failed(format!(
                     "task-specific uncertainty: a simulated machine could not measure the sphere ({e}); the model's errors are larger than the clearance"
                 ))
             })?;
-            Ok(Trial {
-                dc: s.center_mm - center,
-                dr: s.radius_mm - radius,
-                uc: s.center_uncertainty_mm,
-                ur: s.radius_uncertainty_mm,
-            })
+        Ok(Trial {
+            dc: s.center_mm - center,
+            dr: s.radius_mm - radius,
+            uc: s.center_uncertainty_mm,
+            ur: s.radius_uncertainty_mm,
+        })
     })
 }
 
@@ -548,15 +553,15 @@ pub fn inspection_uncertainty(
         }
         let part = Part { solids };
         let runs = monte_carlo(mc, |seed| {
-                let mut cfg = cfg.clone();
-                cfg.model.seed = seed;
-                let mut m = SimulatedCmm::new(&cfg, Some(part.clone()), plan.tip_radius_mm);
-                let got = inspect(&mut m, &holes, plan).map_err(|e| {
-                    CellError::Failed(format!(
-                        "task-specific uncertainty: a simulated machine could not inspect the holes ({e})"
-                    ))
-                })?;
-                Ok(deviations(&got))
+            let mut cfg = cfg.clone();
+            cfg.model.seed = seed;
+            let mut m = SimulatedCmm::new(&cfg, Some(part.clone()), plan.tip_radius_mm);
+            let got = inspect(&mut m, &holes, plan).map_err(|e| {
+                CellError::Failed(format!(
+                    "task-specific uncertainty: a simulated machine could not inspect the holes ({e})"
+                ))
+            })?;
+            Ok(deviations(&got))
         })?;
         per_model.push(runs);
     }
@@ -695,9 +700,8 @@ impl PointErrors {
             Basis::ErrorModel(cfg) => {
                 let mut m = cfg.model.clone();
                 m.seed = seed;
-                let field = (m.geometric_errors && m.geometric_error_scale > 0.0).then(|| {
-                    crate::cmm::ErrorField::bridge_cmm(&m, cfg.volume_min_mm, cfg.volume_max_mm)
-                });
+                let field = (m.geometric_errors && m.geometric_error_scale > 0.0)
+                    .then(|| crate::cmm::ErrorField::bridge_cmm(&m, cfg.volume_min_mm, cfg.volume_max_mm));
                 let probe = truepos_sim::touch::TouchProbe::new(0.0, m.pretravel_mm, m.lobing_mm).ok();
                 PointErrors {
                     kind: PointKind::ErrorModel {
@@ -835,7 +839,12 @@ where
             None => s,
             Some(b) => Spread {
                 rms: b.rms.iter().zip(&s.rms).map(|(x, y)| x.max(*y)).collect(),
-                mean: b.mean.iter().zip(&s.mean).map(|(x, y)| if x.abs() >= y.abs() { *x } else { *y }).collect(),
+                mean: b
+                    .mean
+                    .iter()
+                    .zip(&s.mean)
+                    .map(|(x, y)| if x.abs() >= y.abs() { *x } else { *y })
+                    .collect(),
                 ..b
             },
         });
@@ -943,9 +952,10 @@ pub fn head_offset_uncertainty(
     use crate::probing::{HeadOffsetTruth, MachineToolConfig, VirtualMachineTool};
     use truepos_head::acquire::{acquire_head_offset, readings};
     acq.check().map_err(|e| CellError::Invalid(e.to_string()))?;
-    let radius = measured.radius.map(|r| r - acq.sphere.tip_radius_mm).filter(|r| *r > 0.0).ok_or_else(|| {
-        CellError::Invalid("the measured head offset has no positive sphere radius to simulate".into())
-    })?;
+    let radius =
+        measured.radius.map(|r| r - acq.sphere.tip_radius_mm).filter(|r| *r > 0.0).ok_or_else(|| {
+            CellError::Invalid("the measured head offset has no positive sphere radius to simulate".into())
+        })?;
     let truth = HeadOffsetTruth {
         offset_mm: measured.offset,
         sphere_centre_mm: measured.reference_point,
@@ -966,7 +976,9 @@ pub fn head_offset_uncertainty(
             ))
         })?;
         let r = truepos_head::solve(&readings(&got), params).map_err(|e| {
-            CellError::Failed(format!("task-specific uncertainty: a simulated acquisition gave no offset ({e})"))
+            CellError::Failed(format!(
+                "task-specific uncertainty: a simulated acquisition gave no offset ({e})"
+            ))
         })?;
         let d = r.offset - measured.offset;
         let c = r.reference_point - measured.reference_point;

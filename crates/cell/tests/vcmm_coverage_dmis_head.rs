@@ -18,8 +18,8 @@
 use std::path::{Path, PathBuf};
 use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
 use truepos_cell::vcmm::{
-    dmis_uncertainty, head_offset_uncertainty, AcquiringMachine, ErrorOverlay, MachineModel,
-    MonteCarlo, PointErrors, SimulatedCmm,
+    dmis_uncertainty, head_offset_uncertainty, AcquiringMachine, ErrorOverlay, MachineModel, MonteCarlo,
+    PointErrors, SimulatedCmm,
 };
 use truepos_device::{DeviceError, DeviceInfo, ProbeHit, ProbeRequest, ProbingMachine, ToolInfo};
 use truepos_dmis::exec::{run, Geom, RunOptions, RunResult};
@@ -196,8 +196,15 @@ fn head_coverage(machines: u64, model_text: &str) -> (f64, f64, usize, f64) {
         let got = acquire_head_offset(&mut m, &acq).expect("acquisition");
         let r = truepos_head::solve(&readings(&got), &params).expect("offset");
         assert_eq!(r.observable, [true; 3]);
-        let u = head_offset_uncertainty(&model, &acq, &params, &r, AcquiringMachine::MachineTool, MonteCarlo::default())
-            .unwrap();
+        let u = head_offset_uncertainty(
+            &model,
+            &acq,
+            &params,
+            &r,
+            AcquiringMachine::MachineTool,
+            MonteCarlo::default(),
+        )
+        .unwrap();
         mc_s += u.spread.elapsed_s;
         for k in 0..3 {
             tally.add(r.offset[k] - truth.offset_mm[k], K * u.offset_mm[k].unwrap());
@@ -228,7 +235,8 @@ fn head_offset_uncertainty_covers_the_truth_100_machines() {
 fn a_single_orientation_axis_stays_unobservable() {
     // B only: Y is not observable; its uncertainty stays None.
     let model = MachineModel::from_toml(Path::new("m.toml"), "[ippdme.model]\n").unwrap();
-    let acq = HeadAcquisition { orientations: vec![[0.0, 0.0], [45.0, 0.0], [90.0, 0.0]], ..head_acquisition() };
+    let acq =
+        HeadAcquisition { orientations: vec![[0.0, 0.0], [45.0, 0.0], [90.0, 0.0]], ..head_acquisition() };
     let params = truepos_head::Params {
         reference: truepos_head::Reference::Sphere { radius: None },
         table_center: acq.table_center_mm,
@@ -238,8 +246,19 @@ fn a_single_orientation_axis_stays_unobservable() {
     let mut m = VirtualMachineTool::new(cfg).unwrap();
     let got = acquire_head_offset(&mut m, &acq).unwrap();
     let r = truepos_head::solve(&readings(&got), &params).unwrap();
-    let u = head_offset_uncertainty(&model, &acq, &params, &r, AcquiringMachine::MachineTool, MonteCarlo::default())
-        .unwrap();
+    let u = head_offset_uncertainty(
+        &model,
+        &acq,
+        &params,
+        &r,
+        AcquiringMachine::MachineTool,
+        MonteCarlo::default(),
+    )
+    .unwrap();
     assert_eq!(r.observable, [true, false, true]);
-    assert!(u.offset_mm[0].is_some() && u.offset_mm[1].is_none() && u.offset_mm[2].is_some(), "{:?}", u.offset_mm);
+    assert!(
+        u.offset_mm[0].is_some() && u.offset_mm[1].is_none() && u.offset_mm[2].is_some(),
+        "{:?}",
+        u.offset_mm
+    );
 }

@@ -73,11 +73,14 @@ impl ProbingMachine for Replay {
     }
 }
 
-/// Which values a feature has beyond its position: (a direction, a diameter, a cone angle).
+/// Which measured values a feature has beyond its position: (a direction, a diameter, a cone
+/// angle). A point's and a circle's direction is their nominal's, not measured: none.
 fn layout(g: &Geom) -> (bool, bool, bool) {
     match g {
-        Geom::Point { .. } | Geom::Plane { .. } | Geom::Line { .. } => (true, false, false),
-        Geom::Circle { .. } | Geom::Cylinder { .. } => (true, true, false),
+        Geom::Point { .. } => (false, false, false),
+        Geom::Plane { .. } | Geom::Line { .. } => (true, false, false),
+        Geom::Circle { .. } => (false, true, false),
+        Geom::Cylinder { .. } => (true, true, false),
         Geom::Sphere { .. } => (false, true, false),
         Geom::Cone { .. } => (true, false, true),
     }

@@ -267,10 +267,13 @@ fn dmis_run_reports_task_specific_uncertainty_through_ippdme() {
         std::fs::write(&machine, format!("[ippdme.model]\nseed = {}\n", 60 + seed)).unwrap();
         let (child, addr) = server(&part, &machine);
         let mut cmd = truepos();
-        cmd.current_dir(dir.path())
-            .args(["dmis", "run"])
-            .arg(&program)
-            .args(["--controller", &format!("ippdme://{addr}"), "--sensor", "P1=Probe1", "--json"]);
+        cmd.current_dir(dir.path()).args(["dmis", "run"]).arg(&program).args([
+            "--controller",
+            &format!("ippdme://{addr}"),
+            "--sensor",
+            "P1=Probe1",
+            "--json",
+        ]);
         if seed < 3 {
             cmd.arg("--machine-model").arg(&model);
         }

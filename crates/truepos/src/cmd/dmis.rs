@@ -127,9 +127,7 @@ pub fn run(args: Args) -> Result<Outcome> {
     drop(client);
     // Task-specific uncertainty: the same program on machines drawn from the model.
     let task = match &model {
-        Some(m) => {
-            Some(truepos_cell::vcmm::dmis_uncertainty(m, &plan, &opts, &r, a.model.monte_carlo())?)
-        }
+        Some(m) => Some(truepos_cell::vcmm::dmis_uncertainty(m, &plan, &opts, &r, a.model.monte_carlo())?),
         None => {
             eprintln!("{}", super::probe::NO_MODEL_WARNING);
             None

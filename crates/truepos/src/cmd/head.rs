@@ -386,7 +386,9 @@ fn acquired_offset(
     let opt = |v: Option<f64>, s: f64| v.map_or(serde_json::Value::Null, |v| json!(v * s));
     let (method, runs, basis) = match &task {
         Some(t) => ("task-specific", t.spread.runs, t.spread.basis.clone()),
-        None => ("fit-residuals", 0, "scatter of the fit's residuals only (machine errors not included)".into()),
+        None => {
+            ("fit-residuals", 0, "scatter of the fit's residuals only (machine errors not included)".into())
+        }
     };
     let mut j = json!({
         "offset_mm": [r.offset.x, r.offset.y, r.offset.z],
@@ -405,9 +407,13 @@ fn acquired_offset(
     let mut text = String::from("head offset (as head-offset --points computes it):\n");
     for (i, axis) in ["X", "Y", "Z"].iter().enumerate() {
         text += &match (r.observable[i], u[i]) {
-            (true, Some(v)) => format!("  {axis} {:+.4} mm (U = {:.2} µm, k = {k})\n", r.offset[i], k * v * 1e3),
+            (true, Some(v)) => {
+                format!("  {axis} {:+.4} mm (U = {:.2} µm, k = {k})\n", r.offset[i], k * v * 1e3)
+            }
             (true, None) => format!("  {axis} {:+.4} mm\n", r.offset[i]),
-            (false, _) => format!("  {axis} not observable from these orientations (held at {})\n", r.offset[i]),
+            (false, _) => {
+                format!("  {axis} not observable from these orientations (held at {})\n", r.offset[i])
+            }
         };
     }
     text += &match &task {
