@@ -681,7 +681,7 @@ pub struct PointErrors {
 #[derive(Debug, Clone)]
 enum PointKind {
     ErrorModel {
-        field: Option<crate::cmm::ErrorField>,
+        field: Option<Box<crate::cmm::ErrorField>>,
         probe: Option<truepos_sim::touch::TouchProbe>,
         compensated: bool,
         sigma_mm: f64,
@@ -700,8 +700,9 @@ impl PointErrors {
             Basis::ErrorModel(cfg) => {
                 let mut m = cfg.model.clone();
                 m.seed = seed;
-                let field = (m.geometric_errors && m.geometric_error_scale > 0.0)
-                    .then(|| crate::cmm::ErrorField::bridge_cmm(&m, cfg.volume_min_mm, cfg.volume_max_mm));
+                let field = (m.geometric_errors && m.geometric_error_scale > 0.0).then(|| {
+                    Box::new(crate::cmm::ErrorField::bridge_cmm(&m, cfg.volume_min_mm, cfg.volume_max_mm))
+                });
                 let probe = truepos_sim::touch::TouchProbe::new(0.0, m.pretravel_mm, m.lobing_mm).ok();
                 PointErrors {
                     kind: PointKind::ErrorModel {
