@@ -135,8 +135,24 @@ impl MachineToolConfig {
         acq: &truepos_head::acquire::HeadAcquisition,
     ) -> (MachineToolConfig, HeadOffsetTruth) {
         let (near, r, tip) = (acq.sphere.near_mm, 0.5 * acq.sphere.diameter_mm, acq.sphere.tip_radius_mm);
-        let mut cfg = MachineToolConfig::near(seed, near, r, tip);
+        let cfg = MachineToolConfig::near(seed, near, r, tip);
         let offset = acq.nominal_offset_mm + seeded_offset_error(seed, 0.2);
+        let (c, radius) = cfg.spheres[0];
+        let truth = HeadOffsetTruth { offset_mm: offset, sphere_centre_mm: c, sphere_radius_mm: radius };
+        (MachineToolConfig::with_head_offset(seed, acq, &truth), truth)
+    }
+
+    /// A machine tool with a B head and a C table for head-offset acquisition `acq` whose head
+    /// offset and sphere are `truth` (the noise, latch phase and position noise of `seed`).
+    pub fn with_head_offset(
+        seed: u64,
+        acq: &truepos_head::acquire::HeadAcquisition,
+        truth: &HeadOffsetTruth,
+    ) -> MachineToolConfig {
+        let (near, r, tip) = (acq.sphere.near_mm, 0.5 * acq.sphere.diameter_mm, acq.sphere.tip_radius_mm);
+        let mut cfg = MachineToolConfig::near(seed, near, r, tip);
+        cfg.spheres = vec![(truth.sphere_centre_mm, truth.sphere_radius_mm)];
+        let offset = truth.offset_mm;
         let reach = offset.norm() + (near - acq.table_center_mm).norm();
         cfg.rotary = RotaryAxes { head_b: true, table_c: true };
         cfg.head_offset_mm = offset;
@@ -144,8 +160,7 @@ impl MachineToolConfig {
         cfg.travel_min_mm -= Vector3::repeat(reach);
         cfg.travel_max_mm += Vector3::repeat(reach);
         cfg.start_mm = near + Vector3::new(0.0, 0.0, r + tip + 50.0) - offset;
-        let (c, radius) = cfg.spheres[0];
-        (cfg, HeadOffsetTruth { offset_mm: offset, sphere_centre_mm: c, sphere_radius_mm: radius })
+        cfg
     }
 }
 

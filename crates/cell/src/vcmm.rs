@@ -29,7 +29,12 @@
 //! assumptions (uniform within ±MPE). The output says which basis was used.
 //!
 //! Entry points: [`MachineModel`] (read the file), [`sphere_uncertainty`] (a probed sphere),
-//! [`SimulatedCmm`] (one realisation behind the [`ProbingMachine`] trait).
+//! [`inspection_uncertainty`] (`somac inspect`), [`dmis_uncertainty`] (`dmis run`: the program
+//! replayed on the perfect features), [`head_offset_uncertainty`] (`head-offset acquire`),
+//! [`SimulatedCmm`] (one realisation behind the [`ProbingMachine`] trait). The common parts:
+//! [`monte_carlo`] (the one parallel, seeded loop), [`simulate`] (it, over every basis of the
+//! model, summarised as a [`Spread`]), [`PointErrors`] (one realisation as errors of probed
+//! points) and [`ErrorOverlay`] (those errors added to another machine's contacts).
 
 use rayon::prelude::*;
 use std::path::Path;
@@ -263,11 +268,7 @@ pub fn sphere_uncertainty(
         per_model.push(trials_on(&make, &sim_plan, center, radius, mc)?);
     }
     if let Some(iso) = &model.iso10360 {
-        let trials: Result<Vec<Trial>> = (0..mc.runs)
-            .into_par_iter()
-            .map(|r| iso_trial(iso, &sim_plan, center, radius, mc.seed_of(r)))
-            .collect();
-        per_model.push(trials?);
+        per_model.push(monte_carlo(mc, |seed| iso_trial(iso, &sim_plan, center, radius, seed))?);
     }
     // Each model gives a u per parameter; with both, the larger (they describe the same machine).
     let mut best: Option<SphereUncertainty> = None;
@@ -364,23 +365,20 @@ where
     M: ProbingMachine,
     F: Fn(u64) -> M + Sync,
 {
-    (0..mc.runs)
-        .into_par_iter()
-        .map(|r| {
-            let mut m = make(mc.seed_of(r));
-            let s = probe_sphere(&mut m, plan).map_err(|e| {
+    monte_carlo(mc, |seed| {
+        let mut m = make(seed);
+        let s = probe_sphere(&mut m, plan).map_err(|e| {
                 CellError::Failed(format!(
                     "task-specific uncertainty: a simulated machine could not measure the sphere ({e}); the model's errors are larger than the clearance"
                 ))
             })?;
-            Ok(Trial {
-                dc: s.center_mm - center,
-                dr: s.radius_mm - radius,
-                uc: s.center_uncertainty_mm,
-                ur: s.radius_uncertainty_mm,
-            })
+        Ok(Trial {
+            dc: s.center_mm - center,
+            dr: s.radius_mm - radius,
+            uc: s.center_uncertainty_mm,
+            ur: s.radius_uncertainty_mm,
         })
-        .collect()
+    })
 }
 
 /// The task-specific uncertainty of a sphere measured as `plan` says on a machine of which
@@ -554,28 +552,21 @@ pub fn inspection_uncertainty(
             ));
         }
         let part = Part { solids };
-        let runs: Result<Vec<Vec<[f64; 3]>>> = (0..mc.runs)
-            .into_par_iter()
-            .map(|r| {
-                let mut cfg = cfg.clone();
-                cfg.model.seed = mc.seed_of(r);
-                let mut m = SimulatedCmm::new(&cfg, Some(part.clone()), plan.tip_radius_mm);
-                let got = inspect(&mut m, &holes, plan).map_err(|e| {
-                    CellError::Failed(format!(
-                        "task-specific uncertainty: a simulated machine could not inspect the holes ({e})"
-                    ))
-                })?;
-                Ok(deviations(&got))
-            })
-            .collect();
-        per_model.push(runs?);
+        let runs = monte_carlo(mc, |seed| {
+            let mut cfg = cfg.clone();
+            cfg.model.seed = seed;
+            let mut m = SimulatedCmm::new(&cfg, Some(part.clone()), plan.tip_radius_mm);
+            let got = inspect(&mut m, &holes, plan).map_err(|e| {
+                CellError::Failed(format!(
+                    "task-specific uncertainty: a simulated machine could not inspect the holes ({e})"
+                ))
+            })?;
+            Ok(deviations(&got))
+        })?;
+        per_model.push(runs);
     }
     if let Some(iso) = &model.iso10360 {
-        let runs: Result<Vec<Vec<[f64; 3]>>> = (0..mc.runs)
-            .into_par_iter()
-            .map(|r| iso_holes(iso, plan, &holes, &perfect, mc.seed_of(r)))
-            .collect();
-        per_model.push(runs?);
+        per_model.push(monte_carlo(mc, |seed| iso_holes(iso, plan, &holes, &perfect, seed))?);
     }
     if per_model.is_empty() {
         return Err(CellError::Invalid("the machine model names no model".into()));
@@ -635,4 +626,365 @@ fn iso_holes(
             Ok([f.center.x - c.x, f.center.y - c.y, 2.0 * (f.radius + plan.tip_radius_mm) - d])
         })
         .collect()
+}
+
+/// Run `trial` on `mc.runs` machine realisations in parallel; realisation r always gets the seed
+/// `mc.seed_of(r)`, so the result does not depend on the threads (deterministic). The one Monte
+/// Carlo loop of this module: every task-specific uncertainty goes through it.
+pub fn monte_carlo<T, F>(mc: MonteCarlo, trial: F) -> Result<Vec<T>>
+where
+    T: Send,
+    F: Fn(u64) -> Result<T> + Sync,
+{
+    mc.check()?;
+    (0..mc.runs).into_par_iter().map(|r| trial(mc.seed_of(r))).collect()
+}
+
+/// One of the bases a machine-model file gives (a file may give both).
+#[derive(Debug, Clone, Copy)]
+pub enum Basis<'a> {
+    /// The virtual CMM's error model (`[ippdme.model]`).
+    ErrorModel(&'a MachineConfig),
+    /// The ISO 10360 datasheet (`[iso10360]`).
+    Iso10360(&'a Iso10360),
+}
+
+impl MachineModel {
+    /// The bases of the file, each simulated on its own (with both, the larger u is kept: they
+    /// describe the same machine).
+    pub fn bases(&self) -> Vec<Basis<'_>> {
+        let mut b = Vec::new();
+        if let Some(c) = &self.cmm {
+            b.push(Basis::ErrorModel(c));
+        }
+        if let Some(i) = &self.iso10360 {
+            b.push(Basis::Iso10360(i));
+        }
+        b
+    }
+}
+
+/// One machine drawn from one basis of the model, as the errors it adds to reported tip
+/// centres: for the error model, the geometric map's error at the point (the scales read
+/// `p − E(p)` where the tip touches at `p`), the probe's pre-travel left after its calibration
+/// along the contact normal (lobing, or all of it uncompensated) and the touch noise; for the ISO
+/// 10360 datasheet, linear scale and squareness errors about the first point probed and a uniform
+/// probing error along the normal (as [`sphere_uncertainty`] draws them).
+#[derive(Debug, Clone)]
+pub struct PointErrors {
+    kind: PointKind,
+    rng: noise::SimRng,
+    origin: Option<Point3>,
+    seed: u64,
+}
+
+#[derive(Debug, Clone)]
+enum PointKind {
+    ErrorModel {
+        field: Option<Box<crate::cmm::ErrorField>>,
+        probe: Option<truepos_sim::touch::TouchProbe>,
+        compensated: bool,
+        sigma_mm: f64,
+    },
+    Iso {
+        lin: Matrix3,
+        half_p_mm: f64,
+    },
+}
+
+impl PointErrors {
+    /// The machine of realisation `seed` of `basis`.
+    pub fn draw(basis: Basis<'_>, seed: u64) -> PointErrors {
+        use rand::Rng;
+        match basis {
+            Basis::ErrorModel(cfg) => {
+                let mut m = cfg.model.clone();
+                m.seed = seed;
+                let field = (m.geometric_errors && m.geometric_error_scale > 0.0).then(|| {
+                    Box::new(crate::cmm::ErrorField::bridge_cmm(&m, cfg.volume_min_mm, cfg.volume_max_mm))
+                });
+                let probe = truepos_sim::touch::TouchProbe::new(0.0, m.pretravel_mm, m.lobing_mm).ok();
+                PointErrors {
+                    kind: PointKind::ErrorModel {
+                        field,
+                        probe,
+                        compensated: m.pretravel_compensated,
+                        sigma_mm: m.probe_noise_mm,
+                    },
+                    rng: noise::stream(seed, 11),
+                    origin: None,
+                    seed,
+                }
+            }
+            Basis::Iso10360(iso) => {
+                let mut rng = noise::rng(seed);
+                let rel = 1e-3 / iso.mpe_e_k;
+                let mut u = |h: f64| rng.random_range(-h..=h);
+                let lin = Matrix3::new(u(rel), u(rel), u(rel), 0.0, u(rel), u(rel), 0.0, 0.0, u(rel));
+                PointErrors {
+                    kind: PointKind::Iso { lin, half_p_mm: 0.5 * iso.mpe_p_um * 1e-3 },
+                    rng: noise::stream(seed, 12),
+                    origin: None,
+                    seed,
+                }
+            }
+        }
+    }
+
+    /// The realisation's seed (for the other random parts of the same simulated machine).
+    pub fn seed(&self) -> u64 {
+        self.seed
+    }
+
+    /// The error of the tip centre this machine reports for a contact at `p` with the outward
+    /// surface normal `n` (unit).
+    pub fn at(&mut self, p: &Point3, n: &Vector3) -> Vector3 {
+        use rand::Rng;
+        let origin = *self.origin.get_or_insert(*p);
+        match &self.kind {
+            PointKind::ErrorModel { field, probe, compensated, sigma_mm } => {
+                let mut e = Vector3::zeros();
+                if let Some(f) = field {
+                    e -= f.at(p);
+                }
+                if let Some(pr) = probe {
+                    let left = pr.pretravel(n) - if *compensated { pr.pretravel_mm } else { 0.0 };
+                    e -= n * left;
+                }
+                if *sigma_mm > 0.0 {
+                    e += noise::gaussian3(&mut self.rng, *sigma_mm);
+                }
+                e
+            }
+            PointKind::Iso { lin, half_p_mm } => {
+                let h = *half_p_mm;
+                lin * (p - origin) + n * self.rng.random_range(-h..=h)
+            }
+        }
+    }
+}
+
+/// A machine that reports what `inner` touches with a realisation's errors ([`PointErrors`])
+/// added to every probed tip centre: a perfect machine (or a machine tool's own model) made one
+/// machine of the class the model describes.
+pub struct ErrorOverlay<M> {
+    pub inner: M,
+    pub errors: PointErrors,
+}
+
+impl<M: ProbingMachine> ProbingMachine for ErrorOverlay<M> {
+    fn info(&self) -> DeviceInfo {
+        self.inner.info()
+    }
+    fn position(&mut self) -> Result<Point3, DeviceError> {
+        self.inner.position()
+    }
+    fn move_to(&mut self, target_mm: Point3) -> Result<(), DeviceError> {
+        self.inner.move_to(target_mm)
+    }
+    fn probe(&mut self, req: &ProbeRequest) -> Result<ProbeHit, DeviceError> {
+        let mut hit = self.inner.probe(req)?;
+        let n = hit.normal.filter(|v| v.norm() > 0.5).map_or(req.approach, |v| v.normalize());
+        hit.tip_center_mm += self.errors.at(&hit.tip_center_mm, &n);
+        Ok(hit)
+    }
+    fn abort(&mut self) -> Result<(), DeviceError> {
+        self.inner.abort()
+    }
+    fn tool_names(&mut self) -> Result<Vec<String>, DeviceError> {
+        self.inner.tool_names()
+    }
+    fn select_tool(&mut self, name: &str) -> Result<truepos_device::ToolInfo, DeviceError> {
+        self.inner.select_tool(name)
+    }
+    fn rotary_axes(&self) -> truepos_device::RotaryAxes {
+        self.inner.rotary_axes()
+    }
+    fn orient(&mut self, b_deg: f64, c_deg: f64) -> Result<(), DeviceError> {
+        self.inner.orient(b_deg, c_deg)
+    }
+    fn orientation(&mut self) -> Result<(f64, f64), DeviceError> {
+        self.inner.orientation()
+    }
+}
+
+/// The spread of a measurement's results over machines drawn from a model: per result
+/// parameter, the root mean square deviation from the perfect result (the standard uncertainty
+/// the simulation gives, bias included) and the mean deviation (the bias).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Spread {
+    pub rms: Vec<f64>,
+    pub mean: Vec<f64>,
+    /// Realisations per basis.
+    pub runs: usize,
+    /// What the model was (for the output).
+    pub basis: String,
+    /// Wall time of the simulation (s).
+    pub elapsed_s: f64,
+}
+
+/// The task-specific spread of any measurement: `trial` measures the perfect object with the
+/// measurement's own strategy on the machine a [`PointErrors`] realisation describes and returns
+/// its result parameters' deviations from the perfect ones. Run on `mc.runs` realisations of
+/// every basis of `model` ([`monte_carlo`]); with both bases the larger spread per parameter.
+pub fn simulate<F>(model: &MachineModel, mc: MonteCarlo, trial: F) -> Result<Spread>
+where
+    F: Fn(PointErrors) -> Result<Vec<f64>> + Sync,
+{
+    let t0 = std::time::Instant::now();
+    let mut out: Option<Spread> = None;
+    for basis in model.bases() {
+        let runs = monte_carlo(mc, |seed| trial(PointErrors::draw(basis, seed)))?;
+        let s = spread_of(&runs)?;
+        out = Some(match out {
+            None => s,
+            Some(b) => Spread {
+                rms: b.rms.iter().zip(&s.rms).map(|(x, y)| x.max(*y)).collect(),
+                mean: b
+                    .mean
+                    .iter()
+                    .zip(&s.mean)
+                    .map(|(x, y)| if x.abs() >= y.abs() { *x } else { *y })
+                    .collect(),
+                ..b
+            },
+        });
+    }
+    let mut s = out.ok_or_else(|| CellError::Invalid("the machine model names no model".into()))?;
+    s.runs = mc.runs;
+    s.basis = model.basis();
+    s.elapsed_s = t0.elapsed().as_secs_f64();
+    Ok(s)
+}
+
+/// RMS and mean per parameter of deviation vectors (all of one length).
+pub fn spread_of(runs: &[Vec<f64>]) -> Result<Spread> {
+    let n = runs.first().map_or(0, Vec::len);
+    if runs.is_empty() || runs.iter().any(|r| r.len() != n || r.iter().any(|v| !v.is_finite())) {
+        return Err(CellError::Failed(
+            "task-specific uncertainty: the simulated measurements did not give comparable results".into(),
+        ));
+    }
+    let m = runs.len() as f64;
+    let mean = (0..n).map(|k| runs.iter().map(|r| r[k]).sum::<f64>() / m).collect();
+    let rms = (0..n).map(|k| (runs.iter().map(|r| r[k] * r[k]).sum::<f64>() / m).sqrt()).collect();
+    Ok(Spread { rms, mean, runs: runs.len(), basis: String::new(), elapsed_s: 0.0 })
+}
+
+/// The task-specific uncertainty of a DMIS run (`dmis run --machine-model`).
+#[derive(Debug, Clone)]
+pub struct DmisUncertainty {
+    /// Standard uncertainties per output feature and tolerance.
+    pub uncertainty: truepos_dmis::uncertainty::Uncertainty,
+    /// The simulation behind them (RMS deviations in the layout of
+    /// [`truepos_dmis::uncertainty::parameters`]).
+    pub spread: Spread,
+}
+
+/// The task-specific uncertainty of every result of the DMIS run `measured` of `plan`: the same
+/// program (its PTMEAS points, directions, SNSET distances, datums and constructions) run again
+/// on `mc.runs` machines drawn from `model`, each touching the perfect features where the run
+/// found them ([`truepos_dmis::uncertainty::Replay`] with the realisation's errors,
+/// [`ErrorOverlay`]); u = the RMS deviation of each result from the perfect run's.
+pub fn dmis_uncertainty(
+    model: &MachineModel,
+    plan: &truepos_dmis::model::Plan,
+    opts: &truepos_dmis::exec::RunOptions,
+    measured: &truepos_dmis::exec::RunResult,
+    mc: MonteCarlo,
+) -> Result<DmisUncertainty> {
+    use truepos_dmis::exec;
+    use truepos_dmis::uncertainty::{parameters, Replay, Uncertainty};
+    let fail = |e: exec::RunError| {
+        CellError::Failed(format!("task-specific uncertainty: the program on a simulated machine: {e}"))
+    };
+    let perfect = exec::run(plan, &mut Replay::new(measured), opts, &mut |_| {}).map_err(fail)?;
+    let p0 = parameters(&perfect);
+    let spread = simulate(model, mc, |errors| {
+        let mut m = ErrorOverlay { inner: Replay::new(measured), errors };
+        let r = exec::run(plan, &mut m, opts, &mut |_| {}).map_err(fail)?;
+        let p = parameters(&r);
+        if p.len() != p0.len() {
+            return Err(CellError::Failed(
+                "task-specific uncertainty: a simulated run gave other results than the perfect one".into(),
+            ));
+        }
+        Ok(p.iter().zip(&p0).map(|(a, b)| a - b).collect())
+    })?;
+    let uncertainty = Uncertainty::from_parameters(measured, &spread.rms);
+    Ok(DmisUncertainty { uncertainty, spread })
+}
+
+/// The task-specific uncertainty of a head offset acquired through a controller.
+#[derive(Debug, Clone)]
+pub struct HeadOffsetUncertainty {
+    /// Standard uncertainty of each component of the offset (mm); `None` where the orientations
+    /// do not determine it.
+    pub offset_mm: [Option<f64>; 3],
+    /// The simulation behind them (offset X, Y, Z; then the sphere centre X, Y, Z).
+    pub spread: Spread,
+}
+
+/// What the simulated machines of a head-offset acquisition are besides the model's errors.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AcquiringMachine {
+    /// A machine tool (LinuxCNC, the virtual machine tool): its probe input latched once per
+    /// servo period (up to one servo step, feed × 1 ms, past the trigger), 0.5 µm pre-travel and
+    /// 0.1 µm position noise, as the virtual machine tool's model.
+    MachineTool,
+    /// A CMM (I++ DME): contacts latched at the trigger; only the model's errors.
+    Cmm,
+}
+
+/// The task-specific uncertainty of the head offset `measured` found (with `params`) from the
+/// acquisition `acq`: the same acquisition (orientations, probing pattern, feed, clearance) run
+/// on `mc.runs` machines drawn from `model` ([`ErrorOverlay`] on the virtual machine tool
+/// carrying the measured offset and the sphere where it was found; for a machine tool with its
+/// servo latch), the offset found from each as `truepos head-offset` finds it, u = the RMS
+/// deviation from the measured one. Unobservable components stay unobservable (`None`).
+pub fn head_offset_uncertainty(
+    model: &MachineModel,
+    acq: &truepos_head::acquire::HeadAcquisition,
+    params: &truepos_head::Params,
+    measured: &truepos_head::HeadOffset,
+    machine: AcquiringMachine,
+    mc: MonteCarlo,
+) -> Result<HeadOffsetUncertainty> {
+    use crate::probing::{HeadOffsetTruth, MachineToolConfig, VirtualMachineTool};
+    use truepos_head::acquire::{acquire_head_offset, readings};
+    acq.check().map_err(|e| CellError::Invalid(e.to_string()))?;
+    let radius =
+        measured.radius.map(|r| r - acq.sphere.tip_radius_mm).filter(|r| *r > 0.0).ok_or_else(|| {
+            CellError::Invalid("the measured head offset has no positive sphere radius to simulate".into())
+        })?;
+    let truth = HeadOffsetTruth {
+        offset_mm: measured.offset,
+        sphere_centre_mm: measured.reference_point,
+        sphere_radius_mm: radius,
+    };
+    let spread = simulate(model, mc, |errors| {
+        let mut cfg = MachineToolConfig::with_head_offset(errors.seed(), acq, &truth);
+        if machine == AcquiringMachine::Cmm {
+            cfg.servo_period_s = 1e-9;
+            cfg.position_sigma_mm = 0.0;
+            cfg.pretravel_mm = 1e-9;
+        }
+        let inner = VirtualMachineTool::new(cfg).map_err(|e| CellError::Invalid(e.to_string()))?;
+        let mut m = ErrorOverlay { inner, errors };
+        let got = acquire_head_offset(&mut m, acq).map_err(|e| {
+            CellError::Failed(format!(
+                "task-specific uncertainty: a simulated machine could not acquire the sphere ({e})"
+            ))
+        })?;
+        let r = truepos_head::solve(&readings(&got), params).map_err(|e| {
+            CellError::Failed(format!(
+                "task-specific uncertainty: a simulated acquisition gave no offset ({e})"
+            ))
+        })?;
+        let d = r.offset - measured.offset;
+        let c = r.reference_point - measured.reference_point;
+        Ok(vec![d.x, d.y, d.z, c.x, c.y, c.z])
+    })?;
+    let offset_mm = std::array::from_fn(|k| measured.observable[k].then_some(spread.rms[k]));
+    Ok(HeadOffsetUncertainty { offset_mm, spread })
 }

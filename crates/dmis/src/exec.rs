@@ -118,6 +118,40 @@ impl Geom {
             Geom::Sphere { .. } => None,
         }
     }
+    /// The point of the feature's surface nearest `q` (a point and a line: `q` moved onto the
+    /// plane through the point / onto the line).
+    pub fn project(&self, q: &Point3) -> Point3 {
+        let radial = |c: &Point3, axis: &Vector3, r: f64| {
+            let v = q - c;
+            let along = axis * v.dot(axis);
+            let rad = v - along;
+            match rad.try_normalize(1e-12) {
+                Some(u) => c + along + u * r,
+                None => *q,
+            }
+        };
+        match self {
+            Geom::Point { p, n } | Geom::Plane { p, n } => q - n * (q - p).dot(n),
+            Geom::Line { p, dir } => p + dir * (q - p).dot(dir),
+            Geom::Circle { c, n, r } => radial(c, n, *r),
+            Geom::Cylinder { p, axis, r } => radial(p, axis, *r),
+            Geom::Sphere { c, r } => match (q - c).try_normalize(1e-12) {
+                Some(u) => c + u * *r,
+                None => *q,
+            },
+            Geom::Cone { apex, axis, half_angle } => {
+                let v = q - apex;
+                let rad = v - axis * v.dot(axis);
+                match rad.try_normalize(1e-12) {
+                    Some(u) => {
+                        let g = axis * half_angle.cos() + u * half_angle.sin();
+                        apex + g * v.dot(&g).max(0.0)
+                    }
+                    None => *q,
+                }
+            }
+        }
+    }
     /// Radius of round features.
     pub fn radius(&self) -> Option<f64> {
         match self {
@@ -207,6 +241,22 @@ pub struct TolResult {
     pub limits: (f64, f64),
     pub angular: bool,
     pub in_tolerance: bool,
+    /// For a value that is the length of a vector (POS: twice the position deviation; PERP and
+    /// PARLEL of an axis: its extent across or along the datum), that vector (machine frame,
+    /// mm): a simulation judges the vector, whose truth may be zero, not its length.
+    pub vector: Option<Vector3>,
+}
+
+/// One probing of a run: which feature, the compensated contact point and the probing
+/// direction (machine frame), and where the perfect feature (the fit) has that point.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProbeRecord {
+    pub feature: usize,
+    pub point_mm: Point3,
+    pub approach: Vector3,
+    /// The point moved onto the fitted feature (its form error removed): what a perfect part
+    /// placed where this one was found would give.
+    pub perfect_mm: Point3,
 }
 
 /// What a run produced.
@@ -221,6 +271,10 @@ pub struct RunResult {
     pub output: Vec<String>,
     /// Motions in order (what `--dry-run` lists).
     pub motions: Vec<String>,
+    /// Every probing in order ([`Replay`] runs the plan again on the perfect features).
+    pub probes: Vec<ProbeRecord>,
+    /// The tools selected (name, tip radius mm), as the machine reported them.
+    pub tools: Vec<ToolInfo>,
 }
 
 impl RunResult {
@@ -253,6 +307,8 @@ struct Exec<'a> {
     n_points: usize,
     /// Where the tip centre was last sent (machine frame), if known.
     at: Option<Point3>,
+    probes: Vec<ProbeRecord>,
+    tools: Vec<ToolInfo>,
 }
 
 fn fmt_xyz(p: &Point3) -> String {
@@ -326,6 +382,8 @@ pub fn run(
         tolerances: Vec::new(),
         n_points: 0,
         at: None,
+        probes: Vec::new(),
+        tools: Vec::new(),
     };
     ex.out.push(format!(
         "FILNAM/'{}'",
@@ -369,6 +427,9 @@ pub fn run(
                     .push(format!("line {line}: tool {} (tip radius {} mm)", info.name, info.tip_radius_mm));
                 ex.tip_radius = Some(info.tip_radius_mm);
                 ex.at = None;
+                if !ex.tools.iter().any(|t| t.name == info.name) {
+                    ex.tools.push(info);
+                }
             }
             Op::Define(k) => {
                 ex.nominal[*k] = Some(Geom::in_frame(&plan.features[*k].nominal, &ex.frame));
@@ -467,6 +528,8 @@ pub fn run(
         elapsed_s: t0.elapsed().as_secs_f64(),
         output: ex.out,
         motions: ex.motions,
+        probes: ex.probes,
+        tools: ex.tools,
     })
 }
 
@@ -502,6 +565,7 @@ impl Exec<'_> {
         let nominal = self.nominal[k].clone().unwrap_or_else(|| Geom::in_frame(&feat.nominal, &self.frame));
         let r = self.tip_radius.unwrap_or(0.0);
         let mut points = Vec::new();
+        let mut approaches = Vec::new();
         for (mv, pos) in moves {
             let line = pos.line;
             let dev = |e: DeviceError| RunError::Device { file: plan.file.clone(), line, source: e };
@@ -562,12 +626,21 @@ impl Exec<'_> {
                     let normal = hit.normal.filter(|v| v.norm() > 0.5).map(|v| v / v.norm()).unwrap_or(n);
                     let s = if self.compensate { hit.tip_center_mm - normal * r } else { hit.tip_center_mm };
                     points.push(s);
+                    approaches.push(n);
                 }
             }
         }
         self.n_points += points.len();
         let a = fit_feature(feat.ftype, &nominal, points)
             .map_err(|e| self.eval_err(mpos.line, format!("F({}): {e}", feat.name)))?;
+        for (q, n) in a.points.iter().zip(approaches) {
+            self.probes.push(ProbeRecord {
+                feature: k,
+                point_mm: *q,
+                approach: n,
+                perfect_mm: a.geom.project(q),
+            });
+        }
         self.actual[k] = Some(a);
         Ok(())
     }
@@ -800,6 +873,7 @@ impl Exec<'_> {
         let fe = |e: truepos_fit::FitError| self.eval_err(line, format!("T({}): {e}", t.name));
         let names: Vec<String> = fs.iter().map(|k| plan.features[*k].name.clone()).collect();
         let within = |v: f64, z: f64| v <= z;
+        let mut vector = None;
         let (value, limits, ok, angular) = match &t.kind {
             TolKind::Flat(z) => {
                 let v = minzone::plane_zone(&a(fs[0])?.points).map_err(fe)?.form;
@@ -850,6 +924,7 @@ impl Exec<'_> {
                     }
                 }
                 let v = 2.0 * d.norm();
+                vector = Some(d * 2.0);
                 (v, (0.0, *zone), within(v, *zone), false)
             }
             TolKind::Perp { zone, datum } | TolKind::Parlel { zone, datum } => {
@@ -881,13 +956,11 @@ impl Exec<'_> {
                         let ax = g.direction().unwrap_or(Vector3::z());
                         let (lo, hi) = extent(&act.points, &ax);
                         let s = ax * (hi - lo);
-                        let along = s.dot(&d).abs();
-                        let across = (s - d * s.dot(&d)).norm();
-                        if perp == datum_is_plane {
-                            across
-                        } else {
-                            along
-                        }
+                        let along = d * s.dot(&d);
+                        let across = s - along;
+                        let w = if perp == datum_is_plane { across } else { along };
+                        vector = Some(w);
+                        w.norm()
                     }
                 };
                 (v, (0.0, *zone), within(v, *zone), false)
@@ -920,6 +993,7 @@ impl Exec<'_> {
             limits,
             angular,
             in_tolerance: ok,
+            vector,
         })
     }
 

@@ -16,6 +16,9 @@
 //!   constructions, coordinate systems, tolerance evaluation; `--dry-run` lists the motions.
 //! - [`report`]: the DMIS output file and the JSON of a run.
 //! - [`task`]: `truepos dmis run`'s file reading ([`task::load`]) and results path.
+//! - [`uncertainty`]: what a task-specific uncertainty needs of a run: [`uncertainty::Replay`]
+//!   (the plan again on the perfect features), [`uncertainty::parameters`], and the
+//!   uncertainties per feature and tolerance in the JSON.
 //!
 //! Every problem in a program is a [`DmisError`] naming file, line and column (exit 2 in the
 //! binary); a machine failure during the run is [`exec::RunError::Device`] naming the program line
@@ -29,6 +32,7 @@ pub mod model;
 pub mod parse;
 pub mod report;
 pub mod task;
+pub mod uncertainty;
 
 pub use error::{DmisError, ErrorKind, Pos};
 pub use parse::{parse, Program, Stmt};

@@ -170,11 +170,13 @@ pub struct Quantity {
 }
 
 /// Every quantity of a run in report order: each actual feature's location (x, y, z) and size,
-/// then each tolerance.
-pub fn quantities(r: &RunResult) -> Vec<Quantity> {
+/// then each tolerance, with the expanded uncertainty (k = 2) `u` gives (task-specific or the
+/// fits' own; none where it gives none).
+pub fn quantities(r: &RunResult, u: &crate::uncertainty::Uncertainty) -> Vec<Quantity> {
     let k = truepos_math::stats::COVERAGE_FACTOR;
+    let finite = |v: f64| v.is_finite().then_some(v);
     let mut out = Vec::new();
-    for f in r.features.iter().filter(|f| f.actual) {
+    for (f, fu) in r.features.iter().zip(&u.features).filter(|(f, _)| f.actual) {
         let q = |quantity: &str, value: f64, unit: &'static str, u: Option<f64>| Quantity {
             kind: "feature",
             label: f.label.clone(),
@@ -187,18 +189,27 @@ pub fn quantities(r: &RunResult) -> Vec<Quantity> {
             verdict: None,
         };
         let p = f.geom.position();
-        for (name, v) in [("x", p.x), ("y", p.y), ("z", p.z)] {
-            out.push(q(name, v, "mm", f.u_position_mm));
+        let up = fu.as_ref().map(|u| u.position_mm);
+        for (i, (name, v)) in [("x", p.x), ("y", p.y), ("z", p.z)].into_iter().enumerate() {
+            out.push(q(name, v, "mm", up.and_then(|u| finite(u[i]))));
         }
         match f.geom {
-            Geom::Circle { r, .. } | Geom::Cylinder { r, .. } | Geom::Sphere { r, .. } => {
-                out.push(q("diameter", 2.0 * r, "mm", f.u_diameter_mm))
-            }
-            Geom::Cone { half_angle, .. } => out.push(q("apex_angle", 2.0 * half_angle, "rad", None)),
+            Geom::Circle { r, .. } | Geom::Cylinder { r, .. } | Geom::Sphere { r, .. } => out.push(q(
+                "diameter",
+                2.0 * r,
+                "mm",
+                fu.as_ref().and_then(|u| u.diameter_mm).and_then(finite),
+            )),
+            Geom::Cone { half_angle, .. } => out.push(q(
+                "apex_angle",
+                2.0 * half_angle,
+                "rad",
+                fu.as_ref().and_then(|u| u.angle_rad).and_then(finite),
+            )),
             _ => {}
         }
     }
-    for t in &r.tolerances {
+    for (t, tu) in r.tolerances.iter().zip(&u.tolerances) {
         out.push(Quantity {
             kind: "tolerance",
             label: t.label.clone(),
@@ -206,7 +217,7 @@ pub fn quantities(r: &RunResult) -> Vec<Quantity> {
             quantity: t.kind.to_string(),
             value: t.value,
             unit: if t.angular { "rad" } else { "mm" },
-            expanded_uncertainty: None,
+            expanded_uncertainty: tu.and_then(finite).map(|u| k * u),
             limits: Some(t.limits),
             verdict: Some(if t.in_tolerance { "INTOL" } else { "OUTOL" }),
         });

@@ -18,7 +18,8 @@
 //!
 //! [`acquire_head_offset`] repeats this at several head (B) and table (C) orientations, where
 //! the machine has those axes, and [`points_csv`] writes the head-offset points file
-//! (`truepos head-offset acquire`); a machine without them is refused before it moves.
+//! (`truepos head-offset acquire`; [`readings`] gives the same readings in memory); a machine
+//! without them is refused before it moves.
 //!
 //! The latched tip centres are fitted with the least-squares sphere (`truepos_fit::sphere`,
 //! orthogonal distances); the sphere's radius is the fitted radius minus the tip radius.
@@ -493,6 +494,25 @@ pub fn points_csv(acquired: &[AcquiredOrientation]) -> String {
         }
     }
     s
+}
+
+/// The readings of the points file (what `truepos head-offset --points` reads from it), in
+/// memory: one per latched point, angles in rad, group = orientation index.
+pub fn readings(acquired: &[AcquiredOrientation]) -> Vec<crate::Reading> {
+    acquired
+        .iter()
+        .enumerate()
+        .flat_map(|(g, o)| {
+            o.sphere.points.iter().map(move |p| crate::Reading {
+                b: o.b_deg.to_radians(),
+                c: o.c_deg.to_radians(),
+                p: *p,
+                dist: None,
+                face: None,
+                group: Some(g as i64),
+            })
+        })
+        .collect()
 }
 
 /// What `truepos head-offset acquire` hands back: the orientations probed, the points file

@@ -247,3 +247,156 @@ fn somac_inspect_reports_task_specific_uncertainty_through_ippdme() {
     eprintln!("somac inspect through ippdme://: {inside} of {n} within ±U");
     assert!(inside >= n - 2, "{inside} of {n}");
 }
+
+/// `dmis run --machine-model` through `truepos ippdme serve` machines with different seeds: every
+/// actual feature and tolerance has its U, the truth of the part lies within it (the coverage
+/// figures are the in-process test's, crates/cell/tests/vcmm_coverage_dmis_head.rs); without a
+/// model, the warning and the fits' scatter.
+#[test]
+fn dmis_run_reports_task_specific_uncertainty_through_ippdme() {
+    let dir = tempfile::tempdir().unwrap();
+    let programs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../dmis/tests/programs");
+    let program = dir.path().join("full.dms");
+    std::fs::copy(programs.join("full.dms"), &program).unwrap();
+    let part = programs.join("full_part.toml");
+    let model = dir.path().join("model.toml");
+    std::fs::write(&model, "[ippdme.model]\n").unwrap();
+    let (mut inside, mut n) = (0, 0);
+    for seed in 1..=3 {
+        let machine = dir.path().join(format!("cmm{seed}.toml"));
+        std::fs::write(&machine, format!("[ippdme.model]\nseed = {}\n", 60 + seed)).unwrap();
+        let (child, addr) = server(&part, &machine);
+        let mut cmd = truepos();
+        cmd.current_dir(dir.path()).args(["dmis", "run"]).arg(&program).args([
+            "--controller",
+            &format!("ippdme://{addr}"),
+            "--sensor",
+            "P1=Probe1",
+            "--json",
+        ]);
+        if seed < 3 {
+            cmd.arg("--machine-model").arg(&model);
+        }
+        let out = cmd.output().unwrap();
+        stop(child);
+        let err = String::from_utf8_lossy(&out.stderr);
+        // T(TIGHT) (±0.1 µm on a diameter) is OUTOL on any real machine: exit 1.
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        if seed == 3 {
+            assert!(err.contains("no --machine-model"), "{err}");
+            assert_eq!(j["uncertainty_method"], "fit-residuals");
+            assert_eq!(j["monte_carlo_runs"], 0);
+            assert!(j["tolerances"][0]["expanded_uncertainty_mm"].is_null());
+            continue;
+        }
+        assert!(!err.contains("no --machine-model"), "{err}");
+        assert_eq!(j["uncertainty_method"], "task-specific");
+        assert!(j["monte_carlo_runs"].as_u64().unwrap() >= 200);
+        assert!(j["monte_carlo_s"].as_f64().unwrap() < 10.0);
+        let feature = |label: &str| {
+            j["features"].as_array().unwrap().iter().find(|f| f["label"] == label).unwrap().clone()
+        };
+        let pin = feature("PIN");
+        let c = arr(&pin["center_mm"]);
+        let u = arr(&pin["expanded_uncertainty"]["center_mm"]);
+        let ud = pin["expanded_uncertainty"]["diameter_mm"].as_f64().unwrap();
+        let sph = feature("SPH");
+        let cs = arr(&sph["center_mm"]);
+        let us = arr(&sph["expanded_uncertainty"]["center_mm"]);
+        let mut checks = vec![
+            (c[0] - 50.0, u[0]),
+            (c[1] - 50.0, u[1]),
+            (pin["diameter_mm"].as_f64().unwrap() - 12.0, ud),
+            (cs[0] - 50.0, us[0]),
+            (cs[1] - 120.0, us[1]),
+            (cs[2] - 20.0, us[2]),
+        ];
+        for t in j["tolerances"].as_array().unwrap() {
+            let truth = match t["label"].as_str().unwrap() {
+                "DI" => 100.0,
+                "AN" => 90.0,
+                _ => 0.0,
+            };
+            let (v, big_u) = match t["value_mm"].as_f64() {
+                Some(v) => (v, t["expanded_uncertainty_mm"].as_f64().unwrap()),
+                None => (t["value_deg"].as_f64().unwrap(), t["expanded_uncertainty_deg"].as_f64().unwrap()),
+            };
+            checks.push((v - truth, big_u));
+        }
+        for (e, big_u) in checks {
+            n += 1;
+            inside += usize::from(e.abs() <= big_u);
+            assert!(big_u > 0.0 && big_u < 0.05, "U {big_u}");
+        }
+    }
+    eprintln!("dmis run through ippdme://: {inside} of {n} within ±U");
+    assert!(inside >= n - 3, "{inside} of {n}");
+}
+
+/// `head-offset acquire --machine-model` on the virtual machine tool (its truth in the JSON):
+/// the offset with its task-specific U; without a model, the warning and the fit's scatter;
+/// a component the orientations do not determine has none.
+#[test]
+fn head_offset_acquire_reports_task_specific_uncertainty() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("model.toml");
+    std::fs::write(&model, "[ippdme.model]\n").unwrap();
+    let run = |seed: u64, orientations: &[&str], with_model: bool| {
+        let mut cmd = truepos();
+        cmd.current_dir(dir.path()).args([
+            "head-offset",
+            "acquire",
+            "--near=150,20,40",
+            "--diameter-mm",
+            "25",
+            "--tip-diameter-mm",
+            "3",
+            "--nominal-offset-mm=30,0,-150",
+            "--table-center-mm=100,0,0",
+            "--seed",
+            &seed.to_string(),
+            "--output",
+            &format!("points{seed}.csv"),
+            "--json",
+        ]);
+        for o in orientations {
+            cmd.arg(format!("--orientation={o}"));
+        }
+        if with_model {
+            cmd.arg("--machine-model").arg(&model);
+        }
+        let out = cmd.output().unwrap();
+        assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+        let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        (j, String::from_utf8_lossy(&out.stderr).to_string())
+    };
+    let both = ["0,0", "90,0", "0,120", "90,120", "0,240", "90,240"];
+    let (mut inside, mut n) = (0, 0);
+    for seed in 1..=4 {
+        let (j, err) = run(seed, &both, true);
+        assert!(!err.contains("no --machine-model"), "{err}");
+        assert_eq!(j["uncertainty_method"], "task-specific");
+        assert!(j["monte_carlo_runs"].as_u64().unwrap() >= 200);
+        let h = &j["head_offset"];
+        assert_eq!(h["uncertainty_method"], "task-specific");
+        let off = arr(&h["offset_mm"]);
+        let big_u = arr(&h["expanded_uncertainty_mm"]);
+        let truth = arr(&j["virtual_truth"]["head_offset_mm"]);
+        for k in 0..3 {
+            n += 1;
+            inside += usize::from((off[k] - truth[k]).abs() <= big_u[k]);
+            assert!(big_u[k] > 0.0 && big_u[k] < 0.05, "U {big_u:?}");
+        }
+    }
+    eprintln!("head-offset acquire: {inside} of {n} within ±U");
+    assert!(inside >= n - 2, "{inside} of {n}");
+    // Without a model: the warning, the fit's scatter; B only: Y not observable, no U.
+    let (j, err) = run(9, &["0,0", "45,0", "90,0"], false);
+    assert!(err.contains("no --machine-model"), "{err}");
+    assert_eq!(j["uncertainty_method"], "fit-residuals");
+    assert_eq!(j["monte_carlo_runs"], 0);
+    assert_eq!(j["head_offset"]["observable"], serde_json::json!([true, false, true]));
+    assert!(j["head_offset"]["expanded_uncertainty_mm"][1].is_null());
+    assert!(j["head_offset"]["expanded_uncertainty_mm"][0].as_f64().unwrap() > 0.0);
+}

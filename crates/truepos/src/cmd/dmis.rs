@@ -26,7 +26,7 @@ pub enum DmisCommand {
     /// stderr. The results file is a DMIS output file (FA(label)=FEAT/… with the actual values,
     /// TA(label)=TOL/…,value,INTOL|OUTOL).
     #[command(
-        after_help = "A real CMM through I++ DME:\n  truepos dmis run part.dms --controller ippdme://HOST:1294 --sensor PROBE6=Probe1\n\nExit codes: 0 done, 1 a tolerance OUTOL, 2 bad program or option (nothing moved), 3 machine failure (the program line named, the machine retracted)."
+        after_help = "A real CMM through I++ DME:\n  truepos dmis run part.dms --controller ippdme://HOST:1294 --sensor PROBE6=Probe1\n\nWith --machine-model FILE every actual feature's values and every tolerance's value get a\ntask-specific uncertainty: the program (its PTMEAS points and directions, datums, constructions)\nrun again on ≥ 200 machines drawn from the model, each touching the perfect features where this\nrun found them. The verdict stays DMIS's (INTOL/OUTOL on the value); U is reported beside it.\n  truepos dmis run part.dms --part part.toml --machine-model cmm.toml --json\n\nExit codes: 0 done, 1 a tolerance OUTOL, 2 bad program or option (nothing moved), 3 machine failure (the program line named, the machine retracted)."
     )]
     Run(RunArgs),
 }
@@ -57,9 +57,11 @@ pub struct RunArgs {
     pub dry_run: bool,
     /// Audit trail: a SQLite file (created if missing) or postgresql://USER@HOST:PORT/DB; the run
     /// is recorded (note `dmis run`) with the controller, every actual feature's values and every
-    /// tolerance's value, limits and verdict, and how it ended. Not with --dry-run.
+    /// tolerance's value, limits and verdict (with U), and how it ended. Not with --dry-run.
     #[arg(long, default_value = "somac-audit.sqlite")]
     pub db: String,
+    #[command(flatten)]
+    pub model: super::probe::ModelArgs,
     /// Print the results as one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
@@ -77,6 +79,8 @@ pub fn run(args: Args) -> Result<Outcome> {
     }
     let opts = RunOptions { sensors };
     let plan = truepos_dmis::task::load(&a.program)?;
+    // The machine model is read and checked before anything moves.
+    let model = if a.dry_run { None } else { a.model.read()? };
     let mut progress = |l: &str| eprintln!("dmis: {l}");
     if a.dry_run {
         let mut m = DryRun::new(&plan, &opts);
@@ -130,7 +134,7 @@ pub fn run(args: Args) -> Result<Outcome> {
         Some("dmis run"),
         &truepos_audit::now_utc(),
     )?;
-    let r = run_and_record(&plan, &url, &opts, &mut progress, &mut audit);
+    let r = run_program(&plan, &url, &opts, &mut progress);
     if let Some(sig) = truepos_io::atomic::interrupted() {
         let name = truepos_io::atomic::signal_name(sig);
         let at = truepos_audit::now_utc();
@@ -142,26 +146,67 @@ pub fn run(args: Args) -> Result<Outcome> {
         );
         truepos_io::atomic::exit_interrupted(sig);
     }
-    let (status, message) = match &r {
-        Ok(r) if r.any_out_of_tolerance() => ("FAILURE", Some("a tolerance is out (OUTOL)".to_string())),
+    // Task-specific uncertainty (the same program on machines drawn from the model), then the
+    // results with their U into the audit trail.
+    let done = r.and_then(|r| {
+        let task = match &model {
+            Some(m) => {
+                Some(truepos_cell::vcmm::dmis_uncertainty(m, &plan, &opts, &r, a.model.monte_carlo())?)
+            }
+            None => {
+                eprintln!("{}", super::probe::NO_MODEL_WARNING);
+                None
+            }
+        };
+        let u = match &task {
+            Some(t) => t.uncertainty.clone(),
+            None => truepos_dmis::uncertainty::Uncertainty::fit_residuals(&r),
+        };
+        record(&mut audit, &r, &u)?;
+        Ok((r, task, u))
+    });
+    let (status, message) = match &done {
+        Ok((r, ..)) if r.any_out_of_tolerance() => {
+            ("FAILURE", Some("a tolerance is out (OUTOL)".to_string()))
+        }
         Ok(_) => ("SUCCESS", None),
         Err(e) => ("ERROR", Some(format!("{e:#}"))),
     };
     audit.finish(status, message.as_deref(), &truepos_audit::now_utc())?;
-    let r = r?;
+    let (r, task, u) = done?;
     let text = r.output.join("\n") + "\n";
     truepos_io::atomic::write_atomic(&out, text.as_bytes())?;
     eprintln!("dmis: audit trail appended to {} (run {})", db.display(), audit.run_id());
+    let k = truepos_math::stats::COVERAGE_FACTOR;
     if a.json {
-        crate::output::print_json(&truepos_dmis::report::json(
-            &plan.file,
-            &r,
-            Some(&out.display().to_string()),
-        ))?;
+        let mut j = truepos_dmis::report::json(&plan.file, &r, Some(&out.display().to_string()));
+        u.add_to_json(&r, &mut j, k);
+        j["coverage_factor"] = serde_json::json!(k);
+        match &task {
+            Some(t) => {
+                j["uncertainty_method"] = serde_json::json!("task-specific");
+                j["monte_carlo_runs"] = serde_json::json!(t.spread.runs);
+                j["uncertainty_basis"] = serde_json::json!(t.spread.basis);
+                j["monte_carlo_s"] = serde_json::json!(t.spread.elapsed_s);
+            }
+            None => {
+                j["uncertainty_method"] = serde_json::json!("fit-residuals");
+                j["monte_carlo_runs"] = serde_json::json!(0);
+                j["uncertainty_basis"] = serde_json::json!(
+                    "scatter of each fit's residuals only (machine errors not included; none for directions and tolerances)"
+                );
+            }
+        }
+        crate::output::print_json(&j)?;
     } else {
-        for t in &r.tolerances {
+        for (t, ut) in r.tolerances.iter().zip(&u.tolerances) {
+            let beside = match ut {
+                Some(v) if t.angular => format!(" (U = {:.4}°, k = {k})", (k * v).to_degrees()),
+                Some(v) => format!(" (U = {:.4} mm, k = {k})", k * v),
+                None => " (U not known without --machine-model)".to_string(),
+            };
             eprintln!(
-                "dmis: {}",
+                "dmis: {}{beside}",
                 truepos_dmis::report::tol_line(
                     t,
                     truepos_dmis::ast::LengthUnit::Mm,
@@ -169,18 +214,23 @@ pub fn run(args: Args) -> Result<Outcome> {
                 )
             );
         }
+        if let Some(t) = &task {
+            eprintln!(
+                "dmis: uncertainty: task-specific, {} machine realisations in {:.2} s ({})",
+                t.spread.runs, t.spread.elapsed_s, t.spread.basis
+            );
+        }
         eprintln!("dmis: {} points, {:.2} s; results in {}", r.n_points, r.elapsed_s, out.display());
     }
     Ok(if r.any_out_of_tolerance() { Outcome::OutOfTolerance } else { Outcome::Done })
 }
 
-/// Connect, run the program, and record the controller and every reported quantity.
-fn run_and_record(
+/// Connect and run the program; no motion after SIGINT/SIGTERM.
+fn run_program(
     plan: &truepos_dmis::model::Plan,
     url: &str,
     opts: &RunOptions,
     progress: &mut dyn FnMut(&str),
-    audit: &mut truepos_audit::Audit,
 ) -> Result<exec::RunResult> {
     let mut client = truepos_ippdme::client::connect(url)?;
     let stop = || {
@@ -188,9 +238,17 @@ fn run_and_record(
             .map(|s| format!("interrupted by {}", truepos_io::atomic::signal_name(s)))
     };
     let mut machine = truepos_device::Stoppable::new(&mut client, &stop);
-    let r = exec::run(plan, &mut machine, opts, progress)?;
+    Ok(exec::run(plan, &mut machine, opts, progress)?)
+}
+
+/// Record the controller and every reported quantity with its expanded uncertainty.
+fn record(
+    audit: &mut truepos_audit::Audit,
+    r: &exec::RunResult,
+    u: &truepos_dmis::uncertainty::Uncertainty,
+) -> Result<()> {
     audit.set_controller(&r.machine.address, &r.machine.version)?;
-    for q in truepos_dmis::report::quantities(&r) {
+    for q in truepos_dmis::report::quantities(r, u) {
         audit.record_result(&truepos_audit::ResultRecord {
             line: None,
             kind: q.kind.into(),
@@ -205,5 +263,5 @@ fn run_and_record(
         });
     }
     audit.flush()?;
-    Ok(r)
+    Ok(())
 }

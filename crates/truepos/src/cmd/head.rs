@@ -63,7 +63,12 @@ Orientations need the axes: a machine without B or C (the LinuxCNC test machine 
 refused before it moves (exit 3, naming the address and the missing axes). One orientation\n\
 (--orientation 0,0) can be acquired anywhere, but determines no head offset: head-offset then says\n\
 so. --controller virtual is a machine tool with B and C whose sphere and head offset are off the\n\
-nominal ones by seeded errors (σ 0.1 mm and 0.2 mm per axis); the JSON has that truth.")]
+nominal ones by seeded errors (σ 0.1 mm and 0.2 mm per axis); the JSON has that truth.\n\n\
+With two orientations or more the head offset is computed from the points as `truepos head-offset\n\
+--points` does (components the orientations do not determine are reported as not observable).\n\
+Its uncertainty: with --machine-model FILE task-specific (the same acquisition simulated on ≥ 200\n\
+machines drawn from the model, on a machine tool with its 1 ms servo latch; JSON\n\
+uncertainty_method \"task-specific\"), else the fit's scatter alone (a warning says so).")]
 pub struct AcquireArgs {
     #[command(flatten)]
     pub sphere: super::probe::SphereTarget,
@@ -85,6 +90,8 @@ pub struct AcquireArgs {
     /// The points file to write (atomically).
     #[arg(long)]
     pub output: PathBuf,
+    #[command(flatten)]
+    pub model: super::probe::ModelArgs,
     /// Print one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
@@ -279,6 +286,7 @@ fn acquire(a: AcquireArgs) -> Result<Outcome> {
     if let Err(e) = acq.check() {
         return Err(UsageError(e.to_string()).into());
     }
+    let model = a.model.read()?;
     let mut truth = None;
     let mut machine: Box<dyn truepos_device::ProbingMachine> = if a.sphere.controller == "virtual" {
         let (cfg, t) = MachineToolConfig::for_head_offset(a.sphere.seed, &acq);
@@ -302,8 +310,120 @@ fn acquire(a: AcquireArgs) -> Result<Outcome> {
         Err(e) => return Err(crate::DeviceError(e.to_string()).into()),
     };
     report.truth = truth.map(|t| (t.offset_mm, t.sphere_centre_mm, t.sphere_radius_mm));
-    crate::output::emit(&report, a.json)?;
+    let machine_kind = if a.sphere.controller.starts_with("ippdme://") {
+        truepos_cell::vcmm::AcquiringMachine::Cmm
+    } else {
+        truepos_cell::vcmm::AcquiringMachine::MachineTool
+    };
+    let offset = acquired_offset(&report, &acq, model.as_ref(), machine_kind, &a.model)?;
+    if a.json {
+        let mut j = truepos_io::report::Report::to_json(&report);
+        j["head_offset"] = offset.json;
+        j["uncertainty_method"] = serde_json::json!(offset.method);
+        j["monte_carlo_runs"] = serde_json::json!(offset.runs);
+        crate::output::print_json(&j)?;
+    } else {
+        eprint!("{}{}", truepos_io::report::Report::text(&report), offset.text);
+    }
     Ok(Outcome::Done)
+}
+
+/// The head offset of an acquisition with its uncertainty, as JSON and text.
+struct AcquiredOffset {
+    json: serde_json::Value,
+    text: String,
+    method: &'static str,
+    runs: usize,
+}
+
+/// Compute the head offset from the acquired points as `truepos head-offset --points` does, and
+/// its uncertainty: task-specific with a machine model, the fit's scatter without (warning).
+fn acquired_offset(
+    report: &truepos_head::acquire::AcquireReport,
+    acq: &truepos_head::acquire::HeadAcquisition,
+    model: Option<&truepos_cell::vcmm::MachineModel>,
+    machine: truepos_cell::vcmm::AcquiringMachine,
+    args: &super::probe::ModelArgs,
+) -> Result<AcquiredOffset> {
+    use serde_json::json;
+    let none = |why: String| AcquiredOffset {
+        json: json!({ "offset_mm": null, "note": why }),
+        text: String::new(),
+        method: "none",
+        runs: 0,
+    };
+    if report.acquired.len() < 2 {
+        return Ok(none("one orientation determines no head offset".into()));
+    }
+    let params = truepos_head::Params {
+        reference: truepos_head::Reference::Sphere { radius: None },
+        table_center: acq.table_center_mm,
+        ..truepos_head::Params::default()
+    };
+    let r = match truepos_head::solve(&truepos_head::acquire::readings(&report.acquired), &params) {
+        Ok(r) => r,
+        Err(e) => return Ok(none(format!("the points determine no head offset: {e}"))),
+    };
+    let task = match model {
+        Some(m) => Some(truepos_cell::vcmm::head_offset_uncertainty(
+            m,
+            acq,
+            &params,
+            &r,
+            machine,
+            args.monte_carlo(),
+        )?),
+        None => {
+            eprintln!("{}", super::probe::NO_MODEL_WARNING);
+            None
+        }
+    };
+    let u: [Option<f64>; 3] = match &task {
+        Some(t) => t.offset_mm,
+        None => r.u_offset,
+    };
+    let k = truepos_math::stats::COVERAGE_FACTOR;
+    let opt = |v: Option<f64>, s: f64| v.map_or(serde_json::Value::Null, |v| json!(v * s));
+    let (method, runs, basis) = match &task {
+        Some(t) => ("task-specific", t.spread.runs, t.spread.basis.clone()),
+        None => {
+            ("fit-residuals", 0, "scatter of the fit's residuals only (machine errors not included)".into())
+        }
+    };
+    let mut j = json!({
+        "offset_mm": [r.offset.x, r.offset.y, r.offset.z],
+        "observable": r.observable,
+        "uncertainty_mm": [opt(u[0], 1.0), opt(u[1], 1.0), opt(u[2], 1.0)],
+        "coverage_factor": k,
+        "expanded_uncertainty_mm": [opt(u[0], k), opt(u[1], k), opt(u[2], k)],
+        "reference_point_mm": [r.reference_point.x, r.reference_point.y, r.reference_point.z],
+        "uncertainty_method": method,
+        "monte_carlo_runs": runs,
+        "uncertainty_basis": basis,
+    });
+    if let Some(t) = &task {
+        j["monte_carlo_s"] = json!(t.spread.elapsed_s);
+    }
+    let mut text = String::from("head offset (as head-offset --points computes it):\n");
+    for (i, axis) in ["X", "Y", "Z"].iter().enumerate() {
+        text += &match (r.observable[i], u[i]) {
+            (true, Some(v)) => {
+                format!("  {axis} {:+.4} mm (U = {:.2} µm, k = {k})\n", r.offset[i], k * v * 1e3)
+            }
+            (true, None) => format!("  {axis} {:+.4} mm\n", r.offset[i]),
+            (false, _) => {
+                format!("  {axis} not observable from these orientations (held at {})\n", r.offset[i])
+            }
+        };
+    }
+    text += &match &task {
+        Some(t) => format!(
+            "  uncertainty: task-specific, {} machine realisations in {:.2} s ({})\n",
+            t.spread.runs, t.spread.elapsed_s, t.spread.basis
+        ),
+        None => "  uncertainty: fit residuals only (machine errors not included)\n".into(),
+    };
+    Ok(AcquiredOffset { json: j, text, method, runs })
 }
 
 pub fn simulate(args: SimArgs) -> Result<Outcome> {
