@@ -373,6 +373,27 @@ impl VirtualMachineTool {
         Ok((m, TrtTruth { configured, truth, sphere_centre_mm: c, sphere_radius_mm: r }))
     }
 
+    /// A five-axis machine as [`VirtualMachineTool::five_axis`] with given geometries: the
+    /// controller configured with `configured`, the machine truly `truth`, the sphere exactly at
+    /// `centre` (table frame) with `radius` — what a task-specific simulation of a calibration
+    /// needs. The latch, pre-travel and noise are the virtual machine tool's (seeded by `seed`).
+    pub fn five_axis_exact(
+        seed: u64,
+        configured: TrtGeometry,
+        truth: TrtGeometry,
+        centre: Point3,
+        radius: f64,
+        tip_radius: f64,
+    ) -> Result<VirtualMachineTool, ParamError> {
+        let mut cfg = MachineToolConfig::near(seed, centre, radius, tip_radius);
+        cfg.spheres = vec![(centre, radius)];
+        cfg.start_mm = centre + Vector3::new(0.0, 0.0, 60.0);
+        cfg.rotary = RotaryAxes { head_b: false, table_c: true };
+        let mut m = VirtualMachineTool::new(cfg)?;
+        m.trt = Some(TrtState { configured, truth, b_deg: 0.0, c_deg: 0.0 });
+        Ok(m)
+    }
+
     /// The reference spheres (truth).
     pub fn truth(&self) -> &[Sphere] {
         &self.spheres

@@ -12,6 +12,10 @@
 //!   pre-travel and noise) carrying the model's errors ([`ErrorOverlay`]), B ∈ {0°, 90°} ×
 //!   C ∈ {0°, 120°, 240°}, 12 points each; the three offset components.
 //!
+//! - Rotary axes (`kinematics calibrate`): the virtual five-axis machine (xyzbc-trt, its true
+//!   geometry seeded 30 µm from the configured one; servo latch, pre-travel, noise) carrying the
+//!   model's errors, the sphere probed at six orientations; the four identified parameters.
+//!
 //! Always-on: a few machines with a looser bound (a small sample's coverage is noisy); the
 //! `--ignored` tests run 100 machines, the figures of docs/uncertainty.md.
 
@@ -260,5 +264,78 @@ fn a_single_orientation_axis_stays_unobservable() {
         u.offset_mm[0].is_some() && u.offset_mm[1].is_none() && u.offset_mm[2].is_some(),
         "{:?}",
         u.offset_mm
+    );
+}
+
+/// The rotary-axis comparisons over `machines` five-axis machines carrying the model's errors:
+/// the identified parameters against the machine's true geometry.
+fn kinematics_coverage(machines: u64, model_text: &str) -> (f64, f64, usize, f64) {
+    use truepos_kinematics::acquire::KinematicsProbing;
+    use truepos_kinematics::trt::PINS;
+    let model = MachineModel::from_toml(Path::new("m.toml"), model_text).unwrap();
+    let near = Point3::new(60.0, 25.0, 15.0);
+    let probing = KinematicsProbing {
+        sphere: SphereProbing {
+            near_mm: near,
+            diameter_mm: 25.0,
+            points: 25,
+            feed_mm_s: 50.0 / 60.0,
+            clearance_mm: 1.0,
+            tip_radius_mm: 1.0,
+        },
+        orientations: vec![[0.0, 0.0], [0.0, 120.0], [0.0, 240.0], [45.0, 0.0], [90.0, 120.0], [90.0, 240.0]],
+        turn_distance_mm: 40.0,
+    };
+    let req = truepos_kinematics::CalibrateRequest {
+        model: truepos_kinematics::Model::XyzbcTrt,
+        probing: probing.clone(),
+        apply: false,
+        verify: None,
+        output: None,
+    };
+    let (mut tally, mut fit_only) = (Tally::new(), Tally::new());
+    let mut mc_s = 0.0;
+    for seed in 1..=machines {
+        let (inner, truth) = VirtualMachineTool::five_axis(500 + seed, near, 12.5, 1.0).unwrap();
+        let basis = model.bases()[(seed as usize) % model.bases().len()];
+        let mut m = ErrorOverlay { inner, errors: PointErrors::draw(basis, 91_000 + seed) };
+        let report = truepos_kinematics::calibrate(&mut m, &req, |_| {}).expect("calibration");
+        let t = truepos_cell::vcmm::kinematics_uncertainty(&model, &probing, &report, MonteCarlo::default())
+            .unwrap();
+        mc_s += t.elapsed_s;
+        let true_values = truth.truth.values();
+        for (p, big_u) in report.parameters.iter().zip(&t.expanded_mm) {
+            let k = PINS.iter().position(|n| *n == p.name).unwrap();
+            tally.add(p.identified_mm - true_values[k], *big_u);
+            fit_only.add(p.identified_mm - true_values[k], K * p.uncertainty_mm);
+        }
+    }
+    let (fcov, fmedian, _) = fit_only.result();
+    eprintln!(
+        "kinematics: the fit residuals alone would cover {:.1} % (median |error|/U {fmedian:.2})",
+        100.0 * fcov
+    );
+    let (cov, median, n) = tally.result();
+    (cov, median, n, mc_s / machines as f64)
+}
+
+#[test]
+fn kinematics_uncertainty_covers_the_truth() {
+    report(
+        "kinematics calibrate (default CMM model)",
+        kinematics_coverage(10, "[ippdme.model]\n"),
+        0.85,
+        1.0,
+    );
+}
+
+#[test]
+#[ignore = "100 machines × 200 realisations: the figures of docs/uncertainty.md"]
+fn kinematics_uncertainty_covers_the_truth_100_machines() {
+    report(
+        "kinematics calibrate (default CMM model)",
+        kinematics_coverage(100, "[ippdme.model]\n"),
+        0.90,
+        0.99,
     );
 }

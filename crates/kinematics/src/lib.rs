@@ -27,4 +27,4 @@ pub mod identify;
 pub mod task;
 pub mod trt;
 
-pub use task::{calibrate, CalibrateRequest, CalibrationReport, KinematicsError, Model};
+pub use task::{calibrate, CalibrateRequest, CalibrationReport, KinematicsError, Model, UncertaintyBasis};

@@ -131,7 +131,19 @@ pub struct ParameterResult {
     pub name: String,
     pub configured_mm: f64,
     pub identified_mm: f64,
+    /// Standard uncertainty (k = 1).
     pub uncertainty_mm: f64,
+    /// Expanded uncertainty for about 95 % coverage where a simulation gives its distribution
+    /// (task-specific: the 95th percentile of the simulated |deviation|, JCGM 101); `None`: k·u
+    /// with k = 2.
+    pub expanded_mm: Option<f64>,
+}
+
+impl ParameterResult {
+    /// U: the simulation's 95 % interval half-width, else k·u (k = 2).
+    pub fn expanded(&self) -> f64 {
+        self.expanded_mm.unwrap_or(COVERAGE_FACTOR * self.uncertainty_mm)
+    }
 }
 
 /// The re-probing after the write-back.
@@ -161,6 +173,29 @@ pub struct CalibrationReport {
     pub output: Option<PathBuf>,
     /// For a virtual machine: its true geometry and sphere centre (set by the caller).
     pub truth: Option<(TrtGeometry, Point3)>,
+    /// How the parameters' uncertainties were found: `fit-residuals` (the identification's
+    /// own, what [`calibrate`] gives) or `task-specific` (set by the caller after a simulation
+    /// on the machine's model), with the realisations and what the model was.
+    pub uncertainty: UncertaintyBasis,
+}
+
+/// The basis of a calibration's stated uncertainties.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UncertaintyBasis {
+    /// `fit-residuals` or `task-specific`.
+    pub method: String,
+    pub monte_carlo_runs: usize,
+    pub basis: String,
+}
+
+impl Default for UncertaintyBasis {
+    fn default() -> Self {
+        UncertaintyBasis {
+            method: "fit-residuals".into(),
+            monte_carlo_runs: 0,
+            basis: "the scatter of the sphere centres about the identified model (the machine's other errors are not included)".into(),
+        }
+    }
 }
 
 fn fmt6(v: f64) -> String {
@@ -275,6 +310,7 @@ pub fn calibrate<M: ProbingMachine + ?Sized>(
                 configured_mm: configured.values()[k],
                 identified_mm: identified.values()[k],
                 uncertainty_mm: pin.uncertainty_mm,
+                expanded_mm: None,
             }
         })
         .collect();
@@ -322,6 +358,7 @@ pub fn calibrate<M: ProbingMachine + ?Sized>(
         acquisition_s,
         output: req.output.clone(),
         truth: None,
+        uncertainty: UncertaintyBasis::default(),
     })
 }
 
@@ -342,7 +379,8 @@ impl truepos_io::report::Report for CalibrationReport {
                 "identified": p.identified_mm,
                 "change": p.identified_mm - p.configured_mm,
                 "uncertainty": p.uncertainty_mm,
-                "expanded_uncertainty": COVERAGE_FACTOR * p.uncertainty_mm,
+                "expanded_uncertainty": p.expanded(),
+                "coverage_factor": p.expanded() / p.uncertainty_mm,
             })).collect::<Vec<_>>(),
             "unchanged": [{
                 "name": "z-rot-point",
@@ -369,8 +407,9 @@ impl truepos_io::report::Report for CalibrationReport {
             "ini_lines": self.ini_lines(),
             "hal_lines": self.hal_lines(),
             "coverage_factor": COVERAGE_FACTOR,
-            "uncertainty_method": "fit-residuals",
-            "monte_carlo_runs": 0,
+            "uncertainty_method": self.uncertainty.method,
+            "monte_carlo_runs": self.uncertainty.monte_carlo_runs,
+            "uncertainty_basis": self.uncertainty.basis,
             "controller": { "address": self.device.address, "version": self.device.version },
             "acquisition_s": self.acquisition_s,
             "time_per_orientation_s": self.time_per_orientation_s(),
@@ -437,11 +476,20 @@ impl truepos_io::report::Report for CalibrationReport {
                 p.configured_mm,
                 p.identified_mm,
                 (p.identified_mm - p.configured_mm) * 1e3,
-                COVERAGE_FACTOR * p.uncertainty_mm * 1e3
+                p.expanded() * 1e3
             );
         }
         s += "z-rot-point is not observable on its own: its share of the Z change is in z-offset\n";
-        s += "uncertainty: from the fit residuals (the machine's other errors are not included)\n";
+        s += &format!(
+            "uncertainty: {} ({}{})\n",
+            self.uncertainty.method,
+            self.uncertainty.basis,
+            if self.uncertainty.monte_carlo_runs > 0 {
+                format!(", {} machine realisations", self.uncertainty.monte_carlo_runs)
+            } else {
+                String::new()
+            }
+        );
         if self.applied {
             s += "applied: the identified values are in the running controller (until it restarts)\n";
         } else {

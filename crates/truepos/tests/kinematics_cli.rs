@@ -239,3 +239,49 @@ fn the_calibration_is_recorded_in_the_audit_trail() {
     let v = bin().args(["audit", "verify", "--db"]).arg(&db).output().unwrap();
     assert_eq!(v.status.code(), Some(0), "{}", String::from_utf8_lossy(&v.stderr));
 }
+
+/// `--machine-model`: the parameters' uncertainties are task-specific (the calibration simulated
+/// on machines drawn from the model), at least the fit's own, the JSON says so, and a bad model
+/// is refused before anything moves.
+#[test]
+fn machine_model_gives_task_specific_uncertainties() {
+    let d = tempfile::tempdir().unwrap();
+    let model = d.path().join("model.toml");
+    std::fs::write(&model, "[ippdme.model]\n").unwrap();
+    let run = |extra: &[&str]| {
+        bin()
+            .args([
+                "kinematics",
+                "calibrate",
+                "--model",
+                "xyzbc-trt",
+                "--near=60,25,15",
+                "--diameter-mm",
+                "25",
+            ])
+            .args(["--tip-diameter-mm", "2", "--clearance-mm", "1", "--json"])
+            .args(orientation_args(&SET))
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let fit = run(&[]);
+    assert_eq!(fit.status.code(), Some(0), "{}", String::from_utf8_lossy(&fit.stderr));
+    assert!(String::from_utf8_lossy(&fit.stderr).contains("no --machine-model"));
+    let fit: serde_json::Value = serde_json::from_slice(&fit.stdout).unwrap();
+    assert_eq!(fit["uncertainty_method"], "fit-residuals");
+    let o = run(&["--machine-model", model.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["uncertainty_method"], "task-specific");
+    assert_eq!(j["monte_carlo_runs"], 200);
+    for (p, f) in j["parameters"].as_array().unwrap().iter().zip(fit["parameters"].as_array().unwrap()) {
+        let (u, big_u) = (p["uncertainty"].as_f64().unwrap(), p["expanded_uncertainty"].as_f64().unwrap());
+        assert!(u >= f["uncertainty"].as_f64().unwrap() && big_u >= u, "{p}");
+        assert!(big_u < 0.02, "U of a few µm, not tens: {p}");
+    }
+    std::fs::write(&model, "[ippdme.model]\nnoise = 1\n").unwrap();
+    let o = run(&["--machine-model", model.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("orientation 1/"), "nothing moved");
+}

@@ -5,11 +5,10 @@
 //! lie within ± `expanded_uncertainty` in about 95 % of the comparisons (centre coordinates and
 //! radius). The always-on test uses 20 machines; `--ignored` the 100 of docs/uncertainty.md.
 
-use std::io::{BufRead, BufReader, Write};
-use std::net::TcpStream;
+mod common;
+
 use std::path::Path;
-use std::process::{Command, Stdio};
-use std::time::Duration;
+use std::process::Command;
 
 fn truepos() -> Command {
     Command::new(env!("CARGO_BIN_EXE_truepos"))
@@ -17,32 +16,9 @@ fn truepos() -> Command {
 
 /// A server on a free loopback port with `part` and `machine`; homed, Probe1 chosen.
 fn server(part: &Path, machine: &Path) -> (std::process::Child, String) {
-    let mut child = truepos()
-        .args(["ippdme", "serve", "--port", "0", "--part"])
-        .arg(part)
-        .arg("--machine")
-        .arg(machine)
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut err = BufReader::new(child.stderr.take().unwrap());
-    let mut first = String::new();
-    err.read_line(&mut first).unwrap();
-    let addr =
-        first.trim().strip_prefix("ippdme: listening on ").unwrap_or_else(|| panic!("{first}")).to_string();
-    let s = TcpStream::connect(&addr).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
-    let mut w = s.try_clone().unwrap();
-    let mut r = BufReader::new(s);
-    w.write_all(
-        b"00001 StartSession()\r\n00002 Home()\r\n00003 ChangeTool(\"Probe1\")\r\n00004 EndSession()\r\n",
-    )
-    .unwrap();
-    let mut last = String::new();
-    while last.trim_end() != "00004 %" {
-        last.clear();
-        assert!(r.read_line(&mut last).unwrap() > 0);
-    }
+    let dir = part.parent().unwrap_or(Path::new("."));
+    let (child, addr) = common::ippdme_server(dir, part, &["--machine".as_ref(), machine.as_os_str()]);
+    common::home_cmm(&addr, Some("Probe1"));
     (child, addr)
 }
 

@@ -109,6 +109,8 @@ pub struct CalibrateArgs {
     /// Seed of the virtual machine (its true geometry and where its sphere is).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    #[command(flatten)]
+    pub machine_model: super::probe::ModelArgs,
     /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
@@ -166,6 +168,7 @@ fn calibrate(a: CalibrateArgs) -> Result<Outcome> {
     // Options and observability before a controller is opened (and anything moves).
     req.check().map_err(kin_err)?;
     let db = a.db.as_deref().map(super::audit::parse_db).transpose()?;
+    let error_model = a.machine_model.read()?;
     let (mut machine, truth): (Box<dyn ProbingMachine>, _) = if a.controller == "virtual" {
         let (m, t) = VirtualMachineTool::five_axis(
             a.seed,
@@ -193,7 +196,30 @@ fn calibrate(a: CalibrateArgs) -> Result<Outcome> {
     // Progress on stderr (stdout carries only the result).
     let mut report =
         truepos_kinematics::calibrate(machine.as_mut(), &req, |s| eprintln!("{s}")).map_err(kin_err)?;
-    eprintln!("warning: the uncertainties are the fit residuals' alone; the machine's other errors are not included");
+    match &error_model {
+        Some(m) => {
+            // Task-specific: the same calibration simulated on machines drawn from the model.
+            let t = truepos_cell::vcmm::kinematics_uncertainty(
+                m,
+                &req.probing,
+                &report,
+                a.machine_model.monte_carlo(),
+            )?;
+            for ((p, u), big_u) in report.parameters.iter_mut().zip(&t.u_mm).zip(&t.expanded_mm) {
+                p.uncertainty_mm = *u;
+                p.expanded_mm = Some(*big_u);
+            }
+            report.uncertainty = truepos_kinematics::UncertaintyBasis {
+                method: "task-specific".into(),
+                monte_carlo_runs: t.runs,
+                basis: format!(
+                    "{}; the calibration simulated on five-axis machines with the identified geometry, servo latch, pre-travel and noise; U = the 95 % interval of the simulated deviations ({:.2} s)",
+                    t.basis, t.elapsed_s
+                ),
+            };
+        }
+        None => eprintln!("{}", super::probe::NO_MODEL_WARNING),
+    }
     if let Some(t) = truth {
         report.truth = Some((t.truth, t.sphere_centre_mm));
     }
@@ -216,12 +242,11 @@ fn record(db: &truepos_audit::Db, report: &truepos_kinematics::CalibrationReport
     let mut audit =
         truepos_audit::Audit::open_noted(db, "kinematics calibrate", Some("kinematics calibrate"), &now)?;
     audit.set_controller(&report.device.address, &report.device.version)?;
-    let k = truepos_math::stats::COVERAGE_FACTOR;
     let written = if report.applied { "written" } else { "dry run" };
     for p in &report.parameters {
         for (quantity, value, u, verdict) in [
             ("configured", p.configured_mm, None, None),
-            ("identified", p.identified_mm, Some(k * p.uncertainty_mm), Some(written)),
+            ("identified", p.identified_mm, Some(p.expanded()), Some(written)),
         ] {
             audit.record_result(&truepos_audit::ResultRecord {
                 line: None,
