@@ -1028,7 +1028,7 @@ pub fn kinematics_uncertainty(
     let t0 = std::time::Instant::now();
     let radii: Vec<f64> = report.acquired.iter().map(|o| o.sphere.radius_mm).collect();
     let radius = radii.iter().sum::<f64>() / radii.len().max(1) as f64;
-    if !(radius > 0.0) {
+    if radius.is_nan() || radius <= 0.0 {
         return Err(CellError::Invalid("the calibration has no sphere radius to simulate".into()));
     }
     let req = CalibrateRequest {
