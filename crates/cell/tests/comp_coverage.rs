@@ -7,7 +7,7 @@
 //!
 //! The always-on test draws 100 maps (40 000 points, 120 000 comparisons); the `--ignored` one 1000 maps.
 
-use truepos_cell::scenarios::part::{comp_check, comp_data};
+use truepos_cell::scenarios::part::{comp_check, comp_data, COMP_TOL_UM, SEED};
 
 /// Per coordinate: the fraction within ±U and the median |error|/U; over `seeds` maps.
 fn coverage(seeds: std::ops::RangeInclusive<u64>) -> ([f64; 3], [f64; 3], usize) {
@@ -64,4 +64,21 @@ fn map_uncertainty_covers_the_truth_over_100_maps() {
 fn map_uncertainty_covers_the_truth_over_1000_maps() {
     let (frac, med, _) = coverage(1..=1000);
     check(frac, med);
+}
+
+/// The demo's map (seed [`SEED`]) is judged with a real U: every corrected coordinate within the
+/// tolerance and U below it (simple rule of ISO 14253-1).
+#[test]
+fn demo_map_is_judged_with_the_propagated_u() {
+    let c = comp_check(&comp_data(SEED).unwrap()).unwrap();
+    let (worst, u_at) = c.worst();
+    let u_max = c.expanded_u_um.iter().flatten().copied().fold(0.0_f64, f64::max);
+    let u_min = c.expanded_u_um.iter().flatten().copied().fold(f64::INFINITY, f64::min);
+    eprintln!(
+        "demo comp: worst coordinate residual {worst:.3} µm (U there {u_at:.3} µm), U from {u_min:.3} to {u_max:.3} µm, coverage {:.1} %, median ratio {:.2}",
+        100.0 * c.coverage(),
+        c.median_ratio()
+    );
+    assert!(worst <= COMP_TOL_UM && u_max < COMP_TOL_UM);
+    assert!(u_min > 0.0);
 }

@@ -33,10 +33,13 @@
 //! A table may carry the standard uncertainties (k = 1) of its node values
 //! ([`AxisTable::with_uncertainty`]), squareness its own ([`GeometricMap::squareness_u`]).
 //! [`GeometricMap::error_u`] then also returns the variance of each coordinate of `E`, by linear
-//! propagation through the model above with every component independent of the others and of
-//! its neighbouring nodes (what a calibration with independent readings per position gives):
+//! propagation through the model above with the 21 components independent of each other:
 //! - an interpolated component `c(a) = (1 − f)·c_i + f·c_{i+1}` has
-//!   `u²(c) = (1 − f)²·u_i² + f²·u_{i+1}² + u_int²`, where `u_int = f(1 − f)/2 · κ_i` is the
+//!   `u²(c) = ((1 − f)·u_i + f·u_{i+1})² + u_int²`: the nodes' uncertainties taken as fully
+//!   correlated with their neighbours' (what the dominant terms of a laser calibration — the
+//!   wavelength, the material temperature, the alignment — are; independent noise would give
+//!   `(1 − f)²·u_i² + f²·u_{i+1}²`, up to √2 less mid-interval, so this side is the safe one
+//!   and never states less than a node's own `u`), and `u_int = f(1 − f)/2 · κ_i` is the
 //!   linear interpolation error of a component of curvature `κ_i/h²` (`κ_i`: the larger second
 //!   difference `c_{j−1} − 2c_j + c_{j+1}` of the interval's two ends, less its expected noise
 //!   part `u_{j−1}² + 4u_j² + u_{j+1}²` in quadrature). It is zero at the nodes and largest,
@@ -110,8 +113,9 @@ pub struct AxisTable {
     pub axis: Axis,
     grid: Grid1,
     nodes: Vec<[f64; 6]>,
-    /// Per node, in machine coordinates like `nodes`: the variance of the node value (first six)
-    /// and the squared curvature term `κ²` of the interval that starts there (last six).
+    /// Per node, in machine coordinates like `nodes`: the standard uncertainty of the node value
+    /// (first six) and the squared curvature term `κ²` of the interval that starts there (last
+    /// six).
     unc: Option<Vec<[f64; 12]>>,
 }
 
@@ -167,7 +171,9 @@ impl AxisTable {
         let mut unc = Vec::with_capacity(n);
         for i in 0..n {
             let mut row = [0.0; 12];
-            row[..6].copy_from_slice(&var[i]);
+            for k in 0..6 {
+                row[k] = var[i][k].sqrt();
+            }
             for k in 0..6 {
                 // The interval [i, i+1]: the larger curvature of its two ends; an end node of the
                 // table borrows its neighbour's.
@@ -224,10 +230,10 @@ impl AxisTable {
         if let Some(u) = &self.unc {
             let u0 = &u[i];
             let u1 = u.get(i + 1).unwrap_or(u0);
-            let (w0, w1) = ((1.0 - f) * (1.0 - f), f * f);
             let wi = 0.25 * (f * (1.0 - f)) * (f * (1.0 - f));
             for k in 0..6 {
-                var[k] = w0 * u0[k] + w1 * u1[k] + wi * u0[6 + k];
+                let sd = u0[k] + f * (u1[k] - u0[k]);
+                var[k] = sd * sd + wi * u0[6 + k];
             }
         }
         Ok((Vector3::new(l(0), l(1), l(2)), Vector3::new(l(3), l(4), l(5)), var))

@@ -62,6 +62,18 @@ pub struct Corrected {
     pub load: Option<LoadCase>,
 }
 
+impl Corrected {
+    /// The warning of a `comp correct` whose map states no uncertainty (`None` otherwise).
+    pub fn uncertainty_warning(&self) -> Option<String> {
+        match (&self.load, &self.summary.uncertainty) {
+            (None, Err(why)) => Some(format!(
+                "warning: the map's uncertainty is unknown ({why}): the corrected points carry no uncertainty"
+            )),
+            _ => None,
+        }
+    }
+}
+
 impl Report for Corrected {
     fn to_json(&self) -> Value {
         let s = &self.summary;
@@ -122,11 +134,11 @@ impl Report for Corrected {
                         u.median_um[0], u.median_um[1], u.median_um[2], u.max_um[0], u.max_um[1], u.max_um[2]
                     );
                 }
-                Err(why) => {
-                    let _ = writeln!(
-                        t,
-                        "warning: the map's uncertainty is unknown ({why}): the corrected points carry no uncertainty"
-                    );
+                Err(_) => {
+                    if let Some(w) = self.uncertainty_warning() {
+                        t.push_str(&w);
+                        t.push('\n');
+                    }
                 }
             }
         }

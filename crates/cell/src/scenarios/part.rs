@@ -14,6 +14,7 @@ use crate::report::{self, DecisionRule, Judgement, Report, Verdict};
 /// rounding is the tolerance itself; double-precision evaluation adds far less than this bound.
 const AIR_COMPARISON_U_PPB: f64 = 0.001;
 use rand::Rng;
+use std::f64::consts::FRAC_1_SQRT_2;
 use std::path::{Path, PathBuf};
 use truepos_comp::{AxisErrors, AxisTable, Chain, Corrector, GeometricMap, Squareness};
 use truepos_io::atomic::{write_atomic, AtomicFile};
@@ -31,7 +32,9 @@ pub const SEED: u64 = 1;
 /// Standard uncertainties (k = 1) of the simulated calibration of the `comp` data set, per
 /// component `[pos, str1, str2, pitch, yaw, roll]` (mm, rad): what a laser-interferometer and
 /// electronic-level calibration of a CMM states (0.05 µm positioning, 0.1 µm straightness,
-/// 0.05 µrad pitch and yaw, 0.1 µrad roll). The map's values carry exactly this noise.
+/// 0.05 µrad pitch and yaw, 0.1 µrad roll). The map's values carry exactly this error: half its
+/// variance common to all the nodes of a component (the calibration's systematic part), half
+/// independent from node to node.
 pub const COMP_CAL_U: [f64; 6] = [0.05e-3, 0.1e-3, 0.1e-3, 0.05e-6, 0.05e-6, 0.1e-6];
 /// Standard uncertainty (k = 1, rad) of each calibrated squareness error (0.2 µrad: a ball plate
 /// or square in three positions).
@@ -77,10 +80,15 @@ pub fn comp_data(seed: u64) -> Result<CompData> {
         let t = mags.travel[axis.index()];
         let n = (t / step).ceil() as usize;
         let pos: Vec<f64> = (0..=n).map(|i| (i as f64 * step).min(t)).collect();
+        // Half the variance shared by every node of a component (the calibration's systematic
+        // part: wavelength, material temperature, zero of the level), half each node's own.
+        let shared: [f64; 6] = std::array::from_fn(|k| noise::gaussian(&mut cal, u[k] * FRAC_1_SQRT_2));
         let vals: Vec<[f64; 6]> = errors
             .sample(axis, &pos)
             .iter()
-            .map(|v| std::array::from_fn(|k| v[k] + noise::gaussian(&mut cal, u[k])))
+            .map(|v| {
+                std::array::from_fn(|k| v[k] + shared[k] + noise::gaussian(&mut cal, u[k] * FRAC_1_SQRT_2))
+            })
             .collect();
         let e: Vec<AxisErrors> = vals
             .iter()
@@ -138,7 +146,7 @@ impl CompWritten {
     /// What `truepos simulate comp` prints: the data set, the command and what to compare.
     pub fn text(&self, dir: &Path) -> String {
         format!(
-            "comp scenario: bridge CMM map with {} x, {} y and {} z rows and their standard uncertainties, squareness, {} points (uncorrected 3D error RMS {:.2} µm, max {:.2} µm) → {}\nnext: {}\nthen compare corrected.csv with true_points_mm in {} (expect each coordinate within ±2·u_x_um… of its stated uncertainty in about 95 % of cases)\n",
+            "comp scenario: bridge CMM map with {} x, {} y and {} z rows and their standard uncertainties, squareness, {} points (uncorrected 3D error RMS {:.2} µm, max {:.2} µm) → {}\nnext: {}\nthen compare corrected.csv with true_points_mm in {} (expect each coordinate within ±2 u of the truth, u_x_um,u_y_um,u_z_um of the output, in about 95 % of cases)\n",
             self.rows[0], self.rows[1], self.rows[2], self.n_points, self.rms_um, self.max_um,
             dir.display(), self.command, self.truth.display()
         )
@@ -404,14 +412,9 @@ pub fn comp_section(report: &mut Report) -> Result<()> {
             "U (k = 2) of each corrected coordinate propagated from the map's stated calibration uncertainties (u_* columns: 0.05 µm positioning, 0.1 µm straightness, 0.05/0.05/0.1 µrad pitch/yaw/roll, 0.2 µrad squareness) through the 21-parameter model with its Abbe lever arms, plus the linear interpolation's: U = {u_worst:.3} µm at the largest residual, at most {u_max:.3} µm"
         ),
         tolerance_text: format!(
-            "every corrected coordinate within {tol_um} µm of the truth, and 90 % or more of them within their ±U"
+            "every corrected coordinate within {tol_um} µm of the truth (U: the largest of the 1200; the coverage of U itself is proven over 100 maps in crates/cell/tests/comp_coverage.rs)"
         ),
-        ..Verdict::judged(
-            Judgement::new(worst, u_max, tol_um, "µm", DecisionRule::Simple).require(
-                coverage >= 0.90,
-                format!("only {:.1} % of the corrected coordinates lie within their ±U (at least 90 % expected of a U at k = 2)", 100.0 * coverage),
-            ),
-        )
+        ..Verdict::judged(Judgement::new(worst, u_max, tol_um, "µm", DecisionRule::Simple))
     });
     let hist = report::histogram(
         "3D error of the points before and after map correction",
