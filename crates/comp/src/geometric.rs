@@ -428,4 +428,91 @@ mod tests {
         assert!(AxisTable::new(Axis::Y, vec![0.0], &[AxisErrors { pos: f64::NAN, ..Default::default() }])
             .is_err());
     }
+
+    /// A table of 11 nodes (every 100 mm) with the components of `f` and the uncertainties `u`.
+    fn table_u(axis: Axis, f: impl Fn(f64) -> AxisErrors, u: AxisErrors) -> AxisTable {
+        let pos: Vec<f64> = (0..=10).map(|i| 100.0 * i as f64).collect();
+        let e: Vec<AxisErrors> = pos.iter().map(|&p| f(p)).collect();
+        AxisTable::new(axis, pos, &e).unwrap().with_uncertainty(&[u; 11]).unwrap()
+    }
+
+    #[test]
+    fn propagated_variance_equals_the_sum_of_squared_sensitivities() {
+        // At table nodes the variance is exactly Σ (∂E/∂c · u_c)²; E is linear in every
+        // component, so each sensitivity is the change of E when that one component (at every
+        // node) moves by its u. Checks the Abbe lever arms of both chains independently.
+        let u = AxisErrors { pos: 1e-4, str1: 2e-4, str2: 3e-4, pitch: 1e-6, yaw: 2e-6, roll: 3e-6 };
+        let su = Squareness { xy: 4e-7, xz: 5e-7, yz: 6e-7 };
+        let p = Point3::new(300.0, 700.0, 200.0);
+        let t = Vector3::new(15.0, -25.0, -120.0);
+        for chain in [Chain::BridgeYXZ, Chain::GantryXYZ] {
+            let base = |bump: Option<(usize, usize)>, sq: Squareness| {
+                let mk = |ax: usize, axis: Axis| {
+                    let mut e = AxisErrors::default();
+                    if let Some((a, k)) = bump {
+                        if a == ax {
+                            let v = [u.pos, u.str1, u.str2, u.pitch, u.yaw, u.roll][k];
+                            match k {
+                                0 => e.pos = v,
+                                1 => e.str1 = v,
+                                2 => e.str2 = v,
+                                3 => e.pitch = v,
+                                4 => e.yaw = v,
+                                _ => e.roll = v,
+                            }
+                        }
+                    }
+                    table_u(axis, move |_| e, u)
+                };
+                GeometricMap {
+                    x: Some(mk(0, Axis::X)),
+                    y: Some(mk(1, Axis::Y)),
+                    z: Some(mk(2, Axis::Z)),
+                    squareness: sq,
+                    squareness_u: Some(su),
+                    chain,
+                    clamp: false,
+                }
+            };
+            let mut var = Vector3::zeros();
+            for a in 0..3 {
+                for k in 0..6 {
+                    let d = base(Some((a, k)), Squareness::default()).error(&p, &t).unwrap();
+                    var += d.component_mul(&d);
+                }
+            }
+            for sq in [
+                Squareness { xy: su.xy, ..Default::default() },
+                Squareness { xz: su.xz, ..Default::default() },
+                Squareness { yz: su.yz, ..Default::default() },
+            ] {
+                let d = base(None, sq).error(&p, &t).unwrap();
+                var += d.component_mul(&d);
+            }
+            let (_, v) = base(None, Squareness::default()).error_u(&p, &t).unwrap();
+            assert!((v - var).norm() < 1e-12 * var.norm(), "{chain:?}: {v} vs {var}");
+            assert!(base(None, Squareness::default()).uncertainty_unknown().is_none());
+        }
+    }
+
+    #[test]
+    fn interpolation_term_covers_the_linear_interpolation_error() {
+        // pos = k·a² sampled every 100 mm, nearly exact values: mid-interval the linear
+        // interpolation is off by k·h²/4 and the curvature term states exactly that (κ = 2k·h²,
+        // u_int = κ/8); at a node it is zero.
+        let k = 1e-8;
+        let tiny = AxisErrors { pos: 1e-12, ..Default::default() };
+        let t = table_u(Axis::X, |a| AxisErrors { pos: k * a * a, ..Default::default() }, tiny);
+        let (d, _, v) = t.at_u(150.0, false).unwrap();
+        let err = (d.x - k * 150.0 * 150.0).abs();
+        assert!((err - k * 1e4 / 4.0).abs() < 1e-15);
+        assert!((v[0].sqrt() - err).abs() < 1e-9 * err, "{} vs {err}", v[0].sqrt());
+        let (_, _, v) = t.at_u(300.0, false).unwrap();
+        assert!((v[0].sqrt() - 1e-12).abs() < 1e-15);
+        // A map without uncertainties says so; a negative u is refused.
+        let plain = GeometricMap { x: Some(table(Axis::X, |_| AxisErrors::default())), ..Default::default() };
+        assert!(plain.uncertainty_unknown().unwrap().contains("u_pos_um"));
+        let bad = AxisErrors { yaw: -1.0, ..Default::default() };
+        assert!(table(Axis::Y, |_| AxisErrors::default()).with_uncertainty(&[bad; 11]).is_err());
+    }
 }
