@@ -1,7 +1,9 @@
 //! Hot path: 10 million points through the combined map (21-parameter geometric map on uniform
-//! 10 mm tables + load pitch/roll curves), in place, all cores.
+//! 10 mm tables + load pitch/roll curves), in place, all cores; and 1 million points through the
+//! geometric map alone, without and with the propagation of its uncertainty (issue 28).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use rayon::prelude::*;
 use truepos_comp::{
     Axis, AxisErrors, AxisTable, Corrector, GeometricMap, LoadCorrection, Portal, PortalCurves, Squareness,
 };
@@ -72,6 +74,42 @@ fn bench(c: &mut Criterion) {
         })
     });
     g10.finish();
+
+    // Geometric map alone, 1 M points: the correction (what a map without u-columns runs) and the
+    // correction with its propagated variance (a map with u-columns).
+    let mut gu = map();
+    for t in [&mut gu.x, &mut gu.y, &mut gu.z] {
+        let tab = t.take().unwrap();
+        let u = vec![
+            AxisErrors { pos: 5e-5, str1: 1e-4, str2: 1e-4, pitch: 5e-8, yaw: 5e-8, roll: 1e-7 };
+            tab.positions().len()
+        ];
+        *t = Some(tab.with_uncertainty(&u).unwrap());
+    }
+    gu.squareness_u = Some(Squareness { xy: 2e-7, xz: 2e-7, yz: 2e-7 });
+    let plain = Corrector { geometric: Some(&g), load: None, probe_offset: Vector3::new(0.0, 0.0, -100.0) };
+    let with_u = Corrector { geometric: Some(&gu), load: None, probe_offset: Vector3::new(0.0, 0.0, -100.0) };
+    let m = 1_000_000usize;
+    let mut pts: Vec<Point3> = pts[..m].to_vec();
+    let mut var = vec![Vector3::zeros(); m];
+    let mut g1 = c.benchmark_group("comp_u");
+    g1.sample_size(10);
+    g1.throughput(Throughput::Elements(m as u64));
+    g1.bench_function("correct_1M_points_geometric", |b| {
+        b.iter(|| plain.correct_measured(&mut pts, None).unwrap())
+    });
+    g1.bench_function("correct_1M_points_geometric_with_u", |b| {
+        b.iter(|| {
+            pts.par_chunks_mut(4096).zip(var.par_chunks_mut(4096)).for_each(|(p, v)| {
+                for (p, v) in p.iter_mut().zip(v.iter_mut()) {
+                    let (d, s) = with_u.displacement_u(p).unwrap();
+                    *p += d;
+                    *v = s;
+                }
+            })
+        })
+    });
+    g1.finish();
 }
 
 criterion_group!(benches, bench);

@@ -78,6 +78,33 @@ impl<'a> Corrector<'a> {
         Ok(d)
     }
 
+    /// [`Corrector::displacement`] and the variance of each of its coordinates (mm²) from the
+    /// geometric map's uncertainties ([`GeometricMap::error_u`]); the load correction carries
+    /// none (callers check [`Corrector::uncertainty_unknown`] first).
+    #[inline]
+    pub fn displacement_u(&self, p: &Point3) -> Result<(Vector3, Vector3), OutOfRange> {
+        let (mut d, mut v) = (Vector3::zeros(), Vector3::zeros());
+        if let Some(g) = self.geometric {
+            (d, v) = g.error_u(&(p - self.probe_offset), &self.probe_offset)?;
+        }
+        if let Some(l) = self.load {
+            d += l.error(p)?;
+        }
+        Ok((d, v))
+    }
+
+    /// Why the correction's uncertainty is not known (`None`: a geometric map with its
+    /// uncertainties and no load correction, whose uncertainty is not modelled).
+    pub fn uncertainty_unknown(&self) -> Option<String> {
+        if self.load.is_some() {
+            return Some("the load correction carries no uncertainty model".into());
+        }
+        match self.geometric {
+            Some(g) => g.uncertainty_unknown(),
+            None => Some("no geometric map".into()),
+        }
+    }
+
     /// Correct measured points in place; `corrections` (same length, if given) receives the
     /// displacement applied to each. On error nothing meaningful is left in `points`.
     pub fn correct_measured(

@@ -376,6 +376,7 @@ pub fn read_map(path: &Path) -> Result<GeometricMap, InputError> {
         };
         rows[k].push((r[0], e, i));
     }
+    let u = read_map_u(&t, path)?;
     let mut map = GeometricMap::default();
     for (k, axis) in [Axis::X, Axis::Y, Axis::Z].into_iter().enumerate() {
         let r = &mut rows[k];
@@ -400,7 +401,12 @@ pub fn read_map(path: &Path) -> Result<GeometricMap, InputError> {
         }
         let pos: Vec<f64> = r.iter().map(|x| x.0).collect();
         let e: Vec<AxisErrors> = r.iter().map(|x| x.1).collect();
-        let table = AxisTable::new(axis, pos, &e).map_err(|e| InputError::in_file(path, e.to_string()))?;
+        let mut table =
+            AxisTable::new(axis, pos, &e).map_err(|e| InputError::in_file(path, e.to_string()))?;
+        if let Some(u) = &u {
+            let ue: Vec<AxisErrors> = r.iter().map(|x| u[x.2]).collect();
+            table = table.with_uncertainty(&ue).map_err(|e| InputError::in_file(path, e.to_string()))?;
+        }
         match axis {
             Axis::X => map.x = Some(table),
             Axis::Y => map.y = Some(table),
@@ -430,6 +436,73 @@ pub fn read_map(path: &Path) -> Result<GeometricMap, InputError> {
     Ok(map)
 }
 
+/// The optional standard-uncertainty columns of a map CSV, in the order of the components.
+pub const MAP_U_COLUMNS: [&str; 6] =
+    ["u_pos_um", "u_str1_um", "u_str2_um", "u_pitch_urad", "u_yaw_urad", "u_roll_urad"];
+
+/// The optional standard-uncertainty columns of a squareness CSV (or keys of its TOML table).
+pub const SQUARENESS_U_COLUMNS: [&str; 3] = ["u_xy_urad", "u_xz_urad", "u_yz_urad"];
+
+/// A partial set of optional columns: the error on the header line, at the first present one.
+fn partial_set(t: &Table, path: &Path, names: &[&str]) -> Result<bool, InputError> {
+    let present: Vec<&str> = names.iter().copied().filter(|n| t.column(n).is_some()).collect();
+    if present.is_empty() || present.len() == names.len() {
+        return Ok(!present.is_empty());
+    }
+    let missing: Vec<&str> = names.iter().copied().filter(|n| t.column(n).is_none()).collect();
+    Err(InputError::at(
+        path,
+        t.header_line(),
+        t.column(present[0]).map(|c| c + 1),
+        format!(
+            "standard-uncertainty columns come all together or not at all: {} present, {} missing",
+            present.join(", "),
+            missing.join(", ")
+        ),
+    )
+    .with_column_name(present[0]))
+}
+
+/// Refuse a negative or non-finite standard uncertainty at its line and column.
+fn check_u(t: &Table, path: &Path, names: &[&str], v: &[f64]) -> Result<(), InputError> {
+    let k = names.len();
+    for (i, row) in v.chunks_exact(k).enumerate() {
+        for (j, x) in row.iter().enumerate() {
+            if !(x.is_finite() && *x >= 0.0) {
+                return Err(InputError::at(
+                    path,
+                    t.line_number(i),
+                    t.column(names[j]).map(|c| c + 1),
+                    format!("{} = {x}: a standard uncertainty is a finite number ≥ 0", names[j]),
+                )
+                .with_column_name(names[j]));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The map's standard uncertainties per data row (mm, rad), if the file has the columns.
+fn read_map_u(t: &Table, path: &Path) -> Result<Option<Vec<AxisErrors>>, InputError> {
+    if !partial_set(t, path, &MAP_U_COLUMNS)? {
+        return Ok(None);
+    }
+    let v = t.f64_columns(&MAP_U_COLUMNS)?;
+    check_u(t, path, &MAP_U_COLUMNS, &v)?;
+    Ok(Some(
+        v.chunks_exact(6)
+            .map(|r| AxisErrors {
+                pos: r[0] * 1e-3,
+                str1: r[1] * 1e-3,
+                str2: r[2] * 1e-3,
+                pitch: r[3] * 1e-6,
+                yaw: r[4] * 1e-6,
+                roll: r[5] * 1e-6,
+            })
+            .collect(),
+    ))
+}
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SqFile {
@@ -445,23 +518,57 @@ struct SqToml {
     xz_urad: f64,
     #[serde(default)]
     yz_urad: f64,
+    u_xy_urad: Option<f64>,
+    u_xz_urad: Option<f64>,
+    u_yz_urad: Option<f64>,
 }
 
 /// Read squareness from TOML or CSV (µrad in the file, rad returned).
 pub fn read_squareness(path: &Path) -> Result<Squareness, InputError> {
+    Ok(read_squareness_u(path)?.0)
+}
+
+/// Read squareness and, when the file has them (`u_xy_urad, u_xz_urad, u_yz_urad`, all three or
+/// none), its standard uncertainties (k = 1), from TOML or CSV (µrad in the file, rad returned).
+pub fn read_squareness_u(path: &Path) -> Result<(Squareness, Option<Squareness>), InputError> {
     let is_toml = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml"));
-    let (xy, xz, yz) = if is_toml {
+    let (xy, xz, yz, u) = if is_toml {
         let (f, doc): (SqFile, _) = truepos_io::config::read_toml_doc(path)?;
-        for (k, v) in [
-            ("xy_urad", f.squareness.xy_urad),
-            ("xz_urad", f.squareness.xz_urad),
-            ("yz_urad", f.squareness.yz_urad),
-        ] {
+        let q = &f.squareness;
+        for (k, v) in [("xy_urad", q.xy_urad), ("xz_urad", q.xz_urad), ("yz_urad", q.yz_urad)] {
             if !v.is_finite() {
                 return Err(doc.error_at(&["squareness", k], format!("[squareness] {k} is not finite")));
             }
         }
-        (f.squareness.xy_urad, f.squareness.xz_urad, f.squareness.yz_urad)
+        let uk = [("u_xy_urad", q.u_xy_urad), ("u_xz_urad", q.u_xz_urad), ("u_yz_urad", q.u_yz_urad)];
+        let n_some = uk.iter().filter(|(_, v)| v.is_some()).count();
+        let u = match n_some {
+            0 => None,
+            3 => {
+                for (k, v) in uk {
+                    let v = v.unwrap_or_default();
+                    if !(v.is_finite() && v >= 0.0) {
+                        return Err(doc.error_at(
+                            &["squareness", k],
+                            format!("[squareness] {k} = {v}: a standard uncertainty is a finite number ≥ 0"),
+                        ));
+                    }
+                }
+                Some([q.u_xy_urad, q.u_xz_urad, q.u_yz_urad].map(Option::unwrap_or_default))
+            }
+            _ => {
+                let (first, _) = uk.iter().find(|(_, v)| v.is_some()).copied().unwrap_or(uk[0]);
+                let missing: Vec<&str> = uk.iter().filter(|(_, v)| v.is_none()).map(|(k, _)| *k).collect();
+                return Err(doc.error_at(
+                    &["squareness", first],
+                    format!(
+                        "[squareness] standard uncertainties come all together or not at all: {} missing",
+                        missing.join(", ")
+                    ),
+                ));
+            }
+        };
+        (q.xy_urad, q.xz_urad, q.yz_urad, u)
     } else {
         let t = Table::read(path)?;
         let v = t.f64_columns(&["xy_urad", "xz_urad", "yz_urad"])?;
@@ -471,14 +578,22 @@ pub fn read_squareness(path: &Path) -> Result<Squareness, InputError> {
                 format!("a squareness CSV has exactly one data row (got {})", t.n_rows()),
             ));
         }
-        (v[0], v[1], v[2])
+        let u = if partial_set(&t, path, &SQUARENESS_U_COLUMNS)? {
+            let u = t.f64_columns(&SQUARENESS_U_COLUMNS)?;
+            check_u(&t, path, &SQUARENESS_U_COLUMNS, &u)?;
+            Some([u[0], u[1], u[2]])
+        } else {
+            None
+        };
+        (v[0], v[1], v[2], u)
     };
     for (n, v) in [("xy_urad", xy), ("xz_urad", xz), ("yz_urad", yz)] {
         if !v.is_finite() {
             return Err(InputError::in_file(path, format!("{n} is not finite")));
         }
     }
-    Ok(Squareness { xy: xy * 1e-6, xz: xz * 1e-6, yz: yz * 1e-6 })
+    let rad = |[a, b, c]: [f64; 3]| Squareness { xy: a * 1e-6, xz: b * 1e-6, yz: c * 1e-6 };
+    Ok((rad([xy, xz, yz]), u.map(rad)))
 }
 
 /// Write the volumetric errors at points (`truepos comp error --output`): `x_mm,y_mm,z_mm` and

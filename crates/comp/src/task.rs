@@ -11,9 +11,9 @@
 //! failed write).
 
 use crate::files::{
-    read_bed, read_influence, read_load, read_map, read_squareness, write_influence, LoadCase,
+    read_bed, read_influence, read_load, read_map, read_squareness_u, write_influence, LoadCase,
 };
-use crate::stream::{correct_file, Mode, Summary};
+use crate::stream::{correct_file, Mode, Summary, COVERAGE_FACTOR};
 use crate::{fe_map, Chain, CompError, Corrector, GeometricMap, LoadCorrection, PortalCurves};
 use serde_json::{json, Value};
 use std::fmt::Write;
@@ -44,7 +44,7 @@ impl MapFiles {
     pub fn read(&self) -> Result<GeometricMap, InputError> {
         let mut map = read_map(&self.map)?;
         if let Some(s) = &self.squareness {
-            map.squareness = read_squareness(s)?;
+            (map.squareness, map.squareness_u) = read_squareness_u(s)?;
         }
         map.chain = self.chain;
         map.clamp = self.clamp;
@@ -60,6 +60,18 @@ pub struct Corrected {
     pub mode: Mode,
     /// The load case applied (`load correct` only).
     pub load: Option<LoadCase>,
+}
+
+impl Corrected {
+    /// The warning of a `comp correct` whose map states no uncertainty (`None` otherwise).
+    pub fn uncertainty_warning(&self) -> Option<String> {
+        match (&self.load, &self.summary.uncertainty) {
+            (None, Err(why)) => Some(format!(
+                "warning: the map's uncertainty is unknown ({why}): the corrected points carry no uncertainty"
+            )),
+            _ => None,
+        }
+    }
 }
 
 impl Report for Corrected {
@@ -86,19 +98,51 @@ impl Report for Corrected {
         if self.mode == Mode::Commanded {
             j["max_iterations"] = json!(s.iterations);
         }
+        if self.load.is_none() {
+            j["coverage_factor"] = json!(COVERAGE_FACTOR);
+            match &s.uncertainty {
+                Ok(u) => {
+                    j["uncertainty_method"] = json!("map-propagation");
+                    j["max_expanded_uncertainty_um"] = json!(u.max_um);
+                    j["median_expanded_uncertainty_um"] = json!(u.median_um);
+                }
+                Err(why) => {
+                    j["uncertainty_method"] = json!("unknown");
+                    j["uncertainty_unknown"] = json!(why);
+                }
+            }
+        }
         j
     }
 
     fn text(&self) -> String {
         let s = &self.summary;
-        format!(
+        let mut t = format!(
             "{} points {}; correction rms {:.3} µm, max {:.3} µm → {}\n",
             s.n_points,
             if self.mode == Mode::Commanded { "compensated" } else { "corrected" },
             s.rms_um,
             s.max_um,
             self.output.display()
-        )
+        );
+        if self.load.is_none() {
+            match &s.uncertainty {
+                Ok(u) => {
+                    let _ = writeln!(
+                        t,
+                        "uncertainty (map propagation, k = {COVERAGE_FACTOR}): U x/y/z median {:.3}/{:.3}/{:.3} µm, max {:.3}/{:.3}/{:.3} µm (u_x_um,u_y_um,u_z_um in the output are k = 1)",
+                        u.median_um[0], u.median_um[1], u.median_um[2], u.max_um[0], u.max_um[1], u.max_um[2]
+                    );
+                }
+                Err(_) => {
+                    if let Some(w) = self.uncertainty_warning() {
+                        t.push_str(&w);
+                        t.push('\n');
+                    }
+                }
+            }
+        }
+        t
     }
 
     fn text_on_stderr(&self) -> bool {

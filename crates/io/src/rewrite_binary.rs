@@ -185,10 +185,10 @@ enum Sink {
 /// batches of `batch` rows (a multiple of [`PIECE_ROWS`]); a Parquet output gets row groups of
 /// `group` rows.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn rewrite_batches<F, T, M>(
+pub(crate) fn rewrite_batches<const N: usize, F, T, M>(
     input: &Path,
     output: &Path,
-    extra: [&str; 3],
+    extra: [&str; N],
     fmt: crate::num::NumFormat,
     f: F,
     mut merge: M,
@@ -196,7 +196,7 @@ pub(crate) fn rewrite_batches<F, T, M>(
     group: usize,
 ) -> Result<RewriteSummary, RewriteError>
 where
-    F: Fn(usize, &mut [Point3], &mut [[f64; 3]]) -> Result<T, (usize, String)> + Sync,
+    F: Fn(usize, &mut [Point3], &mut [[f64; N]]) -> Result<T, (usize, String)> + Sync,
     T: Send,
     M: FnMut(T),
 {
@@ -223,7 +223,7 @@ where
         Sink::Csv(w)
     };
     let (mut n_points, mut n_batches) = (0, 0);
-    let (mut pts, mut ex): (Vec<Point3>, Vec<[f64; 3]>) = (Vec::new(), Vec::new());
+    let (mut pts, mut ex): (Vec<Point3>, Vec<[f64; N]>) = (Vec::new(), Vec::new());
     while let Some(mut cols) = src.next(input)? {
         let n = cols.first().map_or(0, BatchColumn::len);
         let first = n_points;
@@ -231,7 +231,7 @@ where
         pts.clear();
         pts.extend((0..n).map(|i| Point3::new(x[i], y[i], z[i])));
         ex.clear();
-        ex.resize(n, [0.0; 3]);
+        ex.resize(n, [0.0; N]);
         let results: Vec<Result<T, (usize, String)>> = pts
             .par_chunks_mut(PIECE_ROWS)
             .zip(ex.par_chunks_mut(PIECE_ROWS))
@@ -309,7 +309,7 @@ fn csv_row(
     cw: &mut CsvWriter<Vec<u8>>,
     plan: &[Src],
     p: &Point3,
-    e: &[f64; 3],
+    e: &[f64],
     cols: &[BatchColumn],
     r: usize,
 ) -> Result<(), RowFail> {
@@ -363,16 +363,16 @@ fn numeric_columns(input: &Path, pass: &[usize], width: usize) -> Result<Vec<boo
 
 /// [`crate::stream::rewrite_points`] for a CSV input and a Parquet output (see the module docs),
 /// in row groups of `group` rows.
-pub(crate) fn rewrite_csv_to_parquet<F, T, M>(
+pub(crate) fn rewrite_csv_to_parquet<const N: usize, F, T, M>(
     input: &Path,
     output: &Path,
-    extra: [&str; 3],
+    extra: [&str; N],
     f: F,
     mut merge: M,
     group: usize,
 ) -> Result<RewriteSummary, RewriteError>
 where
-    F: Fn(usize, &mut [Point3], &mut [[f64; 3]]) -> Result<T, (usize, String)> + Sync,
+    F: Fn(usize, &mut [Point3], &mut [[f64; N]]) -> Result<T, (usize, String)> + Sync,
     T: Send,
     M: FnMut(T),
 {
@@ -411,7 +411,7 @@ where
             chunk.split_parse_rows_flat(range.clone(), &idx, &mut vals, &mut fields)?;
             let mut pts: Vec<Point3> =
                 (0..m).map(|i| Point3::new(vals[i * k], vals[i * k + 1], vals[i * k + 2])).collect();
-            let mut ex = vec![[0.0; 3]; m];
+            let mut ex = vec![[0.0; N]; m];
             let t = f(first + range.start, &mut pts, &mut ex)
                 .map_err(|(r, msg)| InputError::at(input, chunk.line_number(range.start + r), None, msg))?;
             let cols = plan

@@ -586,7 +586,8 @@ const ROW_GROUP: usize = crate::parquet_file::ROW_GROUP;
 struct PieceScratch {
     xyz: Vec<[f64; 3]>,
     pts: Vec<truepos_math::Point3>,
-    ex: Vec<[f64; 3]>,
+    /// The extra values, `N` per point, flat (one scratch type for every `N`).
+    ex: Vec<f64>,
     parse: RowScratch,
     fields: Vec<(usize, usize)>,
 }
@@ -613,7 +614,7 @@ pub enum RewriteError {
 }
 
 /// Stream a point file through `f` into `output`: the input with `x_mm,y_mm,z_mm` replaced by the
-/// points as `f` leaves them and the columns `extra` (three values per point from `f`, e.g.
+/// points as `f` leaves them and the columns `extra` (`N` values per point from `f`, e.g.
 /// `dx_um,dy_um,dz_um`) replaced where the input has them or appended; every other column is
 /// passed through unchanged. Constant memory: one chunk of about [`BLOCK_BYTES`] at a time (its
 /// buffers handed back to the reader for a later block), the next one read and indexed by the
@@ -636,16 +637,16 @@ pub enum RewriteError {
 /// of it in the file is a number — decided by a first pass over the file, or text for an input
 /// that cannot be read twice, a pipe — else text). Memory holds a batch or chunk and one row
 /// group, whatever the file's size.
-pub fn rewrite_points<F, T, M>(
+pub fn rewrite_points<const N: usize, F, T, M>(
     input: &Path,
     output: &Path,
-    extra: [&str; 3],
+    extra: [&str; N],
     fmt: crate::num::NumFormat,
     f: F,
     mut merge: M,
 ) -> Result<RewriteSummary, RewriteError>
 where
-    F: Fn(usize, &mut [truepos_math::Point3], &mut [[f64; 3]]) -> Result<T, (usize, String)> + Sync,
+    F: Fn(usize, &mut [truepos_math::Point3], &mut [[f64; N]]) -> Result<T, (usize, String)> + Sync,
     T: Send,
     M: FnMut(T),
 {
@@ -691,8 +692,9 @@ where
             sc.pts.clear();
             sc.pts.extend(sc.xyz.iter().map(|&p| truepos_math::Point3::from(p)));
             sc.ex.clear();
-            sc.ex.resize(m, [0.0; 3]);
-            let t = f(first + range.start, &mut sc.pts, &mut sc.ex)
+            sc.ex.resize(m * N, 0.0);
+            let (ex, _) = sc.ex.as_chunks_mut::<N>();
+            let t = f(first + range.start, &mut sc.pts, ex)
                 .map_err(|(r, msg)| InputError::at(input, chunk.line_number(range.start + r), None, msg))?;
             let mut out = w.buffer();
             out.reserve(m * 128);
@@ -704,7 +706,7 @@ where
                     }
                     match *src {
                         Src::Point(k) => fmt.write(sc.pts[i][k], &mut out),
-                        Src::Extra(k) => fmt.write(sc.ex[i][k], &mut out),
+                        Src::Extra(k) => fmt.write(sc.ex[i * N + k], &mut out),
                         Src::Pass(c) => chunk.push_field(&mut out, fields[c]),
                     }
                 }
@@ -764,10 +766,10 @@ pub(crate) enum Src {
 /// The output's columns for an input with columns `header` (`x_mm,y_mm,z_mm` at `xyz`): every
 /// input column in place (the point's coordinates and the `extra` columns replaced), then the
 /// `extra` columns the input does not have; with their names.
-pub(crate) fn output_plan<'a>(
+pub(crate) fn output_plan<'a, const N: usize>(
     header: &'a [String],
     xyz: [usize; 3],
-    extra: [&'a str; 3],
+    extra: [&'a str; N],
 ) -> (Vec<Src>, Vec<&'a str>) {
     let existing: Vec<Option<usize>> = extra.iter().map(|n| header.iter().position(|h| h == n)).collect();
     let mut plan: Vec<Src> = (0..header.len())

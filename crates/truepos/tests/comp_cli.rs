@@ -273,3 +273,124 @@ fn correct_reads_and_writes_parquet_and_reads_e57() {
         assert_eq!(a.f64_column(name).unwrap(), b.f64(&ep, name).unwrap(), "{name}");
     }
 }
+
+/// The map of [`map_file`] with standard-uncertainty columns: 0.1 µm on X positioning, 1 µrad on
+/// Y pitch, 0.2 µm on Z positioning, all else 0.
+fn map_file_u(dir: &Path) -> PathBuf {
+    let mut t = String::from(
+        "axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad,u_pos_um,u_str1_um,u_str2_um,u_pitch_urad,u_yaw_urad,u_roll_urad\n",
+    );
+    for i in 0..=10 {
+        let p = 100.0 * i as f64;
+        t.push_str(&format!("x,{p},{},0,0,0,0,0,0.1,0,0,0,0,0\n", p / 100.0));
+        t.push_str(&format!("y,{p},0,0,0,10,0,0,0,0,0,1,0,0\n"));
+        t.push_str(&format!("z,{p},0,0,0,0,0,0,0.2,0,0,0,0,0\n"));
+    }
+    write(dir, "map_u.csv", &t)
+}
+
+/// Issue 28: the map's u-columns propagate to u_x_um,u_y_um,u_z_um (hand-computed), the JSON
+/// states the method; without them the output is unchanged and the uncertainty is said unknown.
+#[test]
+fn map_uncertainty_propagates_to_the_corrected_points() {
+    let d = tempfile::tempdir().unwrap();
+    let map = map_file_u(d.path());
+    let sq = write(
+        d.path(),
+        "sq.toml",
+        "[squareness]\nxy_urad = 2\nu_xy_urad = 0.5\nu_xz_urad = 0\nu_yz_urad = 0\n",
+    );
+    let pts =
+        write(d.path(), "p.csv", "id,x_mm,y_mm,z_mm,temp_c\nP1,250,500,300,20.5\nP2,200,500,300,20.5\n");
+    let outp = d.path().join("c.csv");
+    let args = |m: &Path, q: &Path, o: &Path| {
+        run(&[
+            "comp",
+            "correct",
+            "--map",
+            s(m),
+            "--squareness",
+            s(q),
+            "--points",
+            s(&pts),
+            "--output",
+            s(o),
+            "--probe-offset-mm",
+            "0,0,-100",
+            "--json",
+        ])
+    };
+    let o = args(&map, &sq, &outp);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["uncertainty_method"], "map-propagation");
+    assert_eq!(j["coverage_factor"], 2.0);
+    let text = std::fs::read_to_string(&outp).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next().unwrap(), "id,x_mm,y_mm,z_mm,temp_c,dx_um,dy_um,dz_um,u_x_um,u_y_um,u_z_um");
+    // P1: axis positions (250, 500, 400). x: X positioning 0.1 µm (linear between equal node
+    // u's, and the linear table has no curvature). y: Y pitch (about X) 1 µrad × lever z + t_z =
+    // 300 mm = 0.3 µm, squareness xy 0.5 µrad × x 250 mm = 0.125 µm: √(0.09 + 0.015625). z: 0.2.
+    // P2 at x = 200: the squareness term 0.1 µm.
+    let u = |l: &str| -> Vec<f64> { l.split(',').skip(8).map(|v| v.parse().unwrap()).collect() };
+    let expect = [[0.1, (0.09f64 + 0.015625).sqrt(), 0.2], [0.1, (0.09f64 + 0.01).sqrt(), 0.2]];
+    for e in expect {
+        let got = u(lines.next().unwrap());
+        for k in 0..3 {
+            assert!((got[k] - e[k]).abs() < 1e-6, "{got:?} vs {e:?}");
+        }
+    }
+    let mx: Vec<f64> =
+        j["max_expanded_uncertainty_um"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    assert!((mx[1] - 2.0 * (0.09f64 + 0.015625).sqrt()).abs() < 1e-9, "{mx:?}");
+    // The corrections themselves are those of the map without u-columns, byte for byte.
+    let plain = d.path().join("plain.csv");
+    let o = args(&map_file(d.path()), &sq, &plain);
+    assert_eq!(o.status.code(), Some(0));
+    let j: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["uncertainty_method"], "unknown");
+    assert!(j["uncertainty_unknown"].as_str().unwrap().contains("u_pos_um"), "{j}");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("uncertainty is unknown"));
+    let p = std::fs::read_to_string(&plain).unwrap();
+    assert!(p.starts_with("id,x_mm,y_mm,z_mm,temp_c,dx_um,dy_um,dz_um\n"), "{p}");
+    for (a, b) in p.lines().zip(text.lines()).skip(1) {
+        assert_eq!(a, b.rsplitn(4, ',').last().unwrap());
+    }
+    // A map with u-columns but a squareness without them: unknown, said so.
+    let sq0 = write(d.path(), "sq0.toml", "[squareness]\nxy_urad = 2\n");
+    let o = args(&map, &sq0, &d.path().join("c0.csv"));
+    let j: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["uncertainty_method"], "unknown");
+    assert!(j["uncertainty_unknown"].as_str().unwrap().contains("squareness"), "{j}");
+}
+
+/// Issue 28: a partial set of u-columns, a negative u or a partial squareness set is an input
+/// error at its file:line:col, and no output is written.
+#[test]
+fn partial_or_bad_uncertainty_columns_exit_2() {
+    let d = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(map_file_u(d.path())).unwrap();
+    let pts = write(d.path(), "p.csv", "x_mm,y_mm,z_mm\n1,2,3\n");
+    let outp = d.path().join("never.csv");
+    let correct = |m: &Path, extra: &[&str]| {
+        let mut a = vec!["comp", "correct", "--map", s(m), "--points", s(&pts), "--output", s(&outp)];
+        a.extend_from_slice(extra);
+        run(&a)
+    };
+    // Drop u_roll_urad (the last column): the header names the others, column 9 is u_pos_um.
+    let partial: String = text.lines().map(|l| format!("{}\n", l.rsplit_once(',').unwrap().0)).collect();
+    let m = write(d.path(), "partial.csv", partial);
+    expect_input_error(&correct(&m, &[]), &["partial.csv:1:9", "u_roll_urad", "missing"]);
+    assert!(!outp.exists());
+    let m = write(d.path(), "neg.csv", text.replacen(",0.1,0,0,0,0,0\n", ",-0.1,0,0,0,0,0\n", 1));
+    expect_input_error(&correct(&m, &[]), &["neg.csv:2:9", "u_pos_um"]);
+    assert!(!outp.exists());
+    let m = write(d.path(), "inf.csv", text.replacen(",0,0,0,1,0,0\n", ",0,0,0,inf,0,0\n", 1));
+    expect_input_error(&correct(&m, &[]), &["inf.csv:3:12", "u_pitch_urad"]);
+    let good = write(d.path(), "good.csv", &text);
+    let sq = write(d.path(), "sq.toml", "[squareness]\nxy_urad = 2\nu_xy_urad = 0.5\n");
+    expect_input_error(&correct(&good, &["--squareness", s(&sq)]), &["sq.toml:3", "u_xz_urad"]);
+    let sq = write(d.path(), "sq.csv", "xy_urad,xz_urad,yz_urad,u_xy_urad,u_xz_urad\n1,2,3,0.1,0.1\n");
+    expect_input_error(&correct(&good, &["--squareness", s(&sq)]), &["sq.csv:1:4", "u_yz_urad"]);
+    assert!(!outp.exists());
+}

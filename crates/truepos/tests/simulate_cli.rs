@@ -99,29 +99,54 @@ fn per_axis_output_explains_itself() {
 fn comp_scenario_round_trip_and_missing_tables() {
     let d = tempfile::tempdir().unwrap();
     let err = simulate(d.path(), &["comp"]);
-    assert!(err.contains("400 points") && err.contains("41 x, 61 y and 33 z rows"), "{err}");
+    assert!(err.contains("400 points") && err.contains("201 x, 301 y and 161 z rows"), "{err}");
     assert_eq!(assert_commented(d.path()), 3);
     let cmd = printed_command(&err, "next: ");
-    let o = bin().args(&cmd).output().unwrap();
+    let o = bin().args(&cmd).arg("--json").output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["uncertainty_method"], "map-propagation");
+    assert_eq!(j["coverage_factor"], 2.0);
     let t = truth(d.path());
     let text = std::fs::read_to_string(d.path().join("corrected.csv")).unwrap();
     let mut rows = text.lines().filter(|l| !l.starts_with('#'));
     let header: Vec<&str> = rows.next().unwrap().split(',').collect();
     let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
     let (cx, cy, cz) = (col("x_mm"), col("y_mm"), col("z_mm"));
-    let (mut worst, mut n) = (0.0_f64, 0);
+    let (ux, uy, uz) = (col("u_x_um"), col("u_y_um"), col("u_z_um"));
+    let (mut worst, mut n, mut inside, mut big_u) = (0.0_f64, 0, 0, 0.0_f64);
     for (r, tp) in rows.zip(t["true_points_mm"].as_array().unwrap()) {
         let v: Vec<&str> = r.split(',').collect();
         let p: Vec<f64> = [cx, cy, cz].iter().map(|&c| v[c].parse().unwrap()).collect();
-        let e = (0..3).map(|k| (p[k] - tp[k].as_f64().unwrap()).powi(2)).sum::<f64>().sqrt();
-        worst = worst.max(e);
+        let u: Vec<f64> = [ux, uy, uz].iter().map(|&c| v[c].parse().unwrap()).collect();
+        for k in 0..3 {
+            let e = (p[k] - tp[k].as_f64().unwrap()) * 1e3;
+            worst = worst.max(e.abs());
+            // The stated U (k = 2) of the corrected coordinate.
+            inside += usize::from(e.abs() <= 2.0 * u[k]);
+            big_u = big_u.max(2.0 * u[k]);
+        }
         n += 1;
     }
     assert_eq!(n, 400);
-    // 0.5 µm: what the first-order model and the 25 mm map step leave (the demo's bound);
-    // uncorrected the worst point is off by several µm.
-    assert!(worst < 0.5e-3, "worst corrected point {} µm from the truth", worst * 1e3);
+    // The map carries its calibration's error: every corrected coordinate within 1 µm (the
+    // demo's tolerance), and most within the printed ±U. One map's 400 points share its
+    // calibration's systematic part, so they are not independent comparisons: the 90–99 % bar is
+    // tested over 100 maps (crates/cell/tests/comp_coverage.rs).
+    assert!(worst < 1.0, "worst corrected coordinate {worst} µm from the truth");
+    let cov = inside as f64 / 1200.0;
+    assert!(cov > 0.75, "coverage {cov}");
+    assert!(
+        (big_u
+            - j["max_expanded_uncertainty_um"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .fold(0.0, f64::max))
+        .abs()
+            < 1e-3
+    );
     assert!(t["uncorrected_max_error_um"].as_f64().unwrap() > 2.0);
     // Without its Y (or Z) table the map is refused, naming the table.
     let map = std::fs::read_to_string(d.path().join("map.csv")).unwrap();

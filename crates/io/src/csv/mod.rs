@@ -839,7 +839,8 @@ impl Table {
         })
     }
 
-    fn header_line(&self) -> usize {
+    /// 1-based line number of the header.
+    pub fn header_line(&self) -> usize {
         // The header is the line before the first data row, or found by scanning.
         for (line, l) in (1..).zip(self.text.lines()) {
             let t = l.trim_start().trim_start_matches('\u{feff}');

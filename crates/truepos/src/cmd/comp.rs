@@ -4,8 +4,10 @@
 //! Map file: CSV `axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad`, rows
 //! of one axis in any order (sorted here; a repeated position is an error). Squareness:
 //! `--squareness FILE`, TOML `[squareness] xy_urad, xz_urad, yz_urad` or CSV with those columns
-//! and one row. Component definitions and rotation axes: `truepos_comp::geometric` and the
-//! `--help` text below.
+//! and one row. Optional standard-uncertainty columns `u_*` beside the values (map and
+//! squareness) are propagated to `u_x_um,u_y_um,u_z_um` of the corrected points. Component
+//! definitions, rotation axes and the propagation: `truepos_comp::geometric` and the `--help`
+//! text below.
 
 use crate::output::{emit, parse_triple};
 use crate::Outcome;
@@ -33,7 +35,17 @@ Points are indicated tip coordinates (axis positions + t); the tables are read a
 positions a = p − t. A measured point p is corrected to p + E(p − t); with --commanded the file
 holds target tip positions T and the output the tip positions c to command, c + E(c − t) = T
 (fixed-point iteration, converged below 1 nm; non-convergence is reported).
-Tables are interpolated linearly; positions outside a table are an error unless --clamp.";
+Tables are interpolated linearly; positions outside a table are an error unless --clamp.
+Uncertainty: the map may carry the standard uncertainty (k = 1) of each value beside it,
+columns u_pos_um,u_str1_um,u_str2_um,u_pitch_urad,u_yaw_urad,u_roll_urad (all six or none),
+and the squareness u_xy_urad,u_xz_urad,u_yz_urad (same TOML table or CSV). With both, the
+output gains u_x_um,u_y_um,u_z_um (k = 1) per point: first-order propagation through E above
+(components independent; the Abbe lever arms and the probe offset included; a node's u
+interpolated linearly; plus the linear interpolation's own error, f(1 − f)/2 × the table's
+second difference less its noise, zero at the nodes), and the JSON gives uncertainty_method
+\"map-propagation\", coverage_factor 2 and the largest and median expanded U per coordinate.
+Without them the output is unchanged and the map's uncertainty is said unknown (stderr, JSON
+uncertainty_method \"unknown\").";
 
 #[derive(clap::Args, Debug)]
 #[command(
@@ -47,7 +59,8 @@ pub struct Args {
 
 #[derive(clap::Subcommand, Debug)]
 pub enum Sub {
-    /// Correct measured points (or compensate targets with --commanded); adds dx_um,dy_um,dz_um.
+    /// Correct measured points (or compensate targets with --commanded); adds dx_um,dy_um,dz_um
+    /// (and u_x_um,u_y_um,u_z_um when the map states its uncertainty).
     #[command(long_about = COMPONENTS_HELP)]
     Correct(CorrectArgs),
     /// Volumetric error E(p − t; t) at the tip points of a file (JSON error_um per point, or --output CSV).
@@ -66,10 +79,12 @@ pub enum ChainArg {
 /// Options that describe the map.
 #[derive(clap::Args, Debug, Clone)]
 pub struct MapArgs {
-    /// Geometric error map (CSV: axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad).
+    /// Geometric error map (CSV: axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad,
+    /// optionally u_pos_um,u_str1_um,u_str2_um,u_pitch_urad,u_yaw_urad,u_roll_urad: standard uncertainties).
     #[arg(long)]
     pub map: PathBuf,
-    /// Squareness: TOML `[squareness] xy_urad, xz_urad, yz_urad`, or CSV with those columns (one row).
+    /// Squareness: TOML `[squareness] xy_urad, xz_urad, yz_urad` (optionally u_xy_urad, u_xz_urad,
+    /// u_yz_urad), or CSV with those columns (one row).
     #[arg(long)]
     pub squareness: Option<PathBuf>,
     /// Probe/tool offset in the ram frame, mm.
@@ -91,7 +106,8 @@ pub struct CorrectArgs {
     /// (`.parquet`) or E57 (`.e57`) by the extension.
     #[arg(long)]
     pub points: PathBuf,
-    /// Output: the input with corrected x_mm,y_mm,z_mm and dx_um,dy_um,dz_um added; Parquet
+    /// Output: the input with corrected x_mm,y_mm,z_mm and dx_um,dy_um,dz_um added (and
+    /// u_x_um,u_y_um,u_z_um, k = 1, when the map and squareness carry u-columns); Parquet
     /// for a `.parquet` path, else CSV. Streamed in constant memory. In a Parquet output,
     /// a Parquet input keeps its column types and a CSV input's other columns are numbers
     /// where every value in the file is a number, else text (text for a CSV read from a pipe).
@@ -154,7 +170,14 @@ pub fn run(a: Args) -> Result<Outcome> {
                 None => truepos_io::csv::input_precision(&a.points, &["x_mm", "y_mm", "z_mm"]),
             };
             let mode = if a.commanded { Mode::Commanded } else { Mode::Measured };
-            emit(&task::correct(&map, a.map.probe_offset(), &a.points, &a.output, mode, fmt)?, a.json)?
+            let done = task::correct(&map, a.map.probe_offset(), &a.points, &a.output, mode, fmt)?;
+            if a.json {
+                // Said on stderr with --json too (the text, which carries it, is not printed then).
+                if let Some(w) = done.uncertainty_warning() {
+                    eprintln!("{w}");
+                }
+            }
+            emit(&done, a.json)?
         }
         Sub::Error(a) => {
             let map = a.map.files().read()?;
@@ -166,7 +189,7 @@ pub fn run(a: Args) -> Result<Outcome> {
 
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Writes map.csv (axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad: the\nx, y and z tables of a virtual bridge CMM, every 25 mm), squareness.toml, points.csv (indicated\nprobe-tip points, id,x_mm,y_mm,z_mm) and truth.json (true_points_mm, probe offset), and prints\nthe `truepos comp correct` command that corrects the points."
+    after_help = "Writes map.csv (axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad and\ntheir standard uncertainties u_*: the x, y and z tables of a virtual bridge CMM as a simulated\ncalibration with known noise delivers them, every 5 mm), squareness.toml (with u_*), points.csv\n(indicated probe-tip points, id,x_mm,y_mm,z_mm) and truth.json (true_points_mm, probe offset),\nand prints the `truepos comp correct` command that corrects the points (with u_x_um,u_y_um,u_z_um)."
 )]
 pub struct SimArgs {
     #[command(flatten)]
