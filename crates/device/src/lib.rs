@@ -26,6 +26,7 @@
 //! on a machine with [`ProbingMachine::rotary_kinematics`], whose positions are in the programme
 //! frame that turns with its table.
 
+
 use thiserror::Error;
 use truepos_math::air::AirConditions;
 use truepos_math::{Point3, Vector3};
@@ -481,6 +482,13 @@ pub trait Cell {
     fn machine_targets(&self) -> Vec<(String, Point3)>;
     /// An operator brings the reflector back into the beam (manual recovery).
     fn operator_restores_beam(&mut self, k: usize);
+}
+
+impl truepos_math::exit::HasExitClass for DeviceError {
+    /// A device failure (exit 3).
+    fn exit_class(&self) -> truepos_math::exit::ExitClass {
+        truepos_math::exit::ExitClass::Device
+    }
 }
 
 #[cfg(test)]
