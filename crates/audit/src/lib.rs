@@ -26,6 +26,7 @@
 //! Entry points: [`Db::parse`], [`Audit::open`] (a run: an [`AuditSink`]), [`Audit::finish`],
 //! [`Trail::open`] (list, show, export, verify), [`push_spool`], [`now_utc`].
 
+#![forbid(unsafe_code)]
 
 pub mod backend;
 pub mod chain;

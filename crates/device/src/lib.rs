@@ -26,6 +26,7 @@
 //! on a machine with [`ProbingMachine::rotary_kinematics`], whose positions are in the programme
 //! frame that turns with its table.
 
+#![forbid(unsafe_code)]
 
 use thiserror::Error;
 use truepos_math::air::AirConditions;

@@ -30,6 +30,8 @@
 //! - [`limits`]: bounds on every input (file size, line length, binary data); [`limits::open_text`]
 //!   for readers that stream text themselves.
 
+#![deny(unsafe_op_in_unsafe_fn)]
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 pub mod atomic;
 pub mod config;

@@ -21,6 +21,7 @@
 //!   binary turns it into the exit code).
 //! - [`decimal`]: the exact fast path from decimal text to `f64` that every number reader shares.
 
+#![forbid(unsafe_code)]
 
 pub mod air;
 pub mod bestfit;

@@ -19,6 +19,7 @@
 //! - [`file`]: the features file ([`file::read_features`]).
 //! - [`form`]: form error (peak-to-valley of least-squares residuals, via `truepos-fit`).
 
+#![forbid(unsafe_code)]
 
 pub mod execute;
 pub mod feature;

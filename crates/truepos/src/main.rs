@@ -7,6 +7,7 @@
 //! Entry points: [`cmd`] (one module per command, each with `Args` and `run`), [`output`] (JSON on
 //! stdout, progress bars on a terminal stderr).
 
+#![forbid(unsafe_code)]
 
 mod cmd;
 #[allow(dead_code)] // helpers used as capabilities land
