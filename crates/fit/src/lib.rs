@@ -20,7 +20,6 @@
 
 #![deny(unsafe_op_in_unsafe_fn)]
 #![deny(clippy::undocumented_unsafe_blocks)]
-
 // Negated comparisons are deliberate: `!(x > t)` also rejects NaN. Index loops over small
 // fixed-size matrices read better than iterator chains.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]

@@ -23,7 +23,6 @@
 //!   [`geom`] (feature fits with the delay), [`touch`] (touch methods), [`scan`] (scan method).
 
 #![forbid(unsafe_code)]
-
 // `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
