@@ -26,6 +26,8 @@
 //! Entry points: [`Db::parse`], [`Audit::open`] (a run: an [`AuditSink`]), [`Audit::finish`],
 //! [`Trail::open`] (list, show, export, verify), [`push_spool`], [`now_utc`].
 
+#![forbid(unsafe_code)]
+
 pub mod backend;
 pub mod chain;
 pub mod pg;
@@ -871,3 +873,15 @@ pub fn is_iso8601_utc(s: &str) -> bool {
 
 #[cfg(test)]
 mod tests;
+
+impl truepos_math::exit::HasExitClass for AuditError {
+    /// [`AuditError::is_usage`]: bad usage or input (2); a failure of the trail (3).
+    fn exit_class(&self) -> truepos_math::exit::ExitClass {
+        use truepos_math::exit::ExitClass;
+        if self.is_usage() {
+            ExitClass::Usage
+        } else {
+            ExitClass::Device
+        }
+    }
+}

@@ -1146,6 +1146,17 @@ pub fn serve_loopback(
     Ok(LoopbackCmm { handle, url })
 }
 
+impl truepos_math::exit::HasExitClass for ServeError {
+    /// A bad part, machine or log file is the user's (2); an address that cannot be bound is not (3).
+    fn exit_class(&self) -> truepos_math::exit::ExitClass {
+        use truepos_math::exit::ExitClass;
+        match self {
+            ServeError::Input(_) | ServeError::Log { .. } => ExitClass::Input,
+            ServeError::Bind { .. } => ExitClass::Device,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -135,6 +135,18 @@ impl<T, E: StdError + Send + Sync + 'static> Context<T> for std::result::Result<
     }
 }
 
+impl truepos_math::exit::HasExitClass for CellError {
+    /// [`CellError::is_user_input`]: the user's input (2), else a failure (3).
+    fn exit_class(&self) -> truepos_math::exit::ExitClass {
+        use truepos_math::exit::ExitClass;
+        if self.is_user_input() {
+            ExitClass::Input
+        } else {
+            ExitClass::Internal
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -19,6 +19,8 @@
 //! - [`cmm`]: the touch-probe CMM behind `truepos ippdme serve` ([`cmm::IppdmeCmm`], a
 //!   `truepos_ippdme::Cmm`) and [`cmm::bind_virtual`].
 
+#![forbid(unsafe_code)]
+
 pub mod cmm;
 pub mod demo;
 pub mod error;

@@ -38,7 +38,9 @@ use truepos_kinematics::trt::{reported_centre, TrtGeometry};
 use truepos_math::{ry, rz, Matrix3};
 use truepos_math::{Point3, Vector3};
 use truepos_sim::artefact::{Artefact, ConvexPolyhedron, Cylinder, Part, Sphere, SurfacePoint};
-use truepos_sim::noise::{self, ParamError, SimRng};
+/// The error of a virtual machine tool's parameters ([`VirtualMachineTool::new`]).
+pub use truepos_sim::noise::ParamError;
+use truepos_sim::noise::{self, SimRng};
 use truepos_sim::touch::TouchProbe;
 
 const ADDRESS: &str = "virtual";

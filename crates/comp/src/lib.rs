@@ -20,6 +20,8 @@
 //!   outputs written, a `Report` back).
 //! - [`grid1`]: O(1)/binary-search interval lookup shared by all tables.
 
+#![forbid(unsafe_code)]
+
 pub mod correct;
 pub mod fe_map;
 pub mod files;

@@ -26,6 +26,8 @@
 //! on a machine with [`ProbingMachine::rotary_kinematics`], whose positions are in the programme
 //! frame that turns with its table.
 
+#![forbid(unsafe_code)]
+
 use thiserror::Error;
 use truepos_math::air::AirConditions;
 use truepos_math::{Point3, Vector3};
@@ -607,6 +609,13 @@ mod stoppable_tests {
             assert!(s.position().is_ok() && s.abort().is_ok(), "reading and stopping still pass");
         }
         assert_eq!(m.0, 1);
+    }
+}
+
+impl truepos_math::exit::HasExitClass for DeviceError {
+    /// A device failure (exit 3).
+    fn exit_class(&self) -> truepos_math::exit::ExitClass {
+        truepos_math::exit::ExitClass::Device
     }
 }
 

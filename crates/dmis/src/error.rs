@@ -48,3 +48,10 @@ impl DmisError {
         DmisError { file: file.to_string(), pos, kind, message: message.into() }
     }
 }
+
+impl truepos_math::exit::HasExitClass for DmisError {
+    /// A program that does not parse or check (exit 2).
+    fn exit_class(&self) -> truepos_math::exit::ExitClass {
+        truepos_math::exit::ExitClass::Input
+    }
+}

@@ -1268,3 +1268,14 @@ fn cylinder_from_nominal(
     let up = (sol.covariance[(0, 0)] + sol.covariance[(1, 1)]).max(0.0).sqrt();
     Ok((o, a, sol.params[4].abs(), up, sol.std_dev(4)))
 }
+
+impl truepos_math::exit::HasExitClass for RunError {
+    /// A program that cannot run here is input (2); a machine or evaluation failure is not (3).
+    fn exit_class(&self) -> truepos_math::exit::ExitClass {
+        use truepos_math::exit::ExitClass;
+        match self {
+            RunError::Input(_) => ExitClass::Input,
+            _ => ExitClass::Device,
+        }
+    }
+}

@@ -24,6 +24,8 @@
 //! binary); a machine failure during the run is [`exec::RunError::Device`] naming the program line
 //! (exit 3).
 
+#![forbid(unsafe_code)]
+
 pub mod ast;
 pub mod error;
 pub mod exec;

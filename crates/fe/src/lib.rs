@@ -24,6 +24,8 @@
 //! weight); the deflection `uz` is positive UP. The bed origin is the corner (0, 0); bed
 //! coordinates are machine X, Y.
 
+#![forbid(unsafe_code)]
+
 pub mod element;
 pub mod mesh;
 mod model;

@@ -18,6 +18,8 @@
 //! current axis is z), which keeps the normal equations well conditioned. One iteration is one
 //! parallel, allocation-free pass over the points.
 
+#![deny(unsafe_op_in_unsafe_fn)]
+#![deny(clippy::undocumented_unsafe_blocks)]
 // Negated comparisons are deliberate: `!(x > t)` also rejects NaN. Index loops over small
 // fixed-size matrices read better than iterator chains.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]

@@ -17,6 +17,9 @@
 //!   constant memory, chunk by chunk (modal state and parameters carried across chunks), read
 //!   from a `BufRead` and written to a `Write`, byte-identical to [`Program::transform`].
 
+#![deny(unsafe_op_in_unsafe_fn)]
+#![deny(clippy::undocumented_unsafe_blocks)]
+
 mod expr;
 mod interp;
 mod lex;

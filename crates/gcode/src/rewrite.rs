@@ -422,18 +422,15 @@ impl Rewriter {
 
     /// Rewrite line `i` of `p` (line numbers of errors relative to `p`).
     fn line(&mut self, p: &Program, i: usize, out: &mut String) -> Result<(), GcodeError> {
-        let s = self.new_from_old.scale;
-        let r = self.new_from_old.rotation;
-        let t = self.new_from_old.translation;
         let line = &p.lines[i];
         let toks = &p.tokens[line.tokens.clone()];
         // One pass over the tokens: the block and where its words are; `self.old` becomes the
-        // state after the line (read here as `after`). The state before it is kept only where
-        // an arc may be linearised (which starts from it).
+        // state after the line (`cx.after`). The state before it is kept only where an arc may
+        // be linearised (which starts from it).
         let before_units = self.old.units;
         let before = matches!(self.opts.arc_policy, ArcPolicy::Linearize { .. }).then_some(self.old);
         let sc = p.scan_tokens(toks, &mut self.old, |_| {});
-        let after = &self.old;
+        let after = self.old;
         let units_mm = after.units.mm();
         if after.units != before_units {
             let f = before_units.mm() / units_mm;
@@ -442,64 +439,25 @@ impl Rewriter {
             }
         }
         let dec = self.opts.decimals.unwrap_or(if after.units == crate::Units::Inch { 5 } else { 4 });
-        let half = 0.5 / pow10(dec);
+        let cx = LineCx { p, i, toks, sc: &sc, after, dec, half: 0.5 / pow10(dec), units_mm };
         let has_axes = sc.axes.iter().any(|a| a.is_some());
         let has_centre = sc.ijk.iter().any(|a| a.is_some()) || sc.r.is_some();
-        let copy = |out: &mut String| out.push_str(&p.source[line.start..line.next]);
-        let err = |tok: Option<&crate::Token>, message: String| GcodeError::Unsupported {
-            line: i + 1,
-            column: tok.map_or(1, |tk| p.column_of(i, tk)),
-            message,
-        };
-        // The first token of word X, Y, Z, I, J, K, R (k = 0..7), if on the line.
-        let word_at = |k: usize| (sc.first[k] != NONE).then_some(sc.first[k] as usize);
-        match sc.special {
-            Some(Special::SetPosition) => {
-                return Err(err(
-                    toks.iter()
-                        .find(|tk| tk.word().is_some_and(|w| w.0 == b'G' && (w.1 - 92.0).abs() < 1e-6)),
-                    "G92 shifts the coordinate system; a program that uses it cannot be re-oriented".into(),
-                ));
-            }
-            Some(Special::Machine) => {
-                if has_axes {
-                    self.written = [None; 3];
-                }
-                copy(out);
-                return Ok(());
-            }
-            Some(Special::DataSetting) => {
-                copy(out);
-                return Ok(());
-            }
-            _ => {}
+        if self.special_line(&cx, has_axes, out)? {
+            return Ok(());
         }
         let moving = has_axes && (after.motion != MotionMode::None || sc.special == Some(Special::Home));
         if !moving && !has_centre {
-            copy(out);
+            cx.copy(out);
             return Ok(());
         }
         if moving && after.pos.iter().any(|p| p.is_none()) {
-            // The machine's position on an axis the move does not give is unknown: the
-            // transformed move could not say where it goes (contract: a start position).
-            let given: String = (0..3).filter(|&k| sc.axes[k].is_some()).map(|k| AXES[k] as char).collect();
-            let missing: Vec<String> =
-                (0..3).filter(|&k| after.pos[k].is_none()).map(|k| (AXES[k] as char).to_string()).collect();
-            let first = (0..3).find_map(word_at).map(|x| &toks[x]);
-            return Err(err(
-                first,
-                format!(
-                    "this motion gives only {given} and the {} position before it is not known (give it \
-                     earlier in the program, or the start position: orient --start-mm X,Y,Z in the \
-                     program's coordinates)",
-                    missing.join(", ")
-                ),
-            ));
+            return Err(cx.unknown_start());
         }
         let is_arc = matches!(after.motion, MotionMode::ArcCw | MotionMode::ArcCcw);
         if let (true, true, ArcPolicy::Linearize { tolerance_mm }, Some(before)) =
             (is_arc && moving, has_centre, self.opts.arc_policy, before)
         {
+            let r = self.new_from_old.rotation;
             let n = after.plane.normal_axis();
             if (r[(n, n)].abs() - 1.0).abs() > MIX_EPS {
                 let blk = p.interpret_line(i, &before);
@@ -516,158 +474,309 @@ impl Rewriter {
                 return Ok(());
             }
         }
-        let edits = &mut self.edits;
+        // The edits live in `self` from line to line (no allocation per line).
+        let mut edits = std::mem::take(&mut self.edits);
         edits.0.clear();
-        if let MotionMode::Cycle(_) = after.motion {
+        let planned = self.plan_edits(&cx, moving, has_centre && is_arc, &mut edits);
+        if planned.is_ok() {
+            if edits.0.is_empty() {
+                cx.copy(out);
+            } else {
+                p.emit_line(i, &mut edits.0, out);
+            }
+        }
+        self.edits = edits;
+        planned
+    }
+
+    /// Lines that are copied as they are or refused whatever the transform: G92 (refused),
+    /// machine-coordinate moves (copied; the last written values are then unknown) and data
+    /// setting. `Ok(true)` when the line was handled.
+    fn special_line(
+        &mut self,
+        cx: &LineCx<'_>,
+        has_axes: bool,
+        out: &mut String,
+    ) -> Result<bool, GcodeError> {
+        match cx.sc.special {
+            Some(Special::SetPosition) => Err(cx.err(
+                cx.toks.iter().find(|tk| tk.word().is_some_and(|w| w.0 == b'G' && (w.1 - 92.0).abs() < 1e-6)),
+                "G92 shifts the coordinate system; a program that uses it cannot be re-oriented".into(),
+            )),
+            Some(Special::Machine) => {
+                if has_axes {
+                    self.written = [None; 3];
+                }
+                cx.copy(out);
+                Ok(true)
+            }
+            Some(Special::DataSetting) => {
+                cx.copy(out);
+                Ok(true)
+            }
+            _ => Ok(false),
+        }
+    }
+
+    /// The edits of a moving line and/or an arc's centre words, in `edits`.
+    fn plan_edits(
+        &mut self,
+        cx: &LineCx<'_>,
+        moving: bool,
+        arc_centre: bool,
+        edits: &mut Edits,
+    ) -> Result<(), GcodeError> {
+        let r = self.new_from_old.rotation;
+        if let MotionMode::Cycle(_) = cx.after.motion {
             if (r[(2, 2)] - 1.0).abs() > MIX_EPS || r[(0, 2)].abs() > MIX_EPS || r[(1, 2)].abs() > MIX_EPS {
-                return Err(err(
-                    word_at(2).map(|k| &toks[k]),
+                return Err(cx.err(
+                    cx.word_tok(2),
                     "a canned drilling cycle cannot be re-oriented by a rotation that tilts the Z axis"
                         .into(),
                 ));
             }
         }
-        let ins = InsertAt::of(&sc);
+        let ins = InsertAt::of(cx.sc);
         if moving {
-            if after.absolute {
-                // New values per axis (program units) for the axis words.
-                let mut new_vals: [Option<f64>; 3] = [None; 3];
-                let pos = after.pos;
-                for k in 0..3 {
-                    let mut acc = t[k] / units_mm;
-                    let mut known = true;
-                    for j in 0..3 {
-                        if self.coef_used[k][j] {
-                            match pos[j] {
-                                Some(v) => acc += self.coef[k][j] * v,
-                                None => known = false,
-                            }
-                        }
-                    }
-                    if known {
-                        // Exact: compared with the written value before any rounding, so a
-                        // value the transform leaves alone is never rewritten, however large.
-                        new_vals[k] = Some(acc);
-                    } else if sc.axes[k].is_some() {
-                        let missing = (0..3).find(|&j| pos[j].is_none() && self.coef_used[k][j]).unwrap_or(k);
-                        return Err(err(word_at(k).map(|x| &toks[x]), format!("the {} position is not known before this move (give it earlier in the program, or a start position)", AXES[missing] as char)));
-                    }
-                }
-                for k in 0..3 {
-                    let Some(v) = new_vals[k] else { continue };
-                    match (sc.axes[k], word_at(k)) {
-                        (Some(orig), Some(ti)) => {
-                            if (v - orig).abs() >= half {
-                                edits.replace_num(ti, v, dec);
-                                self.written[k] = Some(round_to(v, dec));
-                            } else {
-                                self.written[k] = Some(orig);
-                            }
-                        }
-                        _ => {
-                            if self.mixes[k] || self.written[k].is_none_or(|w| (w - v).abs() >= half) {
-                                ins.plan(edits, k, &AXES, v, dec);
-                                self.written[k] = Some(round_to(v, dec));
-                            }
-                        }
-                    }
-                }
+            if cx.after.absolute {
+                self.move_absolute(cx, &ins, edits)?;
             } else {
-                let d = sc.axes.map(|a| a.unwrap_or(0.0));
-                for k in 0..3 {
-                    let dn = s * (r[(k, 0)] * d[0] + r[(k, 1)] * d[1] + r[(k, 2)] * d[2]);
-                    let before = self.exact_inc[k];
-                    self.exact_inc[k] += dn;
-                    let inc = round_to(self.exact_inc[k], dec) - round_to(before, dec);
-                    let inc = round_to(inc, dec);
-                    match (sc.axes[k], word_at(k)) {
-                        (Some(orig), Some(ti)) => {
-                            // Unchanged by the transform (to the resolution, before rounding):
-                            // keep the text.
-                            if (dn - orig).abs() >= half && (inc - orig).abs() >= half {
-                                edits.replace_num(ti, inc, dec);
-                            }
-                        }
-                        _ => {
-                            if self.mixes[k] || inc.abs() >= half {
-                                ins.plan(edits, k, &AXES, inc, dec);
-                            }
-                        }
-                    }
-                    self.written[k] = self.written[k].map(|w| w + inc);
-                }
+                self.move_incremental(cx, &ins, edits);
             }
-            // Canned-cycle R plane: a Z level.
-            if let (MotionMode::Cycle(_), Some(rv)) = (after.motion, sc.r) {
-                if let Some(ti) = word_at(6) {
-                    let nv = if after.absolute { s * rv + t[2] / units_mm } else { s * rv };
-                    if (nv - rv).abs() >= half {
-                        edits.replace_num(ti, nv, dec);
-                    }
-                }
-            }
+            self.cycle_r_plane(cx, edits);
         }
-        if has_centre && is_arc {
-            let n = after.plane.normal_axis();
-            let rn = r[(n, n)];
-            if (rn.abs() - 1.0).abs() > MIX_EPS {
-                let tok = word_at(3 + (n + 1) % 3).or_else(|| word_at(6)).map(|x| &toks[x]);
-                return Err(err(tok, format!("this arc lies in the {:?} plane and the transform tilts that plane; arcs can only be re-oriented by rotations that keep their plane", after.plane)));
-            }
-            if rn < 0.0 {
-                // The plane is turned over: clockwise becomes counter-clockwise.
-                if sc.arc_g == NONE {
-                    return Err(err(None, "the transform turns the arc plane over, which swaps G2 and G3, but the arc's G2/G3 word is modal (not on this line)".into()));
-                }
-                let gi = sc.arc_g as usize;
-                let txt = p.text(&toks[gi]);
-                let swapped: String = txt
-                    .chars()
-                    .map(|c| match c {
-                        '2' => '3',
-                        '3' => '2',
-                        c => c,
-                    })
-                    .collect();
-                edits.push(gi, REPLACE, 0, false, Txt::from(&swapped[1..]));
-            }
-            let v = sc.ijk.map(|a| a.unwrap_or(0.0));
-            if sc.ijk.iter().any(|x| x.is_some()) {
-                for k in 0..3 {
-                    if k == n {
-                        continue;
-                    }
-                    let mut nv = s * (r[(k, 0)] * v[0] + r[(k, 1)] * v[1] + r[(k, 2)] * v[2]);
-                    if after.arc_absolute {
-                        nv += t[k] / units_mm;
-                    }
-                    match (sc.ijk[k], word_at(3 + k)) {
-                        (Some(orig), Some(ti)) => {
-                            if (nv - orig).abs() >= half {
-                                edits.replace_num(ti, nv, dec);
-                            }
-                        }
-                        _ => {
-                            if nv.abs() >= half {
-                                ins.plan(edits, k, &CENTRE, nv, dec);
-                            }
-                        }
-                    }
-                }
-            }
-            if let (Some(rv), Some(ti)) = (sc.r, word_at(6)) {
-                let nv = s * rv;
-                if (nv - rv).abs() >= half {
-                    edits.replace_num(ti, nv, dec);
-                }
-            }
-        }
-        if edits.0.is_empty() {
-            copy(out);
-        } else {
-            p.emit_line(i, &mut edits.0, out);
+        if arc_centre {
+            self.arc_centre(cx, &ins, edits)?;
         }
         Ok(())
+    }
+
+    /// The axis words of an absolute move: the new values from the whole old position,
+    /// written where they change (or where the transform mixes axes).
+    fn move_absolute(
+        &mut self,
+        cx: &LineCx<'_>,
+        ins: &InsertAt,
+        edits: &mut Edits,
+    ) -> Result<(), GcodeError> {
+        let t = self.new_from_old.translation;
+        let sc = cx.sc;
+        // New values per axis (program units) for the axis words.
+        let mut new_vals: [Option<f64>; 3] = [None; 3];
+        let pos = cx.after.pos;
+        for k in 0..3 {
+            let mut acc = t[k] / cx.units_mm;
+            let mut known = true;
+            for j in 0..3 {
+                if self.coef_used[k][j] {
+                    match pos[j] {
+                        Some(v) => acc += self.coef[k][j] * v,
+                        None => known = false,
+                    }
+                }
+            }
+            if known {
+                // Exact: compared with the written value before any rounding, so a
+                // value the transform leaves alone is never rewritten, however large.
+                new_vals[k] = Some(acc);
+            } else if sc.axes[k].is_some() {
+                let missing = (0..3).find(|&j| pos[j].is_none() && self.coef_used[k][j]).unwrap_or(k);
+                return Err(cx.err(cx.word_tok(k), format!("the {} position is not known before this move (give it earlier in the program, or a start position)", AXES[missing] as char)));
+            }
+        }
+        let (dec, half) = (cx.dec, cx.half);
+        for k in 0..3 {
+            let Some(v) = new_vals[k] else { continue };
+            match (sc.axes[k], cx.word_at(k)) {
+                (Some(orig), Some(ti)) => {
+                    if (v - orig).abs() >= half {
+                        edits.replace_num(ti, v, dec);
+                        self.written[k] = Some(round_to(v, dec));
+                    } else {
+                        self.written[k] = Some(orig);
+                    }
+                }
+                _ => {
+                    if self.mixes[k] || self.written[k].is_none_or(|w| (w - v).abs() >= half) {
+                        ins.plan(edits, k, &AXES, v, dec);
+                        self.written[k] = Some(round_to(v, dec));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The axis words of an incremental move: exact new-frame increments accumulated, each
+    /// written increment the difference of the rounded accumulators (no drift).
+    fn move_incremental(&mut self, cx: &LineCx<'_>, ins: &InsertAt, edits: &mut Edits) {
+        let s = self.new_from_old.scale;
+        let r = self.new_from_old.rotation;
+        let (dec, half) = (cx.dec, cx.half);
+        let d = cx.sc.axes.map(|a| a.unwrap_or(0.0));
+        for k in 0..3 {
+            let dn = s * (r[(k, 0)] * d[0] + r[(k, 1)] * d[1] + r[(k, 2)] * d[2]);
+            let before = self.exact_inc[k];
+            self.exact_inc[k] += dn;
+            let inc = round_to(self.exact_inc[k], dec) - round_to(before, dec);
+            let inc = round_to(inc, dec);
+            match (cx.sc.axes[k], cx.word_at(k)) {
+                (Some(orig), Some(ti)) => {
+                    // Unchanged by the transform (to the resolution, before rounding):
+                    // keep the text.
+                    if (dn - orig).abs() >= half && (inc - orig).abs() >= half {
+                        edits.replace_num(ti, inc, dec);
+                    }
+                }
+                _ => {
+                    if self.mixes[k] || inc.abs() >= half {
+                        ins.plan(edits, k, &AXES, inc, dec);
+                    }
+                }
+            }
+            self.written[k] = self.written[k].map(|w| w + inc);
+        }
+    }
+
+    /// A canned cycle's R plane: a Z level, scaled and (in absolute mode) shifted.
+    fn cycle_r_plane(&self, cx: &LineCx<'_>, edits: &mut Edits) {
+        let s = self.new_from_old.scale;
+        let t = self.new_from_old.translation;
+        if let (MotionMode::Cycle(_), Some(rv)) = (cx.after.motion, cx.sc.r) {
+            if let Some(ti) = cx.word_at(6) {
+                let nv = if cx.after.absolute { s * rv + t[2] / cx.units_mm } else { s * rv };
+                if (nv - rv).abs() >= cx.half {
+                    edits.replace_num(ti, nv, cx.dec);
+                }
+            }
+        }
+    }
+
+    /// An arc's centre words (I, J, K or R) and its direction (G2/G3 swap when the transform
+    /// turns the arc plane over); refused when the transform tilts the plane.
+    fn arc_centre(&self, cx: &LineCx<'_>, ins: &InsertAt, edits: &mut Edits) -> Result<(), GcodeError> {
+        let s = self.new_from_old.scale;
+        let r = self.new_from_old.rotation;
+        let t = self.new_from_old.translation;
+        let (sc, after, toks) = (cx.sc, &cx.after, cx.toks);
+        let (dec, half) = (cx.dec, cx.half);
+        let n = after.plane.normal_axis();
+        let rn = r[(n, n)];
+        if (rn.abs() - 1.0).abs() > MIX_EPS {
+            let tok = cx.word_at(3 + (n + 1) % 3).or_else(|| cx.word_at(6)).map(|x| &toks[x]);
+            return Err(cx.err(tok, format!("this arc lies in the {:?} plane and the transform tilts that plane; arcs can only be re-oriented by rotations that keep their plane", after.plane)));
+        }
+        if rn < 0.0 {
+            // The plane is turned over: clockwise becomes counter-clockwise.
+            if sc.arc_g == NONE {
+                return Err(cx.err(None, "the transform turns the arc plane over, which swaps G2 and G3, but the arc's G2/G3 word is modal (not on this line)".into()));
+            }
+            let gi = sc.arc_g as usize;
+            let txt = cx.p.text(&toks[gi]);
+            let swapped: String = txt
+                .chars()
+                .map(|c| match c {
+                    '2' => '3',
+                    '3' => '2',
+                    c => c,
+                })
+                .collect();
+            edits.push(gi, REPLACE, 0, false, Txt::from(&swapped[1..]));
+        }
+        let v = sc.ijk.map(|a| a.unwrap_or(0.0));
+        if sc.ijk.iter().any(|x| x.is_some()) {
+            for k in 0..3 {
+                if k == n {
+                    continue;
+                }
+                let mut nv = s * (r[(k, 0)] * v[0] + r[(k, 1)] * v[1] + r[(k, 2)] * v[2]);
+                if after.arc_absolute {
+                    nv += t[k] / cx.units_mm;
+                }
+                match (sc.ijk[k], cx.word_at(3 + k)) {
+                    (Some(orig), Some(ti)) => {
+                        if (nv - orig).abs() >= half {
+                            edits.replace_num(ti, nv, dec);
+                        }
+                    }
+                    _ => {
+                        if nv.abs() >= half {
+                            ins.plan(edits, k, &CENTRE, nv, dec);
+                        }
+                    }
+                }
+            }
+        }
+        if let (Some(rv), Some(ti)) = (sc.r, cx.word_at(6)) {
+            let nv = s * rv;
+            if (nv - rv).abs() >= half {
+                edits.replace_num(ti, nv, dec);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// What the steps of [`Rewriter::line`] share about the line being rewritten.
+struct LineCx<'a> {
+    p: &'a Program,
+    /// Line index in `p`.
+    i: usize,
+    toks: &'a [crate::Token],
+    sc: &'a LineScan,
+    /// The modal state after the line.
+    after: Modal,
+    /// Decimals written, and half their resolution (a change below it is no change).
+    dec: u8,
+    half: f64,
+    /// Millimetres per program unit.
+    units_mm: f64,
+}
+
+impl<'a> LineCx<'a> {
+    /// Copy the line as it is.
+    fn copy(&self, out: &mut String) {
+        let line = &self.p.lines[self.i];
+        out.push_str(&self.p.source[line.start..line.next]);
+    }
+
+    /// An "unsupported" error at `tok` (column 1 without one).
+    fn err(&self, tok: Option<&crate::Token>, message: String) -> GcodeError {
+        GcodeError::Unsupported {
+            line: self.i + 1,
+            column: tok.map_or(1, |tk| self.p.column_of(self.i, tk)),
+            message,
+        }
+    }
+
+    /// The first token of word X, Y, Z, I, J, K, R (k = 0..7), if on the line.
+    fn word_at(&self, k: usize) -> Option<usize> {
+        (self.sc.first[k] != NONE).then_some(self.sc.first[k] as usize)
+    }
+
+    /// The token of [`Self::word_at`].
+    fn word_tok(&self, k: usize) -> Option<&'a crate::Token> {
+        self.word_at(k).map(|x| &self.toks[x])
+    }
+
+    /// The error for a move whose start position is not known on an axis it does not give.
+    fn unknown_start(&self) -> GcodeError {
+        // The machine's position on an axis the move does not give is unknown: the
+        // transformed move could not say where it goes (contract: a start position).
+        let (sc, after) = (self.sc, &self.after);
+        let given: String = (0..3).filter(|&k| sc.axes[k].is_some()).map(|k| AXES[k] as char).collect();
+        let missing: Vec<String> =
+            (0..3).filter(|&k| after.pos[k].is_none()).map(|k| (AXES[k] as char).to_string()).collect();
+        let first = (0..3).find_map(|k| self.word_at(k)).map(|x| &self.toks[x]);
+        self.err(
+            first,
+            format!(
+                "this motion gives only {given} and the {} position before it is not known (give it \
+                 earlier in the program, or the start position: orient --start-mm X,Y,Z in the \
+                 program's coordinates)",
+                missing.join(", ")
+            ),
+        )
     }
 }
 

@@ -311,6 +311,19 @@ impl<M: ProbingMachine + ?Sized> ProbingMachine for Turned<'_, M> {
     }
 }
 
+impl truepos_math::exit::HasExitClass for AcquireError {
+    /// A plan that cannot be carried out (2); an output path per [`truepos_io::atomic::OutputError`];
+    /// a machine failure or points that do not fit a sphere (3).
+    fn exit_class(&self) -> truepos_math::exit::ExitClass {
+        use truepos_math::exit::ExitClass;
+        match self {
+            AcquireError::Plan(_) => ExitClass::Usage,
+            AcquireError::Output(o) => truepos_math::exit::HasExitClass::exit_class(o),
+            AcquireError::Device(_) | AcquireError::Fit(_) => ExitClass::Device,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

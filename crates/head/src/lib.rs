@@ -32,6 +32,8 @@
 //! and Y (the triangle of apparent centres about the known table centre; Z is not observable);
 //! any mix of both determines all three.
 
+#![forbid(unsafe_code)]
+
 pub mod acquire;
 pub mod file;
 pub mod init;

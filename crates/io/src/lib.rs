@@ -6,6 +6,7 @@
 //! Entry points:
 //! - [`InputError`]: every problem with user input, naming file, line and column. The binary maps
 //!   it to exit code 2.
+//! - [`exit`]: the exit classes of this crate's errors (input 2, bad output path 2, write 3).
 //! - [`csv::Table`]: a CSV file (leading `#` comments, one header row, any column order, unknown
 //!   columns kept for pass-through), parsed in parallel, with typed column access.
 //! - [`points`]: point files (`x_mm,y_mm,z_mm[,id]` CSV or NIST `.ds`).
@@ -29,11 +30,15 @@
 //! - [`limits`]: bounds on every input (file size, line length, binary data); [`limits::open_text`]
 //!   for readers that stream text themselves.
 
+#![deny(unsafe_op_in_unsafe_fn)]
+#![deny(clippy::undocumented_unsafe_blocks)]
+
 pub mod atomic;
 pub mod config;
 pub mod csv;
 pub mod e57_file;
 pub mod error;
+pub mod exit;
 pub mod limits;
 pub mod num;
 pub mod parquet_file;

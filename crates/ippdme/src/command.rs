@@ -462,6 +462,9 @@ fn vec3(v: &[f64]) -> [f64; 3] {
     [v[0], v[1], v[2]]
 }
 
+/// One group's call parser: `Ok(None)` when the call is not in its group.
+type CallParser = fn(&Call) -> Result<Option<Command>, CommandError>;
+
 impl Command {
     /// Check a parsed call and build the typed command. `tag` is the command's tag (commands
     /// whose name ends in `E` must use an event tag, all others a command tag).
@@ -480,6 +483,25 @@ impl Command {
         if tag == Tag::Command(0) || tag == Tag::Event(0) {
             return Err(err(ErrorCode::ILLEGAL_TAG, "tags 00000 and E0000 are reserved"));
         }
+        let groups: [CallParser; 7] = [
+            Self::no_arg_call,
+            Self::session_call,
+            Self::motion_call,
+            Self::tool_call,
+            Self::csy_call,
+            Self::part_call,
+            Self::scan_call,
+        ];
+        for parse in groups {
+            if let Some(cmd) = parse(c)? {
+                return Ok(cmd);
+            }
+        }
+        Err(err(ErrorCode::UNSUPPORTED_COMMAND, format!("unknown command {}", c.name)))
+    }
+
+    /// Commands without arguments. `Ok(None)` when `c` is not one of them.
+    fn no_arg_call(c: &Call) -> Result<Option<Command>, CommandError> {
         let cmd = match c.name.as_str() {
             "StartSession" => no_args(c).map(|_| Command::StartSession)?,
             "EndSession" => no_args(c).map(|_| Command::EndSession)?,
@@ -497,6 +519,15 @@ impl Command {
             "EnumTools" => no_args(c).map(|_| Command::EnumTools)?,
             "StopAllDaemons" => no_args(c).map(|_| Command::StopAllDaemons)?,
             "GetCoordSystem" => no_args(c).map(|_| Command::GetCoordSystem)?,
+            "ReQualify" => no_args(c).map(|_| Command::ReQualify)?,
+            _ => return Ok(None),
+        };
+        Ok(Some(cmd))
+    }
+
+    /// Error information, report formats and the move-report daemon. `Ok(None)` when `c` is not one of them.
+    fn session_call(c: &Call) -> Result<Option<Command>, CommandError> {
+        let cmd = match c.name.as_str() {
             "GetErrorInfo" => {
                 let v = numbers(c, &[1])?[0];
                 if v.fract() != 0.0 || !(0.0..=9999.0).contains(&v) {
@@ -504,7 +535,6 @@ impl Command {
                 }
                 Command::GetErrorInfo(v as u16)
             }
-            "Get" => Command::Get(keys(c, &POS_KEYS, 1)?),
             "OnPtMeasReport" => {
                 let mut allowed = POS_KEYS.to_vec();
                 allowed.extend([Key::Ijk, Key::Er]);
@@ -516,7 +546,6 @@ impl Command {
                 Command::OnScanReport(keys(c, &allowed, 1)?)
             }
             "OnMoveReportE" => Command::parse_move_report(c)?,
-            "GoTo" | "PtMeas" => Command::parse_motion(c)?,
             "StopDaemon" => match c.args.as_slice() {
                 [Arg::Ident(t)] => match Tag::parse(t) {
                     Some(tag @ Tag::Event(n)) if n > 0 => Command::StopDaemon(tag),
@@ -530,6 +559,44 @@ impl Command {
                 [_] => return Err(err(ErrorCode::BAD_ARGUMENT, "StopDaemon takes an event tag")),
                 _ => return Err(incorrect("StopDaemon takes one event tag")),
             },
+            _ => return Ok(None),
+        };
+        Ok(Some(cmd))
+    }
+
+    /// Position queries, moves, single points and axis locks. `Ok(None)` when `c` is not one of them.
+    fn motion_call(c: &Call) -> Result<Option<Command>, CommandError> {
+        let cmd = match c.name.as_str() {
+            "Get" => Command::Get(keys(c, &POS_KEYS, 1)?),
+            "GoTo" | "PtMeas" => Command::parse_motion(c)?,
+            "LockAxis" => {
+                let mut axes = Vec::new();
+                for a in &c.args {
+                    let name = empty_call(a, "LockAxis")?;
+                    if !["X", "Y", "Z", "R", "A", "B", "C", "Phi"].contains(&name.as_str()) {
+                        return Err(err(
+                            ErrorCode::BAD_PROPERTY,
+                            format!("LockAxis: {name}() is not an axis"),
+                        ));
+                    }
+                    if axes.contains(&name) {
+                        return Err(incorrect(format!("LockAxis: {name}() twice")));
+                    }
+                    axes.push(name);
+                }
+                if axes.is_empty() {
+                    return Err(incorrect("LockAxis needs at least one axis"));
+                }
+                Command::LockAxis(axes)
+            }
+            _ => return Ok(None),
+        };
+        Ok(Some(cmd))
+    }
+
+    /// Tool selection, tool properties and tool alignment. `Ok(None)` when `c` is not one of them.
+    fn tool_call(c: &Call) -> Result<Option<Command>, CommandError> {
+        let cmd = match c.name.as_str() {
             "ChangeTool" => Command::ChangeTool(one_string(c)?),
             "SetTool" => Command::SetTool(one_string(c)?),
             "FindTool" => Command::FindTool(one_string(c)?),
@@ -601,6 +668,32 @@ impl Command {
                     Command::EnumAllProp(p)
                 }
             }
+            "AlignTool" => {
+                let v = numbers(c, &[4, 8])?;
+                let norm_ok = |k: usize| {
+                    ((v[k] * v[k] + v[k + 1] * v[k + 1] + v[k + 2] * v[k + 2]).sqrt() - 1.0).abs() < 1e-6
+                };
+                if !norm_ok(0) || (v.len() == 8 && !norm_ok(3)) {
+                    return Err(incorrect("AlignTool: the direction vectors must be normalized"));
+                }
+                if v.len() == 4 {
+                    Command::AlignTool { dir: vec3(&v[0..3]), alpha_deg: v[3], second: None }
+                } else {
+                    Command::AlignTool {
+                        dir: vec3(&v[0..3]),
+                        alpha_deg: v[6],
+                        second: Some((vec3(&v[3..6]), v[7])),
+                    }
+                }
+            }
+            _ => return Ok(None),
+        };
+        Ok(Some(cmd))
+    }
+
+    /// Coordinate systems and their transformations. `Ok(None)` when `c` is not one of them.
+    fn csy_call(c: &Call) -> Result<Option<Command>, CommandError> {
+        let cmd = match c.name.as_str() {
             "SetCoordSystem" => match c.args.as_slice() {
                 [Arg::Ident(s)] => Command::SetCoordSystem(match s.as_str() {
                     "MachineCsy" => Csy::MachineCsy,
@@ -634,6 +727,52 @@ impl Command {
                     Command::SetCsyTransformation(t, [v[0], v[1], v[2], v[3], v[4], v[5]])
                 }
             }
+            _ => return Ok(None),
+        };
+        Ok(Some(cmd))
+    }
+
+    /// Part alignment on the rotary table. `Ok(None)` when `c` is not one of them.
+    fn part_call(c: &Call) -> Result<Option<Command>, CommandError> {
+        let cmd = match c.name.as_str() {
+            "AlignPart" => {
+                let v = numbers(c, &[7, 14])?;
+                if v.len() == 7 {
+                    Command::AlignPart {
+                        part: vec3(&v[0..3]),
+                        machine: vec3(&v[3..6]),
+                        alpha_deg: v[6],
+                        second: None,
+                    }
+                } else {
+                    Command::AlignPart {
+                        part: vec3(&v[0..3]),
+                        machine: vec3(&v[3..6]),
+                        alpha_deg: v[12],
+                        second: Some((vec3(&v[6..9]), vec3(&v[9..12]), v[13])),
+                    }
+                }
+            }
+            "CenterPart" => {
+                let v = numbers(c, &[4])?;
+                Command::CenterPart { point: vec3(&v[0..3]), limit: v[3] }
+            }
+            "TiltPart" => {
+                let v = numbers(c, &[4])?;
+                Command::TiltPart { dir: vec3(&v[0..3]), limit: v[3] }
+            }
+            "TiltCenterPart" => {
+                let v = numbers(c, &[7])?;
+                Command::TiltCenterPart { first: vec3(&v[0..3]), second: vec3(&v[3..6]), limit: v[6] }
+            }
+            _ => return Ok(None),
+        };
+        Ok(Some(cmd))
+    }
+
+    /// Scan hints and scans. `Ok(None)` when `c` is not one of them.
+    fn scan_call(c: &Call) -> Result<Option<Command>, CommandError> {
+        let cmd = match c.name.as_str() {
             "ScanOnCircleHint" => {
                 let v = numbers(c, &[2])?;
                 Command::ScanOnCircleHint { displacement: v[0], form: v[1] }
@@ -678,75 +817,6 @@ impl Command {
                     step_mm: v[9],
                 }
             }
-            "ReQualify" => no_args(c).map(|_| Command::ReQualify)?,
-            "LockAxis" => {
-                let mut axes = Vec::new();
-                for a in &c.args {
-                    let name = empty_call(a, "LockAxis")?;
-                    if !["X", "Y", "Z", "R", "A", "B", "C", "Phi"].contains(&name.as_str()) {
-                        return Err(err(
-                            ErrorCode::BAD_PROPERTY,
-                            format!("LockAxis: {name}() is not an axis"),
-                        ));
-                    }
-                    if axes.contains(&name) {
-                        return Err(incorrect(format!("LockAxis: {name}() twice")));
-                    }
-                    axes.push(name);
-                }
-                if axes.is_empty() {
-                    return Err(incorrect("LockAxis needs at least one axis"));
-                }
-                Command::LockAxis(axes)
-            }
-            "AlignTool" => {
-                let v = numbers(c, &[4, 8])?;
-                let norm_ok = |k: usize| {
-                    ((v[k] * v[k] + v[k + 1] * v[k + 1] + v[k + 2] * v[k + 2]).sqrt() - 1.0).abs() < 1e-6
-                };
-                if !norm_ok(0) || (v.len() == 8 && !norm_ok(3)) {
-                    return Err(incorrect("AlignTool: the direction vectors must be normalized"));
-                }
-                if v.len() == 4 {
-                    Command::AlignTool { dir: vec3(&v[0..3]), alpha_deg: v[3], second: None }
-                } else {
-                    Command::AlignTool {
-                        dir: vec3(&v[0..3]),
-                        alpha_deg: v[6],
-                        second: Some((vec3(&v[3..6]), v[7])),
-                    }
-                }
-            }
-            "AlignPart" => {
-                let v = numbers(c, &[7, 14])?;
-                if v.len() == 7 {
-                    Command::AlignPart {
-                        part: vec3(&v[0..3]),
-                        machine: vec3(&v[3..6]),
-                        alpha_deg: v[6],
-                        second: None,
-                    }
-                } else {
-                    Command::AlignPart {
-                        part: vec3(&v[0..3]),
-                        machine: vec3(&v[3..6]),
-                        alpha_deg: v[12],
-                        second: Some((vec3(&v[6..9]), vec3(&v[9..12]), v[13])),
-                    }
-                }
-            }
-            "CenterPart" => {
-                let v = numbers(c, &[4])?;
-                Command::CenterPart { point: vec3(&v[0..3]), limit: v[3] }
-            }
-            "TiltPart" => {
-                let v = numbers(c, &[4])?;
-                Command::TiltPart { dir: vec3(&v[0..3]), limit: v[3] }
-            }
-            "TiltCenterPart" => {
-                let v = numbers(c, &[7])?;
-                Command::TiltCenterPart { first: vec3(&v[0..3]), second: vec3(&v[3..6]), limit: v[6] }
-            }
             "ScanInPlaneEndIsSphere" => {
                 Command::ScanUnknown(UnknownScan::InPlaneEndIsSphere, numbers(c, &[17, 21])?)
             }
@@ -760,9 +830,9 @@ impl Command {
                 Command::ScanUnknown(UnknownScan::InCylEndIsSphere, numbers(c, &[23, 24])?)
             }
             "ScanInCylEndIsPlane" => Command::ScanUnknown(UnknownScan::InCylEndIsPlane, numbers(c, &[26])?),
-            other => return Err(err(ErrorCode::UNSUPPORTED_COMMAND, format!("unknown command {other}"))),
+            _ => return Ok(None),
         };
-        Ok(cmd)
+        Ok(Some(cmd))
     }
 
     fn parse_move_report(c: &Call) -> Result<Command, CommandError> {

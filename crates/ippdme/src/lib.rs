@@ -17,6 +17,9 @@
 //!
 //! The virtual CMM that `truepos ippdme serve` puts behind the server lives in `truepos-cell`.
 
+#![deny(unsafe_op_in_unsafe_fn)]
+#![deny(clippy::undocumented_unsafe_blocks)]
+
 pub mod client;
 pub mod command;
 pub mod machine;

@@ -477,6 +477,67 @@ impl<M: Cmm> Session<M> {
         }
         let shared = Arc::clone(&self.shared);
         let mut st = shared.lock();
+        match cmd {
+            Command::StartSession
+            | Command::EndSession
+            | Command::GetDMEVersion
+            | Command::GetMachineClass
+            | Command::GetErrStatusE
+            | Command::GetXtdErrStatus
+            | Command::GetErrorInfo(..)
+            | Command::ClearAllErrors
+            | Command::AbortE
+            | Command::EnableUser
+            | Command::DisableUser
+            | Command::IsUserEnabled => self.session_command(tag, cmd, &mut st, out),
+            Command::OnPtMeasReport(..)
+            | Command::OnScanReport(..)
+            | Command::OnMoveReportE { .. }
+            | Command::StopDaemon(..)
+            | Command::StopAllDaemons => self.report_command(tag, cmd, &st, after),
+            Command::Home
+            | Command::IsHomed
+            | Command::Get(..)
+            | Command::GoTo { .. }
+            | Command::PtMeas { .. }
+            | Command::LockAxis(..) => self.motion_command(tag, cmd, &mut st, out),
+            Command::ChangeTool(..)
+            | Command::SetTool(..)
+            | Command::FindTool(..)
+            | Command::EnumTools
+            | Command::GetChangeToolAction(..)
+            | Command::GetProp(..)
+            | Command::GetPropE(..)
+            | Command::SetProp(..)
+            | Command::EnumProp(..)
+            | Command::EnumAllProp(..)
+            | Command::ReQualify
+            | Command::AlignTool { .. } => self.tool_command(tag, cmd, &mut st, out),
+            Command::GetCoordSystem
+            | Command::SetCoordSystem(..)
+            | Command::GetCsyTransformation(..)
+            | Command::SetCsyTransformation(..) => self.csy_command(tag, cmd, &mut st, out),
+            Command::AlignPart { .. }
+            | Command::CenterPart { .. }
+            | Command::TiltPart { .. }
+            | Command::TiltCenterPart { .. } => self.part_command(tag, cmd, &mut st, out),
+            Command::ScanOnCircleHint { .. }
+            | Command::ScanOnLineHint { .. }
+            | Command::ScanUnknownHint(..)
+            | Command::ScanOnCircle { .. }
+            | Command::ScanOnLine { .. }
+            | Command::ScanUnknown(..) => self.scan_command(tag, cmd, &mut st, out),
+        }
+    }
+
+    /// Session, error-state and user-enable commands (spec 6.3.1, 6.3.2).
+    fn session_command(
+        &mut self,
+        tag: Tag,
+        cmd: &Command,
+        st: &mut MachineState<M>,
+        out: &mut Vec<Response>,
+    ) -> Answer {
         let data = |s: String| Response::data(tag, s);
         match cmd {
             Command::StartSession => {
@@ -534,74 +595,23 @@ impl<M: Cmm> Session<M> {
                 self.error_state = true;
                 self.last_error = Some((ErrorCode::TRANSACTION_ABORTED, "AbortE".into()));
             }
-            Command::Home => {
-                st.machine.home().map_err(machine_error)?;
-                st.homed = true;
-                self.after_move(&st, out);
-            }
-            Command::IsHomed => out.push(data(format!("IsHomed({})", st.homed as u8))),
             Command::EnableUser => self.user_enabled = true,
             Command::DisableUser => self.user_enabled = false,
             Command::IsUserEnabled => out.push(data(format!("IsUserEnabled({})", self.user_enabled as u8))),
-            Command::Get(keys) => {
-                let p = to_csy(&st, &st.machine.position());
-                let mut s = String::new();
-                report_values(keys, &p, &Vector3::zeros(), 0.0, 0.0, table_deg(&st), true, &mut s);
-                out.push(data(s));
-            }
-            Command::GoTo { x, y, z } => {
-                self.check_homed(&st)?;
-                let cur = to_csy(&st, &st.machine.position());
-                let target = Point3::new(x.unwrap_or(cur.x), y.unwrap_or(cur.y), z.unwrap_or(cur.z));
-                let mut target_m = to_machine(&st, &target);
-                // Locked machine axes stay where they are, without an error (spec 13.4).
-                let now = st.machine.position();
-                for k in 0..3 {
-                    if st.locked[k] {
-                        target_m[k] = now[k];
-                    }
-                }
-                if !in_volume(&st, &target_m) {
-                    return fail(
-                        ErrorCode::OUT_OF_VOLUME,
-                        format!("GoTo target {target_m:?} (machine) outside the volume"),
-                    );
-                }
-                self.user_enabled = false;
-                let r = st.tools[st.tool].radius_mm;
-                let res = st.machine.move_to(target_m, r);
-                self.after_move(&st, out);
-                res.map_err(machine_error)?;
-            }
-            Command::PtMeas { x, y, z, ijk } => {
-                self.check_homed(&st)?;
-                if !st.tools[st.tool].can_measure {
-                    return fail(
-                        ErrorCode::BAD_CONTEXT,
-                        format!("{} cannot measure", st.tools[st.tool].name),
-                    );
-                }
-                let cur = to_csy(&st, &st.machine.position());
-                let p = Point3::new(x.unwrap_or(cur.x), y.unwrap_or(cur.y), z.unwrap_or(cur.z));
-                let n = match ijk {
-                    Some(v) => unit(*v),
-                    None => unit((cur - p).into()),
-                }
-                .ok_or((ErrorCode::VECTOR_HAS_NO_NORM, "the probing direction has no length".to_string()))?;
-                let p_m = to_machine(&st, &p);
-                let n_m = dir_to_machine(&st, &n);
-                self.user_enabled = false;
-                let tool = st.tools[st.tool].clone();
-                let retract = tool.ptmeas(Param::Retract);
-                let contact = ptmeas(&mut st, &tool, p_m, n_m, retract);
-                self.after_move(&st, out);
-                let c = contact?;
-                let mut s = String::new();
-                let tc = to_csy(&st, &c.tip_center_mm);
-                let nc = dir_to_csy(&st, &c.normal);
-                report_values(&self.ptmeas_keys, &tc, &nc, tool.radius_mm, 0.0, table_deg(&st), true, &mut s);
-                out.push(data(s));
-            }
+            _ => unreachable!("execute routes only session commands here"),
+        }
+        Ok(())
+    }
+
+    /// Report formats and the `OnMoveReportE` daemon.
+    fn report_command(
+        &mut self,
+        tag: Tag,
+        cmd: &Command,
+        st: &MachineState<M>,
+        after: &mut Vec<Response>,
+    ) -> Answer {
+        match cmd {
             Command::OnPtMeasReport(keys) => self.ptmeas_keys = keys.clone(),
             Command::OnScanReport(keys) => self.scan_keys = keys.clone(),
             Command::OnMoveReportE { time_s, dis_mm, keys } => {
@@ -625,11 +635,11 @@ impl<M: Cmm> Session<M> {
                     let mut s = String::new();
                     report_values(
                         &d.keys,
-                        &to_csy(&st, &pos),
+                        &to_csy(st, &pos),
                         &Vector3::zeros(),
                         0.0,
                         0.0,
-                        table_deg(&st),
+                        table_deg(st),
                         true,
                         &mut s,
                     );
@@ -646,19 +656,121 @@ impl<M: Cmm> Session<M> {
                     return fail(ErrorCode::NO_DAEMONS, "no daemon is running");
                 }
             }
+            _ => unreachable!("execute routes only report commands here"),
+        }
+        Ok(())
+    }
+
+    /// Homing, position queries, moves and single-point measurement.
+    fn motion_command(
+        &mut self,
+        tag: Tag,
+        cmd: &Command,
+        st: &mut MachineState<M>,
+        out: &mut Vec<Response>,
+    ) -> Answer {
+        let data = |s: String| Response::data(tag, s);
+        match cmd {
+            Command::Home => {
+                st.machine.home().map_err(machine_error)?;
+                st.homed = true;
+                self.after_move(st, out);
+            }
+            Command::IsHomed => out.push(data(format!("IsHomed({})", st.homed as u8))),
+            Command::Get(keys) => {
+                let p = to_csy(st, &st.machine.position());
+                let mut s = String::new();
+                report_values(keys, &p, &Vector3::zeros(), 0.0, 0.0, table_deg(st), true, &mut s);
+                out.push(data(s));
+            }
+            Command::GoTo { x, y, z } => {
+                self.check_homed(st)?;
+                let cur = to_csy(st, &st.machine.position());
+                let target = Point3::new(x.unwrap_or(cur.x), y.unwrap_or(cur.y), z.unwrap_or(cur.z));
+                let mut target_m = to_machine(st, &target);
+                // Locked machine axes stay where they are, without an error (spec 13.4).
+                let now = st.machine.position();
+                for k in 0..3 {
+                    if st.locked[k] {
+                        target_m[k] = now[k];
+                    }
+                }
+                if !in_volume(st, &target_m) {
+                    return fail(
+                        ErrorCode::OUT_OF_VOLUME,
+                        format!("GoTo target {target_m:?} (machine) outside the volume"),
+                    );
+                }
+                self.user_enabled = false;
+                let r = st.tools[st.tool].radius_mm;
+                let res = st.machine.move_to(target_m, r);
+                self.after_move(st, out);
+                res.map_err(machine_error)?;
+            }
+            Command::PtMeas { x, y, z, ijk } => {
+                self.check_homed(st)?;
+                if !st.tools[st.tool].can_measure {
+                    return fail(
+                        ErrorCode::BAD_CONTEXT,
+                        format!("{} cannot measure", st.tools[st.tool].name),
+                    );
+                }
+                let cur = to_csy(st, &st.machine.position());
+                let p = Point3::new(x.unwrap_or(cur.x), y.unwrap_or(cur.y), z.unwrap_or(cur.z));
+                let n = match ijk {
+                    Some(v) => unit(*v),
+                    None => unit((cur - p).into()),
+                }
+                .ok_or((ErrorCode::VECTOR_HAS_NO_NORM, "the probing direction has no length".to_string()))?;
+                let p_m = to_machine(st, &p);
+                let n_m = dir_to_machine(st, &n);
+                self.user_enabled = false;
+                let tool = st.tools[st.tool].clone();
+                let retract = tool.ptmeas(Param::Retract);
+                let contact = ptmeas(st, &tool, p_m, n_m, retract);
+                self.after_move(st, out);
+                let c = contact?;
+                let mut s = String::new();
+                let tc = to_csy(st, &c.tip_center_mm);
+                let nc = dir_to_csy(st, &c.normal);
+                report_values(&self.ptmeas_keys, &tc, &nc, tool.radius_mm, 0.0, table_deg(st), true, &mut s);
+                out.push(data(s));
+            }
+            Command::LockAxis(axes) => {
+                for (k, n) in ["X", "Y", "Z"].iter().enumerate() {
+                    if axes.iter().any(|a| a == n) {
+                        st.locked[k] = true;
+                    }
+                }
+            }
+            _ => unreachable!("execute routes only motion commands here"),
+        }
+        Ok(())
+    }
+
+    /// Tool selection, tool properties, qualification and tool alignment.
+    fn tool_command(
+        &mut self,
+        tag: Tag,
+        cmd: &Command,
+        st: &mut MachineState<M>,
+        out: &mut Vec<Response>,
+    ) -> Answer {
+        let data = |s: String| Response::data(tag, s);
+        match cmd {
             Command::ChangeTool(name) | Command::SetTool(name) => {
                 // The virtual head carries every tool at the same reference point, so the
                 // tip-centre position does not jump on a change (a report is sent anyway, as
                 // the specification asks).
-                let k = find_tool(&st, name)?;
+                let k = find_tool(st, name)?;
                 st.tool = k;
                 if matches!(cmd, Command::ChangeTool(_)) {
                     st.locked = [false; 3];
                 }
-                self.after_move_forced(&st, out);
+                self.after_move_forced(st, out);
             }
             Command::FindTool(name) => {
-                let k = find_tool(&st, name)?;
+                let k = find_tool(st, name)?;
                 st.found_tool = Some(k);
             }
             Command::EnumTools => {
@@ -667,8 +779,8 @@ impl<M: Cmm> Session<M> {
                 }
             }
             Command::GetChangeToolAction(name) => {
-                let k = find_tool(&st, name)?;
-                let p = to_csy(&st, &st.machine.position());
+                let k = find_tool(st, name)?;
+                let p = to_csy(st, &st.machine.position());
                 let action = if k == st.tool { "None" } else { "Switch" };
                 out.push(data(format!(
                     "ChangeToolAction({action}, X({}), Y({}), Z({}))",
@@ -680,7 +792,7 @@ impl<M: Cmm> Session<M> {
             Command::GetProp(paths) | Command::GetPropE(paths) => {
                 let mut items = Vec::new();
                 for p in paths {
-                    let t = resolve_tool(&st, p)?;
+                    let t = resolve_tool(st, p)?;
                     items.push(format!("{}({})", p.dotted(), prop_value(t, p)?));
                 }
                 out.push(data(items.join(", ")));
@@ -714,15 +826,62 @@ impl<M: Cmm> Session<M> {
             }
             Command::EnumProp(p) | Command::EnumAllProp(p) => {
                 let all = matches!(cmd, Command::EnumAllProp(_));
-                let t = resolve_tool(&st, p)?;
+                let t = resolve_tool(st, p)?;
                 for line in enum_props(t, p, all)? {
                     out.push(data(line));
                 }
             }
+            Command::ReQualify => {
+                self.check_homed(st)?;
+                if !st.tools[st.tool].can_measure {
+                    return fail(
+                        ErrorCode::BAD_CONTEXT,
+                        format!("{} cannot be qualified", st.tools[st.tool].name),
+                    );
+                }
+                // The virtual stylus is exact: its qualification is its nominal geometry.
+            }
+            Command::AlignTool { dir, alpha_deg, second } => {
+                self.check_homed(st)?;
+                // A fixed vertical stylus: the tool axis is +Z, its second axis +X. Report them if
+                // they are within the requested tolerances, otherwise the angle is out of range.
+                let within = |v: &[f64; 3], actual: Vector3, tol: f64| {
+                    let v = Vector3::new(v[0], v[1], v[2]);
+                    v.dot(&actual).clamp(-1.0, 1.0).acos().to_degrees() <= tol.abs() + 1e-9
+                };
+                if !within(dir, dir_to_csy(st, &Vector3::z()), *alpha_deg)
+                    || second.as_ref().is_some_and(|(v, b)| !within(v, dir_to_csy(st, &Vector3::x()), *b))
+                {
+                    return fail(ErrorCode::ANGLE_OUT_OF_RANGE, "this CMM has a fixed stylus (tool axis +Z)");
+                }
+                let z = dir_to_csy(st, &Vector3::z());
+                let mut s = format!("({}, {}, {}", fmt_num(z.x), fmt_num(z.y), fmt_num(z.z));
+                if second.is_some() {
+                    let x = dir_to_csy(st, &Vector3::x());
+                    let _ = write!(s, ", {}, {}, {}", fmt_num(x.x), fmt_num(x.y), fmt_num(x.z));
+                }
+                s.push(')');
+                out.push(data(s));
+            }
+            _ => unreachable!("execute routes only tool commands here"),
+        }
+        Ok(())
+    }
+
+    /// Coordinate systems and their transformations.
+    fn csy_command(
+        &mut self,
+        tag: Tag,
+        cmd: &Command,
+        st: &mut MachineState<M>,
+        out: &mut Vec<Response>,
+    ) -> Answer {
+        let data = |s: String| Response::data(tag, s);
+        match cmd {
             Command::GetCoordSystem => out.push(data(format!("CoordSystem({})", st.csy.name()))),
             Command::SetCoordSystem(c) => {
                 st.csy = *c;
-                self.after_move_forced(&st, out);
+                self.after_move_forced(st, out);
             }
             Command::GetCsyTransformation(t) => {
                 let v = st.transforms[t.index()];
@@ -737,55 +896,24 @@ impl<M: Cmm> Session<M> {
                 v[5] = v[5].rem_euclid(360.0);
                 st.transforms[t.index()] = v;
             }
-            Command::ScanOnCircleHint { displacement, form }
-            | Command::ScanOnLineHint { angle: displacement, form } => {
-                if *displacement < 0.0 || *form < 0.0 {
-                    return fail(ErrorCode::ARGUMENT_OUT_OF_RANGE, "hints must not be negative");
-                }
-            }
-            Command::ScanUnknownHint(_) => {}
-            Command::LockAxis(axes) => {
-                for (k, n) in ["X", "Y", "Z"].iter().enumerate() {
-                    if axes.iter().any(|a| a == n) {
-                        st.locked[k] = true;
-                    }
-                }
-            }
-            Command::ReQualify => {
-                self.check_homed(&st)?;
-                if !st.tools[st.tool].can_measure {
-                    return fail(
-                        ErrorCode::BAD_CONTEXT,
-                        format!("{} cannot be qualified", st.tools[st.tool].name),
-                    );
-                }
-                // The virtual stylus is exact: its qualification is its nominal geometry.
-            }
-            Command::AlignTool { dir, alpha_deg, second } => {
-                self.check_homed(&st)?;
-                // A fixed vertical stylus: the tool axis is +Z, its second axis +X. Report them if
-                // they are within the requested tolerances, otherwise the angle is out of range.
-                let within = |v: &[f64; 3], actual: Vector3, tol: f64| {
-                    let v = Vector3::new(v[0], v[1], v[2]);
-                    v.dot(&actual).clamp(-1.0, 1.0).acos().to_degrees() <= tol.abs() + 1e-9
-                };
-                if !within(dir, dir_to_csy(&st, &Vector3::z()), *alpha_deg)
-                    || second.as_ref().is_some_and(|(v, b)| !within(v, dir_to_csy(&st, &Vector3::x()), *b))
-                {
-                    return fail(ErrorCode::ANGLE_OUT_OF_RANGE, "this CMM has a fixed stylus (tool axis +Z)");
-                }
-                let z = dir_to_csy(&st, &Vector3::z());
-                let mut s = format!("({}, {}, {}", fmt_num(z.x), fmt_num(z.y), fmt_num(z.z));
-                if second.is_some() {
-                    let x = dir_to_csy(&st, &Vector3::x());
-                    let _ = write!(s, ", {}, {}, {}", fmt_num(x.x), fmt_num(x.y), fmt_num(x.z));
-                }
-                s.push(')');
-                out.push(data(s));
-            }
+            _ => unreachable!("execute routes only csy commands here"),
+        }
+        Ok(())
+    }
+
+    /// Part alignment on the rotary table (`AlignPart`, `CenterPart`, `TiltPart`, `TiltCenterPart`).
+    fn part_command(
+        &mut self,
+        tag: Tag,
+        cmd: &Command,
+        st: &mut MachineState<M>,
+        out: &mut Vec<Response>,
+    ) -> Answer {
+        let data = |s: String| Response::data(tag, s);
+        match cmd {
             Command::AlignPart { part, machine, alpha_deg, second } => {
-                self.check_homed(&st)?;
-                let (_, axis) = table_axis(&st, "AlignPart")?;
+                self.check_homed(st)?;
+                let (_, axis) = table_axis(st, "AlignPart")?;
                 // Both vectors projected into the table plane; they must not lie along the axis.
                 let project = |v: Vector3, what: &str| {
                     (v - axis * v.dot(&axis)).try_normalize(1e-9).ok_or((
@@ -793,7 +921,7 @@ impl<M: Cmm> Session<M> {
                         format!("AlignPart: the {what} vector lies along the table axis"),
                     ))
                 };
-                let p = project(dir_to_machine(&st, &Vector3::from(*part)), "part")?;
+                let p = project(dir_to_machine(st, &Vector3::from(*part)), "part")?;
                 let m = project(Vector3::from(*machine), "machine")?;
                 let turn = p.cross(&m).dot(&axis).atan2(p.dot(&m));
                 let angle = st.machine.table_angle() + turn;
@@ -811,16 +939,16 @@ impl<M: Cmm> Session<M> {
                 if let Some((p2, _, _)) = second {
                     // A single rotary table: the second pair (a second, perpendicular rotary axis)
                     // cannot be acted on; its part vector is reported where the table put it.
-                    let v = axis_rotation(&axis, turn) * dir_to_machine(&st, &Vector3::from(*p2));
+                    let v = axis_rotation(&axis, turn) * dir_to_machine(st, &Vector3::from(*p2));
                     let _ = write!(s, ", {}, {}, {}", fmt_num(v.x), fmt_num(v.y), fmt_num(v.z));
                 }
                 s.push(')');
                 out.push(data(s));
             }
             Command::CenterPart { point, limit } => {
-                self.check_homed(&st)?;
-                let (o, axis) = table_axis(&st, "CenterPart")?;
-                let (d, radial) = off_axis(&to_machine(&st, &Point3::from(*point)), &o, &axis);
+                self.check_homed(st)?;
+                let (o, axis) = table_axis(st, "CenterPart")?;
+                let (d, radial) = off_axis(&to_machine(st, &Point3::from(*point)), &o, &axis);
                 let moved = d >= *limit;
                 if moved {
                     st.machine.move_part(Matrix3::identity(), o, -radial).map_err(machine_error)?;
@@ -828,11 +956,11 @@ impl<M: Cmm> Session<M> {
                 out.push(data(format!("CenterPart({})", (!moved) as u8)));
             }
             Command::TiltPart { dir, limit } => {
-                self.check_homed(&st)?;
-                let (o, axis) = table_axis(&st, "TiltPart")?;
+                self.check_homed(st)?;
+                let (o, axis) = table_axis(st, "TiltPart")?;
                 let d =
                     unit(*dir).ok_or((ErrorCode::VECTOR_HAS_NO_NORM, "TiltPart direction".to_string()))?;
-                let mut d = dir_to_machine(&st, &d);
+                let mut d = dir_to_machine(st, &d);
                 if d.dot(&axis) < 0.0 {
                     d = -d;
                 }
@@ -847,10 +975,10 @@ impl<M: Cmm> Session<M> {
                 out.push(data(format!("TiltPart({})", (!moved) as u8)));
             }
             Command::TiltCenterPart { first, second, limit } => {
-                self.check_homed(&st)?;
-                let (o, axis) = table_axis(&st, "TiltCenterPart")?;
-                let p1 = to_machine(&st, &Point3::from(*first));
-                let p2 = to_machine(&st, &Point3::from(*second));
+                self.check_homed(st)?;
+                let (o, axis) = table_axis(st, "TiltCenterPart")?;
+                let p1 = to_machine(st, &Point3::from(*first));
+                let p2 = to_machine(st, &Point3::from(*second));
                 let mut d = (p2 - p1).try_normalize(1e-9).ok_or((
                     ErrorCode::INCORRECT_ARGUMENTS,
                     "TiltCenterPart: the two centres coincide".to_string(),
@@ -869,8 +997,29 @@ impl<M: Cmm> Session<M> {
                 }
                 out.push(data(format!("TiltCenterPart({})", (!moved) as u8)));
             }
+            _ => unreachable!("execute routes only part commands here"),
+        }
+        Ok(())
+    }
+
+    /// Scan hints and the three scans (circle, line, unknown contour).
+    fn scan_command(
+        &mut self,
+        tag: Tag,
+        cmd: &Command,
+        st: &mut MachineState<M>,
+        out: &mut Vec<Response>,
+    ) -> Answer {
+        match cmd {
+            Command::ScanOnCircleHint { displacement, form }
+            | Command::ScanOnLineHint { angle: displacement, form } => {
+                if *displacement < 0.0 || *form < 0.0 {
+                    return fail(ErrorCode::ARGUMENT_OUT_OF_RANGE, "hints must not be negative");
+                }
+            }
+            Command::ScanUnknownHint(_) => {}
             Command::ScanOnCircle { center, start, normal, delta_deg, sfa_deg, step_deg } => {
-                self.check_homed(&st)?;
+                self.check_homed(st)?;
                 let tool = st.tools[st.tool].clone();
                 if !tool.can_measure {
                     return fail(ErrorCode::BAD_CONTEXT, format!("{} cannot measure", tool.name));
@@ -893,9 +1042,8 @@ impl<M: Cmm> Session<M> {
                 if delta_deg.abs() < 1e-12 {
                     return fail(ErrorCode::INCORRECT_ARGUMENTS, "delta is zero");
                 }
-                let (c_m, s_m, axis_m) =
-                    (to_machine(&st, &c), to_machine(&st, &s), dir_to_machine(&st, &axis));
-                if !in_volume(&st, &c_m) || !in_volume(&st, &s_m) {
+                let (c_m, s_m, axis_m) = (to_machine(st, &c), to_machine(st, &s), dir_to_machine(st, &axis));
+                if !in_volume(st, &c_m) || !in_volume(st, &s_m) {
                     return fail(ErrorCode::OUT_OF_VOLUME, "scan outside the machine volume");
                 }
                 let u = (s_m - c_m).normalize();
@@ -907,10 +1055,10 @@ impl<M: Cmm> Session<M> {
                     delta_rad: delta_deg.to_radians(),
                     step_rad: step_deg.abs().to_radians(),
                 };
-                self.run_scan(tag, &mut st, &tool, s_m, n0, &path, out)?;
+                self.run_scan(tag, st, &tool, s_m, n0, &path, out)?;
             }
             Command::ScanOnLine { start, end, normal, step_mm } => {
-                self.check_homed(&st)?;
+                self.check_homed(st)?;
                 let tool = st.tools[st.tool].clone();
                 if !tool.can_measure {
                     return fail(ErrorCode::BAD_CONTEXT, format!("{} cannot measure", tool.name));
@@ -927,28 +1075,28 @@ impl<M: Cmm> Session<M> {
                         "the normal is not perpendicular to the line",
                     );
                 }
-                let (s_m, e_m, n_m) = (to_machine(&st, &s), to_machine(&st, &e), dir_to_machine(&st, &n));
-                if !in_volume(&st, &s_m) || !in_volume(&st, &e_m) {
+                let (s_m, e_m, n_m) = (to_machine(st, &s), to_machine(st, &e), dir_to_machine(st, &n));
+                if !in_volume(st, &s_m) || !in_volume(st, &e_m) {
                     return fail(ErrorCode::OUT_OF_VOLUME, "scan outside the machine volume");
                 }
                 let path = ScanPath::Line { direction: (e_m - s_m) / len, length_mm: len, step_mm: *step_mm };
-                self.run_scan(tag, &mut st, &tool, s_m, n_m, &path, out)?;
+                self.run_scan(tag, st, &tool, s_m, n_m, &path, out)?;
             }
             Command::ScanUnknown(kind, args) => {
                 let u = unknown_scan(*kind, args)?;
                 for p in [&u.start, &u.direction_point].into_iter().chain(u.stop_point.as_ref()) {
-                    if !in_volume(&st, &to_machine(&st, p)) {
+                    if !in_volume(st, &to_machine(st, p)) {
                         return fail(ErrorCode::OUT_OF_VOLUME, "scan point outside the machine volume");
                     }
                 }
-                self.check_homed(&st)?;
+                self.check_homed(st)?;
                 let tool = st.tools[st.tool].clone();
                 if !tool.can_measure {
                     return fail(ErrorCode::BAD_CONTEXT, format!("{} cannot measure", tool.name));
                 }
                 // Everything to machine coordinates.
-                let pm = |p: &Point3| to_machine(&st, p);
-                let vm = |v: &Vector3| dir_to_machine(&st, v);
+                let pm = |p: &Point3| to_machine(st, p);
+                let vm = |v: &Vector3| dir_to_machine(st, v);
                 let s_m = pm(&u.start);
                 let guide = match u.guide {
                     Guide::Plane { normal } => Guide::Plane { normal: vm(&normal) },
@@ -974,8 +1122,9 @@ impl<M: Cmm> Session<M> {
                     max_length_mm: 4.0 * (hi - lo).norm(),
                 };
                 let n_m = vm(&u.surface_normal);
-                self.run_scan(tag, &mut st, &tool, s_m, n_m, &path, out)?;
+                self.run_scan(tag, st, &tool, s_m, n_m, &path, out)?;
             }
+            _ => unreachable!("execute routes only scan commands here"),
         }
         Ok(())
     }

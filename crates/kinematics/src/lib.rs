@@ -22,6 +22,8 @@
 //! `truepos-cell`, LinuxCNC in `truepos-linuxcnc`. Internal units mm and rad; options and
 //! files in degrees.
 
+#![forbid(unsafe_code)]
+
 pub mod acquire;
 pub mod identify;
 pub mod task;

@@ -527,3 +527,15 @@ impl truepos_io::report::Report for CalibrationReport {
         s
     }
 }
+
+impl truepos_math::exit::HasExitClass for KinematicsError {
+    /// [`KinematicsError::is_user_input`]: the user's (2), else the machine's (3).
+    fn exit_class(&self) -> truepos_math::exit::ExitClass {
+        use truepos_math::exit::ExitClass;
+        if self.is_user_input() {
+            ExitClass::Usage
+        } else {
+            ExitClass::Device
+        }
+    }
+}

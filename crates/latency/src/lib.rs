@@ -22,6 +22,7 @@
 //! - modules: [`stream`] (checks, interpolation), [`contact`] (segmentation, extrapolation),
 //!   [`geom`] (feature fits with the delay), [`touch`] (touch methods), [`scan`] (scan method).
 
+#![forbid(unsafe_code)]
 // `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 

@@ -20,6 +20,9 @@
 //! Every failure is a [`truepos_device::DeviceError`] naming the address and, where the
 //! controller said something, its own message.
 
+#![deny(unsafe_op_in_unsafe_fn)]
+#![deny(clippy::undocumented_unsafe_blocks)]
+
 pub mod hal;
 pub mod harness;
 mod machine;

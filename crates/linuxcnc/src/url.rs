@@ -103,6 +103,13 @@ impl fmt::Display for Address {
     }
 }
 
+impl truepos_math::exit::HasExitClass for AddressError {
+    /// A malformed `--controller` address is bad usage (exit 2).
+    fn exit_class(&self) -> truepos_math::exit::ExitClass {
+        truepos_math::exit::ExitClass::Usage
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -17,11 +17,16 @@
 //!   uncertainties.
 //! - [`interp`]: piecewise-linear interpolation on sorted abscissae.
 //! - [`air`]: refractive index of air (Ciddor, modified Edlén) as NIST computes it.
+//! - [`exit`]: [`exit::ExitClass`], the kind of failure each library error says it is (the
+//!   binary turns it into the exit code).
 //! - [`decimal`]: the exact fast path from decimal text to `f64` that every number reader shares.
+
+#![forbid(unsafe_code)]
 
 pub mod air;
 pub mod bestfit;
 pub mod decimal;
+pub mod exit;
 pub mod interp;
 pub mod lsq;
 pub mod stats;

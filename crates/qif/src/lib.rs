@@ -32,6 +32,8 @@
 //! Numbers are written in plain decimal notation (`xs:decimal` has no exponent) with the
 //! shortest representation that reads back to the same `f64`.
 
+#![forbid(unsafe_code)]
+
 use std::fmt::Write as _;
 use thiserror::Error;
 

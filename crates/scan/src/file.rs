@@ -296,6 +296,17 @@ pub fn write_points(
     Ok(f.commit()?)
 }
 
+impl truepos_math::exit::HasExitClass for FeaturesError {
+    /// A bad features file (2) or a parameter out of range (2).
+    fn exit_class(&self) -> truepos_math::exit::ExitClass {
+        use truepos_math::exit::ExitClass;
+        match self {
+            FeaturesError::Input(_) => ExitClass::Input,
+            FeaturesError::Usage(_) => ExitClass::Usage,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

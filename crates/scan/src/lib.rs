@@ -19,6 +19,8 @@
 //! - [`file`]: the features file ([`file::read_features`]).
 //! - [`form`]: form error (peak-to-valley of least-squares residuals, via `truepos-fit`).
 
+#![forbid(unsafe_code)]
+
 pub mod execute;
 pub mod feature;
 pub mod file;
@@ -52,4 +54,16 @@ pub enum ScanError {
     /// The scanning machine failed or refused a command.
     #[error(transparent)]
     Device(#[from] truepos_device::DeviceError),
+}
+
+impl truepos_math::exit::HasExitClass for ScanError {
+    /// Parameters and features that cannot be planned are the user's (2); a surface not found or
+    /// a machine failure is a measurement failure (3).
+    fn exit_class(&self) -> truepos_math::exit::ExitClass {
+        use truepos_math::exit::ExitClass;
+        match self {
+            ScanError::Device(_) | ScanError::NoContact { .. } => ExitClass::Device,
+            _ => ExitClass::Usage,
+        }
+    }
 }

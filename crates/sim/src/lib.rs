@@ -14,6 +14,8 @@
 //!   [`laser`] (laser distance head), [`tracker`] (laser tracker, inclinometers).
 //! - [`scenario`]: the data sets of `truepos simulate`.
 
+#![forbid(unsafe_code)]
+
 pub mod artefact;
 pub mod capture;
 pub mod errors;

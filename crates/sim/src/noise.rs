@@ -131,6 +131,13 @@ pub fn check_range(name: &'static str, value: f64, lo: f64, hi: f64) -> Result<f
     }
 }
 
+impl truepos_math::exit::HasExitClass for ParamError {
+    /// A model parameter out of range is the user's setting (exit 2).
+    fn exit_class(&self) -> truepos_math::exit::ExitClass {
+        truepos_math::exit::ExitClass::Usage
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -505,6 +505,17 @@ impl Inspection {
     }
 }
 
+impl truepos_math::exit::HasExitClass for InspectError {
+    /// A plan that cannot be carried out (2, nothing moved); a machine or fit failure (3).
+    fn exit_class(&self) -> truepos_math::exit::ExitClass {
+        use truepos_math::exit::ExitClass;
+        match self {
+            InspectError::Plan(_) => ExitClass::Usage,
+            InspectError::Device { .. } | InspectError::Fit { .. } => ExitClass::Device,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -27,6 +27,8 @@
 //! The virtual large gantry with trackers that implements these traits on the simulator lives
 //! in `truepos-cell` (`truepos_cell::gantry`); this crate never depends on the simulator.
 
+#![forbid(unsafe_code)]
+
 pub mod align;
 pub mod audit;
 pub mod device;

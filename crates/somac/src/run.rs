@@ -879,3 +879,15 @@ pub fn machine_from_tracker(
 fn index_targets(p: &Program, keyword: &str) -> Vec<(Option<Point3>, bool)> {
     p.blocks().iter().map(|b| (b.target_mm, b.target_mm.is_some() && b.has_keyword(keyword))).collect()
 }
+
+impl truepos_math::exit::HasExitClass for RunError {
+    /// Bad parameters or program (2); the machine or the audit trail failed (3).
+    fn exit_class(&self) -> truepos_math::exit::ExitClass {
+        use truepos_math::exit::ExitClass;
+        match self {
+            RunError::Params(_) => ExitClass::Usage,
+            RunError::Program { .. } => ExitClass::Input,
+            RunError::Device(_) | RunError::Audit(_) => ExitClass::Device,
+        }
+    }
+}

@@ -1,42 +1,14 @@
 //! The end-point control loop on the virtual gantry: native error above 0.5 mm, every hole
 //! within 50 µm and the mean within 20 µm with correction; alarms fire at their set points.
 
-use std::collections::BTreeMap;
-use truepos_cell::gantry::{CellConfig, VirtualCell};
-use truepos_gcode::Program;
-use truepos_math::Point3;
-use truepos_sim::scenario::somac::{spar, SparConfig};
-use truepos_somac::audit::{Event, MemoryAudit};
+mod support;
+
+use support::{run, spar_params};
+use truepos_cell::gantry::CellConfig;
+use truepos_somac::audit::Event;
 use truepos_somac::run::{AlarmKind, StopStatus};
 use truepos_somac::stats::hole_stats;
-use truepos_somac::{run_program, Params, RunReport};
-
-fn run(cfg: CellConfig, params: &Params, holes_per_row: usize) -> (RunReport, Vec<f64>, MemoryAudit) {
-    let sp = spar(&SparConfig { holes_per_row, ..Default::default() });
-    let cell = VirtualCell::new(cfg, sp.targets.clone());
-    let mut trackers = cell.align_trackers().unwrap();
-    let mut ctl = cell.controller();
-    let mut sensors = cell.sensors();
-    let mut audit = MemoryAudit::default();
-    let program = Program::parse(&sp.program);
-    let report = run_program(&program, &mut ctl, &mut trackers, &mut sensors, params, &mut audit).unwrap();
-    let holes: BTreeMap<usize, Point3> = sp.holes.iter().copied().collect();
-    let errors = cell.hole_errors(&holes).into_iter().map(|e| e.1).collect();
-    (report, errors, audit)
-}
-
-/// The loop settings for the aluminium spar: re-scale every 0.1 °C so the stale scale stays
-/// below 23 ppm/°C · 0.1 °C · 5 m ≈ 12 µm at the ends; ten samples per reading (σ ≈ 4 µm per
-/// axis fused) and a 15 µm threshold.
-fn spar_params() -> Params {
-    Params {
-        autoscale_step_c: 0.1,
-        threshold_mm: 0.015,
-        max_iterations: 6,
-        samples: 10,
-        ..Default::default()
-    }
-}
+use truepos_somac::Params;
 
 #[test]
 fn full_spar_every_hole_within_50_um_for_several_seeds() {
@@ -122,62 +94,6 @@ fn unstable_readings_fail_the_stop() {
     let (report, _, _) = run(cfg, &params, 3);
     assert!(report.stops.iter().all(|s| s.status == StopStatus::Failure));
     assert!(report.alarms.iter().any(|a| a.kind == AlarmKind::NoReading));
-}
-
-#[test]
-#[ignore]
-fn decompose_errors() {
-    let base = CellConfig::default();
-    let flat = truepos_sim::thermal::TemperatureHistory::constant(23.5);
-    for (name, cfg) in [
-        ("default", base.clone()),
-        (
-            "no tracker noise",
-            CellConfig { tracker_mpe_a_mm: 0.0, tracker_mpe_b_mm_per_m: 0.0, ..base.clone() },
-        ),
-        ("constant air temperature", CellConfig { air_temperature: flat.clone(), ..base.clone() }),
-        ("no interrupts", CellConfig { beam_interrupt_probability: 0.0, ..base.clone() }),
-        (
-            "no obstructions",
-            CellConfig {
-                trackers: base
-                    .trackers
-                    .iter()
-                    .cloned()
-                    .map(|mut t| {
-                        t.obstructions.clear();
-                        t
-                    })
-                    .collect(),
-                ..base.clone()
-            },
-        ),
-        (
-            "no noise, constant temp",
-            CellConfig {
-                tracker_mpe_a_mm: 0.0,
-                tracker_mpe_b_mm_per_m: 0.0,
-                air_temperature: flat,
-                ..base.clone()
-            },
-        ),
-    ] {
-        let (r, e, _) = run(cfg, &spar_params(), 150);
-        let s = hole_stats(&e);
-        eprintln!(
-            "{name}: mean {:.4} σ {:.4} max {:.4} orientations {}",
-            s.mean_error_mm, s.std_error_mm, s.max_error_mm, r.orientations
-        );
-        for (st, err) in r.stops.iter().zip(&e) {
-            if *err > 0.05 {
-                eprintln!(
-                    "   line {} {:?} true {:.4} final {:.4} iters {} {:?}",
-                    st.line, st.status, err, st.final_error_mm, st.iterations, st.message
-                );
-            }
-        }
-        eprintln!("   alarms {:?}", r.alarms.iter().map(|a| (a.line, a.kind.as_str())).collect::<Vec<_>>());
-    }
 }
 
 mod limits {

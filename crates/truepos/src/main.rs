@@ -7,11 +7,14 @@
 //! Entry points: [`cmd`] (one module per command, each with `Args` and `run`), [`output`] (JSON on
 //! stdout, progress bars on a terminal stderr).
 
+#![forbid(unsafe_code)]
+
 mod cmd;
 #[allow(dead_code)] // helpers used as capabilities land
 mod output;
 
 use std::process::ExitCode;
+use truepos_math::exit::{ExitClass, HasExitClass};
 
 /// What a command that finished reports.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -27,80 +30,163 @@ pub enum Outcome {
 #[error("{0}")]
 pub struct UsageError(pub String);
 
-/// A device or internal failure: exit 3.
+/// A device or internal failure found by the binary itself: exit 3.
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
 pub struct DeviceError(pub String);
 
-/// Exit code for an error: the one place where errors become exit codes. The first cause in the
-/// chain that says what kind of failure it is decides: bad input or usage → 2; a device, the
-/// audit trail or anything internal → 3.
-/// An output path that cannot be written is bad usage too (2).
-fn exit_code(err: &anyhow::Error) -> u8 {
-    use truepos_scan::ScanError;
-    use truepos_somac::run::RunError;
-    for cause in err.chain() {
-        if cause.is::<truepos_io::InputError>() || cause.is::<UsageError>() {
-            return 2;
-        }
-        if cause.downcast_ref::<truepos_io::atomic::OutputError>().is_some_and(|o| o.is_path()) {
-            return 2;
-        }
-        // Input or output of a task that reads and writes (transparent: its cause is skipped).
-        if let Some(e) = cause.downcast_ref::<truepos_io::stream::RewriteError>() {
-            return match e {
-                truepos_io::stream::RewriteError::Input(_) => 2,
-                truepos_io::stream::RewriteError::Output(o) => {
-                    if o.is_path() {
-                        2
-                    } else {
-                        3
-                    }
-                }
-            };
-        }
-        // An output error carried inside an io::Error by a library that returns io::Result.
-        if let Some(io) = cause.downcast_ref::<std::io::Error>() {
-            if io
-                .get_ref()
-                .and_then(|i| i.downcast_ref::<truepos_io::atomic::OutputError>())
-                .is_some_and(|o| o.is_path())
-            {
-                return 2;
-            }
-        }
-        if let Some(e) = cause.downcast_ref::<truepos_audit::AuditError>() {
-            return if e.is_usage() { 2 } else { 3 };
-        }
-        if cause.is::<truepos_dmis::DmisError>() {
-            return 2;
-        }
-        if let Some(e) = cause.downcast_ref::<truepos_dmis::exec::RunError>() {
-            return match e {
-                truepos_dmis::exec::RunError::Input(_) => 2,
-                _ => 3,
-            };
-        }
-        if cause.is::<DeviceError>() || cause.is::<truepos_device::DeviceError>() {
-            return 3;
-        }
-        if let Some(e) = cause.downcast_ref::<truepos_cell::CellError>() {
-            return if e.is_user_input() { 2 } else { 3 };
-        }
-        if let Some(e) = cause.downcast_ref::<RunError>() {
-            return match e {
-                RunError::Params(_) | RunError::Program { .. } => 2,
-                RunError::Device(_) | RunError::Audit(_) => 3,
-            };
-        }
-        if let Some(e) = cause.downcast_ref::<ScanError>() {
-            return match e {
-                ScanError::Device(_) | ScanError::NoContact { .. } => 3,
-                _ => 2,
-            };
+impl HasExitClass for UsageError {
+    fn exit_class(&self) -> ExitClass {
+        ExitClass::Usage
+    }
+}
+
+impl HasExitClass for DeviceError {
+    fn exit_class(&self) -> ExitClass {
+        ExitClass::Device
+    }
+}
+
+/// A library error whose exit class depends on the call (the same parse error is bad usage for
+/// a flag and a failure elsewhere), or whose type has no class: the command says the class, the
+/// error stays the source (its chain intact), and an optional context is printed before it.
+#[derive(Debug)]
+pub struct Classed {
+    class: ExitClass,
+    context: Option<String>,
+    source: Box<dyn std::error::Error + Send + Sync + 'static>,
+}
+
+impl Classed {
+    /// `source` with exit class `class`, printed after `context` when there is one.
+    pub fn new(
+        class: ExitClass,
+        context: Option<String>,
+        source: impl std::error::Error + Send + Sync + 'static,
+    ) -> Self {
+        Classed { class, context, source: Box::new(source) }
+    }
+
+    /// [`Classed::new`] for an error that is already boxed.
+    pub fn boxed(
+        class: ExitClass,
+        context: Option<String>,
+        source: Box<dyn std::error::Error + Send + Sync + 'static>,
+    ) -> Self {
+        Classed { class, context, source }
+    }
+}
+
+impl std::fmt::Display for Classed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.context {
+            Some(c) => f.write_str(c),
+            None => self.source.fmt(f),
         }
     }
-    3
+}
+
+impl std::error::Error for Classed {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match &self.context {
+            // The error is the next link of the chain.
+            Some(_) => Some(self.source.as_ref()),
+            // Transparent: this link shows the error itself, the chain goes on with its cause.
+            None => self.source.source(),
+        }
+    }
+}
+
+impl HasExitClass for Classed {
+    fn exit_class(&self) -> ExitClass {
+        self.class
+    }
+}
+
+/// Say the exit class of a library error at the call: `.usage()`, `.device()`, or with a
+/// context printed before it, `.usage_in("--flag")`, `.device_in("what was done")`.
+pub trait ClassExt<T> {
+    /// The error with class `class` and an optional context.
+    fn classed(self, class: ExitClass, context: Option<String>) -> Result<T, Classed>;
+    /// Bad usage (exit 2).
+    fn usage(self) -> Result<T, Classed>
+    where
+        Self: Sized,
+    {
+        self.classed(ExitClass::Usage, None)
+    }
+    /// Bad usage (exit 2), printed as `context: error`.
+    fn usage_in(self, context: impl Into<String>) -> Result<T, Classed>
+    where
+        Self: Sized,
+    {
+        self.classed(ExitClass::Usage, Some(context.into()))
+    }
+    /// A device failure (exit 3).
+    fn device(self) -> Result<T, Classed>
+    where
+        Self: Sized,
+    {
+        self.classed(ExitClass::Device, None)
+    }
+    /// A device failure (exit 3), printed as `context: error`.
+    fn device_in(self, context: impl Into<String>) -> Result<T, Classed>
+    where
+        Self: Sized,
+    {
+        self.classed(ExitClass::Device, Some(context.into()))
+    }
+}
+
+impl<T, E: std::error::Error + Send + Sync + 'static> ClassExt<T> for Result<T, E> {
+    fn classed(self, class: ExitClass, context: Option<String>) -> Result<T, Classed> {
+        self.map_err(|e| Classed::new(class, context, e))
+    }
+}
+
+/// The exit class of an error: the one place where errors become exit codes. The first cause in
+/// the chain whose type has a class ([`HasExitClass`], said by each library error type) decides;
+/// an error no type claims is internal (3).
+fn exit_class(err: &anyhow::Error) -> ExitClass {
+    err.chain().find_map(class_of).unwrap_or(ExitClass::Internal)
+}
+
+/// The class of one cause, when its type has one.
+fn class_of(cause: &(dyn std::error::Error + 'static)) -> Option<ExitClass> {
+    macro_rules! classes {
+        ($($t:ty),* $(,)?) => {
+            $(if let Some(e) = cause.downcast_ref::<$t>() {
+                return Some(e.exit_class());
+            })*
+        };
+    }
+    classes!(
+        UsageError,
+        DeviceError,
+        Classed,
+        truepos_math::air::AirError,
+        truepos_io::InputError,
+        truepos_io::atomic::OutputError,
+        truepos_io::stream::RewriteError,
+        truepos_device::DeviceError,
+        truepos_linuxcnc::url::AddressError,
+        truepos_cell::probing::ParamError,
+        truepos_cell::scenarios::head::HeadOffsetError,
+        truepos_head::acquire::AcquireError,
+        truepos_scan::ScanError,
+        truepos_scan::file::FeaturesError,
+        truepos_somac::run::RunError,
+        truepos_somac::inspect::InspectError,
+        truepos_kinematics::task::KinematicsError,
+        truepos_dmis::DmisError,
+        truepos_dmis::exec::RunError,
+        truepos_audit::AuditError,
+        truepos_cell::CellError,
+        truepos_cell::cmm::ServeError,
+        truepos_cell::scenarios::latency::SimRequestError,
+    );
+    // An output error carried inside an io::Error by a library that returns io::Result.
+    cause.downcast_ref::<std::io::Error>().and_then(truepos_io::exit::io_exit_class)
 }
 
 /// True when the error is a write to a closed pipe (`truepos … --json | head -c 10`): the
@@ -177,11 +263,11 @@ fn real_main() -> ExitCode {
         .init();
     match cmd::run(cli) {
         Ok(Outcome::Done) => ExitCode::SUCCESS,
-        Ok(Outcome::OutOfTolerance) => ExitCode::from(1),
+        Ok(Outcome::OutOfTolerance) => ExitCode::from(ExitClass::Verdict.code()),
         Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
-            ExitCode::from(exit_code(&e))
+            ExitCode::from(exit_class(&e).code())
         }
     }
 }

@@ -13,8 +13,8 @@ use truepos_head::{solve, Params, Reading, Reference};
 use truepos_io::atomic::AtomicFile;
 use truepos_io::csv::CsvWriter;
 use truepos_math::{Point3, Vector3};
-pub use truepos_sim::scenario::head_offset::Variant;
 use truepos_sim::scenario::head_offset::{self as sim, HeadOffsetConfig, HeadOffsetData};
+pub use truepos_sim::scenario::head_offset::{HeadOffsetError, Variant};
 
 /// The data set of a preset variant (`truepos simulate head-offset --variant V --seed S`).
 pub fn simulate(variant: Variant, seed: u64) -> Result<HeadOffsetData, sim::HeadOffsetError> {

@@ -409,3 +409,10 @@ pub fn key_facts(t: &scen::Truth) -> String {
         t.duration_s
     )
 }
+
+impl truepos_math::exit::HasExitClass for SimRequestError {
+    /// A scenario request that cannot be simulated is bad usage (exit 2).
+    fn exit_class(&self) -> truepos_math::exit::ExitClass {
+        truepos_math::exit::ExitClass::Usage
+    }
+}

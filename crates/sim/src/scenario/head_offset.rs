@@ -669,3 +669,10 @@ pub fn simulate(cfg: &HeadOffsetConfig) -> Result<HeadOffsetData, HeadOffsetErro
     };
     Ok(HeadOffsetData { rows, truth })
 }
+
+impl truepos_math::exit::HasExitClass for HeadOffsetError {
+    /// A scenario setting that cannot be simulated is bad usage (exit 2).
+    fn exit_class(&self) -> truepos_math::exit::ExitClass {
+        truepos_math::exit::ExitClass::Usage
+    }
+}

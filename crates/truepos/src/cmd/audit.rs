@@ -5,7 +5,7 @@
 //! `truepos_audit` ([`truepos_audit::Trail`], [`truepos_audit::push_spool`]).
 
 use crate::output::print_json;
-use crate::{Outcome, UsageError};
+use crate::{ClassExt, Outcome, UsageError};
 use anyhow::Result;
 use serde_json::json;
 use std::path::PathBuf;
@@ -80,7 +80,7 @@ pub enum AuditCommand {
 
 /// Parse `--db` (a bad address is bad usage; the value is never echoed: it may hold a password).
 pub fn parse_db(s: &str) -> Result<Db> {
-    Db::parse(s).map_err(|e| UsageError(e.to_string()).into())
+    Db::parse(s).usage().map_err(Into::into)
 }
 
 fn open(db: &str) -> Result<Trail> {

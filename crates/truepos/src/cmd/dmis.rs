@@ -2,7 +2,7 @@
 //! (contract "DMIS part programs"). Thin: the work is in `truepos_dmis` (read, check, run,
 //! results) and `truepos_cell::cmm::serve_loopback` (the virtual CMM).
 
-use crate::{DeviceError, Outcome, UsageError};
+use crate::{Outcome, UsageError};
 use anyhow::Result;
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -101,12 +101,7 @@ pub fn run(args: Args) -> Result<Outcome> {
     // The virtual CMM lives as long as the run.
     let mut _virtual = None;
     let url = if a.controller == "virtual" {
-        let cmm = truepos_cell::cmm::serve_loopback(a.part.as_deref(), a.machine.as_deref()).map_err(
-            |e| match e {
-                truepos_cell::cmm::ServeError::Bind { .. } => anyhow::Error::new(DeviceError(e.to_string())),
-                other => anyhow::Error::new(UsageError(other.to_string())),
-            },
-        )?;
+        let cmm = truepos_cell::cmm::serve_loopback(a.part.as_deref(), a.machine.as_deref())?;
         let url = cmm.url.clone();
         _virtual = Some(cmm);
         url

@@ -14,12 +14,13 @@
 //! fit); [`nist_table`] (the same comparison, reused by the tests).
 
 use crate::output::print_json;
-use crate::{Outcome, UsageError};
+use crate::{ClassExt, Classed, Outcome, UsageError};
 use anyhow::Result;
 use std::path::PathBuf;
 use truepos_fit::evaluate::{self, Method, Spec};
 use truepos_fit::verdict::{self, DecisionRule, SizeTolerance, Verdict};
 use truepos_io::InputError;
+use truepos_math::exit::ExitClass;
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kind {
@@ -146,18 +147,17 @@ fn spec(a: &Args) -> Result<Spec> {
     }
     let size = match (a.nominal_diameter_mm, &a.tolerance_mm) {
         (Some(n), Some(t)) => Some(SizeTolerance::parse(t, n).map_err(|e| match e {
-            verdict::ToleranceError::BadNominal(_) => UsageError(format!("--nominal-diameter-mm: {e}")),
-            e => UsageError(format!("--tolerance-mm {t}: {e}")),
+            verdict::ToleranceError::BadNominal(_) => {
+                Classed::new(ExitClass::Usage, Some("--nominal-diameter-mm".into()), e)
+            }
+            e => Classed::new(ExitClass::Usage, Some(format!("--tolerance-mm {t}")), e),
         })?),
         (Some(_), None) => return Err(UsageError("--nominal-diameter-mm needs --tolerance-mm".into()).into()),
         (None, Some(_)) => return Err(UsageError("--tolerance-mm needs --nominal-diameter-mm".into()).into()),
         (None, None) => None,
     };
-    let form_tolerance = a
-        .form_tolerance_mm
-        .map(verdict::check_form_tolerance)
-        .transpose()
-        .map_err(|e| UsageError(format!("--form-tolerance-mm: {e}")))?;
+    let form_tolerance =
+        a.form_tolerance_mm.map(verdict::check_form_tolerance).transpose().usage_in("--form-tolerance-mm")?;
     Ok(Spec { size, form_tolerance, rule })
 }
 
@@ -165,7 +165,7 @@ pub fn run(a: Args) -> Result<Outcome> {
     // Everything that can be refused is refused before any work or output.
     let spec = spec(&a)?;
     let m = method(a.method);
-    evaluate::check(a.kind.lib(), m, &spec).map_err(|e| UsageError(e.to_string()))?;
+    evaluate::check(a.kind.lib(), m, &spec).usage()?;
     if let Some(q) = &a.qif {
         truepos_io::atomic::check_output_path(q).map_err(|e| anyhow::Error::from(e).context("--qif"))?;
     }
@@ -178,7 +178,7 @@ pub fn run(a: Args) -> Result<Outcome> {
         );
     }
     let e = evaluate::evaluate(a.kind.lib(), m, &set.points, &spec).map_err(|e| match e {
-        evaluate::EvaluateError::Spec(s) => anyhow::Error::from(UsageError(s.to_string())),
+        evaluate::EvaluateError::Spec(s) => anyhow::Error::from(Classed::new(ExitClass::Usage, None, s)),
         evaluate::EvaluateError::Fit(f) => {
             InputError::in_file(&a.points, format!("cannot fit a {}: {f}", a.kind.name())).into()
         }

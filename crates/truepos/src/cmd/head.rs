@@ -7,7 +7,7 @@
 //! numerics are in `truepos-head`; this module reads and writes the contract's files.
 
 use crate::output::{emit, parse_pair, parse_triple};
-use crate::{Outcome, UsageError};
+use crate::{ClassExt, Outcome, UsageError};
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 use truepos_cell::scenarios::head::Variant;
@@ -265,7 +265,7 @@ fn apply(a: ApplyArgs) -> Result<Outcome> {
 
 fn acquire(a: AcquireArgs) -> Result<Outcome> {
     use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
-    use truepos_head::acquire::{acquire_to_file, AcquireError, HeadAcquisition};
+    use truepos_head::acquire::{acquire_to_file, HeadAcquisition};
     let c_varies = a.orientations.iter().any(|o| o[1] != 0.0);
     let table_center = match a.table_center_mm {
         Some(t) => Point3::from(t),
@@ -283,15 +283,13 @@ fn acquire(a: AcquireArgs) -> Result<Outcome> {
         nominal_offset_mm: Vector3::from(a.nominal_offset_mm),
         table_center_mm: table_center,
     };
-    if let Err(e) = acq.check() {
-        return Err(UsageError(e.to_string()).into());
-    }
+    acq.check()?;
     let model = a.model.read()?;
     let mut truth = None;
     let mut machine: Box<dyn truepos_device::ProbingMachine> = if a.sphere.controller == "virtual" {
         let (cfg, t) = MachineToolConfig::for_head_offset(a.sphere.seed, &acq);
         truth = Some(t);
-        Box::new(VirtualMachineTool::new(cfg).map_err(|e| UsageError(format!("virtual machine: {e}")))?)
+        Box::new(VirtualMachineTool::new(cfg).usage_in("virtual machine")?)
     } else {
         super::probe::open_probing_machine(&a.sphere.controller, None, a.sphere.seed)?.machine
     };
@@ -303,12 +301,7 @@ fn acquire(a: AcquireArgs) -> Result<Outcome> {
             .unwrap_or_default(),
         acq.sphere.tip_radius_mm
     );
-    let mut report = match acquire_to_file(machine.as_mut(), &acq, &a.output, next) {
-        Ok(r) => r,
-        Err(AcquireError::Plan(m)) => return Err(UsageError(m).into()),
-        Err(AcquireError::Output(e)) => return Err(e.into()),
-        Err(e) => return Err(crate::DeviceError(e.to_string()).into()),
-    };
+    let mut report = acquire_to_file(machine.as_mut(), &acq, &a.output, next)?;
     report.truth = truth.map(|t| (t.offset_mm, t.sphere_centre_mm, t.sphere_radius_mm));
     let machine_kind = if a.sphere.controller.starts_with("ippdme://") {
         truepos_cell::vcmm::AcquiringMachine::Cmm
@@ -427,8 +420,7 @@ fn acquired_offset(
 }
 
 pub fn simulate(args: SimArgs) -> Result<Outcome> {
-    let d = truepos_cell::scenarios::head::simulate(args.variant.sim(), args.common.seed)
-        .map_err(|e| UsageError(e.to_string()))?;
+    let d = truepos_cell::scenarios::head::simulate(args.variant.sim(), args.common.seed)?;
     // Where the data set cannot be written is the user's choice of --out: an input error.
     let w = truepos_cell::scenarios::head::write_dataset(&args.common.out, &d)
         .map_err(|e| truepos_io::InputError::in_file(&args.common.out, format!("{e:#}")))?;

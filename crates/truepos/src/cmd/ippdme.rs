@@ -1,7 +1,7 @@
 //! `truepos ippdme serve`: the virtual CMM behind an I++ DME server (contract "CMM protocol").
 //! Thin: the work is in `truepos_cell::cmm` and `truepos_ippdme::server`.
 
-use crate::{DeviceError, Outcome, UsageError};
+use crate::{ClassExt, Outcome};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -48,15 +48,12 @@ pub struct ServeArgs {
 
 pub fn run(args: Args) -> anyhow::Result<Outcome> {
     let IppCommand::Serve(a) = args.command;
-    use truepos_cell::cmm::{bind_virtual, ServeError, ServeOptions};
+    use truepos_cell::cmm::{bind_virtual, ServeOptions};
     let opts = ServeOptions { bind: a.bind, port: a.port, part: a.part, machine: a.machine, log: a.log };
-    let server = bind_virtual(&opts).map_err(|e| match e {
-        ServeError::Bind { .. } => anyhow::Error::new(DeviceError(e.to_string())),
-        other => anyhow::Error::new(UsageError(other.to_string())),
-    })?;
-    let addr = server.local_addr().map_err(|e| DeviceError(e.to_string()))?;
+    let server = bind_virtual(&opts)?;
+    let addr = server.local_addr().device()?;
     let stop = truepos_ippdme::server::stop_on_signals();
     eprintln!("ippdme: listening on {addr}");
-    server.run(stop).map_err(|e| DeviceError(format!("ippdme server on {addr}: {e}")))?;
+    server.run(stop).device_in(format!("ippdme server on {addr}"))?;
     Ok(Outcome::Done)
 }

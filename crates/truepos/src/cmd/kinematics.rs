@@ -5,7 +5,7 @@
 //! kinematics module found through halcmd), calls `truepos_kinematics::calibrate`, prints.
 
 use crate::output::{emit, parse_pair, parse_triple};
-use crate::{DeviceError, Outcome, UsageError};
+use crate::{ClassExt, Outcome, UsageError};
 use anyhow::Result;
 use std::path::PathBuf;
 use truepos_cell::probing::VirtualMachineTool;
@@ -13,7 +13,7 @@ use truepos_device::ProbingMachine;
 use truepos_head::acquire::SphereProbing;
 use truepos_kinematics::acquire::KinematicsProbing;
 use truepos_kinematics::task::default_verify_orientations;
-use truepos_kinematics::{CalibrateRequest, KinematicsError, Model};
+use truepos_kinematics::{CalibrateRequest, Model};
 use truepos_math::Point3;
 
 #[derive(clap::Args, Debug)]
@@ -127,16 +127,8 @@ pub fn run(a: Args) -> Result<Outcome> {
     }
 }
 
-fn kin_err(e: KinematicsError) -> anyhow::Error {
-    if e.is_user_input() {
-        UsageError(e.to_string()).into()
-    } else {
-        DeviceError(e.to_string()).into()
-    }
-}
-
 fn calibrate(a: CalibrateArgs) -> Result<Outcome> {
-    let model = Model::parse(&a.model).map_err(kin_err)?;
+    let model = Model::parse(&a.model)?;
     if !a.verify && !a.verify_orientations.is_empty() {
         return Err(UsageError("--verify-orientation needs --verify".into()).into());
     }
@@ -166,7 +158,7 @@ fn calibrate(a: CalibrateArgs) -> Result<Outcome> {
         output: a.output.clone(),
     };
     // Options and observability before a controller is opened (and anything moves).
-    req.check().map_err(kin_err)?;
+    req.check()?;
     let db = a.db.as_deref().map(super::audit::parse_db).transpose()?;
     let error_model = a.machine_model.read()?;
     let (mut machine, truth): (Box<dyn ProbingMachine>, _) = if a.controller == "virtual" {
@@ -176,15 +168,13 @@ fn calibrate(a: CalibrateArgs) -> Result<Outcome> {
             0.5 * a.diameter_mm,
             0.5 * a.tip_diameter_mm,
         )
-        .map_err(|e| UsageError(format!("virtual machine: {e}")))?;
+        .usage_in("virtual machine")?;
         (Box::new(m), Some(t))
     } else if a.controller.starts_with(truepos_linuxcnc::url::SCHEME) {
-        let address =
-            truepos_linuxcnc::Address::parse(&a.controller).map_err(|e| UsageError(e.to_string()))?;
+        let address = truepos_linuxcnc::Address::parse(&a.controller)?;
         let options = truepos_linuxcnc::Options { joints: 5, ..truepos_linuxcnc::Options::default() };
-        let mut m = truepos_linuxcnc::LinuxCnc::open_address(&address, options)
-            .map_err(|e| DeviceError(e.to_string()))?;
-        m.attach_kinematics().map_err(|e| DeviceError(e.to_string()))?;
+        let mut m = truepos_linuxcnc::LinuxCnc::open_address(&address, options)?;
+        m.attach_kinematics()?;
         (Box::new(m), None)
     } else {
         return Err(UsageError(format!(
@@ -194,8 +184,7 @@ fn calibrate(a: CalibrateArgs) -> Result<Outcome> {
         .into());
     };
     // Progress on stderr (stdout carries only the result).
-    let mut report =
-        truepos_kinematics::calibrate(machine.as_mut(), &req, |s| eprintln!("{s}")).map_err(kin_err)?;
+    let mut report = truepos_kinematics::calibrate(machine.as_mut(), &req, |s| eprintln!("{s}"))?;
     match &error_model {
         Some(m) => {
             // Task-specific: the same calibration simulated on machines drawn from the model.

@@ -10,12 +10,13 @@
 //! writes JSON, CSV and the report.
 
 use crate::output::emit;
-use crate::{Outcome, UsageError};
+use crate::{Classed, Outcome, UsageError};
 use anyhow::Result;
 use std::path::PathBuf;
 use truepos_cell::scenarios::latency::{self as latency_scenario, SimRequest};
 use truepos_latency::task;
 use truepos_latency::{KnownSize, Method, Options};
+use truepos_math::exit::ExitClass;
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MethodArg {
@@ -229,8 +230,8 @@ fn probe_feeds(a: ProbeArgs) -> Result<Outcome> {
     use truepos_head::acquire::AcquireError;
     let mut r = match truepos_latency::probing::delay_by_feeds(opened.machine.as_mut(), &plan, &feeds) {
         Ok(r) => r,
-        Err(AcquireError::Plan(m)) => return Err(UsageError(m).into()),
-        Err(e) => return Err(crate::DeviceError(e.to_string()).into()),
+        Err(e @ AcquireError::Plan(_)) => return Err(e.into()),
+        Err(e) => return Err(Classed::new(ExitClass::Device, None, e).into()),
     };
     if opened.virtual_truth.is_some() {
         // The virtual machine tool latches at the first servo sample after the trigger, at a
@@ -279,7 +280,7 @@ pub fn simulate(a: SimArgs) -> Result<Outcome> {
         machine_rate_hz: a.machine_rate_hz,
         probe_rate_hz: a.probe_rate_hz,
     };
-    let d = latency_scenario::simulate(&request).map_err(|e| UsageError(e.to_string()))?;
+    let d = latency_scenario::simulate(&request)?;
     latency_scenario::write_dataset(&a.common.out, &d)?;
     eprint!("{}", latency_scenario::written_text(&a.common.out, &d));
     Ok(Outcome::Done)

@@ -5,12 +5,13 @@
 //! controller ([`open_probing_machine`]) and prints the result.
 
 use crate::output::{parse_triple, print_json, v3};
-use crate::{DeviceError, Outcome, UsageError};
+use crate::{ClassExt, Classed, Outcome, UsageError};
 use anyhow::Result;
 use serde_json::json;
 use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
 use truepos_device::ProbingMachine;
 use truepos_head::acquire::{probe_sphere, AcquireError, SphereProbing};
+use truepos_math::exit::ExitClass;
 use truepos_math::Point3;
 
 #[derive(clap::Args, Debug)]
@@ -153,18 +154,17 @@ pub fn open_probing_machine(url: &str, nominal: Option<(Point3, f64, f64)>, seed
             }
             None => (MachineToolConfig { seed, ..MachineToolConfig::default() }, None),
         };
-        let m = VirtualMachineTool::new(cfg).map_err(|e| UsageError(format!("virtual machine: {e}")))?;
+        let m = VirtualMachineTool::new(cfg).usage_in("virtual machine")?;
         return Ok(Opened { machine: Box::new(m), virtual_truth: truth });
     }
     if url.starts_with(truepos_linuxcnc::url::SCHEME) {
-        let address = truepos_linuxcnc::Address::parse(url).map_err(|e| UsageError(e.to_string()))?;
-        let m = truepos_linuxcnc::LinuxCnc::open_address(&address, truepos_linuxcnc::Options::default())
-            .map_err(|e| DeviceError(e.to_string()))?;
+        let address = truepos_linuxcnc::Address::parse(url)?;
+        let m = truepos_linuxcnc::LinuxCnc::open_address(&address, truepos_linuxcnc::Options::default())?;
         return Ok(Opened { machine: Box::new(m), virtual_truth: None });
     }
     if url.starts_with("ippdme://") {
         // A CMM through its I++ DME server (`truepos ippdme serve` or a real controller).
-        let m = truepos_ippdme::client::connect(url).map_err(|e| DeviceError(e.to_string()))?;
+        let m = truepos_ippdme::client::connect(url)?;
         return Ok(Opened { machine: Box::new(m), virtual_truth: None });
     }
     Err(UsageError(format!(
@@ -182,17 +182,15 @@ pub fn run(a: Args) -> Result<Outcome> {
 fn sphere(a: SphereArgs) -> Result<Outcome> {
     let plan = a.sphere.plan(a.points, a.feed_mm_min);
     // Check the plan and the machine model before touching a machine.
-    if let Err(e) = plan.check() {
-        return Err(UsageError(e.to_string()).into());
-    }
+    plan.check()?;
     let model = a.model.read()?;
     let mut opened = a.sphere.open()?;
     let info = opened.machine.info();
     let t0 = std::time::Instant::now();
     let s = match probe_sphere(opened.machine.as_mut(), &plan) {
         Ok(s) => s,
-        Err(AcquireError::Plan(m)) => return Err(UsageError(m).into()),
-        Err(e) => return Err(DeviceError(e.to_string()).into()),
+        Err(e @ AcquireError::Plan(_)) => return Err(e.into()),
+        Err(e) => return Err(Classed::new(ExitClass::Device, None, e).into()),
     };
     let elapsed = t0.elapsed().as_secs_f64();
     let fit_u = (s.center_uncertainty_mm, s.radius_uncertainty_mm);

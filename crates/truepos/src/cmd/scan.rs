@@ -7,13 +7,14 @@
 //! machine TOML, and the scenario's `truth.json` (the true, displaced part) for `--part`.
 
 use crate::output::{parse_pair, print_json};
-use crate::{DeviceError, Outcome, UsageError};
+use crate::{Classed, Outcome, UsageError};
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 use truepos_cell::scanning_cmm::{read_machine_file, run_scan, CmmConfig};
 use truepos_io::InputError;
+use truepos_math::exit::ExitClass;
 use truepos_scan::execute::ControlParams;
-use truepos_scan::file::{read_features, FeaturesError, ParamOverrides};
+use truepos_scan::file::{read_features, ParamOverrides};
 use truepos_scan::{plan, Feature, Params, ScanError, Style};
 
 #[derive(clap::Args, Debug)]
@@ -150,10 +151,7 @@ fn load(c: &Common) -> Result<(Vec<Feature>, Params)> {
         jerk_mm_s3: c.jerk_mm_s3,
         touch_speed_mm_s: c.touch_speed_mm_s,
     };
-    read_features(&c.features, &overrides).map_err(|e| match e {
-        FeaturesError::Input(e) => anyhow::Error::new(e),
-        FeaturesError::Usage(e) => UsageError(e.to_string()).into(),
-    })
+    Ok(read_features(&c.features, &overrides)?)
 }
 
 // ------------------------------------------------------------------------------------------
@@ -215,10 +213,10 @@ fn run_run(a: RunArgs) -> Result<Outcome> {
     let pl = plan(&features, &params, style);
     let r = run_scan(&pl, &truth, &machine, &control, a.seed).map_err(|e| match e {
         // the surface was not found: a measurement failure
-        ScanError::NoContact { .. } => anyhow::Error::new(DeviceError(e.to_string())),
+        ScanError::NoContact { .. } => anyhow::Error::new(e),
         // a program the virtual CMM refuses (too long, bad machine): the user's input
         ScanError::Invalid(m) => anyhow::Error::new(InputError::in_file(&a.common.features, m)),
-        other => anyhow::Error::new(DeviceError(format!("execution failed: {other}"))),
+        other => Classed::new(ExitClass::Device, Some("execution failed".into()), other).into(),
     })?;
     truepos_scan::file::write_points(&a.output, &r, &features, &params, style.name())
         .with_context(|| format!("cannot write {}", a.output.display()))?;

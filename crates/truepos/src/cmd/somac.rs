@@ -165,7 +165,7 @@ pub fn air(a: AirArgs) -> Result<Outcome> {
         FormulaArg::Ciddor => Formula::Ciddor,
         FormulaArg::Edlen => Formula::Edlen,
     };
-    let n = air::refractive_index(&c, f).map_err(|e| UsageError(e.to_string()))?;
+    let n = air::refractive_index(&c, f)?;
     let name = match f {
         Formula::Ciddor => "ciddor",
         Formula::Edlen => "edlen",

@@ -5,14 +5,12 @@
 //! (`--program`) or from a hole list (`--holes`); the procedure is
 //! `truepos_somac::inspect::inspect`, through the same `--controller` URLs as `probe sphere`.
 
-use crate::{DeviceError, Outcome, UsageError};
+use crate::{ClassExt, Outcome, UsageError};
 use anyhow::Result;
 use std::path::PathBuf;
 use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
 use truepos_math::Point3;
-use truepos_somac::inspect::{
-    inspect, read_hole_list, read_program_holes, Hole, InspectError, InspectPlan, InspectReport,
-};
+use truepos_somac::inspect::{inspect, read_hole_list, read_program_holes, Hole, InspectPlan, InspectReport};
 
 #[derive(clap::Args, Debug)]
 #[command(
@@ -99,9 +97,7 @@ pub fn run(a: InspectArgs) -> Result<Outcome> {
         }
     }
     // Check everything before touching a machine.
-    if let Err(e) = plan.check(&holes) {
-        return Err(UsageError(e.to_string()).into());
-    }
+    plan.check(&holes)?;
     let model = a.model.read()?;
     let db = super::audit::parse_db(&a.db)?;
     let source = a.program.as_ref().or(a.holes.as_ref()).map(|p| p.display().to_string()).unwrap_or_default();
@@ -133,17 +129,13 @@ fn inspect_and_record(
     let mut machine: Box<dyn truepos_device::ProbingMachine> = if a.controller == "virtual" {
         let nominal: Vec<(Point3, f64)> = holes.iter().map(|h| (h.nominal_mm, h.diameter_mm)).collect();
         let (cfg, t) = MachineToolConfig::with_holes(a.seed, &nominal, plan.tip_radius_mm)
-            .map_err(|e| UsageError(format!("virtual machine: {e}")))?;
+            .map_err(|e| UsageError(format!("virtual machine: {e}")))?; // a String, not an error
         truth = Some(t);
-        Box::new(VirtualMachineTool::new(cfg).map_err(|e| UsageError(format!("virtual machine: {e}")))?)
+        Box::new(VirtualMachineTool::new(cfg).usage_in("virtual machine")?)
     } else {
         super::probe::open_probing_machine(&a.controller, None, a.seed)?.machine
     };
-    let mut r = match inspect(machine.as_mut(), holes, plan) {
-        Ok(r) => r,
-        Err(InspectError::Plan(m)) => return Err(UsageError(m).into()),
-        Err(e) => return Err(DeviceError(e.to_string()).into()),
-    };
+    let mut r = inspect(machine.as_mut(), holes, plan)?;
     let uncertainty = match model {
         Some(m) => {
             let u = truepos_cell::vcmm::inspection_uncertainty(m, plan, &r, a.model.monte_carlo())?;

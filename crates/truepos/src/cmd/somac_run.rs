@@ -6,7 +6,7 @@
 //! in behind the same traits (`truepos_somac::device`).
 
 use crate::output::print_json;
-use crate::{Outcome, UsageError};
+use crate::{ClassExt, Outcome, UsageError};
 use anyhow::Result;
 use serde_json::json;
 use std::path::PathBuf;
@@ -118,7 +118,6 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
         Ok(truepos_somac::run::RunError::Program { line, message }) => {
             InputError::at(&a.program, line, None, message).into()
         }
-        Ok(truepos_somac::run::RunError::Params(m)) => UsageError(m).into(),
         Ok(other) => anyhow::Error::from(other),
         Err(e) => e,
     })?;
@@ -172,10 +171,8 @@ fn run_on_controller(
     use truepos_device::ProbingMachine;
     use truepos_somac::run::RunError;
     // Hook: further controllers (e.g. other NCs) are opened here.
-    let address = truepos_linuxcnc::Address::parse(&a.controller)
-        .map_err(|e| UsageError(format!("--controller: {e} (or `virtual`)")))?;
-    let ctl = truepos_linuxcnc::LinuxCnc::open_address(&address, truepos_linuxcnc::Options::default())
-        .map_err(|e| crate::DeviceError(e.to_string()))?;
+    let address = truepos_linuxcnc::Address::parse(&a.controller).usage_in("--controller (or `virtual`)")?;
+    let ctl = truepos_linuxcnc::LinuxCnc::open_address(&address, truepos_linuxcnc::Options::default())?;
     let info = ctl.info();
     audit.set_controller(&info.address, &info.version)?;
     match truepos_cell::observed::run_observed(text, cfg, targets, params, ctl, audit) {
@@ -196,13 +193,16 @@ fn run_on_controller(
         }
         Err(ab) => Err(match ab.error {
             RunError::Program { line, message } => InputError::at(&a.program, line, None, message).into(),
-            RunError::Params(m) => UsageError(m).into(),
-            other => crate::DeviceError(format!(
-                "{other}; the run was aborted at line {} (no further motion){}; audit trail {}",
-                ab.line,
-                ab.stop_line.map(|l| format!(", stop at line {l} marked FAILURE")).unwrap_or_default(),
-                a.db
-            ))
+            other => crate::Classed::new(
+                truepos_math::exit::ExitClass::Device,
+                Some(format!(
+                    "the run was aborted at line {} (no further motion){}; audit trail {}",
+                    ab.line,
+                    ab.stop_line.map(|l| format!(", stop at line {l} marked FAILURE")).unwrap_or_default(),
+                    a.db
+                )),
+                other,
+            )
             .into(),
         }),
     }

@@ -1,7 +1,8 @@
-//! Timed (ignored) tests behind docs/performance-fe.md: the full influence map of a 2 m × 1.5 m
-//! bed (21 × 16 = 336 unit loads every 100 mm) and the mesh-size convergence study.
+//! The figures behind docs/performance-fe.md: the timing of the full influence map of a
+//! 2 m × 1.5 m bed (21 × 16 = 336 unit loads every 100 mm) and the mesh-size convergence study.
+//! It prints; the checks of the plate model are in `tests/`.
 //!
-//! Run: `cargo test -p truepos-fe --release --test influence_timing -- --ignored --nocapture`
+//! Run: `cargo run -p truepos-fe --release --example influence_figures`
 
 use std::time::Instant;
 
@@ -42,8 +43,6 @@ fn rail_readout(d: &truepos_fe::Deflection) -> Vec<f64> {
     v
 }
 
-#[test]
-#[ignore]
 fn influence_map_timing() {
     let cases = unit_cases();
     assert_eq!(cases.len(), 336);
@@ -69,8 +68,6 @@ fn influence_map_timing() {
 /// Convergence of the influence-map quantities (rail deflections and the rail slope over a
 /// 100 mm base, what the portal's pitch/roll are made of) with the element size; reference:
 /// Richardson extrapolation (order 2) of the two finest meshes.
-#[test]
-#[ignore]
 fn mesh_convergence_study() {
     let loads =
         [(500.0, 400.0), (1000.0, 800.0), (1700.0, 1200.0), (100.0, 700.0), (0.0, 700.0), (1000.0, 1500.0)];
@@ -111,4 +108,9 @@ fn mesh_convergence_study() {
             100.0 * es / max_sref
         );
     }
+}
+
+fn main() {
+    influence_map_timing();
+    mesh_convergence_study();
 }
