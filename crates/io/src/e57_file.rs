@@ -76,6 +76,7 @@ impl E57Source {
     pub fn open(path: &Path) -> Result<Self, InputError> {
         let file =
             std::fs::File::open(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+        crate::atomic::note_input(path);
         let meta = file.metadata().map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
         if meta.is_dir() {
             return Err(InputError::in_file(path, "is a directory, not a file"));

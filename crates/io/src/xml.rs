@@ -129,6 +129,7 @@ pub fn check_depth(text: &str) -> Result<(), TooDeep> {
 pub fn read_xml(path: &Path, what: &str) -> Result<String, InputError> {
     let cannot = |e: std::io::Error| InputError::in_file(path, format!("cannot read the {what}: {e}"));
     let file = std::fs::File::open(path).map_err(cannot)?;
+    crate::atomic::note_input(path);
     let meta = file.metadata().map_err(cannot)?;
     if meta.is_dir() {
         return Err(InputError::in_file(path, "is a directory, not a file"));

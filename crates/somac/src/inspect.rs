@@ -159,8 +159,7 @@ pub fn holes_from_program(program: &Program, keyword: &str, diameter_mm: f64) ->
 /// The holes of a G-code program file ([`holes_from_program`]); a program that does not parse,
 /// or has no hole, is an input error naming the file (and line and column).
 pub fn read_program_holes(path: &Path, keyword: &str, diameter_mm: f64) -> Result<Vec<Hole>, InputError> {
-    let text =
-        std::fs::read_to_string(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+    let text = truepos_io::limits::read_string(path, "G-code")?;
     let program = Program::parse(&text);
     program.check().map_err(|e| InputError::at(path, e.line(), Some(e.column()), e.detail()))?;
     let holes = holes_from_program(&program, keyword, diameter_mm);

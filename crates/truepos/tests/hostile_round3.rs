@@ -81,3 +81,42 @@ fn probing_feeds_and_counts_have_physical_limits() {
         .unwrap();
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
 }
+
+/// Outputs replace only regular files that are not the command's own inputs: the input named
+/// as the output, a symlink, a FIFO, a character device are refused (exit 2), left as they were.
+#[cfg(unix)]
+#[test]
+fn outputs_never_destroy_what_they_replace() {
+    let d = tempfile::tempdir().unwrap();
+    let pts = write(d.path(), "c.csv", CIRCLE);
+    // The input as its own output, named another way.
+    let same = d.path().join(".").join("c.csv");
+    let out = bin().args(["fit", "circle"]).arg(&pts).arg("--qif").arg(&same).output().unwrap();
+    expect_input_error(&out, &["same file as the input", "c.csv"]);
+    assert_eq!(std::fs::read_to_string(&pts).unwrap(), CIRCLE);
+    let target = write(d.path(), "t.qif", "keep");
+    let link = d.path().join("l.qif");
+    std::os::unix::fs::symlink(&target, &link).unwrap();
+    let out = bin().args(["fit", "circle"]).arg(&pts).arg("--qif").arg(&link).output().unwrap();
+    expect_input_error(&out, &["l.qif", "symbolic link"]);
+    assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+    let fifo = d.path().join("f.qif");
+    assert!(std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success()));
+    let out = bin().args(["fit", "circle"]).arg(&pts).arg("--qif").arg(&fifo).output().unwrap();
+    expect_input_error(&out, &["f.qif", "FIFO"]);
+    let out = bin().args(["fit", "circle"]).arg(&pts).args(["--qif", "/dev/null"]).output().unwrap();
+    expect_input_error(&out, &["/dev/null", "character device"]);
+    // ippdme serve --log onto its own part file, or onto a full device: refused before serving.
+    let part = write(d.path(), "part.toml", "# part\n");
+    let out = bin()
+        .args(["ippdme", "serve", "--port", "0", "--part"])
+        .arg(&part)
+        .arg("--log")
+        .arg(d.path().join(".").join("part.toml"))
+        .output()
+        .unwrap();
+    expect_input_error(&out, &["--log", "same file as the input", "part.toml"]);
+    assert_eq!(std::fs::read_to_string(&part).unwrap(), "# part\n");
+    let out = bin().args(["ippdme", "serve", "--port", "0", "--log", "/dev/full"]).output().unwrap();
+    expect_input_error(&out, &["--log", "/dev/full", "character device"]);
+}
