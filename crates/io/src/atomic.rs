@@ -200,7 +200,10 @@ pub fn note_input(path: &Path) {
 #[cfg(unix)]
 fn input_named(meta: &std::fs::Metadata) -> Option<PathBuf> {
     use std::os::unix::fs::MetadataExt;
-    let l = INPUTS.lock().unwrap_or_else(|p| p.into_inner());
+    let mut l = INPUTS.lock().unwrap_or_else(|p| p.into_inner());
+    // An input removed since (its inode may now be another file's) is forgotten: the entry
+    // counts only while its path still names that device and inode.
+    l.retain(|(d, i, p)| std::fs::metadata(p).is_ok_and(|m| m.dev() == *d && m.ino() == *i));
     l.iter().find(|(d, i, _)| *d == meta.dev() && *i == meta.ino()).map(|(_, _, p)| p.clone())
 }
 
