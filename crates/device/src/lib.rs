@@ -76,6 +76,16 @@ pub struct DeviceInfo {
     pub version: String,
 }
 
+/// Fastest single-point probing feed truepos commands, mm/min (83 mm/s).
+///
+/// Why: a touch-trigger probe stops the machine after the trigger within its overtravel (a few
+/// millimetres of stylus deflection); the distance a machine needs to stop grows with the square
+/// of the feed, and probe makers give probing feeds of a few hundred to 3000 mm/min. Above
+/// 5000 mm/min the machine overruns the overtravel (breaking the stylus) or the controller
+/// reports the end of the move as a touch: the result measures nothing. Requests above this are
+/// refused before any motion (exit 2).
+pub const MAX_PROBING_FEED_MM_MIN: f64 = 5000.0;
+
 /// One single-point probing: touch the surface near `nominal_mm` coming from outside the
 /// material along `-approach`.
 ///

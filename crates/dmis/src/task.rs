@@ -8,8 +8,11 @@ use std::path::{Path, PathBuf};
 /// Read, parse and check the program at `path` (every problem located, exit 2).
 pub fn load(path: &Path) -> Result<Plan, DmisError> {
     let name = path.display().to_string();
-    let bytes = std::fs::read(path)
-        .map_err(|e| DmisError::new(&name, Pos::new(1, 1), ErrorKind::Syntax, format!("cannot read: {e}")))?;
+    // Bounded like every text input (size, line length, binary data; truepos_io::limits).
+    let bytes = truepos_io::limits::read_text(path, "DMIS").map_err(|e| {
+        let pos = Pos::new(e.line.unwrap_or(1) as u32, e.column.unwrap_or(1) as u32);
+        DmisError::new(&name, pos, ErrorKind::Syntax, e.message)
+    })?;
     let text = match String::from_utf8(bytes) {
         Ok(t) => t,
         Err(e) => {

@@ -33,7 +33,7 @@ pub mod minzone;
 pub mod moments;
 pub mod verdict;
 
-pub use axial::{cone, cylinder, ConeFit, CylinderFit};
+pub use axial::{cone, cylinder, ConeFit, CylinderFit, MIN_CONE_POINTS, MIN_CYLINDER_POINTS};
 
 use engine::{covariance, minimise, Model, BLOCK};
 use moments::Moments;
@@ -44,8 +44,12 @@ use truepos_math::{Matrix3, Point3, Vector3};
 /// Why a fit cannot be computed from the given points.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum FitError {
-    #[error("a {kind} fit needs at least {needed} points, {got} given")]
+    #[error("a {kind} fit needs at least {needed} points, {got} given ({why})", why = min_points_reason(kind))]
     TooFewPoints { kind: &'static str, needed: usize, got: usize },
+    /// Several elements fit the points equally well (distinct local minima of the least
+    /// squares): the answer is not determined.
+    #[error("the {kind} is not determined: {detail}")]
+    NotUnique { kind: &'static str, detail: String },
     #[error("point {index} (0-based) has a coordinate that is not a finite number")]
     NonFinite { index: usize },
     #[error("all points coincide: no element is determined")]
@@ -64,6 +68,20 @@ pub enum FitError {
     Undetermined { kind: &'static str },
     #[error("no bounded maximum inscribed {kind}: the points do not surround it (an open arc or cap)")]
     InscribedUnbounded { kind: &'static str },
+}
+
+/// Why a fit of `kind` needs its minimum number of points (the message of
+/// [`FitError::TooFewPoints`]).
+pub fn min_points_reason(kind: &str) -> &'static str {
+    match kind {
+        "line" => "two distinct points determine a line",
+        "plane" => "three points not on a line determine a plane",
+        "circle" => "three points not on a line determine a circle",
+        "sphere" => "four points not in a plane determine a sphere",
+        "cylinder" => "a cylinder has 5 parameters and up to six cylinders pass through 5 points: a sixth decides between them",
+        "cone" => "a cone has 6 parameters and several cones pass through 6 points: a seventh decides between them",
+        _ => "fewer points do not determine it",
+    }
 }
 
 /// Iteration cap for Levenberg-Marquardt (convergence takes 3–15 iterations on real data).

@@ -124,6 +124,14 @@ pub fn hemisphere_directions(n: usize, max_polar: f64) -> Vec<Vector3> {
         .collect()
 }
 
+/// The refusal of a probing feed above [`truepos_device::MAX_PROBING_FEED_MM_MIN`], with why.
+pub fn feed_too_fast(feed_mm_min: f64) -> String {
+    format!(
+        "the probing feed {feed_mm_min} mm/min is above {} mm/min: a touch probe cannot stop within its overtravel at that speed, so the points would measure nothing",
+        truepos_device::MAX_PROBING_FEED_MM_MIN
+    )
+}
+
 impl SphereProbing {
     /// Check the request (before any machine moves).
     pub fn check(&self) -> Result<(), AcquireError> {
@@ -139,6 +147,9 @@ impl SphereProbing {
         }
         if !(self.feed_mm_s.is_finite() && self.feed_mm_s > 0.0) {
             return bad("the probing feed must be a positive number");
+        }
+        if self.feed_mm_s * 60.0 > truepos_device::MAX_PROBING_FEED_MM_MIN {
+            return Err(AcquireError::Plan(feed_too_fast(self.feed_mm_s * 60.0)));
         }
         if !(self.clearance_mm.is_finite() && self.clearance_mm > 0.0) {
             return bad("the clearance must be a positive number (mm)");
@@ -364,6 +375,10 @@ mod tests {
         assert!(SphereProbing { diameter_mm: -1.0, ..ok }.check().is_err());
         assert!(SphereProbing { clearance_mm: 0.0, ..ok }.check().is_err());
         assert!(SphereProbing { feed_mm_s: f64::NAN, ..ok }.check().is_err());
+        // The physical feed limit: 5000 mm/min accepted, above refused with the reason.
+        assert!(SphereProbing { feed_mm_s: 5000.0 / 60.0, ..ok }.check().is_ok());
+        let e = SphereProbing { feed_mm_s: 1e9 / 60.0, ..ok }.check().unwrap_err().to_string();
+        assert!(e.contains("5000 mm/min") && e.contains("overtravel"), "{e}");
         // Every start point is clearance + tip outside the nominal surface.
         for r in ok.requests() {
             let d = (r.start_mm() - ok.near_mm).norm();

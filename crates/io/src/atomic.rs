@@ -14,6 +14,14 @@
 //! [`AtomicFile::create`] checks the output path first: a missing directory, a path that is a
 //! directory, or a directory that cannot be written is an [`OutputError::Path`] naming the path
 //! (bad usage, exit 2), not an I/O failure.
+//!
+//! What an output may replace (one policy for every command, [`check_output_path`], checked at
+//! [`AtomicFile::create`] and again just before the rename of [`AtomicFile::commit`]): only a
+//! regular file. A symbolic link, a character or block device, a FIFO or a socket at the
+//! output path is refused (the rename would replace the link or the device node by a regular
+//! file), and so is a file that is one of the command's own inputs: every reader of
+//! `truepos-io` records what it opens ([`note_input`]: device and inode, so another name for
+//! the same file — a hard link, `./x`, a path through a symlinked directory — is recognised).
 
 use crate::InputError;
 use std::fs::File;
@@ -165,13 +173,103 @@ fn install_signal_cleanup() {
     });
 }
 
+/// (device, inode, path as given) of every regular file this process opened as an input.
+static INPUTS: Mutex<Vec<(u64, u64, PathBuf)>> = Mutex::new(Vec::new());
+
+/// Record `path` as an input of this process (the readers of `truepos-io` call this when they
+/// open a file): an output onto the same file (by device and inode) is then refused. Only
+/// regular files are recorded.
+pub fn note_input(path: &Path) {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if let Ok(m) = std::fs::metadata(path) {
+            if m.is_file() {
+                let mut l = INPUTS.lock().unwrap_or_else(|p| p.into_inner());
+                if !l.iter().any(|(d, i, _)| *d == m.dev() && *i == m.ino()) {
+                    l.push((m.dev(), m.ino(), path.to_path_buf()));
+                }
+            }
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = path;
+}
+
+/// The input (as it was named) that is the same file as `meta`, if any.
+#[cfg(unix)]
+fn input_named(meta: &std::fs::Metadata) -> Option<PathBuf> {
+    use std::os::unix::fs::MetadataExt;
+    let mut l = INPUTS.lock().unwrap_or_else(|p| p.into_inner());
+    // An input removed since (its inode may now be another file's) is forgotten: the entry
+    // counts only while its path still names that device and inode.
+    l.retain(|(d, i, p)| std::fs::metadata(p).is_ok_and(|m| m.dev() == *d && m.ino() == *i));
+    l.iter().find(|(d, i, _)| *d == meta.dev() && *i == meta.ino()).map(|(_, _, p)| p.clone())
+}
+
+#[cfg(not(unix))]
+fn input_named(_meta: &std::fs::Metadata) -> Option<PathBuf> {
+    None
+}
+
+/// What a non-regular file is, for messages.
+fn kind_of(ft: &std::fs::FileType) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if ft.is_char_device() {
+            return "a character device";
+        }
+        if ft.is_block_device() {
+            return "a block device";
+        }
+        if ft.is_fifo() {
+            return "a FIFO (named pipe)";
+        }
+        if ft.is_socket() {
+            return "a socket";
+        }
+    }
+    if ft.is_symlink() {
+        return "a symbolic link";
+    }
+    "not a regular file"
+}
+
+/// Refuse replacing what is at `path` unless it is a regular file that is not an input.
+fn check_replaceable(path: &Path) -> Result<(), OutputError> {
+    let Ok(m) = std::fs::symlink_metadata(path) else { return Ok(()) };
+    let ft = m.file_type();
+    if ft.is_symlink() {
+        let to = std::fs::read_link(path).map(|t| format!(" to {}", t.display())).unwrap_or_default();
+        return Err(path_error(
+            path,
+            format!("it is a symbolic link{to}; truepos replaces only regular files (give the link's target as the output)"),
+        ));
+    }
+    if !m.is_file() && !m.is_dir() {
+        return Err(path_error(path, format!("it is {}; truepos replaces only regular files", kind_of(&ft))));
+    }
+    if let Some(input) = input_named(&m) {
+        return Err(path_error(
+            path,
+            format!(
+                "it is the same file as the input {}: writing it would destroy the input",
+                input.display()
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// A path error naming `path`.
 fn path_error(path: &Path, message: impl std::fmt::Display) -> OutputError {
     OutputError::Path(InputError::in_file(path, format!("cannot be written as an output: {message}")))
 }
 
-/// Check that `path` can become an output file: its directory exists and is a directory, and the
-/// path is not itself a directory.
+/// Check that `path` can become an output file: its directory exists and is a directory, the
+/// path is not itself a directory, and what is there now, if anything, is a regular file that
+/// is not one of the inputs read so far (see the module's policy).
 pub fn check_output_path(path: &Path) -> Result<(), OutputError> {
     if path.as_os_str().is_empty() {
         return Err(OutputError::Path(InputError::new("the output path is empty")));
@@ -179,6 +277,7 @@ pub fn check_output_path(path: &Path) -> Result<(), OutputError> {
     if path.is_dir() {
         return Err(path_error(path, "it is a directory"));
     }
+    check_replaceable(path)?;
     if path.file_name().is_none() {
         return Err(path_error(path, "it has no file name"));
     }
@@ -303,6 +402,12 @@ impl AtomicFile {
                 unregister(&self.temp);
                 return Err(io_err(e));
             }
+        }
+        // Inputs opened since the output was created (a streamed input) are checked again.
+        if let Err(e) = check_replaceable(&self.target) {
+            let _ = std::fs::remove_file(&self.temp);
+            unregister(&self.temp);
+            return Err(e);
         }
         // The rename happens with the registry held, so a signal's cleanup runs either before
         // it (the temporary is removed, no output) or after it (a complete output).
@@ -444,5 +549,53 @@ mod tests {
         let e = AtomicFile::create(file.join("out.csv")).err().unwrap();
         assert!(e.is_path() && e.to_string().contains("not a directory"), "{e}");
         assert!(write_atomic("", b"x").unwrap_err().is_path());
+    }
+
+    /// Only a regular file is replaced: a symlink, a FIFO, a character device are refused
+    /// (named), and so is a file that is an input of this process under another name.
+    #[cfg(unix)]
+    #[test]
+    fn only_regular_files_that_are_not_inputs_are_replaced() {
+        let d = tempfile::tempdir().unwrap();
+        let target = d.path().join("target.csv");
+        std::fs::write(&target, b"keep").unwrap();
+        let link = d.path().join("link.csv");
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        let e = write_atomic(&link, b"new").unwrap_err();
+        assert!(e.is_path() && e.to_string().contains("symbolic link"), "{e}");
+        assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+        let fifo = d.path().join("fifo");
+        let c = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+        // SAFETY: a plain system call with a valid NUL-terminated path.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        let e = write_atomic(&fifo, b"new").unwrap_err();
+        assert!(e.is_path() && e.to_string().contains("FIFO"), "{e}");
+        if Path::new("/dev/null").exists() {
+            let e = check_output_path(Path::new("/dev/null")).unwrap_err();
+            assert!(e.to_string().contains("character device"), "{e}");
+        }
+        // An input, named another way (a hard link): refused at create, and at commit when the
+        // input was opened after the output was created (a streamed input).
+        let input = d.path().join("in.csv");
+        std::fs::write(&input, b"x_mm\n1\n").unwrap();
+        let hard = d.path().join("hard.csv");
+        std::fs::hard_link(&input, &hard).unwrap();
+        let mut late = AtomicFile::create(&hard).unwrap();
+        late.write_all(b"late").unwrap();
+        note_input(&d.path().join(".").join("in.csv"));
+        let e = write_atomic(&hard, b"new").unwrap_err();
+        assert!(e.is_path() && e.to_string().contains("same file as the input"), "{e}");
+        let e = late.commit().unwrap_err();
+        assert!(e.is_path() && e.to_string().contains("same file as the input"), "{e}");
+        assert_eq!(std::fs::read(&input).unwrap(), b"x_mm\n1\n");
+        let leftovers: Vec<_> = std::fs::read_dir(d.path())
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+            .collect();
+        assert!(leftovers.is_empty());
+        // A regular file that is not an input is replaced.
+        write_atomic(&target, b"new").unwrap();
+        assert_eq!(std::fs::read(&target).unwrap(), b"new");
     }
 }

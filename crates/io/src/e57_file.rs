@@ -76,6 +76,7 @@ impl E57Source {
     pub fn open(path: &Path) -> Result<Self, InputError> {
         let file =
             std::fs::File::open(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+        crate::atomic::note_input(path);
         let meta = file.metadata().map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
         if meta.is_dir() {
             return Err(InputError::in_file(path, "is a directory, not a file"));
@@ -298,6 +299,9 @@ mod hostile {
     /// A file of `points` with `edit` applied to its XML section (the last thing in the file).
     fn edited(path: &Path, points: usize, edit: impl Fn(&str) -> String) {
         let pts: Vec<Point3> = (0..points).map(|i| Point3::new(i as f64, 1.0, 2.0)).collect();
+        // The previous file was read by this process: an output onto an input is refused, so
+        // it goes first.
+        let _ = std::fs::remove_file(path);
         write_e57(path, &pts).unwrap();
         let phys = std::fs::read(path).unwrap();
         let u64_at = |o: usize| u64::from_le_bytes(phys[o..o + 8].try_into().unwrap());

@@ -27,6 +27,7 @@
 //!   points skipped and counted.
 //! - [`report::Report`]: a command's result as the contract's JSON and as human text (what
 //!   the binary prints).
+//! - [`xml::read_xml`]: XML inputs (QIF plans) with the same bounds plus nesting depth.
 //! - [`limits`]: bounds on every input (file size, line length, binary data); [`limits::open_text`]
 //!   for readers that stream text themselves.
 
@@ -46,5 +47,6 @@ pub mod points;
 pub mod report;
 mod rewrite_binary;
 pub mod stream;
+pub mod xml;
 
 pub use error::InputError;

@@ -177,6 +177,7 @@ impl LineGuard {
 pub fn read_text(path: &Path, what: &str) -> Result<Vec<u8>, InputError> {
     let cannot = |e: std::io::Error| InputError::in_file(path, format!("cannot read: {e}"));
     let mut file = std::fs::File::open(path).map_err(cannot)?;
+    crate::atomic::note_input(path);
     let meta = file.metadata().map_err(cannot)?;
     if meta.is_dir() {
         return Err(InputError::in_file(path, "is a directory, not a file"));
@@ -242,6 +243,7 @@ impl Read for BoundedReader {
 pub fn open_text(path: &Path, what: &str) -> Result<std::io::BufReader<BoundedReader>, InputError> {
     let cannot = |e: std::io::Error| InputError::in_file(path, format!("cannot read: {e}"));
     let file = std::fs::File::open(path).map_err(cannot)?;
+    crate::atomic::note_input(path);
     let meta = file.metadata().map_err(cannot)?;
     if meta.is_dir() {
         return Err(InputError::in_file(path, "is a directory, not a file"));

@@ -328,6 +328,80 @@ pub struct ParquetReader {
     /// Bytes counted against `limit` (8 a value, plus the text).
     decoded: u64,
     limit: u64,
+    /// What each column's stored numbers mean (its logical type).
+    meaning: Vec<Meaning>,
+}
+
+/// What the stored values of a numeric column mean, from its logical (or converted) type.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Meaning {
+    /// The number as stored (signed integers, floats; text).
+    Plain,
+    /// An unsigned integer stored in a signed physical type (`UINT_32` in an `INT32` is
+    /// 4 294 967 295, not −1).
+    Unsigned,
+    /// A decimal: the stored integer times 10^−scale.
+    Decimal(i32),
+}
+
+/// The meaning of column `c` (physical type `t`), or why it is refused: logical types that are
+/// not plain numbers or text (timestamps, dates, times, intervals, UUIDs, binary documents,
+/// decimals in byte arrays) are refused naming the column, never read as numbers.
+fn meaning_of(c: &::parquet::schema::types::ColumnDescriptor) -> Result<Meaning, String> {
+    use ::parquet::basic::{ConvertedType as C, Type};
+    let t = c.physical_type();
+    let logical = c.logical_type_ref().map(|l| format!("{l:?}"));
+    let kind = |l: &str| l.split(|ch: char| !ch.is_ascii_alphanumeric()).next().unwrap_or("").to_string();
+    let refuse = |what: String| {
+        Err(format!(
+            "column '{}': {what} values are not plain numbers; truepos reads numbers (DOUBLE, FLOAT, INT32, INT64, signed or unsigned, decimals) or text: convert the column (e.g. times to seconds as a DOUBLE)",
+            c.name()
+        ))
+    };
+    let decimal = |scale: i32| {
+        if (0..=22).contains(&scale) {
+            Ok(Meaning::Decimal(scale))
+        } else {
+            Err(format!("column '{}': decimal scale {scale} outside 0..=22 (not read exactly)", c.name()))
+        }
+    };
+    let ct = c.converted_type();
+    match t {
+        Type::INT32 | Type::INT64 => {
+            if let Some(l) = &logical {
+                return match kind(l).as_str() {
+                    "Integer" if l.contains("is_signed: false") => Ok(Meaning::Unsigned),
+                    "Integer" => Ok(Meaning::Plain),
+                    "Decimal" => decimal(c.type_scale()),
+                    k => refuse(format!("{k} (logical type)")),
+                };
+            }
+            match ct {
+                C::NONE | C::INT_8 | C::INT_16 | C::INT_32 | C::INT_64 => Ok(Meaning::Plain),
+                C::UINT_8 | C::UINT_16 | C::UINT_32 | C::UINT_64 => Ok(Meaning::Unsigned),
+                C::DECIMAL => decimal(c.type_scale()),
+                other => refuse(format!("{other} (converted type)")),
+            }
+        }
+        Type::DOUBLE | Type::FLOAT => match (&logical, ct) {
+            (None, C::NONE) => Ok(Meaning::Plain),
+            (Some(l), _) => refuse(format!("{} (logical type)", kind(l))),
+            (None, other) => refuse(format!("{other} (converted type)")),
+        },
+        Type::BYTE_ARRAY => {
+            if let Some(l) = &logical {
+                return match kind(l).as_str() {
+                    "String" | "Enum" | "Json" => Ok(Meaning::Plain),
+                    k => refuse(format!("{k} (logical type)")),
+                };
+            }
+            match ct {
+                C::NONE | C::UTF8 | C::ENUM | C::JSON => Ok(Meaning::Plain),
+                other => refuse(format!("{other} (converted type)")),
+            }
+        }
+        _ => Ok(Meaning::Plain),
+    }
 }
 
 impl ParquetReader {
@@ -339,6 +413,7 @@ impl ParquetReader {
     fn open_within(path: &Path, limit: u64) -> Result<Self, InputError> {
         let file =
             std::fs::File::open(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+        crate::atomic::note_input(path);
         let meta = file.metadata().map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
         crate::limits::check_file_size(path, &meta)?;
         contained(path, || Self::checked(path, file, limit))
@@ -419,9 +494,33 @@ impl ParquetReader {
                 ),
             ));
         }
-        let mut names = Vec::with_capacity(cols.len());
+        let mut names: Vec<String> = Vec::with_capacity(cols.len());
         let mut text = Vec::with_capacity(cols.len());
+        let mut meaning = Vec::with_capacity(cols.len());
         for c in cols {
+            // A field of a group (struct) has a leaf name that could repeat a flat column's
+            // ('p.x_mm' would read as 'x_mm'): refused, like a repeated name.
+            if c.path().parts().len() > 1 {
+                return Err(InputError::in_file(
+                    path,
+                    format!(
+                        "column '{}' is a field of a group (a nested struct): truepos reads flat columns only",
+                        c.path().string()
+                    ),
+                ));
+            }
+            if let Some(k) = names.iter().position(|n| n == c.name()) {
+                return Err(InputError::in_file(
+                    path,
+                    format!(
+                        "duplicate column '{}' (columns {} and {}): which one is meant is ambiguous",
+                        c.name(),
+                        k + 1,
+                        names.len() + 1
+                    ),
+                ));
+            }
+            meaning.push(meaning_of(c).map_err(|e| InputError::in_file(path, e))?);
             if c.max_rep_level() > 0 {
                 return Err(InputError::in_file(
                     path,
@@ -456,6 +555,7 @@ impl ParquetReader {
             row: 0,
             decoded,
             limit,
+            meaning,
         })
     }
 
@@ -532,6 +632,12 @@ impl ParquetReader {
         let c = self.reader.metadata().file_metadata().schema_descr().column(i);
         let name = c.name();
         let max_def = c.max_def_level();
+        let meaning = self.meaning[i];
+        let scale = match meaning {
+            Meaning::Decimal(s) => 10f64.powi(s),
+            _ => 1.0,
+        };
+        let unsigned = meaning == Meaning::Unsigned;
         let mut defs: Vec<i16> = Vec::with_capacity(if max_def > 0 { n.min(RESERVE) } else { 0 });
         let want_defs = max_def > 0;
         macro_rules! numeric {
@@ -569,8 +675,14 @@ impl ParquetReader {
         match &mut self.columns[i] {
             ColumnReader::DoubleColumnReader(r) => numeric!(r, |v: f64| v),
             ColumnReader::FloatColumnReader(r) => numeric!(r, |v: f32| v as f64),
-            ColumnReader::Int32ColumnReader(r) => numeric!(r, |v: i32| v as f64),
-            ColumnReader::Int64ColumnReader(r) => numeric!(r, |v: i64| v as f64),
+            // Decimals: an integer below 2^53 over an exact power of ten (scale ≤ 22) is rounded
+            // once, correctly.
+            ColumnReader::Int32ColumnReader(r) => {
+                numeric!(r, |v: i32| if unsigned { v as u32 as f64 } else { v as f64 / scale })
+            }
+            ColumnReader::Int64ColumnReader(r) => {
+                numeric!(r, |v: i64| if unsigned { v as u64 as f64 } else { v as f64 / scale })
+            }
             ColumnReader::ByteArrayColumnReader(r) => {
                 let mut vals: Vec<ByteArray> = Vec::with_capacity(n.min(RESERVE));
                 let (recs, _, _) = r
@@ -1094,6 +1206,7 @@ mod tests {
         if let ColumnData::F64(v) = &mut bad.data[2] {
             v[41] = f64::NAN;
         }
+        std::fs::remove_file(&p).unwrap();
         write_columns(&p, &bad).unwrap();
         let e = read_columns(&p).unwrap_err();
         assert!(e.to_string().contains("row 42") && e.to_string().contains("y_mm"), "{e}");
@@ -1140,6 +1253,7 @@ mod tests {
                 return Ok(());
             }
             let c = Columns { names, data };
+            let _ = std::fs::remove_file(&p);
             write_columns_grouped(&p, &c, group).unwrap();
             let back = read_columns(&p).unwrap();
             proptest::prop_assert_eq!(&back.names, &c.names);
@@ -1182,5 +1296,61 @@ mod tests {
         let e = read_columns_within(&p, 5_000_000).unwrap_err().to_string();
         assert!(e.contains("row 40001") && e.contains("more text than truepos reads"), "{e}");
         assert_eq!(read_columns_within(&p, 6_000_000).unwrap(), c);
+    }
+
+    /// Write a one-row-group file with int32 columns of `schema` (`message m { … }`), each
+    /// holding `values`.
+    fn int32_file(path: &Path, schema: &str, values: &[i32]) {
+        use ::parquet::data_type::Int32Type;
+        let schema = ::parquet::schema::parser::parse_message_type(schema).unwrap();
+        let file = std::fs::File::create(path).unwrap();
+        let mut w = SerializedFileWriter::new(file, Arc::new(schema), Default::default()).unwrap();
+        let mut rg = w.next_row_group().unwrap();
+        while let Some(mut col) = rg.next_column().unwrap() {
+            col.typed::<Int32Type>().write_batch(values, None, None).unwrap();
+            col.close().unwrap();
+        }
+        rg.close().unwrap();
+        w.close().unwrap();
+    }
+
+    /// Logical types are honoured (decimals scaled, unsigned integers unsigned) or refused
+    /// naming the column (dates, times, timestamps); duplicate names and struct leaves are
+    /// refused like the CSV reader's duplicate columns.
+    #[test]
+    fn logical_types_duplicates_and_struct_leaves() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("t.parquet");
+        int32_file(
+            &p,
+            "message m { required int32 x_mm (DECIMAL(9,3)); required int32 y_mm (INTEGER(32,false)); required int32 z_mm (UINT_16); required int32 n; }",
+            &[12345, -1, 65535],
+        );
+        let c = read_columns(&p).unwrap();
+        assert_eq!(c.f64(&p, "x_mm").unwrap(), &[12.345, -0.001, 65.535]);
+        assert_eq!(c.f64(&p, "y_mm").unwrap(), &[12345.0, 4294967295.0, 65535.0]);
+        assert_eq!(c.f64(&p, "n").unwrap(), &[12345.0, -1.0, 65535.0]);
+        for (ty, name) in [("DATE", "Date"), ("TIME(MILLIS,true)", "Time"), ("TIME_MILLIS", "TIME_MILLIS")] {
+            int32_file(
+                &p,
+                &format!("message m {{ required int32 t ({ty}); required int32 x_mm; }}"),
+                &[1, 2],
+            );
+            let e = read_columns(&p).unwrap_err().to_string();
+            assert!(
+                e.contains("column 't'") && e.contains(name) && e.contains("not plain numbers"),
+                "{ty}: {e}"
+            );
+        }
+        int32_file(&p, "message m { required int32 x_mm; required int32 x_mm; }", &[1, 2]);
+        let e = read_columns(&p).unwrap_err().to_string();
+        assert!(e.contains("duplicate column 'x_mm' (columns 1 and 2)"), "{e}");
+        int32_file(
+            &p,
+            "message m { required int32 x_mm; required group p { required int32 x_mm; } }",
+            &[1, 2],
+        );
+        let e = read_columns(&p).unwrap_err().to_string();
+        assert!(e.contains("'p.x_mm'") && e.contains("group"), "{e}");
     }
 }

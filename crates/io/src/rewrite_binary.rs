@@ -486,6 +486,8 @@ mod tests {
                 f(&|_| 99.0),
             ],
         };
+        // A file this process read is an input: an output onto it is refused, so it goes first.
+        let _ = std::fs::remove_file(path);
         write_columns_grouped(path, &c, group).unwrap();
         c
     }
@@ -882,6 +884,7 @@ mod tests {
                     ColumnData::F64(vec![3.0; 10]),
                 ],
             };
+            let _ = std::fs::remove_file(&inp);
             crate::parquet_file::write_columns(&inp, &c).unwrap();
             let out = dir.path().join("out.csv");
             let e = rewrite_points(&inp, &out, EXTRA, NumFormat::Shortest, shift, |_| {})

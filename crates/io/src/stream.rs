@@ -320,6 +320,7 @@ impl CsvStream {
         let path = path.as_ref().to_path_buf();
         let cannot = |e: std::io::Error| InputError::in_file(&path, format!("cannot read: {e}"));
         let file = std::fs::File::open(&path).map_err(cannot)?;
+        crate::atomic::note_input(&path);
         let meta = file.metadata().map_err(cannot)?;
         if meta.is_dir() {
             return Err(InputError::in_file(&path, "is a directory, not a file"));

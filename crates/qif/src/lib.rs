@@ -587,6 +587,12 @@ pub enum PlanError {
     At { line: u32, column: u32, why: String },
     #[error("the root element is <{0}>, not a QIF document <QIFDocument>")]
     NotQif(String),
+    /// A `<QIFDocument>` in another namespace than QIF 3's (QIF 2, or none of QIF's).
+    #[error("the root element <QIFDocument> is in the namespace '{0}', not QIF 3's ('http://qifstandards.org/xsd/qif3'){hint}", hint = if .0.contains("qif2") { ": QIF 2 documents are not read (convert the plan to QIF 3)" } else { "" })]
+    WrongNamespace(String),
+    /// Nesting deeper than the bound of `truepos_io::xml`.
+    #[error("{0}")]
+    TooDeep(#[from] truepos_io::xml::TooDeep),
     #[error("{0}")]
     Unsupported(String),
 }
@@ -623,11 +629,28 @@ fn number(doc: &roxmltree::Document, n: roxmltree::Node, scale: f64) -> Result<f
 
 /// Read the nominal diameter with its tolerance and the form tolerance of `kind` from a QIF
 /// plan or model document (`text`).
+///
+/// The text is checked against the XML bounds of `truepos_io::xml` first (nesting depth, node
+/// count). Read a file with `truepos_io::xml::read_xml` (size, binary data, depth).
 pub fn read_plan(text: &str, kind: FeatureKind) -> Result<Plan, PlanError> {
-    let doc = roxmltree::Document::parse(text)?;
+    truepos_io::xml::check_depth(text)?;
+    let opt = roxmltree::ParsingOptions { allow_dtd: false, nodes_limit: truepos_io::xml::MAX_XML_NODES };
+    let doc = roxmltree::Document::parse_with_options(text, opt)?;
     let root = doc.root_element();
-    if root.tag_name().name() != "QIFDocument" || root.tag_name().namespace().is_some_and(|n| n != QIF_NS) {
+    if root.tag_name().name() != "QIFDocument" {
         return Err(PlanError::NotQif(root.tag_name().name().to_string()));
+    }
+    if let Some(ns) = root.tag_name().namespace().filter(|n| *n != QIF_NS) {
+        return Err(PlanError::WrongNamespace(ns.to_string()));
+    }
+    // One characteristics block: a second one would be silently ignored.
+    let blocks: Vec<_> = elems(Some(root), "Characteristics");
+    if let Some(second) = blocks.get(1) {
+        return Err(at(
+            &doc,
+            *second,
+            "a second <Characteristics> block (a QIF document has at most one; truepos would read only the first)".into(),
+        ));
     }
     let mut plan = Plan { unit: "mm".into(), ..Default::default() };
     // Linear unit → mm.
@@ -686,15 +709,40 @@ pub fn read_plan(text: &str, kind: FeatureKind) -> Result<Plan, PlanError> {
         }
         let max = child(tol, "MaxValue").map(|n| number(&doc, n, scale)).transpose()?;
         let min = child(tol, "MinValue").map(|n| number(&doc, n, scale)).transpose()?;
-        let limit = child(tol, "DefinedAsLimit")
-            .and_then(|n| n.text())
-            .map(|t| t.trim() == "true" || t.trim() == "1");
-        let target = elems(noms, "DiameterCharacteristicNominal")
+        let limit = match child(tol, "DefinedAsLimit") {
+            None => None,
+            Some(n) => Some(match n.text().unwrap_or("").trim() {
+                "true" | "1" => true,
+                "false" | "0" => false,
+                t => {
+                    return Err(at(
+                        &doc,
+                        n,
+                        format!("<DefinedAsLimit> is '{t}', not an xsd:boolean (true, false, 1 or 0)"),
+                    ))
+                }
+            }),
+        };
+        let nominals: Vec<_> = elems(noms, "DiameterCharacteristicNominal")
             .into_iter()
-            .find(|n| {
+            .filter(|n| {
                 child(*n, "CharacteristicDefinitionId").and_then(|c| c.text()).map(str::trim) == Some(id)
             })
-            .and_then(|n| child(n, "TargetValue"))
+            .collect();
+        if let Some(second) = nominals.get(1) {
+            let first = doc.text_pos_at(nominals[0].range().start);
+            return Err(at(
+                &doc,
+                *second,
+                format!(
+                    "a second nominal for the diameter characteristic '{id}' (the first is on line {}): the nominal is ambiguous",
+                    first.row
+                ),
+            ));
+        }
+        let target = nominals
+            .first()
+            .and_then(|n| child(*n, "TargetValue"))
             .map(|n| number(&doc, n, scale))
             .transpose()?;
         let (Some(max), Some(min)) = (max, min) else {

@@ -252,3 +252,55 @@ fn numbers_that_overflow_in_mm_are_refused_with_their_place() {
     .unwrap_err();
     assert!(e.to_string().contains("line 4") && e.to_string().contains("out of range"), "{e}");
 }
+
+/// A plan whose meaning is ambiguous is refused with the element's line, never read one way
+/// silently: a `DefinedAsLimit` outside xsd:boolean, two nominals for one definition, a second
+/// characteristics block; a QIF 2 document and a plan nested deeper than the XML bound are
+/// named as such (the deep one used to overflow the stack).
+#[test]
+fn ambiguous_plans_are_refused_with_their_line() {
+    let doc = |limit: &str, noms: &str, extra: &str| {
+        format!(
+            r#"<QIFDocument xmlns="http://qifstandards.org/xsd/qif3">
+<Characteristics><CharacteristicDefinitions>
+<DiameterCharacteristicDefinition id="2"><Tolerance><MaxValue>20.1</MaxValue><MinValue>19.9</MinValue><DefinedAsLimit>{limit}</DefinedAsLimit></Tolerance></DiameterCharacteristicDefinition>
+</CharacteristicDefinitions><CharacteristicNominals>
+<DiameterCharacteristicNominal id="3"><CharacteristicDefinitionId>2</CharacteristicDefinitionId><TargetValue>20</TargetValue></DiameterCharacteristicNominal>
+{noms}</CharacteristicNominals></Characteristics>
+{extra}</QIFDocument>"#
+        )
+    };
+    for ok in ["true", " 1 ", "false", "0"] {
+        let p = read_plan(&doc(ok, "", ""), FeatureKind::Circle).unwrap();
+        let (n, lo, hi) = p.diameter.unwrap();
+        if ok.trim() == "true" || ok.trim() == "1" {
+            assert!((n - 20.0).abs() < 1e-12 && (lo + 0.1).abs() < 1e-9 && (hi - 0.1).abs() < 1e-9);
+        } else {
+            assert!((lo - 19.9).abs() < 1e-12 && (hi - 20.1).abs() < 1e-12);
+        }
+    }
+    for bad in ["yes", "True", "TRUE", "2", ""] {
+        let e = read_plan(&doc(bad, "", ""), FeatureKind::Circle).unwrap_err().to_string();
+        assert!(
+            e.starts_with("line 3,") && e.contains("DefinedAsLimit") && e.contains("xsd:boolean"),
+            "{bad}: {e}"
+        );
+    }
+    let second = r#"<DiameterCharacteristicNominal id="4"><CharacteristicDefinitionId>2</CharacteristicDefinitionId><TargetValue>25</TargetValue></DiameterCharacteristicNominal>
+"#;
+    let e = read_plan(&doc("false", second, ""), FeatureKind::Circle).unwrap_err().to_string();
+    assert!(e.starts_with("line 6,") && e.contains("second nominal") && e.contains("line 5"), "{e}");
+    let e =
+        read_plan(&doc("false", "", "<Characteristics/>\n"), FeatureKind::Circle).unwrap_err().to_string();
+    assert!(e.starts_with("line 7,") && e.contains("second <Characteristics>"), "{e}");
+    let qif2 = doc("false", "", "").replace("xsd/qif3", "xsd/qif2");
+    let e = read_plan(&qif2, FeatureKind::Circle).unwrap_err().to_string();
+    assert!(
+        e.contains("qif2") && e.contains("QIF 2") && !e.contains("not a QIF document <QIFDocument>"),
+        "{e}"
+    );
+    let n = 50_000;
+    let deep = doc("false", "", &format!("{}{}", "<a>".repeat(n), "</a>".repeat(n)));
+    let e = read_plan(&deep, FeatureKind::Circle).unwrap_err().to_string();
+    assert!(e.starts_with("line 7,") && e.contains("nested more than 256"), "{e}");
+}

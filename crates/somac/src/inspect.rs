@@ -159,8 +159,7 @@ pub fn holes_from_program(program: &Program, keyword: &str, diameter_mm: f64) ->
 /// The holes of a G-code program file ([`holes_from_program`]); a program that does not parse,
 /// or has no hole, is an input error naming the file (and line and column).
 pub fn read_program_holes(path: &Path, keyword: &str, diameter_mm: f64) -> Result<Vec<Hole>, InputError> {
-    let text =
-        std::fs::read_to_string(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
+    let text = truepos_io::limits::read_string(path, "G-code")?;
     let program = Program::parse(&text);
     program.check().map_err(|e| InputError::at(path, e.line(), Some(e.column()), e.detail()))?;
     let holes = holes_from_program(&program, keyword, diameter_mm);
@@ -200,6 +199,11 @@ pub fn read_hole_list(path: &Path, diameter_mm: Option<f64>) -> Result<Vec<Hole>
     Ok(holes)
 }
 
+/// Most single points per hole: a circle needs 3 and a few dozen characterise roundness; at
+/// a second per touch 10 000 already take hours per hole (and the request is allocated before
+/// any motion).
+pub const MAX_POINTS_PER_HOLE: usize = 10_000;
+
 impl InspectPlan {
     /// Check the plan against the holes (before any machine moves).
     pub fn check(&self, holes: &[Hole]) -> Result<(), InspectError> {
@@ -208,11 +212,21 @@ impl InspectPlan {
         if holes.is_empty() {
             return bad("no holes to inspect".into());
         }
-        if self.points < 4 {
-            return bad(format!("at least 4 points per hole are needed, got {}", self.points));
+        if !(4..=MAX_POINTS_PER_HOLE).contains(&self.points) {
+            return bad(format!(
+                "between 4 and {MAX_POINTS_PER_HOLE} points per hole are needed, got {} (three determine a circle and leave nothing to check it; {MAX_POINTS_PER_HOLE} single points already take hours per hole)",
+                self.points
+            ));
         }
         if !pos(self.feed_mm_s) {
             return bad(format!("the feed must be finite and > 0, got {} mm/min", self.feed_mm_s * 60.0));
+        }
+        if self.feed_mm_s * 60.0 > truepos_device::MAX_PROBING_FEED_MM_MIN {
+            return bad(format!(
+                "the probing feed {} mm/min is above {} mm/min: a touch probe cannot stop within its overtravel at that speed, so the points would measure nothing",
+                self.feed_mm_s * 60.0,
+                truepos_device::MAX_PROBING_FEED_MM_MIN
+            ));
         }
         for (name, v) in [
             ("--depth-mm", self.depth_mm),
@@ -545,6 +559,9 @@ mod tests {
         assert!(p.check(&[hole(4.1)]).is_ok());
         assert!(p.check(&[]).is_err());
         assert!(InspectPlan { points: 3, ..p }.check(&[hole(10.0)]).is_err());
+        assert!(InspectPlan { points: MAX_POINTS_PER_HOLE, ..p }.check(&[hole(10.0)]).is_ok());
+        assert!(InspectPlan { points: MAX_POINTS_PER_HOLE + 1, ..p }.check(&[hole(10.0)]).is_err());
+        assert!(InspectPlan { feed_mm_s: 5001.0 / 60.0, ..p }.check(&[hole(10.0)]).is_err());
         assert!(InspectPlan { feed_mm_s: 0.0, ..p }.check(&[hole(10.0)]).is_err());
         assert!(InspectPlan { depth_mm: f64::NAN, ..p }.check(&[hole(10.0)]).is_err());
     }

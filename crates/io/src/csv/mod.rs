@@ -330,6 +330,7 @@ fn map_large_file(path: &Path) -> Result<Option<memmap2::Mmap>, InputError> {
 /// when it is ready to, e.g. after starting other work.)
 fn map_large_file_with(path: &Path, populate: bool) -> Result<Option<memmap2::Mmap>, InputError> {
     let Ok(file) = std::fs::File::open(path) else { return Ok(None) };
+    crate::atomic::note_input(path);
     let Ok(meta) = file.metadata() else { return Ok(None) };
     crate::limits::check_file_size(path, &meta)?;
     if !meta.is_file() || meta.len() < 8 << 20 {

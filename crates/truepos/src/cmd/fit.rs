@@ -135,8 +135,7 @@ fn spec(a: &Args) -> Result<Spec> {
         RuleArg::Guarded => DecisionRule::Guarded,
     };
     if let Some(plan_path) = &a.qif_plan {
-        let text = std::fs::read_to_string(plan_path)
-            .map_err(|e| InputError::in_file(plan_path, format!("cannot read the QIF plan: {e}")))?;
+        let text = truepos_io::xml::read_xml(plan_path, "QIF plan")?;
         let in_plan = |e: String| InputError::in_file(plan_path, e);
         let plan = truepos_qif::read_plan(&text, a.kind.lib().into()).map_err(|e| in_plan(e.to_string()))?;
         let (spec, notes) = truepos_qif::plan_spec(&plan, a.kind.lib(), rule).map_err(in_plan)?;

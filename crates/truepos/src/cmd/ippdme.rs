@@ -49,6 +49,15 @@ pub struct ServeArgs {
 pub fn run(args: Args) -> anyhow::Result<Outcome> {
     let IppCommand::Serve(a) = args.command;
     use truepos_cell::cmm::{bind_virtual, ServeOptions};
+    if let Some(log) = &a.log {
+        // The log is appended to for the server's life: only a regular file (or a new one), never
+        // a device (a full one would lose every line silently), a FIFO, a symlink, or one of
+        // the server's own input files (the log would corrupt the part or machine file).
+        for input in a.part.iter().chain(&a.machine) {
+            truepos_io::atomic::note_input(input);
+        }
+        truepos_io::atomic::check_output_path(log).map_err(|e| crate::UsageError(format!("--log: {e}")))?;
+    }
     let opts = ServeOptions { bind: a.bind, port: a.port, part: a.part, machine: a.machine, log: a.log };
     let server = bind_virtual(&opts)?;
     let addr = server.local_addr().device()?;

@@ -36,7 +36,7 @@ pub struct SphereArgs {
     /// Number of points (≥ 5).
     #[arg(long, default_value_t = 25)]
     pub points: usize,
-    /// Probing feed (mm/min).
+    /// Probing feed (mm/min, at most 5000: faster, a touch probe cannot stop within its overtravel).
     #[arg(long, value_parser = crate::output::positive, default_value_t = 50.0)]
     pub feed_mm_min: f64,
     #[command(flatten)]

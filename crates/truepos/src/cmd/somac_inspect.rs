@@ -36,10 +36,10 @@ pub struct InspectArgs {
     /// Probing depth below each hole's top (mm).
     #[arg(long, value_parser = crate::output::positive, default_value_t = 3.0)]
     pub depth_mm: f64,
-    /// Points per hole (≥ 4), at equal angles.
+    /// Points per hole (4 to 10000), at equal angles.
     #[arg(long, default_value_t = 8)]
     pub points: usize,
-    /// Probing feed (mm/min).
+    /// Probing feed (mm/min, at most 5000: faster, a touch probe cannot stop within its overtravel).
     #[arg(long, value_parser = crate::output::positive, default_value_t = 50.0)]
     pub feed_mm_min: f64,
     /// Distance from the nominal wall where each probing move starts and beyond which it gives

@@ -65,8 +65,7 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
     if a.no_orient {
         params.orient = false;
     }
-    let text = std::fs::read_to_string(&a.program)
-        .map_err(|e| InputError::in_file(&a.program, format!("cannot read: {e}")))?;
+    let text = truepos_io::limits::read_string(&a.program, "G-code")?;
     let program = truepos_gcode::Program::parse(&text);
     program.check().map_err(|e| InputError::at(&a.program, e.line(), Some(e.column()), e.detail()))?;
     if !program.blocks().iter().any(|b| b.has_keyword(&params.keyword) && b.target_mm.is_some()) {
