@@ -898,7 +898,17 @@ impl Exec<'_> {
                 (v, (0.0, *z), within(v, *z), false)
             }
             TolKind::Cylcty(z) => {
-                let v = minzone::cylinder_fit(&a(fs[0])?.points, Criterion::MinimumZone).map_err(fe)?.form;
+                // From the feature's own fit (its nominal axis chose the cylinder): the points
+                // alone may fit another cylinder equally well.
+                let act = a(fs[0])?;
+                let v = match &act.geom {
+                    Geom::Cylinder { p, axis, r } => {
+                        minzone::cylinder_fit_from(&act.points, Criterion::MinimumZone, (*p, *axis, *r))
+                    }
+                    _ => minzone::cylinder_fit(&act.points, Criterion::MinimumZone),
+                }
+                .map_err(fe)?
+                .form;
                 (v, (0.0, *z), within(v, *z), false)
             }
             TolKind::Diam { lo, hi } | TolKind::Rad { lo, hi } => {

@@ -495,10 +495,22 @@ pub struct CylinderZone {
 /// Chebyshev cylinder by `criterion`, started from the least-squares cylinder.
 pub fn cylinder_fit(points: &[Point3], criterion: Criterion) -> Result<CylinderZone, FitError> {
     let ls = crate::cylinder(points)?;
+    cylinder_fit_from(points, criterion, (ls.point, ls.axis, ls.radius))
+}
+
+/// [`cylinder_fit`] from a given least-squares cylinder `(point, axis, radius)` instead of the
+/// free least-squares fit: for a caller that knows which cylinder the points are (a nominal
+/// feature's axis chose it), where the points alone may not decide (8 points on two levels of a
+/// bore also lie on a cylinder across them).
+pub fn cylinder_fit_from(
+    points: &[Point3],
+    criterion: Criterion,
+    (ls_point, ls_axis, ls_radius): (Point3, Vector3, f64),
+) -> Result<CylinderZone, FitError> {
     let m = Moments::of(points)?;
     let (q, l) = scaled(points, &m);
-    let s0 = Axis { o: Point3::from((ls.point - m.centroid) / l), b: Basis::new(ls.axis) };
-    let out = solve(&AxisModel, criterion.into(), &q, s0, ls.radius / l).map_err(|e| fail("cylinder", e))?;
+    let s0 = Axis { o: Point3::from((ls_point - m.centroid) / l), b: Basis::new(ls_axis) };
+    let out = solve(&AxisModel, criterion.into(), &q, s0, ls_radius / l).map_err(|e| fail("cylinder", e))?;
     let point = m.centroid + out.state.o.coords * l;
     let axis = canonical_dir(out.state.b.n);
     let (inner, outer) = (out.lo * l, out.hi * l);
