@@ -1172,6 +1172,7 @@ pub fn kinematics_uncertainty(
                 centre,
                 radius,
                 probing.sphere.tip_radius_mm,
+                |cfg| model.machine_tool.apply(cfg),
             )
             .map_err(|e| CellError::Invalid(e.to_string()))?;
             let mut m = ErrorOverlay { inner, errors };
