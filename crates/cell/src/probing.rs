@@ -378,7 +378,8 @@ impl VirtualMachineTool {
     /// A five-axis machine as [`VirtualMachineTool::five_axis`] with given geometries: the
     /// controller configured with `configured`, the machine truly `truth`, the sphere exactly at
     /// `centre` (table frame) with `radius` — what a task-specific simulation of a calibration
-    /// needs. The latch, pre-travel and noise are the virtual machine tool's (seeded by `seed`).
+    /// needs. The latch, pre-travel and noise are the virtual machine tool's (seeded by `seed`)
+    /// after `edit` has had its say (a model's own latch).
     pub fn five_axis_exact(
         seed: u64,
         configured: TrtGeometry,
@@ -386,8 +387,10 @@ impl VirtualMachineTool {
         centre: Point3,
         radius: f64,
         tip_radius: f64,
+        edit: impl FnOnce(&mut MachineToolConfig),
     ) -> Result<VirtualMachineTool, ParamError> {
         let mut cfg = MachineToolConfig::near(seed, centre, radius, tip_radius);
+        edit(&mut cfg);
         cfg.spheres = vec![(centre, radius)];
         cfg.start_mm = centre + Vector3::new(0.0, 0.0, 60.0);
         cfg.rotary = RotaryAxes { head_b: false, table_c: true };

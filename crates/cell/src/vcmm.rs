@@ -78,6 +78,40 @@ pub struct MachineModel {
     pub cmm: Option<MachineConfig>,
     /// The ISO 10360 datasheet.
     pub iso10360: Option<Iso10360>,
+    /// What a machine tool's controller adds when it measures (`[machine_tool]`; defaults: the
+    /// virtual machine tool's, a LinuxCNC servo thread of 1 ms).
+    pub machine_tool: MachineToolLatch,
+}
+
+/// A machine tool's probing beyond the model's errors: its probe input is sampled once per servo
+/// period (the latched position lies up to one servo step, feed × period, past the trigger), the
+/// probe's pre-travel, and the noise of each latched axis (`[machine_tool] servo_period_ms,
+/// pretravel_um, position_sigma_um`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MachineToolLatch {
+    pub servo_period_s: f64,
+    pub pretravel_mm: f64,
+    pub position_sigma_mm: f64,
+}
+
+impl Default for MachineToolLatch {
+    fn default() -> Self {
+        let d = crate::probing::MachineToolConfig::default();
+        MachineToolLatch {
+            servo_period_s: d.servo_period_s,
+            pretravel_mm: d.pretravel_mm,
+            position_sigma_mm: d.position_sigma_mm,
+        }
+    }
+}
+
+impl MachineToolLatch {
+    /// Give a virtual machine tool this latch.
+    pub fn apply(&self, cfg: &mut crate::probing::MachineToolConfig) {
+        cfg.servo_period_s = self.servo_period_s;
+        cfg.pretravel_mm = self.pretravel_mm;
+        cfg.position_sigma_mm = self.position_sigma_mm;
+    }
 }
 
 #[derive(serde::Deserialize)]
@@ -85,6 +119,15 @@ pub struct MachineModel {
 struct RawFile {
     ippdme: Option<toml::Table>,
     iso10360: Option<RawIso>,
+    machine_tool: Option<RawMachineTool>,
+}
+
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMachineTool {
+    servo_period_ms: Option<f64>,
+    pretravel_um: Option<f64>,
+    position_sigma_um: Option<f64>,
 }
 
 #[derive(serde::Deserialize)]
@@ -136,12 +179,33 @@ impl MachineModel {
             }
             None => None,
         };
+        let mut machine_tool = MachineToolLatch::default();
+        if let Some(t) = raw.machine_tool {
+            let check = |key: &str, v: Option<f64>, lo: f64, hi: f64, unit: &str| -> Result<Option<f64>> {
+                match v {
+                    Some(x) if !(x.is_finite() && x >= lo && x <= hi) => Err(CellError::Invalid(format!(
+                        "{file}: machine_tool.{key}: {x} is outside {lo}–{hi} {unit}"
+                    ))),
+                    other => Ok(other),
+                }
+            };
+            // A servo period from 10 µs (a fast FPGA latch) to 10 ms (a slow PLC scan).
+            if let Some(ms) = check("servo_period_ms", t.servo_period_ms, 0.01, 10.0, "ms")? {
+                machine_tool.servo_period_s = ms * 1e-3;
+            }
+            if let Some(um) = check("pretravel_um", t.pretravel_um, 0.0, 100.0, "µm")? {
+                machine_tool.pretravel_mm = um * 1e-3;
+            }
+            if let Some(um) = check("position_sigma_um", t.position_sigma_um, 0.0, 100.0, "µm")? {
+                machine_tool.position_sigma_mm = um * 1e-3;
+            }
+        }
         if cmm.is_none() && iso10360.is_none() {
             return Err(CellError::Invalid(format!(
                 "{file}: names no machine model: expected [ippdme.model] (an error model) and/or [iso10360] (mpe_e_um = [A, K], mpe_p_um)"
             )));
         }
-        Ok(MachineModel { source: file, cmm, iso10360 })
+        Ok(MachineModel { source: file, cmm, iso10360, machine_tool })
     }
 
     /// One line saying what the uncertainty is based on.
@@ -406,6 +470,62 @@ where
     u.basis = basis.to_string();
     u.elapsed_s = t0.elapsed().as_secs_f64();
     Ok(u)
+}
+
+/// The task-specific uncertainty of a sphere probed on a machine tool (LinuxCNC, the virtual
+/// machine tool): the same probing of the perfect sphere where it was found, on realisations of
+/// the virtual machine tool with the model's `[machine_tool]` latch (servo period, pre-travel,
+/// position noise) and each basis's errors on every contact ([`ErrorOverlay`]); u per parameter
+/// as [`sphere_uncertainty`], the larger over the bases.
+pub fn sphere_uncertainty_machine_tool(
+    model: &MachineModel,
+    plan: &SphereProbing,
+    center: Point3,
+    radius: f64,
+    fit_u_center: Vector3,
+    fit_u_radius: f64,
+    mc: MonteCarlo,
+) -> Result<SphereUncertainty> {
+    use crate::probing::{MachineToolConfig, VirtualMachineTool};
+    mc.check()?;
+    plan.check().map_err(|e| CellError::Invalid(e.to_string()))?;
+    if !(center.iter().all(|v| v.is_finite()) && radius.is_finite() && radius > 0.0) {
+        return Err(CellError::Invalid("the measured sphere is not finite".into()));
+    }
+    let t0 = std::time::Instant::now();
+    let mut best: Option<SphereUncertainty> = None;
+    for basis in model.bases() {
+        let make = |seed: u64| {
+            let mut cfg = MachineToolConfig::near(seed, center, radius, plan.tip_radius_mm);
+            cfg.spheres = vec![(center, radius)];
+            model.machine_tool.apply(&mut cfg);
+            let inner = VirtualMachineTool::new(cfg).expect("a checked plan and a finite sphere");
+            ErrorOverlay { inner, errors: PointErrors::draw(basis, seed) }
+        };
+        let u = summarise(&trials_on(&make, plan, center, radius, mc)?, fit_u_center, fit_u_radius);
+        best = Some(match best {
+            None => u,
+            Some(b) => SphereUncertainty {
+                center_mm: b.center_mm.zip_map(&u.center_mm, f64::max),
+                radius_mm: b.radius_mm.max(u.radius_mm),
+                simulated_center_mm: b.simulated_center_mm.zip_map(&u.simulated_center_mm, f64::max),
+                simulated_radius_mm: b.simulated_radius_mm.max(u.simulated_radius_mm),
+                ..b
+            },
+        });
+    }
+    let mut out = best.ok_or_else(|| CellError::Invalid("the machine model names no model".into()))?;
+    let l = model.machine_tool;
+    out.runs = mc.runs;
+    out.basis = format!(
+        "{}; on a machine tool: probe input latched every {} ms (up to feed × period past the trigger), pre-travel {} µm, position noise σ {} µm",
+        model.basis(),
+        l.servo_period_s * 1e3,
+        l.pretravel_mm * 1e3,
+        l.position_sigma_mm * 1e3
+    );
+    out.elapsed_s = t0.elapsed().as_secs_f64();
+    Ok(out)
 }
 
 /// One realisation of the ISO 10360 datasheet measuring the perfect sphere: the tip centres the
@@ -979,6 +1099,7 @@ pub fn head_offset_uncertainty(
     };
     let spread = simulate(model, mc, |errors| {
         let mut cfg = MachineToolConfig::with_head_offset(errors.seed(), acq, &truth);
+        model.machine_tool.apply(&mut cfg);
         if machine == AcquiringMachine::Cmm {
             cfg.servo_period_s = 1e-9;
             cfg.position_sigma_mm = 0.0;
@@ -1051,6 +1172,7 @@ pub fn kinematics_uncertainty(
                 centre,
                 radius,
                 probing.sphere.tip_radius_mm,
+                |cfg| model.machine_tool.apply(cfg),
             )
             .map_err(|e| CellError::Invalid(e.to_string()))?;
             let mut m = ErrorOverlay { inner, errors };

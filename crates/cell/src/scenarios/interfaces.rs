@@ -172,6 +172,7 @@ pub fn ippdme_section(report: &mut Report) -> Result<()> {
         source: "the virtual CMM's default [ippdme.model]".into(),
         cmm: Some(MachineConfig::default()),
         iso10360: None,
+        machine_tool: crate::vcmm::MachineToolLatch::default(),
     };
     let tsu = crate::vcmm::sphere_uncertainty(
         &model,

@@ -52,7 +52,9 @@ pub struct SphereArgs {
 pub struct ModelArgs {
     /// What is known of the machine's errors (TOML): the keys of the virtual CMM's
     /// `[ippdme.model]` (its geometric map class, probe pre-travel and lobing, noise; the seed is
-    /// ignored) and/or `[iso10360] mpe_e_um = [A, K]` (MPE_E = A + L/K µm), `mpe_p_um = P`.
+    /// ignored) and/or `[iso10360] mpe_e_um = [A, K]` (MPE_E = A + L/K µm), `mpe_p_um = P`; for a
+    /// machine tool also `[machine_tool] servo_period_ms, pretravel_um, position_sigma_um` (the
+    /// probe latch; default 1 ms, 0.5 µm, 0.1 µm).
     /// With it the uncertainty is task-specific: the same probing simulated on machines drawn
     /// from the model. Without it, the fit's scatter alone (a warning says so).
     #[arg(long, value_name = "FILE")]
@@ -194,7 +196,19 @@ fn sphere(a: SphereArgs) -> Result<Outcome> {
     };
     let elapsed = t0.elapsed().as_secs_f64();
     let fit_u = (s.center_uncertainty_mm, s.radius_uncertainty_mm);
+    // A machine tool (LinuxCNC, the virtual one) latches its probe input once per servo period:
+    // its simulation carries that latch; a CMM (I++ DME) latches at the trigger.
+    let machine_tool = !a.sphere.controller.starts_with("ippdme://");
     let task = match &model {
+        Some(m) if machine_tool => Some(truepos_cell::vcmm::sphere_uncertainty_machine_tool(
+            m,
+            &plan,
+            s.center_mm,
+            s.radius_mm,
+            fit_u.0,
+            fit_u.1,
+            a.model.monte_carlo(),
+        )?),
         Some(m) => Some(truepos_cell::vcmm::sphere_uncertainty(
             m,
             &plan,
