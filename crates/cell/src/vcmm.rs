@@ -313,11 +313,7 @@ pub fn sphere_uncertainty(
     fit_u_radius: f64,
     mc: MonteCarlo,
 ) -> Result<SphereUncertainty> {
-    mc.check()?;
-    plan.check().map_err(|e| CellError::Invalid(e.to_string()))?;
-    if !(center.iter().all(|v| v.is_finite()) && radius.is_finite() && radius > 0.0) {
-        return Err(CellError::Invalid("the measured sphere is not finite".into()));
-    }
+    check_sphere_task(mc, plan, center, radius)?;
     let t0 = std::time::Instant::now();
     // The simulation probes the perfect sphere where it was found, with the same plan.
     let sim_plan = *plan;
@@ -340,27 +336,7 @@ pub fn sphere_uncertainty(
         let u = summarise(trials, fit_u_center, fit_u_radius);
         best = Some(match best {
             None => u,
-            Some(b) => SphereUncertainty {
-                center_mm: b.center_mm.zip_map(&u.center_mm, f64::max),
-                radius_mm: b.radius_mm.max(u.radius_mm),
-                simulated_center_mm: b.simulated_center_mm.zip_map(&u.simulated_center_mm, f64::max),
-                simulated_radius_mm: b.simulated_radius_mm.max(u.simulated_radius_mm),
-                bias_center_mm: b.bias_center_mm.zip_map(&u.bias_center_mm, |x, y| {
-                    if x.abs() >= y.abs() {
-                        x
-                    } else {
-                        y
-                    }
-                }),
-                bias_radius_mm: if b.bias_radius_mm.abs() >= u.bias_radius_mm.abs() {
-                    b.bias_radius_mm
-                } else {
-                    u.bias_radius_mm
-                },
-                excess_center_mm: b.excess_center_mm.zip_map(&u.excess_center_mm, f64::max),
-                excess_radius_mm: b.excess_radius_mm.max(u.excess_radius_mm),
-                ..b
-            },
+            Some(b) => larger(b, u),
         });
     }
     let mut out = best.ok_or_else(|| CellError::Invalid("the machine model names no model".into()))?;
@@ -368,6 +344,34 @@ pub fn sphere_uncertainty(
     out.basis = model.basis();
     out.elapsed_s = t0.elapsed().as_secs_f64();
     Ok(out)
+}
+
+/// The checks every sphere simulation makes before it runs: the Monte Carlo settings, the plan,
+/// and a finite measured sphere.
+fn check_sphere_task(mc: MonteCarlo, plan: &SphereProbing, center: Point3, radius: f64) -> Result<()> {
+    mc.check()?;
+    plan.check().map_err(|e| CellError::Invalid(e.to_string()))?;
+    if !(center.iter().all(|v| v.is_finite()) && radius.is_finite() && radius > 0.0) {
+        return Err(CellError::Invalid("the measured sphere is not finite".into()));
+    }
+    Ok(())
+}
+
+/// Two bases' uncertainties of the same sphere: per parameter the larger u (they describe the
+/// same machine), the larger simulated spread and excess, the bias of larger magnitude.
+fn larger(b: SphereUncertainty, u: SphereUncertainty) -> SphereUncertainty {
+    let bigger = |x: f64, y: f64| if x.abs() >= y.abs() { x } else { y };
+    SphereUncertainty {
+        center_mm: b.center_mm.zip_map(&u.center_mm, f64::max),
+        radius_mm: b.radius_mm.max(u.radius_mm),
+        simulated_center_mm: b.simulated_center_mm.zip_map(&u.simulated_center_mm, f64::max),
+        simulated_radius_mm: b.simulated_radius_mm.max(u.simulated_radius_mm),
+        bias_center_mm: b.bias_center_mm.zip_map(&u.bias_center_mm, bigger),
+        bias_radius_mm: bigger(b.bias_radius_mm, u.bias_radius_mm),
+        excess_center_mm: b.excess_center_mm.zip_map(&u.excess_center_mm, f64::max),
+        excess_radius_mm: b.excess_radius_mm.max(u.excess_radius_mm),
+        ..b
+    }
 }
 
 fn summarise(trials: &[Trial], fit_u_center: Vector3, fit_u_radius: f64) -> SphereUncertainty {
@@ -487,11 +491,7 @@ pub fn sphere_uncertainty_machine_tool(
     mc: MonteCarlo,
 ) -> Result<SphereUncertainty> {
     use crate::probing::{MachineToolConfig, VirtualMachineTool};
-    mc.check()?;
-    plan.check().map_err(|e| CellError::Invalid(e.to_string()))?;
-    if !(center.iter().all(|v| v.is_finite()) && radius.is_finite() && radius > 0.0) {
-        return Err(CellError::Invalid("the measured sphere is not finite".into()));
-    }
+    check_sphere_task(mc, plan, center, radius)?;
     let t0 = std::time::Instant::now();
     let mut best: Option<SphereUncertainty> = None;
     for basis in model.bases() {
@@ -505,13 +505,7 @@ pub fn sphere_uncertainty_machine_tool(
         let u = summarise(&trials_on(&make, plan, center, radius, mc)?, fit_u_center, fit_u_radius);
         best = Some(match best {
             None => u,
-            Some(b) => SphereUncertainty {
-                center_mm: b.center_mm.zip_map(&u.center_mm, f64::max),
-                radius_mm: b.radius_mm.max(u.radius_mm),
-                simulated_center_mm: b.simulated_center_mm.zip_map(&u.simulated_center_mm, f64::max),
-                simulated_radius_mm: b.simulated_radius_mm.max(u.simulated_radius_mm),
-                ..b
-            },
+            Some(b) => larger(b, u),
         });
     }
     let mut out = best.ok_or_else(|| CellError::Invalid("the machine model names no model".into()))?;
