@@ -1014,7 +1014,9 @@ pub struct DmisUncertainty {
 /// program (its PTMEAS points, directions, SNSET distances, datums and constructions) run again
 /// on `mc.runs` machines drawn from `model`, each touching the perfect features where the run
 /// found them ([`truepos_dmis::uncertainty::Replay`] with the realisation's errors,
-/// [`ErrorOverlay`]); u = the RMS deviation of each result from the perfect run's.
+/// [`ErrorOverlay`]); u = the RMS deviation of each result from the perfect run's, combined in
+/// quadrature with the measured fits' scatter beyond the simulated machines' (the part's form
+/// error and effects outside the model; [`truepos_dmis::uncertainty::fit_scatter`]).
 pub fn dmis_uncertainty(
     model: &MachineModel,
     plan: &truepos_dmis::model::Plan,
@@ -1023,7 +1025,7 @@ pub fn dmis_uncertainty(
     mc: MonteCarlo,
 ) -> Result<DmisUncertainty> {
     use truepos_dmis::exec;
-    use truepos_dmis::uncertainty::{parameters, Replay, Uncertainty};
+    use truepos_dmis::uncertainty::{fit_scatter, parameters, Replay, Uncertainty};
     let fail = |e: exec::RunError| {
         CellError::Failed(format!("task-specific uncertainty: the program on a simulated machine: {e}"))
     };
@@ -1033,14 +1035,30 @@ pub fn dmis_uncertainty(
         let mut m = ErrorOverlay { inner: Replay::new(measured), errors };
         let r = exec::run(plan, &mut m, opts, &mut |_| {}).map_err(fail)?;
         let p = parameters(&r);
-        if p.len() != p0.len() {
+        let scatter = fit_scatter(&r);
+        if p.len() != p0.len() || scatter.len() != p0.len() {
             return Err(CellError::Failed(
                 "task-specific uncertainty: a simulated run gave other results than the perfect one".into(),
             ));
         }
-        Ok(p.iter().zip(&p0).map(|(a, b)| a - b).collect())
+        // Deviations, then this machine's fit scatter (its RMS over the machines is the scatter
+        // the model explains).
+        Ok(p.iter().zip(&p0).map(|(a, b)| a - b).chain(scatter).collect())
     })?;
-    let uncertainty = Uncertainty::from_parameters(measured, &spread.rms);
+    let n = p0.len();
+    let mut spread = spread;
+    let typical = spread.rms.split_off(n);
+    spread.mean.truncate(n);
+    // The measurement's own fit scatter is a cross-check (see the module docs): only its part
+    // beyond the simulated machines' is added in quadrature.
+    let observed = fit_scatter(measured);
+    let u: Vec<f64> = spread
+        .rms
+        .iter()
+        .zip(observed.iter().zip(&typical))
+        .map(|(sim, (obs, typ))| sim.hypot((obs * obs - typ * typ).max(0.0).sqrt()))
+        .collect();
+    let uncertainty = Uncertainty::from_parameters(measured, &u);
     Ok(DmisUncertainty { uncertainty, spread })
 }
 

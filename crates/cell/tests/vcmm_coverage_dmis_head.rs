@@ -157,6 +157,43 @@ fn dmis_uncertainty_covers_the_truth() {
     report("dmis run (full.dms, default CMM)", dmis_coverage(20), 0.90, 0.99);
 }
 
+/// The part's own form error (scatter the model does not contain) is in U: a sphere whose fit
+/// scattered 5 µm gets at least that, the other features keep theirs.
+#[test]
+fn dmis_uncertainty_adds_the_measured_scatter_beyond_the_model() {
+    let model = MachineModel::from_toml(Path::new("m.toml"), "[ippdme.model]\n").unwrap();
+    let dir = programs();
+    let text = std::fs::read_to_string(dir.join("full.dms")).unwrap();
+    let plan = truepos_dmis::model::check(&truepos_dmis::parse("full.dms", &text).unwrap()).unwrap();
+    let part = Part::load(&dir.join("full_part.toml")).unwrap();
+    let opts = RunOptions::default();
+    let mut cfg = model.cmm.clone().unwrap();
+    cfg.model.seed = 9101;
+    let mut m = Cmm(SimulatedCmm::new(&cfg, Some(part), 1.5));
+    let r = run(&plan, &mut m, &opts, &mut |_| {}).expect("the program runs");
+    let mc = MonteCarlo::default();
+    let plain = dmis_uncertainty(&model, &plan, &opts, &r, mc).unwrap();
+    let i = r.features.iter().position(|f| f.label == "SPH" && f.actual).unwrap();
+    let mut rough = r.clone();
+    rough.features[i].u_position_mm = Some(0.005);
+    rough.features[i].u_diameter_mm = Some(0.004);
+    let with = dmis_uncertainty(&model, &plan, &opts, &rough, mc).unwrap();
+    let (a, b) = (plain.uncertainty.features[i].unwrap(), with.uncertainty.features[i].unwrap());
+    for k in 0..3 {
+        assert!(b.position_mm[k] >= 0.0049, "u {} < the measured 5 µm scatter", b.position_mm[k]);
+        assert!(b.position_mm[k] <= a.position_mm[k].hypot(0.005) + 1e-12, "counted twice");
+    }
+    assert!(
+        b.diameter_mm.unwrap() >= 0.0039
+            && b.diameter_mm.unwrap() <= a.diameter_mm.unwrap().hypot(0.004) + 1e-12
+    );
+    for (j, (x, y)) in plain.uncertainty.features.iter().zip(&with.uncertainty.features).enumerate() {
+        if j != i {
+            assert_eq!(x, y, "feature {j} changed");
+        }
+    }
+}
+
 #[test]
 #[ignore = "100 machines × 200 realisations: the figures of docs/uncertainty.md"]
 fn dmis_uncertainty_covers_the_truth_100_machines() {

@@ -6,7 +6,8 @@
 //!   direction, on the requested probing line). The plan run again on it gives the perfect
 //!   result; with a simulated machine's errors added to its contacts, that machine's result.
 //! - [`parameters`]: a run's results as one vector — every actual output feature's values
-//!   (position, direction, diameter or cone angle) and every tolerance's value, in output order.
+//!   (position, direction, diameter or cone angle) and every tolerance's value, in output order;
+//!   [`fit_scatter`]: the fits' own scatter in the same layout.
 //! - [`Uncertainty`]: standard uncertainties of that vector put back per feature and tolerance
 //!   ([`Uncertainty::from_parameters`]), or the fits' own scatter without a machine model
 //!   ([`Uncertainty::fit_residuals`]); [`Uncertainty::add_to_json`] writes them beside the values
@@ -112,6 +113,33 @@ pub fn parameters(r: &RunResult) -> Vec<f64> {
             Some(w) => v.extend(w.iter()),
             None => v.push(t.value),
         }
+    }
+    v
+}
+
+/// The fits' own scatter in the layout of [`parameters`]: each actual feature's position
+/// uncertainty for its three coordinates and its diameter's for the diameter (mm; 0 where the
+/// fit gives none: constructed features, directions, cone angles and tolerances). The
+/// task-specific uncertainty compares it with the simulated machines' to find scatter the model
+/// does not contain (form error of the part, effects outside the model).
+pub fn fit_scatter(r: &RunResult) -> Vec<f64> {
+    let mut v = Vec::new();
+    for f in r.features.iter().filter(|f| f.actual) {
+        let pos = f.u_position_mm.filter(|u| u.is_finite()).unwrap_or(0.0);
+        v.extend([pos; 3]);
+        let (dir, dia, ang) = layout(&f.geom);
+        if dir {
+            v.extend([0.0; 3]);
+        }
+        if dia {
+            v.push(f.u_diameter_mm.filter(|u| u.is_finite()).unwrap_or(0.0));
+        }
+        if ang {
+            v.push(0.0);
+        }
+    }
+    for t in &r.tolerances {
+        v.extend(std::iter::repeat_n(0.0, if t.vector.is_some() { 3 } else { 1 }));
     }
     v
 }
