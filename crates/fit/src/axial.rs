@@ -432,7 +432,19 @@ pub fn cone(points: &[Point3]) -> Result<ConeFit, FitError> {
     let mut minima: Vec<Minimum> = Vec::new();
     for (o, w, psi, s, _) in starts(points, &m, true, 4) {
         let (f, t) = Frame::new(o, w).stepped(0.0, 0.0, 0.0, 0.0, &m.centroid);
-        if let Some(sol) = minimise(&model, (f, psi, s + t * psi.sin()), points, MAX_ITERATIONS) {
+        let sol = minimise(&model, (f, psi, s + t * psi.sin()), points, MAX_ITERATIONS).and_then(|sol| {
+            // ψ is found modulo π ((ψ + π, s) is the cone (ψ, −s)): a minimum outside
+            // (−π/2, π/2] is the same cone, converged again from its canonical state so that
+            // its covariance belongs to the parameters reported.
+            let (f, psi, s) = sol.state.clone();
+            let k = (psi / std::f64::consts::PI).round();
+            if k == 0.0 {
+                return Some(sol);
+            }
+            let s = if k.rem_euclid(2.0) == 1.0 { -s } else { s };
+            minimise(&model, (f, psi - k * std::f64::consts::PI, s), points, MAX_ITERATIONS)
+        });
+        if let Some(sol) = sol {
             minima.push(Minimum { ssr: sol.acc.ssr, size: 2.0 * sol.state.1.abs(), axis: sol.state.0.w() });
             if best.as_ref().is_none_or(|b| sol.acc.ssr < b.acc.ssr) {
                 best = Some(sol);

@@ -82,181 +82,229 @@ pub(crate) struct LpSolution {
     pub objective: f64,
 }
 
-/// Minimise `cᵀx` subject to `rows` (`aᵀx ≤ b`), `x ∈ Rᵈ`.
+/// Minimise `cᵀx` subject to `rows` (`aᵀx ≤ b`), `x ∈ Rᵈ`: the revised simplex method on the
+/// dual (equality rows Σ yᵢ aᵢ = −c, y ≥ 0; phase 1 with one artificial per row, phase 2 on
+/// the constraints' right-hand sides), Bland's rule after a run of degenerate pivots.
 pub(crate) fn minimise(d: usize, c: &[f64], rows: &[Row]) -> Result<LpSolution, LpError> {
     assert!(d <= MAXD && c.len() == d);
-    let m = rows.len();
-    // Equality rows of the dual: Σ_i y_i a_i = −c. Flip rows so that the right-hand side ≥ 0.
-    let mut sign = [1.0; MAXD];
-    let mut rhs = [0.0; MAXD];
-    for k in 0..d {
-        rhs[k] = -c[k];
-        if rhs[k] < 0.0 {
-            sign[k] = -1.0;
-            rhs[k] = -rhs[k];
-        }
-    }
-    // Column j of the dual: j < m a constraint, j ≥ m the artificial for row j − m.
-    let col = |j: usize| -> [f64; MAXD] {
-        let mut v = [0.0; MAXD];
-        if j < m {
-            for k in 0..d {
-                v[k] = sign[k] * rows[j].a[k];
-            }
-        } else {
-            v[j - m] = 1.0;
-        }
-        v
-    };
-    let mut basis: [usize; MAXD] = [0; MAXD];
-    for k in 0..d {
-        basis[k] = m + k;
-    }
-    let max_pivots = 50 * (m + d) + 1000;
+    let mut dual = Dual::new(d, c, rows);
+    let max_pivots = 50 * (rows.len() + d) + 1000;
     let mut pivots = 0;
     let mut degenerate_run = 0;
-    for phase in 1..=2 {
+    for phase in [Phase::One, Phase::Two] {
         loop {
             pivots += 1;
             if pivots > max_pivots {
                 return Err(LpError::IterationLimit);
             }
-            let mut bm = [[0.0; MAXD]; MAXD];
-            for (k, &j) in basis.iter().enumerate().take(d) {
-                let v = col(j);
-                for r in 0..d {
-                    bm[r][k] = v[r];
-                }
-            }
-            let binv = invert(&bm, d).ok_or(LpError::Unbounded)?;
-            // Basic values x_B = B⁻¹ rhs and multipliers π = B⁻ᵀ c_B.
-            let mut xb = [0.0; MAXD];
-            let mut cb = [0.0; MAXD];
-            for r in 0..d {
-                xb[r] = (0..d).map(|k| binv[r][k] * rhs[k]).sum::<f64>().max(0.0);
-                let j = basis[r];
-                cb[r] = if phase == 1 {
-                    if j >= m {
-                        1.0
-                    } else {
-                        0.0
-                    }
-                } else if j >= m {
-                    0.0
-                } else {
-                    rows[j].b
-                };
-            }
-            let mut pi = [0.0; MAXD];
-            for k in 0..d {
-                pi[k] = (0..d).map(|r| binv[r][k] * cb[r]).sum();
-            }
-            // The primal point x = S π.
-            let mut x = [0.0; MAXD];
-            for k in 0..d {
-                x[k] = sign[k] * pi[k];
-            }
-            // Pricing: reduced cost of constraint i.
+            let it = dual.iterate(phase)?;
             let bland = degenerate_run > 2 * d + 10;
-            let mut enter = usize::MAX;
-            let mut best = -TOL;
-            for (i, row) in rows.iter().enumerate() {
-                let ax: f64 = (0..d).map(|k| row.a[k] * x[k]).sum();
-                let rc = if phase == 1 { -ax } else { row.b - ax };
-                let scale = 1.0 + row.b.abs();
-                if rc < best * scale {
-                    enter = i;
-                    if bland {
-                        break;
-                    }
-                    best = rc / scale;
-                }
-            }
-            if phase == 1 {
-                for k in 0..d {
-                    let j = m + k;
-                    if basis[..d].contains(&j) {
-                        continue;
-                    }
-                    let rc = 1.0 - pi[k];
-                    if enter == usize::MAX && rc < best {
-                        enter = j;
-                        best = rc;
-                    }
-                }
-            }
-            if enter == usize::MAX {
-                if phase == 1 {
-                    let art: f64 = (0..d).filter(|&r| basis[r] >= m).map(|r| xb[r]).sum();
-                    let scale = 1.0 + rhs[..d].iter().fold(0.0f64, |a, &v| a.max(v));
-                    if art > 1e-9 * scale {
-                        // The dual is infeasible: the primal is unbounded.
-                        return Err(LpError::Unbounded);
-                    }
-                    // Drive zero-level artificials out of the basis.
-                    for r in 0..d {
-                        if basis[r] < m {
-                            continue;
-                        }
-                        let mut bestv = 1e-9;
-                        let mut q = usize::MAX;
-                        for i in 0..m {
-                            if basis[..d].contains(&i) {
-                                continue;
-                            }
-                            let v = col(i);
-                            let w: f64 = (0..d).map(|k| binv[r][k] * v[k]).sum();
-                            if w.abs() > bestv {
-                                bestv = w.abs();
-                                q = i;
-                            }
-                        }
-                        if q == usize::MAX {
-                            // A redundant equality: the constraints do not determine x.
-                            return Err(LpError::Unbounded);
-                        }
-                        basis[r] = q;
-                    }
+            let Some(enter) = dual.price(phase, &it, bland) else {
+                if phase == Phase::One {
+                    dual.end_phase_one(&it)?;
                     degenerate_run = 0;
                     break;
                 }
-                let objective = (0..d).map(|k| c[k] * x[k]).sum();
-                return Ok(LpSolution { x, objective });
-            }
-            // Ratio test on the entering column.
-            let v = col(enter);
-            let mut w = [0.0; MAXD];
-            for r in 0..d {
-                w[r] = (0..d).map(|k| binv[r][k] * v[k]).sum();
-            }
-            let mut leave = usize::MAX;
-            let mut ratio = f64::INFINITY;
-            for r in 0..d {
-                if w[r] > 1e-11 {
-                    let t = xb[r] / w[r];
-                    let better = t < ratio - 1e-15
-                        || (t <= ratio + 1e-15
-                            && leave != usize::MAX
-                            && (if bland { basis[r] < basis[leave] } else { w[r] > w[leave] }));
-                    if better {
-                        ratio = t;
-                        leave = r;
-                    }
-                }
-            }
-            if leave == usize::MAX {
-                // Dual unbounded: the primal constraints contradict each other.
-                return Err(LpError::Infeasible);
-            }
-            if ratio < 1e-14 {
-                degenerate_run += 1;
-            } else {
-                degenerate_run = 0;
-            }
-            basis[leave] = enter;
+                let objective = (0..d).map(|k| c[k] * it.x[k]).sum();
+                return Ok(LpSolution { x: it.x, objective });
+            };
+            let (leave, ratio) = dual.ratio_test(enter, &it, bland)?;
+            degenerate_run = if ratio < 1e-14 { degenerate_run + 1 } else { 0 };
+            dual.basis[leave] = enter;
         }
     }
     Err(LpError::IterationLimit)
+}
+
+/// The two phases of the simplex method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Phase {
+    /// Find a feasible basis of the dual (minimise the artificials).
+    One,
+    /// Optimise from it.
+    Two,
+}
+
+/// The dual problem of [`minimise`]: column j < m is constraint j, j ≥ m the artificial of row
+/// j − m; rows flipped so that the right-hand side is ≥ 0.
+struct Dual<'a> {
+    d: usize,
+    m: usize,
+    rows: &'a [Row],
+    sign: [f64; MAXD],
+    rhs: [f64; MAXD],
+    basis: [usize; MAXD],
+}
+
+/// One iteration's factorisation: B⁻¹, the basic values x_B = B⁻¹ rhs, the multipliers
+/// π = B⁻ᵀ c_B and the primal point x = S π.
+struct Iterate {
+    binv: [[f64; MAXD]; MAXD],
+    xb: [f64; MAXD],
+    pi: [f64; MAXD],
+    x: [f64; MAXD],
+}
+
+impl<'a> Dual<'a> {
+    fn new(d: usize, c: &[f64], rows: &'a [Row]) -> Dual<'a> {
+        let mut sign = [1.0; MAXD];
+        let mut rhs = [0.0; MAXD];
+        for k in 0..d {
+            rhs[k] = -c[k];
+            if rhs[k] < 0.0 {
+                sign[k] = -1.0;
+                rhs[k] = -rhs[k];
+            }
+        }
+        let m = rows.len();
+        let mut basis: [usize; MAXD] = [0; MAXD];
+        for (k, b) in basis.iter_mut().enumerate().take(d) {
+            *b = m + k;
+        }
+        Dual { d, m, rows, sign, rhs, basis }
+    }
+
+    /// Column `j` of the dual's equality rows.
+    fn col(&self, j: usize) -> [f64; MAXD] {
+        let mut v = [0.0; MAXD];
+        if j < self.m {
+            for k in 0..self.d {
+                v[k] = self.sign[k] * self.rows[j].a[k];
+            }
+        } else {
+            v[j - self.m] = 1.0;
+        }
+        v
+    }
+
+    /// Factor the current basis (a singular basis: the constraints do not bound x).
+    fn iterate(&self, phase: Phase) -> Result<Iterate, LpError> {
+        let (d, m) = (self.d, self.m);
+        let mut bm = [[0.0; MAXD]; MAXD];
+        for (k, &j) in self.basis.iter().enumerate().take(d) {
+            let v = self.col(j);
+            for r in 0..d {
+                bm[r][k] = v[r];
+            }
+        }
+        let binv = invert(&bm, d).ok_or(LpError::Unbounded)?;
+        let mut xb = [0.0; MAXD];
+        let mut cb = [0.0; MAXD];
+        for r in 0..d {
+            xb[r] = (0..d).map(|k| binv[r][k] * self.rhs[k]).sum::<f64>().max(0.0);
+            let j = self.basis[r];
+            cb[r] = match (phase, j >= m) {
+                (Phase::One, true) => 1.0,
+                (Phase::One, false) | (Phase::Two, true) => 0.0,
+                (Phase::Two, false) => self.rows[j].b,
+            };
+        }
+        let mut pi = [0.0; MAXD];
+        let mut x = [0.0; MAXD];
+        for k in 0..d {
+            pi[k] = (0..d).map(|r| binv[r][k] * cb[r]).sum();
+            x[k] = self.sign[k] * pi[k];
+        }
+        Ok(Iterate { binv, xb, pi, x })
+    }
+
+    /// The entering column: the most negative scaled reduced cost (the first negative under
+    /// Bland's rule); in phase 1 also a non-basic artificial. `None` at the optimum.
+    fn price(&self, phase: Phase, it: &Iterate, bland: bool) -> Option<usize> {
+        let d = self.d;
+        let mut enter = None;
+        let mut best = -TOL;
+        for (i, row) in self.rows.iter().enumerate() {
+            let ax: f64 = (0..d).map(|k| row.a[k] * it.x[k]).sum();
+            let rc = if phase == Phase::One { -ax } else { row.b - ax };
+            let scale = 1.0 + row.b.abs();
+            if rc < best * scale {
+                enter = Some(i);
+                if bland {
+                    break;
+                }
+                best = rc / scale;
+            }
+        }
+        if phase == Phase::One {
+            for k in 0..d {
+                let j = self.m + k;
+                if self.basis[..d].contains(&j) {
+                    continue;
+                }
+                let rc = 1.0 - it.pi[k];
+                if enter.is_none() && rc < best {
+                    enter = Some(j);
+                    best = rc;
+                }
+            }
+        }
+        enter
+    }
+
+    /// At the end of phase 1: an artificial left above zero means the dual is infeasible (the
+    /// primal unbounded); zero-level artificials are driven out of the basis (none can go: a
+    /// redundant equality, x not determined).
+    fn end_phase_one(&mut self, it: &Iterate) -> Result<(), LpError> {
+        let (d, m) = (self.d, self.m);
+        let art: f64 = (0..d).filter(|&r| self.basis[r] >= m).map(|r| it.xb[r]).sum();
+        let scale = 1.0 + self.rhs[..d].iter().fold(0.0f64, |a, &v| a.max(v));
+        if art > 1e-9 * scale {
+            return Err(LpError::Unbounded);
+        }
+        for r in 0..d {
+            if self.basis[r] < m {
+                continue;
+            }
+            let mut bestv = 1e-9;
+            let mut q = None;
+            for i in 0..m {
+                if self.basis[..d].contains(&i) {
+                    continue;
+                }
+                let v = self.col(i);
+                let w: f64 = (0..d).map(|k| it.binv[r][k] * v[k]).sum();
+                if w.abs() > bestv {
+                    bestv = w.abs();
+                    q = Some(i);
+                }
+            }
+            self.basis[r] = q.ok_or(LpError::Unbounded)?;
+        }
+        Ok(())
+    }
+
+    /// The leaving row for column `enter` and its step (no positive entry: the dual is
+    /// unbounded, the primal constraints contradict each other).
+    fn ratio_test(&self, enter: usize, it: &Iterate, bland: bool) -> Result<(usize, f64), LpError> {
+        let d = self.d;
+        let v = self.col(enter);
+        let mut leave: Option<usize> = None;
+        let mut ratio = f64::INFINITY;
+        let mut w = [0.0; MAXD];
+        for r in 0..d {
+            w[r] = (0..d).map(|k| it.binv[r][k] * v[k]).sum();
+        }
+        for r in 0..d {
+            if w[r] > 1e-11 {
+                let t = it.xb[r] / w[r];
+                let better = t < ratio - 1e-15
+                    || (t <= ratio + 1e-15
+                        && leave.is_some_and(|l| {
+                            if bland {
+                                self.basis[r] < self.basis[l]
+                            } else {
+                                w[r] > w[l]
+                            }
+                        }));
+                if better {
+                    ratio = t;
+                    leave = Some(r);
+                }
+            }
+        }
+        leave.map(|l| (l, ratio)).ok_or(LpError::Infeasible)
+    }
 }
 
 #[cfg(test)]

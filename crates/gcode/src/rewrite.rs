@@ -824,6 +824,78 @@ impl InsertAt {
     }
 }
 
+/// An arc block in its plane (mm): axes (a, b) with a × b = +normal (G17 X, Y; G18 Z, X; G19
+/// Y, Z), the centre (a, b), the start and end radii, the start angle and the signed sweep (rad,
+/// > 0 counter-clockwise).
+struct PlaneArc {
+    n: usize,
+    ia: usize,
+    ib: usize,
+    ca: f64,
+    cb: f64,
+    r0: f64,
+    r1: f64,
+    th0: f64,
+    sweep: f64,
+}
+
+impl PlaneArc {
+    /// The arc of `blk` from `start` to `end` (mm; `u` mm per program unit); an arc that does
+    /// not exist is the letter to blame and why.
+    fn of(
+        blk: &crate::Block<'_>,
+        u: f64,
+        start: &[f64],
+        end: &[f64],
+    ) -> Result<PlaneArc, (Option<u8>, String)> {
+        // Plane axes (a, b) with a × b = +normal: G17 (X, Y), G18 (Z, X), G19 (Y, Z).
+        let n = blk.after.plane.normal_axis();
+        let (ia, ib) = ((n + 1) % 3, (n + 2) % 3);
+        let ccw = blk.after.motion == MotionMode::ArcCcw;
+        let (sa, sb, ea, eb) = (start[ia], start[ib], end[ia], end[ib]);
+        let (ca, cb) = if blk.ijk.iter().any(|v| v.is_some()) {
+            let off = |k: usize| blk.ijk[k].unwrap_or(0.0) * u;
+            if blk.after.arc_absolute {
+                (off(ia), off(ib))
+            } else {
+                (sa + off(ia), sb + off(ib))
+            }
+        } else if let Some(rr) = blk.r {
+            // Radius form: the centre on the perpendicular bisector; R < 0 takes the long way.
+            let rr = rr * u;
+            let (dx, dy) = (ea - sa, eb - sb);
+            let d = dx.hypot(dy);
+            if d <= 0.0 || d > 2.0 * rr.abs() * (1.0 + 1e-9) {
+                return Err((Some(b'R'), format!("no arc of radius {} joins the start and the end", rr / u)));
+            }
+            let h = (rr * rr - 0.25 * d * d).max(0.0).sqrt();
+            // Left of the chord for a counter-clockwise short arc.
+            let side = if ccw == (rr > 0.0) { 1.0 } else { -1.0 };
+            (0.5 * (sa + ea) - side * h * dy / d, 0.5 * (sb + eb) + side * h * dx / d)
+        } else {
+            return Err((None, "an arc needs I/J/K or R".into()));
+        };
+        let r0 = (sa - ca).hypot(sb - cb);
+        let r1 = (ea - ca).hypot(eb - cb);
+        if r0 <= 0.0 || r1 <= 0.0 {
+            return Err((None, "the arc has zero radius".into()));
+        }
+        let th0 = (sb - cb).atan2(sa - ca);
+        let mut sweep = (eb - cb).atan2(ea - ca) - th0;
+        let tau = std::f64::consts::TAU;
+        if ccw {
+            while sweep <= 1e-12 {
+                sweep += tau;
+            }
+        } else {
+            while sweep >= -1e-12 {
+                sweep -= tau;
+            }
+        }
+        Ok(PlaneArc { n, ia, ib, ca, cb, r0, r1, th0, sweep })
+    }
+}
+
 impl Program {
     /// Replace arc block `blk` (line `i`) by G1 chords of the transformed arc (see
     /// [`ArcPolicy::Linearize`]): the intermediate points on lines of their own before the
@@ -871,53 +943,8 @@ impl Program {
                 "the arc's start position is not known (give it earlier, or a start position)".into(),
             ));
         };
-        // Plane axes (a, b) with a × b = +normal: G17 (X, Y), G18 (Z, X), G19 (Y, Z).
-        let n = blk.after.plane.normal_axis();
-        let (ia, ib) = ((n + 1) % 3, (n + 2) % 3);
-        let ccw = blk.after.motion == MotionMode::ArcCcw;
-        let (sa, sb, ea, eb) = (start[ia], start[ib], end[ia], end[ib]);
-        let (ca, cb) = if blk.ijk.iter().any(|v| v.is_some()) {
-            let off = |k: usize| blk.ijk[k].unwrap_or(0.0) * u;
-            if blk.after.arc_absolute {
-                (off(ia), off(ib))
-            } else {
-                (sa + off(ia), sb + off(ib))
-            }
-        } else if let Some(rr) = blk.r {
-            // Radius form: the centre on the perpendicular bisector; R < 0 takes the long way.
-            let rr = rr * u;
-            let (dx, dy) = (ea - sa, eb - sb);
-            let d = dx.hypot(dy);
-            if d <= 0.0 || d > 2.0 * rr.abs() * (1.0 + 1e-9) {
-                return Err(err(
-                    Some(b'R'),
-                    format!("no arc of radius {} joins the start and the end", rr / u),
-                ));
-            }
-            let h = (rr * rr - 0.25 * d * d).max(0.0).sqrt();
-            // Left of the chord for a counter-clockwise short arc.
-            let side = if ccw == (rr > 0.0) { 1.0 } else { -1.0 };
-            (0.5 * (sa + ea) - side * h * dy / d, 0.5 * (sb + eb) + side * h * dx / d)
-        } else {
-            return Err(err(None, "an arc needs I/J/K or R".into()));
-        };
-        let r0 = (sa - ca).hypot(sb - cb);
-        let r1 = (ea - ca).hypot(eb - cb);
-        if r0 <= 0.0 || r1 <= 0.0 {
-            return Err(err(None, "the arc has zero radius".into()));
-        }
-        let th0 = (sb - cb).atan2(sa - ca);
-        let mut sweep = (eb - cb).atan2(ea - ca) - th0;
-        let tau = std::f64::consts::TAU;
-        if ccw {
-            while sweep <= 1e-12 {
-                sweep += tau;
-            }
-        } else {
-            while sweep >= -1e-12 {
-                sweep -= tau;
-            }
-        }
+        let arc = PlaneArc::of(blk, u, &start, &end).map_err(|(letter, m)| err(letter, m))?;
+        let PlaneArc { n, ia, ib, ca, cb, r0, r1, th0, sweep } = arc;
         // Chord error of a step φ on radius ρ: ρ(1 − cos(φ/2)). Output rounding moves each point
         // by at most half a unit of the last decimal per axis (√3/2 of it in space).
         let round_err = 0.5 * 3f64.sqrt() * 10f64.powi(-(dec as i32)) * u;
@@ -962,8 +989,25 @@ impl Program {
             }
             out.push_str(eol);
         }
-        // The block's own line: G2/G3 → G1, centre words removed, the end point written.
-        let q = point(steps);
+        self.rewrite_arc_block(i, old, &point(steps), u, dec, written, out);
+        Ok(())
+    }
+
+    /// The arc block's own line: G2/G3 → G1, centre words removed, the end point `q` (mm)
+    /// written in the block's units.
+    #[allow(clippy::too_many_arguments)]
+    fn rewrite_arc_block(
+        &self,
+        i: usize,
+        old: &Modal,
+        q: &truepos_math::Point3,
+        u: f64,
+        dec: u8,
+        written: &mut [Option<f64>; 3],
+        out: &mut String,
+    ) {
+        let toks = &self.tokens[self.lines[i].tokens.clone()];
+        let find = |letter: u8| toks.iter().position(|tk| tk.word().is_some_and(|w| w.0 == letter));
         let mut edits = Edits::default();
         let g = toks.iter().position(|tk| {
             tk.word().is_some_and(|w| w.0 == b'G' && ((w.1 - 2.0).abs() < 1e-6 || (w.1 - 3.0).abs() < 1e-6))
@@ -992,7 +1036,6 @@ impl Program {
             }
         }
         self.emit_line(i, &mut edits.0, out);
-        Ok(())
     }
 
     /// Write line `i` with `edits` applied (sorted here into the order of the line); the text

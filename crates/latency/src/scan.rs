@@ -203,23 +203,11 @@ pub fn scan_samples(s: &Streams, threshold: f64, min_turn: f64) -> Vec<usize> {
     idx
 }
 
-/// Delay from a scan. `max_delay` bounds the search (s).
-pub fn scan_delay(s: &Streams, threshold: f64, max_delay: f64) -> Result<ScanResult, LatencyError> {
-    let idx = scan_samples(s, threshold, 0.5);
-    if idx.len() < 50 {
-        return Err(LatencyError::NoContact(format!(
-            "no scan found: no contact run longer than 20 samples whose deflection direction turns (threshold {threshold} mm)"
-        )));
-    }
-    let n_steps = count_steps(s, &idx, threshold);
-    if n_steps < 2 {
-        return Err(LatencyError::Underdetermined(format!(
-            "the scan has {n_steps} deflection step(s): without direction changes of the radial motion the delay is not observable (switch the path between two radii several times)"
-        )));
-    }
-    // Plane of the combined points at zero shift: circle when they are flat.
+/// The form of the scan from its combined points at zero shift: a circle in their plane when
+/// they are flat (smallest spread < 2 % of the largest), else a sphere.
+fn scan_form(s: &Streams, idx: &[usize]) -> Result<Form, LatencyError> {
     let mut pts = Vec::with_capacity(idx.len());
-    for &j in &idx {
+    for &j in idx {
         if let Some((m, _)) = machine_pos_vel(s.machine_t, s.machine, s.probe_t[j]) {
             let d = s.probe[j];
             pts.push(Vector3::new(m[0] + d[0], m[1] + d[1], m[2] + d[2]));
@@ -240,13 +228,47 @@ pub fn scan_delay(s: &Streams, threshold: f64, max_delay: f64) -> Result<ScanRes
     let mut order = [0usize, 1, 2];
     order.sort_by(|&a, &b| e.eigenvalues[b].total_cmp(&e.eigenvalues[a]));
     let lam = |k: usize| e.eigenvalues[order[k]].max(0.0);
-    let form = if lam(2).sqrt() < 0.02 * lam(0).sqrt() {
+    Ok(if lam(2).sqrt() < 0.02 * lam(0).sqrt() {
         let e1: Vector3 = e.eigenvectors.column(order[0]).into_owned();
         let nrm: Vector3 = e.eigenvectors.column(order[2]).into_owned();
         Form::Circle { origin: Point3::from(c), e1, e2: nrm.cross(&e1) }
     } else {
         Form::Sphere
-    };
+    })
+}
+
+/// The machine samples whose stamp shifted by `shift` stays inside one contact run of `idx`
+/// (`margin` s from its ends): stage 2's fixed sample set on the machine clock.
+fn machine_clock_samples(s: &Streams, idx: &[usize], margin: f64, shift: f64) -> Vec<usize> {
+    let mut on_machine = Vec::new();
+    let mut r0 = 0;
+    for r in 1..=idx.len() {
+        if r == idx.len() || idx[r] != idx[r - 1] + 1 {
+            let (ta, tb) = (s.probe_t[idx[r0]] + margin, s.probe_t[idx[r - 1]] - margin);
+            let i0 = s.machine_t.partition_point(|&t| t - shift < ta);
+            let i1 = s.machine_t.partition_point(|&t| t - shift <= tb);
+            on_machine.extend(i0..i1.max(i0));
+            r0 = r;
+        }
+    }
+    on_machine
+}
+
+/// Delay from a scan. `max_delay` bounds the search (s).
+pub fn scan_delay(s: &Streams, threshold: f64, max_delay: f64) -> Result<ScanResult, LatencyError> {
+    let idx = scan_samples(s, threshold, 0.5);
+    if idx.len() < 50 {
+        return Err(LatencyError::NoContact(format!(
+            "no scan found: no contact run longer than 20 samples whose deflection direction turns (threshold {threshold} mm)"
+        )));
+    }
+    let n_steps = count_steps(s, &idx, threshold);
+    if n_steps < 2 {
+        return Err(LatencyError::Underdetermined(format!(
+            "the scan has {n_steps} deflection step(s): without direction changes of the radial motion the delay is not observable (switch the path between two radii several times)"
+        )));
+    }
+    let form = scan_form(s, &idx)?;
     let prob = ScanProblem { s, idx: &idx, form };
     // Noise of each stream (robust, from second differences): interpolating noisy machine
     // samples at fraction w has a variance that swings with the shift (period: one machine
@@ -298,17 +320,7 @@ pub fn scan_delay(s: &Streams, threshold: f64, max_delay: f64) -> Result<ScanRes
     // whose shifted time stays inside one contact run over the whole bracket), so the profile
     // is continuous.
     let margin = h_grid + 2.0 * s.machine_dt().max(s.probe_dt());
-    let mut on_machine = Vec::new();
-    let mut r0 = 0;
-    for r in 1..=idx.len() {
-        if r == idx.len() || idx[r] != idx[r - 1] + 1 {
-            let (ta, tb) = (s.probe_t[idx[r0]] + margin, s.probe_t[idx[r - 1]] - margin);
-            let i0 = s.machine_t.partition_point(|&t| t - best.1 < ta);
-            let i1 = s.machine_t.partition_point(|&t| t - best.1 <= tb);
-            on_machine.extend(i0..i1.max(i0));
-            r0 = r;
-        }
-    }
+    let on_machine = machine_clock_samples(s, &idx, margin, best.1);
     if on_machine.len() >= 50 {
         // Take the clock on which the profile is smoother (see [`roughness`]): on equal clocks
         // every point has the same interpolation phase and the noisier machine should not be

@@ -177,6 +177,10 @@ impl Blend {
 }
 
 /// Run `plan` on `machine` at its control rate. Deterministic when the machine is.
+///
+/// Each control tick: [`Exec::enter`] the current segment, [`Exec::command`] the tip centre,
+/// the machine follows and measures ([`Exec::record`]), then either the first contact of an
+/// approach re-plans the feature ([`Exec::touch`]) or the plan advances ([`Exec::advance`]).
 pub fn execute<M: ScanningMachine + ?Sized>(
     plan: &Plan,
     machine: &mut M,
@@ -190,120 +194,206 @@ pub fn execute<M: ScanningMachine + ?Sized>(
         )));
     }
     let p: &Params = &plan.params;
-    let tip = p.tip_radius;
     let dt = machine.control_period_s();
     if !(dt.is_finite() && dt > 0.0) {
         return Err(ScanError::Parameter("control_dt_s", dt));
     }
-
-    let nseg = plan.segments.len();
     let nf = plan.features.len();
-    let est = (plan.duration() / dt * 1.1) as usize + 16;
-    let mut points: Vec<Point> = Vec::with_capacity(est);
-    let mut contacted = vec![false; nf];
-    let mut shift = vec![0.0; nf];
-    let mut contact_t = vec![f64::NAN; nf];
-
-    let (mut i, mut tau) = (0usize, 0.0f64);
-    let mut mode = Mode::Plan;
-    let mut e_n = 0.0;
-    let mut blend = Blend { o0: Vector3::zeros(), tb: 0.0, dur: 1.0 };
-    let mut last_n = Vector3::z();
-    let mut settled_for = 0.0;
-    let first = plan.segments[0].eval(0.0, &plan.features[plan.segments[0].feature], tip);
-    machine.begin(first.position, tip)?;
-    let mut t = 0.0;
+    let first = plan.segments[0].eval(0.0, &plan.features[plan.segments[0].feature], p.tip_radius);
+    machine.begin(first.position, p.tip_radius)?;
     let max_ticks = ((plan.duration()
         + nf as f64
             * (control.max_settle_wait + 2.0 * control.search_limit / p.touch_speed.min(p.scan_speed))
         + 10.0)
         / dt) as usize;
-    let mut entered = usize::MAX;
-    let mut halt_pending = false;
-
+    let mut ex = Exec::new(plan, control, dt);
     for _tick in 0..max_ticks {
-        let seg = &plan.segments[i];
-        let fi = seg.feature;
-        let f = &plan.features[fi];
-        if entered != i {
-            entered = i;
-            if seg.kind == SegmentKind::Transfer && (e_n != 0.0 || blend.o0.norm() > 0.0) {
-                // hand the feature's correction over to a blend that fades during the transfer
-                let o = blend.at(t) + last_n * e_n;
-                e_n = 0.0;
-                blend = Blend { o0: o, tb: t, dur: seg.duration().clamp(0.05, 0.3) };
-            }
-            settled_for = 0.0;
+        ex.enter();
+        let (c, n, target, speed) = ex.command();
+        let seg = &plan.segments[ex.i];
+        let touchable = seg.kind != SegmentKind::Transfer;
+        let sample =
+            machine.follow(&ScanCommand { tip_center_mm: c, feature: touchable.then_some(seg.feature) })?;
+        ex.t += dt;
+        let defl = ex.record(sample.scale_mm, sample.deflection_mm, c, target, speed);
+        let in_approach =
+            seg.kind == SegmentKind::Approach && seg.contact_time.is_some() && !ex.contacted[seg.feature];
+        if in_approach && defl > control.contact_threshold {
+            ex.touch(c, n, sample.scale_mm + sample.deflection_mm);
+            continue;
         }
-        // 1. command
-        let (base, n, target, speed) = match &mode {
+        if ex.advance(n, defl, target, in_approach)? {
+            break;
+        }
+    }
+    if ex.i < plan.segments.len() {
+        return Err(ScanError::Invalid("execution did not finish (internal time limit)".into()));
+    }
+    if ex.halt_pending {
+        if let Some(last) = ex.points.last_mut() {
+            last.halted = true;
+        }
+    }
+    let cycle_time = ex.t;
+    let stops = count_stops(&ex.points);
+    let features = summarise(plan, &ex.points, &ex.shift, &ex.contact_t)?;
+    Ok(Run { points: ex.points, features, cycle_time, stops })
+}
+
+/// The state of a running [`execute`].
+struct Exec<'a> {
+    plan: &'a Plan,
+    control: &'a ControlParams,
+    /// Control period (s).
+    dt: f64,
+    /// Current segment and the time into it (s).
+    i: usize,
+    tau: f64,
+    mode: Mode,
+    /// The current feature's correction along its normal (mm).
+    e_n: f64,
+    blend: Blend,
+    last_n: Vector3,
+    settled_for: f64,
+    /// Machine time (s).
+    t: f64,
+    entered: usize,
+    halt_pending: bool,
+    points: Vec<Point>,
+    contacted: Vec<bool>,
+    shift: Vec<f64>,
+    contact_t: Vec<f64>,
+}
+
+impl<'a> Exec<'a> {
+    fn new(plan: &'a Plan, control: &'a ControlParams, dt: f64) -> Exec<'a> {
+        let nf = plan.features.len();
+        let est = (plan.duration() / dt * 1.1) as usize + 16;
+        Exec {
+            plan,
+            control,
+            dt,
+            i: 0,
+            tau: 0.0,
+            mode: Mode::Plan,
+            e_n: 0.0,
+            blend: Blend { o0: Vector3::zeros(), tb: 0.0, dur: 1.0 },
+            last_n: Vector3::z(),
+            settled_for: 0.0,
+            t: 0.0,
+            entered: usize::MAX,
+            halt_pending: false,
+            points: Vec::with_capacity(est),
+            contacted: vec![false; nf],
+            shift: vec![0.0; nf],
+            contact_t: vec![f64::NAN; nf],
+        }
+    }
+
+    /// On entering a segment: a transfer takes over the feature's correction as a blend that
+    /// fades during it.
+    fn enter(&mut self) {
+        if self.entered == self.i {
+            return;
+        }
+        self.entered = self.i;
+        let seg = &self.plan.segments[self.i];
+        if seg.kind == SegmentKind::Transfer && (self.e_n != 0.0 || self.blend.o0.norm() > 0.0) {
+            let o = self.blend.at(self.t) + self.last_n * self.e_n;
+            self.e_n = 0.0;
+            self.blend = Blend { o0: o, tb: self.t, dur: seg.duration().clamp(0.05, 0.3) };
+        }
+        self.settled_for = 0.0;
+    }
+
+    /// The commanded tip centre, the surface normal, the target deflection and the path speed.
+    fn command(&mut self) -> (Point3, Vector3, f64, f64) {
+        let seg = &self.plan.segments[self.i];
+        let f = &self.plan.features[seg.feature];
+        let (base, n, target, speed) = match &self.mode {
             Mode::Plan => {
-                let c = seg.eval(tau, f, tip);
-                (c.position, c.normal.unwrap_or(last_n), c.deflection, c.speed)
+                let c = seg.eval(self.tau, f, self.plan.params.tip_radius);
+                (c.position, c.normal.unwrap_or(self.last_n), c.deflection, c.speed)
             }
             Mode::Bend { p, n0, speed, .. } => (*p, *n0, 0.0, *speed),
         };
-        last_n = n;
-        let c = base + n * e_n + blend.at(t);
-        // 2. the machine follows the command over the tick and measures
-        let touchable = seg.kind != SegmentKind::Transfer;
-        let sample = machine.follow(&ScanCommand { tip_center_mm: c, feature: touchable.then_some(fi) })?;
-        t += dt;
-        // 3. measure
-        let (xm, qm) = (sample.scale_mm, sample.deflection_mm);
+        self.last_n = n;
+        (base + n * self.e_n + self.blend.at(self.t), n, target, speed)
+    }
+
+    /// Store the tick's measured point; its deflection (mm).
+    fn record(&mut self, xm: Point3, qm: Vector3, c: Point3, target: f64, speed: f64) -> f64 {
+        let seg = &self.plan.segments[self.i];
         let defl = qm.norm();
-        points.push(Point {
-            t,
+        self.points.push(Point {
+            t: self.t,
             position: xm + qm,
             commanded: c,
             deflection: defl,
             target,
             segment: seg.kind,
-            feature: fi,
-            quality: quality(defl - target, p.quality_bands),
+            feature: seg.feature,
+            quality: quality(defl - target, self.plan.params.quality_bands),
             speed,
-            halted: speed <= 1e-9 || halt_pending,
+            halted: speed <= 1e-9 || self.halt_pending,
         });
-        halt_pending = false;
-        // 4. logic
-        let in_approach = seg.kind == SegmentKind::Approach && seg.contact_time.is_some() && !contacted[fi];
-        if in_approach && defl > control.contact_threshold {
-            contacted[fi] = true;
-            contact_t[fi] = t;
-            let tc = seg.contact_time.unwrap_or(0.0);
-            let (ni, nt) = if tc >= seg.duration() - 1e-12 { (i + 1, 0.0) } else { (i, tc) };
-            let nseg_ = &plan.segments[ni.min(nseg - 1)];
-            let b = nseg_.eval(nt, f, tip);
-            let nb = b.normal.unwrap_or(n);
-            let o_now = c - b.position;
-            // the measured tip centre touches the true surface: the surface's offset from the
-            // nominal one along the normal there is the tip centre's distance minus the radius
-            e_n = f.signed_distance(&(xm + qm)).0 - tip;
-            shift[fi] = e_n;
-            // blend the remaining jump out within `blend_time`; when the command is ahead of
-            // the plan (late contact) the fade runs against the motion, so it is slowed until
-            // it takes at most 3/8 of the path speed (smoothstep peak rate 1.5·|o|/T) and the
-            // command never stops
-            let o0 = o_now - nb * e_n;
-            let ahead = nseg_.eval(nt + 1e-3, f, tip).position - b.position;
-            let v = b.speed.max(p.touch_speed.min(p.scan_speed));
-            let dur = if o0.dot(&ahead) > 0.0 {
-                control.blend_time.max(4.0 * o0.norm() / v)
-            } else {
-                control.blend_time
-            };
-            blend = Blend { o0, tb: t, dur };
-            mode = Mode::Plan;
-            i = ni.min(nseg - 1);
-            // advance by this tick so the commanded speed does not stall
-            tau = nt + dt;
-            last_n = nb;
-            continue;
+        self.halt_pending = false;
+        defl
+    }
+
+    /// The first contact of an approach at commanded `c` (normal `n`), the measured tip centre
+    /// `measured`: the feature's surface offset is found and the plan continues from the
+    /// contact, the jump blended out.
+    fn touch(&mut self, c: Point3, n: Vector3, measured: Point3) {
+        let (plan, control, dt) = (self.plan, self.control, self.dt);
+        let p = &plan.params;
+        let seg = &plan.segments[self.i];
+        let fi = seg.feature;
+        let f = &plan.features[fi];
+        let nseg = plan.segments.len();
+        self.contacted[fi] = true;
+        self.contact_t[fi] = self.t;
+        let tc = seg.contact_time.unwrap_or(0.0);
+        let (ni, nt) = if tc >= seg.duration() - 1e-12 { (self.i + 1, 0.0) } else { (self.i, tc) };
+        let nseg_ = &plan.segments[ni.min(nseg - 1)];
+        let b = nseg_.eval(nt, f, p.tip_radius);
+        let nb = b.normal.unwrap_or(n);
+        let o_now = c - b.position;
+        // the measured tip centre touches the true surface: the surface's offset from the
+        // nominal one along the normal there is the tip centre's distance minus the radius
+        self.e_n = f.signed_distance(&measured).0 - p.tip_radius;
+        self.shift[fi] = self.e_n;
+        // blend the remaining jump out within `blend_time`; when the command is ahead of
+        // the plan (late contact) the fade runs against the motion, so it is slowed until
+        // it takes at most 3/8 of the path speed (smoothstep peak rate 1.5·|o|/T) and the
+        // command never stops
+        let o0 = o_now - nb * self.e_n;
+        let ahead = nseg_.eval(nt + 1e-3, f, p.tip_radius).position - b.position;
+        let v = b.speed.max(p.touch_speed.min(p.scan_speed));
+        let dur = if o0.dot(&ahead) > 0.0 {
+            control.blend_time.max(4.0 * o0.norm() / v)
+        } else {
+            control.blend_time
+        };
+        self.blend = Blend { o0, tb: self.t, dur };
+        self.mode = Mode::Plan;
+        self.i = ni.min(nseg - 1);
+        // advance by this tick so the commanded speed does not stall
+        self.tau = nt + dt;
+        self.last_n = nb;
+    }
+
+    /// Feedback on the deflection, then the next tick's place on the plan (or in the search
+    /// bend after an approach that found nothing). `Ok(true)` when the plan is done.
+    fn advance(&mut self, n: Vector3, defl: f64, target: f64, in_approach: bool) -> Result<bool, ScanError> {
+        let (plan, control, dt) = (self.plan, self.control, self.dt);
+        let p = &plan.params;
+        let seg = &plan.segments[self.i];
+        let f = &plan.features[seg.feature];
+        if seg.feedback && self.tau >= seg.feedback_after && matches!(self.mode, Mode::Plan) {
+            self.e_n += control.feedback_gain * (defl - target) * dt;
         }
-        if seg.feedback && tau >= seg.feedback_after && matches!(mode, Mode::Plan) {
-            e_n += control.feedback_gain * (defl - target) * dt;
-        }
-        match &mut mode {
+        match &mut self.mode {
             Mode::Bend { p: bp, dir0, n0, tb, travel, speed } => {
                 *tb += dt;
                 let d = *dir0 + (-*n0 - *dir0) * (1.0 - (-*tb / control.bend_time).exp());
@@ -313,59 +403,55 @@ pub fn execute<M: ScanningMachine + ?Sized>(
                 if *travel > control.search_limit {
                     return Err(ScanError::NoContact { id: f.id.clone(), limit: control.search_limit });
                 }
+                Ok(false)
             }
             Mode::Plan => {
-                tau += dt;
+                self.tau += dt;
                 if seg.wait_settled {
                     if (defl - p.deflection).abs() < 0.5 * p.quality_bands[0] {
-                        settled_for += dt;
+                        self.settled_for += dt;
                     } else {
-                        settled_for = 0.0;
+                        self.settled_for = 0.0;
                     }
-                    if settled_for >= control.settle_dwell || tau >= control.max_settle_wait {
-                        tau = 0.0;
-                        i += 1;
-                        halt_pending = true;
+                    if self.settled_for >= control.settle_dwell || self.tau >= control.max_settle_wait {
+                        self.tau = 0.0;
+                        self.i += 1;
+                        self.halt_pending = true;
                     }
-                } else if tau >= seg.duration() {
+                } else if self.tau >= seg.duration() {
                     if in_approach {
-                        let (dir0, n0) = match (&seg.geom, seg.plane) {
-                            (Geom::Line { a, b }, Some((_, n0))) => ((b - a).normalize(), n0),
-                            _ => (-n, n),
-                        };
-                        let speed = if plan.style == Style::Blended { p.scan_speed } else { p.touch_speed };
-                        // carry the part of the tick beyond the approach end into the bend
-                        let end = seg.eval(seg.duration(), f, tip).position
-                            + n * e_n
-                            + dir0 * (speed * (tau - seg.duration()));
-                        mode = Mode::Bend { p: end, dir0, n0, tb: 0.0, travel: 0.0, speed };
-                        e_n = 0.0;
-                        halt_pending |= seg.end_speed() <= 1e-9;
+                        self.start_bend(n);
                     } else {
-                        halt_pending |= seg.end_speed() <= 1e-9
-                            || plan.segments.get(i + 1).is_some_and(|n| n.start_speed() <= 1e-9);
-                        tau -= seg.duration();
-                        i += 1;
+                        self.halt_pending |= seg.end_speed() <= 1e-9
+                            || plan.segments.get(self.i + 1).is_some_and(|n| n.start_speed() <= 1e-9);
+                        self.tau -= seg.duration();
+                        self.i += 1;
                     }
                 }
-                if i >= nseg {
-                    break;
-                }
+                Ok(self.i >= plan.segments.len())
             }
         }
     }
-    if i < nseg {
-        return Err(ScanError::Invalid("execution did not finish (internal time limit)".into()));
+
+    /// An approach that ended without contact: bend towards the surface and search on.
+    fn start_bend(&mut self, n: Vector3) {
+        let plan = self.plan;
+        let p = &plan.params;
+        let seg = &plan.segments[self.i];
+        let f = &plan.features[seg.feature];
+        let (dir0, n0) = match (&seg.geom, seg.plane) {
+            (Geom::Line { a, b }, Some((_, n0))) => ((b - a).normalize(), n0),
+            _ => (-n, n),
+        };
+        let speed = if plan.style == Style::Blended { p.scan_speed } else { p.touch_speed };
+        // carry the part of the tick beyond the approach end into the bend
+        let end = seg.eval(seg.duration(), f, p.tip_radius).position
+            + n * self.e_n
+            + dir0 * (speed * (self.tau - seg.duration()));
+        self.mode = Mode::Bend { p: end, dir0, n0, tb: 0.0, travel: 0.0, speed };
+        self.e_n = 0.0;
+        self.halt_pending |= seg.end_speed() <= 1e-9;
     }
-    if halt_pending {
-        if let Some(last) = points.last_mut() {
-            last.halted = true;
-        }
-    }
-    let cycle_time = t;
-    let stops = count_stops(&points);
-    let features = summarise(plan, &points, &shift, &contact_t)?;
-    Ok(Run { points, features, cycle_time, stops })
 }
 
 /// Runs of zero commanded path speed between the first approach and the last release.

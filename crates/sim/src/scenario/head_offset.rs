@@ -635,16 +635,30 @@ pub fn simulate(cfg: &HeadOffsetConfig) -> Result<HeadOffsetData, HeadOffsetErro
         return Err(HeadOffsetError::FaceNeverVisible { face: k });
     }
 
+    let truth = truth_of(cfg, &orientations, laser, tip, faces, &face_counts, rows.len());
+    Ok(HeadOffsetData { rows, truth })
+}
+
+/// What the data set was made from (`truth.json`).
+fn truth_of(
+    cfg: &HeadOffsetConfig,
+    orientations: &[(f64, f64)],
+    laser: Option<LaserHead>,
+    tip: f64,
+    faces: Option<Faces>,
+    face_counts: &[usize],
+    n_points: usize,
+) -> HeadOffsetTruth {
     let (reference_point, sphere_radius, kind) = match cfg.reference {
         Reference::Sphere { centre, radius } => (centre, Some(radius), "sphere"),
         Reference::Pyramid { apex, .. } => (apex, None, "vertex"),
         Reference::CuboidCorner { vertex, .. } => (vertex, None, "vertex"),
     };
-    let truth = HeadOffsetTruth {
+    HeadOffsetTruth {
         machine_errors: cfg.machine.is_some(),
         variant_reference: kind,
         offset_mm: cfg.offset.into(),
-        observable: observable_components(&orientations),
+        observable: observable_components(orientations),
         reference_point_mm: reference_point.coords.into(),
         sphere_radius_mm: sphere_radius,
         tip_radius_mm: laser.is_none().then_some(tip),
@@ -664,10 +678,9 @@ pub fn simulate(cfg: &HeadOffsetConfig) -> Result<HeadOffsetData, HeadOffsetErro
             })
             .unwrap_or_default(),
         noise_um: cfg.noise * 1e3,
-        n_points: rows.len(),
+        n_points,
         seed: cfg.seed,
-    };
-    Ok(HeadOffsetData { rows, truth })
+    }
 }
 
 impl truepos_math::exit::HasExitClass for HeadOffsetError {

@@ -459,7 +459,8 @@ fn sphere_route(centre: &Point3, clear_radius: f64, from: &Point3, to: &Point3) 
     pts
 }
 
-/// Run the scenario.
+/// Run the scenario: the trajectory of every touch (or the scan), the two sampled streams, and
+/// the truth beside them.
 pub fn simulate(cfg: &Config) -> Result<Dataset, LatencyError> {
     cfg.validate()?;
     let r_tip = cfg.stylus.tip_radius_mm;
@@ -467,8 +468,7 @@ pub fn simulate(cfg: &Config) -> Result<Dataset, LatencyError> {
     let plates = Plates::new(cfg.plates_mid_mm, Vector3::x(), cfg.plate_gap_mm)?;
     let on_plates = cfg.variant == Variant::Plates;
     let artefact: &dyn Artefact = if on_plates { &plates } else { &sphere };
-    let r_centre = sphere.radius + r_tip;
-    let clear_radius = 1.1 * r_centre + 5.0;
+    let clear_radius = 1.1 * (sphere.radius + r_tip) + 5.0;
     let transfer = Limits { v_max: cfg.transfer_speed_mm_s, a_max: cfg.accel_mm_s2, j_max: cfg.jerk_mm_s3 };
 
     let lead = 0.1;
@@ -477,93 +477,13 @@ pub fn simulate(cfg: &Config) -> Result<Dataset, LatencyError> {
     tr.dwell(lead)?;
     let mut contacts = Vec::new();
     let mut speeds_used: Vec<f64> = Vec::new();
-
     if cfg.variant == Variant::Scan {
         build_scan(cfg, &mut tr, &sphere, r_tip, clear_radius, &transfer, &mut contacts)?;
         speeds_used.push(cfg.speed_mm_s);
     } else {
-        let mut plans = Vec::new();
-        for _ in 0..cfg.repeats {
-            match cfg.variant {
-                Variant::Plates => {
-                    let (m, h) = (cfg.plates_mid_mm, 0.5 * cfg.plate_gap_mm);
-                    let v = cfg.speed_mm_s;
-                    let x = Vector3::x();
-                    plans.push(Plan {
-                        label: "face2",
-                        surface: m + x * h,
-                        normal: -x,
-                        approach: x,
-                        speed: v,
-                    });
-                    plans.push(Plan {
-                        label: "face1",
-                        surface: m - x * h,
-                        normal: x,
-                        approach: -x,
-                        speed: v,
-                    });
-                }
-                Variant::InOut => {
-                    let mut p = sphere_plans(cfg, &[cfg.speed_mm_s]);
-                    p.truncate(1);
-                    plans.extend(p);
-                }
-                Variant::Speeds => plans.extend(sphere_plans(cfg, &cfg.speeds_mm_s)),
-                _ => plans.extend(sphere_plans(cfg, &[cfg.speed_mm_s])),
-            }
-        }
-        for plan in &plans {
-            let cos_in = -plan.approach.dot(&plan.normal);
-            if cos_in < 0.2 {
-                return Err(invalid("approach angle", "too grazing for a contact"));
-            }
-            let v = plan.speed;
-            let travel_in = cfg.max_deflection_mm / cos_in;
-            let a_c = cfg.contact_accel_mm_s2.max(2.0 * v * v / travel_in);
-            let lim_free = Limits { v_max: v, a_max: cfg.accel_mm_s2, j_max: None };
-            let lim_in = Limits { v_max: v, a_max: a_c, j_max: None };
-            // Reach v in free air (and let the servo and the stylus settle for 20 ms) before
-            // the touch.
-            let standoff = cfg.standoff_mm.max(1.5 * v * v / (2.0 * cfg.accel_mm_s2) + 0.02 * v);
-            let touching = plan.surface + plan.normal * r_tip;
-            let start = touching - plan.approach * standoff;
-            let deepest = touching + plan.approach * travel_in;
-            if on_plates {
-                tr.line_to(start, &transfer)?;
-            } else {
-                let route = sphere_route(&cfg.sphere_centre_mm, clear_radius, &tr.position(), &start);
-                tr.polyline(&route, &transfer)?;
-            }
-            let t_start = tr.end_s();
-            // In: accelerate in free air, touch at v, stop at the deepest point.
-            tr.line_speeds(touching, 0.0, v, &lim_free)?;
-            tr.line_speeds(deepest, v, 0.0, &lim_in)?;
-            tr.dwell(cfg.dwell_s)?;
-            // Out: accelerate to v while in contact, leave at v, stop in free air.
-            tr.line_speeds(touching, 0.0, v, &lim_in)?;
-            tr.line_speeds(start, v, 0.0, &lim_free)?;
-            let t_end = tr.end_s();
-            if !speeds_used.contains(&v) {
-                speeds_used.push(v);
-            }
-            contacts.push(ContactTruth {
-                label: plan.label.to_string(),
-                speed_mm_s: v,
-                surface_point_mm: arr(&plan.surface.coords),
-                normal: arr(&plan.normal),
-                touching_centre_mm: arr(&touching.coords),
-                approach_direction: arr(&plan.approach),
-                t_start_s: t_start,
-                t_end_s: t_end,
-            });
-        }
-        if on_plates {
-            tr.line_to(home, &transfer)?;
-        } else {
-            let route = sphere_route(&cfg.sphere_centre_mm, clear_radius, &tr.position(), &home);
-            tr.polyline(&route, &transfer)?;
-        }
+        let route = Route { on_plates, home, clear_radius, transfer };
+        let plans = touch_plans(cfg);
+        build_touches(cfg, &mut tr, &plans, &route, &mut contacts, &mut speeds_used)?;
     }
     tr.dwell(lead)?;
     // Refuse runaway sizes before any large allocation (the servo adds < 1 s of settling).
@@ -573,69 +493,29 @@ pub fn simulate(cfg: &Config) -> Result<Dataset, LatencyError> {
             return Err(invalid("duration × rate", format!("{:.0} samples is too many", t_est * rate)));
         }
     }
-
     let motion: Box<dyn Motion> = match &cfg.servo {
         Some(s) => Box::new(ServoMotion::new(tr, s, 2e-4)?),
         None => Box::new(tr),
     };
+    let t_end = motion.end_s();
+    let (machine, probe, probe_in_contact) = sample_streams(cfg, &*motion, artefact)?;
+    let (artefact, static_size_mm, stylus_centre_size_mm) = if on_plates {
+        let truth = ArtefactTruth::Plates {
+            mid_mm: arr(&plates.mid.coords),
+            axis: arr(&plates.axis),
+            gap_mm: plates.gap,
+        };
+        (truth, plates.gap, plates.gap - 2.0 * r_tip)
+    } else {
+        let truth = ArtefactTruth::Sphere {
+            centre_mm: arr(&sphere.centre.coords),
+            diameter_mm: cfg.sphere_diameter_mm,
+        };
+        (truth, cfg.sphere_diameter_mm, cfg.sphere_diameter_mm + 2.0 * r_tip)
+    };
     let lat_m = cfg.machine_latencies();
     let lat_p = cfg.probe_latency_s;
-    let t_end = motion.end_s();
-    let clock = MasterClock::new(0.0, t_end)?;
-
-    // The two streams are independent: compute them side by side.
-    let machine_capture = AxisCapture::new(cfg.machine_rate_hz, lat_m)?;
-    let pc = Capture::new(cfg.probe_rate_hz, lat_p)?;
-    let motion_ref: &dyn Motion = &*motion;
-    let (machine, probe_side) = rayon::join(
-        || {
-            // Machine stream.
-            let mut rng_m = stream(cfg.seed, 1);
-            machine_capture.sample_point(&clock, cfg.encoder_noise_mm, &mut rng_m, |t| motion_ref.state(t).p)
-        },
-        || -> Result<_, ParamError> {
-            // Probe stream: the stylus is integrated on the probe's true-time grid.
-            let range = pc.index_range(&clock);
-            let (k0, k1) = (*range.start(), *range.end());
-            let n = (k1 - k0 + 1).max(0) as usize;
-            let substeps = (cfg.stylus_rate_hz / cfg.probe_rate_hz).ceil().max(1.0) as usize;
-            let t_first = pc.true_time(pc.stamp(k0));
-            let defl =
-                stylus::simulate(&cfg.stylus, motion_ref, artefact, t_first, pc.period_s(), n, substeps)?;
-            let mut rng_p = stream(cfg.seed, 2);
-            let mut probe = Vec::with_capacity(n);
-            let mut in_contact = Vec::with_capacity(n);
-            for (i, (d, c)) in defl.into_iter().enumerate() {
-                probe.push((pc.stamp(k0 + i as i64), d + gaussian3(&mut rng_p, cfg.probe_noise_mm)));
-                in_contact.push(c);
-            }
-            Ok((probe, in_contact))
-        },
-    );
-    let machine = machine?;
-    let (probe, probe_in_contact) = probe_side?;
-
     let per_axis = [lat_m[0] - lat_p, lat_m[1] - lat_p, lat_m[2] - lat_p];
-    let (artefact_truth, size, centre_size) = if on_plates {
-        (
-            ArtefactTruth::Plates {
-                mid_mm: arr(&plates.mid.coords),
-                axis: arr(&plates.axis),
-                gap_mm: plates.gap,
-            },
-            plates.gap,
-            plates.gap - 2.0 * r_tip,
-        )
-    } else {
-        (
-            ArtefactTruth::Sphere {
-                centre_mm: arr(&sphere.centre.coords),
-                diameter_mm: cfg.sphere_diameter_mm,
-            },
-            cfg.sphere_diameter_mm,
-            cfg.sphere_diameter_mm + 2.0 * r_tip,
-        )
-    };
     let truth = Truth {
         variant: cfg.variant,
         seed: cfg.seed,
@@ -647,16 +527,155 @@ pub fn simulate(cfg: &Config) -> Result<Dataset, LatencyError> {
         probe_rate_hz: cfg.probe_rate_hz,
         encoder_noise_mm: cfg.encoder_noise_mm,
         probe_noise_mm: cfg.probe_noise_mm,
-        artefact: artefact_truth,
+        artefact,
         tip_radius_mm: r_tip,
-        static_size_mm: size,
-        stylus_centre_size_mm: centre_size,
+        static_size_mm,
+        stylus_centre_size_mm,
         speeds_mm_s: speeds_used,
         max_deflection_mm: cfg.max_deflection_mm,
         duration_s: t_end,
         contacts,
     };
     Ok(Dataset { machine, probe, probe_in_contact, truth })
+}
+
+/// The touches of a touch variant, `cfg.repeats` times over.
+fn touch_plans(cfg: &Config) -> Vec<Plan> {
+    let mut plans = Vec::new();
+    for _ in 0..cfg.repeats {
+        match cfg.variant {
+            Variant::Plates => {
+                let (m, h) = (cfg.plates_mid_mm, 0.5 * cfg.plate_gap_mm);
+                let v = cfg.speed_mm_s;
+                let x = Vector3::x();
+                plans.push(Plan { label: "face2", surface: m + x * h, normal: -x, approach: x, speed: v });
+                plans.push(Plan { label: "face1", surface: m - x * h, normal: x, approach: -x, speed: v });
+            }
+            Variant::InOut => {
+                let mut p = sphere_plans(cfg, &[cfg.speed_mm_s]);
+                p.truncate(1);
+                plans.extend(p);
+            }
+            Variant::Speeds => plans.extend(sphere_plans(cfg, &cfg.speeds_mm_s)),
+            _ => plans.extend(sphere_plans(cfg, &[cfg.speed_mm_s])),
+        }
+    }
+    plans
+}
+
+/// How the probe travels between touches: straight between the plates, around the sphere on
+/// its clearance sphere.
+struct Route {
+    on_plates: bool,
+    home: Point3,
+    clear_radius: f64,
+    transfer: Limits,
+}
+
+impl Route {
+    fn travel(&self, cfg: &Config, tr: &mut Trajectory, to: Point3) -> Result<(), LatencyError> {
+        if self.on_plates {
+            tr.line_to(to, &self.transfer)?;
+        } else {
+            let route = sphere_route(&cfg.sphere_centre_mm, self.clear_radius, &tr.position(), &to);
+            tr.polyline(&route, &self.transfer)?;
+        }
+        Ok(())
+    }
+}
+
+/// Append every touch of `plans` to `tr` (free-air run-up, touch at speed, stop at the deepest
+/// point, dwell, leave at speed) and back home; the truth of each contact and the speeds used.
+fn build_touches(
+    cfg: &Config,
+    tr: &mut Trajectory,
+    plans: &[Plan],
+    route: &Route,
+    contacts: &mut Vec<ContactTruth>,
+    speeds_used: &mut Vec<f64>,
+) -> Result<(), LatencyError> {
+    let r_tip = cfg.stylus.tip_radius_mm;
+    for plan in plans {
+        let cos_in = -plan.approach.dot(&plan.normal);
+        if cos_in < 0.2 {
+            return Err(invalid("approach angle", "too grazing for a contact"));
+        }
+        let v = plan.speed;
+        let travel_in = cfg.max_deflection_mm / cos_in;
+        let a_c = cfg.contact_accel_mm_s2.max(2.0 * v * v / travel_in);
+        let lim_free = Limits { v_max: v, a_max: cfg.accel_mm_s2, j_max: None };
+        let lim_in = Limits { v_max: v, a_max: a_c, j_max: None };
+        // Reach v in free air (and let the servo and the stylus settle for 20 ms) before
+        // the touch.
+        let standoff = cfg.standoff_mm.max(1.5 * v * v / (2.0 * cfg.accel_mm_s2) + 0.02 * v);
+        let touching = plan.surface + plan.normal * r_tip;
+        let start = touching - plan.approach * standoff;
+        let deepest = touching + plan.approach * travel_in;
+        route.travel(cfg, tr, start)?;
+        let t_start = tr.end_s();
+        // In: accelerate in free air, touch at v, stop at the deepest point.
+        tr.line_speeds(touching, 0.0, v, &lim_free)?;
+        tr.line_speeds(deepest, v, 0.0, &lim_in)?;
+        tr.dwell(cfg.dwell_s)?;
+        // Out: accelerate to v while in contact, leave at v, stop in free air.
+        tr.line_speeds(touching, 0.0, v, &lim_in)?;
+        tr.line_speeds(start, v, 0.0, &lim_free)?;
+        let t_end = tr.end_s();
+        if !speeds_used.contains(&v) {
+            speeds_used.push(v);
+        }
+        contacts.push(ContactTruth {
+            label: plan.label.to_string(),
+            speed_mm_s: v,
+            surface_point_mm: arr(&plan.surface.coords),
+            normal: arr(&plan.normal),
+            touching_centre_mm: arr(&touching.coords),
+            approach_direction: arr(&plan.approach),
+            t_start_s: t_start,
+            t_end_s: t_end,
+        });
+    }
+    route.travel(cfg, tr, route.home)
+}
+
+/// A machine stream (position samples) and a probe stream (deflection samples with their
+/// in-contact flags), computed side by side (they are independent).
+type Streams = (Vec<(f64, Point3)>, Vec<(f64, Vector3)>, Vec<bool>);
+
+/// Sample `motion` as the machine's axes and the probe see it (latencies, rates, noise).
+fn sample_streams(
+    cfg: &Config,
+    motion: &dyn Motion,
+    artefact: &dyn Artefact,
+) -> Result<Streams, LatencyError> {
+    let clock = MasterClock::new(0.0, motion.end_s())?;
+    let machine_capture = AxisCapture::new(cfg.machine_rate_hz, cfg.machine_latencies())?;
+    let pc = Capture::new(cfg.probe_rate_hz, cfg.probe_latency_s)?;
+    let (machine, probe_side) = rayon::join(
+        || {
+            let mut rng_m = stream(cfg.seed, 1);
+            machine_capture.sample_point(&clock, cfg.encoder_noise_mm, &mut rng_m, |t| motion.state(t).p)
+        },
+        || -> Result<_, ParamError> {
+            // The stylus is integrated on the probe's true-time grid.
+            let range = pc.index_range(&clock);
+            let (k0, k1) = (*range.start(), *range.end());
+            let n = (k1 - k0 + 1).max(0) as usize;
+            let substeps = (cfg.stylus_rate_hz / cfg.probe_rate_hz).ceil().max(1.0) as usize;
+            let t_first = pc.true_time(pc.stamp(k0));
+            let defl = stylus::simulate(&cfg.stylus, motion, artefact, t_first, pc.period_s(), n, substeps)?;
+            let mut rng_p = stream(cfg.seed, 2);
+            let mut probe = Vec::with_capacity(n);
+            let mut in_contact = Vec::with_capacity(n);
+            for (i, (d, c)) in defl.into_iter().enumerate() {
+                probe.push((pc.stamp(k0 + i as i64), d + gaussian3(&mut rng_p, cfg.probe_noise_mm)));
+                in_contact.push(c);
+            }
+            Ok((probe, in_contact))
+        },
+    );
+    let (probe, in_contact) = probe_side?;
+    Ok((machine?, probe, in_contact))
 }
 
 /// Deflection level switches of the scan: `(θ_centre, δ_before, δ_after)`.
