@@ -20,25 +20,27 @@ use truepos_math::{Matrix3, Point3, Vector3};
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Form {
     /// A circle in the plane through `origin` with basis `e1`, `e2`.
-    Circle {
-        origin: Point3,
-        e1: Vector3,
-        e2: Vector3,
-    },
+    Circle { origin: Point3, e1: Vector3, e2: Vector3 },
+    /// A sphere (points over its surface).
     Sphere,
 }
 
 /// Result of the scan method.
 #[derive(Clone, Debug)]
 pub struct ScanResult {
+    /// The fitted delay, s.
     pub delay: f64,
+    /// Standard uncertainty of the delay, s.
     pub u_delay: f64,
+    /// The scanned form (circle plane or sphere).
     pub form: Form,
     /// Centre and radius of the stylus-centre circle or sphere.
     pub center: Point3,
+    /// Radius of the stylus-centre circle or sphere, mm.
     pub radius: f64,
     /// RMS radial error of the combined points without shift and with the fitted shift (mm).
     pub rms_before: f64,
+    /// RMS radial error with the fitted shift, mm.
     pub rms_after: f64,
     /// Probe sample indices used.
     pub samples: Vec<usize>,
