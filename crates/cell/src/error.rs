@@ -29,8 +29,10 @@ pub enum CellError {
     /// Writing a stream failed.
     #[error(transparent)]
     Write(#[from] std::io::Error),
+    /// A JSON value could not be serialised.
     #[error(transparent)]
     Json(#[from] serde_json::Error),
+    /// A TOML value could not be serialised.
     #[error(transparent)]
     Toml(#[from] toml::ser::Error),
     /// A plot could not be drawn (the SVG backend's message).
