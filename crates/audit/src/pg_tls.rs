@@ -88,6 +88,7 @@ impl SslMode {
 /// (read when the address is parsed, so that a bad file is an input error before any motion).
 #[derive(Clone)]
 pub struct TlsSettings {
+    /// libpq's `sslmode` of the address.
     pub mode: SslMode,
     /// The file the roots came from (for messages).
     pub root_cert: Option<PathBuf>,

@@ -1079,14 +1079,18 @@ pub enum ServeError {
     /// The log file cannot be opened (exit 2).
     #[error("{path}: cannot open the log: {source}")]
     Log {
+        /// The log file.
         path: String,
+        /// The operating system's error.
         #[source]
         source: std::io::Error,
     },
     /// The address cannot be bound, e.g. the port is in use (exit 3).
     #[error("cannot listen on {address}: {source}")]
     Bind {
+        /// The address and port.
         address: String,
+        /// The operating system's error.
         #[source]
         source: std::io::Error,
     },

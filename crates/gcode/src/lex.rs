@@ -13,17 +13,35 @@ pub enum TokenKind {
     /// Spaces and tabs.
     Whitespace,
     /// `( … )`; `closed` is false when the line ends before `)`.
-    ParenComment { closed: bool },
+    ParenComment {
+        /// Whether the comment ends with `)` on its line.
+        closed: bool,
+    },
     /// `; …` to the end of the line.
     SemicolonComment,
     /// A letter (upper-cased here) and its value. `decimals` is the number of digits written
     /// after the decimal point (`None` when there is no point).
-    Word { letter: u8, value: f64, decimals: Option<u8> },
+    Word {
+        /// The word's letter, upper case (ASCII).
+        letter: u8,
+        /// Its value, in program units.
+        value: f64,
+        /// Digits written after the decimal point (`None`: no point).
+        decimals: Option<u8>,
+    },
     /// A letter followed by something that looks like a number but is not one.
-    Malformed { letter: u8 },
+    Malformed {
+        /// The word's letter, upper case (ASCII).
+        letter: u8,
+    },
     /// A letter whose value is an expression or parameter (`X[#1+2]`, `X#100`, `XSIN[30]`);
     /// `value` is filled in when the program's parameters determine it.
-    Expr { letter: u8, value: Option<f64> },
+    Expr {
+        /// The word's letter, upper case (ASCII).
+        letter: u8,
+        /// Its value, when the program's parameters determine it.
+        value: Option<f64>,
+    },
     /// A parameter setting, `#1=2` or `#<name> = [expr]`.
     Assign,
     /// `%`, the program start/end marker.

@@ -418,8 +418,11 @@ pub struct HeadAcquisition {
 /// The sphere probed at one orientation.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AcquiredOrientation {
+    /// Head angle B, degrees.
     pub b_deg: f64,
+    /// Table angle C, degrees.
     pub c_deg: f64,
+    /// The sphere probed and fitted there.
     pub sphere: ProbedSphere,
 }
 
@@ -551,12 +554,17 @@ pub fn readings(acquired: &[AcquiredOrientation]) -> Vec<crate::Reading> {
 /// written, and for a virtual machine its truth (head offset, sphere centre at C = 0, radius).
 #[derive(Debug, Clone, PartialEq)]
 pub struct AcquireReport {
+    /// The orientations probed, in order.
     pub acquired: Vec<AcquiredOrientation>,
+    /// The points file written.
     pub output: std::path::PathBuf,
+    /// The machine probed on.
     pub device: DeviceInfo,
+    /// Wall time of the probing, s.
     pub elapsed_s: f64,
     /// The command that computes the offset from the file.
     pub next: String,
+    /// For a virtual machine: head offset (mm), sphere centre at C = 0 (mm), sphere radius (mm).
     pub truth: Option<(Vector3, Point3, f64)>,
 }
 

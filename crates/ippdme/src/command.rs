@@ -522,7 +522,9 @@ pub enum Command {
 /// Why a call is not a valid command.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct CommandError {
+    /// The specification's error the server answers with.
     pub code: ErrorCode,
+    /// What is wrong with the call, for the error's text.
     pub message: String,
 }
 

@@ -135,6 +135,7 @@ pub enum Stop {
 /// One scanned point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ScanPoint {
+    /// Tip-centre position, machine frame, mm.
     pub tip_center_mm: Point3,
     /// Unit surface normal at the point, out of the material.
     pub normal: Vector3,

@@ -29,6 +29,7 @@ pub enum PartError {
     Read {
         /// The file, as named in the message.
         file: String,
+        /// The operating system's error.
         #[source]
         source: std::io::Error,
     },

@@ -394,7 +394,10 @@ pub struct ErrorCode {
 macro_rules! codes {
     ($($name:ident = ($sev:expr, $num:expr, $text:expr);)*) => {
         impl ErrorCode {
-            $(pub const $name: ErrorCode = ErrorCode { severity: $sev, number: $num, text: $text };)*
+            $(
+                #[doc = concat!("Error ", stringify!($num), ", severity ", stringify!($sev), ": \"", $text, "\".")]
+                pub const $name: ErrorCode = ErrorCode { severity: $sev, number: $num, text: $text };
+            )*
             /// Every predefined error.
             pub const ALL: &'static [ErrorCode] = &[$(ErrorCode::$name),*];
         }

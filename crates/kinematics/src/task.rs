@@ -85,6 +85,7 @@ impl KinematicsError {
 /// Everything `truepos kinematics calibrate` is asked to do.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CalibrateRequest {
+    /// The machine's kinematics model.
     pub model: Model,
     /// How the reference sphere is probed at each orientation.
     pub probing: KinematicsProbing,
@@ -167,6 +168,7 @@ pub struct Verification {
 /// What [`calibrate`] hands back.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CalibrationReport {
+    /// The kinematics model calibrated.
     pub model: Model,
     /// The geometry the controller had before the calibration, mm.
     pub configured: TrtGeometry,

@@ -20,7 +20,14 @@ use truepos_math::{Matrix3, Point3, Vector3};
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Form {
     /// A circle in the plane through `origin` with basis `e1`, `e2`.
-    Circle { origin: Point3, e1: Vector3, e2: Vector3 },
+    Circle {
+        /// A point of the circle's plane (machine frame, mm).
+        origin: Point3,
+        /// First unit vector of the plane.
+        e1: Vector3,
+        /// Second unit vector of the plane.
+        e2: Vector3,
+    },
     /// A sphere (points over its surface).
     Sphere,
 }
