@@ -4,7 +4,7 @@
 //! B89.4.10 define them, with the standard uncertainties of their parameters from the fit
 //! covariance `σ₀²(JᵀJ)⁻¹`, `σ₀² = SSR/(n − p)`.
 //!
-//! Entry points: [`line`], [`plane`], [`circle`] (3D reference definition: least-squares plane,
+//! Entry points: [`line()`], [`plane`], [`circle`] (3D reference definition: least-squares plane,
 //! then the least-squares 2D circle of the points projected into it), [`sphere`],
 //! [`sphere_with_radius`], [`cylinder`], [`cone`]. Each returns its `XxxFit` or a [`FitError`]
 //! naming why the data cannot determine the element (too few points, coincident, collinear,
@@ -14,7 +14,7 @@
 //! symmetric eigen-decomposition). The others start from values that need no luck (algebraic
 //! Kåsa sphere/circle fits; for cylinder and cone an algebraic fit along every principal axis and
 //! a coarse grid of directions over the hemisphere, best kept) and refine them by
-//! Levenberg-Marquardt ([`engine`]) in a local frame re-expressed at every iteration (the
+//! Levenberg-Marquardt (the private `engine` module) in a local frame re-expressed at every iteration (the
 //! current axis is z), which keeps the normal equations well conditioned. One iteration is one
 //! parallel, allocation-free pass over the points.
 

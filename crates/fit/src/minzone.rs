@@ -11,7 +11,7 @@
 //! orthogonal residuals are linearised in a local step (a shift of the centre or axis point, a
 //! tilt of the normal or axis, expressed in a frame rebuilt at every step), and the linear
 //! Chebyshev problem (`min t − s` with `s ≤ rᵢ + Jᵢδ ≤ t`; `min t` for circumscribed and line
-//! zones; `max s` for inscribed) with the box `|δⱼ| ≤ Δ` is solved exactly by [`crate::lp`].
+//! zones; `max s` for inscribed) with the box `|δⱼ| ≤ Δ` is solved exactly by the crate's private `lp` module.
 //! A step is accepted when the exact (nonlinear) objective decreases; the box grows or shrinks
 //! with the agreement between predicted and actual decrease. At convergence the linearised
 //! problem has its optimum at δ = 0, which is the first-order optimality condition of the exact

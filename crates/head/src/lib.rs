@@ -2,7 +2,7 @@
 //!
 //! Measuring-head 3D offset calibration (`truepos head-offset`, capability 2 of the product
 //! spec). Plain data in, numbers with uncertainties and observability out; the points file is
-//! read by [`file`](crate::file).
+//! read by [`crate::file`].
 //!
 //! Model (contract, `shared/spec/interface.md`, "Head offset"): `R` is the offset in the head
 //! frame at `b = 0`; the measuring reference point is `Q = P + Ry(b)·R` (P: the NC's head

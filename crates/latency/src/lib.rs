@@ -5,7 +5,7 @@
 //! `D` is how much later the machine data is stamped than the probe data for the same instant:
 //! the stylus centre at probe stamp `t` is `machine(t + D) + deflection(t)` (interface contract).
 //!
-//! The estimation functions take time-stamped streams as slices and do no I/O; [`file`](crate::file) reads
+//! The estimation functions take time-stamped streams as slices and do no I/O; [`crate::file`] reads
 //! the stream CSVs.
 //!
 //! Entry points:

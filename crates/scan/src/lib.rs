@@ -16,7 +16,7 @@
 //! - [`execute`]: [`execute::execute`] on a scanning machine with [`execute::ControlParams`] →
 //!   points tagged by segment/feature with deflection and quality, per-feature form error, cycle
 //!   time.
-//! - [`file`](crate::file): the features file ([`file::read_features`]).
+//! - [`crate::file`]: the features file ([`file::read_features`]).
 //! - [`form`]: form error (peak-to-valley of least-squares residuals, via `truepos-fit`).
 
 #![forbid(unsafe_code)]
