@@ -9,9 +9,13 @@
 /// One SQL value, as both databases store it.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Value {
+    /// SQL NULL.
     Null,
+    /// A 64-bit integer (`INTEGER`, `BIGINT`).
     Int(i64),
+    /// A double (`REAL`, `DOUBLE PRECISION`).
     Real(f64),
+    /// UTF-8 text (`TEXT`).
     Text(String),
 }
 
@@ -28,14 +32,17 @@ impl Value {
         }
     }
 
+    /// A text value.
     pub fn text(s: impl Into<String>) -> Value {
         Value::Text(s.into())
     }
 
+    /// A text value, or NULL for `None`.
     pub fn opt_text(s: Option<&str>) -> Value {
         s.map_or(Value::Null, |s| Value::Text(s.to_string()))
     }
 
+    /// The integer, if the value is one.
     pub fn as_i64(&self) -> Option<i64> {
         match self {
             Value::Int(i) => Some(*i),
@@ -43,6 +50,7 @@ impl Value {
         }
     }
 
+    /// The text, if the value is text.
     pub fn as_str(&self) -> Option<&str> {
         match self {
             Value::Text(s) => Some(s),
@@ -75,7 +83,9 @@ impl Value {
 /// network failed), which the writer answers by spooling; otherwise a real error.
 #[derive(Debug, Clone)]
 pub struct BackendError {
+    /// The database's or driver's message.
     pub message: String,
+    /// Whether the connection was lost (the writer then spools the records).
     pub lost: bool,
 }
 
@@ -96,7 +106,9 @@ impl From<rusqlite::Error> for BackendError {
 /// SQL dialect: the few type names the migrations spell differently.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Dialect {
+    /// SQLite's spelling.
     Sqlite,
+    /// PostgreSQL's spelling.
     Postgres,
 }
 
@@ -113,6 +125,7 @@ impl Dialect {
 
 /// What the record logic needs from a database.
 pub trait Backend: Send {
+    /// The SQL dialect of the database.
     fn dialect(&self) -> Dialect;
     /// Several statements without parameters (migrations).
     fn execute_batch(&mut self, sql: &str) -> Result<(), BackendError>;
@@ -124,6 +137,7 @@ pub trait Backend: Send {
     /// `BEGIN IMMEDIATE`; PostgreSQL a transaction-scoped advisory lock): migrations and chain
     /// appends run one at a time, so each sees the chain's true head.
     fn begin_exclusive(&mut self) -> Result<(), BackendError>;
+    /// Commit the transaction begun by [`Backend::begin_exclusive`].
     fn commit(&mut self) -> Result<(), BackendError>;
     /// Roll back (errors ignored: a lost connection rolls back by itself).
     fn rollback(&mut self);

@@ -1,4 +1,4 @@
-//! The hash chain. Every record (a row of a [`SPECS`](crate::schema::SPECS) table) has a place
+//! The hash chain. Every record (a row of a [`SPECS`] table) has a place
 //! `seq` in the database's single chain (1, 2, 3, … across all tables and runs), a writer-chosen
 //! unique `record_id`, the `hash` of the record before it (`prev_hash`, 64 zeros for the first)
 //! and its own `hash`:
@@ -24,8 +24,11 @@ pub const GENESIS: &str = "00000000000000000000000000000000000000000000000000000
 /// One record to append: its table, writer-chosen id, and values in the spec's column order.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Record {
+    /// The table the record goes to.
     pub table: &'static str,
+    /// The writer-chosen id, unique in the table (a retried batch is recognised by it).
     pub record_id: String,
+    /// The values, in the table spec's column order.
     pub values: Vec<Value>,
 }
 
@@ -140,15 +143,22 @@ pub fn append(b: &mut dyn Backend, batch: &[Record]) -> Result<bool, BackendErro
 /// A record read back, with its chain columns.
 #[derive(Debug, Clone)]
 pub struct Stored {
+    /// The table the record is in.
     pub table: &'static str,
+    /// Position in the chain (1-based, over all tables).
     pub seq: i64,
+    /// The writer-chosen id.
     pub record_id: String,
+    /// Hash of the previous record in the chain (hex).
     pub prev_hash: String,
+    /// This record's hash (hex), over its values and `prev_hash`.
     pub hash: String,
+    /// The values, in the table spec's column order.
     pub values: Vec<Value>,
 }
 
 impl Stored {
+    /// The column spec of the record's table.
     pub fn spec(&self) -> &'static Spec {
         spec(self.table).expect("read from a spec table")
     }
@@ -158,6 +168,7 @@ impl Stored {
         self.spec().columns.iter().position(|c| c.0 == column).and_then(|i| self.values.get(i))
     }
 
+    /// The record as a JSON object (chain columns and named values).
     pub fn to_json(&self) -> serde_json::Value {
         let fields: serde_json::Map<String, serde_json::Value> = self
             .spec()
@@ -232,9 +243,13 @@ pub fn legacy_count(b: &mut dyn Backend) -> Result<i64, BackendError> {
 /// The first record where the chain breaks.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Break {
+    /// Chain position of the broken record.
     pub seq: i64,
+    /// The table the broken record is in.
     pub table: String,
+    /// The broken record's id.
     pub record_id: String,
+    /// What is wrong with it, as a sentence.
     pub problem: String,
 }
 
@@ -247,6 +262,7 @@ pub struct Verification {
     pub legacy_records: i64,
     /// The last record (seq, hash): keep it elsewhere to detect a later truncation.
     pub head: (i64, String),
+    /// The first record where the chain breaks, if it does.
     pub first_broken: Option<Break>,
 }
 

@@ -51,24 +51,40 @@ use std::time::{Duration, Instant};
 use thiserror::Error;
 use truepos_somac::audit::{AuditSink, Event, SinkError};
 
+/// Why the audit trail cannot be opened, written or read.
 #[derive(Debug, Error)]
 pub enum AuditError {
     /// The database failed (or could not be reached).
     #[error("audit trail {db}: {source}")]
     Db {
+        /// The trail's address.
         db: String,
+        /// The database's error.
         #[source]
         source: BackendError,
     },
     /// The database is not a truepos audit database; it was not modified.
     #[error("{path} is not a truepos audit database ({why}); it was left unchanged")]
-    Foreign { path: String, why: String },
+    Foreign {
+        /// The database's address.
+        path: String,
+        /// Why it is not an audit database.
+        why: String,
+    },
     /// The schema is newer than this build; the database was not modified.
     #[error(
         "{path} has audit schema version {found}, newer than this truepos knows ({known}); it was left \
          unchanged (use a newer truepos)"
     )]
-    Newer { path: String, found: i64, known: i64 },
+    Newer {
+        /// The database's address.
+        path: String,
+        /// Its schema version.
+        found: i64,
+        /// The newest version this build knows.
+        known: i64,
+    },
+    /// A timestamp that is not ISO 8601 UTC (the text given).
     #[error("timestamp '{0}' is not ISO 8601 UTC (YYYY-MM-DDTHH:MM:SS[.fff]Z)")]
     BadTimestamp(String),
     /// A `--db` value that is not a usable address (never contains a password).
@@ -77,8 +93,14 @@ pub enum AuditError {
     /// Reading a trail (or spool) that does not exist.
     #[error("no audit trail at {0}")]
     Missing(String),
+    /// The database has no run with that id or uid.
     #[error("audit trail {db}: no run '{run}' (give its id or uid, see `truepos audit list`)")]
-    NoSuchRun { db: String, run: String },
+    NoSuchRun {
+        /// The trail's address.
+        db: String,
+        /// The run asked for.
+        run: String,
+    },
     /// The local spool could not keep records: the run must stop.
     #[error("audit spool: {0}; the records of this stop cannot be kept")]
     Spool(String),
@@ -87,7 +109,14 @@ pub enum AuditError {
         "audit trail {db} is unreachable; {records} records of this run are kept in {spool}: send them \
          with `truepos audit push {spool}` when it is back"
     )]
-    Unsent { db: String, spool: String, records: i64 },
+    Unsent {
+        /// The trail's address.
+        db: String,
+        /// The spool file holding the records.
+        spool: String,
+        /// Number of records in the spool.
+        records: i64,
+    },
 }
 
 impl AuditError {
@@ -112,7 +141,9 @@ impl AuditError {
 /// Where the trail is.
 #[derive(Debug, Clone)]
 pub enum Db {
+    /// A SQLite file.
     Sqlite(PathBuf),
+    /// A PostgreSQL database.
     Postgres(PgTarget),
 }
 
@@ -426,6 +457,7 @@ impl Audit {
         self.finished
     }
 
+    /// The run's id (its row in `runs`).
     pub fn run_id(&self) -> i64 {
         self.run_id
     }
@@ -636,7 +668,9 @@ pub struct ResultRecord {
     pub feature: Option<String>,
     /// What the value is: `x`, `y`, `z`, `diameter`, `apex_angle`, a tolerance kind, …
     pub quantity: String,
+    /// The value, in `unit`.
     pub value: f64,
+    /// The unit of `value` (`mm`, `rad`, ...).
     pub unit: String,
     /// U (k = 2), where the command states one.
     pub expanded_uncertainty: Option<f64>,
@@ -667,20 +701,30 @@ pub fn push_spool(path: &Path, db: Option<&Db>) -> Result<(Db, i64), AuditError>
 /// A run as listed.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunSummary {
+    /// The run's row id.
     pub id: i64,
+    /// The run's unique id, when the writer gave one.
     pub uid: Option<String>,
+    /// The program that ran (command or DMIS file).
     pub program: String,
+    /// Start time, ISO 8601 UTC.
     pub started_at: String,
+    /// End time, ISO 8601 UTC (`None` while running or after a crash).
     pub ended_at: Option<String>,
+    /// Final status (`SUCCESS`, `FAILURE`, `ERROR`, `ABORTED`), when the run ended.
     pub status: Option<String>,
+    /// The status message, if any.
     pub message: Option<String>,
+    /// The controller the run used, if any.
     pub controller: Option<String>,
+    /// The controller's version string, if known.
     pub controller_version: Option<String>,
     /// What kind of run it is (`somac inspect`), when the writer said.
     pub note: Option<String>,
 }
 
 impl RunSummary {
+    /// The run as a JSON object (`truepos audit list --json`).
     pub fn to_json(&self) -> serde_json::Value {
         serde_json::json!({
             "id": self.id, "uid": self.uid, "program": self.program, "started_at": self.started_at,
@@ -726,6 +770,7 @@ impl Trail {
         Ok(Trail { backend, shown })
     }
 
+    /// The trail's address for messages (never with a password).
     pub fn display(&self) -> &str {
         &self.shown
     }

@@ -24,11 +24,17 @@ pub const LOCK_KEY: i64 = 0x0074_7275_6570_6f73; // "truepos"
 /// A PostgreSQL address, its password resolved (never displayed).
 #[derive(Clone)]
 pub struct PgTarget {
+    /// Database role (user name).
     pub user: String,
+    /// Server host name or address.
     pub host: String,
+    /// Server TCP port (default 5432).
     pub port: u16,
+    /// Database name.
     pub dbname: String,
+    /// How long to wait for a connection.
     pub connect_timeout: Duration,
+    /// `application_name` reported to the server.
     pub application_name: String,
     /// `sslmode` and, for the verifying modes, the trusted authorities.
     pub tls: TlsSettings,
@@ -176,6 +182,7 @@ impl PgTarget {
         }
     }
 
+    /// Whether a password was found (environment or password file).
     pub fn has_password(&self) -> bool {
         self.password.is_some()
     }
@@ -254,6 +261,7 @@ fn split_pgpass(line: &str) -> Vec<String> {
     out
 }
 
+/// The audit trail on PostgreSQL: one connection with its prepared statements.
 pub struct PgBackend {
     target: PgTarget,
     client: Option<Client>,
@@ -296,6 +304,7 @@ fn classify(e: postgres::Error, target: &PgTarget) -> BackendError {
 }
 
 impl PgBackend {
+    /// Connect to `target` (TLS as its `sslmode` says).
     pub fn connect(target: &PgTarget) -> Result<Self, BackendError> {
         let mut b = PgBackend { target: target.clone(), client: None, statements: HashMap::new() };
         b.reconnect()?;

@@ -29,10 +29,15 @@ use tokio_postgres_rustls::MakeRustlsConnect;
 /// libpq's `sslmode` (see the module table).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SslMode {
+    /// Clear text only.
     Disable,
+    /// TLS when the server offers it, else clear text (the default; `allow` means the same).
     Prefer,
+    /// TLS required, certificate not verified.
     Require,
+    /// TLS required, certificate chain verified against the trusted authorities.
     VerifyCa,
+    /// As `VerifyCa`, and the certificate must name the host.
     VerifyFull,
 }
 
@@ -53,6 +58,7 @@ impl SslMode {
         })
     }
 
+    /// The `sslmode` value as libpq spells it.
     pub fn name(self) -> &'static str {
         match self {
             SslMode::Disable => "disable",
@@ -82,6 +88,7 @@ impl SslMode {
 /// (read when the address is parsed, so that a bad file is an input error before any motion).
 #[derive(Clone)]
 pub struct TlsSettings {
+    /// libpq's `sslmode` of the address.
     pub mode: SslMode,
     /// The file the roots came from (for messages).
     pub root_cert: Option<PathBuf>,

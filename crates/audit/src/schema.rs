@@ -192,8 +192,11 @@ pub const TABLES: &[&str] = &[
 /// The kind of a column.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kind {
+    /// An integer column.
     Int,
+    /// A floating-point column.
     Real,
+    /// A text column.
     Text,
 }
 
@@ -201,7 +204,9 @@ pub enum Kind {
 /// `prev_hash`, `hash` follow them in every table).
 #[derive(Debug)]
 pub struct Spec {
+    /// The table's name.
     pub table: &'static str,
+    /// The data columns (name, kind), in order.
     pub columns: &'static [(&'static str, Kind)],
     /// The schema version that created the table (its chain columns come with it).
     pub since: i64,

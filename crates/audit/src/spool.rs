@@ -11,6 +11,7 @@ use crate::AuditError;
 use rusqlite::{params, Connection};
 use std::path::{Path, PathBuf};
 
+/// The local spool file of records waiting for the database.
 pub struct Spool {
     conn: Connection,
     path: PathBuf,
@@ -73,6 +74,7 @@ impl Spool {
         Ok((Spool { conn, path: path.to_path_buf() }, db))
     }
 
+    /// The spool file's path.
     pub fn path(&self) -> &Path {
         &self.path
     }

@@ -12,6 +12,7 @@ use std::time::Duration;
 /// How long a writer waits for another one before giving up.
 pub const BUSY_TIMEOUT: Duration = Duration::from_secs(60);
 
+/// The audit trail in a SQLite file.
 pub struct SqliteBackend {
     conn: Connection,
     path: PathBuf,
@@ -40,6 +41,7 @@ impl SqliteBackend {
         Ok(())
     }
 
+    /// The database file's path.
     pub fn path(&self) -> &Path {
         &self.path
     }

@@ -21,7 +21,7 @@
 //!   [`crate::scanning_cmm::VirtualCmm`] against the part (displaced by `E`), with its encoder
 //!   and deflection noise; the points reported are the measured tip centres at the requested
 //!   step. Unknown-contour scans (11.3, the `ScanIn…` family) go the same way wherever the
-//!   surface under them is a line or circle the planner can plan ([`contour`]: a plane face,
+//!   surface under them is a line or circle the planner can plan (`contour`: a plane face,
 //!   a pin, a bore or a sphere cut in a line or a circle), ending where the stop criterion is
 //!   met on the planned path; elsewhere (an ellipse, a helix, a path across several faces) they
 //!   step along the surface with exact contacts plus the touch noise, and say so in the log.
@@ -137,9 +137,13 @@ pub struct IppdmeCmm {
 /// What the machine did.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Counters {
+    /// Positioning moves made.
     pub moves: u64,
+    /// Points probed.
     pub probes: u64,
+    /// Points scanned.
     pub scan_points: u64,
+    /// Times the machine stopped on an abort or error.
     pub stops: u64,
 }
 
@@ -1054,10 +1058,15 @@ impl Cmm for IppdmeCmm {
 /// Options of `truepos ippdme serve`.
 #[derive(Debug, Clone)]
 pub struct ServeOptions {
+    /// Address to listen on.
     pub bind: String,
+    /// TCP port to listen on (0: any free port).
     pub port: u16,
+    /// The part file (TOML) the virtual CMM measures.
     pub part: Option<std::path::PathBuf>,
+    /// The machine file (TOML) of the virtual CMM.
     pub machine: Option<std::path::PathBuf>,
+    /// The protocol log file, if any.
     pub log: Option<std::path::PathBuf>,
 }
 
@@ -1070,14 +1079,18 @@ pub enum ServeError {
     /// The log file cannot be opened (exit 2).
     #[error("{path}: cannot open the log: {source}")]
     Log {
+        /// The log file.
         path: String,
+        /// The operating system's error.
         #[source]
         source: std::io::Error,
     },
     /// The address cannot be bound, e.g. the port is in use (exit 3).
     #[error("cannot listen on {address}: {source}")]
     Bind {
+        /// The address and port.
         address: String,
+        /// The operating system's error.
         #[source]
         source: std::io::Error,
     },
@@ -1110,6 +1123,7 @@ pub fn bind_virtual(opts: &ServeOptions) -> Result<truepos_ippdme::Server<Ippdme
 /// operator would before the program runs (`truepos dmis run --controller virtual`). The server
 /// stops when the handle is dropped.
 pub struct LoopbackCmm {
+    /// The running server.
     pub handle: truepos_ippdme::server::ServerHandle<IppdmeCmm>,
     /// `ippdme://127.0.0.1:PORT`.
     pub url: String,

@@ -22,15 +22,19 @@ pub enum CellError {
     /// A directory or file operation on `path` failed.
     #[error("{}: {source}", path.display())]
     Io {
+        /// The directory or file.
         path: PathBuf,
+        /// The operating system's error.
         #[source]
         source: std::io::Error,
     },
     /// Writing a stream failed.
     #[error(transparent)]
     Write(#[from] std::io::Error),
+    /// A JSON value could not be serialised.
     #[error(transparent)]
     Json(#[from] serde_json::Error),
+    /// A TOML value could not be serialised.
     #[error(transparent)]
     Toml(#[from] toml::ser::Error),
     /// A plot could not be drawn (the SVG backend's message).
@@ -46,7 +50,9 @@ pub enum CellError {
     /// plant was doing.
     #[error("{context}")]
     Context {
+        /// What the plant was doing.
         context: String,
+        /// The library's error.
         #[source]
         source: Box<dyn StdError + Send + Sync + 'static>,
     },
@@ -126,6 +132,7 @@ library_errors! {
 
 /// Adds what the plant was doing to an error of a library it drives.
 pub trait Context<T> {
+    /// The error, if any, with `what` (what the plant was doing) as its context.
     fn context(self, what: impl Into<String>) -> Result<T>;
 }
 

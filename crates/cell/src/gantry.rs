@@ -9,7 +9,7 @@
 //!
 //! Entry points: [`CellConfig`] (everything a scenario varies; `Default` is the demo cell),
 //! [`VirtualCell::new`] (the shared world), [`VirtualCell::controller`],
-//! [`VirtualCell::trackers`], [`VirtualCell::sensors`], [`VirtualCell::align_trackers`],
+//! [`VirtualCell::sensors`], [`VirtualCell::align_trackers`],
 //! [`VirtualCell::hole_errors`] (truth: drilled position against the warm part's true hole).
 
 use rand::Rng;
@@ -30,10 +30,13 @@ use truepos_somac::run::TrackerSetup;
 /// An axis-aligned box (machine frame) that blocks a tracker's line of sight.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Obstruction {
+    /// Lower corner, machine frame, mm.
     pub min: [f64; 3],
+    /// Upper corner, machine frame, mm.
     pub max: [f64; 3],
 }
 
+/// One laser tracker of the cell: where it stands, how it is turned, what it can do.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackerConfig {
     /// Tracker head position in the machine frame (mm).
@@ -42,39 +45,51 @@ pub struct TrackerConfig {
     pub yaw_deg: f64,
     /// Absolute distance meter (can reacquire by pointing: look-ahead recovery).
     pub adm: bool,
+    /// Boxes blocking this tracker's line of sight.
     pub obstructions: Vec<Obstruction>,
 }
 
+/// Everything a scenario of the virtual gantry cell varies; `Default` is the demo cell.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CellConfig {
+    /// Seed of every random draw of the cell.
     pub seed: u64,
     /// Multiplier on the gantry class's geometric error magnitudes (a worn machine > 1).
     pub error_scale: f64,
     /// Shop air temperature over time (°C).
     pub air_temperature: TemperatureHistory,
+    /// Air pressure at the start, Pa.
     pub pressure_pa: f64,
     /// Pressure drift (Pa/h).
     pub pressure_drift_pa_per_h: f64,
+    /// Relative humidity, %.
     pub humidity_pct: f64,
     /// Part CTE (1/K) and thermal time constant (s).
     pub part_cte: f64,
+    /// Part thermal time constant, s.
     pub part_tau_s: f64,
     /// Actual placement of the part relative to its nominal (program) placement:
     /// rotation about Z (µrad) and translation (mm).
     pub placement_rz_urad: f64,
+    /// Translation of the actual placement, mm.
     pub placement_mm: [f64; 3],
     /// Reflector (drill point) offset from the ram reference point (mm, ram frame).
     pub tool_offset_mm: [f64; 3],
     /// End-effector vibration after a move: amplitude (mm), frequency (Hz), decay time (s).
     pub vibration_mm: f64,
+    /// End-effector vibration frequency, Hz.
     pub vibration_hz: f64,
+    /// End-effector vibration decay time, s.
     pub vibration_tau_s: f64,
+    /// Speed of the machine's moves, mm/s.
     pub move_speed_mm_s: f64,
     /// Time between tracker samples (s).
     pub sample_interval_s: f64,
+    /// The laser trackers.
     pub trackers: Vec<TrackerConfig>,
     /// Tracker angular and distance noise: MPE ±(a + b·d) taken as 2σ (mm, mm/m).
     pub tracker_mpe_a_mm: f64,
+    /// Tracker MPE, per-distance part b, mm/m.
     pub tracker_mpe_b_mm_per_m: f64,
     /// Probability that someone walks through the beam at a reading.
     pub beam_interrupt_probability: f64,
@@ -336,10 +351,12 @@ impl VirtualCell {
         VirtualCell { world: Rc::new(RefCell::new(world)) }
     }
 
+    /// The cell's CNC controller (the machine the loop commands).
     pub fn controller(&self) -> VirtualController {
         VirtualController { world: self.world.clone() }
     }
 
+    /// The cell's sensors (air, temperatures, inclinometers, targets).
     pub fn sensors(&self) -> VirtualSensors {
         VirtualSensors { world: self.world.clone() }
     }
@@ -393,11 +410,13 @@ impl VirtualCell {
         (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt()
     }
 
+    /// The cell's simulated time since the start, s.
     pub fn time_s(&self) -> f64 {
         self.world.borrow().t
     }
 }
 
+/// The virtual gantry's CNC controller (a view of the shared cell).
 pub struct VirtualController {
     world: Rc<RefCell<World>>,
 }
@@ -471,6 +490,7 @@ impl Controller for VirtualController {
     }
 }
 
+/// One virtual laser tracker of the cell (a view of the shared cell).
 pub struct VirtualTracker {
     world: Rc<RefCell<World>>,
     k: usize,
@@ -530,6 +550,7 @@ impl Tracker for VirtualTracker {
 /// Readings averaged on a static target nest (part or machine reference).
 const NEST_READINGS: usize = 100;
 
+/// The virtual cell's sensors and targets (a view of the shared cell).
 pub struct VirtualSensors {
     world: Rc<RefCell<World>>,
 }

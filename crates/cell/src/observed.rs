@@ -32,20 +32,24 @@ pub struct Observed<R, V> {
     started: Instant,
     /// Wall-clock seconds spent in the real controller, and the number of moves sent.
     pub real_busy_s: f64,
+    /// Moves sent to the real controller.
     pub moves: usize,
     /// The program line of the last block sent.
     pub line: usize,
 }
 
 impl<R: Controller + ProbingMachine, V: Controller> Observed<R, V> {
+    /// Observe `real` with the virtual controller `virt` following its actual position.
     pub fn new(real: R, virt: V) -> Self {
         Observed { real, virt, started: Instant::now(), real_busy_s: 0.0, moves: 0, line: 0 }
     }
 
+    /// The real controller.
     pub fn real(&mut self) -> &mut R {
         &mut self.real
     }
 
+    /// The real controller, giving up the observer.
     pub fn into_real(self) -> R {
         self.real
     }
@@ -127,16 +131,20 @@ impl AuditSink for Timing<'_> {
 
 /// A run of the loop on a real controller observed by the virtual cell.
 pub struct ObservedRun {
+    /// The loop's report.
     pub report: RunReport,
     /// True hole errors (mm) per measurement line: where the real controller's actual position
     /// put the drill point through the virtual structure, against the virtual part's hole.
     pub true_errors: Vec<(usize, f64)>,
     /// Wall-clock seconds of each stop (from the previous stop's end, or the start).
     pub stop_wall_s: Vec<(usize, f64)>,
+    /// Wall-clock seconds of the whole run.
     pub wall_s: f64,
     /// Virtual-cell time of the run (s).
     pub duration_s: f64,
+    /// The machine's volume diagonal, mm.
     pub diagonal_mm: f64,
+    /// Moves sent to the real controller.
     pub moves: usize,
 }
 
@@ -144,8 +152,11 @@ pub struct ObservedRun {
 /// has recorded it; the line it happened at and the stop marked FAILURE.
 #[derive(Debug)]
 pub struct Aborted {
+    /// Why the run stopped.
     pub error: RunError,
+    /// 1-based program line where it happened.
     pub line: usize,
+    /// The stop marked FAILURE, if one was under way.
     pub stop_line: Option<usize>,
 }
 

@@ -48,6 +48,7 @@ const ADDRESS: &str = "virtual";
 /// The virtual machine tool.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MachineToolConfig {
+    /// Seed of the noise.
     pub seed: u64,
     /// Reference spheres: centre (machine frame, mm) and radius (mm).
     pub spheres: Vec<(Point3, f64)>,
@@ -55,7 +56,9 @@ pub struct MachineToolConfig {
     pub parts: Vec<Part>,
     /// The real stylus ball radius (the radius a request gives is only the plan's).
     pub tip_radius_mm: f64,
+    /// Touch-trigger pre-travel, mm.
     pub pretravel_mm: f64,
+    /// Amplitude of the pre-travel's 3-lobe variation, mm.
     pub lobing_mm: f64,
     /// Servo period (s): the probe input's sampling.
     pub servo_period_s: f64,
@@ -63,6 +66,7 @@ pub struct MachineToolConfig {
     pub position_sigma_mm: f64,
     /// Travel limits (machine frame, mm).
     pub travel_min_mm: Point3,
+    /// Upper travel limits (machine frame, mm).
     pub travel_max_mm: Point3,
     /// Where the tip centre is at start.
     pub start_mm: Point3,
@@ -121,8 +125,11 @@ impl MachineToolConfig {
 /// has, and the sphere (centre at C = 0, radius) on its table.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HeadOffsetTruth {
+    /// The head offset R, mm.
     pub offset_mm: Vector3,
+    /// Sphere centre at C = 0, machine frame, mm.
     pub sphere_centre_mm: Point3,
+    /// Sphere radius, mm.
     pub sphere_radius_mm: f64,
 }
 
@@ -176,6 +183,7 @@ pub fn seeded_offset_error(seed: u64, sigma_mm: f64) -> Vector3 {
 pub struct TrueHole {
     /// Centre of the hole's top (mm).
     pub top_mm: Point3,
+    /// Diameter, mm.
     pub diameter_mm: f64,
 }
 
@@ -324,6 +332,7 @@ pub struct TrtTruth {
     pub truth: TrtGeometry,
     /// The sphere on the table (centre in the table frame, radius).
     pub sphere_centre_mm: Point3,
+    /// Sphere radius, mm.
     pub sphere_radius_mm: f64,
 }
 
@@ -332,6 +341,7 @@ fn fmt_point(p: &Point3) -> String {
 }
 
 impl VirtualMachineTool {
+    /// The virtual machine tool of `cfg` (its spheres and parts checked).
     pub fn new(cfg: MachineToolConfig) -> Result<VirtualMachineTool, ParamError> {
         let spheres = cfg.spheres.iter().map(|(c, r)| Sphere::new(*c, *r)).collect::<Result<Vec<_>, _>>()?;
         let probe = TouchProbe::new(cfg.tip_radius_mm, cfg.pretravel_mm, cfg.lobing_mm)?;
@@ -404,6 +414,7 @@ impl VirtualMachineTool {
         &self.spheres
     }
 
+    /// The configuration the machine was built with.
     pub fn config(&self) -> &MachineToolConfig {
         &self.cfg
     }

@@ -13,9 +13,13 @@ use crate::error::Result;
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
 
+/// One section of the report: its anchor id, its title and its HTML body.
 pub struct Section {
+    /// Anchor id of the section.
     pub id: String,
+    /// Title of the section.
     pub title: String,
+    /// HTML body of the section.
     pub html: String,
 }
 
@@ -47,10 +51,13 @@ pub struct Header {
 pub struct Verdict {
     /// Section id this verdict belongs to.
     pub section: String,
+    /// The capability judged (its name in the summary table).
     pub capability: String,
     /// What was measured.
     pub measured: String,
+    /// The truth the result is compared with, in words.
     pub truth: String,
+    /// The result, in words.
     pub result: String,
     /// Expanded uncertainty with its coverage factor and basis, in words (e.g. "U = 1.2 µm (k =
     /// 2) from …").
@@ -62,6 +69,7 @@ pub struct Verdict {
     /// Why the verdict is not `pass` (or what else it rests on).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reason: Option<String>,
+    /// The decision rule applied.
     pub decision_rule: DecisionRule,
     /// The result's deviation from the truth (in `unit`).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -69,11 +77,13 @@ pub struct Verdict {
     /// Expanded uncertainty of `error` (k = `coverage_factor`, in `unit`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub expanded_uncertainty: Option<f64>,
+    /// Coverage factor k of `expanded_uncertainty`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coverage_factor: Option<f64>,
     /// The tolerance on |error| (in `unit`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tolerance: Option<f64>,
+    /// Unit of `error`, `expanded_uncertainty` and `tolerance`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub unit: Option<String>,
 }
@@ -82,9 +92,13 @@ pub struct Verdict {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Outcome {
+    /// The result conforms.
     Pass,
+    /// The result does not conform.
     Fail,
+    /// The uncertainty is too large to decide.
     Inconclusive,
+    /// The capability could not run (the reason is given).
     Skipped,
 }
 
@@ -115,10 +129,15 @@ pub enum DecisionRule {
 /// The numbers a capability is judged on.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Judgement {
+    /// Deviation of the result from the truth, in `unit`.
     pub error: f64,
+    /// Expanded uncertainty of `error`, in `unit`.
     pub expanded_uncertainty: f64,
+    /// The tolerance on |error|, in `unit`.
     pub tolerance: f64,
+    /// The unit of the three numbers.
     pub unit: &'static str,
+    /// The decision rule.
     pub rule: DecisionRule,
     /// Other conditions of the capability that failed (each makes the verdict `fail`).
     pub failures: Vec<String>,
@@ -272,8 +291,11 @@ impl Verdict {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Overall {
+    /// Every verdict passes.
     Pass,
+    /// At least one verdict fails.
     Fail,
+    /// No verdict fails, but some are inconclusive or skipped (or there are none).
     Incomplete,
 }
 
@@ -314,13 +336,16 @@ fn fnv1a(bytes: &[u8]) -> u64 {
 
 /// A report under construction.
 pub struct Report {
+    /// The directory the report and its files are written to.
     pub dir: PathBuf,
+    /// Who and what produced the report.
     pub header: Header,
     sections: Vec<Section>,
     verdicts: Vec<Verdict>,
 }
 
 impl Report {
+    /// An empty report writing to `dir`.
     pub fn new(dir: impl AsRef<Path>) -> Self {
         Self {
             dir: dir.as_ref().to_path_buf(),
@@ -330,6 +355,7 @@ impl Report {
         }
     }
 
+    /// Append a section.
     pub fn add(&mut self, id: &str, title: &str, html: String) {
         self.sections.push(Section { id: id.to_string(), title: title.to_string(), html });
     }
@@ -693,21 +719,28 @@ pub fn table(header: &[&str], rows: &[Vec<String>]) -> String {
 /// How a series is drawn.
 #[derive(Clone, Copy, PartialEq, Eq)]
 pub enum Style {
+    /// A line through the points.
     Line,
+    /// The points as markers.
     Points,
 }
 
 /// One data series of an [`xy_plot`].
 pub struct Series {
+    /// Legend label.
     pub label: String,
+    /// The (x, y) points, in the plot's units.
     pub points: Vec<(f64, f64)>,
+    /// How the series is drawn.
     pub style: Style,
 }
 
 impl Series {
+    /// A series drawn as a line.
     pub fn line(label: &str, points: Vec<(f64, f64)>) -> Self {
         Self { label: label.to_string(), points, style: Style::Line }
     }
+    /// A series drawn as markers.
     pub fn points(label: &str, points: Vec<(f64, f64)>) -> Self {
         Self { label: label.to_string(), points, style: Style::Points }
     }

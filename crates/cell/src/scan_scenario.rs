@@ -216,8 +216,11 @@ fn v3(a: [f64; 3]) -> Vector3 {
 
 /// What [`write_scenario`] wrote.
 pub struct Written {
+    /// The features file written.
     pub features: PathBuf,
+    /// The truth file written.
     pub truth: PathBuf,
+    /// Number of features.
     pub n_features: usize,
 }
 

@@ -53,6 +53,7 @@ impl Artefact for Clear {
 /// The virtual CMM's plant.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CmmConfig {
+    /// The servo loop of each axis.
     pub servo: Servo,
     /// Stylus dynamics and contact (`truepos_sim::stylus`); its tip radius is replaced by the
     /// one [`ScanningMachine::begin`] asks for.
@@ -264,11 +265,17 @@ pub fn run_scan(
 #[derive(Deserialize, Debug, Default)]
 #[serde(deny_unknown_fields)]
 pub struct MachineFile {
+    /// The `[servo]` table.
     pub servo: Option<ServoSection>,
+    /// The `[stylus]` table.
     pub stylus: Option<StylusSection>,
+    /// Standard deviation of the scale readings, µm.
     pub encoder_noise_um: Option<f64>,
+    /// Standard deviation of the deflection readings, µm.
     pub probe_noise_um: Option<f64>,
+    /// Observer gain of the scanning control, 1/s.
     pub feedback_gain_per_s: Option<f64>,
+    /// Deflection that counts as contact, mm.
     pub contact_threshold_mm: Option<f64>,
 }
 
@@ -276,8 +283,11 @@ pub struct MachineFile {
 #[derive(Deserialize, Debug)]
 #[serde(deny_unknown_fields)]
 pub struct ServoSection {
+    /// Bandwidth of the position loop, Hz.
     pub bandwidth_hz: Option<f64>,
+    /// Damping ratio of the position loop.
     pub damping: Option<f64>,
+    /// Acceleration feed-forward factor (0 to 1).
     pub accel_feedforward: Option<f64>,
 }
 
@@ -285,9 +295,13 @@ pub struct ServoSection {
 #[derive(Deserialize, Debug)]
 #[serde(deny_unknown_fields)]
 pub struct StylusSection {
+    /// Natural frequency of the stylus per axis, Hz.
     pub natural_freq_hz: Option<[f64; 3]>,
+    /// Damping ratio of the stylus per axis.
     pub damping_ratio: Option<[f64; 3]>,
+    /// Coefficient of restitution of a contact.
     pub restitution: Option<f64>,
+    /// Coefficient of friction of a contact.
     pub friction: Option<f64>,
 }
 

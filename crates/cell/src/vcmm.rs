@@ -89,8 +89,11 @@ pub struct MachineModel {
 /// pretravel_um, position_sigma_um`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MachineToolLatch {
+    /// Servo period (the probe input's sampling), s.
     pub servo_period_s: f64,
+    /// Touch-trigger pre-travel, mm.
     pub pretravel_mm: f64,
+    /// Standard deviation of each latched axis position, mm.
     pub position_sigma_mm: f64,
 }
 
@@ -237,7 +240,9 @@ impl MachineModel {
 /// How many realisations, from which seed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct MonteCarlo {
+    /// Realisations to simulate.
     pub runs: usize,
+    /// Seed of the first realisation.
     pub seed: u64,
 }
 
@@ -276,12 +281,15 @@ pub struct SphereUncertainty {
     pub radius_mm: f64,
     /// The simulation's part: RMS deviation over the realisations (centre, radius; mm).
     pub simulated_center_mm: Vector3,
+    /// RMS deviation of the simulated radius, mm.
     pub simulated_radius_mm: f64,
     /// Mean deviation over the realisations (the bias the model predicts; mm), included in u.
     pub bias_center_mm: Vector3,
+    /// Mean deviation of the simulated radius, mm.
     pub bias_radius_mm: f64,
     /// The measurement's own fit scatter beyond the simulated machines' (mm, 0 when within).
     pub excess_center_mm: Vector3,
+    /// The measurement's radius scatter beyond the simulated machines', mm.
     pub excess_radius_mm: f64,
     /// Realisations run.
     pub runs: usize,
@@ -882,7 +890,9 @@ impl PointErrors {
 /// added to every probed tip centre: a perfect machine (or a machine tool's own model) made one
 /// machine of the class the model describes.
 pub struct ErrorOverlay<M> {
+    /// The machine whose points are moved.
     pub inner: M,
+    /// The errors added to every probed tip centre.
     pub errors: PointErrors,
 }
 
@@ -942,7 +952,9 @@ impl<M: ProbingMachine> ProbingMachine for ErrorOverlay<M> {
 /// the simulation gives, bias included) and the mean deviation (the bias).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Spread {
+    /// RMS deviation per quantity (the standard uncertainty, bias included).
     pub rms: Vec<f64>,
+    /// Mean deviation per quantity (the bias).
     pub mean: Vec<f64>,
     /// Realisations per basis.
     pub runs: usize,
@@ -1235,6 +1247,8 @@ pub struct KinematicsUncertainty {
     pub expanded_mm: Vec<f64>,
     /// Realisations per basis, what the model was, wall time (s).
     pub runs: usize,
+    /// What the model was, as a sentence.
     pub basis: String,
+    /// Wall time of the simulation, s.
     pub elapsed_s: f64,
 }

@@ -2,6 +2,9 @@
 //! 10 mm tables + load pitch/roll curves), in place, all cores; and 1 million points through the
 //! geometric map alone, without and with the propagation of its uncertainty (issue 28).
 
+// `criterion_group!` generates a public function that cannot carry a doc comment.
+#![allow(missing_docs)]
+
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use rayon::prelude::*;
 use truepos_comp::{

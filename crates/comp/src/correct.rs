@@ -29,13 +29,28 @@ pub const INVERSE_MAX_ITER: usize = 50;
 /// Errors of a batch correction.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CompError {
+    /// A point is outside the map's range.
     #[error("point {index}: {source}")]
-    OutOfRange { index: usize, source: OutOfRange },
+    OutOfRange {
+        /// 0-based index of the point.
+        index: usize,
+        /// Which coordinate is out of which range.
+        source: OutOfRange,
+    },
+    /// The inverse correction of a commanded position did not converge.
     #[error("point {index}: the inverse did not converge below 1 nm in {iterations} iterations (last step {last_step_mm:.3e} mm); the map is not a small correction there")]
-    NoConvergence { index: usize, iterations: usize, last_step_mm: f64 },
+    NoConvergence {
+        /// 0-based index of the point.
+        index: usize,
+        /// Iterations tried.
+        iterations: usize,
+        /// Length of the last fixed-point step, mm.
+        last_step_mm: f64,
+    },
 }
 
 impl CompError {
+    /// 0-based index of the point the error is about.
     pub fn index(&self) -> usize {
         match self {
             CompError::OutOfRange { index, .. } | CompError::NoConvergence { index, .. } => *index,
@@ -46,7 +61,9 @@ impl CompError {
 /// Geometric map and/or load correction with the probe offset.
 #[derive(Debug, Clone, Copy)]
 pub struct Corrector<'a> {
+    /// The geometric error map, if any.
     pub geometric: Option<&'a GeometricMap>,
+    /// The load correction, if any.
     pub load: Option<&'a LoadCorrection>,
     /// Probe/tool offset in the ram frame (mm).
     pub probe_offset: Vector3,
@@ -194,8 +211,15 @@ impl<'a> Corrector<'a> {
 /// Why one inverse failed.
 #[derive(Debug, Clone, PartialEq)]
 pub enum InverseFail {
+    /// A position left the map's range.
     Range(OutOfRange),
-    NoConvergence { iterations: usize, last_step_mm: f64 },
+    /// The fixed-point iteration did not converge.
+    NoConvergence {
+        /// Iterations tried.
+        iterations: usize,
+        /// Length of the last step, mm.
+        last_step_mm: f64,
+    },
 }
 
 fn first_error(results: Vec<Result<(), CompError>>) -> Result<(), CompError> {

@@ -17,7 +17,9 @@ use truepos_fe::{Bed, FeError, MeshOptions, PlateModel};
 /// edges are added when the size is not a multiple of the spacing).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LoadGrid {
+    /// Distance between load nodes, mm.
     pub spacing: f64,
+    /// The unit load applied at each node, N.
     pub unit_load_n: f64,
 }
 
@@ -30,22 +32,30 @@ impl Default for LoadGrid {
 /// A bed on its supports with the portal's rails on it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BedModel {
+    /// The bed plate on its supports.
     pub bed: Bed,
+    /// The portal and its rails.
     pub portal: Portal,
+    /// The unit-load grid.
     pub grid: LoadGrid,
 }
 
 /// Errors of the FE influence map.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum FeMapError {
+    /// The plate model failed.
     #[error("plate model: {0}")]
     Fe(#[from] FeError),
+    /// The portal is invalid.
     #[error("portal: {0}")]
     Portal(#[from] PortalError),
+    /// The portal's rails are not on the bed (why).
     #[error("the portal does not fit on the bed: {0}")]
     PortalOffBed(String),
+    /// The grid's spacing (mm) or unit load (N) is not usable.
     #[error("grid: spacing_mm and unit_load_n must be positive, at most 1,000 nodes per bed side (got {0} mm, {1} N)")]
     Grid(f64, f64),
+    /// The influence map could not be built.
     #[error("influence map: {0}")]
     Map(#[from] InfluenceError),
 }

@@ -77,44 +77,67 @@ pub fn rms_max_um(d: &[Vector3]) -> (f64, f64) {
     (rms * 1e3, d.iter().map(|v| v.norm()).fold(0.0, f64::max) * 1e3)
 }
 
+/// The bed TOML file: `[bed]`, `[portal]` and `[grid]`.
 #[derive(Deserialize, Debug)]
 #[serde(deny_unknown_fields)]
 pub struct BedFile {
+    /// The `[bed]` table.
     pub bed: Option<BedToml>,
+    /// The `[portal]` table.
     pub portal: Option<PortalToml>,
+    /// The `[grid]` table (defaults when absent).
     #[serde(default)]
     pub grid: GridToml,
 }
 
+/// The `[bed]` table: the plate, its material and its supports.
 #[derive(Deserialize, Debug)]
 #[serde(deny_unknown_fields)]
 pub struct BedToml {
+    /// Bed size along X, mm.
     pub size_x_mm: f64,
+    /// Bed size along Y, mm.
     pub size_y_mm: f64,
+    /// Plate thickness, mm.
     pub thickness_mm: f64,
+    /// Young's modulus, MPa.
     pub youngs_modulus_mpa: f64,
+    /// Poisson's ratio.
     pub poisson: f64,
+    /// Support positions (x, y), mm.
     pub supports_mm: Option<Vec<[f64; 2]>>,
+    /// A named support layout instead of `supports_mm`.
     pub supports: Option<String>,
+    /// Stiffness of each support, N/mm (rigid when absent).
     pub support_stiffness_n_per_mm: Option<f64>,
+    /// FE element size, mm (automatic when absent).
     pub element_size_mm: Option<f64>,
 }
 
+/// The `[portal]` table: the rails and the portal's travel.
 #[derive(Deserialize, Debug)]
 #[serde(deny_unknown_fields)]
 pub struct PortalToml {
+    /// X of the two rails, mm.
     pub rail_x_mm: [f64; 2],
+    /// Height of the rails above the bed, mm.
     pub rail_height_mm: f64,
+    /// Distance between a carriage's bearings along Y, mm.
     pub bearing_span_mm: f64,
+    /// The portal's travel in Y (start, end), mm.
     pub y_range_mm: [f64; 2],
+    /// Step of the portal positions in Y, mm.
     pub y_step_mm: f64,
 }
 
+/// The `[grid]` table: the unit-load grid of the influence map.
 #[derive(Deserialize, Debug)]
 #[serde(deny_unknown_fields)]
 pub struct GridToml {
+    /// Distance between load nodes, mm.
     #[serde(default = "d_spacing")]
     pub spacing_mm: f64,
+    /// Unit load per node, N.
     #[serde(default = "d_unit")]
     pub unit_load_n: f64,
 }
@@ -133,10 +156,13 @@ impl Default for GridToml {
     }
 }
 
+/// What a bed file describes, checked.
 pub struct BedInfo {
     /// The plate and the file's FE element size, if `[bed]` is given.
     pub bed: Option<(Bed, Option<f64>)>,
+    /// The portal, if `[portal]` is given.
     pub portal: Option<Portal>,
+    /// The unit-load grid.
     pub grid: LoadGrid,
 }
 
@@ -239,30 +265,44 @@ pub fn read_bed(path: &Path) -> Result<BedInfo, InputError> {
     })
 }
 
+/// The load case TOML file.
 #[derive(Deserialize, Debug)]
 #[serde(deny_unknown_fields)]
 pub struct LoadToml {
+    /// Mass of the load, kg (or `weight_n`).
     pub mass_kg: Option<f64>,
+    /// Weight of the load, N (or `mass_kg`).
     pub weight_n: Option<f64>,
+    /// Centre of gravity (x, y), mm.
     pub cog_mm: Option<[f64; 2]>,
+    /// Resting points (x, y), mm; forces from statics.
     pub rest_points_mm: Option<Vec<[f64; 2]>>,
+    /// Resting points with explicit forces (`[[rest]]`).
     pub rest: Option<Vec<RestToml>>,
 }
 
+/// One `[[rest]]` table: a resting point with its force.
 #[derive(Deserialize, Debug)]
 #[serde(deny_unknown_fields)]
 pub struct RestToml {
+    /// X of the resting point, mm.
     pub x_mm: f64,
+    /// Y of the resting point, mm.
     pub y_mm: f64,
+    /// Downward force there, N.
     pub force_n: f64,
 }
 
 /// A resolved load case: point loads `(x, y, F)` (F downwards, N), weight and CoG.
 #[derive(Clone, Debug)]
 pub struct LoadCase {
+    /// Point loads (x mm, y mm, downward force N).
     pub loads: Vec<(f64, f64, f64)>,
+    /// Total weight, N.
     pub weight_n: f64,
+    /// Centre of gravity (x, y), mm.
     pub cog: [f64; 2],
+    /// Whether the forces were given (`[[rest]]`) rather than found by statics.
     pub explicit: bool,
 }
 

@@ -64,11 +64,17 @@ use truepos_math::{Point3, Vector3};
 /// The six component errors of one axis at one position, in the axis's own naming (mm, rad).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct AxisErrors {
+    /// Positioning error along the axis, mm.
     pub pos: f64,
+    /// Straightness in the first perpendicular direction, mm.
     pub str1: f64,
+    /// Straightness in the second perpendicular direction, mm.
     pub str2: f64,
+    /// Pitch, rad.
     pub pitch: f64,
+    /// Yaw, rad.
     pub yaw: f64,
+    /// Roll, rad.
     pub roll: f64,
 }
 
@@ -86,23 +92,53 @@ impl AxisErrors {
 /// Errors of the map.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MapError {
+    /// An axis's positions are not a valid grid.
     #[error("axis {axis}: {source}")]
-    Grid { axis: &'static str, source: GridError },
+    Grid {
+        /// The axis.
+        axis: &'static str,
+        /// What is wrong with the positions.
+        source: GridError,
+    },
+    /// An axis has a different number of positions and error rows.
     #[error("axis {axis}: {positions} positions but {values} error rows")]
-    Length { axis: &'static str, positions: usize, values: usize },
+    Length {
+        /// The axis.
+        axis: &'static str,
+        /// Number of positions.
+        positions: usize,
+        /// Number of error rows.
+        values: usize,
+    },
+    /// A component error is not finite.
     #[error("axis {axis}: a component error is not finite at position {position} mm")]
-    NotFinite { axis: &'static str, position: f64 },
+    NotFinite {
+        /// The axis.
+        axis: &'static str,
+        /// The position, mm.
+        position: f64,
+    },
+    /// A standard uncertainty is negative or not finite.
     #[error("axis {axis}: a standard uncertainty is negative or not finite at position {position} mm")]
-    BadUncertainty { axis: &'static str, position: f64 },
+    BadUncertainty {
+        /// The axis.
+        axis: &'static str,
+        /// The position, mm.
+        position: f64,
+    },
 }
 
 /// A position outside the range a table covers.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 #[error("{what} = {value} mm is outside the mapped range [{min}, {max}] mm")]
 pub struct OutOfRange {
+    /// The coordinate (`x`, `y`, `z`).
     pub what: &'static str,
+    /// Its value, mm.
     pub value: f64,
+    /// The start of the mapped range, mm.
     pub min: f64,
+    /// The end of the mapped range, mm.
     pub max: f64,
 }
 
@@ -110,6 +146,7 @@ pub struct OutOfRange {
 /// coordinates (mm, rad).
 #[derive(Debug, Clone, PartialEq)]
 pub struct AxisTable {
+    /// The axis the table describes.
     pub axis: Axis,
     grid: Grid1,
     nodes: Vec<[f64; 6]>,
@@ -191,9 +228,11 @@ impl AxisTable {
         self.unc.is_some()
     }
 
+    /// The mapped positions along the axis, mm.
     pub fn positions(&self) -> &[f64] {
         self.grid.values()
     }
+    /// Whether the positions are equally spaced.
     pub fn is_uniform(&self) -> bool {
         self.grid.is_uniform()
     }
@@ -243,30 +282,42 @@ impl AxisTable {
 /// The three squareness errors (rad). Positive: the angle between the positive axes is < 90°.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Squareness {
+    /// Between X and Y, rad.
     pub xy: f64,
+    /// Between X and Z, rad.
     pub xz: f64,
+    /// Between Y and Z, rad.
     pub yz: f64,
 }
 
-/// Kinematic chain of the machine (which axis carries which).
+/// Kinematic chain of the machine (which axis carries which); `--chain bridge|gantry` on the
+/// command line, where the variants' documentation is the help for each value.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Chain {
     /// Bridge CMM: bed → Y → X → Z → tool.
     #[default]
+    #[cfg_attr(feature = "clap", value(name = "bridge"))]
     BridgeYXZ,
     /// Large gantry: bed → X → Y → Z → tool.
+    #[cfg_attr(feature = "clap", value(name = "gantry"))]
     GantryXYZ,
 }
 
 /// The 21-parameter map. A missing axis table means that axis has no errors (any position).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct GeometricMap {
+    /// The X axis table, if mapped.
     pub x: Option<AxisTable>,
+    /// The Y axis table, if mapped.
     pub y: Option<AxisTable>,
+    /// The Z axis table, if mapped.
     pub z: Option<AxisTable>,
+    /// The squareness errors, rad.
     pub squareness: Squareness,
     /// Standard uncertainties (k = 1, rad) of the squareness errors, when known.
     pub squareness_u: Option<Squareness>,
+    /// Which axis carries which.
     pub chain: Chain,
     /// Hold end values outside a table's range instead of refusing.
     pub clamp: bool,

@@ -14,13 +14,23 @@ pub struct Grid1 {
 /// Why a grid cannot be built.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum GridError {
+    /// No positions.
     #[error("no positions")]
     Empty,
+    /// The positions are not finite and strictly increasing.
     #[error("positions must be finite and strictly increasing (position {index}: {value} after {previous})")]
-    NotIncreasing { index: usize, value: f64, previous: f64 },
+    NotIncreasing {
+        /// 0-based index of the offending position.
+        index: usize,
+        /// Its value.
+        value: f64,
+        /// The value before it.
+        previous: f64,
+    },
 }
 
 impl Grid1 {
+    /// A grid of finite, strictly increasing positions.
     pub fn new(xs: Vec<f64>) -> Result<Self, GridError> {
         if xs.is_empty() {
             return Err(GridError::Empty);
@@ -49,21 +59,27 @@ impl Grid1 {
         Ok(Self { xs, uniform })
     }
 
+    /// The positions.
     pub fn values(&self) -> &[f64] {
         &self.xs
     }
+    /// Number of positions.
     pub fn len(&self) -> usize {
         self.xs.len()
     }
+    /// Whether there are no positions (never, for a grid built by [`Grid1::new`]).
     pub fn is_empty(&self) -> bool {
         self.xs.is_empty()
     }
+    /// The first position.
     pub fn first(&self) -> f64 {
         self.xs[0]
     }
+    /// The last position.
     pub fn last(&self) -> f64 {
         self.xs[self.xs.len() - 1]
     }
+    /// Whether the positions are equally spaced (lookups are then direct).
     pub fn is_uniform(&self) -> bool {
         self.uniform.is_some()
     }

@@ -18,46 +18,94 @@ use crate::grid1::Grid1;
 /// One row of an influence map file (mm, rad per `unit_load_n`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct InfluenceRow {
+    /// X of the unit load, mm.
     pub load_x: f64,
+    /// Y of the unit load, mm.
     pub load_y: f64,
+    /// Y of the portal, mm.
     pub portal_y: f64,
+    /// Portal pitch per unit load, rad.
     pub pitch: f64,
+    /// Portal roll per unit load, rad.
     pub roll: f64,
 }
 
 /// Why rows do not form a map.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum InfluenceError {
+    /// The unit load is not positive and finite (N).
     #[error("the unit load must be positive and finite (got {0} N)")]
     UnitLoad(f64),
+    /// A value of a row is not finite.
     #[error("row {row}: a value is not finite")]
-    NotFinite { row: usize },
+    NotFinite {
+        /// 0-based row.
+        row: usize,
+    },
     #[error(
         "row {row}: duplicate entry for load ({x}, {y}) mm at portal y = {py} mm (first in row {first})"
     )]
-    Duplicate { row: usize, first: usize, x: f64, y: f64, py: f64 },
+    /// Two rows for the same load and portal position.
+    Duplicate {
+        /// 0-based row of the second.
+        row: usize,
+        /// 0-based row of the first.
+        first: usize,
+        /// Load X, mm.
+        x: f64,
+        /// Load Y, mm.
+        y: f64,
+        /// Portal Y, mm.
+        py: f64,
+    },
+    /// The rows do not fill the grid of load and portal positions.
     #[error("the map is not a complete grid: {present} of {expected} (load_x × load_y × portal_y) entries are present; missing e.g. load ({x}, {y}) mm at portal y = {py} mm")]
-    Incomplete { present: usize, expected: usize, x: f64, y: f64, py: f64 },
+    Incomplete {
+        /// Rows present.
+        present: usize,
+        /// Rows a complete grid has.
+        expected: usize,
+        /// Load X of a missing entry, mm.
+        x: f64,
+        /// Load Y of a missing entry, mm.
+        y: f64,
+        /// Portal Y of a missing entry, mm.
+        py: f64,
+    },
+    /// Fewer than two distinct values of a grid coordinate.
     #[error("the map needs at least two distinct {what} values (got {n})")]
-    TooFew { what: &'static str, n: usize },
+    TooFew {
+        /// The coordinate.
+        what: &'static str,
+        /// Distinct values found.
+        n: usize,
+    },
 }
 
 /// A resting point outside the load grid of the map.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 #[error("resting point {index} at ({x}, {y}) mm is outside the influence map's load grid (x {x0}..{x1}, y {y0}..{y1} mm): the map does not cover the part")]
 pub struct NotCovered {
+    /// 0-based index of the resting point.
     pub index: usize,
+    /// Its X, mm.
     pub x: f64,
+    /// Its Y, mm.
     pub y: f64,
+    /// Start of the load grid in X, mm.
     pub x0: f64,
+    /// End of the load grid in X, mm.
     pub x1: f64,
+    /// Start of the load grid in Y, mm.
     pub y0: f64,
+    /// End of the load grid in Y, mm.
     pub y1: f64,
 }
 
 /// Unit-load influence map on a rectilinear grid of load positions.
 #[derive(Debug, Clone, PartialEq)]
 pub struct InfluenceMap {
+    /// The unit load the map is per, N.
     pub unit_load_n: f64,
     load_x: Grid1,
     load_y: Grid1,
@@ -165,12 +213,15 @@ impl InfluenceMap {
         Ok(Self { unit_load_n, load_x: g(xs)?, load_y: g(ys)?, portal_y: g(ps)?, pitch, roll })
     }
 
+    /// The load positions in X, mm.
     pub fn load_x(&self) -> &[f64] {
         self.load_x.values()
     }
+    /// The load positions in Y, mm.
     pub fn load_y(&self) -> &[f64] {
         self.load_y.values()
     }
+    /// The portal positions in Y, mm.
     pub fn portal_y(&self) -> &[f64] {
         self.portal_y.values()
     }
@@ -230,7 +281,9 @@ impl InfluenceMap {
 #[derive(Debug, Clone, PartialEq)]
 pub struct PortalCurves {
     y: Grid1,
+    /// Portal pitch at each position, rad.
     pub pitch: Vec<f64>,
+    /// Portal roll at each position, rad.
     pub roll: Vec<f64>,
 }
 
@@ -240,6 +293,7 @@ impl PortalCurves {
         (y.len() == pitch.len() && y.len() == roll.len()).then_some(())?;
         Some(Self { y: Grid1::new(y).ok()?, pitch, roll })
     }
+    /// The portal positions in Y, mm.
     pub fn y(&self) -> &[f64] {
         self.y.values()
     }

@@ -37,29 +37,39 @@ use truepos_math::{Point3, Vector3};
 /// The portal and its travel (mm).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Portal {
+    /// X of the two rails, mm.
     pub rail_x: [f64; 2],
+    /// Height of the rails above the bed, mm.
     pub rail_height: f64,
+    /// Distance between a carriage's bearings along Y, mm.
     pub bearing_span: f64,
+    /// The travel in Y (start, end), mm.
     pub y_range: [f64; 2],
+    /// Step of the positions in Y, mm.
     pub y_step: f64,
 }
 
 /// Why a portal description is unusable.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum PortalError {
+    /// The two rails are at the same X (mm).
     #[error("the two rails must be at different x (rail_x_mm = [{0}, {1}])")]
     Rails(f64, f64),
+    /// The bearing span is not positive (mm).
     #[error("bearing_span_mm must be positive (got {0})")]
     Span(f64),
     #[error(
         "y_range_mm must be increasing and y_step_mm positive (y_range_mm = [{0}, {1}], y_step_mm = {2})"
     )]
+    /// The Y range is not increasing or the step not positive (start, end, step, mm).
     Range(f64, f64, f64),
+    /// A portal value is not finite.
     #[error("a portal value is not finite")]
     NotFinite,
 }
 
 impl Portal {
+    /// Check that the rails differ, the span is positive, the range increases and every value is finite.
     pub fn validate(&self) -> Result<(), PortalError> {
         let all = [
             self.rail_x[0],
@@ -120,12 +130,16 @@ pub fn portal_rotation(uz: impl Fn(f64, f64) -> f64, portal: &Portal, y: f64) ->
 /// The load correction of one load case: pitch/roll curves and the pivot geometry.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LoadCorrection {
+    /// Portal pitch and roll along Y under the load.
     pub curves: PortalCurves,
+    /// X midway between the rails (the roll pivot), mm.
     pub rail_center_x: f64,
+    /// Height of the rails (the pivot), mm.
     pub rail_height: f64,
 }
 
 impl LoadCorrection {
+    /// The correction for `curves` on the rails and pivot height of `portal`.
     pub fn new(curves: PortalCurves, portal: &Portal) -> Self {
         Self {
             curves,

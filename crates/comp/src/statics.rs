@@ -21,22 +21,67 @@ use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 /// Why a load case cannot be balanced.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum StaticsError {
+    /// No resting points.
     #[error("no resting points")]
     NoRestPoints,
+    /// The weight is not positive and finite (N).
     #[error("the weight must be positive and finite (got {0} N)")]
     BadWeight(f64),
+    /// A resting point or the centre of gravity is not finite.
     #[error("a resting point or the centre of gravity is not finite")]
     NotFinite,
+    /// The resting points cannot balance the load (collinear or one point off the CoG).
     #[error("the {n} resting point(s) cannot carry the load: the centre of gravity ({cx}, {cy}) mm is not on their line/point, so forces and moments cannot balance (residual moment {moment_nmm:.3e} N·mm); give at least three resting points around the centre of gravity")]
-    CannotBalance { n: usize, cx: f64, cy: f64, moment_nmm: f64 },
+    CannotBalance {
+        /// Number of resting points.
+        n: usize,
+        /// CoG X, mm.
+        cx: f64,
+        /// CoG Y, mm.
+        cy: f64,
+        /// The unbalanced moment, N·mm.
+        moment_nmm: f64,
+    },
+    /// A resting point would have to pull.
     #[error("resting point {index} ({x}, {y}) mm would need a tension of {force:.3} N: the centre of gravity is outside the support polygon (or the minimum-norm distribution needs tension); the part cannot rest like this — give the forces explicitly if they are known")]
-    Tension { index: usize, x: f64, y: f64, force: f64 },
+    Tension {
+        /// 0-based index of the point.
+        index: usize,
+        /// Its X, mm.
+        x: f64,
+        /// Its Y, mm.
+        y: f64,
+        /// The (negative) force it would need, N.
+        force: f64,
+    },
+    /// An explicit force is negative.
     #[error("explicit force {index} is negative ({force} N): a resting point cannot pull")]
-    NegativeExplicit { index: usize, force: f64 },
+    NegativeExplicit {
+        /// 0-based index of the force.
+        index: usize,
+        /// The force, N.
+        force: f64,
+    },
+    /// The explicit forces do not sum to the weight.
     #[error("the explicit forces sum to {sum:.3} N but the weight is {weight:.3} N")]
-    ExplicitWeight { sum: f64, weight: f64 },
+    ExplicitWeight {
+        /// Their sum, N.
+        sum: f64,
+        /// The weight, N.
+        weight: f64,
+    },
+    /// The explicit forces put the CoG elsewhere than the load case says.
     #[error("the explicit forces put the centre of gravity at ({x:.3}, {y:.3}) mm, but the load case says ({cx:.3}, {cy:.3}) mm")]
-    ExplicitCog { x: f64, y: f64, cx: f64, cy: f64 },
+    ExplicitCog {
+        /// CoG X from the forces, mm.
+        x: f64,
+        /// CoG Y from the forces, mm.
+        y: f64,
+        /// CoG X of the load case, mm.
+        cx: f64,
+        /// CoG Y of the load case, mm.
+        cy: f64,
+    },
 }
 
 /// Forces (N, downwards) at `rests` carrying weight `weight_n` with centre of gravity `cog`.

@@ -24,9 +24,11 @@ pub enum Mode {
 /// Summary of a streamed correction.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Summary {
+    /// Number of points corrected.
     pub n_points: usize,
-    /// Root mean square and largest length of the corrections, µm.
+    /// Root mean square length of the corrections, µm.
     pub rms_um: f64,
+    /// Largest length of the corrections, µm.
     pub max_um: f64,
     /// Largest number of fixed-point iterations (commanded positions only).
     pub iterations: usize,

@@ -34,6 +34,7 @@ pub struct MapFiles {
     pub map: PathBuf,
     /// Squareness, TOML or one-row CSV; none: zero.
     pub squareness: Option<PathBuf>,
+    /// Which axis carries which.
     pub chain: Chain,
     /// Hold a table's end values outside its range instead of refusing the point.
     pub clamp: bool,
@@ -55,8 +56,11 @@ impl MapFiles {
 /// A streamed correction done (`comp correct`, `load correct`).
 #[derive(Clone, Debug)]
 pub struct Corrected {
+    /// What the correction did.
     pub summary: Summary,
+    /// The output file written.
     pub output: PathBuf,
+    /// Measured points or commanded positions.
     pub mode: Mode,
     /// The load case applied (`load correct` only).
     pub load: Option<LoadCase>,
@@ -168,6 +172,7 @@ pub fn correct(
 /// The volumetric error at the points of a file (`comp error`).
 #[derive(Clone, Debug)]
 pub struct ErrorsAt {
+    /// The points, machine frame, mm.
     pub points: Vec<Point3>,
     /// E(p − t; t) at each point, mm.
     pub errors: Vec<Vector3>,
@@ -236,10 +241,15 @@ pub fn mesh_options(element_size_mm: Option<f64>, from_file: Option<f64>) -> Res
 /// An influence map computed and written (`load map`).
 #[derive(Clone, Debug)]
 pub struct MapWritten {
+    /// The influence map file written.
     pub output: PathBuf,
+    /// Number of load positions.
     pub n_loads: usize,
+    /// Number of portal positions.
     pub n_portal_positions: usize,
+    /// The unit load, N.
     pub unit_load_n: f64,
+    /// Wall time of the computation, s.
     pub seconds: f64,
 }
 
@@ -298,7 +308,9 @@ pub fn influence_map(
 
 /// The portal's curves under a load case (`load curves`).
 pub struct Curves {
+    /// Portal pitch and roll along Y.
     pub curves: PortalCurves,
+    /// The resolved load case.
     pub case: LoadCase,
 }
 
@@ -349,9 +361,11 @@ pub fn load_correct(
 
 /// The bed's deflection under a load case at given points (`load deflection`).
 pub struct Deflection {
+    /// The points (x, y), mm.
     pub at: Vec<[f64; 2]>,
     /// uz, mm, positive up.
     pub uz_mm: Vec<f64>,
+    /// The resting points' forces, N.
     pub forces_n: Vec<f64>,
 }
 

@@ -38,29 +38,79 @@ use truepos_math::{Point3, Vector3};
 pub enum DeviceError {
     /// The device could not be reached (connection refused, no route, …).
     #[error("{address}: cannot connect: {message}")]
-    Connect { address: String, message: String },
+    Connect {
+        /// The device's address.
+        address: String,
+        /// The operating system's or library's message.
+        message: String,
+    },
     /// The device did not answer in time.
     #[error("{address}: no answer within {seconds} s while {what}")]
-    Timeout { address: String, what: String, seconds: f64 },
+    Timeout {
+        /// The device's address.
+        address: String,
+        /// What truepos was doing.
+        what: String,
+        /// How long it waited, s.
+        seconds: f64,
+    },
     /// The connection broke during a command.
     #[error("{address}: connection lost while {what}: {message}")]
-    ConnectionLost { address: String, what: String, message: String },
+    ConnectionLost {
+        /// The device's address.
+        address: String,
+        /// What truepos was doing.
+        what: String,
+        /// The operating system's or library's message.
+        message: String,
+    },
     /// The device is not in a state truepos may use (e-stop, machine off, not homed, busy).
     /// truepos never releases an e-stop or switches a machine on itself.
     #[error("{address}: not ready: {reason}")]
-    NotReady { address: String, reason: String },
+    NotReady {
+        /// The device's address.
+        address: String,
+        /// Why it is not ready.
+        reason: String,
+    },
     /// The controller reported an error for a command (its own message, verbatim).
     #[error("{address}: {what}: the controller reports: {message}")]
-    Controller { address: String, what: String, message: String },
+    Controller {
+        /// The device's address.
+        address: String,
+        /// What truepos was doing.
+        what: String,
+        /// The controller's message, verbatim.
+        message: String,
+    },
     /// A probing move ended without contact; the machine has been retracted.
     #[error("{address}: {what}: the probe move ended without contact")]
-    NoContact { address: String, what: String },
+    NoContact {
+        /// The device's address.
+        address: String,
+        /// What truepos was doing.
+        what: String,
+    },
     /// The device answered something the protocol does not allow.
     #[error("{address}: protocol error while {what}: {message}")]
-    Protocol { address: String, what: String, message: String },
+    Protocol {
+        /// The device's address.
+        address: String,
+        /// What truepos was doing.
+        what: String,
+        /// What was wrong with the answer.
+        message: String,
+    },
     /// A request the device cannot carry out (outside its travel, not finite, …).
     #[error("{address}: {what}: {message}")]
-    Rejected { address: String, what: String, message: String },
+    Rejected {
+        /// The device's address.
+        address: String,
+        /// What truepos asked for.
+        what: String,
+        /// Why it cannot be done.
+        message: String,
+    },
     /// Tracker `k` failed for a reason other than a beam break.
     #[error("tracker {0}: {1}")]
     Tracker(usize, String),
@@ -155,6 +205,7 @@ pub struct ProbeHit {
 /// A tool (stylus) of a machine as the machine reports it ([`ProbingMachine::select_tool`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ToolInfo {
+    /// The machine's name of the tool (as selected).
     pub name: String,
     /// The calibrated tip radius the machine uses (mm).
     pub tip_radius_mm: f64,
@@ -165,7 +216,9 @@ pub struct ToolInfo {
 /// head about Y, C turns the table about an axis parallel to Z.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct RotaryAxes {
+    /// Whether the machine has a B axis swivelling the head about Y.
     pub head_b: bool,
+    /// Whether the machine has a C axis turning the table about Z.
     pub table_c: bool,
 }
 
@@ -203,6 +256,7 @@ pub struct RotaryKinematics {
 pub struct KinematicsParameter {
     /// The module's own name of the parameter (`x-rot-point`).
     pub name: String,
+    /// The parameter's value, mm.
     pub value_mm: f64,
 }
 
@@ -354,8 +408,9 @@ pub struct CircleScanRequest {
 /// A scan the machine's own controller carries out along a line (I++ DME `ScanOnLine`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LineScanRequest {
-    /// Nominal surface points where the scan starts and ends (machine frame, mm).
+    /// Nominal surface point where the scan starts (machine frame, mm).
     pub start_mm: Point3,
+    /// Nominal surface point where the scan ends (machine frame, mm).
     pub end_mm: Point3,
     /// Unit surface normal, out of the material.
     pub normal: Vector3,
@@ -416,15 +471,19 @@ pub trait ScanningMachine {
 /// A laser tracker with its alignment to the machine: readings in the tracker frame become
 /// machine-frame positions through `machine_from_tracker`.
 pub struct TrackerSetup<T> {
+    /// The tracker itself (readings in its own frame).
     pub tracker: T,
+    /// Transform from the tracker frame to the machine frame (mm).
     pub machine_from_tracker: truepos_math::Transform3,
 }
 
 /// Why a tracker reading failed.
 #[derive(Debug, Error, Clone, Copy, PartialEq, Eq)]
 pub enum TrackerFault {
+    /// The beam is interrupted: no line of sight to the reflector.
     #[error("beam broken (no line of sight to the reflector)")]
     BeamBroken,
+    /// The tracker lost the reflector; it must be brought back into the beam.
     #[error("the tracker lost the reflector and needs it brought back")]
     Lost,
 }
@@ -454,9 +513,11 @@ pub trait Tracker {
     /// Point the beam at a position (tracker frame) and lock on when the reflector arrives.
     /// Only absolute-distance (ADM) trackers can reacquire this way.
     fn point_at(&mut self, p: Point3) -> Result<(), TrackerFault>;
+    /// Whether the tracker has an absolute distance meter (it can then reacquire by `point_at`).
     fn has_adm(&self) -> bool;
     /// Set the refractive index the tracker uses for its distances.
     fn set_refractive_index(&mut self, n: f64);
+    /// The refractive index the tracker uses for its distances.
     fn refractive_index(&self) -> f64;
     /// Standard uncertainty (mm) of a reading at `p` (tracker frame), for fusion weights.
     fn sigma_mm(&self, p: &Point3) -> f64;
@@ -465,8 +526,11 @@ pub trait Tracker {
 /// Differential inclinometer readings (µrad, two tilt components each).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Inclinations {
+    /// Inclinometer on the machine, two tilt components, µrad.
     pub machine: [f64; 2],
+    /// Inclinometer on the part, two tilt components, µrad.
     pub part: [f64; 2],
+    /// Inclinometer on the tracker, two tilt components, µrad.
     pub tracker: [f64; 2],
 }
 
@@ -487,16 +551,19 @@ impl Inclinations {
 pub trait Cell {
     /// Part temperature (°C).
     fn temperature_c(&mut self) -> f64;
+    /// The air's temperature, pressure, humidity and CO2 content now.
     fn air(&mut self) -> AirConditions;
+    /// The inclinometers' readings now.
     fn inclinations(&mut self) -> Inclinations;
     /// Tracker `k`'s readings of the part's targets (id, tracker frame) — for real-time
     /// orientation and auto-scaling. Nominal positions are in [`Cell::part_nominal`].
     fn measure_part_targets(&mut self, k: usize) -> Vec<(String, Point3)>;
     /// Nominal positions of the part's targets at the reference temperature (program frame).
     fn part_nominal(&self) -> Vec<(String, Point3)>;
-    /// Tracker `k`'s readings of the machine's reference targets (tracker frame), and their
-    /// calibrated machine-frame positions — for (re-)aligning the tracker to the machine.
+    /// Tracker `k`'s readings of the machine's reference targets (tracker frame) — for
+    /// (re-)aligning the tracker to the machine.
     fn measure_machine_targets(&mut self, k: usize) -> Vec<(String, Point3)>;
+    /// The calibrated machine-frame positions of the machine's reference targets (mm).
     fn machine_targets(&self) -> Vec<(String, Point3)>;
     /// An operator brings the reflector back into the beam (manual recovery).
     fn operator_restores_beam(&mut self, k: usize);
@@ -513,6 +580,7 @@ pub struct Stoppable<'a, M: ProbingMachine + ?Sized> {
 }
 
 impl<'a, M: ProbingMachine + ?Sized> Stoppable<'a, M> {
+    /// Wrap `inner` so that every motion first asks `stop` for a reason to refuse.
     pub fn new(inner: &'a mut M, stop: &'a dyn Fn() -> Option<String>) -> Self {
         Stoppable { inner, stop }
     }

@@ -33,6 +33,7 @@ pub enum LabelKind {
 }
 
 impl LabelKind {
+    /// The kind whose label prefix is `p` (`F`, `FA`, `DAT`, ..., upper case).
     pub fn from_prefix(p: &str) -> Option<LabelKind> {
         Some(match p {
             "F" => LabelKind::F,
@@ -48,6 +49,7 @@ impl LabelKind {
             _ => return None,
         })
     }
+    /// The label prefix as DMIS spells it (`F`, `FA`, `DAT`, ...).
     pub fn prefix(self) -> &'static str {
         match self {
             LabelKind::F => "F",
@@ -67,11 +69,14 @@ impl LabelKind {
 /// A label: `F(A_CIRCLE)`. Names compare case-insensitively in the semantic model ([`Label::key`]).
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub struct Label {
+    /// The label's kind (its prefix).
     pub kind: LabelKind,
+    /// The label's name as written.
     pub name: String,
 }
 
 impl Label {
+    /// A label of `kind` called `name` (kept as written).
     pub fn new(kind: LabelKind, name: &str) -> Label {
         Label { kind, name: name.to_string() }
     }
@@ -91,13 +96,15 @@ macro_rules! words {
     ($(#[$m:meta])* $name:ident { $($v:ident = $s:literal),* $(,)? }) => {
         $(#[$m])*
         #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-        pub enum $name { $($v),* }
+        pub enum $name { $(#[doc = concat!("The DMIS word `", $s, "`.")] $v),* }
         impl $name {
             /// Every word of this kind, in order.
             pub const ALL: &'static [$name] = &[$($name::$v),*];
+            /// The word as DMIS spells it (upper case).
             pub fn word(self) -> &'static str {
                 match self { $($name::$v => $s),* }
             }
+            /// The value spelled `w` (upper case), if `w` is a word of this kind.
             pub fn from_word(w: &str) -> Option<$name> {
                 match w { $($s => Some($name::$v),)* _ => None }
             }
@@ -204,25 +211,88 @@ pub type Xyz = [f64; 3];
 #[derive(Debug, Clone, PartialEq)]
 pub enum FeatGeom {
     /// `POINT,CART,x,y,z,i,j,k`: a surface point and its normal.
-    Point { p: Xyz, n: Xyz },
+    Point {
+        /// The point, program frame and units.
+        p: Xyz,
+        /// The surface normal.
+        n: Xyz,
+    },
     /// `PLANE,CART,x,y,z,i,j,k`.
-    Plane { p: Xyz, n: Xyz },
+    Plane {
+        /// A point of the plane, program frame and units.
+        p: Xyz,
+        /// The plane's normal.
+        n: Xyz,
+    },
     /// `LINE,UNBND,CART,x,y,z,i,j,k[,pi,pj,pk]` (point, direction, plane normal).
-    LineUnbnd { p: Xyz, dir: Xyz, plane: Option<Xyz> },
+    LineUnbnd {
+        /// A point of the line, program frame and units.
+        p: Xyz,
+        /// The line's direction.
+        dir: Xyz,
+        /// The normal of the plane the line lies in, when given.
+        plane: Option<Xyz>,
+    },
     /// `LINE,BND,CART,x1,y1,z1,x2,y2,z2[,pi,pj,pk]`.
-    LineBnd { p1: Xyz, p2: Xyz, plane: Option<Xyz> },
+    LineBnd {
+        /// Start point, program frame and units.
+        p1: Xyz,
+        /// End point, program frame and units.
+        p2: Xyz,
+        /// The normal of the plane the line lies in, when given.
+        plane: Option<Xyz>,
+    },
     /// `CIRCLE,INNER|OUTER,CART,x,y,z,i,j,k,diam`.
-    Circle { side: Side, c: Xyz, n: Xyz, diam: f64 },
+    Circle {
+        /// Hole or boss.
+        side: Side,
+        /// Centre, program frame and units.
+        c: Xyz,
+        /// Normal of the circle's plane.
+        n: Xyz,
+        /// Diameter, program units.
+        diam: f64,
+    },
     /// `CYLNDR,INNER|OUTER,CART,x,y,z,i,j,k,diam[,length]`.
-    Cylndr { side: Side, p: Xyz, axis: Xyz, diam: f64, length: Option<f64> },
+    Cylndr {
+        /// Hole or boss.
+        side: Side,
+        /// A point on the axis, program frame and units.
+        p: Xyz,
+        /// Axis direction.
+        axis: Xyz,
+        /// Diameter, program units.
+        diam: f64,
+        /// Length along the axis, program units, when given.
+        length: Option<f64>,
+    },
     /// `SPHERE,INNER|OUTER,CART,x,y,z[,i,j,k],diam`.
-    Sphere { side: Side, c: Xyz, n: Option<Xyz>, diam: f64 },
+    Sphere {
+        /// Hollow or solid.
+        side: Side,
+        /// Centre, program frame and units.
+        c: Xyz,
+        /// The direction the sphere is accessible from, when given.
+        n: Option<Xyz>,
+        /// Diameter, program units.
+        diam: f64,
+    },
     /// `CONE,INNER|OUTER,CART,x,y,z,i,j,k,angle` (apex, axis from the apex into the cone,
     /// included angle).
-    Cone { side: Side, apex: Xyz, axis: Xyz, angle: f64 },
+    Cone {
+        /// Hole or boss.
+        side: Side,
+        /// Apex, program frame and units.
+        apex: Xyz,
+        /// Axis from the apex into the cone.
+        axis: Xyz,
+        /// Included angle, program angle units.
+        angle: f64,
+    },
 }
 
 impl FeatGeom {
+    /// The `FEAT` type word of this geometry.
     pub fn feat_type(&self) -> FeatType {
         match self {
             FeatGeom::Point { .. } => FeatType::Point,
@@ -239,9 +309,13 @@ impl FeatGeom {
 /// `SNSET` items.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Snset {
+    /// `APPRCH,dist`: approach distance before a point, program units.
     Apprch(f64),
+    /// `RETRCT,dist`: retract distance after a point, program units.
     Retrct(f64),
+    /// `SEARCH,dist`: search distance beyond a point, program units.
     Search(f64),
+    /// `DEPTH,dist`: depth of a feature's points below its top, program units.
     Depth(f64),
     /// `CLRSRF,dist` or `CLRSRF,F(plane),dist`.
     Clrsrf(Option<Label>, f64),
@@ -255,7 +329,12 @@ pub enum Goto {
     /// `GOTO/x,y,z`.
     Abs(Xyz),
     /// `GOTO/INCR,dist,i,j,k`.
-    Incr { dist: f64, dir: Xyz },
+    Incr {
+        /// Distance to move, program units.
+        dist: f64,
+        /// Direction to move along.
+        dir: Xyz,
+    },
 }
 
 /// How `CONST` builds a feature.
@@ -283,7 +362,9 @@ pub enum Datset {
 /// What `TRANS` moves an origin to.
 #[derive(Debug, Clone, PartialEq)]
 pub enum TransBy {
+    /// A value, program units.
     Value(f64),
+    /// The position of an actual feature.
     Feature(Label),
 }
 
@@ -299,48 +380,71 @@ pub enum RotateBy {
 /// `TOL` definitions.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Tol {
+    /// `FLAT,zone`: flatness, program units.
     Flat(f64),
+    /// `STRGHT,zone`: straightness, program units.
     Strght(f64),
+    /// `CIRLTY,zone`: circularity, program units.
     Cirlty(f64),
+    /// `CYLCTY,zone`: cylindricity, program units.
     Cylcty(f64),
     /// `DIAM,lotol,uptol`: deviations from nominal.
     Diam {
+        /// Lower deviation from the nominal diameter, program units.
         lo: f64,
+        /// Upper deviation from the nominal diameter, program units.
         hi: f64,
     },
     /// `RAD,lotol,uptol`.
     Rad {
+        /// Lower deviation from the nominal radius, program units.
         lo: f64,
+        /// Upper deviation from the nominal radius, program units.
         hi: f64,
     },
     /// `POS,2D|3D,zone,RFS|MMC|LMC[,DAT(A),…]`.
     Pos {
+        /// `3D` (a spherical zone) rather than `2D` (a cylindrical zone).
         three_d: bool,
+        /// Diameter of the tolerance zone, program units.
         zone: f64,
+        /// Material condition.
         cond: MatCond,
+        /// The datums of the reference frame, in order.
         datums: Vec<Label>,
     },
     /// `PERP,zone,DAT(A)`.
     Perp {
+        /// Width of the tolerance zone, program units.
         zone: f64,
+        /// The datum the feature is perpendicular to.
         datum: Label,
     },
     /// `PARLEL,zone,DAT(A)`.
     Parlel {
+        /// Width of the tolerance zone, program units.
         zone: f64,
+        /// The datum the feature is parallel to.
         datum: Label,
     },
     /// `ANGLB,angle,lotol,uptol`.
     Anglb {
+        /// Nominal angle, program angle units.
         angle: f64,
+        /// Lower deviation, program angle units.
         lo: f64,
+        /// Upper deviation, program angle units.
         hi: f64,
     },
     /// `DISTB,NOMINL,dist,lotol,uptol[,XAXIS|YAXIS|ZAXIS|PT2PT]`.
     Distb {
+        /// Nominal distance, program units.
         dist: f64,
+        /// Lower deviation, program units.
         lo: f64,
+        /// Upper deviation, program units.
         hi: f64,
+        /// The direction the distance is measured along (`None`: point to point).
         axis: Option<DistAxis>,
     },
 }
@@ -367,113 +471,187 @@ impl Tol {
 /// One statement of the subset.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Statement {
+    /// `DMISMN/'title',version`: the program's start.
     Dmismn {
+        /// The program's title.
         title: String,
+        /// The DMIS version the program declares.
         version: Option<f64>,
     },
+    /// `DMISMD/'title',version`: a module's start.
     Dmismd {
+        /// The module's title.
         title: String,
+        /// The DMIS version the module declares.
         version: Option<f64>,
     },
+    /// `ENDFIL`: the end of the program.
     Endfil,
+    /// `FILNAM/'name',version`: the program's name.
     Filnam {
+        /// The name.
         name: String,
+        /// The DMIS version, when given.
         version: Option<f64>,
     },
+    /// `UNITS/length,angle[,temp]`.
     Units {
+        /// The length unit of the statements that follow.
         length: LengthUnit,
+        /// The angle unit of the statements that follow.
         angle: AngleUnit,
+        /// The temperature unit, when given.
         temp: Option<TempUnit>,
     },
     /// `DISPLY/OFF` or `DISPLY/TERM,DMIS,STOR,DMIS,…`: words and device labels.
     Disply(Vec<DisplyItem>),
+    /// `PRCOMP/ON|OFF`: probe compensation on (`true`) or off.
     Prcomp(bool),
+    /// `MODE/...`: the execution mode words.
     Mode(Vec<ModeWord>),
+    /// `FEDRAT/kind,unit[,value]`: a speed.
     Fedrat {
+        /// Which speed (measuring, positioning, scanning).
         kind: FeedKind,
+        /// The unit of `value`.
         unit: FeedUnit,
+        /// The speed, in `unit` (none for `HIGH`, `LOW`, `DEFALT`).
         value: Option<f64>,
     },
+    /// `SNSET/...`: a probing parameter.
     Snset(Snset),
     /// `S(l)=SNSDEF/PROBE,FIXED,CART,x,y,z,i,j,k,diam`: a fixed probe, its tip offset from the
     /// probe mount, its direction and its tip diameter.
     Snsdef {
+        /// The sensor's label `S(l)`.
         label: Label,
+        /// Tip offset from the probe mount, program units.
         offset: Xyz,
+        /// Probe direction.
         dir: Xyz,
+        /// Tip diameter, program units.
         diam: f64,
     },
+    /// `SNSLCT/S(l)`: select a sensor.
     Snslct(Label),
     /// `SNSMNT/XVEC,i,j,k,ZVEC,i,j,k,MNTLEN,x,y,z`.
     Snsmnt {
+        /// The mount's X direction.
         xvec: Xyz,
+        /// The mount's Z direction.
         zvec: Xyz,
+        /// The mount's offset, program units.
         mntlen: Xyz,
     },
+    /// `GOTO/...`: a move.
     Goto(Goto),
+    /// `F(l)=FEAT/...`: a nominal feature.
     Feat {
+        /// The feature's label.
         label: Label,
+        /// Its nominal geometry.
         geom: FeatGeom,
     },
+    /// `F(l)=MEAS/type,F(l),n`: start measuring a feature.
     Meas {
+        /// The feature type.
         ftype: FeatType,
+        /// The nominal feature measured.
         feature: Label,
+        /// The number of points to measure.
         n: u32,
     },
+    /// `ENDMES`: the end of a measurement block.
     Endmes,
     /// `PTMEAS/CART,x,y,z[,i,j,k]`.
     Ptmeas {
+        /// The nominal point, program frame and units.
         p: Xyz,
+        /// The approach direction (the surface normal), when given.
         n: Option<Xyz>,
     },
+    /// `F(l)=CONST/type,F(l),method`: construct a feature from others.
     Const {
+        /// The constructed feature's type.
         ftype: FeatType,
+        /// The constructed feature's label.
         feature: Label,
+        /// How it is constructed.
         method: ConstMethod,
     },
     /// `DAT(A)=DATDEF/FA(x)` (`assigned`) or DMIS 3's `DATDEF/FA(x),DA(A)`.
     Datdef {
+        /// The datum's label.
         datum: Label,
+        /// The actual feature that defines it.
         feature: Label,
+        /// Whether written as an assignment `DAT(A)=DATDEF/FA(x)`.
         assigned: bool,
     },
+    /// `D(l)=DATSET/...`: a coordinate system from datums.
     Datset {
+        /// The coordinate system's label.
         label: Label,
+        /// How it is built.
         def: Datset,
     },
+    /// `[D(l)=]TRANS/...`: move the origin.
     Trans {
+        /// The new coordinate system's label, when assigned.
         label: Option<Label>,
+        /// Each origin moved and what it moves to.
         items: Vec<(Origin, TransBy)>,
     },
+    /// `[D(l)=]ROTATE/axis,by`: rotate the coordinate system.
     Rotate {
+        /// The new coordinate system's label, when assigned.
         label: Option<Label>,
+        /// The axis rotated about.
         axis: RotAxis,
+        /// An angle or a feature's direction.
         by: RotateBy,
     },
+    /// `SAVE/D(l)`: keep the current coordinate system.
     Save(Label),
+    /// `RECALL/D(l)`: make a saved coordinate system current.
     Recall(Label),
+    /// `T(l)=TOL/...`: a tolerance.
     Tol {
+        /// The tolerance's label.
         label: Label,
+        /// The tolerance.
         tol: Tol,
     },
+    /// `OUTPUT/FA(l),TA(l),...`: report actual features and tolerances.
     Output(Vec<Label>),
+    /// `TEXT/kind,'text'`.
     Text {
+        /// Where the text goes.
         kind: TextKind,
+        /// The text.
         text: String,
     },
+    /// `DID(l)=DEVICE/kind,'file'`: an output device.
     Device {
+        /// The device's label.
         label: Label,
+        /// What the device is.
         kind: DeviceKind,
+        /// The file name, for a storage device.
         file: Option<String>,
     },
     /// `OPEN/DID(x),DIRECT,OUTPUT[,OVERWR|APPEND]`.
     Open {
+        /// The device opened.
         device: Label,
+        /// The words after the device (`DIRECT`, `OUTPUT`, `OVERWR`, ...).
         words: Vec<String>,
     },
     /// `CLOSE/DID(x)[,KEEP|DELETE]`.
     Close {
+        /// The device closed.
         device: Label,
+        /// `KEEP` or `DELETE`, when given.
         word: Option<String>,
     },
 }
@@ -481,7 +659,9 @@ pub enum Statement {
 /// One item of `DISPLY`.
 #[derive(Debug, Clone, PartialEq)]
 pub enum DisplyItem {
+    /// A word (`OFF`, `TERM`, `DMIS`, ...).
     Word(String),
+    /// A device label.
     Device(Label),
 }
 

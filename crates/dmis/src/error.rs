@@ -5,11 +5,14 @@ use thiserror::Error;
 /// A position in a program: 1-based line and column (columns count characters).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Default)]
 pub struct Pos {
+    /// 1-based line.
     pub line: u32,
+    /// 1-based column, in characters.
     pub col: u32,
 }
 
 impl Pos {
+    /// The position at 1-based `line` and `col`.
     pub fn new(line: u32, col: u32) -> Pos {
         Pos { line, col }
     }
@@ -37,13 +40,18 @@ pub enum ErrorKind {
 #[derive(Debug, Clone, PartialEq, Error)]
 #[error("{file}:{line}:{col}: {message}", line = pos.line, col = pos.col)]
 pub struct DmisError {
+    /// The program's file name, as reported.
     pub file: String,
+    /// Where the problem is.
     pub pos: Pos,
+    /// What kind of problem it is.
     pub kind: ErrorKind,
+    /// What is wrong, as a sentence.
     pub message: String,
 }
 
 impl DmisError {
+    /// An error of `kind` at `pos` in `file`.
     pub fn new(file: &str, pos: Pos, kind: ErrorKind, message: impl Into<String>) -> DmisError {
         DmisError { file: file.to_string(), pos, kind, message: message.into() }
     }

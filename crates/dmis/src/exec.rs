@@ -40,14 +40,24 @@ pub enum RunError {
     /// The machine failed at a program line (exit 3).
     #[error("{file}:{line}: {source}")]
     Device {
+        /// The program's file name.
         file: String,
+        /// 1-based program line.
         line: u32,
+        /// What the machine said.
         #[source]
         source: DeviceError,
     },
     /// The measured points do not define the feature (collinear points for a circle, …) (exit 3).
     #[error("{file}:{line}: {message}")]
-    Evaluation { file: String, line: u32, message: String },
+    Evaluation {
+        /// The program's file name.
+        file: String,
+        /// 1-based program line.
+        line: u32,
+        /// What is wrong.
+        message: String,
+    },
 }
 
 /// Options of a run.
@@ -60,23 +70,30 @@ pub struct RunOptions {
 /// A coordinate system: part axes (columns of `r`) and origin `o` in the machine frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Frame {
+    /// Rotation: the part axes as columns, in machine coordinates.
     pub r: Matrix3,
+    /// The part origin in machine coordinates, mm.
     pub o: Vector3,
 }
 
 impl Frame {
+    /// The machine coordinate system itself.
     pub fn machine() -> Frame {
         Frame { r: Matrix3::identity(), o: Vector3::zeros() }
     }
+    /// A point from part to machine coordinates, mm.
     pub fn to_machine(&self, p: &Point3) -> Point3 {
         Point3::from(self.o + self.r * p.coords)
     }
+    /// A direction from part to machine coordinates.
     pub fn dir_to_machine(&self, v: &Vector3) -> Vector3 {
         self.r * v
     }
+    /// A point from machine to part coordinates, mm.
     pub fn to_part(&self, p: &Point3) -> Point3 {
         Point3::from(self.r.transpose() * (p.coords - self.o))
     }
+    /// A direction from machine to part coordinates.
     pub fn dir_to_part(&self, v: &Vector3) -> Vector3 {
         self.r.transpose() * v
     }
@@ -88,13 +105,61 @@ impl Frame {
 /// A feature's geometry in the machine frame (mm, rad).
 #[derive(Debug, Clone, PartialEq)]
 pub enum Geom {
-    Point { p: Point3, n: Vector3 },
-    Plane { p: Point3, n: Vector3 },
-    Line { p: Point3, dir: Vector3 },
-    Circle { c: Point3, n: Vector3, r: f64 },
-    Cylinder { p: Point3, axis: Vector3, r: f64 },
-    Sphere { c: Point3, r: f64 },
-    Cone { apex: Point3, axis: Vector3, half_angle: f64 },
+    /// A point on a surface.
+    Point {
+        /// The point, mm.
+        p: Point3,
+        /// The unit surface normal.
+        n: Vector3,
+    },
+    /// A plane.
+    Plane {
+        /// A point of the plane, mm.
+        p: Point3,
+        /// The unit normal.
+        n: Vector3,
+    },
+    /// A line.
+    Line {
+        /// A point of the line, mm.
+        p: Point3,
+        /// The unit direction.
+        dir: Vector3,
+    },
+    /// A circle.
+    Circle {
+        /// The centre, mm.
+        c: Point3,
+        /// The unit normal of its plane.
+        n: Vector3,
+        /// The radius, mm.
+        r: f64,
+    },
+    /// A cylinder.
+    Cylinder {
+        /// A point on the axis, mm.
+        p: Point3,
+        /// The unit axis.
+        axis: Vector3,
+        /// The radius, mm.
+        r: f64,
+    },
+    /// A sphere.
+    Sphere {
+        /// The centre, mm.
+        c: Point3,
+        /// The radius, mm.
+        r: f64,
+    },
+    /// A cone.
+    Cone {
+        /// The apex, mm.
+        apex: Point3,
+        /// The unit axis, from the apex into the cone.
+        axis: Vector3,
+        /// Half the included angle, rad.
+        half_angle: f64,
+    },
 }
 
 impl Geom {
@@ -207,7 +272,9 @@ impl Geom {
 /// An actual feature: geometry (machine frame), its surface points and standard uncertainties.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Actual {
+    /// The fitted geometry, machine frame.
     pub geom: Geom,
+    /// The compensated surface points, machine frame, mm.
     pub points: Vec<Point3>,
     /// Standard uncertainty of the position (mm), where a fit gives it.
     pub u_position_mm: Option<f64>,
@@ -218,28 +285,40 @@ pub struct Actual {
 /// One output feature.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FeatureResult {
+    /// The feature's label name.
     pub label: String,
+    /// The feature type.
     pub ftype: FeatType,
+    /// Inner or outer, for features that have a side.
     pub side: Option<Side>,
     /// In the coordinate system active at the OUTPUT (mm, rad).
     pub geom: Geom,
+    /// Standard uncertainty of the position, mm, where known.
     pub u_position_mm: Option<f64>,
+    /// Standard uncertainty of the diameter, mm, for round features.
     pub u_diameter_mm: Option<f64>,
+    /// Number of points measured (0 for a constructed feature).
     pub n_points: usize,
+    /// Whether measured or constructed (`FA`) rather than only nominal.
     pub actual: bool,
 }
 
 /// One evaluated tolerance.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TolResult {
+    /// The tolerance's label name.
     pub label: String,
+    /// The labels of the features it applies to.
     pub features: Vec<String>,
+    /// The tolerance's minor word (`DIAM`, `POS`, ...).
     pub kind: &'static str,
     /// The actual value: mm, or rad for ANGLB.
     pub value: f64,
     /// The limits the value is judged against (mm, or rad for ANGLB).
     pub limits: (f64, f64),
+    /// Whether the value and limits are angles (rad) rather than lengths (mm).
     pub angular: bool,
+    /// Whether the value is within the limits.
     pub in_tolerance: bool,
     /// For a value that is the length of a vector (POS: twice the position deviation; PERP and
     /// PARLEL of an axis: its extent across or along the datum), that vector (machine frame,
@@ -251,8 +330,11 @@ pub struct TolResult {
 /// direction (machine frame), and where the perfect feature (the fit) has that point.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProbeRecord {
+    /// Index of the feature probed (in the plan's features).
     pub feature: usize,
+    /// The compensated contact point, machine frame, mm.
     pub point_mm: Point3,
+    /// The unit probing direction, machine frame.
     pub approach: Vector3,
     /// The point moved onto the fitted feature (its form error removed): what a perfect part
     /// placed where this one was found would give.
@@ -262,16 +344,22 @@ pub struct ProbeRecord {
 /// What a run produced.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunResult {
+    /// The machine the program ran on.
     pub machine: DeviceInfo,
+    /// The features output by `OUTPUT`, in order.
     pub features: Vec<FeatureResult>,
+    /// The tolerances output by `OUTPUT`, in order.
     pub tolerances: Vec<TolResult>,
+    /// Number of points probed.
     pub n_points: usize,
+    /// Wall time of the run, s.
     pub elapsed_s: f64,
     /// The DMIS output file, line by line.
     pub output: Vec<String>,
     /// Motions in order (what `--dry-run` lists).
     pub motions: Vec<String>,
-    /// Every probing in order ([`Replay`] runs the plan again on the perfect features).
+    /// Every probing in order ([`Replay`](crate::uncertainty::Replay) runs the plan again on the
+    /// perfect features).
     pub probes: Vec<ProbeRecord>,
     /// The tools selected (name, tip radius mm), as the machine reported them.
     pub tools: Vec<ToolInfo>,
@@ -1167,6 +1255,7 @@ pub struct DryRun {
 }
 
 impl DryRun {
+    /// A dry-run machine for `plan` with the options of the run.
     pub fn new(plan: &Plan, opts: &RunOptions) -> DryRun {
         let tools = plan
             .sensors

@@ -22,12 +22,17 @@ use crate::error::{DmisError, ErrorKind, Pos};
 pub enum Tok {
     /// A word, upper-cased.
     Word(String),
+    /// A number.
     Num(f64),
+    /// A quoted text, without the quotes.
     Text(String),
     /// `PREFIX(name)`: prefix upper-cased, name as written.
     Label(String, String),
+    /// `,`.
     Comma,
+    /// `/`.
     Slash,
+    /// `=`.
     Eq,
 }
 
@@ -49,6 +54,7 @@ impl Tok {
 /// One statement's tokens, with where it starts and where it ends.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RawStatement {
+    /// The tokens with their positions.
     pub toks: Vec<(Tok, Pos)>,
     /// Position just after the statement's last token (for "expected … at the end").
     pub end: Pos,

@@ -25,39 +25,65 @@ use truepos_math::{Point3, Vector3};
 /// A nominal feature in mm (and rad), in the coordinate system active where it was defined.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Nominal {
+    /// A surface point.
     Point {
+        /// The point, mm.
         p: Point3,
+        /// The unit surface normal.
         n: Vector3,
     },
+    /// A plane.
     Plane {
+        /// A point of the plane, mm.
         p: Point3,
+        /// The unit normal.
         n: Vector3,
     },
+    /// A line.
     Line {
+        /// A point of the line (the start of a bounded one), mm.
         p: Point3,
+        /// The unit direction.
         dir: Vector3,
+        /// The unit normal of the plane the line lies in, when given.
         plane: Option<Vector3>,
+        /// Length of a bounded line, mm.
         length: Option<f64>,
     },
+    /// A circle.
     Circle {
+        /// The centre, mm.
         c: Point3,
+        /// The unit normal of its plane.
         n: Vector3,
+        /// The radius, mm.
         r: f64,
     },
+    /// A cylinder.
     Cylinder {
+        /// A point on the axis, mm.
         p: Point3,
+        /// The unit axis.
         axis: Vector3,
+        /// The radius, mm.
         r: f64,
+        /// Length along the axis, mm, when given.
         length: Option<f64>,
     },
+    /// A sphere.
     Sphere {
+        /// The centre, mm.
         c: Point3,
+        /// The radius, mm.
         r: f64,
     },
     /// Apex, unit axis from the apex into the cone, half of the included angle (rad).
     Cone {
+        /// The apex, mm.
         apex: Point3,
+        /// The unit axis, from the apex into the cone.
         axis: Vector3,
+        /// Half the included angle, rad.
         half_angle: f64,
     },
 }
@@ -67,58 +93,91 @@ pub enum Nominal {
 pub struct Feature {
     /// The label's name as written.
     pub name: String,
+    /// The feature type.
     pub ftype: FeatType,
+    /// Inner or outer, for features that have a side.
     pub side: Option<Side>,
+    /// The nominal geometry.
     pub nominal: Nominal,
+    /// Where the feature is defined in the program.
     pub pos: Pos,
 }
 
 /// A sensor (`SNSDEF`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Sensor {
+    /// The sensor's label name as written.
     pub name: String,
+    /// The tip diameter, mm.
     pub tip_diameter_mm: f64,
+    /// Where the sensor is defined in the program.
     pub pos: Pos,
 }
 
 /// A tolerance in internal units.
 #[derive(Debug, Clone, PartialEq)]
 pub enum TolKind {
+    /// Flatness zone, mm.
     Flat(f64),
+    /// Straightness zone, mm.
     Strght(f64),
+    /// Circularity zone, mm.
     Cirlty(f64),
+    /// Cylindricity zone, mm.
     Cylcty(f64),
+    /// Diameter deviations from nominal.
     Diam {
+        /// Lower deviation, mm.
         lo: f64,
+        /// Upper deviation, mm.
         hi: f64,
     },
+    /// Radius deviations from nominal.
     Rad {
+        /// Lower deviation, mm.
         lo: f64,
+        /// Upper deviation, mm.
         hi: f64,
     },
+    /// Position.
     Pos {
+        /// A spherical (3D) rather than a cylindrical (2D) zone.
         three_d: bool,
+        /// Zone diameter, mm.
         zone: f64,
     },
     /// Zone and the datum feature.
     Perp {
+        /// Zone width, mm.
         zone: f64,
+        /// Index of the datum feature.
         datum: usize,
     },
+    /// Parallelism: zone and the datum feature.
     Parlel {
+        /// Zone width, mm.
         zone: f64,
+        /// Index of the datum feature.
         datum: usize,
     },
     /// Nominal angle and deviations (rad).
     Anglb {
+        /// Nominal angle, rad.
         angle: f64,
+        /// Lower deviation, rad.
         lo: f64,
+        /// Upper deviation, rad.
         hi: f64,
     },
+    /// Distance between two features.
     Distb {
+        /// Nominal distance, mm.
         dist: f64,
+        /// Lower deviation, mm.
         lo: f64,
+        /// Upper deviation, mm.
         hi: f64,
+        /// The direction measured along (`None`: point to point).
         axis: Option<DistAxis>,
     },
 }
@@ -136,22 +195,29 @@ impl TolKind {
 /// A tolerance (`TOL`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Tolerance {
+    /// The tolerance's label name as written.
     pub name: String,
+    /// The tolerance in internal units.
     pub kind: TolKind,
     /// The statement as written (echoed in the output file, in the program's units).
     pub statement: Statement,
+    /// Where the tolerance is defined in the program.
     pub pos: Pos,
 }
 
 /// One motion inside `MEAS` (part coordinates of the active coordinate system, mm).
 #[derive(Debug, Clone, PartialEq)]
 pub enum Move {
+    /// `GOTO` to a point, mm.
     Goto(Point3),
+    /// `GOTO/INCR` by a displacement, mm.
     GotoIncr(Vector3),
     /// A point to probe and its approach direction (out of the material); `None`: from the
     /// nominal feature.
     Probe {
+        /// The nominal point, mm.
         p: Point3,
+        /// The unit approach direction, when the program gives one.
         dir: Option<Vector3>,
     },
 }
@@ -159,16 +225,22 @@ pub enum Move {
 /// How a feature is constructed (indices of features).
 #[derive(Debug, Clone, PartialEq)]
 pub enum Construction {
+    /// Best fit through the points of these features.
     Bf(Vec<usize>),
+    /// Intersection of two features.
     Intof(usize, usize),
+    /// The first feature projected onto the second (a plane).
     Projct(usize, usize),
+    /// The point midway between two features' positions.
     Midpt(usize, usize),
 }
 
 /// `DATSET` in indices of features.
 #[derive(Debug, Clone, PartialEq)]
 pub enum DatsetOp {
+    /// The machine coordinate system.
     Mcs,
+    /// Datum features with the axis and origin words each sets.
     Datums(Vec<(usize, Vec<DatsetWord>)>),
 }
 
@@ -176,63 +248,104 @@ pub enum DatsetOp {
 #[derive(Debug, Clone, PartialEq)]
 pub enum OutputItem {
     /// A feature's actual (`FA`) or nominal (`F`) values.
-    Feature { feature: usize, actual: bool },
+    Feature {
+        /// Index of the feature.
+        feature: usize,
+        /// Actual (`FA`) rather than nominal (`F`).
+        actual: bool,
+    },
     /// A tolerance evaluated on the output's features (`TA`), or only echoed (`T`).
-    Tolerance { tolerance: usize, features: Vec<usize>, actual: bool },
+    Tolerance {
+        /// Index of the tolerance.
+        tolerance: usize,
+        /// Indices of the features it is evaluated on.
+        features: Vec<usize>,
+        /// Evaluated (`TA`) rather than only echoed (`T`).
+        actual: bool,
+    },
 }
 
 /// One step of the plan.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Op {
+    /// `GOTO` to a point (active part coordinates), mm.
     Goto(Point3),
+    /// `GOTO/INCR` by a displacement, mm.
     GotoIncr(Vector3),
     /// Feed of `FEDRAT` (mm/s; `None`: the machine's default).
     Feed {
+        /// Which speed.
         kind: FeedKind,
+        /// The speed, mm/s.
         mm_s: Option<f64>,
     },
+    /// `SNSET/APPRCH`, mm.
     Approach(f64),
+    /// `SNSET/SEARCH`, mm.
     Search(f64),
+    /// `SNSET/RETRCT`, mm.
     Retract(f64),
     /// `PRCOMP`: compensate probed points by the tip radius.
     Compensation(bool),
+    /// `SNSLCT`: index of the sensor.
     SelectSensor(usize),
     /// `FEAT`: the nominal takes the active coordinate system.
     Define(usize),
     /// `MEAS … ENDMES`, each motion with its statement's position.
     Measure {
+        /// Index of the feature measured.
         feature: usize,
+        /// The motions and probings, in order.
         moves: Vec<(Move, Pos)>,
     },
+    /// `CONST`: construct a feature.
     Construct {
+        /// Index of the constructed feature.
         feature: usize,
+        /// How it is constructed.
         method: Construction,
     },
+    /// `DATSET`: a coordinate system from datums.
     Datset {
+        /// The coordinate system's label name.
         name: String,
+        /// How it is built.
         def: DatsetOp,
     },
     /// `TRANS`: origins along axes 0..3 to a value (mm) or a feature's position.
     Trans {
+        /// The new coordinate system's label name, when assigned.
         name: Option<String>,
+        /// Axis index and target of each origin moved.
         items: Vec<(usize, TransTo)>,
     },
     /// `ROTATE` about axis 0..3.
     Rotate {
+        /// The new coordinate system's label name, when assigned.
         name: Option<String>,
+        /// The axis index rotated about.
         axis: usize,
+        /// An angle or a feature's direction.
         by: RotateTo,
     },
+    /// `SAVE`: keep the active coordinate system under this name.
     Save(String),
+    /// `RECALL`: make the saved coordinate system of this name active.
     Recall(String),
     /// `UNITS` (what the output file is written in from here on).
     Units {
+        /// The length unit.
         length: LengthUnit,
+        /// The angle unit.
         angle: AngleUnit,
     },
+    /// `OUTPUT`: report features and tolerances.
     Output(Vec<OutputItem>),
+    /// `TEXT`: a message.
     Text {
+        /// Where it goes.
         kind: TextKind,
+        /// The text.
         text: String,
     },
 }
@@ -240,13 +353,16 @@ pub enum Op {
 /// Where `TRANS` moves an origin.
 #[derive(Debug, Clone, PartialEq)]
 pub enum TransTo {
+    /// A value, mm.
     Value(f64),
+    /// The position of the feature with this index.
     Feature(usize),
 }
 
 /// What `ROTATE` turns by.
 #[derive(Debug, Clone, PartialEq)]
 pub enum RotateTo {
+    /// An angle, rad.
     Angle(f64),
     /// The feature's direction becomes this axis (0..3).
     Feature(usize, usize),
@@ -255,7 +371,9 @@ pub enum RotateTo {
 /// A step with where it comes from.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Step {
+    /// What the step does.
     pub op: Op,
+    /// Where its statement is in the program.
     pub pos: Pos,
     /// The statement in canonical DMIS where the output file repeats it (`UNITS`, `DATSET`,
     /// `TRANS`, `ROTATE`, `SAVE`, `RECALL`).
@@ -265,17 +383,23 @@ pub struct Step {
 /// A checked program, ready to run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Plan {
+    /// The program's file name, as reported in errors.
     pub file: String,
+    /// The title of `DMISMN`.
     pub title: String,
+    /// The name of `FILNAM`, when given.
     pub filnam: Option<String>,
+    /// Every feature of the program, indexed by the steps.
     pub features: Vec<Feature>,
+    /// Every sensor of the program, indexed by the steps.
     pub sensors: Vec<Sensor>,
+    /// Every tolerance of the program, indexed by the steps.
     pub tolerances: Vec<Tolerance>,
+    /// The steps, in program order.
     pub steps: Vec<Step>,
     /// The file named by the `DEVICE/STOR` that is opened for `OUTPUT`, as written.
     pub output_file: Option<String>,
-    /// Statements echoed at the top of the output file (`FILNAM`, `UNITS`, `DATSET` …) come from
-    /// the program; this is the first `UNITS` (default MM, ANGDEC).
+    /// Number of points the plan probes (the `PTMEAS` statements it runs).
     pub n_probes: usize,
 }
 

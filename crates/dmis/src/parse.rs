@@ -12,7 +12,9 @@ use crate::lexer::{statements, RawStatement, Tok};
 /// A statement with where it is: its first character and each argument's.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Stmt {
+    /// The parsed statement.
     pub statement: Statement,
+    /// Its first character.
     pub pos: Pos,
     /// Position of the label before `=` (or of the statement).
     pub label_pos: Pos,
@@ -32,6 +34,7 @@ impl Stmt {
 pub struct Program {
     /// The file name errors are reported with.
     pub file: String,
+    /// The statements, in order.
     pub statements: Vec<Stmt>,
 }
 

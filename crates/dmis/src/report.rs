@@ -1,7 +1,7 @@
 //! Results of a run: the DMIS output file's lines (`FA(label)=FEAT/…`, `TA(label)=TOL/…`, in the
 //! program's units) and the contract's JSON.
 //!
-//! Entry points: [`feat_line`], [`tol_line`], [`json`].
+//! Entry points: [`feat_line`], [`tol_line`], [`json`](fn@json).
 
 use crate::ast::{AngleUnit, FeatType, LengthUnit, Side};
 use crate::exec::{FeatureResult, Geom, RunResult, TolResult};
@@ -157,15 +157,21 @@ pub fn json(program: &str, r: &RunResult, output_file: Option<&str>) -> Value {
 pub struct Quantity {
     /// `feature` or `tolerance`.
     pub kind: &'static str,
+    /// The feature's or tolerance's label name.
     pub label: String,
     /// A feature's type (`CIRCLE`, …) or the feature(s) a tolerance applies to.
     pub feature: String,
     /// `x`, `y`, `z`, `diameter`, `apex_angle`, or the tolerance kind.
     pub quantity: String,
+    /// The value, in `unit`.
     pub value: f64,
+    /// `mm` or `rad`.
     pub unit: &'static str,
+    /// Expanded uncertainty (k = 2) of the value, in `unit`, where known.
     pub expanded_uncertainty: Option<f64>,
+    /// The tolerance limits, in `unit`, for a tolerance.
     pub limits: Option<(f64, f64)>,
+    /// `INTOL` or `OUTOL`, for a tolerance.
     pub verdict: Option<&'static str>,
 }
 

@@ -30,6 +30,7 @@ pub struct Replay {
 }
 
 impl Replay {
+    /// A machine replaying the probings of run `r` on its perfect features.
     pub fn new(r: &RunResult) -> Replay {
         Replay { probes: r.probes.clone(), tools: r.tools.clone(), next: 0, at: Point3::origin() }
     }
@@ -161,7 +162,9 @@ pub struct FeatureUncertainty {
 /// and per tolerance (`None` where not known).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Uncertainty {
+    /// Per feature of the plan, in order.
     pub features: Vec<Option<FeatureUncertainty>>,
+    /// Per tolerance of the plan, in order: the standard uncertainty of its value (mm or rad).
     pub tolerances: Vec<Option<f64>>,
 }
 

@@ -2,6 +2,9 @@
 //! influence map of a 2 m × 1.5 m granite bed (336 unit loads every 100 mm), at the automatic
 //! element size (25 mm). Figures in docs/performance-fe.md.
 
+// `criterion_group!` generates a public function that cannot carry a doc comment.
+#![allow(missing_docs)]
+
 use criterion::{criterion_group, criterion_main, Criterion};
 use truepos_fe::{Bed, MeshOptions, PlateModel, Supports};
 

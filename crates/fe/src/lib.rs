@@ -42,20 +42,52 @@ pub enum FeError {
     /// A bed parameter is out of range (non-finite, non-positive, Poisson ratio outside
     /// (-1, 0.5)).
     #[error("invalid bed parameter {name} = {value}: {reason}")]
-    InvalidParameter { name: &'static str, value: f64, reason: &'static str },
+    InvalidParameter {
+        /// The parameter.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// What it must be.
+        reason: &'static str,
+    },
     /// A support point lies outside the bed or is not finite.
     #[error("support {index} at ({x}, {y}) mm lies outside the bed (0..{size_x}, 0..{size_y}) mm")]
-    SupportOutsideBed { index: usize, x: f64, y: f64, size_x: f64, size_y: f64 },
+    SupportOutsideBed {
+        /// 0-based index of the support.
+        index: usize,
+        /// Its X, mm.
+        x: f64,
+        /// Its Y, mm.
+        y: f64,
+        /// Bed size along X, mm.
+        size_x: f64,
+        /// Bed size along Y, mm.
+        size_y: f64,
+    },
     /// The supports cannot restrain the rigid-body motion of the plate (fewer than three
     /// non-collinear support points, or non-positive spring stiffness).
     #[error("singular model: {0}")]
     Singular(String),
     /// A load point lies outside the bed or a load is not finite.
     #[error("load {index} at ({x}, {y}) mm with force {force} N lies outside the bed or is not finite")]
-    InvalidLoad { index: usize, x: f64, y: f64, force: f64 },
+    InvalidLoad {
+        /// 0-based index of the load.
+        index: usize,
+        /// Its X, mm.
+        x: f64,
+        /// Its Y, mm.
+        y: f64,
+        /// Its force, N.
+        force: f64,
+    },
     /// The requested mesh would be too large (element size too small for the bed).
     #[error("mesh too large: {nodes} nodes (limit {limit}); increase the element size")]
-    MeshTooLarge { nodes: usize, limit: usize },
+    MeshTooLarge {
+        /// Nodes the mesh would have.
+        nodes: usize,
+        /// Most nodes allowed.
+        limit: usize,
+    },
     /// The sparse factorisation failed (numerically singular or out of memory).
     #[error("sparse factorisation failed: {0}")]
     Factorisation(String),
@@ -70,7 +102,12 @@ pub enum Supports {
     /// non-collinear pads are needed. The mesh lines are put through every pad; each pad acts
     /// on the mean deflection over a disc of diameter = thickness around it (see
     /// [`ModelOptions`]), a rigid pad holding that mean exactly at zero.
-    Points { xy: Vec<[f64; 2]>, stiffness_n_per_mm: Option<f64> },
+    Points {
+        /// Pad positions (x, y), bed coordinates, mm.
+        xy: Vec<[f64; 2]>,
+        /// Stiffness of each pad, N/mm (`None`: rigid).
+        stiffness_n_per_mm: Option<f64>,
+    },
     /// All four edges "hard" simply supported: w = 0 and the rotation about the edge normal
     /// (the tangential rotation) = 0, the bending moment normal to the edge free. This is the
     /// support for which the Navier solutions and the Wang-Reddy-Lee Mindlin/Kirchhoff relation

@@ -23,9 +23,13 @@ pub struct Mesh {
 /// Where a point lies in the mesh: element cell `(i, j)` and local coordinates ξ, η ∈ [−1, 1].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Location {
+    /// Element column index (along x), 0-based.
     pub i: usize,
+    /// Element row index (along y), 0-based.
     pub j: usize,
+    /// Local coordinate ξ across the element along x, −1 to 1.
     pub xi: f64,
+    /// Local coordinate η across the element along y, −1 to 1.
     pub eta: f64,
 }
 

@@ -2,6 +2,9 @@
 //! points (the fit alone, data in memory); minimum-zone plane, circle, sphere and cylinder on
 //! 1e4 and 1e5 points. Figures: docs/performance-fit.md.
 
+// `criterion_group!` generates a public function that cannot carry a doc comment.
+#![allow(missing_docs)]
+
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

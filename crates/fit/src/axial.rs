@@ -30,15 +30,21 @@ pub struct CylinderFit {
     pub point: Point3,
     /// Unit axis direction (sign: largest component positive).
     pub axis: Vector3,
+    /// Radius of the cylinder, mm.
     pub radius: f64,
+    /// RMS orthogonal distance of the points from the cylinder surface, mm.
     pub rms: f64,
+    /// Largest absolute orthogonal residual, mm.
     pub max_abs_residual: f64,
+    /// Number of points fitted.
     pub n_points: usize,
     /// Standard uncertainty of `point` perpendicular to the axis (root-sum-square), mm.
     pub u_point: f64,
     /// Standard uncertainty of the axis direction (root-sum-square of two tilts), rad.
     pub u_axis: f64,
+    /// Standard uncertainty of the radius, mm.
     pub u_radius: f64,
+    /// Gauss-Newton iterations the fit took.
     pub iterations: usize,
     /// Covariance of `point` (perpendicular to the axis), mm².
     pub point_covariance: Matrix3,
@@ -51,6 +57,7 @@ pub struct CylinderFit {
 /// Least-squares cone.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ConeFit {
+    /// The apex (vertex) of the cone, in the frame of the points, mm.
     pub apex: Point3,
     /// Unit axis direction from the apex towards increasing radius.
     pub axis: Vector3,
@@ -60,8 +67,11 @@ pub struct ConeFit {
     pub point: Point3,
     /// Orthogonal distance from `point` to the cone surface, mm.
     pub surface_distance: f64,
+    /// RMS signed orthogonal distance of the points from the cone surface, mm.
     pub rms: f64,
+    /// Largest absolute orthogonal residual, mm.
     pub max_abs_residual: f64,
+    /// Number of points fitted.
     pub n_points: usize,
     /// Standard uncertainties of the apex coordinates, mm (large for small apex angles).
     pub u_apex: Vector3,
@@ -71,7 +81,9 @@ pub struct ConeFit {
     pub u_axis: f64,
     /// Standard uncertainty of the full apex angle, rad.
     pub u_apex_angle: f64,
+    /// Standard uncertainty of `surface_distance`, mm.
     pub u_surface_distance: f64,
+    /// Gauss-Newton iterations the fit took.
     pub iterations: usize,
     /// Covariance of the apex, mm².
     pub apex_covariance: Matrix3,

@@ -23,17 +23,35 @@ use truepos_math::{Matrix3, Point3, Vector3};
 
 pub use truepos_math::stats::COVERAGE_FACTOR;
 
+/// The geometric element to fit: the one definition of the element kinds, used by the fits,
+/// the QIF export (`truepos_qif::FeatureKind`), the cell and, as the `<KIND>` argument of
+/// `truepos fit`, the command line (with the `clap` feature). The command line lists the kinds
+/// without a description each, so their `clap` help is empty.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Kind {
+    /// A straight line in space.
+    #[cfg_attr(feature = "clap", value(help = None::<&str>))]
     Line,
+    /// A plane.
+    #[cfg_attr(feature = "clap", value(help = None::<&str>))]
     Plane,
+    /// A circle in space (in its least-squares plane).
+    #[cfg_attr(feature = "clap", value(help = None::<&str>))]
     Circle,
+    /// A sphere.
+    #[cfg_attr(feature = "clap", value(help = None::<&str>))]
     Sphere,
+    /// A circular cylinder.
+    #[cfg_attr(feature = "clap", value(help = None::<&str>))]
     Cylinder,
+    /// A circular cone.
+    #[cfg_attr(feature = "clap", value(help = None::<&str>))]
     Cone,
 }
 
 impl Kind {
+    /// The lower-case name, as the CLI and the JSON output spell it (`line`, `plane`, ...).
     pub fn name(self) -> &'static str {
         match self {
             Kind::Line => "line",
@@ -50,15 +68,26 @@ impl Kind {
     }
 }
 
+/// The association criterion that defines the fitted element (`truepos fit --method`; the
+/// variants' documentation is the command line's help for each value).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Method {
+    /// Least squares (Gaussian), with uncertainties.
+    #[cfg_attr(feature = "clap", value(name = "ls"))]
     LeastSquares,
+    /// Minimum zone (Chebyshev): line, plane, circle, sphere, cylinder.
     MinimumZone,
+    /// Maximum inscribed: circle, sphere, cylinder.
+    #[cfg_attr(feature = "clap", value(name = "mic"))]
     MaximumInscribed,
+    /// Minimum circumscribed: circle, sphere, cylinder.
+    #[cfg_attr(feature = "clap", value(name = "mcc"))]
     MinimumCircumscribed,
 }
 
 impl Method {
+    /// The CLI's name of the method (`ls`, `minimum-zone`, `mic`, `mcc`).
     pub fn name(self) -> &'static str {
         match self {
             Method::LeastSquares => "ls",
@@ -72,8 +101,17 @@ impl Method {
 /// Why an evaluation was not started: the request itself is inconsistent (a usage error).
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 pub enum SpecError {
+    /// The method does not exist for the kind (method name, kind name, reason).
     #[error("--method {method} does not apply to a {kind} ({why})")]
-    MethodNotForKind { method: &'static str, kind: &'static str, why: &'static str },
+    MethodNotForKind {
+        /// The method's name.
+        method: &'static str,
+        /// The kind's name.
+        kind: &'static str,
+        /// Why the method does not apply.
+        why: &'static str,
+    },
+    /// A size tolerance given for a kind without a diameter (the kind's name).
     #[error("a size tolerance applies to a circle, sphere or cylinder, not to a {0}")]
     SizeNotForKind(&'static str),
 }
@@ -81,8 +119,11 @@ pub enum SpecError {
 /// Tolerances and the decision rule.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Spec {
+    /// Size (diameter) tolerance, for circles, spheres and cylinders.
     pub size: Option<SizeTolerance>,
+    /// Form tolerance (zone width), mm.
     pub form_tolerance: Option<f64>,
+    /// Decision rule for the size verdict.
     pub rule: DecisionRule,
 }
 
@@ -112,12 +153,19 @@ pub fn check(kind: Kind, method: Method, spec: &Spec) -> Result<(), SpecError> {
 /// Standard uncertainties (k = 1) of the reported parameters, same shapes.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct Uncertainty {
+    /// Of the line's point, mm.
     pub point: Option<Vector3>,
+    /// Of the centre (circle, sphere), mm.
     pub center: Option<Vector3>,
+    /// Of the cone's apex, mm.
     pub apex: Option<Vector3>,
+    /// Of the line's unit direction components (dimensionless).
     pub direction: Option<Vector3>,
+    /// Of the plane's or circle's unit normal components (dimensionless).
     pub normal: Option<Vector3>,
+    /// Of the cylinder's or cone's unit axis components (dimensionless).
     pub axis: Option<Vector3>,
+    /// Of the radius, mm.
     pub radius: Option<f64>,
     /// Full apex angle, rad.
     pub apex_angle: Option<f64>,
@@ -142,27 +190,42 @@ impl Uncertainty {
 /// The form decision (simple rule).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FormDecision {
+    /// The form tolerance (zone width) decided against, mm.
     pub tolerance: f64,
+    /// Whether the form is within the tolerance.
     pub verdict: Verdict,
 }
 
 /// A fitted feature with everything reported about it. Lengths mm, angles rad.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Evaluation {
+    /// The element fitted.
     pub kind: Kind,
+    /// The association criterion used.
     pub method: Method,
+    /// Number of points fitted.
     pub n_points: usize,
+    /// Line, plane, cylinder, cone: a point on the element (nearest the centroid), mm.
     pub point: Option<Point3>,
+    /// Circle, sphere: the centre, mm.
     pub center: Option<Point3>,
+    /// Cone: the apex, mm.
     pub apex: Option<Point3>,
+    /// Line: the unit direction.
     pub direction: Option<Vector3>,
+    /// Plane, circle: the unit normal.
     pub normal: Option<Vector3>,
+    /// Cylinder, cone: the unit axis.
     pub axis: Option<Vector3>,
+    /// Circle, sphere, cylinder: the radius, mm.
     pub radius: Option<f64>,
     /// Full apex angle, rad.
     pub apex_angle: Option<f64>,
+    /// RMS orthogonal residual, mm.
     pub rms: f64,
+    /// Largest absolute orthogonal residual, mm.
     pub max_abs_residual: f64,
+    /// Form about the reported element: largest minus smallest orthogonal residual, mm.
     pub form: f64,
     /// Chebyshev circles, spheres, cylinders: the zone's inner and outer radius, mm.
     pub zone_radii: Option<(f64, f64)>,
@@ -172,7 +235,9 @@ pub struct Evaluation {
     pub diameter_expanded_uncertainty: Option<f64>,
     /// Further named scalars of the fit (mm, rad or counts as the name says).
     pub extras: Vec<(&'static str, f64)>,
+    /// The size decision, when a size tolerance was given.
     pub size_decision: Option<SizeDecision>,
+    /// The form decision, when a form tolerance was given.
     pub form_decision: Option<FormDecision>,
     /// Combined verdict; `None` without tolerances.
     pub verdict: Option<Verdict>,
@@ -389,8 +454,10 @@ fn chebyshev(kind: Kind, method: Method, points: &[Point3]) -> Result<Evaluation
 /// Why an evaluation failed.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 pub enum EvaluateError {
+    /// The tolerances or method do not apply to the kind.
     #[error(transparent)]
     Spec(#[from] SpecError),
+    /// The fit itself failed (degenerate or invalid points).
     #[error(transparent)]
     Fit(#[from] FitError),
 }

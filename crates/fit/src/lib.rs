@@ -4,7 +4,7 @@
 //! B89.4.10 define them, with the standard uncertainties of their parameters from the fit
 //! covariance `σ₀²(JᵀJ)⁻¹`, `σ₀² = SSR/(n − p)`.
 //!
-//! Entry points: [`line`], [`plane`], [`circle`] (3D reference definition: least-squares plane,
+//! Entry points: [`line()`], [`plane`], [`circle`] (3D reference definition: least-squares plane,
 //! then the least-squares 2D circle of the points projected into it), [`sphere`],
 //! [`sphere_with_radius`], [`cylinder`], [`cone`]. Each returns its `XxxFit` or a [`FitError`]
 //! naming why the data cannot determine the element (too few points, coincident, collinear,
@@ -14,7 +14,7 @@
 //! symmetric eigen-decomposition). The others start from values that need no luck (algebraic
 //! Kåsa sphere/circle fits; for cylinder and cone an algebraic fit along every principal axis and
 //! a coarse grid of directions over the hemisphere, best kept) and refine them by
-//! Levenberg-Marquardt ([`engine`]) in a local frame re-expressed at every iteration (the
+//! Levenberg-Marquardt (the private `engine` module) in a local frame re-expressed at every iteration (the
 //! current axis is z), which keeps the normal equations well conditioned. One iteration is one
 //! parallel, allocation-free pass over the points.
 
@@ -44,30 +44,67 @@ use truepos_math::{Matrix3, Point3, Vector3};
 /// Why a fit cannot be computed from the given points.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum FitError {
+    /// Fewer points than the kind needs (kind, needed, given).
     #[error("a {kind} fit needs at least {needed} points, {got} given ({why})", why = min_points_reason(kind))]
-    TooFewPoints { kind: &'static str, needed: usize, got: usize },
+    TooFewPoints {
+        /// The element kind.
+        kind: &'static str,
+        /// Points the kind needs.
+        needed: usize,
+        /// Points given.
+        got: usize,
+    },
     /// Several elements fit the points equally well (distinct local minima of the least
     /// squares): the answer is not determined.
     #[error("the {kind} is not determined: {detail}")]
-    NotUnique { kind: &'static str, detail: String },
+    NotUnique {
+        /// The element kind.
+        kind: &'static str,
+        /// The competing solutions, as a sentence.
+        detail: String,
+    },
+    /// A point has a NaN or infinite coordinate (its 0-based index).
     #[error("point {index} (0-based) has a coordinate that is not a finite number")]
-    NonFinite { index: usize },
+    NonFinite {
+        /// 0-based index of the point.
+        index: usize,
+    },
+    /// Every point is at the same place.
     #[error("all points coincide: no element is determined")]
     CoincidentPoints,
+    /// The points lie on one line, which does not determine the kind.
     #[error("the points are collinear: a {kind} is not determined")]
-    CollinearPoints { kind: &'static str },
+    CollinearPoints {
+        /// The element kind.
+        kind: &'static str,
+    },
+    /// The points lie in one plane, which does not determine the kind.
     #[error("the points are coplanar: a {kind} is not determined")]
-    CoplanarPoints { kind: &'static str },
+    CoplanarPoints {
+        /// The element kind.
+        kind: &'static str,
+    },
+    /// The cone's apex angle is not significantly different from zero.
     #[error("the cone is a cylinder: its apex angle is not significantly different from 0 (apex at infinity); fit a cylinder")]
     ConeIsCylinder,
+    /// The cylinder's curvature is not significantly different from zero.
     #[error("the data is flat (a plane or a line), not a cylinder: its curvature is not significantly different from 0")]
     CylinderIsFlat,
+    /// A fixed radius that is not finite and positive (the value, mm).
     #[error("invalid fixed radius {0} mm (must be finite and positive)")]
     InvalidRadius(f64),
+    /// The normal equations are singular: the data does not determine the element.
     #[error("the data does not determine the {kind}: the normal equations are singular")]
-    Undetermined { kind: &'static str },
+    Undetermined {
+        /// The element kind.
+        kind: &'static str,
+    },
+    /// The points do not surround a maximum inscribed element (an open arc or cap).
     #[error("no bounded maximum inscribed {kind}: the points do not surround it (an open arc or cap)")]
-    InscribedUnbounded { kind: &'static str },
+    InscribedUnbounded {
+        /// The element kind.
+        kind: &'static str,
+    },
 }
 
 /// Why a fit of `kind` needs its minimum number of points (the message of
@@ -111,7 +148,9 @@ pub struct LineFit {
     pub direction: Vector3,
     /// RMS orthogonal distance, mm.
     pub rms: f64,
+    /// Largest absolute orthogonal distance from the line, mm.
     pub max_abs_residual: f64,
+    /// Number of points fitted.
     pub n_points: usize,
     /// Standard uncertainty of `point` perpendicular to the line (root-sum-square of the two
     /// perpendicular components), mm.
@@ -211,8 +250,11 @@ pub struct PlaneFit {
     pub point: Point3,
     /// Unit normal (sign: largest component positive).
     pub normal: Vector3,
+    /// RMS orthogonal distance from the plane, mm.
     pub rms: f64,
+    /// Largest absolute orthogonal distance from the plane, mm.
     pub max_abs_residual: f64,
+    /// Number of points fitted.
     pub n_points: usize,
     /// Standard uncertainty of the plane's position along its normal at `point`, mm.
     pub u_offset: f64,
@@ -269,11 +311,15 @@ pub fn plane(points: &[Point3]) -> Result<PlaneFit, FitError> {
 /// Least-squares sphere.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SphereFit {
+    /// Centre of the sphere, in the frame of the points, mm.
     pub center: Point3,
+    /// Radius of the sphere (the fixed radius when one was given), mm.
     pub radius: f64,
     /// RMS of the orthogonal residuals `|p − c| − r`, mm.
     pub rms: f64,
+    /// Largest absolute orthogonal residual, mm.
     pub max_abs_residual: f64,
+    /// Number of points fitted.
     pub n_points: usize,
     /// Standard uncertainties of the centre coordinates, mm.
     pub u_center: Vector3,
@@ -281,6 +327,7 @@ pub struct SphereFit {
     pub center_covariance: Matrix3,
     /// Standard uncertainty of the radius, mm (0 when the radius was fixed).
     pub u_radius: f64,
+    /// Gauss-Newton iterations the fit took.
     pub iterations: usize,
     /// Sphericity about this sphere: largest minus smallest `|p − c|`, mm.
     pub form: f64,
@@ -437,23 +484,29 @@ pub fn sphere_with_radius(points: &[Point3], radius: f64) -> Result<SphereFit, F
 /// Least-squares 3D circle (ISO 10360-6 reference definition).
 #[derive(Clone, Debug, PartialEq)]
 pub struct CircleFit {
+    /// Centre of the circle, in the frame of the points, mm.
     pub center: Point3,
     /// Unit normal of the least-squares plane (sign: largest component positive).
     pub normal: Vector3,
+    /// Radius of the circle, mm.
     pub radius: f64,
     /// RMS of the 3D distance of the points from the circle, mm.
     pub rms: f64,
+    /// Largest absolute 3D distance of a point from the circle, mm.
     pub max_abs_residual: f64,
     /// RMS of the in-plane radial residuals (what the 2D circle fit minimises), mm.
     pub radial_rms: f64,
     /// RMS distance from the plane, mm.
     pub plane_rms: f64,
+    /// Number of points fitted.
     pub n_points: usize,
     /// Standard uncertainties of the centre coordinates, mm.
     pub u_center: Vector3,
+    /// Standard uncertainty of the radius, mm.
     pub u_radius: f64,
     /// Standard uncertainty of the normal (root-sum-square of two tilt angles), rad.
     pub u_normal: f64,
+    /// Gauss-Newton iterations of the in-plane circle fit.
     pub iterations: usize,
     /// Covariance of the centre, including the least-squares plane's offset and tilt, mm².
     pub center_covariance: Matrix3,

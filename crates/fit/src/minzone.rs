@@ -11,7 +11,7 @@
 //! orthogonal residuals are linearised in a local step (a shift of the centre or axis point, a
 //! tilt of the normal or axis, expressed in a frame rebuilt at every step), and the linear
 //! Chebyshev problem (`min t − s` with `s ≤ rᵢ + Jᵢδ ≤ t`; `min t` for circumscribed and line
-//! zones; `max s` for inscribed) with the box `|δⱼ| ≤ Δ` is solved exactly by [`crate::lp`].
+//! zones; `max s` for inscribed) with the box `|δⱼ| ≤ Δ` is solved exactly by the crate's private `lp` module.
 //! A step is accepted when the exact (nonlinear) objective decreases; the box grows or shrinks
 //! with the agreement between predicted and actual decrease. At convergence the linearised
 //! problem has its optimum at δ = 0, which is the first-order optimality condition of the exact
@@ -362,9 +362,13 @@ pub struct PlaneZone {
     pub normal: Vector3,
     /// Width of the zone (distance between the two parallel planes), mm.
     pub form: f64,
+    /// RMS orthogonal distance from the mid-plane, mm.
     pub rms: f64,
+    /// Largest absolute orthogonal distance from the mid-plane (half the zone width), mm.
     pub max_abs_residual: f64,
+    /// Number of points.
     pub n_points: usize,
+    /// Iterations of the Chebyshev solver.
     pub iterations: usize,
 }
 
@@ -439,10 +443,13 @@ pub struct LineZone {
     pub direction: Vector3,
     /// Diameter of the smallest cylinder holding every point, mm.
     pub form: f64,
+    /// RMS distance from the line, mm.
     pub rms: f64,
     /// Largest distance from the line (the cylinder's radius), mm.
     pub max_abs_residual: f64,
+    /// Number of points.
     pub n_points: usize,
+    /// Iterations of the Chebyshev solver.
     pub iterations: usize,
 }
 
@@ -473,6 +480,7 @@ pub fn line_zone(points: &[Point3]) -> Result<LineZone, FitError> {
 /// A Chebyshev cylinder (minimum zone, maximum inscribed or minimum circumscribed).
 #[derive(Clone, Debug, PartialEq)]
 pub struct CylinderZone {
+    /// Which Chebyshev criterion this cylinder satisfies.
     pub criterion: Criterion,
     /// The point on the axis nearest the centroid.
     pub point: Point3,
@@ -480,15 +488,19 @@ pub struct CylinderZone {
     pub axis: Vector3,
     /// Minimum zone: the mean of the two zone radii; inscribed/circumscribed: that radius, mm.
     pub radius: f64,
-    /// Smallest and largest distance of a point from the axis, mm.
+    /// Smallest distance of a point from the axis, mm.
     pub inner_radius: f64,
+    /// Largest distance of a point from the axis, mm.
     pub outer_radius: f64,
     /// Cylindricity about this axis: `outer_radius − inner_radius`, mm.
     pub form: f64,
-    /// RMS and largest absolute value of `distance − radius`, mm.
+    /// RMS of `distance − radius`, mm.
     pub rms: f64,
+    /// Largest absolute value of `distance − radius`, mm.
     pub max_abs_residual: f64,
+    /// Number of points.
     pub n_points: usize,
+    /// Iterations of the Chebyshev solver.
     pub iterations: usize,
 }
 
@@ -579,20 +591,27 @@ impl Cheb for CentreModel {
 /// A Chebyshev sphere or circle.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RoundZone {
+    /// Which Chebyshev criterion this sphere or circle satisfies.
     pub criterion: Criterion,
+    /// Centre, in the frame of the points, mm.
     pub center: Point3,
     /// Circles: the unit normal of the least-squares plane; spheres: zero.
     pub normal: Vector3,
     /// Minimum zone: the mean of the two zone radii; inscribed/circumscribed: that radius, mm.
     pub radius: f64,
+    /// Smallest distance of a point from the centre (in-plane for circles), mm.
     pub inner_radius: f64,
+    /// Largest distance of a point from the centre (in-plane for circles), mm.
     pub outer_radius: f64,
     /// Roundness / sphericity about this centre: `outer_radius − inner_radius`, mm.
     pub form: f64,
-    /// RMS and largest absolute value of `distance − radius` (in-plane for circles), mm.
+    /// RMS of `distance − radius` (in-plane for circles), mm.
     pub rms: f64,
+    /// Largest absolute value of `distance − radius`, mm.
     pub max_abs_residual: f64,
+    /// Number of points.
     pub n_points: usize,
+    /// Iterations of the Chebyshev solver.
     pub iterations: usize,
 }
 

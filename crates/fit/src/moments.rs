@@ -24,7 +24,9 @@ pub const RESOLVED_RATIO: f64 = 1e-6;
 /// Moments of a point set about its centroid.
 #[derive(Clone, Debug)]
 pub struct Moments {
+    /// Number of points.
     pub n: usize,
+    /// Centroid (mean position) of the points, mm.
     pub centroid: Point3,
     /// `Σ (p − c)(p − c)ᵀ`.
     pub scatter: Matrix3,
@@ -32,9 +34,11 @@ pub struct Moments {
     pub eigenvalues: Vector3,
     /// Unit eigenvectors matching `eigenvalues` (columns).
     pub eigenvectors: Matrix3,
-    /// `Σ (p − c)|p − c|²` and `Σ |p − c|²`, `Σ |p − c|⁴`: the algebraic sphere sums.
+    /// `Σ (p − c)|p − c|²`, mm³: with `sum_sq` and `sum_sq2`, the algebraic sphere sums.
     pub sq3: Vector3,
+    /// `Σ |p − c|²`, mm².
     pub sum_sq: f64,
+    /// `Σ |p − c|⁴`, mm⁴.
     pub sum_sq2: f64,
 }
 

@@ -15,15 +15,20 @@
 
 use thiserror::Error;
 
-/// Decision rule for conformance.
+/// Decision rule for conformance (`truepos fit --decision-rule`; the variants' documentation is
+/// the command line's help for each value).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum DecisionRule {
+    /// Conformance inside the tolerance zone, limits included.
     Simple,
-    /// ISO 14253-1: guard bands of the expanded uncertainty.
+    /// ISO 14253-1: conformance only inside the zone shrunk by U, non-conformance only outside
+    /// the zone widened by U, else undecided.
     Guarded,
 }
 
 impl DecisionRule {
+    /// The CLI's and JSON's name of the rule (`simple`, `guarded`).
     pub fn name(self) -> &'static str {
         match self {
             DecisionRule::Simple => "simple",
@@ -35,12 +40,16 @@ impl DecisionRule {
 /// The outcome of a conformance decision.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Verdict {
+    /// Conforms (inside the zone, shrunk by the guard band under the guarded rule).
     Pass,
+    /// Neither conformance nor non-conformance is proven (inside the guard band).
     Undecided,
+    /// Does not conform (outside the zone, widened by the guard band under the guarded rule).
     Fail,
 }
 
 impl Verdict {
+    /// The lower-case name the CLI, JSON and reports use (`pass`, `fail`, `undecided`).
     pub fn name(self) -> &'static str {
         match self {
             Verdict::Pass => "pass",
@@ -53,18 +62,30 @@ impl Verdict {
 /// Why a tolerance specification is not usable.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum ToleranceError {
+    /// The lower deviation is above the upper one (both mm).
     #[error("the lower deviation {lower} mm is above the upper deviation {upper} mm")]
-    LowerAboveUpper { lower: f64, upper: f64 },
+    LowerAboveUpper {
+        /// The lower deviation, mm.
+        lower: f64,
+        /// The upper deviation, mm.
+        upper: f64,
+    },
+    /// A negative symmetric tolerance ±T (T in mm).
     #[error("a symmetric tolerance must not be negative (±{0} mm given)")]
     NegativeSymmetric(f64),
+    /// A nominal diameter that is not finite and positive (mm).
     #[error("the nominal diameter must be finite and positive ({0} mm given)")]
     BadNominal(f64),
+    /// A form tolerance that is negative or not finite (mm).
     #[error("the form tolerance must be finite and not negative ({0} mm given)")]
     NegativeForm(f64),
+    /// A tolerance value is NaN or infinite.
     #[error("a tolerance value is not a finite number")]
     NotFinite,
+    /// The text is not a number (the text given).
     #[error("'{0}' is not a finite number")]
     NotANumber(String),
+    /// The text is neither `T` nor `LOWER,UPPER`.
     #[error("expected T or LOWER,UPPER")]
     Syntax,
 }
@@ -72,8 +93,11 @@ pub enum ToleranceError {
 /// A size tolerance: nominal diameter and the signed limit deviations from it, mm.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SizeTolerance {
+    /// Nominal diameter, mm.
     pub nominal: f64,
+    /// Lower limit deviation from the nominal (signed), mm.
     pub lower: f64,
+    /// Upper limit deviation from the nominal (signed), mm.
     pub upper: f64,
 }
 
@@ -140,7 +164,9 @@ pub struct SizeDecision {
     pub deviation: f64,
     /// Guard band (the expanded uncertainty of the diameter) applied, mm; 0 under `simple`.
     pub guard_band: f64,
+    /// The decision rule applied.
     pub rule: DecisionRule,
+    /// The outcome.
     pub verdict: Verdict,
 }
 

@@ -8,9 +8,12 @@ use crate::lex::{Token, TokenKind};
 use crate::Program;
 use truepos_math::Point3;
 
+/// The program's length unit (G21 or G20).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Units {
+    /// Millimetres (G21).
     Mm,
+    /// Inches (G20).
     Inch,
 }
 
@@ -24,6 +27,7 @@ impl Units {
     }
 }
 
+/// The arc plane selected by G17, G18 or G19.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Plane {
     /// G17
@@ -45,12 +49,18 @@ impl Plane {
     }
 }
 
+/// The modal motion command (group 1) in force.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MotionMode {
+    /// No motion mode yet (or G80 cancelled it).
     None,
+    /// G0: rapid positioning.
     Rapid,
+    /// G1: linear feed.
     Linear,
+    /// G2: clockwise arc.
     ArcCw,
+    /// G3: counter-clockwise arc.
     ArcCcw,
     /// Canned cycle G81–G89.
     Cycle(u8),
@@ -59,11 +69,17 @@ pub enum MotionMode {
 /// The modal state between blocks. Positions are in program units; `None` until known.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Modal {
+    /// Absolute (G90) rather than incremental (G91) axis words.
     pub absolute: bool,
+    /// Absolute (G90.1) rather than incremental (G91.1) arc centre words I, J, K.
     pub arc_absolute: bool,
+    /// The length unit of the program's words.
     pub units: Units,
+    /// The arc plane.
     pub plane: Plane,
+    /// The motion command in force.
     pub motion: MotionMode,
+    /// Current X, Y, Z in program units (`None` until the program sets it).
     pub pos: [Option<f64>; 3],
 }
 
@@ -98,13 +114,17 @@ pub enum Special {
 pub struct Block<'a> {
     /// 0-based line index.
     pub line: usize,
+    /// The modal state before this block.
     pub before: Modal,
+    /// The modal state after this block.
     pub after: Modal,
     /// Axis words on this line: value per axis (program units, as written).
     pub axes: [Option<f64>; 3],
     /// Arc centre words I, J, K and radius R.
     pub ijk: [Option<f64>; 3],
+    /// Arc radius word R (program units, as written).
     pub r: Option<f64>,
+    /// A non-modal code on this line that changes what its coordinates mean.
     pub special: Option<Special>,
     /// The commanded end position in mm, when the block moves and all three axes are known.
     pub target_mm: Option<Point3>,

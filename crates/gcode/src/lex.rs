@@ -7,11 +7,14 @@
 
 use crate::{Line, Program};
 
+/// What a token of a G-code line is.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum TokenKind {
+    /// Spaces and tabs.
     Whitespace,
     /// `( … )`; `closed` is false when the line ends before `)`.
     ParenComment {
+        /// Whether the comment ends with `)` on its line.
         closed: bool,
     },
     /// `; …` to the end of the line.
@@ -19,31 +22,42 @@ pub enum TokenKind {
     /// A letter (upper-cased here) and its value. `decimals` is the number of digits written
     /// after the decimal point (`None` when there is no point).
     Word {
+        /// The word's letter, upper case (ASCII).
         letter: u8,
+        /// Its value, in program units.
         value: f64,
+        /// Digits written after the decimal point (`None`: no point).
         decimals: Option<u8>,
     },
     /// A letter followed by something that looks like a number but is not one.
     Malformed {
+        /// The word's letter, upper case (ASCII).
         letter: u8,
     },
     /// A letter whose value is an expression or parameter (`X[#1+2]`, `X#100`, `XSIN[30]`);
     /// `value` is filled in when the program's parameters determine it.
     Expr {
+        /// The word's letter, upper case (ASCII).
         letter: u8,
+        /// Its value, when the program's parameters determine it.
         value: Option<f64>,
     },
     /// A parameter setting, `#1=2` or `#<name> = [expr]`.
     Assign,
+    /// `%`, the program start/end marker.
     Percent,
     /// Anything else, verbatim.
     Other,
 }
 
+/// One token: its kind and its byte range in the program's source.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Token {
+    /// What the token is.
     pub kind: TokenKind,
+    /// Byte offset of the token's first byte in the source.
     pub start: usize,
+    /// Byte offset just past the token's last byte in the source.
     pub end: usize,
 }
 

@@ -8,7 +8,7 @@
 //! that change.
 //!
 //! Entry points:
-//! - [`Program::parse`], [`Program::to_string`] (lossless), [`Program::check`] (malformed numbers
+//! - [`Program::parse`], `Program::to_string` (lossless, through `Display`), [`Program::check`] (malformed numbers
 //!   with line and column).
 //! - [`Program::blocks`]: the interpreted blocks (line, commanded position in mm, comments), as a
 //!   controller would execute them — used for trickle feeding.
@@ -36,13 +36,30 @@ use thiserror::Error;
 /// Errors with the 1-based line and column of the offending token.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum GcodeError {
+    /// A word's number is malformed (1-based line and column, and the text).
     #[error("line {line}, column {column}: malformed number '{text}' (a word needs a finite decimal number or a [expression])")]
-    MalformedNumber { line: usize, column: usize, text: String },
+    MalformedNumber {
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// The malformed text.
+        text: String,
+    },
+    /// Valid G-code this crate does not handle (1-based line and column, and why).
     #[error("line {line}, column {column}: {message}")]
-    Unsupported { line: usize, column: usize, message: String },
+    Unsupported {
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What is not supported.
+        message: String,
+    },
 }
 
 impl GcodeError {
+    /// 1-based line of the offending token.
     pub fn line(&self) -> usize {
         match self {
             GcodeError::MalformedNumber { line, .. } | GcodeError::Unsupported { line, .. } => *line,
@@ -57,6 +74,7 @@ impl GcodeError {
             GcodeError::Unsupported { message, .. } => message.clone(),
         }
     }
+    /// 1-based column (character) of the offending token.
     pub fn column(&self) -> usize {
         match self {
             GcodeError::MalformedNumber { column, .. } | GcodeError::Unsupported { column, .. } => *column,
@@ -74,8 +92,9 @@ impl GcodeError {
 /// One source line: its tokens and its line ending.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Line {
-    /// Byte range of the line's content (without the line ending) in the source.
+    /// Byte offset of the line's first byte in the source.
     pub start: usize,
+    /// Byte offset just past the line's content (before the line ending) in the source.
     pub end: usize,
     /// Byte offset just past the line ending (`\n`, `\r\n`, or nothing on the last line).
     pub next: usize,
@@ -86,8 +105,11 @@ pub struct Line {
 /// A parsed program: the source text plus token and line indices into it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Program {
+    /// The program's text, as read.
     pub source: String,
+    /// Every token of the program, in order.
     pub tokens: Vec<Token>,
+    /// Every line of the program, in order, with its range of tokens.
     pub lines: Vec<Line>,
 }
 

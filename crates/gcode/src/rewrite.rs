@@ -24,17 +24,24 @@ use truepos_math::Transform3;
 /// What to do with an arc whose plane the transform tilts.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum ArcPolicy {
+    /// Refuse the program (an error naming the line), the default.
     #[default]
     Refuse,
     /// Replace an arc whose plane the transform tilts by straight G1 moves whose largest
     /// distance from the exact (transformed) arc is at most `tolerance_mm`.
-    Linearize { tolerance_mm: f64 },
+    Linearize {
+        /// Largest distance of the chords from the exact arc, mm.
+        tolerance_mm: f64,
+    },
 }
 
+/// How [`Program::transform`](crate::Program::transform) and [`crate::StreamTransform`] rewrite a
+/// program.
 #[derive(Debug, Clone)]
 pub struct TransformOptions {
     /// Decimals written for rewritten values (default: 4 in mm programs, 5 in inch programs).
     pub decimals: Option<u8>,
+    /// What to do with an arc whose plane the transform tilts.
     pub arc_policy: ArcPolicy,
     /// Position (mm, old frame) before the first block, if known.
     pub start_mm: Option<[f64; 3]>,
@@ -327,7 +334,7 @@ impl Program {
     ///
     /// The first thing that cannot be executed or re-oriented, in program order, is the error
     /// (a malformed word on line 9 is reported before a refused arc on line 12, and after one on
-    /// line 5). The same [`Rewriter`] does the work of [`crate::transform_stream`], chunk by chunk.
+    /// line 5). The same `Rewriter` does the work of [`crate::transform_stream`], chunk by chunk.
     pub fn transform(
         &self,
         new_from_old: &Transform3,

@@ -37,10 +37,13 @@ pub struct StreamSummary {
 /// A streamed rewrite that failed: the program (located), reading it, or writing the output.
 #[derive(Debug, thiserror::Error)]
 pub enum StreamError {
+    /// The program is not valid or not supported (located error).
     #[error(transparent)]
     Gcode(#[from] GcodeError),
+    /// The program could not be read.
     #[error("cannot read the program: {0}")]
     Read(#[source] std::io::Error),
+    /// The output could not be written.
     #[error("cannot write the output: {0}")]
     Write(#[source] std::io::Error),
 }
@@ -101,6 +104,7 @@ pub struct StreamTransform {
 }
 
 impl StreamTransform {
+    /// A rewriter applying `new_from_old` (old program frame to new frame, mm) with `opts`.
     pub fn new(new_from_old: &Transform3, opts: &TransformOptions) -> Self {
         Self {
             parser: PieceParser::default(),

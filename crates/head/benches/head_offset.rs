@@ -2,6 +2,9 @@
 //! `both` variant (216 readings, 6 orientations), the pyramid vertex (160 readings, 4 faces) and
 //! a dense sphere data set (6 orientations × 5 000 readings).
 
+// `criterion_group!` generates a public function that cannot carry a doc comment.
+#![allow(missing_docs)]
+
 use criterion::{criterion_group, criterion_main, Criterion};
 use std::hint::black_box;
 use truepos_head::{solve, Params, Reading, Reference};

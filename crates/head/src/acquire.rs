@@ -54,14 +54,17 @@ pub struct SphereProbing {
 /// A probed and fitted sphere.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProbedSphere {
+    /// Centre of the sphere in machine coordinates, mm.
     pub center_mm: Point3,
     /// Radius of the sphere: fitted tip-centre sphere minus the tip radius.
     pub radius_mm: f64,
-    /// RMS and largest orthogonal residual of the fit (mm).
+    /// RMS orthogonal residual of the fit, mm.
     pub rms_mm: f64,
+    /// Largest absolute orthogonal residual of the fit, mm.
     pub max_abs_residual_mm: f64,
-    /// Standard uncertainties from the fit covariance (mm).
+    /// Standard uncertainties of the centre from the fit covariance, mm.
     pub center_uncertainty_mm: Vector3,
+    /// Standard uncertainty of the radius from the fit covariance, mm.
     pub radius_uncertainty_mm: f64,
     /// The latched tip centres, in probing order.
     pub points: Vec<Point3>,
@@ -88,6 +91,7 @@ impl ProbedSphere {
     }
 }
 
+/// Why probing the reference sphere failed.
 #[derive(Debug, Error)]
 pub enum AcquireError {
     /// The request cannot be carried out as given.
@@ -414,8 +418,11 @@ pub struct HeadAcquisition {
 /// The sphere probed at one orientation.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AcquiredOrientation {
+    /// Head angle B, degrees.
     pub b_deg: f64,
+    /// Table angle C, degrees.
     pub c_deg: f64,
+    /// The sphere probed and fitted there.
     pub sphere: ProbedSphere,
 }
 
@@ -547,12 +554,17 @@ pub fn readings(acquired: &[AcquiredOrientation]) -> Vec<crate::Reading> {
 /// written, and for a virtual machine its truth (head offset, sphere centre at C = 0, radius).
 #[derive(Debug, Clone, PartialEq)]
 pub struct AcquireReport {
+    /// The orientations probed, in order.
     pub acquired: Vec<AcquiredOrientation>,
+    /// The points file written.
     pub output: std::path::PathBuf,
+    /// The machine probed on.
     pub device: DeviceInfo,
+    /// Wall time of the probing, s.
     pub elapsed_s: f64,
     /// The command that computes the offset from the file.
     pub next: String,
+    /// For a virtual machine: head offset (mm), sphere centre at C = 0 (mm), sphere radius (mm).
     pub truth: Option<(Vector3, Point3, f64)>,
 }
 

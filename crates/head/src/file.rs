@@ -13,10 +13,13 @@ use truepos_math::{Point3, Vector3};
 
 /// The readings of a points file.
 pub struct Input {
+    /// The readings, in file order.
     pub readings: Vec<Reading>,
+    /// The parsed file (for line numbers in messages).
     pub table: Table,
-    /// The `face` / `group` ids as written (Reading::face / group index these).
+    /// The `face` ids as written, indexed by `Reading::face`.
     pub face_names: Vec<String>,
+    /// The `group` ids as written, indexed by `Reading::group`.
     pub group_names: Vec<String>,
 }
 

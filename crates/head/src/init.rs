@@ -99,8 +99,11 @@ pub fn intersect_planes(planes: &[(Vector3, Point3)], min_eig: f64) -> Option<Po
 /// One orientation's apparent reference point in raw coordinates.
 #[derive(Clone, Debug)]
 pub struct Apparent {
+    /// Head angle B of the orientation, rad.
     pub b: f64,
+    /// Table angle C of the orientation, rad.
     pub c: f64,
+    /// The apparent reference point (sphere centre or vertex) in raw coordinates, mm.
     pub point: Point3,
 }
 

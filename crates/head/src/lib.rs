@@ -2,7 +2,7 @@
 //!
 //! Measuring-head 3D offset calibration (`truepos head-offset`, capability 2 of the product
 //! spec). Plain data in, numbers with uncertainties and observability out; the points file is
-//! read by [`file`].
+//! read by [`crate::file`].
 //!
 //! Model (contract, `shared/spec/interface.md`, "Head offset"): `R` is the offset in the head
 //! frame at `b = 0`; the measuring reference point is `Q = P + Ry(b)·R` (P: the NC's head
@@ -50,11 +50,17 @@ use truepos_math::{any_perpendicular, ry, rz, DMatrix, Matrix3, Point3, Vector3}
 /// optionally a laser distance, a face id (vertex references) and an orientation group id.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Reading {
+    /// Head swivel angle B about Y, rad.
     pub b: f64,
+    /// Table angle C about Z, rad.
     pub c: f64,
+    /// The NC's head reference point P in machine coordinates, mm.
     pub p: Point3,
+    /// Laser distance reading along the beam, mm (laser heads only).
     pub dist: Option<f64>,
+    /// Index of the face the point was probed on (vertex references).
     pub face: Option<i64>,
+    /// Index of the orientation group the reading belongs to.
     pub group: Option<i64>,
 }
 
@@ -63,16 +69,23 @@ pub struct Reading {
 pub enum Reference {
     /// A sphere; `radius` fixes the radius of the measured surface (for a touch probe: sphere
     /// radius + tip radius, the sphere of stylus-centre positions).
-    Sphere { radius: Option<f64> },
+    Sphere {
+        /// Fixed radius of the measured surface, mm (`None`: fitted).
+        radius: Option<f64>,
+    },
     /// A vertex: pyramid apex or cuboid corner, the common point of the measured faces (convex).
     /// `tip_radius`: a touch probe's stylus centre runs on the faces moved out by it (0 for a
     /// laser head).
-    Vertex { tip_radius: f64 },
+    Vertex {
+        /// Stylus tip radius, mm (0 for a laser head).
+        tip_radius: f64,
+    },
 }
 
 /// Everything the adjustment needs besides the readings.
 #[derive(Clone, Debug)]
 pub struct Params {
+    /// The reference object (sphere or vertex).
     pub reference: Reference,
     /// A point on the table's rotation axis (parallel to Z).
     pub table_center: Point3,
@@ -103,9 +116,13 @@ impl Default for Params {
 /// One orientation of the data (readings with the same group, B and C).
 #[derive(Clone, Debug)]
 pub struct Orientation {
+    /// Head angle B, rad.
     pub b: f64,
+    /// Table angle C, rad.
     pub c: f64,
+    /// The orientation group index, when the file has a `group` column.
     pub group: Option<i64>,
+    /// Number of readings in this orientation.
     pub n_points: usize,
     /// Apparent reference point in raw coordinates (closed-form, per-orientation fit).
     pub apparent: Point3,
@@ -116,6 +133,7 @@ pub struct Orientation {
 pub struct HeadOffset {
     /// The offset R (mm); components that are not observable hold the prior.
     pub offset: Vector3,
+    /// Which components of the offset (X, Y, Z) the rotations determine.
     pub observable: [bool; 3],
     /// Components that come from the laser beam tilt (`Params::beam_through_reference`), not
     /// from the rotations.
@@ -124,70 +142,132 @@ pub struct HeadOffset {
     pub u_offset: [Option<f64>; 3],
     /// Sphere centre or vertex, in table coordinates at `c = 0` (= machine coordinates there).
     pub reference_point: Point3,
+    /// Standard uncertainties of `reference_point`, mm.
     pub u_reference_point: Vector3,
     /// Components of the reference point the data gives only together with an unobservable
     /// offset component (they follow the prior).
     pub reference_depends_on_prior: [bool; 3],
     /// Fitted (or fixed) radius of the measured sphere surface.
     pub radius: Option<f64>,
+    /// Standard uncertainty of `radius`, mm (`None` when fixed or absent).
     pub u_radius: Option<f64>,
     /// Face normals of a vertex reference (table frame at `c = 0`), by face id.
     pub face_normals: Vec<(i64, Vector3)>,
     /// Root mean square of the orthogonal distances (mm).
     pub rms: f64,
+    /// Largest absolute orthogonal distance, mm.
     pub max_abs_residual: f64,
+    /// Number of readings used.
     pub n_points: usize,
+    /// The orientations found in the data, in order of first appearance.
     pub orientations: Vec<Orientation>,
     /// The closed-form (apparent-centre) offset the adjustment started from.
     pub closed_form_offset: Vector3,
     /// Condition number of the column-scaled normal matrix at the solution.
     pub condition: f64,
+    /// Iterations of the least-squares adjustment.
     pub iterations: usize,
+    /// Whether the adjustment converged before its iteration limit.
     pub converged: bool,
     /// Orthogonal distance of each reading to the fitted reference (mm), in input order.
     pub residuals: Vec<f64>,
 }
 
+/// Why a head offset cannot be computed from the readings.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum HeadError {
+    /// The file has no readings.
     #[error("no readings: the offset needs the reference measured in at least two orientations")]
     NoData,
+    /// Every reading is at one orientation (`n` readings at B, C in degrees).
     #[error(
         "all {n} readings were taken in one orientation (b = {b_deg}°, c = {c_deg}°): the offset needs the \
          reference measured in at least two orientations (swivel the head in B and/or turn the table in C \
          between the measurements)"
     )]
-    OneOrientation { n: usize, b_deg: f64, c_deg: f64 },
+    OneOrientation {
+        /// Number of readings.
+        n: usize,
+        /// Head angle B, degrees.
+        b_deg: f64,
+        /// Table angle C, degrees.
+        c_deg: f64,
+    },
+    /// An orientation has fewer readings than its fit needs.
     #[error(
         "orientation b = {b_deg}°, c = {c_deg}° has {got} readings: {needed} are needed per orientation \
          ({what})"
     )]
-    OrientationTooFew { b_deg: f64, c_deg: f64, got: usize, needed: usize, what: &'static str },
+    OrientationTooFew {
+        /// Head angle B, degrees.
+        b_deg: f64,
+        /// Table angle C, degrees.
+        c_deg: f64,
+        /// Readings in the orientation.
+        got: usize,
+        /// Readings needed.
+        needed: usize,
+        /// What they are needed for.
+        what: &'static str,
+    },
+    /// Fewer readings than unknowns overall.
     #[error("{got} readings for {needed} unknowns: at least {needed} readings are needed")]
-    TooFewPoints { got: usize, needed: usize },
+    TooFewPoints {
+        /// Readings given.
+        got: usize,
+        /// Readings needed.
+        needed: usize,
+    },
+    /// An orientation's points do not determine its reference point (what is wrong).
     #[error("orientation b = {b_deg}°, c = {c_deg}°: {what}")]
-    Degenerate { b_deg: f64, c_deg: f64, what: String },
+    Degenerate {
+        /// Head angle B, degrees.
+        b_deg: f64,
+        /// Table angle C, degrees.
+        c_deg: f64,
+        /// What is wrong.
+        what: String,
+    },
+    /// Fewer than two orientations with at least three probed faces (vertex references).
     #[error(
         "only {got} orientation(s) show at least 3 faces: a vertex reference needs at least two \
          orientations in each of which at least 3 faces (3 points each) are probed"
     )]
-    TooFewVertexOrientations { got: usize },
+    TooFewVertexOrientations {
+        /// Orientations with three faces or more.
+        got: usize,
+    },
+    /// A reading without a face id for a vertex reference (its 0-based index).
     #[error(
         "a reading without a face id: a vertex reference needs the 'face' column (the face each point was \
          probed on; reading index {index})"
     )]
-    MissingFace { index: usize },
+    MissingFace {
+        /// 0-based index of the reading.
+        index: usize,
+    },
+    /// A laser reading with a beam tilt of 85° or more (its 0-based index).
     #[error("a laser reading (dist) needs beam tilt angles below 85° (reading index {index})")]
-    BadTilt { index: usize },
+    BadTilt {
+        /// 0-based index of the reading.
+        index: usize,
+    },
+    /// A reading with a NaN or infinite value (its 0-based index).
     #[error("a value is not finite (reading index {index})")]
-    NotFinite { index: usize },
+    NotFinite {
+        /// 0-based index of the reading.
+        index: usize,
+    },
+    /// A fixed radius that is not finite and positive (mm).
     #[error("the radius must be positive and finite, got {0} mm")]
     BadRadius(f64),
+    /// No two orientations differ in B or C, so no offset component is observable.
     #[error(
         "the orientations do not determine any component of the offset: the reference must be measured \
          in at least two orientations that differ in the head swivel B or the table angle C (modulo 360°)"
     )]
     NothingObservable,
+    /// The least-squares adjustment failed.
     #[error("the adjustment failed: {0}")]
     Lsq(#[from] LsqError),
 }
@@ -337,11 +417,11 @@ fn deg(x: f64) -> f64 {
 
 /// Determine the head offset from readings of a reference object in several orientations.
 ///
-/// The steps: check the input ([`check_input`]); group the readings into orientations
-/// ([`orientations_of`]); the closed-form reference point of every orientation
-/// ([`closed_form`]); the model ([`model_of`]); which offset components the data determines
-/// ([`observability`]); the combined adjustment; for laser heads whose beam passes through the
-/// reference point, the components the rotations cannot reach ([`complete_from_beam`]); the
+/// The steps: check the input (`check_input`); group the readings into orientations
+/// (`orientations_of`); the closed-form reference point of every orientation
+/// (`closed_form`); the model (`model_of`); which offset components the data determines
+/// (`observability`); the combined adjustment; for laser heads whose beam passes through the
+/// reference point, the components the rotations cannot reach (`complete_from_beam`); the
 /// result ([`HeadOffset`]).
 pub fn solve(readings: &[Reading], params: &Params) -> Result<HeadOffset, HeadError> {
     let beam = beam_direction(params.tilt);

@@ -15,22 +15,29 @@ use truepos_math::{Point3, Vector3};
 /// What the user knows about the setup (the file gives the readings).
 #[derive(Clone, Debug)]
 pub struct Calibration {
+    /// The reference object (sphere or vertex).
     pub reference: Reference,
     /// A point of the table's C axis; needed when the readings have several table angles.
     pub table_center_mm: Option<Point3>,
     /// Laser beam tilt (α, β), rad.
     pub tilt: [f64; 2],
+    /// Value for offset components the data cannot determine, mm.
     pub prior_offset_mm: Vector3,
+    /// Whether the laser beam passes through the head reference point (see `Params::beam_through_reference`).
     pub beam_through_reference: bool,
-    /// For the JSON: the stylus tip radius and the sphere's diameter as given.
+    /// The stylus tip radius as given (for the JSON), mm.
     pub tip_radius_mm: f64,
+    /// The reference sphere's diameter as given, mm.
     pub sphere_diameter_mm: Option<f64>,
 }
 
 /// A calibrated head offset with what it was computed from.
 pub struct Calibrated {
+    /// The adjustment's result.
     pub result: HeadOffset,
+    /// The parameters it was computed with.
     pub params: Params,
+    /// The readings it was computed from.
     pub input: Input,
     tip_radius_mm: f64,
     sphere_diameter_mm: Option<f64>,

@@ -12,6 +12,9 @@
 //! Run: `cargo bench -p truepos-io --bench readers`. The figures and the decision per kernel are
 //! in docs/performance-io.md ("Hand-written kernels or crates").
 
+// `criterion_group!` generates a public function that cannot carry a doc comment.
+#![allow(missing_docs)]
+
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::hint::black_box;
 use truepos_io::csv::kernels;

@@ -39,7 +39,9 @@ pub enum OutputError {
     /// Writing, syncing or renaming failed (disk full, I/O error).
     #[error("cannot write {}: {source}", path.display())]
     Io {
+        /// The file being written.
         path: PathBuf,
+        /// The operating system's error.
         #[source]
         source: io::Error,
     },

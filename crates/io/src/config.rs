@@ -42,7 +42,9 @@ pub fn read_toml_doc<T: DeserializeOwned>(path: impl AsRef<Path>) -> Result<(T, 
 /// A TOML file's path and text: locates a value by its key path for error messages.
 #[derive(Clone, Debug)]
 pub struct TomlDoc {
+    /// The file's path, as given (named in error messages).
     pub path: std::path::PathBuf,
+    /// The file's whole text.
     pub text: String,
 }
 

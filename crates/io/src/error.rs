@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 /// when known). The binary exits with code 2 on it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct InputError {
+    /// The file the problem is in, when there is one.
     pub file: Option<PathBuf>,
     /// 1-based line number in the file.
     pub line: Option<usize>,
@@ -15,16 +16,20 @@ pub struct InputError {
     pub column: Option<usize>,
     /// Column name for CSV files.
     pub column_name: Option<String>,
+    /// What is wrong, as a sentence for the user.
     pub message: String,
 }
 
 impl InputError {
+    /// An error not tied to a file (e.g. about a command-line value).
     pub fn new(message: impl Into<String>) -> Self {
         Self { file: None, line: None, column: None, column_name: None, message: message.into() }
     }
+    /// An error about a whole file (no line or column).
     pub fn in_file(file: impl AsRef<Path>, message: impl Into<String>) -> Self {
         Self { file: Some(file.as_ref().to_path_buf()), ..Self::new(message) }
     }
+    /// An error at a 1-based `line` (and optional 1-based `column`) of a file.
     pub fn at(
         file: impl AsRef<Path>,
         line: usize,
@@ -39,10 +44,12 @@ impl InputError {
             message: message.into(),
         }
     }
+    /// The same error naming the CSV column it is in.
     pub fn with_column_name(mut self, name: impl Into<String>) -> Self {
         self.column_name = Some(name.into());
         self
     }
+    /// The same error in `file`, unless it already names a file.
     pub fn with_file(mut self, file: impl AsRef<Path>) -> Self {
         if self.file.is_none() {
             self.file = Some(file.as_ref().to_path_buf());

@@ -37,17 +37,21 @@ const RESERVE: usize = 1 << 20;
 /// Values of one column.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ColumnData {
+    /// A numeric (DOUBLE) column.
     F64(Vec<f64>),
+    /// A text (UTF-8 BYTE_ARRAY) column.
     Str(Vec<String>),
 }
 
 impl ColumnData {
+    /// Number of values (rows).
     pub fn len(&self) -> usize {
         match self {
             ColumnData::F64(v) => v.len(),
             ColumnData::Str(v) => v.len(),
         }
     }
+    /// Whether the column has no values.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
@@ -56,14 +60,18 @@ impl ColumnData {
 /// The columns of a file, by name, in file order.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Columns {
+    /// Column names, in file order.
     pub names: Vec<String>,
+    /// Column values, in the order of `names`.
     pub data: Vec<ColumnData>,
 }
 
 impl Columns {
+    /// Number of rows (the length of the first column; 0 without columns).
     pub fn n_rows(&self) -> usize {
         self.data.first().map_or(0, ColumnData::len)
     }
+    /// Index of the column called `name`, if there is one.
     pub fn index(&self, name: &str) -> Option<usize> {
         self.names.iter().position(|n| n == name)
     }
@@ -144,9 +152,11 @@ pub struct TextColumn {
 }
 
 impl TextColumn {
+    /// Number of values.
     pub fn len(&self) -> usize {
         self.ends.len()
     }
+    /// Whether the column has no values.
     pub fn is_empty(&self) -> bool {
         self.ends.is_empty()
     }
@@ -156,10 +166,12 @@ impl TextColumn {
         // Every boundary is the end of a pushed `&str`: always a character boundary.
         self.text.get(a..self.ends[i]).unwrap_or("")
     }
+    /// Append one value.
     pub fn push(&mut self, s: &str) {
         self.text.push_str(s);
         self.ends.push(self.text.len());
     }
+    /// The values in order.
     pub fn iter(&self) -> impl Iterator<Item = &str> + '_ {
         (0..self.len()).map(|i| self.get(i))
     }
@@ -195,17 +207,21 @@ impl<S: AsRef<str>> FromIterator<S> for TextColumn {
 /// Values of one column of a batch: the unit of [`ParquetReader`] and [`ParquetWriter`].
 #[derive(Debug, Clone, PartialEq)]
 pub enum BatchColumn {
+    /// A numeric (DOUBLE) column.
     F64(Vec<f64>),
+    /// A text (UTF-8) column.
     Text(TextColumn),
 }
 
 impl BatchColumn {
+    /// Number of values (rows) in the batch.
     pub fn len(&self) -> usize {
         match self {
             BatchColumn::F64(v) => v.len(),
             BatchColumn::Text(t) => t.len(),
         }
     }
+    /// Whether the batch column has no values.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
@@ -311,7 +327,7 @@ impl ::parquet::file::reader::ChunkReader for StrictFile {
 /// decoded values against the input limit, flat columns of numbers or text. Batches check each
 /// value: no nulls, finite numbers (DOUBLE, FLOAT, INT32, INT64 as `f64`), UTF-8 text (its bytes
 /// counted against the input limit); errors name the column and the 1-based row. A panic of the
-/// decoder is contained ([`contained`]).
+/// decoder is contained (`contained`).
 pub struct ParquetReader {
     path: std::path::PathBuf,
     names: Vec<String>,

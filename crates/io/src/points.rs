@@ -10,7 +10,9 @@ use truepos_math::Point3;
 
 /// Points with optional ids (one per point, `None` when the file has no `id` column).
 pub struct PointSet {
+    /// The points, in file order, in the file's frame, mm.
     pub points: Vec<Point3>,
+    /// The point ids, in the order of `points`, when the file has an `id` column.
     pub ids: Option<Vec<String>>,
     /// Points of the file left out because the file marks them invalid (E57
     /// `cartesianInvalidState`); 0 for the other formats.
@@ -118,8 +120,11 @@ pub fn parse_ds(path: &Path, bytes: &[u8]) -> Result<Vec<Point3>, InputError> {
 
 /// Points of a file with their ids (ids required, unique).
 pub struct IdPoints {
+    /// The point ids (non-empty and unique), in file order.
     pub ids: Vec<String>,
+    /// The points, in the order of `ids`, in the file's frame, mm.
     pub points: Vec<Point3>,
+    /// The parsed file (for further columns and line numbers).
     pub table: Table,
 }
 
@@ -154,10 +159,15 @@ pub fn read_id_points(path: &Path) -> Result<IdPoints, InputError> {
 
 /// Pairs of points matched by id, in the order of `from`.
 pub struct Matched {
+    /// The ids present in both files, in the order of `from`.
     pub ids: Vec<String>,
+    /// The matched points of the `from` file, mm.
     pub from: Vec<Point3>,
+    /// The matched points of the `to` file (same ids, same order), mm.
     pub to: Vec<Point3>,
+    /// Row index in the `from` file of each matched point.
     pub from_rows: Vec<usize>,
+    /// Row index in the `to` file of each matched point.
     pub to_rows: Vec<usize>,
 }
 

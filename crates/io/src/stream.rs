@@ -51,6 +51,7 @@ pub struct Chunk {
 }
 
 impl Chunk {
+    /// Number of data rows in this chunk.
     pub fn n_rows(&self) -> usize {
         self.rows.len()
     }
@@ -406,9 +407,11 @@ impl CsvStream {
         }
     }
 
+    /// The path of the file being read.
     pub fn path(&self) -> &Path {
         &self.path
     }
+    /// The column names of the header row.
     pub fn header(&self) -> &[String] {
         &self.header
     }
@@ -493,6 +496,7 @@ pub struct BackgroundWriter {
 const POOL_MAX: usize = 256;
 
 impl BackgroundWriter {
+    /// Start the writer thread for `file`; buffers sent to it are written in order.
     pub fn new(mut file: AtomicFile) -> Self {
         let path = file.path().to_path_buf();
         let (tx, rx) = sync_channel::<Vec<Vec<u8>>>(2);
@@ -600,7 +604,9 @@ thread_local! {
 /// What [`rewrite_points`] did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct RewriteSummary {
+    /// Number of points (data rows) rewritten.
     pub n_points: usize,
+    /// Number of chunks the file was processed in.
     pub n_chunks: usize,
 }
 
@@ -608,8 +614,10 @@ pub struct RewriteSummary {
 /// own error for a point (turned into an input error on that point's line).
 #[derive(Debug, thiserror::Error)]
 pub enum RewriteError {
+    /// The input file is bad (located error).
     #[error(transparent)]
     Input(#[from] InputError),
+    /// The output file could not be written.
     #[error(transparent)]
     Output(#[from] OutputError),
 }
@@ -621,7 +629,7 @@ pub enum RewriteError {
 /// buffers handed back to the reader for a later block), the next one read and indexed by the
 /// reader thread while this one is worked on, the previous one written by the writer thread.
 ///
-/// A chunk is cut into pieces of [`PIECE_ROWS`] rows, worked on in parallel: each piece is
+/// A chunk is cut into pieces of `PIECE_ROWS` rows, worked on in parallel: each piece is
 /// parsed, passed to `f` and formatted by one task, while its rows are still in the cache.
 /// `f(first_row, points, extra)` gets the piece's points (`first_row`: index in the whole file
 /// of the first) and returns a partial result, or `Err((row_in_piece, message))` to refuse a
@@ -631,7 +639,7 @@ pub enum RewriteError {
 /// every row was written.
 ///
 /// Binary files, by extension, are streamed too (`rewrite_binary`): a Parquet or E57 input is
-/// read in batches of [`BATCH_ROWS`] rows (pieces at the same rows as if the whole file were
+/// read in batches of `BATCH_ROWS` rows (pieces at the same rows as if the whole file were
 /// cut; a refused point is an input error naming its 1-based row), and a `.parquet` output is
 /// written a row group at a time by a writer thread (numbers as doubles; a Parquet input keeps
 /// its column types; a CSV input's passed-through column is a number column when every value

@@ -5,6 +5,9 @@
 //!
 //! `cargo bench -p truepos-ippdme --bench loopback`
 
+// `criterion_group!` generates a public function that cannot carry a doc comment.
+#![allow(missing_docs)]
+
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::io::{BufRead, BufReader, Write};
 use std::net::TcpStream;

@@ -23,6 +23,7 @@ pub const DEFAULT_PORT: u16 = 1294;
 /// Timeouts of the client.
 #[derive(Debug, Clone, Copy)]
 pub struct Timeouts {
+    /// How long to wait for the TCP connection and the server's greeting.
     pub connect: Duration,
     /// For commands that do not move.
     pub command: Duration,
@@ -91,6 +92,7 @@ fn contains_error(lines: &[Response]) -> Option<(u8, u16, String)> {
 }
 
 impl IppClient {
+    /// Connect to `tcp://HOST:PORT` and start a session, with `timeouts`.
     pub fn connect(url: &str, timeouts: Timeouts) -> Result<IppClient, DeviceError> {
         let (host, port) = parse_url(url)?;
         let address = format!("ippdme://{host}:{port}");

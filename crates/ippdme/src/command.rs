@@ -9,19 +9,30 @@ use crate::protocol::{fmt_num, Arg, Call, ErrorCode, Tag};
 /// A reportable quantity (`X()`, `Tool.A()`, `IJK()`, …).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Key {
+    /// `X()`: X of the tool centre, mm.
     X,
+    /// `Y()`: Y of the tool centre, mm.
     Y,
+    /// `Z()`: Z of the tool centre, mm.
     Z,
+    /// `R()`: the rotary table's angle, degrees.
     R,
+    /// `Tool.A()`: the tool's first angle, degrees.
     ToolA,
+    /// `Tool.B()`: the tool's second angle, degrees.
     ToolB,
+    /// `Tool.C()`: the tool's third angle, degrees.
     ToolC,
+    /// `IJK()`: the surface normal at a probed point.
     Ijk,
+    /// `ER()`: the effective tip radius, mm.
     Er,
+    /// `Q()`: the quality of a point, 0 (good) to 100 (bad).
     Q,
 }
 
 impl Key {
+    /// The key's spelling in the protocol (`X`, `Tool.A`, `IJK`, ...).
     pub fn name(self) -> &'static str {
         match self {
             Key::X => "X",
@@ -56,13 +67,18 @@ impl Key {
 /// Coordinate systems selectable with `SetCoordSystem`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Csy {
+    /// The machine's own coordinate system.
     MachineCsy,
+    /// The machine coordinate system moved by `MoveableMachineCsy`.
     MoveableMachineCsy,
+    /// The coordinate system shared by several arms.
     MultipleArmCsy,
+    /// The part coordinate system.
     PartCsy,
 }
 
 impl Csy {
+    /// The name as the protocol spells it.
     pub fn name(self) -> &'static str {
         match self {
             Csy::MachineCsy => "MachineCsy",
@@ -76,15 +92,22 @@ impl Csy {
 /// Transformations settable with `SetCsyTransformation`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CsyTransform {
+    /// From the part coordinate system to the machine's.
     PartCsy,
+    /// The frame the jog display shows.
     JogDisplayCsy,
+    /// The frame jog moves are along.
     JogMoveCsy,
+    /// The sensor's frame.
     SensorCsy,
+    /// The movable machine coordinate system's transformation.
     MoveableMachineCsy,
+    /// The multiple-arm coordinate system's transformation.
     MultipleArmCsy,
 }
 
 impl CsyTransform {
+    /// Every transformation, in the order the server stores them.
     pub const ALL: [CsyTransform; 6] = [
         CsyTransform::PartCsy,
         CsyTransform::JogDisplayCsy,
@@ -93,6 +116,7 @@ impl CsyTransform {
         CsyTransform::MoveableMachineCsy,
         CsyTransform::MultipleArmCsy,
     ];
+    /// The name as the protocol spells it.
     pub fn name(self) -> &'static str {
         match self {
             CsyTransform::PartCsy => "PartCsy",
@@ -103,6 +127,7 @@ impl CsyTransform {
             CsyTransform::MultipleArmCsy => "MultipleArmCsy",
         }
     }
+    /// Position in [`CsyTransform::ALL`].
     pub fn index(self) -> usize {
         CsyTransform::ALL.iter().position(|c| *c == self).unwrap_or(0)
     }
@@ -111,28 +136,38 @@ impl CsyTransform {
 /// Which tool a property path starts from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ToolRef {
+    /// `Tool`: the mounted tool.
     Tool,
+    /// `FoundTool`: the tool selected by `FindTool`.
     FoundTool,
 }
 
 /// A motion parameter block.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ParBlock {
+    /// `GoToPar`: parameters of moves.
     GoToPar,
+    /// `PtMeasPar`: parameters of probing.
     PtMeasPar,
 }
 
 /// A parameter inside a block.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Param {
+    /// `Speed`, mm/s.
     Speed,
+    /// `Accel`, mm/s².
     Accel,
+    /// `Approach`: approach distance before a probed point, mm.
     Approach,
+    /// `Retract`: retract distance after a probed point, mm.
     Retract,
+    /// `Search`: search distance beyond a probed point, mm.
     Search,
 }
 
 impl Param {
+    /// The name as the protocol spells it.
     pub fn name(self) -> &'static str {
         match self {
             Param::Speed => "Speed",
@@ -142,6 +177,7 @@ impl Param {
             Param::Search => "Search",
         }
     }
+    /// The parameters a block has.
     pub fn of(block: ParBlock) -> &'static [Param] {
         match block {
             ParBlock::GoToPar => &[Param::Speed, Param::Accel],
@@ -155,14 +191,20 @@ impl Param {
 /// `Act`, `Def`, `Max`, `Min` of a parameter (a bare parameter means `Act`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Field {
+    /// The value in effect.
     Act,
+    /// The default value.
     Def,
+    /// The largest allowed value.
     Max,
+    /// The smallest allowed value.
     Min,
 }
 
 impl Field {
+    /// The four fields in protocol order.
     pub const ALL: [Field; 4] = [Field::Act, Field::Def, Field::Max, Field::Min];
+    /// The name as the protocol spells it.
     pub fn name(self) -> &'static str {
         match self {
             Field::Act => "Act",
@@ -178,10 +220,15 @@ impl Field {
 pub enum PropItem {
     /// `Tool()` itself (EnumProp only).
     Root,
+    /// `Name()`: the tool's name.
     Name,
+    /// `Id()`: the tool's id.
     Id,
+    /// `AvrRadius()`: the tool's average tip radius, mm.
     AvrRadius,
+    /// `Alignment()`: the tool's direction.
     Alignment,
+    /// `CollisionVolume()`: the tool's collision volume.
     CollisionVolume,
     /// `Tool.GoToPar()` (EnumProp only).
     Block(ParBlock),
@@ -192,7 +239,9 @@ pub enum PropItem {
 /// A property path such as `Tool.PtMeasPar.Speed.Max`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PropPath {
+    /// `Tool` or `FoundTool`.
     pub tool: ToolRef,
+    /// The property below it.
     pub item: PropItem,
 }
 
@@ -261,127 +310,211 @@ impl PropPath {
 /// Unknown-contour scans (the 1.4 argument lists the NIST suite uses, and 1.4.3's).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum UnknownScan {
+    /// In a plane, ending on a sphere.
     InPlaneEndIsSphere,
+    /// In a plane, ending on a plane.
     InPlaneEndIsPlane,
+    /// In a plane, ending on a cylinder.
     InPlaneEndIsCyl,
+    /// On a cylinder, ending on a sphere.
     InCylEndIsSphere,
+    /// On a cylinder, ending on a plane.
     InCylEndIsPlane,
 }
 
 /// A parsed and checked command.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Command {
+    /// `StartSession()`: begin a session (resets the session's state).
     StartSession,
+    /// `EndSession()`: end the session.
     EndSession,
+    /// `GetDMEVersion()`: report the protocol version the server implements.
     GetDMEVersion,
+    /// `GetMachineClass()`: report the machine class (`CartCMM`).
     GetMachineClass,
+    /// `GetErrStatusE()`: report whether the server is in error state (fast queue).
     GetErrStatusE,
+    /// `GetXtdErrStatus()`: report the error state with the pending errors.
     GetXtdErrStatus,
+    /// `GetErrorInfo(n)`: describe error number `n`.
     GetErrorInfo(u16),
+    /// `ClearAllErrors()`: leave error state.
     ClearAllErrors,
+    /// `AbortE()`: abort every queued and running command (fast queue).
     AbortE,
+    /// `Home()`: reference the machine's axes.
     Home,
+    /// `IsHomed()`: report whether the machine is referenced.
     IsHomed,
+    /// `EnableUser()`: let the operator move the machine (jog).
     EnableUser,
+    /// `DisableUser()`: stop the operator moving the machine.
     DisableUser,
+    /// `IsUserEnabled()`: report whether the operator may move the machine.
     IsUserEnabled,
+    /// `Get(keys)`: report the current position and tool angles named by `keys`.
     Get(Vec<Key>),
     /// Target coordinates in the active csy (missing axes: `None`); tool angles are accepted and
     /// ignored (fixed stylus).
     GoTo {
+        /// Target X in the active csy, mm (`None`: keep).
         x: Option<f64>,
+        /// Target Y in the active csy, mm (`None`: keep).
         y: Option<f64>,
+        /// Target Z in the active csy, mm (`None`: keep).
         z: Option<f64>,
     },
+    /// `PtMeas(...)`: probe one point, approaching the nominal point along the nominal normal.
     PtMeas {
+        /// Nominal point X in the active csy, mm.
         x: Option<f64>,
+        /// Nominal point Y in the active csy, mm.
         y: Option<f64>,
+        /// Nominal point Z in the active csy, mm.
         z: Option<f64>,
+        /// Nominal surface normal (approach against it); `None`: from the current position.
         ijk: Option<[f64; 3]>,
     },
+    /// `OnPtMeasReport(keys)`: what each `PtMeas` reports.
     OnPtMeasReport(Vec<Key>),
+    /// `OnScanReport(keys)`: what each scanned point reports.
     OnScanReport(Vec<Key>),
+    /// `OnMoveReportE(...)`: start a daemon reporting the position while the machine moves.
     OnMoveReportE {
+        /// Report at least every this many seconds, s.
         time_s: Option<f64>,
+        /// Report after moving at least this distance, mm.
         dis_mm: Option<f64>,
+        /// What each report holds.
         keys: Vec<Key>,
     },
+    /// `StopDaemon(tag)`: stop the daemon started by the command with `tag`.
     StopDaemon(Tag),
+    /// `StopAllDaemons()`: stop every daemon.
     StopAllDaemons,
+    /// `ChangeTool(name)`: change to the named tool.
     ChangeTool(String),
+    /// `SetTool(name)`: declare the named tool mounted, without moving.
     SetTool(String),
+    /// `FindTool(name)`: select the named tool as `FoundTool` for property queries.
     FindTool(String),
+    /// `EnumTools()`: list the machine's tools.
     EnumTools,
+    /// `GetChangeToolAction(name)`: report what changing to the named tool would do.
     GetChangeToolAction(String),
+    /// `GetProp(paths)`: report tool properties.
     GetProp(Vec<PropPath>),
+    /// `GetPropE(paths)`: report tool properties (fast queue).
     GetPropE(Vec<PropPath>),
+    /// `SetProp(path(value), ...)`: set tool properties.
     SetProp(Vec<(PropPath, f64)>),
+    /// `EnumProp(path)`: list the properties below `path`.
     EnumProp(PropPath),
+    /// `EnumAllProp(path)`: list every property below `path`, recursively.
     EnumAllProp(PropPath),
+    /// `GetCoordSystem()`: report the active coordinate system.
     GetCoordSystem,
+    /// `SetCoordSystem(csy)`: make `csy` the active coordinate system.
     SetCoordSystem(Csy),
+    /// `GetCsyTransformation(csy)`: report a coordinate system's transformation.
     GetCsyTransformation(CsyTransform),
+    /// `SetCsyTransformation(csy, x, y, z, θ, ψ, φ)`: set a coordinate system's origin (mm) and Euler angles (deg).
     SetCsyTransformation(CsyTransform, [f64; 6]),
+    /// `ScanOnCircleHint(displacement, form)`: expected deviations of the next circle scan.
     ScanOnCircleHint {
+        /// Expected displacement of the circle from nominal, mm.
         displacement: f64,
+        /// Expected form deviation, mm.
         form: f64,
     },
     /// Centre, start point, plane normal, delta (deg), surface angle (deg), step (deg).
     ScanOnCircle {
+        /// Circle centre in the active csy, mm.
         center: [f64; 3],
+        /// Start point on the circle in the active csy, mm.
         start: [f64; 3],
+        /// Normal of the circle's plane.
         normal: [f64; 3],
+        /// Angle to scan, degrees (signed).
         delta_deg: f64,
+        /// Surface angle (0: a bore/shaft wall; 90: a plane face), degrees.
         sfa_deg: f64,
+        /// Angular step between reported points, degrees.
         step_deg: f64,
     },
+    /// `ScanOnLineHint(angle, form)`: expected deviations of the next line scan.
     ScanOnLineHint {
+        /// Expected angle between the line and the scanned surface, degrees.
         angle: f64,
+        /// Expected form deviation, mm.
         form: f64,
     },
     /// Start, end, surface normal, step (mm).
     ScanOnLine {
+        /// Start point in the active csy, mm.
         start: [f64; 3],
+        /// End point in the active csy, mm.
         end: [f64; 3],
+        /// Surface normal along the line.
         normal: [f64; 3],
+        /// Distance between reported points, mm.
         step_mm: f64,
     },
+    /// `ScanUnknownHint(radius)`: the smallest radius of curvature to expect in the next
+    /// unknown-contour scan, mm.
     ScanUnknownHint(f64),
     /// Lock axes (`X`, `Y`, `Z`, `R`, `A`, `B`, `C`, `Phi`): locked axes do not move.
     LockAxis(Vec<String>),
     /// Align the tool within `alpha` degrees of a direction (and the second axis within `beta`).
     AlignTool {
+        /// The direction to align the tool with (active csy).
         dir: [f64; 3],
+        /// Tolerance on the alignment, degrees.
         alpha_deg: f64,
+        /// A second direction and its tolerance (degrees), for a second axis.
         second: Option<([f64; 3], f64)>,
     },
+    /// `ReQualify()`: re-qualify the current tool.
     ReQualify,
+    /// `ScanUnknown...(...)`: scan an unknown contour, with the variant's argument list.
     ScanUnknown(UnknownScan, Vec<f64>),
     /// Rotary table (specification 12.1): turn the table so that the part direction `part`
     /// (active csy) points, projected into the table plane, along the machine direction
     /// `machine`, within `alpha_deg` (0: no check); the second pair is for a second rotary axis.
     AlignPart {
+        /// The part direction to turn (active csy).
         part: [f64; 3],
+        /// The machine direction it should point along.
         machine: [f64; 3],
+        /// Tolerance on the alignment, degrees (0: no check).
         alpha_deg: f64,
+        /// Part direction, machine direction and tolerance (degrees) for a second rotary axis.
         second: Option<([f64; 3], [f64; 3], f64)>,
     },
     /// Form tester (13.1): move the part so that a circle centre lies on the rotation axis when
     /// it is `limit` mm or more away from it.
     CenterPart {
+        /// A point on the circle's axis (its centre), active csy, mm.
         point: [f64; 3],
+        /// Offset from the rotation axis at or above which the part is moved, mm.
         limit: f64,
     },
     /// Form tester (13.2): tilt the part so that a direction is parallel to the rotation axis
     /// when it deviates by `limit` mm or more over 100 mm.
     TiltPart {
+        /// The direction to make parallel to the rotation axis (active csy).
         dir: [f64; 3],
+        /// Deviation over 100 mm at or above which the part is tilted, mm.
         limit: f64,
     },
     /// Form tester (13.3): tilt and centre the part so that two circle centres lie on the axis.
     TiltCenterPart {
+        /// The first circle centre (active csy), mm.
         first: [f64; 3],
+        /// The second circle centre (active csy), mm.
         second: [f64; 3],
+        /// Offset at or above which the part is moved, mm.
         limit: f64,
     },
 }
@@ -389,7 +522,9 @@ pub enum Command {
 /// Why a call is not a valid command.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct CommandError {
+    /// The specification's error the server answers with.
     pub code: ErrorCode,
+    /// What is wrong with the call, for the error's text.
     pub message: String,
 }
 

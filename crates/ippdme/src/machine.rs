@@ -16,7 +16,10 @@ pub enum MachineError {
     /// The stylus touched the part during a positioning move (1001); the machine stopped at
     /// `stopped_mm`.
     #[error("the stylus touched the part during a positioning move at {stopped_mm:?}")]
-    IllegalTouch { stopped_mm: Point3 },
+    IllegalTouch {
+        /// Where the machine stopped, machine frame, mm.
+        stopped_mm: Point3,
+    },
     /// Any other machine failure (1011).
     #[error("the machine cannot move: {0}")]
     Unable(String),
@@ -36,25 +39,60 @@ pub struct Contact {
 pub enum ScanPath {
     /// Circle about `axis` through `center`: the tip centre keeps contact while the start contact
     /// is rotated about the axis by angles `0, step, 2·step, …` up to `delta` (rad, signed).
-    Circle { center: Point3, axis: Vector3, delta_rad: f64, step_rad: f64 },
+    Circle {
+        /// A point on the axis, mm.
+        center: Point3,
+        /// Unit axis.
+        axis: Vector3,
+        /// Angle to scan, rad (signed).
+        delta_rad: f64,
+        /// Angle between points, rad.
+        step_rad: f64,
+    },
     /// Straight line in the plane through the start contact spanned by `direction` and the start
     /// normal; points every `step_mm` until `length_mm` from the start contact.
-    Line { direction: Vector3, length_mm: f64, step_mm: f64 },
+    Line {
+        /// Unit direction of the line.
+        direction: Vector3,
+        /// Length to scan, mm.
+        length_mm: f64,
+        /// Distance between points, mm.
+        step_mm: f64,
+    },
     /// Unknown contour (specification 11.3): from the start contact along the surface, the tip
     /// centre staying on `guide`, first towards `toward`, a point every `step_mm` of tip-centre
     /// travel, until `stop` is met (evaluated on the surface points, tip centre − r·normal; the
     /// point where it is met is the last) or `max_length_mm` is travelled (an error). How the
     /// machine follows the contour (planned or stepped) is its own; [`Cmm::take_note`] may say.
-    Contour { guide: Guide, toward: Vector3, step_mm: f64, stop: Stop, max_length_mm: f64 },
+    Contour {
+        /// The surface the tip centre stays on.
+        guide: Guide,
+        /// The first direction of travel.
+        toward: Vector3,
+        /// Tip-centre travel between points, mm.
+        step_mm: f64,
+        /// When the scan ends.
+        stop: Stop,
+        /// Longest travel before the scan fails, mm.
+        max_length_mm: f64,
+    },
 }
 
 /// The surface the tip centre stays on during an unknown-contour scan.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Guide {
     /// The plane through the start contact with this unit normal.
-    Plane { normal: Vector3 },
+    Plane {
+        /// Unit normal of the plane.
+        normal: Vector3,
+    },
     /// The cylinder about this axis through the start contact.
-    Cylinder { point: Point3, axis: Vector3 },
+    Cylinder {
+        /// A point on the axis, mm.
+        point: Point3,
+        /// Unit axis.
+        axis: Vector3,
+    },
 }
 
 /// When an unknown-contour scan ends.
@@ -62,17 +100,44 @@ pub enum Guide {
 pub enum Stop {
     /// At the `count`-th entry into the sphere, where the distance to its centre is minimal
     /// (a start inside the sphere must leave it first).
-    Sphere { center: Point3, radius: f64, count: u32 },
+    Sphere {
+        /// Centre, mm.
+        center: Point3,
+        /// Radius, mm.
+        radius: f64,
+        /// Which entry ends the scan (1: the first).
+        count: u32,
+    },
     /// At the `count`-th crossing of the plane, checked once `arm_mm` has been travelled.
-    Plane { point: Point3, normal: Vector3, count: u32, arm_mm: f64 },
+    Plane {
+        /// A point of the plane, mm.
+        point: Point3,
+        /// Unit normal.
+        normal: Vector3,
+        /// Which crossing ends the scan (1: the first).
+        count: u32,
+        /// Travel before crossings count, mm.
+        arm_mm: f64,
+    },
     /// At the `count`-th crossing of the cylinder's surface (a start inside must leave first).
-    Cylinder { point: Point3, axis: Vector3, radius: f64, count: u32 },
+    Cylinder {
+        /// A point on the axis, mm.
+        point: Point3,
+        /// Unit axis.
+        axis: Vector3,
+        /// Radius, mm.
+        radius: f64,
+        /// Which crossing ends the scan (1: the first).
+        count: u32,
+    },
 }
 
 /// One scanned point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ScanPoint {
+    /// Tip-centre position, machine frame, mm.
     pub tip_center_mm: Point3,
+    /// Unit surface normal at the point, out of the material.
     pub normal: Vector3,
     /// Quality 0 (good) … 100 (bad), as in the specification's `Q()`.
     pub quality: f64,

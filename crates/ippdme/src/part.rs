@@ -24,16 +24,37 @@ use truepos_math::{Point3, Vector3};
 /// A bad part or machine file.
 #[derive(Debug, Error)]
 pub enum PartError {
+    /// The file cannot be read.
     #[error("{file}: cannot read: {source}")]
     Read {
+        /// The file, as named in the message.
         file: String,
+        /// The operating system's error.
         #[source]
         source: std::io::Error,
     },
+    /// The file is not valid TOML (file, 1-based line and column, message).
     #[error("{file}:{line}:{column}: {message}")]
-    Syntax { file: String, line: usize, column: usize, message: String },
+    Syntax {
+        /// The file, as named in the message.
+        file: String,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// A key has an unusable value (file, key, message).
     #[error("{file}: {key}: {message}")]
-    Value { file: String, key: String, message: String },
+    Value {
+        /// The file, as named in the message.
+        file: String,
+        /// The key.
+        key: String,
+        /// What is wrong with its value.
+        message: String,
+    },
 }
 
 impl PartError {
@@ -87,28 +108,39 @@ struct RawCylinder {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum CylinderSide {
+    /// A pin: material inside the cylinder.
     Outside,
+    /// A bore: the cylinder removes material from the other solids.
     Inside,
 }
 
 /// One solid of the part.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Solid {
+    /// A solid sphere.
     Sphere {
+        /// Centre, part frame, mm.
         center: Point3,
+        /// Radius, mm.
         radius: f64,
     },
     /// Material where `(p − point)·normal ≤ 0`; `normal` is a unit vector.
     HalfSpace {
+        /// A point on the bounding plane, part frame, mm.
         point: Point3,
+        /// Unit normal of the plane, out of the material.
         normal: Vector3,
     },
     /// Infinite cylinder; `axis` is a unit vector. `Outside`: a pin (material inside the
     /// cylinder); `Inside`: a bore (removes the material inside it from the other solids).
     Cylinder {
+        /// A point on the axis, part frame, mm.
         point: Point3,
+        /// Unit axis direction.
         axis: Vector3,
+        /// Radius, mm.
         radius: f64,
+        /// Pin or bore.
         side: CylinderSide,
     },
 }
@@ -116,6 +148,7 @@ pub enum Solid {
 /// The part: the union of its spheres, half-spaces and pins, minus its bores.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Part {
+    /// The solids with their optional ids, in file order.
     pub solids: Vec<(Option<String>, Solid)>,
 }
 
@@ -207,7 +240,9 @@ impl Part {
 /// An extra tool of the machine file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ToolConfig {
+    /// The tool's name (not one of [`RESERVED_TOOLS`]).
     pub name: String,
+    /// Diameter of the tool's tip, mm.
     pub tip_diameter_mm: f64,
 }
 
@@ -226,18 +261,31 @@ pub struct ToolConfig {
 /// `scan_speed_mm_s` (default 20), `scan_deflection_mm` (target deflection, default 0.3).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModelConfig {
+    /// Seed of the noise and of the error map.
     pub seed: u64,
+    /// Whether the machine has the seeded geometric error map of a bridge CMM.
     pub geometric_errors: bool,
+    /// Factor on the geometric error map.
     pub geometric_error_scale: f64,
+    /// Abbe arm of the angular errors, mm.
     pub stylus_length_mm: f64,
+    /// Touch-trigger pre-travel including the stylus bending, mm.
     pub pretravel_mm: f64,
+    /// Amplitude of the pre-travel's 3-lobe variation, mm.
     pub lobing_mm: f64,
+    /// Whether the probe calibration removes the mean pre-travel.
     pub pretravel_compensated: bool,
+    /// Standard deviation of a touch per axis, mm.
     pub probe_noise_mm: f64,
+    /// Standard deviation of the scale readings while scanning, mm.
     pub encoder_noise_mm: f64,
+    /// Standard deviation of the deflection readings while scanning, mm.
     pub scan_probe_noise_mm: f64,
+    /// Bandwidth of the position loop, Hz.
     pub servo_bandwidth_hz: f64,
+    /// Scanning speed, mm/s.
     pub scan_speed_mm_s: f64,
+    /// Target probe deflection while scanning, mm.
     pub scan_deflection_mm: f64,
 }
 
@@ -288,9 +336,13 @@ impl ModelConfig {
 /// The `[ippdme]` section of the machine file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MachineConfig {
+    /// Lower corner of the machine's volume, machine frame, mm.
     pub volume_min_mm: Point3,
+    /// Upper corner of the machine's volume, machine frame, mm.
     pub volume_max_mm: Point3,
+    /// The extra tools of the file.
     pub tools: Vec<ToolConfig>,
+    /// The error models of the virtual CMM.
     pub model: ModelConfig,
     /// The rotary table's axis point (axis parallel to machine Z), `None` without a table
     /// (`rotary_table = false`). Default: a table turning about the Z axis through the origin.
@@ -435,6 +487,7 @@ struct RawTool {
 pub const RESERVED_TOOLS: [&str; 5] = ["RefTool", "NoTool", "Probe1", "BaseTool", "UnDefTool"];
 
 impl MachineConfig {
+    /// The machine configuration from the text of machine file `file` (named in errors).
     pub fn from_toml(file: &str, text: &str) -> Result<MachineConfig, PartError> {
         let raw: RawMachine = toml::from_str(text).map_err(|e| syntax(file, text, &e))?;
         let mut cfg = MachineConfig::default();
@@ -485,6 +538,7 @@ impl MachineConfig {
         Ok(cfg)
     }
 
+    /// Read the machine configuration from a file.
     pub fn load(path: &Path) -> Result<MachineConfig, PartError> {
         let file = path.display().to_string();
         let text =

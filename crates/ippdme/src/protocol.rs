@@ -25,7 +25,9 @@ pub const MAX_DEPTH: usize = 8;
 /// (`E0000` is the server's own event tag and never valid from a client).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Tag {
+    /// A client command's tag `nnnnn`.
     Command(u32),
+    /// An event tag `Ennnn` (fast queue).
     Event(u32),
 }
 
@@ -33,6 +35,7 @@ impl Tag {
     /// The server's tag for unsolicited events and unreadable lines.
     pub const SERVER_EVENT: Tag = Tag::Event(0);
 
+    /// Whether this is an event tag.
     pub fn is_event(&self) -> bool {
         matches!(self, Tag::Event(_))
     }
@@ -81,7 +84,9 @@ pub enum Arg {
 /// `Name(args)`; `name` may be dotted (`Tool.GoToPar.Speed`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Call {
+    /// The command's name, possibly dotted.
     pub name: String,
+    /// The arguments, in order.
     pub args: Vec<Arg>,
 }
 
@@ -133,11 +138,26 @@ pub enum LineError {
     /// No space at position 6 (error 0002, answered with `E0000`).
     NoSpace,
     /// A byte outside printable ASCII (error 0007); the tag, if readable.
-    IllegalChar { tag: Option<Tag>, position: usize },
+    IllegalChar {
+        /// The line's tag, if readable.
+        tag: Option<Tag>,
+        /// 0-based byte position of the character.
+        position: usize,
+    },
     /// The command text does not follow the syntax (error 0502).
-    Syntax { tag: Tag, message: String },
+    Syntax {
+        /// The line's tag.
+        tag: Tag,
+        /// What is wrong.
+        message: String,
+    },
     /// A malformed number (error 0509).
-    Number { tag: Tag, message: String },
+    Number {
+        /// The line's tag.
+        tag: Tag,
+        /// What is wrong.
+        message: String,
+    },
 }
 
 impl LineError {
@@ -150,6 +170,7 @@ impl LineError {
         }
     }
 
+    /// The error the server answers with.
     pub fn code(&self) -> ErrorCode {
         match self {
             LineError::IllegalTag => ErrorCode::ILLEGAL_TAG,
@@ -364,14 +385,19 @@ pub struct ErrorCode {
     /// Default severity: 0 info, 1 warning, 2 error the client can repair, 3 error needing the
     /// user, 9 fatal. Severity ≥ 2 puts the server in error state until `ClearAllErrors()`.
     pub severity: u8,
+    /// The error number, 0000 to 9999.
     pub number: u16,
+    /// The specification's text of the error.
     pub text: &'static str,
 }
 
 macro_rules! codes {
     ($($name:ident = ($sev:expr, $num:expr, $text:expr);)*) => {
         impl ErrorCode {
-            $(pub const $name: ErrorCode = ErrorCode { severity: $sev, number: $num, text: $text };)*
+            $(
+                #[doc = concat!("Error ", stringify!($num), ", severity ", stringify!($sev), ": \"", $text, "\".")]
+                pub const $name: ErrorCode = ErrorCode { severity: $sev, number: $num, text: $text };
+            )*
             /// Every predefined error.
             pub const ALL: &'static [ErrorCode] = &[$(ErrorCode::$name),*];
         }
@@ -447,29 +473,45 @@ pub enum Body {
     /// `# data`.
     Data(String),
     /// `! Error(F1, F2, "method", "text")`.
-    Error { severity: u8, number: u16, method: String, text: String },
+    Error {
+        /// Severity (0 info to 9 fatal).
+        severity: u8,
+        /// Error number.
+        number: u16,
+        /// The command that failed.
+        method: String,
+        /// The error's text.
+        text: String,
+    },
 }
 
 /// One response line.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Response {
+    /// The tag of the command (or event) answered.
     pub tag: Tag,
+    /// What the line says.
     pub body: Body,
 }
 
 impl Response {
+    /// `&`: the command was received.
     pub fn ack(tag: Tag) -> Self {
         Response { tag, body: Body::Ack }
     }
+    /// `%`: the transaction is complete.
     pub fn complete(tag: Tag) -> Self {
         Response { tag, body: Body::Complete }
     }
+    /// `# data`: a data line.
     pub fn data(tag: Tag, data: impl Into<String>) -> Self {
         Response { tag, body: Body::Data(data.into()) }
     }
+    /// `! Error(...)` with the code's default severity; `method` names the command.
     pub fn error(tag: Tag, code: ErrorCode, method: &str) -> Self {
         Response::error_with_severity(tag, code, code.severity, method)
     }
+    /// `! Error(...)` with an explicit severity; `method` names the command.
     pub fn error_with_severity(tag: Tag, code: ErrorCode, severity: u8, method: &str) -> Self {
         // The method field is a quoted string: keep it printable and free of quotes.
         let method: String = method

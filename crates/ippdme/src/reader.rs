@@ -29,14 +29,17 @@ pub struct LineReader<R> {
 }
 
 impl<R: Read> LineReader<R> {
+    /// A reader with the protocol's line limit.
     pub fn new(inner: R) -> Self {
         Self::with_limit(inner, MAX_LINE)
     }
 
+    /// A reader refusing lines longer than `limit` bytes.
     pub fn with_limit(inner: R, limit: usize) -> Self {
         LineReader { inner, buf: vec![0; limit + 2], start: 0, end: 0, limit }
     }
 
+    /// The underlying reader.
     pub fn get_ref(&self) -> &R {
         &self.inner
     }

@@ -200,6 +200,7 @@ pub struct Session<M> {
 /// Result of handling one line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Flow {
+    /// Keep the connection open.
     Continue,
     /// Close the connection after sending the responses.
     Close,
@@ -361,6 +362,7 @@ fn report_values(
 }
 
 impl<M: Cmm> Session<M> {
+    /// A new session on the shared machine.
     pub fn new(shared: Arc<Shared<M>>) -> Session<M> {
         Session {
             shared,
@@ -1485,6 +1487,7 @@ pub fn escape_bytes(bytes: &[u8]) -> String {
 }
 
 impl Log {
+    /// Open (append to) the log file at `path`.
     pub fn open(path: &Path) -> io::Result<Log> {
         let f = std::fs::OpenOptions::new().create(true).append(true).open(path)?;
         Ok(Log { out: Mutex::new(BufWriter::new(f)) })
@@ -1505,6 +1508,7 @@ impl Log {
     pub fn note(&self, text: &str) {
         self.write('#', text.as_bytes());
     }
+    /// Flush what was logged to the file.
     pub fn flush(&self) {
         let _ = self.out.lock().unwrap_or_else(|e| e.into_inner()).flush();
     }
@@ -1523,7 +1527,9 @@ pub struct Server<M> {
 
 /// A server running on a background thread.
 pub struct ServerHandle<M> {
+    /// The address the server listens on.
     pub addr: SocketAddr,
+    /// The machine and settings shared with the server's connections.
     pub shared: Arc<Shared<M>>,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<io::Result<()>>>,
@@ -1562,10 +1568,12 @@ impl<M: Cmm + 'static> Server<M> {
         })
     }
 
+    /// The address the listener is bound to.
     pub fn local_addr(&self) -> io::Result<SocketAddr> {
         self.listener.local_addr()
     }
 
+    /// The machine and settings shared by the connections.
     pub fn shared(&self) -> Arc<Shared<M>> {
         Arc::clone(&self.shared)
     }

@@ -42,8 +42,10 @@ pub struct KinematicsProbing {
     pub turn_distance_mm: f64,
 }
 
+/// Why a probing plan (the orientations to visit) is not usable.
 #[derive(Debug, Error)]
 pub enum PlanError {
+    /// The plan is invalid (why, as a sentence).
     #[error("{0}")]
     Invalid(String),
 }

@@ -146,7 +146,9 @@ pub fn check_orientations(orientations: &[[f64; 2]]) -> Result<(), NotDetermined
 /// One orientation's measured centre.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Observation {
+    /// Table tilt B of the orientation, degrees.
     pub b_deg: f64,
+    /// Table rotation C of the orientation, degrees.
     pub c_deg: f64,
     /// The fitted sphere centre the controller reports (programme frame, mm).
     pub centre_mm: Point3,
@@ -157,6 +159,7 @@ pub struct Observation {
 /// An identified pin change.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PinChange {
+    /// The kinematics module's pin name (`x-rot-point`, ...).
     pub name: String,
     /// Identified true − configured (mm).
     pub change_mm: f64,
@@ -167,9 +170,9 @@ pub struct PinChange {
 /// The least-squares result.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Identification {
-    /// Axis errors θ (true − configured, [`Observable`] order, mm) and their standard
-    /// uncertainties.
+    /// Axis errors θ (true − configured, [`Observable`] order), mm.
     pub theta_mm: [f64; 4],
+    /// Standard uncertainties of `theta_mm`, same order, mm.
     pub theta_uncertainty_mm: [f64; 4],
     /// The pin changes ([`PIN_FROM_THETA`] order).
     pub pins: Vec<PinChange>,
@@ -178,8 +181,9 @@ pub struct Identification {
     /// Residual of each centre after the fit (mm): what remains once the identified geometry is
     /// in the controller.
     pub residuals_mm: Vec<Vector3>,
-    /// RMS of the residual components, and the centre scatter σ used for the uncertainties (mm).
+    /// RMS of the residual components, mm.
     pub rms_mm: f64,
+    /// Centre scatter σ used for the uncertainties, mm.
     pub sigma_mm: f64,
     /// Degrees of freedom of the residuals (3n − 7).
     pub dof: usize,

@@ -31,6 +31,7 @@ for a usual pivot length; it also has a single geometry pin and its C axis fixed
 whose forward and inverse agree (xyzbc-trt-kins)";
 
 impl Model {
+    /// The model called `name` on the command line (`xyzbc-trt`); `maxkins` and unknown names are refused.
     pub fn parse(name: &str) -> Result<Model, KinematicsError> {
         match name {
             "xyzbc-trt" | "xyzbc-trt-kins" => Ok(Model::XyzbcTrt),
@@ -41,6 +42,7 @@ impl Model {
         }
     }
 
+    /// The model's name on the command line and in reports.
     pub fn name(self) -> &'static str {
         match self {
             Model::XyzbcTrt => "xyzbc-trt",
@@ -48,6 +50,7 @@ impl Model {
     }
 }
 
+/// Why a kinematics calibration failed; [`KinematicsError::is_user_input`] sorts exit 2 from 3.
 #[derive(Debug, Error)]
 pub enum KinematicsError {
     /// Bad options or plan (exit 2).
@@ -82,7 +85,9 @@ impl KinematicsError {
 /// Everything `truepos kinematics calibrate` is asked to do.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CalibrateRequest {
+    /// The machine's kinematics model.
     pub model: Model,
+    /// How the reference sphere is probed at each orientation.
     pub probing: KinematicsProbing,
     /// Write the identified geometry into the running controller.
     pub apply: bool,
@@ -128,8 +133,11 @@ pub fn default_verify_orientations(calibration: &[[f64; 2]]) -> Vec<[f64; 2]> {
 /// One identified parameter.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParameterResult {
+    /// The kinematics module's pin name (`x-rot-point`, ...).
     pub name: String,
+    /// The value the controller was configured with, mm.
     pub configured_mm: f64,
+    /// The identified value, mm.
     pub identified_mm: f64,
     /// Standard uncertainty (k = 1).
     pub uncertainty_mm: f64,
@@ -149,27 +157,40 @@ impl ParameterResult {
 /// The re-probing after the write-back.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Verification {
+    /// The sphere centres measured at the orientations after the write-back.
     pub acquired: Vec<AcquiredOrientation>,
-    /// Largest distance between two centres, and from their mean (mm).
+    /// Largest distance between two centres, mm.
     pub spread_mm: f64,
+    /// Largest distance of a centre from their mean, mm.
     pub max_from_mean_mm: f64,
 }
 
 /// What [`calibrate`] hands back.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CalibrationReport {
+    /// The kinematics model calibrated.
     pub model: Model,
+    /// The geometry the controller had before the calibration, mm.
     pub configured: TrtGeometry,
+    /// The identified (true) geometry, mm.
     pub identified: TrtGeometry,
+    /// Each identified pin with its configured value and uncertainty.
     pub parameters: Vec<ParameterResult>,
+    /// The sphere centres measured at the calibration orientations.
     pub acquired: Vec<AcquiredOrientation>,
+    /// The least-squares identification (axis errors, residuals, statistics).
     pub identification: Identification,
+    /// Largest distance between two measured centres before the write-back, mm.
     pub spread_before_mm: f64,
+    /// Whether the identified geometry was written into the controller.
     pub applied: bool,
+    /// The re-probing after the write-back, when it was done.
     pub verification: Option<Verification>,
+    /// The controller the calibration ran on.
     pub device: DeviceInfo,
     /// Wall time of the probing at the calibration orientations (s), and per orientation.
     pub acquisition_s: f64,
+    /// The points file written, if one was asked for.
     pub output: Option<PathBuf>,
     /// For a virtual machine: its true geometry and sphere centre (set by the caller).
     pub truth: Option<(TrtGeometry, Point3)>,
@@ -184,7 +205,9 @@ pub struct CalibrationReport {
 pub struct UncertaintyBasis {
     /// `fit-residuals` or `task-specific`.
     pub method: String,
+    /// Monte Carlo realisations behind task-specific uncertainties (0 for `fit-residuals`).
     pub monte_carlo_runs: usize,
+    /// What the uncertainties rest on, as a sentence for the report.
     pub basis: String,
 }
 
@@ -238,6 +261,7 @@ impl CalibrationReport {
         v
     }
 
+    /// Mean probing time per calibration orientation, s.
     pub fn time_per_orientation_s(&self) -> f64 {
         self.acquisition_s / self.acquired.len().max(1) as f64
     }

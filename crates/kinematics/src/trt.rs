@@ -41,10 +41,15 @@ pub const INI_KEYS: [&str; 5] = ["X_ROT_POINT", "Y_ROT_POINT", "Z_ROT_POINT", "X
 /// The geometry of an `xyzbc-trt` machine (mm), as the kinematics module's pins hold it.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct TrtGeometry {
+    /// X of the C axis at B = 0 (pin `x-rot-point`), mm.
     pub x_rot_point: f64,
+    /// Y of the C axis at B = 0 (pin `y-rot-point`), mm.
     pub y_rot_point: f64,
+    /// Z of the rotation point (pin `z-rot-point`), mm.
     pub z_rot_point: f64,
+    /// X offset of the B axis from the rotation point (pin `x-offset`), mm.
     pub x_offset: f64,
+    /// Z offset of the B axis from the rotation point (pin `z-offset`), mm.
     pub z_offset: f64,
 }
 
@@ -76,6 +81,7 @@ impl TrtGeometry {
         [self.x_rot_point, self.y_rot_point, self.z_rot_point, self.x_offset, self.z_offset]
     }
 
+    /// The geometry from its pin values in [`PINS`] order, mm.
     pub fn from_values(v: [f64; 5]) -> TrtGeometry {
         TrtGeometry {
             x_rot_point: v[0],
@@ -156,16 +162,22 @@ pub fn reported_centre(conf: &TrtGeometry, truth: &TrtGeometry, s: &Point3, b: f
 /// The four observable numbers, in the order of `θ` in [`design`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Observable {
+    /// The C axis's X (`x-rot-point`).
     CAxisX,
+    /// The C axis's Y (`y-rot-point`).
     CAxisY,
+    /// The B axis's X (`x-rot-point + x-offset`).
     BAxisX,
+    /// The B axis's Z (`z-rot-point + z-offset`).
     BAxisZ,
 }
 
 impl Observable {
+    /// The four observables in `θ` order.
     pub const ALL: [Observable; 4] =
         [Observable::CAxisX, Observable::CAxisY, Observable::BAxisX, Observable::BAxisZ];
 
+    /// The observable in words, for reports and messages.
     pub fn describe(self) -> &'static str {
         match self {
             Observable::CAxisX => "the C axis's X (x-rot-point)",

@@ -4,6 +4,9 @@
 //!
 //! Run: `cargo bench -p truepos-latency` (figures in docs/performance-latency.md).
 
+// `criterion_group!` generates a public function that cannot carry a doc comment.
+#![allow(missing_docs)]
+
 use criterion::{criterion_group, criterion_main, Criterion};
 use std::hint::black_box;
 use truepos_latency::{estimate, stream, KnownSize, Options};

@@ -18,7 +18,9 @@ use truepos_math::{Point3, Vector3};
 /// Which phase of a contact gave its surface point.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Phase {
+    /// The surface point came from the retract (the preferred phase).
     Retract,
+    /// The surface point came from the approach (the retract was unusable).
     Approach,
 }
 
@@ -28,8 +30,11 @@ pub enum Phase {
 pub struct Contact {
     /// Probe sample indices `[start, end)` and of the deepest deflection.
     pub start: usize,
+    /// Probe sample index of the deepest deflection.
     pub peak: usize,
+    /// Probe sample index one past the contact's last sample.
     pub end: usize,
+    /// Probe time stamp of the deepest deflection, s.
     pub t_peak: f64,
     /// Unit normal (direction of the deflection).
     pub normal: Vector3,
@@ -52,11 +57,13 @@ pub struct Contact {
     /// the body moves), so the speeds method, whose gradient a speed-dependent error would bias,
     /// uses this one (see [`crate::estimate`]).
     pub point_defl: Point3,
+    /// Standard uncertainty of `point_defl` (root-sum-square of its components), mm.
     pub u_point_defl: f64,
     /// Machine velocity at the zero-deflection instant (mm/s).
     pub velocity: Vector3,
     /// Machine velocity over the approach band (mm/s), when it could be measured.
     pub approach_velocity: Option<Vector3>,
+    /// Which phase of the contact gave the surface point.
     pub phase: Phase,
     /// Probe samples used in the extrapolation.
     pub n_used: usize,

@@ -13,12 +13,15 @@ use truepos_io::InputError;
 
 /// A stream read from a CSV file.
 pub struct StreamFile {
+    /// The file's path, as given.
     pub path: PathBuf,
     /// The indexed table, when the file was read through one (`keep_table`, or a file that is
     /// not plain CSV); `None` when the columns were parsed straight from the text (an error
     /// about a row then reads the table to name its line).
     pub table: Option<Table>,
+    /// Time stamps, s (master clock), increasing.
     pub t: Vec<f64>,
+    /// The three values per sample (machine x, y, z or probe a, b, c), mm.
     pub v: Vec<[f64; 3]>,
 }
 

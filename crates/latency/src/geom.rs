@@ -19,9 +19,19 @@ use truepos_math::{Matrix3, Point3, Vector3};
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Feature {
     /// Two parallel faces with normals ±`axis` (plates, a gauge block, ±X of a sphere).
-    Pair { axis: Vector3 },
+    Pair {
+        /// Unit axis of the pair.
+        axis: Vector3,
+    },
     /// Normals in one plane (normal `normal`, in-plane basis `e1`, `e2`): a circle.
-    Circle { normal: Vector3, e1: Vector3, e2: Vector3 },
+    Circle {
+        /// Unit normal of the plane.
+        normal: Vector3,
+        /// First in-plane unit vector.
+        e1: Vector3,
+        /// Second in-plane unit vector.
+        e2: Vector3,
+    },
     /// Normals spanning 3D: a sphere.
     Sphere,
 }
@@ -78,6 +88,7 @@ impl Feature {
         Ok(Feature::Sphere)
     }
 
+    /// The feature's name in the JSON output and messages.
     pub fn name(&self) -> &'static str {
         match self {
             Feature::Pair { .. } => "pair of parallel faces",
@@ -99,10 +110,14 @@ pub struct FitSpec {
     pub delay: DelayMode,
 }
 
+/// Which delays a feature fit estimates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum DelayMode {
+    /// No delay: every axis keeps its fixed delay.
     None,
+    /// One delay common to all axes.
     Common,
+    /// One delay per axis, for the axes marked `true` (X, Y, Z).
     PerAxis([bool; 3]),
 }
 
@@ -121,6 +136,7 @@ impl DelayMode {
 pub struct FeatureFit {
     /// Signed stylus-centre size: diameter (+ outer, − inner) or face distance.
     pub size: f64,
+    /// Standard uncertainty of `size`, mm.
     pub u_size: f64,
     /// Delay per axis (the fixed value where not fitted).
     pub delay: [f64; 3],
@@ -132,6 +148,7 @@ pub struct FeatureFit {
     pub rms: f64,
     /// Birge ratio √(χ²/dof) of the weighted residuals (1 when no degrees of freedom).
     pub birge: f64,
+    /// Degrees of freedom of the fit (residuals minus parameters).
     pub dof: usize,
 }
 

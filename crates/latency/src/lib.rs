@@ -5,7 +5,7 @@
 //! `D` is how much later the machine data is stamped than the probe data for the same instant:
 //! the stylus centre at probe stamp `t` is `machine(t + D) + deflection(t)` (interface contract).
 //!
-//! The estimation functions take time-stamped streams as slices and do no I/O; [`file`] reads
+//! The estimation functions take time-stamped streams as slices and do no I/O; [`crate::file`] reads
 //! the stream CSVs.
 //!
 //! Entry points:
@@ -46,16 +46,55 @@ use thiserror::Error;
 /// Why a delay cannot be computed. Every variant is caused by the input data or options.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum LatencyError {
+    /// A stream has a different number of time stamps and values.
     #[error("{which} stream: {times} time stamps but {values} values")]
-    LengthMismatch { which: Which, times: usize, values: usize },
+    LengthMismatch {
+        /// Which stream.
+        which: Which,
+        /// Number of time stamps.
+        times: usize,
+        /// Number of values.
+        values: usize,
+    },
+    /// A stream has fewer than two samples.
     #[error("{which} stream: {n} sample(s); at least two are needed")]
-    TooShort { which: Which, n: usize },
+    TooShort {
+        /// Which stream.
+        which: Which,
+        /// Number of samples.
+        n: usize,
+    },
+    /// A stream sample (0-based index) is NaN or infinite.
     #[error("{which} stream: sample {index} is not finite")]
-    NotFinite { which: Which, index: usize },
+    NotFinite {
+        /// Which stream.
+        which: Which,
+        /// 0-based sample index.
+        index: usize,
+    },
+    /// Two samples of a stream have the same time stamp, s.
     #[error("{which} stream: duplicate time stamp {t} s (sample {index})")]
-    DuplicateStamp { which: Which, index: usize, t: f64 },
+    DuplicateStamp {
+        /// Which stream.
+        which: Which,
+        /// 0-based sample index.
+        index: usize,
+        /// The stamp, s.
+        t: f64,
+    },
+    /// A stream's time stamps decrease at a sample (stamp and previous stamp, s).
     #[error("{which} stream: time stamps not increasing: {t} s after {previous} s (sample {index})")]
-    NotIncreasing { which: Which, index: usize, t: f64, previous: f64 },
+    NotIncreasing {
+        /// Which stream.
+        which: Which,
+        /// 0-based sample index.
+        index: usize,
+        /// The stamp, s.
+        t: f64,
+        /// The stamp before it, s.
+        previous: f64,
+    },
+    /// The machine and probe streams cover disjoint time spans (start, end of each, s).
     #[error(
         "the streams do not overlap in time: machine {:.6}–{:.6} s, probe {:.6}–{:.6} s",
         machine.0,
@@ -63,32 +102,51 @@ pub enum LatencyError {
         probe.0,
         probe.1
     )]
-    NoOverlap { machine: (f64, f64), probe: (f64, f64) },
+    NoOverlap {
+        /// The machine stream's span (start, end), s.
+        machine: (f64, f64),
+        /// The probe stream's span (start, end), s.
+        probe: (f64, f64),
+    },
+    /// No contact was found in the probe stream (why).
     #[error("no contact found: {0}")]
     NoContact(String),
+    /// The speeds method with contacts at one speed only (that speed, mm/s).
     #[error(
         "all contacts are at one speed ({0:.3} mm/s): the speeds method needs at least two speeds (or give the artefact size for the artefact method)"
     )]
     SingleSpeed(f64),
+    /// The data cannot determine the delay (why).
     #[error("the data cannot determine the delay: {0}")]
     Underdetermined(String),
+    /// Degenerate data: a fit has no solution (why).
     #[error("degenerate data: {0}")]
     Degenerate(String),
+    /// The options contradict each other or the data (the message).
     #[error("{0}")]
     Options(String),
 }
 
-/// Calibration method.
+/// Calibration method (`truepos latency --method`; the variants' documentation is the command
+/// line's help for each value).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Method {
+    /// Chosen from the data and options: scan when the data is a scan; artefact when a size is
+    /// given; speeds when the contacts have several speeds; in-out otherwise.
     Auto,
+    /// Known artefact size (--sphere-diameter-mm or --gap-mm) at one or more speeds.
     Artefact,
+    /// Several speeds, size unknown: size linear in speed (gradient → delay).
     Speeds,
+    /// Continuous scan switching between two radii: the shift minimising the form error.
     Scan,
+    /// Single point in and out: time between the extrema of machine position and deflection.
     Inout,
 }
 
 impl Method {
+    /// The method's name on the command line and in the JSON output.
     pub fn name(&self) -> &'static str {
         match self {
             Method::Auto => "auto",
@@ -112,7 +170,9 @@ pub enum KnownSize {
 /// Options of [`estimate`].
 #[derive(Clone, Debug)]
 pub struct Options {
+    /// The calibration method (`Auto` chooses from the data).
     pub method: Method,
+    /// The artefact's known size, for the artefact method.
     pub known_size: Option<KnownSize>,
     /// Stylus tip radius (mm); sizes are of the artefact, points of the stylus centre.
     pub tip_radius: f64,
@@ -149,9 +209,11 @@ pub struct Estimate {
     pub residual_delay: f64,
     /// Standard uncertainty of the delay (s).
     pub u_delay: f64,
+    /// Number of contacts in the final fit.
     pub n_contacts: usize,
     /// RMS residual of the fit (mm).
     pub rms: f64,
+    /// Notes for people about the data or the result (e.g. a poorly determined axis).
     pub warnings: Vec<String>,
     /// The contacts of the final fit. For the artefact and speeds methods the machine stamps
     /// were moved by a first estimate of the delay before they were extracted, so their points
@@ -165,20 +227,37 @@ pub struct Estimate {
 #[derive(Clone, Debug)]
 pub enum Evidence {
     /// A known artefact: the feature the contacts describe and its known size (mm).
-    Artefact { feature: &'static str, size_mm: f64, per_axis: Option<PerAxis> },
+    Artefact {
+        /// The feature the contact normals describe.
+        feature: &'static str,
+        /// Its known size, mm.
+        size_mm: f64,
+        /// Separate delays per axis, when fitted.
+        per_axis: Option<PerAxis>,
+    },
     /// Several speeds: the artefact size at zero speed with its standard uncertainty (mm), and
     /// (speed mm/s, size mm) per speed group.
     Speeds {
+        /// The feature the contact normals describe.
         feature: &'static str,
+        /// The size at zero speed, mm.
         static_size_mm: f64,
+        /// Its standard uncertainty, mm.
         u_static_size_mm: f64,
+        /// (mean speed mm/s, size mm) per speed group.
         per_speed: Vec<(f64, f64)>,
+        /// Separate delays per axis, when fitted.
         per_axis: Option<PerAxis>,
     },
     /// A scan with direction changes.
     Scan(scan::ScanResult),
     /// In-out touches: the delay of every contact (s) with its uncertainty.
-    Inout { per_contact: Vec<(f64, f64)>, per_axis: Option<PerAxis> },
+    Inout {
+        /// (delay s, standard uncertainty s) per contact.
+        per_contact: Vec<(f64, f64)>,
+        /// Separate delays per axis, when fitted.
+        per_axis: Option<PerAxis>,
+    },
 }
 
 impl Estimate {

@@ -25,7 +25,9 @@ use truepos_io::report::Report;
 /// The sphere at one feed.
 #[derive(Clone, Debug)]
 pub struct AtFeed {
+    /// Probing feed, mm/s.
     pub feed_mm_s: f64,
+    /// The sphere fitted to the points probed at this feed.
     pub sphere: ProbedSphere,
 }
 
@@ -34,10 +36,13 @@ pub struct AtFeed {
 pub struct FeedDelay {
     /// τ (s) and its standard uncertainty.
     pub delay_s: f64,
+    /// Standard uncertainty of `delay_s`, s.
     pub u_delay_s: f64,
     /// R₀, the radius at zero feed (mm), and its standard uncertainty.
     pub static_radius_mm: f64,
+    /// Standard uncertainty of `static_radius_mm`, mm.
     pub u_static_radius_mm: f64,
+    /// The sphere fitted at each feed, in feed order.
     pub per_feed: Vec<AtFeed>,
     /// For the virtual machine: the delay it was built with (s).
     pub virtual_truth_s: Option<f64>,

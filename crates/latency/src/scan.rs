@@ -21,24 +21,33 @@ use truepos_math::{Matrix3, Point3, Vector3};
 pub enum Form {
     /// A circle in the plane through `origin` with basis `e1`, `e2`.
     Circle {
+        /// A point of the circle's plane (machine frame, mm).
         origin: Point3,
+        /// First unit vector of the plane.
         e1: Vector3,
+        /// Second unit vector of the plane.
         e2: Vector3,
     },
+    /// A sphere (points over its surface).
     Sphere,
 }
 
 /// Result of the scan method.
 #[derive(Clone, Debug)]
 pub struct ScanResult {
+    /// The fitted delay, s.
     pub delay: f64,
+    /// Standard uncertainty of the delay, s.
     pub u_delay: f64,
+    /// The scanned form (circle plane or sphere).
     pub form: Form,
     /// Centre and radius of the stylus-centre circle or sphere.
     pub center: Point3,
+    /// Radius of the stylus-centre circle or sphere, mm.
     pub radius: f64,
     /// RMS radial error of the combined points without shift and with the fitted shift (mm).
     pub rms_before: f64,
+    /// RMS radial error with the fitted shift, mm.
     pub rms_after: f64,
     /// Probe sample indices used.
     pub samples: Vec<usize>,

@@ -9,7 +9,9 @@ use crate::LatencyError;
 /// Which stream an error is about.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Which {
+    /// The machine position stream.
     Machine,
+    /// The probe deflection stream.
     Probe,
 }
 
@@ -27,9 +29,13 @@ impl std::fmt::Display for Which {
 /// (a, b, c) along the machine axes at `probe_t[j]`.
 #[derive(Clone, Copy, Debug)]
 pub struct Streams<'a> {
+    /// Machine time stamps, s.
     pub machine_t: &'a [f64],
+    /// Machine positions x, y, z at `machine_t`, mm.
     pub machine: &'a [[f64; 3]],
+    /// Probe time stamps, s.
     pub probe_t: &'a [f64],
+    /// Stylus deflections a, b, c at `probe_t`, mm.
     pub probe: &'a [[f64; 3]],
 }
 

@@ -20,7 +20,9 @@ pub const PROBE_COLUMNS: [&str; 3] = ["a_mm", "b_mm", "c_mm"];
 
 /// An estimate with the options it was made with.
 pub struct Estimated {
+    /// The estimate.
     pub estimate: Estimate,
+    /// The options the estimate was computed with (method, known size, tip radius, ...).
     pub options: Options,
 }
 
@@ -45,10 +47,13 @@ pub fn estimate_files(machine: &Path, probe: &Path, options: Options) -> Result<
 
 /// The stylus centres written by [`apply_files`].
 pub struct Applied {
+    /// The delay applied to the machine stamps, s.
     pub delay_s: f64,
+    /// Number of stylus centres written.
     pub n_points: usize,
     /// Probe rows whose shifted time the machine data does not cover.
     pub n_skipped: usize,
+    /// The output file written.
     pub output: PathBuf,
 }
 

@@ -12,22 +12,30 @@ use truepos_math::Vector3;
 /// A delay with its standard uncertainty and the per-method details.
 #[derive(Clone, Debug, Default)]
 pub struct TouchResult {
+    /// The fitted delay, s.
     pub delay: f64,
+    /// Standard uncertainty of the delay, s.
     pub u_delay: f64,
+    /// RMS residual of the fit, mm.
     pub rms: f64,
     /// Signed stylus-centre static size (speeds method; the known size for artefact).
     pub static_size: Option<f64>,
+    /// Standard uncertainty of `static_size`, mm.
     pub u_static_size: Option<f64>,
     /// (mean speed mm/s, signed stylus-centre size mm) per speed group.
     pub per_speed: Vec<(f64, f64)>,
+    /// Separate delays per axis, when the per-axis fit was run.
     pub per_axis: Option<PerAxis>,
+    /// Notes for people about the data or the result.
     pub warnings: Vec<String>,
 }
 
 /// Separate delays for X, Y, Z (`None` where the data cannot determine one).
 #[derive(Clone, Debug, Default)]
 pub struct PerAxis {
+    /// Delay of X, Y, Z, s (`None` where not observable).
     pub delay: [Option<f64>; 3],
+    /// Standard uncertainty of each axis delay, s.
     pub u_delay: [Option<f64>; 3],
 }
 

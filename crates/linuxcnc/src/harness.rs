@@ -98,6 +98,7 @@ impl MachineLock {
         }
     }
 
+    /// The path of the lock file held.
     pub fn path(&self) -> &Path {
         &self.path
     }
@@ -116,7 +117,9 @@ impl std::fmt::Display for Unavailable {
 /// The virtual reference sphere wired to the probe input (the HAL truth).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SphereTruth {
+    /// Centre of the sphere in machine coordinates, mm.
     pub center_mm: Point3,
+    /// Radius of the sphere, mm.
     pub radius_mm: f64,
     /// The probe trips when the tip centre is within `radius + tip_radius` of the centre.
     pub tip_radius_mm: f64,
@@ -134,6 +137,7 @@ impl Default for SphereTruth {
 pub struct BoreTruth {
     /// Axis position X, Y (mm).
     pub center_xy_mm: [f64; 2],
+    /// Bore diameter, mm.
     pub diameter_mm: f64,
 }
 
@@ -142,10 +146,13 @@ pub struct BoreTruth {
 /// `radius − tip radius` of a bore's axis. The HAL model has exactly four bores.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PlateTruth {
-    /// The plate's material box (mm): X, Y extents and bottom, top Z.
+    /// The plate's X extent (min, max), mm.
     pub x_mm: [f64; 2],
+    /// The plate's Y extent (min, max), mm.
     pub y_mm: [f64; 2],
+    /// The plate's Z extent (bottom, top), mm.
     pub z_mm: [f64; 2],
+    /// The four bores through the plate.
     pub bores: [BoreTruth; 4],
 }
 
@@ -182,9 +189,11 @@ pub struct FiveAxisTruth {
     pub configured: [f64; 5],
     /// The machine's true geometry (only the truth component knows it).
     pub truth: [f64; 5],
-    /// The sphere's centre in the (true) table frame, its radius, the stylus tip radius.
+    /// The sphere's centre in the (true) table frame, mm.
     pub sphere_center_mm: Point3,
+    /// Radius of the sphere, mm.
     pub radius_mm: f64,
+    /// Radius of the stylus tip, mm.
     pub tip_radius_mm: f64,
 }
 
@@ -611,14 +620,17 @@ impl SimLinuxCnc {
         format!("linuxcncrsh://127.0.0.1:{}", self.port)
     }
 
+    /// The TCP port linuxcncrsh listens on (localhost).
     pub fn port(&self) -> u16 {
         self.port
     }
 
+    /// The virtual reference sphere of this simulator (the truth to compare with).
     pub fn sphere(&self) -> SphereTruth {
         self.sphere
     }
 
+    /// The virtual plate with bores of this simulator (the truth to compare with).
     pub fn plate(&self) -> PlateTruth {
         self.plate
     }

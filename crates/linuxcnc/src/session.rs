@@ -137,6 +137,7 @@ impl Session {
         }
     }
 
+    /// Whether a command timed out and the answers may belong to earlier commands (until [`Self::resync_with_abort`]).
     pub fn is_out_of_step(&self) -> bool {
         self.out_of_step
     }

@@ -17,9 +17,13 @@ pub const SCHEME: &str = "linuxcncrsh://";
 /// A parsed `linuxcncrsh://` address.
 #[derive(Clone, PartialEq, Eq)]
 pub struct Address {
+    /// Host name or IP address of the linuxcncrsh server.
     pub host: String,
+    /// TCP port of the linuxcncrsh server.
     pub port: u16,
+    /// linuxcncrsh's connect password (`hello` command; never printed).
     pub password: String,
+    /// linuxcncrsh's enable password (`set enable` command; never printed).
     pub enable_password: String,
 }
 
@@ -34,7 +38,9 @@ impl fmt::Debug for Address {
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
 #[error("`{url}` is not a linuxcncrsh address (linuxcncrsh://HOST:PORT[?password=…]): {reason}")]
 pub struct AddressError {
+    /// The address as given.
     pub url: String,
+    /// What is wrong with it.
     pub reason: String,
 }
 

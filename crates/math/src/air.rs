@@ -19,10 +19,15 @@ use thiserror::Error;
 /// wavelength in nm.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AirConditions {
+    /// Air temperature, °C.
     pub temperature_c: f64,
+    /// Total air pressure, Pa.
     pub pressure_pa: f64,
+    /// Relative humidity, % (0 to 100).
     pub humidity_pct: f64,
+    /// CO2 mole fraction, ppm (µmol/mol).
     pub co2_ppm: f64,
+    /// Vacuum wavelength of the light, nm.
     pub wavelength_nm: f64,
 }
 
@@ -39,39 +44,60 @@ impl Default for AirConditions {
     }
 }
 
+/// Which equation [`refractive_index`] evaluates (`truepos somac air --formula`, whose help
+/// describes the values in the option's own text, so their `clap` help is empty).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Formula {
+    /// Ciddor (1996), valid for any CO2 content in its range.
+    #[cfg_attr(feature = "clap", value(help = None::<&str>))]
     Ciddor,
     /// Modified Edlén (Birch & Downs with NIST's water-vapour term). CO2 fixed at 450 ppm.
+    #[cfg_attr(feature = "clap", value(help = None::<&str>))]
     Edlen,
 }
 
+/// Why [`refractive_index`] refuses a set of conditions.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum AirError {
+    /// The named input is NaN or infinite.
     #[error("{0} must be a finite number")]
     NotFinite(&'static str),
+    /// Relative humidity outside 0 to 100 % (the value given).
     #[error("relative humidity must be between 0 and 100 %, got {0}")]
     Humidity(f64),
+    /// Pressure not positive (the value given, Pa).
     #[error("pressure must be positive, got {0} Pa")]
     Pressure(f64),
+    /// Wavelength not positive (the value given, nm).
     #[error("wavelength must be positive, got {0} nm")]
     Wavelength(f64),
+    /// CO2 mole fraction outside 0 to 1e6 ppm (the value given).
     #[error("CO2 mole fraction must be between 0 and 1e6 ppm, got {0}")]
     Co2(f64),
+    /// Temperature at or below absolute zero (the value given, °C).
     #[error("temperature must be above absolute zero, got {0} °C")]
     Temperature(f64),
+    /// An input outside the range where NIST states the chosen equation valid.
     #[error(
         "{quantity} {value} {unit} is outside the range of the {formula} equation ({lo} to {hi} {unit}, \
          as NIST states it)"
     )]
     OutOfRange {
+        /// The input (`temperature`, `pressure`, ...).
         quantity: &'static str,
+        /// Its value, in `unit`.
         value: f64,
+        /// Its unit (`°C`, `Pa`, `%`, `ppm`, `nm`).
         unit: &'static str,
+        /// The low end of the valid range, in `unit`.
         lo: f64,
+        /// The high end of the valid range, in `unit`.
         hi: f64,
+        /// The equation's name.
         formula: &'static str,
     },
+    /// The modified Edlén equation asked for with a CO2 content other than 450 ppm (the value given).
     #[error("the modified Edlén equation is for 450 ppm CO2 only (got {0} ppm); use the Ciddor equation")]
     EdlenCo2(f64),
 }

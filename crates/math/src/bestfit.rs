@@ -12,20 +12,38 @@ use crate::transform::Transform3;
 use crate::types::{Matrix3, Point3, Vector3};
 use thiserror::Error;
 
+/// Why a point-set best fit cannot be computed.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum BestFitError {
+    /// The two point sets have different lengths (first, second).
     #[error("the point sets have different lengths ({0} and {1})")]
     LengthMismatch(usize, usize),
+    /// Fewer points than the fit needs.
     #[error("{needed} points are needed, {got} given")]
-    TooFewPoints { needed: usize, got: usize },
+    TooFewPoints {
+        /// Points the fit needs.
+        needed: usize,
+        /// Points given.
+        got: usize,
+    },
+    /// A weight is negative or not finite, or the weights sum to zero.
     #[error("weights must be finite and non-negative, with a positive sum")]
     BadWeights,
+    /// The points lie on one line, so the rotation about it is undetermined.
     #[error("the points are collinear: the rotation about their line is undetermined")]
     Collinear,
+    /// All points of one set coincide, so there is nothing to orient.
     #[error("all {which} points coincide (with non-zero weight): nothing to fit a {what} to")]
-    Coincident { which: &'static str, what: &'static str },
+    Coincident {
+        /// Which set (`from` or `to`).
+        which: &'static str,
+        /// What was being fitted.
+        what: &'static str,
+    },
+    /// A coordinate is NaN or infinite.
     #[error("a coordinate is not a finite number")]
     NotFinite,
+    /// nalgebra's singular value decomposition did not converge.
     #[error("the singular value decomposition did not converge")]
     SvdFailed,
 }

@@ -1,7 +1,8 @@
 //! Piecewise-linear interpolation on sorted abscissae.
 //!
-//! Entry points: [`Linear`] (a table `x → y` with clamped or checked evaluation) and
-//! [`locate`] (index of the interval holding `x`, by binary search).
+//! Entry points: [`linear`] (one value of a table `x → y`, extended linearly outside it),
+//! [`linear_sorted`] (many sorted query points in one pass) and [`locate`] (index of the
+//! interval holding `x`, by binary search).
 
 /// Index `i` with `xs[i] <= x < xs[i+1]` (clamped to `0..=len-2`). `xs` sorted, `len >= 2`.
 #[inline]

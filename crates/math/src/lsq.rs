@@ -13,7 +13,9 @@ use thiserror::Error;
 
 /// A least-squares problem: residuals `r_i(p)` and their gradients.
 pub trait Residuals: Sync {
+    /// Number of parameters `n`.
     fn n_params(&self) -> usize;
+    /// Number of residuals `m`.
     fn n_residuals(&self) -> usize;
     /// Residual `i` at `params`; writes `∂r_i/∂p_j` into `jac[j]` (`jac.len() == n_params`).
     fn eval(&self, params: &[f64], i: usize, jac: &mut [f64]) -> f64;
@@ -23,8 +25,10 @@ pub trait Residuals: Sync {
     }
 }
 
+/// Stopping and rank criteria for the Levenberg-Marquardt solver [`solve`].
 #[derive(Clone, Debug)]
 pub struct LsqOptions {
+    /// Iterations after which the solver stops, converged or not.
     pub max_iterations: usize,
     /// Converged when every step component is below `x_tol · (|p_j| + x_scale_j)`.
     pub x_tol: f64,
@@ -42,18 +46,31 @@ impl Default for LsqOptions {
     }
 }
 
+/// Why a least-squares problem cannot be solved.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum LsqError {
+    /// Fewer residuals than parameters: the problem is underdetermined.
     #[error("{needed} residuals are needed for {params} parameters, {got} given")]
-    TooFewResiduals { needed: usize, params: usize, got: usize },
+    TooFewResiduals {
+        /// Residuals needed.
+        needed: usize,
+        /// Number of parameters.
+        params: usize,
+        /// Residuals given.
+        got: usize,
+    },
+    /// A residual or gradient is NaN or infinite at the starting parameters.
     #[error("a residual or its gradient is not finite at the starting point")]
     NotFinite,
+    /// The normal matrix has no usable rank: no parameter is determined.
     #[error("the normal equations are singular: the data does not determine all parameters")]
     Singular,
 }
 
+/// The solution of a least-squares problem with its statistics.
 #[derive(Clone, Debug)]
 pub struct LsqResult {
+    /// The parameter vector at the solution, in the problem's own units.
     pub params: Vec<f64>,
     /// Sum of squared residuals at the solution.
     pub ssr: f64,
@@ -67,8 +84,11 @@ pub struct LsqResult {
     pub rank: usize,
     /// Ratio of largest to smallest eigenvalue of the column-scaled normal matrix (∞ if singular).
     pub condition: f64,
+    /// Iterations taken.
     pub iterations: usize,
+    /// Whether the step criterion of [`LsqOptions::x_tol`] was met before the iteration limit.
     pub converged: bool,
+    /// Number of residuals `m` (the degrees of freedom are `m − rank`).
     pub n_residuals: usize,
 }
 
@@ -81,9 +101,13 @@ impl LsqResult {
 
 /// Accumulated normal equations at one parameter vector.
 pub struct Normal {
+    /// `JᵀJ`, the normal matrix.
     pub jtj: DMatrix,
+    /// `Jᵀr`, the right-hand side (gradient of half the sum of squares).
     pub jtr: DVector,
+    /// Sum of squared residuals at the parameter vector.
     pub ssr: f64,
+    /// False when a residual or gradient was NaN or infinite (the sums are then meaningless).
     pub finite: bool,
 }
 
@@ -144,12 +168,15 @@ pub fn normal_equations<P: Residuals>(problem: &P, params: &[f64], parallel_thre
 pub struct ScaledEigen {
     /// The scale factors `Dᵢᵢ`.
     pub d: Vec<f64>,
+    /// Eigenvalues of `S`, ascending.
     pub eigenvalues: DVector,
     /// Columns are the eigenvectors of `S`.
     pub eigenvectors: DMatrix,
+    /// The largest eigenvalue of `S` (the reference for relative rank tests).
     pub max: f64,
 }
 
+/// Scale `JᵀJ` to unit diagonal and decompose it (see [`ScaledEigen`]).
 pub fn scaled_eigen(jtj: &DMatrix) -> ScaledEigen {
     let n = jtj.nrows();
     let d: Vec<f64> = (0..n)

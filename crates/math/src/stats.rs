@@ -38,7 +38,9 @@ pub fn max_abs(x: &[f64]) -> f64 {
 /// Result of a straight-line regression `y = intercept + slope·x`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LineFit {
+    /// Value of the line at `x = 0`, in the units of `y`.
     pub intercept: f64,
+    /// Gradient `dy/dx`, in units of `y` per unit of `x`.
     pub slope: f64,
     /// Standard uncertainty of the intercept.
     pub u_intercept: f64,
@@ -46,6 +48,7 @@ pub struct LineFit {
     pub u_slope: f64,
     /// Residual standard deviation (n − 2 degrees of freedom; 0 when n == 2).
     pub sigma: f64,
+    /// Number of points used.
     pub n: usize,
 }
 

@@ -7,11 +7,17 @@
 /// A UTC calendar date and time (proleptic Gregorian calendar, no leap seconds, as Unix time).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct UtcDateTime {
+    /// Calendar year, proleptic Gregorian (year 0 is 1 BC).
     pub year: i64,
+    /// Month, 1 to 12.
     pub month: u32,
+    /// Day of the month, 1 to 31.
     pub day: u32,
+    /// Hour, 0 to 23.
     pub hour: u32,
+    /// Minute, 0 to 59.
     pub minute: u32,
+    /// Second, 0 to 59 (no leap seconds).
     pub second: u32,
 }
 

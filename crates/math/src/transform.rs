@@ -11,8 +11,11 @@ use std::ops::Mul;
 /// `scale > 0`. Rigid transforms have `scale == 1`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Transform3 {
+    /// Uniform scale factor `s` (1 for a rigid transform), dimensionless.
     pub scale: f64,
+    /// Rotation matrix `R` from frame B axes to frame A axes.
     pub rotation: Matrix3,
+    /// Translation `t`: the origin of frame B expressed in frame A, mm.
     pub translation: Vector3,
 }
 
@@ -23,14 +26,17 @@ impl Default for Transform3 {
 }
 
 impl Transform3 {
+    /// The transform that maps every point to itself.
     pub fn identity() -> Self {
         Self { scale: 1.0, rotation: Matrix3::identity(), translation: Vector3::zeros() }
     }
 
+    /// A rigid transform (scale 1) from a rotation matrix and a translation in mm.
     pub fn rigid(rotation: Matrix3, translation: Vector3) -> Self {
         Self { scale: 1.0, rotation, translation }
     }
 
+    /// A similarity transform from its scale, rotation matrix and translation in mm.
     pub fn new(scale: f64, rotation: Matrix3, translation: Vector3) -> Self {
         Self { scale, rotation, translation }
     }

@@ -3,15 +3,25 @@
 //! Positions are [`Point3`]; displacements, directions and normals are [`Vector3`]. A point minus
 //! a point is a vector; a point plus a vector is a point. Units are mm, rad, s.
 
+/// The scalar type of all computations (double precision).
 pub type Real = f64;
+/// A position in 3D space, mm unless stated otherwise.
 pub type Point3 = nalgebra::Point3<f64>;
+/// A position in a plane, mm unless stated otherwise.
 pub type Point2 = nalgebra::Point2<f64>;
+/// A displacement or direction in 3D space (not translated by transforms).
 pub type Vector3 = nalgebra::Vector3<f64>;
+/// A displacement or direction in a plane.
 pub type Vector2 = nalgebra::Vector2<f64>;
+/// A 3×3 matrix (rotations, covariances, inertia tensors).
 pub type Matrix3 = nalgebra::Matrix3<f64>;
+/// A 3D vector of unit length (a direction or surface normal).
 pub type UnitVector3 = nalgebra::Unit<nalgebra::Vector3<f64>>;
+/// A proper rotation in 3D space.
 pub type Rotation3 = nalgebra::Rotation3<f64>;
+/// A dynamically sized matrix (Jacobians, normal matrices, covariances).
 pub type DMatrix = nalgebra::DMatrix<f64>;
+/// A dynamically sized column vector (parameters, residuals).
 pub type DVector = nalgebra::DVector<f64>;
 
 /// Rotation about +X by `a` (rad), right-hand rule.
@@ -64,8 +74,11 @@ pub fn any_perpendicular(n: &Vector3) -> Vector3 {
 /// A linear machine axis (the one definition; `truepos-sim` and `truepos-comp` re-export it).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Axis {
+    /// The X axis (index 0).
     X = 0,
+    /// The Y axis (index 1).
     Y = 1,
+    /// The Z axis (index 2).
     Z = 2,
 }
 

@@ -37,51 +37,46 @@
 use std::fmt::Write as _;
 use thiserror::Error;
 
-/// The element kinds truepos fits.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum FeatureKind {
-    Line,
-    Plane,
-    Circle,
-    Sphere,
-    Cylinder,
-    Cone,
+/// The element kinds truepos fits: the one definition, [`truepos_fit::evaluate::Kind`], under
+/// the name this crate has always used.
+pub use truepos_fit::evaluate::Kind as FeatureKind;
+
+/// The QIF name of the kind's feature (`Line`, `Plane`, ...), the prefix of its
+/// `...FeatureMeasurement` element.
+fn qif_name(kind: FeatureKind) -> &'static str {
+    match kind {
+        FeatureKind::Line => "Line",
+        FeatureKind::Plane => "Plane",
+        FeatureKind::Circle => "Circle",
+        FeatureKind::Sphere => "Sphere",
+        FeatureKind::Cylinder => "Cylinder",
+        FeatureKind::Cone => "Cone",
+    }
 }
 
-impl FeatureKind {
-    fn qif(self) -> &'static str {
-        match self {
-            FeatureKind::Line => "Line",
-            FeatureKind::Plane => "Plane",
-            FeatureKind::Circle => "Circle",
-            FeatureKind::Sphere => "Sphere",
-            FeatureKind::Cylinder => "Cylinder",
-            FeatureKind::Cone => "Cone",
-        }
-    }
-    /// The QIF form characteristic of this kind.
-    pub fn form_characteristic(self) -> &'static str {
-        match self {
-            FeatureKind::Line => "Straightness",
-            FeatureKind::Plane => "Flatness",
-            FeatureKind::Circle => "Circularity",
-            FeatureKind::Sphere => "Sphericity",
-            FeatureKind::Cylinder => "Cylindricity",
-            FeatureKind::Cone => "Conicity",
-        }
-    }
-    /// Whether the kind has a diameter.
-    pub fn has_diameter(self) -> bool {
-        matches!(self, FeatureKind::Circle | FeatureKind::Sphere | FeatureKind::Cylinder)
+/// The QIF form characteristic of a kind (`Straightness`, `Flatness`, `Circularity`,
+/// `Sphericity`, `Cylindricity`, `Conicity`), the prefix of its `...Characteristic...` elements.
+pub fn form_characteristic(kind: FeatureKind) -> &'static str {
+    match kind {
+        FeatureKind::Line => "Straightness",
+        FeatureKind::Plane => "Flatness",
+        FeatureKind::Circle => "Circularity",
+        FeatureKind::Sphere => "Sphericity",
+        FeatureKind::Cylinder => "Cylindricity",
+        FeatureKind::Cone => "Conicity",
     }
 }
 
 /// The substitute feature algorithm (association criterion).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Algorithm {
+    /// Least squares (QIF `LEASTSQUARES`).
     LeastSquares,
+    /// Minimum zone, Chebyshev (QIF `MINMAX`).
     MinimumZone,
+    /// Maximum inscribed (QIF `MAXINSCRIBED`).
     MaximumInscribed,
+    /// Minimum circumscribed (QIF `MINCIRCUMSCRIBED`).
     MinimumCircumscribed,
 }
 
@@ -99,7 +94,9 @@ impl Algorithm {
 /// Conformance status of a characteristic.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Status {
+    /// Conforms (QIF `PASS`).
     Pass,
+    /// Does not conform (QIF `FAIL`).
     Fail,
     /// Neither conformance nor non-conformance proven (ISO 14253-1 guarded rule).
     Undecided,
@@ -118,11 +115,14 @@ impl Status {
 /// A value with an optional standard uncertainty (k = 1).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Value<T> {
+    /// The value, in the unit of the field that holds it.
     pub value: T,
+    /// Its standard uncertainty (k = 1), same unit; `None` when not known.
     pub uncertainty: Option<T>,
 }
 
 impl<T> Value<T> {
+    /// A value with its standard uncertainty, if any.
     pub fn new(value: T, uncertainty: Option<T>) -> Self {
         Value { value, uncertainty }
     }
@@ -131,9 +131,11 @@ impl<T> Value<T> {
 /// One measured (fitted) feature. Lengths in mm, angles in degrees.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MeasuredFeature {
+    /// The element kind (selects the `...FeatureMeasurement` element).
     pub kind: FeatureKind,
     /// Feature name (written as `FeatureName`).
     pub name: String,
+    /// The association criterion the feature was fitted by.
     pub algorithm: Algorithm,
     /// Line, plane: a point on it; circle, sphere: the centre; cylinder, cone: a point on the
     /// axis (for a cone, the apex).
@@ -151,27 +153,37 @@ pub struct MeasuredFeature {
 /// The diameter characteristic: nominal, limit deviations, actual value and status.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DiameterCharacteristic {
+    /// Nominal diameter, mm.
     pub nominal: f64,
-    /// Lower and upper deviation from the nominal (lower ≤ upper), mm.
+    /// Lower deviation from the nominal (signed, ≤ `upper`), mm.
     pub lower: f64,
+    /// Upper deviation from the nominal (signed, ≥ `lower`), mm.
     pub upper: f64,
+    /// Measured diameter with its standard uncertainty, mm.
     pub actual: Value<f64>,
+    /// Conformance of the measured diameter.
     pub status: Status,
 }
 
 /// The form characteristic of the feature's kind: tolerance, actual value and status.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FormCharacteristic {
+    /// Form tolerance (zone width), mm.
     pub tolerance: f64,
+    /// Measured form (zone width), mm.
     pub actual: f64,
+    /// Conformance of the measured form.
     pub status: Status,
 }
 
 /// Everything one results document holds.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Results {
+    /// The measured feature.
     pub feature: MeasuredFeature,
+    /// The diameter characteristic, when a size tolerance was given.
     pub diameter: Option<DiameterCharacteristic>,
+    /// The form characteristic, when a form tolerance was given.
     pub form: Option<FormCharacteristic>,
     /// Written as the application's name in the header (e.g. "truepos 0.1.0").
     pub application: String,
@@ -180,8 +192,13 @@ pub struct Results {
 /// Why a results document cannot be written.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum WriteError {
+    /// A value to write is NaN or infinite (which value).
     #[error("{what} is not a finite number")]
-    NotFinite { what: &'static str },
+    NotFinite {
+        /// Which value.
+        what: &'static str,
+    },
+    /// A diameter characteristic for a kind without a diameter (the kind).
     #[error("a diameter characteristic needs a feature with a diameter (not a {0:?})")]
     NoDiameter(FeatureKind),
 }
@@ -344,7 +361,7 @@ fn check_values(r: &Results) -> Result<(), WriteError> {
         }
     }
     if let Some(d) = &r.diameter {
-        if !f.kind.has_diameter() {
+        if !f.kind.has_size() {
             return Err(WriteError::NoDiameter(f.kind));
         }
         for v in [d.nominal, d.lower, d.upper, d.actual.value] {
@@ -409,7 +426,7 @@ impl Characteristics {
     }
 
     fn add_form(&mut self, fc: &FormCharacteristic, f: &MeasuredFeature, alg: &str) {
-        let t = f.kind.form_characteristic();
+        let t = form_characteristic(f.kind);
         let (def, nom, item, m) = self.ids();
         let zone = if f.kind == FeatureKind::Line {
             "\n        <ZoneShape><DiametricalZone/></ZoneShape>"
@@ -458,7 +475,7 @@ impl Characteristics {
 /// uncertainties, and the form.
 fn feature_measurement(f: &MeasuredFeature, alg: &str) -> String {
     let mut body = String::new();
-    let k = f.kind.qif();
+    let k = qif_name(f.kind);
     let _ = writeln!(body, "          <{k}FeatureMeasurement id=\"{FEAT_ID}\">");
     let _ = writeln!(body, "            <FeatureName>{}</FeatureName>", token(&f.name));
     let _ = writeln!(body, "            {alg}");
@@ -581,10 +598,20 @@ pub struct Plan {
 /// Why a plan cannot be read.
 #[derive(Debug, Error)]
 pub enum PlanError {
+    /// The text is not well-formed XML.
     #[error("not well-formed XML: {0}")]
     Xml(#[from] roxmltree::Error),
+    /// A problem at a place in the document (1-based line and column, and what is wrong).
     #[error("line {line}, column {column}: {why}")]
-    At { line: u32, column: u32, why: String },
+    At {
+        /// 1-based line.
+        line: u32,
+        /// 1-based column.
+        column: u32,
+        /// What is wrong.
+        why: String,
+    },
+    /// The root element is not `<QIFDocument>` (its name).
     #[error("the root element is <{0}>, not a QIF document <QIFDocument>")]
     NotQif(String),
     /// A `<QIFDocument>` in another namespace than QIF 3's (QIF 2, or none of QIF's).
@@ -593,6 +620,7 @@ pub enum PlanError {
     /// Nesting deeper than the bound of `truepos_io::xml`.
     #[error("{0}")]
     TooDeep(#[from] truepos_io::xml::TooDeep),
+    /// The plan uses something this reader does not read (what, as a sentence).
     #[error("{0}")]
     Unsupported(String),
 }
@@ -778,13 +806,13 @@ pub fn read_plan(text: &str, kind: FeatureKind) -> Result<Plan, PlanError> {
         };
         plan.diameter = Some(triple);
     }
-    let form_name = format!("{}CharacteristicDefinition", kind.form_characteristic());
+    let form_name = format!("{}CharacteristicDefinition", form_characteristic(kind));
     let forms = elems(defs, &form_name);
     if forms.len() > 1 {
         return Err(PlanError::Unsupported(format!(
             "the QIF document has {} {} characteristics; truepos fit reads at most one",
             forms.len(),
-            kind.form_characteristic().to_lowercase()
+            form_characteristic(kind).to_lowercase()
         )));
     }
     if let Some(f) = forms.first() {
@@ -811,7 +839,7 @@ pub fn read_plan(text: &str, kind: FeatureKind) -> Result<Plan, PlanError> {
     if plan.diameter.is_none() && plan.form_tolerance.is_none() {
         return Err(PlanError::Unsupported(format!(
             "the QIF document has neither a diameter characteristic nor a {} characteristic",
-            kind.form_characteristic().to_lowercase()
+            form_characteristic(kind).to_lowercase()
         )));
     }
     Ok(plan)
@@ -857,19 +885,6 @@ mod from_fit {
     use truepos_fit::verdict::{check_form_tolerance, DecisionRule, SizeTolerance, Verdict};
     use truepos_math::Vector3;
 
-    impl From<Kind> for FeatureKind {
-        fn from(k: Kind) -> Self {
-            match k {
-                Kind::Line => FeatureKind::Line,
-                Kind::Plane => FeatureKind::Plane,
-                Kind::Circle => FeatureKind::Circle,
-                Kind::Sphere => FeatureKind::Sphere,
-                Kind::Cylinder => FeatureKind::Cylinder,
-                Kind::Cone => FeatureKind::Cone,
-            }
-        }
-    }
-
     /// The tolerance specification of a plan for a feature of `kind`, with notes for people:
     /// the plan's ignored elements, and a diameter characteristic given for a feature without a
     /// size (not used). A tolerance the evaluation cannot use is an error (its text).
@@ -908,7 +923,7 @@ mod from_fit {
     /// The QIF results of a truepos evaluation (feature name `name`, e.g. the input file's
     /// stem). Uncertainties are the standard uncertainties (k = 1) of a least-squares fit.
     pub fn results_from_evaluation(e: &Evaluation, name: &str, application: &str) -> Results {
-        let kind = FeatureKind::from(e.kind);
+        let kind = e.kind;
         let algorithm = match e.method {
             Method::LeastSquares => Algorithm::LeastSquares,
             Method::MinimumZone => Algorithm::MinimumZone,
@@ -934,7 +949,7 @@ mod from_fit {
             algorithm,
             location: Value::new(loc.map(|p| [p.x, p.y, p.z]).unwrap_or([0.0; 3]), loc_u.map(|v| arr(&v))),
             direction: dir.map(|d| Value::new(arr(&d), dir_u.map(|v| arr(&v)))),
-            diameter: if kind.has_diameter() { diameter } else { None },
+            diameter: if kind.has_size() { diameter } else { None },
             full_angle_deg: e
                 .apex_angle
                 .map(|a| Value::new(a.to_degrees(), u.and_then(|u| u.apex_angle).map(f64::to_degrees))),

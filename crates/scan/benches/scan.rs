@@ -1,6 +1,9 @@
 //! Planning and simulating a 100-feature program (blended style) on the virtual CMM.
 //! Run: `cargo bench -p truepos-scan --bench scan`. Figures: docs/performance-scan.md.
 
+// `criterion_group!` generates a public function that cannot carry a doc comment.
+#![allow(missing_docs)]
+
 use criterion::{criterion_group, criterion_main, Criterion};
 use truepos_cell::scanning_cmm::{run_scan, CmmConfig};
 use truepos_scan::execute::ControlParams;

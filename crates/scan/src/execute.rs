@@ -34,7 +34,9 @@ pub struct ControlParams {
     pub search_limit: f64,
     /// Classic settle: time the deflection must stay inside half the first band.
     pub settle_dwell: f64,
+    /// Classic settle: longest wait for the deflection to settle, s.
     pub max_settle_wait: f64,
+    /// Duration of the blend between a segment's end and the next one's start, s.
     pub blend_time: f64,
     /// Time constant of the late-contact bend (s).
     pub bend_time: f64,
@@ -85,6 +87,7 @@ impl ControlParams {
 /// One measured (and commanded) sample.
 #[derive(Clone, Copy, Debug)]
 pub struct Point {
+    /// Time since the start of the run, s.
     pub t: f64,
     /// Measured tip centre (machine scale + probe deflection).
     pub position: Point3,
@@ -94,8 +97,11 @@ pub struct Point {
     pub deflection: f64,
     /// Planned deflection at this instant.
     pub target: f64,
+    /// The kind of segment the sample is on.
     pub segment: SegmentKind,
+    /// Index of the feature the sample belongs to.
     pub feature: usize,
+    /// Quality code of the sample: 0, 5 or 9 (see `Params::quality_bands`).
     pub quality: u8,
     /// Commanded path speed (without the observer's corrections).
     pub speed: f64,
@@ -107,6 +113,7 @@ pub struct Point {
 /// Per-feature outcome.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FeatureRun {
+    /// The feature's id.
     pub id: String,
     /// From the start of its approach to the end of its release.
     pub time: f64,
@@ -118,7 +125,9 @@ pub struct FeatureRun {
     /// Shift of the path along the surface normal where contact was made (+: surface before
     /// the nominal point).
     pub contact_shift: f64,
+    /// Time of contact, s.
     pub contact_t: f64,
+    /// Time the scan segment started, s.
     pub scan_start_t: f64,
     /// RMS of deflection − target over the first 50 ms of the scan.
     pub vibration_rms: f64,
@@ -129,6 +138,7 @@ pub struct FeatureRun {
     pub settle_time: f64,
     /// From contact to the start of the scan segment.
     pub ready_time: f64,
+    /// Number of samples on the scan segment.
     pub scan_points: usize,
     /// Share of scan points with quality 0.
     pub quality0_share: f64,
@@ -137,9 +147,13 @@ pub struct FeatureRun {
 /// Result of [`execute`].
 #[derive(Clone, Debug)]
 pub struct Run {
+    /// Every sample, in time order.
     pub points: Vec<Point>,
+    /// Per feature, in plan order.
     pub features: Vec<FeatureRun>,
+    /// Duration of the whole run, s.
     pub cycle_time: f64,
+    /// Number of times the machine stood still between the first and the last feature.
     pub stops: usize,
 }
 

@@ -25,19 +25,26 @@ pub enum Side {
 /// The nominal geometry of one feature.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Geometry {
+    /// A circular arc.
     Circle {
+        /// Centre, machine frame, mm.
         center: Point3,
         /// Unit axis; positive sweep turns counter-clockwise seen from its + end.
         axis: Vector3,
+        /// Radius, mm.
         radius: f64,
+        /// Inside (a bore) or outside (a boss).
         side: Side,
         /// Start angle (rad) from the reference direction (see [`Feature::basis`]).
         start: f64,
         /// Signed sweep (rad).
         sweep: f64,
     },
+    /// A straight line on a surface.
     Line {
+        /// Start point, machine frame, mm.
         start: Point3,
+        /// End point, machine frame, mm.
         end: Point3,
         /// Unit outward normal of the material surface.
         normal: Vector3,
@@ -47,7 +54,9 @@ pub enum Geometry {
 /// One feature of the program.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Feature {
+    /// The feature's id in the features file.
     pub id: String,
+    /// Its nominal geometry.
     pub geometry: Geometry,
 }
 
@@ -56,7 +65,9 @@ pub struct Feature {
 pub struct Params {
     /// Angle between the approach line and the surface normal (20°..60°).
     pub approach_angle: f64,
+    /// Path speed while scanning, mm/s.
     pub scan_speed: f64,
+    /// Path speed of transfers, mm/s.
     pub move_speed: f64,
     /// Target stylus deflection while scanning.
     pub deflection: f64,

@@ -33,52 +33,85 @@ pub enum FeaturesError {
 /// Values that replace the file's top-level parameters (mm, mm/s, mm/s², degrees).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ParamOverrides {
+    /// Approach angle, degrees.
     pub approach_angle_deg: Option<f64>,
+    /// Scanning speed, mm/s.
     pub scan_speed_mm_s: Option<f64>,
+    /// Transfer speed, mm/s.
     pub move_speed_mm_s: Option<f64>,
+    /// Target deflection, mm.
     pub deflection_mm: Option<f64>,
+    /// Settle overshoot, mm.
     pub overshoot_mm: Option<f64>,
+    /// The two quality bands, mm.
     pub quality_bands_mm: Option<[f64; 2]>,
+    /// Stylus tip radius, mm.
     pub tip_radius_mm: Option<f64>,
+    /// Clearance from the surface, mm.
     pub clearance_mm: Option<f64>,
+    /// Acceleration limit, mm/s².
     pub accel_mm_s2: Option<f64>,
     /// Jerk limit (mm/s³); absent in older files: [`crate::feature::DEFAULT_JERK`].
     pub jerk_mm_s3: Option<f64>,
+    /// Speed of the classic style's approach along the normal, mm/s.
     pub touch_speed_mm_s: Option<f64>,
 }
 
+/// The features TOML file: top-level parameters and the `[[feature]]` tables.
 #[derive(Deserialize, Debug)]
 #[serde(deny_unknown_fields)]
 pub struct FeaturesFile {
+    /// Approach angle, degrees.
     pub approach_angle_deg: Option<f64>,
+    /// Scanning speed, mm/s.
     pub scan_speed_mm_s: Option<f64>,
+    /// Transfer speed, mm/s.
     pub move_speed_mm_s: Option<f64>,
+    /// Target deflection, mm.
     pub deflection_mm: Option<f64>,
+    /// Settle overshoot, mm.
     pub overshoot_mm: Option<f64>,
+    /// The two quality bands, mm.
     pub quality_bands_mm: Option<[f64; 2]>,
+    /// Stylus tip radius, mm.
     pub tip_radius_mm: Option<f64>,
+    /// Clearance from the surface, mm.
     pub clearance_mm: Option<f64>,
     accel_mm_s2: Option<f64>,
     /// Optional (default [`crate::feature::DEFAULT_JERK`]), so older files still read.
     jerk_mm_s3: Option<f64>,
+    /// Speed of the classic style's approach along the normal, mm/s.
     pub touch_speed_mm_s: Option<f64>,
+    /// The `[[feature]]` tables.
     #[serde(default)]
     pub feature: Vec<FeatureToml>,
 }
 
+/// One `[[feature]]` table as written (degrees, mm).
 #[derive(Deserialize, Debug)]
 #[serde(deny_unknown_fields)]
 pub struct FeatureToml {
+    /// The feature's id.
     pub id: String,
+    /// `circle` or `line`.
     pub kind: String,
+    /// Circle centre, mm.
     pub center_mm: Option<[f64; 3]>,
+    /// Circle axis (unit vector after normalising).
     pub axis: Option<[f64; 3]>,
+    /// Circle radius, mm.
     pub radius_mm: Option<f64>,
+    /// `inside` or `outside`.
     pub side: Option<String>,
+    /// Start angle of the arc, degrees.
     pub start_deg: Option<f64>,
+    /// Signed sweep of the arc, degrees.
     pub sweep_deg: Option<f64>,
+    /// Line start, mm.
     pub start_mm: Option<[f64; 3]>,
+    /// Line end, mm.
     pub end_mm: Option<[f64; 3]>,
+    /// Outward surface normal of a line.
     pub normal: Option<[f64; 3]>,
 }
 

@@ -12,11 +12,11 @@
 //!
 //! Entry points:
 //! - [`feature`]: [`Feature`], [`Params`], [`validate`].
-//! - [`plan`]: [`plan::plan`] with [`Style`] → [`Plan`] (segments, sampling, stops).
+//! - [`plan`](mod@plan): [`plan::plan`] with [`Style`] → [`Plan`] (segments, sampling, stops).
 //! - [`execute`]: [`execute::execute`] on a scanning machine with [`execute::ControlParams`] →
 //!   points tagged by segment/feature with deflection and quality, per-feature form error, cycle
 //!   time.
-//! - [`file`]: the features file ([`file::read_features`]).
+//! - [`crate::file`]: the features file ([`file::read_features`]).
 //! - [`form`]: form error (peak-to-valley of least-squares residuals, via `truepos-fit`).
 
 #![forbid(unsafe_code)]
@@ -35,20 +35,48 @@ pub use plan::{plan, Plan, SegmentKind, Style};
 /// Errors of planning and execution.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 pub enum ScanError {
+    /// The approach angle is outside 20 to 60 degrees (the value).
     #[error("approach_angle_deg is {0}; it must be between 20 and 60 degrees")]
     ApproachAngle(f64),
+    /// A parameter is not finite and positive (name, value).
     #[error("{0} is {1}; it must be a finite number above zero")]
     Parameter(&'static str, f64),
+    /// The quality bands are not two positive increasing numbers (mm).
     #[error("quality_bands_mm [{0}, {1}] must be two positive numbers in increasing order")]
     Bands(f64, f64),
+    /// A feature is invalid.
     #[error("feature '{id}': {why}")]
-    Feature { id: String, why: String },
+    Feature {
+        /// The feature's id.
+        id: String,
+        /// What is wrong.
+        why: String,
+    },
+    /// No contact within the search limit.
     #[error("feature '{id}': no contact within {limit} mm beyond the nominal contact point")]
-    NoContact { id: String, limit: f64 },
+    NoContact {
+        /// The feature's id.
+        id: String,
+        /// The search limit beyond the nominal contact point, mm.
+        limit: f64,
+    },
+    /// Too few scan points for a form evaluation.
     #[error("feature '{id}': only {n} scan points, too few for a form evaluation")]
-    TooFewPoints { id: String, n: usize },
+    TooFewPoints {
+        /// The feature's id.
+        id: String,
+        /// Scan points obtained.
+        n: usize,
+    },
+    /// The form fit failed.
     #[error("feature '{id}': form fit failed: {why}")]
-    Fit { id: String, why: String },
+    Fit {
+        /// The feature's id.
+        id: String,
+        /// Why.
+        why: String,
+    },
+    /// Invalid input (the message).
     #[error("{0}")]
     Invalid(String),
     /// The scanning machine failed or refused a command.

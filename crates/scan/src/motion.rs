@@ -47,9 +47,13 @@ pub struct Motion {
 /// Position, velocity, acceleration and jerk at a time.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct State {
+    /// Position, mm.
     pub p: Point3,
+    /// Velocity, mm/s.
     pub v: Vector3,
+    /// Acceleration, mm/s².
     pub a: Vector3,
+    /// Jerk, mm/s³.
     pub j: Vector3,
 }
 
@@ -87,6 +91,7 @@ impl Motion {
         }
     }
 
+    /// Duration of the motion, s.
     pub fn duration(&self) -> f64 {
         self.phases.last().map_or(0.0, |s| s.t)
     }
@@ -100,10 +105,12 @@ impl Motion {
         Self::advance(s, t - s.t)
     }
 
+    /// The state at the start.
     pub fn start(&self) -> State {
         self.state(0.0)
     }
 
+    /// The state at the end.
     pub fn end(&self) -> State {
         self.state(self.duration())
     }
@@ -117,8 +124,11 @@ impl Motion {
 /// Speed, acceleration and jerk limits of a motion (mm/s, mm/s², mm/s³).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Limits {
+    /// Speed limit, mm/s.
     pub v: f64,
+    /// Acceleration limit, mm/s².
     pub a: f64,
+    /// Jerk limit, mm/s³.
     pub j: f64,
 }
 
@@ -323,7 +333,7 @@ fn fastest(
 /// `|v1|` ≤ `lim.v` assumed), `|a| ≤ lim.a`, `|j| ≤ lim.j` exactly, and the speed at least
 /// `floor` throughout (never a standstill). The velocity goes straight to the cruise velocity
 /// and straight on to `v1`; where that would dip below `floor` (a reversal), around the origin
-/// through a midway velocity ([`corners`]). `None` when no motion of this family keeps the
+/// through a midway velocity (`corners`). `None` when no motion of this family keeps the
 /// floor (for example a reversal on the spot); the caller then needs another shape.
 pub fn transfer(
     (p0, v0, a0): (Point3, Vector3, Vector3),

@@ -30,14 +30,20 @@ use truepos_math::{Point3, Vector3};
 /// The segment tags of the contract.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum SegmentKind {
+    /// A move between features, off the surface.
     Transfer,
+    /// From the clearance position to first contact.
     Approach,
+    /// From contact until the deflection is on target.
     Settle,
+    /// The measuring part of the feature.
     Scan,
+    /// From the scan's end off the surface.
     Release,
 }
 
 impl SegmentKind {
+    /// The segment tag as the contract spells it (`transfer`, `approach`, ...).
     pub fn as_str(self) -> &'static str {
         match self {
             SegmentKind::Transfer => "transfer",
@@ -49,10 +55,14 @@ impl SegmentKind {
     }
 }
 
-/// Planning style.
+/// Planning style (`truepos scan --style`; the variants' documentation is the command line's
+/// help for each value).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Style {
+    /// Approach at an angle at scanning speed, settle path, scan, release, straight on: no stops.
     Blended,
+    /// Pre-hit point on the normal, stop, approach along the normal, search, scan, stop, retract.
     Classic,
 }
 
@@ -70,26 +80,37 @@ impl Style {
 /// tangential distance `x` (mm) from the segment start.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Penetration {
+    /// A constant penetration, mm.
     Const(f64),
     /// `s0·x − ½·peak·(x/x1)³` up to `x1` (reaching `peak` with zero slope), then a half cosine
     /// from `peak` down to `end` at `len`.
     Settle {
+        /// Initial slope (penetration per tangential mm).
         s0: f64,
+        /// Peak penetration, mm.
         peak: f64,
+        /// Where the peak is reached, mm.
         x1: f64,
+        /// Penetration at the end, mm.
         end: f64,
+        /// Length of the profile, mm.
         len: f64,
     },
     /// `d − k·x³` up to `xr` (slope −`c` there), then straight with slope −`c`.
     Release {
+        /// Penetration at the start, mm.
         d: f64,
+        /// Cubic coefficient, mm⁻².
         k: f64,
+        /// End of the cubic part, mm.
         xr: f64,
+        /// Slope of the straight part (penetration lost per tangential mm).
         c: f64,
     },
 }
 
 impl Penetration {
+    /// The penetration at tangential distance `x` from the segment start, mm.
     pub fn at(&self, x: f64) -> f64 {
         match *self {
             Penetration::Const(d) => d,
@@ -115,31 +136,43 @@ impl Penetration {
 /// The geometric carrier of a segment, parametrised by `λ ∈ [0, 1]`.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Geom {
+    /// A straight line from `a` to `b`.
     Line {
+        /// Start, machine frame, mm.
         a: Point3,
+        /// End, machine frame, mm.
         b: Point3,
     },
     /// Quintic Hermite: end points, end derivatives dP/dλ and end second derivatives d²P/dλ².
     Quintic {
+        /// End points, machine frame, mm.
         p: [Point3; 2],
+        /// End derivatives dP/dλ, mm.
         m: [Vector3; 2],
+        /// End second derivatives d²P/dλ², mm.
         c: [Vector3; 2],
     },
     /// Along the segment's feature from `u0` to `u1` (see [`Feature::point`]); `x_len` is the
     /// tangential length over which the penetration profile is evaluated.
     Along {
+        /// Feature parameter at the start.
         u0: f64,
+        /// Feature parameter at the end.
         u1: f64,
+        /// The commanded penetration along the segment.
         pen: Penetration,
+        /// Tangential length the penetration is evaluated over, mm.
         x_len: f64,
     },
     /// Standing still.
     Hold {
+        /// Where, machine frame, mm.
         p: Point3,
     },
     /// A motion given directly in time (phases of constant jerk vector; see [`crate::motion`]):
     /// the blended transfers and the final stop. Its duration is the motion's.
     Timed {
+        /// The motion.
         motion: Motion,
     },
 }
@@ -150,8 +183,11 @@ pub enum Geom {
 pub struct Profile {
     /// (start time, s, v, a, jerk) at the start of each phase; the last row is the end state.
     phases: Vec<[f64; 5]>,
+    /// Length covered, mm.
     pub len: f64,
+    /// Speed at the start, mm/s.
     pub v0: f64,
+    /// Speed at the end, mm/s.
     pub v1: f64,
 }
 
@@ -259,6 +295,7 @@ impl Profile {
             .unwrap_or_else(|| Profile::constant(len, l.max(1e-9)))
     }
 
+    /// Duration of the profile, s.
     pub fn duration(&self) -> f64 {
         self.phases.last().map_or(0.0, |r| r[0])
     }
@@ -287,16 +324,20 @@ impl Profile {
 /// One planned segment.
 #[derive(Clone, Debug)]
 pub struct Segment {
+    /// What the segment is for.
     pub kind: SegmentKind,
     /// Index of the feature it belongs to (a transfer belongs to the feature it leads to).
     pub feature: usize,
+    /// Its geometric carrier.
     pub geom: Geom,
+    /// Its speed profile.
     pub profile: Profile,
     /// Duration of a [`Geom::Hold`] (nominal, for the classic settle the executor extends it
     /// until the deflection has settled).
     pub hold: f64,
     /// Probe feedback (observer) on (from local time `feedback_after`).
     pub feedback: bool,
+    /// Segment-local time from which probe feedback is on, s.
     pub feedback_after: f64,
     /// For approaches: the segment-local time at which the nominal contact point is passed.
     pub contact_time: Option<f64>,
@@ -315,7 +356,9 @@ pub struct Segment {
 /// What a segment commands at a local time.
 #[derive(Clone, Copy, Debug)]
 pub struct Command {
+    /// Commanded position, machine frame, mm.
     pub position: Point3,
+    /// Commanded path speed, mm/s.
     pub speed: f64,
     /// Outward surface normal (for feedback and missed-surface shifts), if any.
     pub normal: Option<Vector3>,
@@ -922,6 +965,7 @@ impl Segment {
         GL.iter().map(|&(x, w)| w * self.rate(m + r * x, f, tip)).sum::<f64>() * r
     }
 
+    /// Duration of the segment, s.
     pub fn duration(&self) -> f64 {
         match &self.geom {
             Geom::Hold { .. } => self.hold,
@@ -939,6 +983,7 @@ impl Segment {
         }
     }
 
+    /// Speed at the start, mm/s (0 for holds).
     pub fn start_speed(&self) -> f64 {
         match &self.geom {
             Geom::Hold { .. } => 0.0,
@@ -1018,9 +1063,13 @@ impl Segment {
 /// A planned program.
 #[derive(Clone, Debug)]
 pub struct Plan {
+    /// The planning style.
     pub style: Style,
+    /// The features, in order.
     pub features: Vec<Feature>,
+    /// The scan parameters used.
     pub params: Params,
+    /// The segments, in order.
     pub segments: Vec<Segment>,
     /// Start time of each segment.
     pub starts: Vec<f64>,
@@ -1029,9 +1078,13 @@ pub struct Plan {
 /// One sample of the planned path.
 #[derive(Clone, Copy, Debug)]
 pub struct PathSample {
+    /// Time, s.
     pub t: f64,
+    /// Position, machine frame, mm.
     pub position: Point3,
+    /// Path speed, mm/s.
     pub speed: f64,
+    /// Index of the segment.
     pub segment: usize,
 }
 
@@ -1522,6 +1575,7 @@ fn classic(features: &[Feature], p: &Params) -> Vec<Segment> {
 }
 
 impl Plan {
+    /// Duration of the whole plan, s.
     pub fn duration(&self) -> f64 {
         match (self.starts.last(), self.segments.last()) {
             (Some(t), Some(s)) => t + s.duration(),

@@ -2,6 +2,9 @@
 //! error, command inversion, tracker reading, a full head-offset data set.
 //! Run: `cargo bench -p truepos-sim --bench machines`.
 
+// `criterion_group!` generates a public function that cannot carry a doc comment.
+#![allow(missing_docs)]
+
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};

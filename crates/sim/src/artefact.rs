@@ -81,11 +81,14 @@ fn unit(name: &'static str, v: Vector3) -> Result<Vector3, ParamError> {
 /// A solid sphere.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sphere {
+    /// Centre, mm.
     pub centre: Point3,
+    /// Radius, mm.
     pub radius: f64,
 }
 
 impl Sphere {
+    /// A sphere; the radius must be positive and finite (mm).
     pub fn new(centre: Point3, radius: f64) -> Result<Self, ParamError> {
         check_positive("sphere radius", radius)?;
         Ok(Sphere { centre, radius })
@@ -104,11 +107,14 @@ impl Artefact for Sphere {
 /// A half-space: material behind the plane through `point` with outward `normal`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Plane {
+    /// A point of the plane, mm.
     pub point: Point3,
+    /// Unit outward normal (out of the material).
     pub normal: Vector3,
 }
 
 impl Plane {
+    /// A half-space; `normal` is normalised (it must not be zero).
     pub fn new(point: Point3, normal: Vector3) -> Result<Self, ParamError> {
         Ok(Plane { point, normal: unit("plane normal", normal)? })
     }
@@ -126,12 +132,16 @@ impl Artefact for Plane {
 /// at `mid + axis·gap/2` has `−axis`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Plates {
+    /// The point midway between the faces, mm.
     pub mid: Point3,
+    /// Unit axis across the gap.
     pub axis: Vector3,
+    /// Distance between the faces, mm.
     pub gap: f64,
 }
 
 impl Plates {
+    /// Two plates; `axis` is normalised and the gap must be positive (mm).
     pub fn new(mid: Point3, axis: Vector3, gap: f64) -> Result<Self, ParamError> {
         check_positive("plate gap", gap)?;
         Ok(Plates { mid, axis: unit("plate axis", axis)?, gap })
@@ -295,13 +305,18 @@ impl Artefact for ConvexPolyhedron {
 /// `radius`, `length`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Cylinder {
+    /// Centre of the cylinder (middle of its length), mm.
     pub centre: Point3,
+    /// Unit axis.
     pub axis: Vector3,
+    /// Radius, mm.
     pub radius: f64,
+    /// Length along the axis, mm.
     pub length: f64,
 }
 
 impl Cylinder {
+    /// A cylinder; `axis` is normalised, radius and length must be positive (mm).
     pub fn new(centre: Point3, axis: Vector3, radius: f64, length: f64) -> Result<Self, ParamError> {
         check_positive("cylinder radius", radius)?;
         check_positive("cylinder length", length)?;
@@ -351,8 +366,11 @@ impl Artefact for Cylinder {
 /// Planes are the block's faces.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Part {
+    /// The block the part is made from.
     pub block: ConvexPolyhedron,
+    /// Cylinders added to the block.
     pub bosses: Vec<Cylinder>,
+    /// Cylinders removed from the block.
     pub bores: Vec<Cylinder>,
 }
 

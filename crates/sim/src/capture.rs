@@ -22,7 +22,9 @@ use truepos_math::{Point3, Vector3};
 /// The span of a simulated run on the master clock (s).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MasterClock {
+    /// Start of the run, s.
     pub start_s: f64,
+    /// End of the run, s.
     pub end_s: f64,
 }
 
@@ -46,6 +48,7 @@ impl MasterClock {
 /// One capture channel: rate and latency on the master clock.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Capture {
+    /// Sampling rate, Hz.
     pub rate_hz: f64,
     /// Capture latency (s): a sample stamped `τ` holds the signal at true time `τ − latency_s`.
     pub latency_s: f64,
@@ -111,7 +114,9 @@ impl Capture {
 /// forms each axis position separately).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AxisCapture {
+    /// Sampling rate, Hz.
     pub rate_hz: f64,
+    /// Capture latency of each axis (X, Y, Z), s.
     pub latency_s: [f64; 3],
 }
 

@@ -26,9 +26,11 @@ use truepos_math::types::{Matrix3, Vector3};
 /// One sinusoid: `amplitude · sin(2π·a/period + phase)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Wave {
+    /// Amplitude, in the unit of the error (mm or rad).
     pub amplitude: f64,
     /// Period (mm), > 0.
     pub period: f64,
+    /// Phase, rad.
     pub phase: f64,
 }
 
@@ -39,6 +41,7 @@ pub struct ErrorFn {
     pub length: f64,
     /// Polynomial coefficients in powers of `a/length` (units of the error: mm or rad).
     pub poly: Vec<f64>,
+    /// Sinusoids added to the polynomial.
     pub waves: Vec<Wave>,
 }
 
@@ -160,8 +163,11 @@ impl AxisErrorFns {
 /// Squareness errors (rad), conventions.md sign.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Squareness {
+    /// Between X and Y, rad.
     pub xy: f64,
+    /// Between X and Z, rad.
     pub xz: f64,
+    /// Between Y and Z, rad.
     pub yz: f64,
 }
 
@@ -170,9 +176,13 @@ pub struct Squareness {
 pub struct ErrorMagnitudes {
     /// Axis travels (mm).
     pub travel: [f64; 3],
+    /// Peak positioning error, mm.
     pub positioning: f64,
+    /// Peak straightness error, mm.
     pub straightness: f64,
+    /// Peak angular error, rad.
     pub angular: f64,
+    /// Squareness error, rad.
     pub squareness: f64,
     /// Short-wave period (mm): screw lead or scale period.
     pub short_period: f64,
@@ -221,6 +231,7 @@ impl ErrorMagnitudes {
 pub struct GeometricErrors {
     /// Indexed by [`Axis::index`].
     pub axes: [AxisErrorFns; 3],
+    /// The squareness errors.
     pub squareness: Squareness,
 }
 
@@ -324,8 +335,11 @@ impl GeometricErrors {
 /// file wants µm and µrad).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MapRow {
+    /// The axis.
     pub axis: Axis,
+    /// Position along the axis, mm.
     pub position: f64,
+    /// Positioning, two straightnesses (mm), pitch, yaw, roll (rad).
     pub values: [f64; 6],
 }
 

@@ -19,9 +19,19 @@ use truepos_math::types::{ry, Point3, Vector3};
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Surface {
     /// Sphere with centre and radius (mm).
-    Sphere { centre: Point3, radius: f64 },
+    Sphere {
+        /// Centre, mm.
+        centre: Point3,
+        /// Radius, mm.
+        radius: f64,
+    },
     /// Plane through `point` with outward unit `normal` (the material is on the `−normal` side).
-    Plane { point: Point3, normal: Vector3 },
+    Plane {
+        /// A point of the plane, mm.
+        point: Point3,
+        /// Unit outward normal.
+        normal: Vector3,
+    },
 }
 
 /// Why a laser head gives no reading.
@@ -32,7 +42,12 @@ pub enum LaserError {
     Miss,
     /// The surface crossing is outside the measuring range.
     #[error("surface at {dist_mm:.3} mm from the focus, outside the measuring range ±{half_range_mm:.3} mm")]
-    OutOfRange { dist_mm: f64, half_range_mm: f64 },
+    OutOfRange {
+        /// Distance of the crossing from the focus, mm.
+        dist_mm: f64,
+        /// Half the measuring range, mm.
+        half_range_mm: f64,
+    },
 }
 
 /// Signed parameter `t` of the point where the line `origin + t·dir` (unit `dir`) enters the

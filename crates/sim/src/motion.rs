@@ -38,8 +38,11 @@ use crate::noise::{check_nonneg, check_positive, check_range, ParamError};
 /// Position (mm), velocity (mm/s) and acceleration (mm/s²) at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct State {
+    /// Position, mm.
     pub p: Point3,
+    /// Velocity, mm/s.
     pub v: Vector3,
+    /// Acceleration, mm/s².
     pub a: Vector3,
 }
 
@@ -63,8 +66,11 @@ pub trait Motion: Send + Sync {
 /// Kinematic limits of a move (mm/s, mm/s², mm/s³).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Limits {
+    /// Speed limit, mm/s.
     pub v_max: f64,
+    /// Acceleration limit, mm/s².
     pub a_max: f64,
+    /// Jerk limit, mm/s³ (`None`: trapezoidal, unlimited jerk).
     pub j_max: Option<f64>,
 }
 

@@ -91,8 +91,16 @@ impl Gaussian {
 /// An invalid physical parameter given to a simulator component.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ParamError {
+    /// A parameter does not meet its requirement.
     #[error("{name} must be {requirement}, got {value}")]
-    Invalid { name: &'static str, requirement: &'static str, value: f64 },
+    Invalid {
+        /// The parameter.
+        name: &'static str,
+        /// What it must be.
+        requirement: &'static str,
+        /// The value given.
+        value: f64,
+    },
 }
 
 /// `value` must be finite and > 0.

@@ -49,10 +49,13 @@ pub struct TemperatureHistory {
     pub base: f64,
     /// Linear drift (K/s).
     pub drift: f64,
+    /// Step changes.
     pub steps: Vec<Step>,
     /// Cycle amplitude (K), period (s) and phase (rad); amplitude 0 for none.
     pub cycle_amplitude: f64,
+    /// Cycle period, s.
     pub cycle_period: f64,
+    /// Cycle phase, rad.
     pub cycle_phase: f64,
 }
 
@@ -180,6 +183,7 @@ pub fn expand_part(p20: &Point3, fixed: &Point3, cte: f64, temp: f64) -> Point3 
 /// A workpiece that expands with its temperature about its fixing point.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Part {
+    /// Coefficient of thermal expansion, 1/K.
     pub cte: f64,
     /// Point that stays put (clamp / datum), mm.
     pub fixed: Point3,

@@ -41,21 +41,42 @@ use crate::noise::gaussian;
 pub enum TrackerError {
     /// The beam is interrupted (time window or obstacle).
     #[error("beam broken at t = {time_s} s")]
-    BeamBroken { time_s: f64 },
+    BeamBroken {
+        /// Time of the reading, s.
+        time_s: f64,
+    },
     /// The target is at the tracker's own position or beyond its range.
     #[error("target out of range ({distance_mm} mm)")]
-    OutOfRange { distance_mm: f64 },
+    OutOfRange {
+        /// Distance of the target, mm.
+        distance_mm: f64,
+    },
 }
 
 /// A cause of a beam break.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum BeamBreak {
     /// The beam is interrupted from `start` to `end` (s).
-    Interval { start: f64, end: f64 },
+    Interval {
+        /// Start, s.
+        start: f64,
+        /// End, s.
+        end: f64,
+    },
     /// A sphere in cell coordinates blocking the line of sight.
-    Sphere { centre: Point3, radius: f64 },
+    Sphere {
+        /// Centre, cell frame, mm.
+        centre: Point3,
+        /// Radius, mm.
+        radius: f64,
+    },
     /// An axis-aligned box in cell coordinates blocking the line of sight.
-    Box { min: Point3, max: Point3 },
+    Box {
+        /// Lower corner, cell frame, mm.
+        min: Point3,
+        /// Upper corner, cell frame, mm.
+        max: Point3,
+    },
 }
 
 impl BeamBreak {
@@ -100,6 +121,7 @@ impl BeamBreak {
 /// One tracker reading: spherical coordinates in the tracker frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SphericalReading {
+    /// Time of the reading, s.
     pub time: f64,
     /// Azimuth about the tracker's +Z, from +X towards +Y (rad).
     pub azimuth: f64,
@@ -134,11 +156,13 @@ impl SphericalReading {
 pub struct Tracker {
     /// Pose: tracker frame → cell frame.
     pub cell_from_tracker: Transform3,
-    /// Transverse MPE: constant (mm) and per-length (mm/mm) parts.
+    /// Transverse MPE, constant part, mm.
     pub mpe_const: f64,
+    /// Transverse MPE per length, mm/mm.
     pub mpe_per_length: f64,
-    /// Distance MPE: constant (mm) and per-length (mm/mm).
+    /// Distance MPE, constant part, mm.
     pub distance_mpe_const: f64,
+    /// Distance MPE per length, mm/mm.
     pub distance_mpe_per_length: f64,
     /// σ = fraction · MPE (0.5: the MPE read as ~2σ).
     pub sigma_fraction: f64,
@@ -148,6 +172,7 @@ pub struct Tracker {
     pub n_assumed: f64,
     /// Largest measurable distance (mm).
     pub max_range: f64,
+    /// Time windows in which the beam is interrupted.
     pub beam_breaks: Vec<BeamBreak>,
 }
 
@@ -250,11 +275,13 @@ impl Tracker {
 /// A target vibrating (sinusoidally) about a centre: `centre + amplitude·sin(2π f t + phase)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct VibratingTarget {
+    /// Centre of the vibration, mm.
     pub centre: Point3,
     /// Amplitude vector (mm).
     pub amplitude: Vector3,
     /// Frequency (Hz).
     pub frequency: f64,
+    /// Phase, rad.
     pub phase: f64,
 }
 

@@ -16,12 +16,18 @@ use truepos_io::InputError;
 use truepos_math::bestfit::{self, BestFitOptions};
 use truepos_math::{Transform3, Vector3};
 
-/// How the transform is found.
+/// How the transform is found (`truepos align --method best-fit|three-point`; the variants'
+/// documentation is the command line's help for each value, which names the option `--from`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Method {
     /// Least squares over all matched points (at least three, not collinear).
     BestFit,
     /// The first three matched points (in `from` order): 3-2-1 construction.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "The first three matched points (in `--from` order): 3-2-1 construction")
+    )]
     ThreePoint,
 }
 
@@ -42,14 +48,18 @@ pub struct AlignOptions<'a> {
     pub scale: bool,
     /// A column of non-negative weights, looked up in `to`, then in `from`.
     pub weights: Option<&'a str>,
+    /// How the transform is found.
     pub method: Method,
 }
 
 /// The transform `to_from_from` with its residuals.
 #[derive(Clone, Debug)]
 pub struct Alignment {
+    /// How the transform was found.
     pub method: Method,
+    /// The transform from the `from` frame to the `to` frame (mm).
     pub to_from_from: Transform3,
+    /// The ids of the matched points, in `from` order.
     pub ids: Vec<String>,
     /// `to − transform · from` per matched point, mm.
     pub residuals: Vec<Vector3>,

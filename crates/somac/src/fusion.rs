@@ -7,7 +7,9 @@ use truepos_math::{Point3, Vector3};
 /// A reading in the machine frame with its standard uncertainty.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Reading {
+    /// The position, machine frame, mm.
     pub p: Point3,
+    /// Its standard uncertainty, mm.
     pub sigma_mm: f64,
 }
 

@@ -81,6 +81,7 @@ impl Default for InspectPlan {
     }
 }
 
+/// Why an inspection of holes failed.
 #[derive(Debug, Error)]
 pub enum InspectError {
     /// The request cannot be carried out as given (nothing has moved).
@@ -88,15 +89,26 @@ pub enum InspectError {
     Plan(String),
     /// The machine failed at a hole (the machine is left where the device error says).
     #[error("hole {hole}: {error}")]
-    Device { hole: String, error: DeviceError },
+    Device {
+        /// The hole's id.
+        hole: String,
+        /// What the machine said.
+        error: DeviceError,
+    },
     /// The points of a hole do not determine a circle.
     #[error("hole {hole}: circle fit of the probed points: {error}")]
-    Fit { hole: String, error: FitError },
+    Fit {
+        /// The hole's id.
+        hole: String,
+        /// Why the fit failed.
+        error: FitError,
+    },
 }
 
 /// One inspected hole.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HoleResult {
+    /// The hole as planned.
     pub hole: Hole,
     /// Measured centre at the probing depth (mm).
     pub measured_mm: Point3,
@@ -108,11 +120,13 @@ pub struct HoleResult {
     pub diameter_mm: f64,
     /// Measured minus nominal diameter (mm).
     pub diameter_error_mm: f64,
-    /// Roundness (max − min radial residual) and RMS residual of the fit (mm).
+    /// Roundness (max − min radial residual) of the fit, mm.
     pub roundness_mm: f64,
+    /// RMS residual of the circle fit, mm.
     pub rms_mm: f64,
-    /// Standard uncertainties of the centre (X, Y) and of the diameter from the fit (mm).
+    /// Standard uncertainties of the centre (X, Y) from the fit, mm.
     pub center_uncertainty_mm: [f64; 2],
+    /// Standard uncertainty of the diameter from the fit, mm.
     pub diameter_uncertainty_mm: f64,
     /// The latched tip centres.
     pub points: Vec<Point3>,
@@ -130,11 +144,15 @@ impl HoleResult {
 /// The inspection of a set of holes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Inspection {
+    /// Every hole, in plan order.
     pub holes: Vec<HoleResult>,
     /// Statistics of the position errors (mm).
     pub stats: HoleStats,
+    /// The plan that was run.
     pub plan: InspectPlan,
+    /// The machine it ran on.
     pub device: DeviceInfo,
+    /// Wall time of the inspection, s.
     pub elapsed_s: f64,
 }
 
@@ -372,8 +390,11 @@ fn probe_hole(
 /// against, and for a virtual machine the truth of its holes (top centre, diameter).
 #[derive(Debug, Clone, PartialEq)]
 pub struct InspectReport {
+    /// The inspection.
     pub inspection: Inspection,
+    /// The position tolerance the holes are judged against, mm.
     pub tolerance_mm: Option<f64>,
+    /// For a virtual machine: each hole's true top centre and diameter, mm.
     pub truth: Option<Vec<(Point3, f64)>>,
     /// How the holes' uncertainties were found: (`task-specific` or `fit-residuals`, Monte Carlo
     /// runs, basis). The holes' `center_uncertainty_mm` / `diameter_uncertainty_mm` hold them.
@@ -447,6 +468,7 @@ impl truepos_io::report::Report for InspectReport {
 
 /// JSON of `truepos somac inspect --json` (every length in mm, as the contract's other objects).
 impl Inspection {
+    /// The inspection as the JSON of `truepos somac inspect --json` (lengths in mm).
     pub fn to_json(&self) -> serde_json::Value {
         let v3 = |p: &Point3| serde_json::json!([p.x, p.y, p.z]);
         serde_json::json!({

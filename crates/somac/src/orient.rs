@@ -20,12 +20,15 @@ use truepos_math::Transform3;
 /// A program rewritten into the measured frame.
 #[derive(Clone, Debug)]
 pub struct Oriented {
+    /// The transform from the program's reference frame to the measured frame (mm).
     pub measured_from_reference: Transform3,
+    /// The ids of the targets used.
     pub ids: Vec<String>,
     /// Residual length per target, mm.
     pub residuals_mm: Vec<f64>,
     /// Lines of the program.
     pub lines: usize,
+    /// The rewritten program's file.
     pub output: PathBuf,
 }
 

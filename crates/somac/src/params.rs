@@ -23,7 +23,9 @@ pub struct Params {
     pub dwell_s: f64,
     /// Wait between unstable attempts (s).
     pub settle_wait_s: f64,
+    /// Lowest temperature the run accepts, °C.
     pub temperature_min_c: f64,
+    /// Highest temperature the run accepts, °C.
     pub temperature_max_c: f64,
     /// Temperature change since the last orientation that forces a new orientation.
     pub temperature_change_max_c: f64,
@@ -39,6 +41,7 @@ pub struct Params {
     pub orient_every: usize,
     /// Fit a scale in the real-time orientation.
     pub orient_with_scale: bool,
+    /// What to do when a tracker's beam breaks.
     pub beam_recovery: BeamRecovery,
     /// Send corrections (false: measure and report only, the machine's native accuracy).
     pub correct: bool,

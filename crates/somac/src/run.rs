@@ -24,14 +24,19 @@ use truepos_math::{Point3, Transform3, Vector3};
 
 pub use truepos_device::TrackerSetup;
 
+/// The outcome of one stop of the control loop.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum StopStatus {
+    /// The stop reached its tolerance.
     Success,
+    /// The stop was corrected but did not reach its tolerance.
     Partial,
+    /// The stop could not be measured or corrected.
     Failure,
 }
 
 impl StopStatus {
+    /// The status as the audit trail and JSON spell it (`SUCCESS`, `PARTIAL`, `FAILURE`).
     pub fn as_str(self) -> &'static str {
         match self {
             StopStatus::Success => "SUCCESS",
@@ -41,6 +46,7 @@ impl StopStatus {
     }
 }
 
+/// What happened at one stop of the control loop.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StopReport {
     /// 1-based program line.
@@ -49,11 +55,15 @@ pub struct StopReport {
     pub commanded_mm: Point3,
     /// Last fused reading, if any.
     pub measured_mm: Option<Point3>,
+    /// The corrections sent, in order, mm.
     pub corrections: Vec<Vector3>,
+    /// Correction iterations made.
     pub iterations: usize,
     /// |measured − commanded| of the last reading (NaN when there was none).
     pub final_error_mm: f64,
+    /// The outcome.
     pub status: StopStatus,
+    /// Why, when not a success.
     pub message: Option<String>,
 }
 
@@ -146,21 +156,32 @@ impl std::fmt::Display for AlarmKind {
 /// An alarm raised during a run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Alarm {
+    /// 1-based program line.
     pub line: usize,
+    /// What kind of alarm.
     pub kind: AlarmKind,
+    /// What happened.
     pub message: String,
+    /// What the loop did about it.
     pub action: String,
 }
 
+/// What a run of the control loop did.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunReport {
+    /// Every stop, in program order.
     pub stops: Vec<StopReport>,
+    /// Every alarm, in order.
     pub alarms: Vec<Alarm>,
     /// The run stopped before the end of the program (a stop alarm).
     pub halted: bool,
+    /// Number of real-time orientations.
     pub orientations: usize,
+    /// Number of refractive index updates.
     pub refractive_updates: usize,
+    /// The last orientation: part frame to machine frame (mm).
     pub machine_from_part: Transform3,
+    /// Number of program blocks sent.
     pub blocks_sent: usize,
 }
 
@@ -249,18 +270,29 @@ impl RunOutcome {
 /// A run's verdict and its reasons (never empty).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct RunVerdict {
+    /// The verdict.
     pub verdict: RunOutcome,
+    /// Why, as sentences.
     pub reasons: Vec<String>,
 }
 
+/// Why a run of the control loop could not go on.
 #[derive(Debug, Error)]
 pub enum RunError {
+    /// The parameters are invalid (why).
     #[error("invalid parameters: {0}")]
     Params(String),
+    /// The controller or a tracker failed.
     #[error(transparent)]
     Device(#[from] DeviceError),
+    /// A program line cannot be run.
     #[error("line {line}: {message}")]
-    Program { line: usize, message: String },
+    Program {
+        /// 1-based program line.
+        line: usize,
+        /// Why.
+        message: String,
+    },
     /// The audit trail could not store an event (its storage's error is the source).
     #[error("audit trail")]
     Audit(#[source] crate::audit::SinkError),

@@ -16,6 +16,7 @@ use truepos_math::{Point3, Transform3};
 /// uncertainty from the residual scatter.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ScaleFit {
+    /// The fitted scale (measured / nominal), dimensionless.
     pub scale: f64,
     /// Standard uncertainty of `scale` (1σ, dimensionless).
     pub u_scale: f64,
@@ -69,7 +70,9 @@ pub fn fit_scale(reference: &[Point3], measured: &[Point3]) -> Result<(ScaleFit,
 /// The part's thermal expansion: the scale expected at `temperature_c`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Expansion {
+    /// Coefficient of thermal expansion of the part, ppm/°C.
     pub cte_ppm_per_c: f64,
+    /// The part's temperature, °C.
     pub temperature_c: f64,
     /// Temperature of the reference positions (usually 20 °C).
     pub reference_temperature_c: f64,
@@ -90,7 +93,9 @@ impl Expansion {
 /// expected from it.
 #[derive(Clone, Copy, Debug)]
 pub struct Autoscale {
+    /// The scale fitted to the targets.
     pub fit: ScaleFit,
+    /// The scale expected from the part's temperature, when known.
     pub expected: Option<f64>,
 }
 

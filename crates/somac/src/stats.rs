@@ -3,12 +3,17 @@
 /// Statistics of the 3D position errors of the holes (mm).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HoleStats {
+    /// Number of holes.
     pub n: usize,
+    /// Mean position error, mm.
     pub mean_error_mm: f64,
+    /// Standard deviation of the position errors, mm.
     pub std_error_mm: f64,
+    /// Largest position error, mm.
     pub max_error_mm: f64,
 }
 
+/// Statistics of the holes' position errors (mm).
 pub fn hole_stats(errors_mm: &[f64]) -> HoleStats {
     HoleStats {
         n: errors_mm.len(),

@@ -85,7 +85,9 @@ pub fn suggested_command(d: &HeadOffsetData, points: &Path) -> String {
 
 /// What [`write_dataset`] wrote.
 pub struct Written {
+    /// The points file written.
     pub points: PathBuf,
+    /// The truth file written.
     pub truth: PathBuf,
     /// The command line that calibrates the data set.
     pub command: String,
@@ -104,6 +106,7 @@ impl Written {
     }
 }
 
+/// Write the data set's points file and truth file into `dir`.
 pub fn write_dataset(dir: &Path, d: &HeadOffsetData) -> Result<Written> {
     std::fs::create_dir_all(dir).map_err(|e| CellError::io(dir, e))?;
     let points = dir.join("points.csv");

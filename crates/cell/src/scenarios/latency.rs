@@ -65,23 +65,35 @@ pub fn write_dataset(dir: &Path, d: &scen::Dataset) -> Result<()> {
 pub struct SimRequest {
     /// One of [`scen::Variant::ALL`] by name (sphere, plates, speeds, …).
     pub variant: String,
+    /// Seed of the noise.
     pub seed: u64,
     /// System delay (s): machine capture latency minus probe capture latency.
     pub delay_s: Option<f64>,
+    /// Contact speed, mm/s (`None`: the variant's).
     pub speed_mm_s: Option<f64>,
     /// Repeats of the contact pattern; `None`: [`default_repeats`] (enough for the 10 µs goal).
     pub repeats: Option<usize>,
+    /// Machine sampling rate, Hz (`None`: the variant's).
     pub machine_rate_hz: Option<f64>,
+    /// Probe sampling rate, Hz (`None`: the variant's).
     pub probe_rate_hz: Option<f64>,
 }
 
 /// A request the scenario cannot honour.
 #[derive(Debug, thiserror::Error)]
 pub enum SimRequestError {
+    /// The variant is not one of the scenario's.
     #[error("unknown variant '{given}': one of {known}")]
-    UnknownVariant { given: String, known: String },
+    UnknownVariant {
+        /// The name given.
+        given: String,
+        /// The names there are.
+        known: String,
+    },
+    /// The delay is not finite.
     #[error("--delay-s must be finite")]
     DelayNotFinite,
+    /// The scenario refused the settings.
     #[error(transparent)]
     Scenario(#[from] scen::LatencyError),
 }
@@ -130,13 +142,18 @@ pub fn simulate(r: &SimRequest) -> Result<scen::Dataset, SimRequestError> {
 
 /// Streams of a data set, as the library takes them.
 pub struct OwnedStreams {
+    /// Machine time stamps, s.
     pub mt: Vec<f64>,
+    /// Machine positions, mm.
     pub m: Vec<[f64; 3]>,
+    /// Probe time stamps, s.
     pub pt: Vec<f64>,
+    /// Probe deflections, mm.
     pub p: Vec<[f64; 3]>,
 }
 
 impl OwnedStreams {
+    /// Copy the streams of a simulated data set.
     pub fn of(d: &scen::Dataset) -> Self {
         OwnedStreams {
             mt: d.machine.iter().map(|x| x.0).collect(),
@@ -145,6 +162,7 @@ impl OwnedStreams {
             p: d.probe.iter().map(|x| [x.1.x, x.1.y, x.1.z]).collect(),
         }
     }
+    /// The streams as the latency library takes them.
     pub fn streams(&self) -> Streams<'_> {
         Streams { machine_t: &self.mt, machine: &self.m, probe_t: &self.pt, probe: &self.p }
     }

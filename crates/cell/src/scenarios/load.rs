@@ -115,6 +115,7 @@ pub fn write_scenario(dir: &Path, seed: u64, mass_kg: f64, noise_um: f64) -> Res
 /// deterministic FE solutions; a bound on the sparse solvers' numerical error.
 const LOAD_MODEL_U_UM: f64 = 0.001;
 
+/// The report section of the load scenario: the bed deflection compensated against the truth.
 pub fn demo_section(report: &mut Report) -> Result<()> {
     let dir = report.dir.join("load");
     let (cfg, data) = write_scenario(&dir, 1, 2000.0, 0.3)?;

@@ -18,10 +18,15 @@ use truepos_math::{Point3, Vector3};
 /// One NIST data set as shipped: its folder under `data/nist-fit`, its name, the `.ds` points
 /// file and the `.fit` certified values.
 pub struct NistSet {
+    /// The element kind.
     pub kind: Kind,
+    /// Its folder under `data/nist-fit`.
     pub folder: &'static str,
+    /// The data set's name.
     pub name: &'static str,
+    /// The `.ds` points file's bytes.
     pub ds: &'static [u8],
+    /// The `.fit` file's text (the certified values).
     pub fit: &'static str,
 }
 
@@ -65,7 +70,9 @@ pub const NIST_FOLDERS: [(&str, Kind); 6] = [
 
 /// One NIST data set fitted and compared with its certified result.
 pub struct NistRow {
+    /// The element kind.
     pub kind: Kind,
+    /// The data set's name.
     pub name: String,
     /// Largest position/size deviation, mm.
     pub position_dev_mm: f64,
@@ -174,15 +181,18 @@ fn compare(kind: Kind, name: &str, pts: &[Point3], fit_path: &Path, fit_text: &s
     Ok(NistRow { kind, name: name.to_string(), position_dev_mm: pos, angle_dev_rad: ang })
 }
 
-/// Acceptance limits of the project (1 nm, 10 nrad); PTB's ISO 10360-6 limits are 100× looser.
+/// Acceptance limit of the project on the position/size deviation from the certified fit, mm
+/// (1 nm; PTB's ISO 10360-6 limits are 100× looser).
 pub const NIST_POS_TOL_MM: f64 = 1e-6;
+/// Acceptance limit of the project on the orientation deviation from the certified fit, rad
+/// (10 nrad).
 pub const NIST_ANG_TOL_RAD: f64 = 1e-8;
 
-/// The fitting section of the demo report (NIST data sets against their certified fits).
 /// Expanded uncertainty (nm) of a comparison with NIST's certified values: a bound on the
 /// double-precision rounding of the fit and on the certified values' printed digits.
 const NIST_COMPARISON_U_NM: f64 = 0.001;
 
+/// The fitting section of the demo report (NIST data sets against their certified fits).
 pub fn demo_section(report: &mut Report) -> Result<()> {
     let rows = nist_table()?;
     if rows.is_empty() {

@@ -46,10 +46,13 @@ pub const COMP_CAL_U_SQUARENESS: f64 = 0.2e-6;
 /// points measured with a probe 150 mm below the ram with their true positions (the simulator's
 /// exact kinematic chain).
 pub struct CompData {
+    /// The error magnitudes of the simulated machine.
     pub mags: ErrorMagnitudes,
+    /// The simulated machine's true geometric errors.
     pub errors: GeometricErrors,
     /// Map step (mm).
     pub step: f64,
+    /// The calibrated map, as the compensation reads it.
     pub map: GeometricMap,
     /// The calibrated map's rows per axis: positions (mm) and `[pos, str1, str2, pitch, yaw,
     /// roll]` (mm, rad), noise included.
@@ -128,17 +131,23 @@ pub fn comp_data(seed: u64) -> Result<CompData> {
 
 /// What [`write_comp_dataset`] wrote.
 pub struct CompWritten {
+    /// The map file written.
     pub map: PathBuf,
+    /// The squareness file written.
     pub squareness: PathBuf,
+    /// The points file written.
     pub points: PathBuf,
+    /// The truth file written.
     pub truth: PathBuf,
     /// The command line that corrects the points.
     pub command: String,
+    /// Number of points.
     pub n_points: usize,
     /// Map rows per axis (x, y, z).
     pub rows: [usize; 3],
     /// RMS and max 3D error of the uncorrected points (µm).
     pub rms_um: f64,
+    /// Largest 3D error of the uncorrected points, µm.
     pub max_um: f64,
 }
 
@@ -313,10 +322,12 @@ pub fn write_comp_dataset(dir: &Path, seed: u64) -> Result<CompWritten> {
 pub struct CompCheck {
     /// 3D error of each point before and after correction (µm).
     pub before_um: Vec<f64>,
+    /// 3D error of each point after correction, µm.
     pub after_um: Vec<f64>,
     /// Per point and coordinate: the residual `corrected − true` and its expanded uncertainty
     /// (k = 2) propagated from the map's uncertainties (µm).
     pub residual_um: Vec<[f64; 3]>,
+    /// Expanded uncertainty (k = 2) of each residual coordinate, µm.
     pub expanded_u_um: Vec<[f64; 3]>,
 }
 

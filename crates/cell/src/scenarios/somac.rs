@@ -22,21 +22,30 @@ use truepos_somac::params::BeamRecovery;
 use truepos_somac::stats::{capability_ppm, hole_stats, HoleStats};
 use truepos_somac::{run_program, Params, RunReport};
 
+/// The `[air]` table of the cell file.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AirFile {
+    /// Air temperature at the start, °C.
     pub temperature_c: f64,
+    /// Linear temperature drift, °C/h.
     #[serde(default)]
     pub drift_c_per_h: f64,
+    /// Step changes (time s, change °C).
     #[serde(default)]
     pub steps: Vec<[f64; 2]>,
+    /// Amplitude of the temperature cycle, °C.
     #[serde(default)]
     pub cycle_amplitude_c: f64,
+    /// Period of the temperature cycle, s.
     #[serde(default = "default_period")]
     pub cycle_period_s: f64,
+    /// Air pressure at the start, Pa.
     pub pressure_pa: f64,
+    /// Pressure drift, Pa/h.
     #[serde(default)]
     pub pressure_drift_pa_per_h: f64,
+    /// Relative humidity, %.
     pub humidity_pct: f64,
 }
 
@@ -44,53 +53,86 @@ fn default_period() -> f64 {
     3600.0
 }
 
+/// One `[[part.target]]` nest: id and nominal position.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TargetFile {
+    /// The target's id.
     pub id: String,
+    /// Nominal X, program frame, mm.
     pub x_mm: f64,
+    /// Nominal Y, program frame, mm.
     pub y_mm: f64,
+    /// Nominal Z, program frame, mm.
     pub z_mm: f64,
 }
 
+/// The `[part]` table: expansion, placement and target nests.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PartFile {
+    /// Coefficient of thermal expansion, ppm/°C.
     pub cte_ppm_per_c: f64,
+    /// Thermal time constant, s.
     pub tau_s: f64,
+    /// Actual placement's rotation about Z relative to nominal, µrad.
     pub placement_rz_urad: f64,
+    /// Actual placement's translation relative to nominal, mm.
     pub placement_mm: [f64; 3],
+    /// The part's target nests.
     pub target: Vec<TargetFile>,
 }
 
+/// One `[[tracker]]` table.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TrackerFile {
+    /// Tracker head position, machine frame, mm.
     pub position_mm: [f64; 3],
+    /// Rotation of the tracker frame about Z, degrees.
     pub yaw_deg: f64,
+    /// Whether the tracker has an absolute distance meter.
     pub adm: bool,
+    /// Boxes (lower, upper corner, mm) blocking the line of sight.
     #[serde(default)]
     pub obstructions: Vec<[[f64; 3]; 2]>,
 }
 
+/// The `[loop]` table: every loop parameter, optional (absent: the default of [`Params`]).
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LoopFile {
+    /// Text that marks a measurement block in a comment.
     pub keyword: Option<String>,
+    /// A stop succeeds when the 3D error is at most this, mm.
     pub threshold_mm: Option<f64>,
+    /// Correction moves per stop at most.
     pub max_iterations: Option<usize>,
+    /// Longest single correction move, mm.
     pub max_single_correction_mm: Option<f64>,
+    /// Largest accumulated correction offset, mm.
     pub max_total_correction_mm: Option<f64>,
+    /// Tracker samples per reading.
     pub samples: Option<usize>,
+    /// Largest sample standard deviation of a stable reading, mm.
     pub stable_std_mm: Option<f64>,
+    /// Attempts at a stable reading before the stop fails.
     pub stable_attempts: Option<usize>,
+    /// Dwell after every move before the first reading, s.
     pub dwell_s: Option<f64>,
+    /// Lowest temperature the run accepts, °C.
     pub temperature_min_c: Option<f64>,
+    /// Highest temperature the run accepts, °C.
     pub temperature_max_c: Option<f64>,
+    /// Temperature change that forces a new orientation, °C.
     pub temperature_change_max_c: Option<f64>,
+    /// Inclination change that forces a new orientation, µrad.
     pub inclination_limit_urad: Option<f64>,
+    /// Part temperature change that triggers a re-scale, °C.
     pub autoscale_step_c: Option<f64>,
+    /// Refractive index change that triggers an update, ppm.
     pub refractive_update_ppm: Option<f64>,
+    /// Re-orient every this many measurement stops (0: only when forced).
     pub orient_every: Option<usize>,
     /// "manual", "look-ahead" or "look-back".
     pub beam_recovery: Option<String>,
@@ -103,16 +145,25 @@ pub type Targets = Vec<(String, Point3)>;
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CellFile {
+    /// Seed of every random draw of the cell.
     pub seed: u64,
+    /// Multiplier on the gantry's geometric error magnitudes.
     pub error_scale: f64,
+    /// Reflector offset from the ram reference point, ram frame, mm.
     pub tool_offset_mm: [f64; 3],
+    /// End-effector vibration amplitude after a move, mm.
     pub vibration_mm: f64,
+    /// Probability that someone walks through a beam at a reading.
     pub beam_interrupt_probability: f64,
     /// [time_s, tracker index, tilt_urad]
     pub tracker_bump: Option<[f64; 3]>,
+    /// The `[air]` table.
     pub air: AirFile,
+    /// The `[part]` table.
     pub part: PartFile,
+    /// The `[[tracker]]` tables.
     pub tracker: Vec<TrackerFile>,
+    /// The `[loop]` table: the loop parameters.
     #[serde(default, rename = "loop")]
     pub loop_: LoopFile,
     /// The machine's travel (mm, machine frame); optional.
@@ -125,7 +176,9 @@ pub struct CellFile {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MachineFile {
+    /// Lower corner of the travel, machine frame, mm.
     pub travel_min_mm: [f64; 3],
+    /// Upper corner of the travel, machine frame, mm.
     pub travel_max_mm: [f64; 3],
 }
 
@@ -219,6 +272,7 @@ impl CellFile {
 }
 
 impl CellFile {
+    /// The cell file of a cell configuration, its part targets and loop parameters.
     pub fn from_config(c: &CellConfig, targets: &[(String, Point3)], params: &Params) -> CellFile {
         CellFile {
             seed: c.seed,
@@ -268,6 +322,8 @@ impl CellFile {
         }
     }
 
+    /// The cell configuration, part targets and loop parameters of the file at `path` (named in
+    /// errors), checked.
     pub fn to_config(&self, path: &Path) -> Result<(CellConfig, Targets, Params), InputError> {
         let bad = |m: String| InputError::in_file(path, m);
         self.check().map_err(bad)?;
@@ -377,10 +433,13 @@ pub fn scenario(seed: u64, holes_per_row: usize) -> (CellConfig, truepos_sim::sc
 
 /// Result of one run on the virtual cell.
 pub struct VirtualRun {
+    /// The loop's report.
     pub report: RunReport,
     /// True hole errors (mm) per measurement line.
     pub true_errors: Vec<(usize, f64)>,
+    /// The machine's volume diagonal, mm.
     pub diagonal_mm: f64,
+    /// Simulated duration of the run, s.
     pub duration_s: f64,
 }
 
@@ -462,6 +521,7 @@ impl VirtualRun {
     }
 }
 
+/// Run `program_text` through the control loop on a virtual cell of `cfg`, recording to `sink`.
 pub fn run_virtual(
     program_text: &str,
     cfg: CellConfig,
@@ -643,12 +703,14 @@ pub fn read_cell_file(path: &Path) -> Result<(CellConfig, Targets, Params), Inpu
 
 /// What [`write_scenario`] wrote.
 pub struct Written {
+    /// Number of holes in the program.
     pub holes: usize,
     /// Mean true hole error of the program run as written: no orientation, no correction (mm).
     pub native_mean_error_mm: f64,
     /// Mean true hole error with the orientation through the part targets but no correction
     /// loop, as `somac run --no-correct` runs it (mm).
     pub oriented_only_mean_error_mm: f64,
+    /// Number of trackers in the cell.
     pub trackers: usize,
 }
 
@@ -775,7 +837,7 @@ const CELL_COMMENTS: &[(&str, &str, &str)] = &[
 ];
 
 /// `cell.toml` as written by [`write_scenario`], with a `#` comment (meaning and unit) above
-/// every key and table it knows ([`CELL_COMMENTS`]).
+/// every key and table it knows (`CELL_COMMENTS`).
 pub fn annotate_cell_toml(text: &str) -> String {
     let mut out = String::from(
         "# truepos cell file: the virtual large gantry, its laser trackers, the part and the loop.\n\

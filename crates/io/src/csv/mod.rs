@@ -20,7 +20,7 @@
 //!
 //! Layout: this file holds the table API, the general row path and the writer; `direct` the
 //! direct readers' segment loop; `swar` the portable number conversion; `x86` every kernel that
-//! needs an instruction set beyond the x86-64 baseline. [`cpu_has_ssse3`] is the one run-time
+//! needs an instruction set beyond the x86-64 baseline. `cpu_has_ssse3` is the one run-time
 //! choice between them.
 
 use crate::num::NumFormat;
@@ -98,8 +98,10 @@ impl Text {
 
 /// A parsed CSV file: the text, the header and the byte offset of each data row.
 pub struct Table {
+    /// The file's path, as given (named in error messages).
     pub path: PathBuf,
     text: Text,
+    /// The column names of the header row, trimmed.
     pub header: Vec<String>,
     /// Comment lines before the header, without the leading `#` and surrounding spaces.
     pub comments: Vec<String>,
@@ -819,6 +821,7 @@ impl Table {
         }
     }
 
+    /// Number of data rows.
     pub fn n_rows(&self) -> usize {
         self.rows.len()
     }
@@ -1223,6 +1226,7 @@ pub struct CsvWriter<W: Write> {
 }
 
 impl<W: Write> CsvWriter<W> {
+    /// A writer on `w` that formats numbers in the shortest round-trip form.
     pub fn new(w: W) -> Self {
         Self { w, first: true, fmt: NumFormat::Shortest, row: Vec::with_capacity(256) }
     }
@@ -1231,6 +1235,7 @@ impl<W: Write> CsvWriter<W> {
         self.fmt = fmt;
         self
     }
+    /// The number format in use (set by [`CsvWriter::with_format`]).
     pub fn format(&self) -> NumFormat {
         self.fmt
     }
@@ -1238,6 +1243,7 @@ impl<W: Write> CsvWriter<W> {
     pub fn comment(&mut self, text: &str) -> std::io::Result<()> {
         writeln!(self.w, "# {text}")
     }
+    /// Write the header row (column names joined by commas).
     pub fn header(&mut self, names: &[&str]) -> std::io::Result<()> {
         writeln!(self.w, "{}", names.join(","))
     }
@@ -1254,6 +1260,7 @@ impl<W: Write> CsvWriter<W> {
         push_field(&mut self.row, s);
         Ok(())
     }
+    /// Append one number to the current row, formatted by the writer's [`NumFormat`].
     #[inline]
     pub fn field_f64(&mut self, v: f64) -> std::io::Result<()> {
         self.sep();
@@ -1266,6 +1273,7 @@ impl<W: Write> CsvWriter<W> {
         self.row.extend_from_slice(s.as_bytes());
         Ok(())
     }
+    /// Finish the current row (newline) and write it.
     pub fn end_row(&mut self) -> std::io::Result<()> {
         self.first = true;
         self.row.push(b'\n');
@@ -1273,6 +1281,7 @@ impl<W: Write> CsvWriter<W> {
         self.row.clear();
         r
     }
+    /// Write a whole row of numbers.
     pub fn row_f64(&mut self, v: &[f64]) -> std::io::Result<()> {
         for x in v {
             self.field_f64(*x)?;
@@ -1336,7 +1345,7 @@ pub mod kernels {
     /// Bytes a short-decimal kernel may read from the start of a number.
     pub const READ: usize = super::SHORT_DECIMAL_READ;
 
-    /// The portable SWAR short decimal ([`super::swar`]); `None` if `b` is shorter than [`READ`].
+    /// The portable SWAR short decimal (`super::swar`); `None` if `b` is shorter than [`READ`].
     pub fn short_decimal_swar(b: &[u8]) -> Option<(f64, usize)> {
         (b.len() >= READ).then(|| super::short_decimal_prefix(b)).flatten()
     }

@@ -24,6 +24,7 @@ use crate::errors::{rotation_matrix, Axis, GeometricErrors};
 pub struct SerialChain {
     /// Axes from the bed outwards.
     pub order: [Axis; 3],
+    /// The geometric errors of the axes.
     pub errors: GeometricErrors,
     /// Thermal scale growth per machine axis (dimensionless, CTE·ΔT of scale/structure; see
     /// [`crate::thermal`]); adds `growth[A]·(a − growth_origin[A])` to the positioning of A.

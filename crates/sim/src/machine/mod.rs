@@ -35,8 +35,11 @@ use crate::errors::{Axis, ErrorMagnitudes, GeometricErrors};
 /// The kinds of machine the virtual cell has.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MachineKind {
+    /// A bridge CMM.
     BridgeCmm,
+    /// A vertical machining centre with a C-axis table.
     Vmc,
+    /// A large gantry.
     Gantry,
 }
 
@@ -62,9 +65,11 @@ impl MachineKind {
 /// A three-axis machine (with rotary axes for the VMC).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Machine {
+    /// What kind of machine it is.
     pub kind: MachineKind,
     /// Axis travels (mm); axis positions run from 0 to the travel.
     pub travel: [f64; 3],
+    /// The axes with their errors, from the bed outwards.
     pub chain: SerialChain,
     /// The C-axis rotary table (VMC only).
     pub table: Option<RotaryTable>,

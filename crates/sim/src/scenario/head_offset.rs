@@ -43,55 +43,116 @@ pub const MAX_ROWS: usize = 1_000_000;
 pub enum HeadOffsetError {
     /// A number is out of its valid range or not finite.
     #[error("invalid head-offset scenario setting {name}: {reason}")]
-    Invalid { name: &'static str, reason: String },
+    Invalid {
+        /// The setting.
+        name: &'static str,
+        /// Why it is invalid.
+        reason: String,
+    },
     /// A face of the vertex reference is never visible to the head.
     #[error(
         "face {face} of the reference object is visible from none of the orientations; add B or C angles"
     )]
-    FaceNeverVisible { face: usize },
+    FaceNeverVisible {
+        /// The face's id.
+        face: usize,
+    },
     /// The laser head cannot reach the reference in some orientation.
     #[error("the laser beam cannot measure the reference object in orientation b = {b_deg}°, c = {c_deg}°")]
-    LaserCannotReach { b_deg: f64, c_deg: f64 },
+    LaserCannotReach {
+        /// Head angle B of the orientation, degrees.
+        b_deg: f64,
+        /// Table angle C of the orientation, degrees.
+        c_deg: f64,
+    },
 }
 
 /// The measuring head.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Head {
     /// Touch-trigger probe; `Q` is the stylus-tip centre.
-    TouchProbe { tip_radius: f64 },
+    TouchProbe {
+        /// Stylus tip radius, mm.
+        tip_radius: f64,
+    },
     /// Laser distance head (tilt, measuring range; the noise is the scenario's `noise`).
-    Laser { tilt: [f64; 2], range: f64 },
+    Laser {
+        /// Beam tilt (α, β), rad.
+        tilt: [f64; 2],
+        /// Measuring range, mm.
+        range: f64,
+    },
 }
 
 /// The reference object, given at its `c = 0` position on the table (machine coordinates).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Reference {
     /// Sphere.
-    Sphere { centre: Point3, radius: f64 },
+    Sphere {
+        /// Centre at c = 0, machine frame, mm.
+        centre: Point3,
+        /// Radius, mm.
+        radius: f64,
+    },
     /// Regular pyramid standing on the table, apex up: `faces` (3..=8) faces, each inclined by
     /// `slope` (rad) from horizontal, the first face's outward normal at azimuth `yaw`; points are
     /// sampled at horizontal distances `inner..outer` (mm) from the apex.
-    Pyramid { apex: Point3, faces: usize, slope: f64, yaw: f64, inner: f64, outer: f64 },
+    Pyramid {
+        /// Apex at c = 0, machine frame, mm.
+        apex: Point3,
+        /// Number of faces, 3 to 8.
+        faces: usize,
+        /// Inclination of each face from horizontal, rad.
+        slope: f64,
+        /// Azimuth of the first face's outward normal, rad.
+        yaw: f64,
+        /// Nearest horizontal distance of a point from the apex, mm.
+        inner: f64,
+        /// Farthest horizontal distance of a point from the apex, mm.
+        outer: f64,
+    },
     /// Top corner of a cuboid lying flat, turned by `yaw` about Z; faces: 0 top (+Z), 1 the side
     /// with outward normal `Rz(yaw)·X`, 2 the side with `Rz(yaw)·Y`; points at `inner..outer`
     /// (mm) from the edges through the vertex.
-    CuboidCorner { vertex: Point3, yaw: f64, inner: f64, outer: f64 },
+    CuboidCorner {
+        /// The corner at c = 0, machine frame, mm.
+        vertex: Point3,
+        /// Rotation of the cuboid about Z, rad.
+        yaw: f64,
+        /// Nearest distance of a point from the edges, mm.
+        inner: f64,
+        /// Farthest distance of a point from the edges, mm.
+        outer: f64,
+    },
 }
 
-/// The data set variants of `truepos simulate head-offset --variant …`.
+/// The data set variants of `truepos simulate head-offset --variant …` (with the `clap` feature,
+/// each value's command-line help is the shorter text of its `value(help)`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Variant {
     /// Touch probe, sphere from B = 0°, 45°, 90°.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Touch probe, sphere from B = 0°, 45°, 90° (Y not observable)")
+    )]
     Swivel,
     /// Touch probe, sphere at C = 0°, 90°, 180°, 270° about the known table centre.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Touch probe, sphere at C = 0°, 90°, 180°, 270° (Z not observable)")
+    )]
     Table,
     /// Touch probe, B ∈ {0°, 90°} × C ∈ {0°, 120°, 240°}.
     Both,
     /// Laser head with beam tilt (2.0°, −1.5°), 10 mm range, B ∈ {0°, 60°} × C ∈ {0°, 120°, 240°}.
+    #[cfg_attr(feature = "clap", value(help = "Laser head with beam tilt (2°, −1.5°)"))]
     Laser,
     /// Touch probe on a 4-sided pyramid (45° faces), B ∈ {0°, 45°} × C ∈ {0°, 90°}.
+    #[cfg_attr(feature = "clap", value(help = "Touch probe on a 4-sided pyramid apex"))]
     Pyramid,
     /// Touch probe on a cuboid corner, B ∈ {0°, 45°} × C ∈ {0°, 90°}.
+    #[cfg_attr(feature = "clap", value(help = "Touch probe on a cuboid corner"))]
     Cuboid,
 }
 
@@ -263,7 +324,9 @@ pub struct HeadOffsetRow {
     pub c_deg: f64,
     /// Raw machine coordinates of the head's reference point P reported by the NC (mm).
     pub x_mm: f64,
+    /// Y of P, mm.
     pub y_mm: f64,
+    /// Z of P, mm.
     pub z_mm: f64,
     /// Laser distance reading (mm), laser head only.
     pub dist_mm: Option<f64>,
@@ -276,6 +339,7 @@ pub struct HeadOffsetRow {
 /// One face of a vertex reference, at c = 0.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct FaceTruth {
+    /// The face id of the rows.
     pub id: usize,
     /// Outward unit normal.
     pub normal: [f64; 3],
@@ -289,6 +353,7 @@ pub struct HeadOffsetTruth {
     /// Whether the rows come from a machine with geometric errors (see
     /// [`HeadOffsetConfig::machine`]); then the contract model is exact only to that error.
     pub machine_errors: bool,
+    /// The reference object (`sphere`, `pyramid`, `cuboid`).
     pub variant_reference: &'static str,
     /// R (mm).
     pub offset_mm: [f64; 3],
@@ -304,23 +369,32 @@ pub struct HeadOffsetTruth {
     /// Radius of the sphere the rows' Q points lie on (sphere radius + tip radius for a touch
     /// probe; the sphere radius for a laser head).
     pub fitted_radius_mm: Option<f64>,
+    /// A point of the table's C axis, mm.
     pub table_center_mm: [f64; 3],
     /// Laser beam tilt α, β (degrees).
     pub tilt_deg: Option<[f64; 2]>,
     /// Laser beam direction u in the head frame at b = 0.
     pub beam_direction: Option<[f64; 3]>,
+    /// The head angles B of the orientations, degrees.
     pub b_deg: Vec<f64>,
+    /// The table angles C of the orientations, degrees.
     pub c_deg: Vec<f64>,
+    /// The faces of a vertex reference.
     pub faces: Vec<FaceTruth>,
+    /// Standard deviation of the simulated noise, µm.
     pub noise_um: f64,
+    /// Number of rows.
     pub n_points: usize,
+    /// Seed of the noise.
     pub seed: u64,
 }
 
 /// The data set.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HeadOffsetData {
+    /// The rows of `points.csv`.
     pub rows: Vec<HeadOffsetRow>,
+    /// What a calibration should recover.
     pub truth: HeadOffsetTruth,
 }
 

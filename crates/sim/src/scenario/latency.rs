@@ -45,8 +45,15 @@ pub const MAX_SAMPLES: f64 = 50_000_000.0;
 /// Invalid configuration.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum LatencyError {
+    /// A setting is invalid.
     #[error("invalid latency scenario setting {name}: {reason}")]
-    Invalid { name: &'static str, reason: String },
+    Invalid {
+        /// The setting.
+        name: &'static str,
+        /// Why.
+        reason: String,
+    },
+    /// A model parameter is invalid.
     #[error(transparent)]
     Param(#[from] ParamError),
 }
@@ -115,9 +122,13 @@ impl Variant {
 /// Everything a user may vary (mm, s, Hz; angles in degrees as named).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Config {
+    /// Which data set to make.
     pub variant: Variant,
+    /// Seed of the noise.
     pub seed: u64,
+    /// Machine position sampling rate, Hz.
     pub machine_rate_hz: f64,
+    /// Probe deflection sampling rate, Hz.
     pub probe_rate_hz: f64,
     /// Machine position capture latency (s), all axes.
     pub machine_latency_s: f64,
@@ -135,10 +146,13 @@ pub struct Config {
     pub stylus_rate_hz: f64,
     /// Servo following-error model; `None` for perfect tracking.
     pub servo: Option<Servo>,
+    /// Centre of the reference sphere, mm.
     pub sphere_centre_mm: Point3,
+    /// Diameter of the reference sphere, mm.
     pub sphere_diameter_mm: f64,
     /// Middle of the plate gap; the faces are at ±gap/2 along X.
     pub plates_mid_mm: Point3,
+    /// Gap between the plates, mm.
     pub plate_gap_mm: f64,
     /// Contact speed (mm/s) of the single-speed variants and of the scan.
     pub speed_mm_s: f64,
@@ -159,6 +173,7 @@ pub struct Config {
     /// Jerk limit of the rest-to-rest transfer moves and of the scan's approach and retract
     /// (mm/s³); `None` for trapezoidal moves.
     pub jerk_mm_s3: Option<f64>,
+    /// Speed of the transfer moves, mm/s.
     pub transfer_speed_mm_s: f64,
     /// Dwell at the deepest point of a contact (s).
     pub dwell_s: f64,
@@ -319,14 +334,20 @@ impl Config {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum ArtefactTruth {
+    /// A sphere.
     Sphere {
+        /// Centre, mm.
         centre_mm: [f64; 3],
+        /// Diameter, mm.
         diameter_mm: f64,
     },
     /// Faces at `mid ∓ axis·gap/2`.
     Plates {
+        /// Middle of the gap, mm.
         mid_mm: [f64; 3],
+        /// Unit axis across the gap.
         axis: [f64; 3],
+        /// Gap, mm.
         gap_mm: f64,
     },
 }
@@ -336,6 +357,7 @@ pub enum ArtefactTruth {
 pub struct ContactTruth {
     /// `+X`, `-Y`, `+Z`, `face1`, `face2`, `scan`.
     pub label: String,
+    /// Contact speed, mm/s.
     pub speed_mm_s: f64,
     /// Contact point on the artefact surface (for a scan: the start point).
     pub surface_point_mm: [f64; 3],
@@ -348,24 +370,36 @@ pub struct ContactTruth {
     /// True-time window of the contact move (s): start of the approach at the stand-off point,
     /// end of the retract back there.
     pub t_start_s: f64,
+    /// End of the retract, true time, s.
     pub t_end_s: f64,
 }
 
 /// The known truth of a run.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Truth {
+    /// The data set's variant.
     pub variant: Variant,
+    /// Seed of the noise.
     pub seed: u64,
     /// Machine − probe capture latency (s); the mean of the per-axis values.
     pub delay_s: f64,
+    /// Machine − probe capture latency per axis, s.
     pub per_axis_delay_s: [f64; 3],
+    /// Machine position capture latency per axis, s.
     pub machine_latency_s: [f64; 3],
+    /// Probe capture latency, s.
     pub probe_latency_s: f64,
+    /// Machine sampling rate, Hz.
     pub machine_rate_hz: f64,
+    /// Probe sampling rate, Hz.
     pub probe_rate_hz: f64,
+    /// Standard deviation of the encoder noise, mm.
     pub encoder_noise_mm: f64,
+    /// Standard deviation of the probe noise, mm.
     pub probe_noise_mm: f64,
+    /// The artefact probed.
     pub artefact: ArtefactTruth,
+    /// Stylus tip radius, mm.
     pub tip_radius_mm: f64,
     /// The artefact's size: sphere diameter or plate gap (mm).
     pub static_size_mm: f64,
@@ -373,8 +407,11 @@ pub struct Truth {
     pub stylus_centre_size_mm: f64,
     /// Distinct contact speeds in order of use (mm/s).
     pub speeds_mm_s: Vec<f64>,
+    /// Largest deflection of the run, mm.
     pub max_deflection_mm: f64,
+    /// Duration of the run, s.
     pub duration_s: f64,
+    /// Every contact (or scan), in order.
     pub contacts: Vec<ContactTruth>,
 }
 
@@ -390,6 +427,7 @@ pub struct Dataset {
     /// bounce that leaves the surface before the sample is not flagged). Not written to the
     /// contract files; for tests and plots.
     pub probe_in_contact: Vec<bool>,
+    /// The known truth of the run.
     pub truth: Truth,
 }
 

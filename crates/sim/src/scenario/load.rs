@@ -31,19 +31,29 @@ use truepos_math::{Point3, Rotation3, Vector3};
 /// Everything that defines the scenario (mm, N, kg, MPa).
 #[derive(Debug, Clone, PartialEq)]
 pub struct LoadConfig {
+    /// The bed plate on its supports.
     pub bed: Bed,
+    /// X of the two rails, mm.
     pub rail_x: [f64; 2],
+    /// Height of the rails above the bed, mm.
     pub rail_height: f64,
+    /// Distance between a carriage's bearings along Y, mm.
     pub bearing_span: f64,
+    /// The portal's travel in Y (start, end), mm.
     pub y_range: [f64; 2],
+    /// Step of the portal positions in Y, mm.
     pub y_step: f64,
+    /// Spacing of the unit-load grid, mm.
     pub grid_spacing: f64,
+    /// Unit load of the influence map, N.
     pub unit_load_n: f64,
     /// Element size the compensation map should use (written to bed.toml).
     pub map_element_size: f64,
     /// Element size of the simulator's own (truth) model: finer.
     pub sim_element_size: f64,
+    /// Mass of the load, kg.
     pub mass_kg: f64,
+    /// Centre of gravity (x, y), mm.
     pub cog: [f64; 2],
     /// Exactly three pads.
     pub rests: [[f64; 2]; 3],
@@ -102,10 +112,13 @@ impl Default for LoadConfig {
 /// Why the scenario cannot be built.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum LoadScenarioError {
+    /// The plate model failed.
     #[error("plate model: {0}")]
     Fe(#[from] FeError),
+    /// The pads cannot carry the load (the forces, N).
     #[error("the three pads are collinear or the centre of gravity is outside them (forces {0:?} N)")]
     Statics([f64; 3]),
+    /// A point is off the bed or outside the portal travel (which).
     #[error("a bearing or measured point is off the bed / outside the portal travel: {0}")]
     Geometry(String),
 }
@@ -113,6 +126,7 @@ pub enum LoadScenarioError {
 /// The scenario's output: what a CMM would report, and the truth.
 #[derive(Debug, Clone, Serialize)]
 pub struct LoadData {
+    /// Weight of the load, N.
     pub weight_n: f64,
     /// Forces on the three pads (N, downwards).
     pub forces_n: [f64; 3],
@@ -125,13 +139,17 @@ pub struct LoadData {
     /// Portal positions (mm) and the portal's pitch/roll there (rad): its physical rotations
     /// about +X and +Y (right-hand rule), the contract's sign.
     pub portal_y: Vec<f64>,
+    /// Portal pitch at each position, rad.
     pub pitch: Vec<f64>,
+    /// Portal roll at each position, rad.
     pub roll: Vec<f64>,
     /// Mean deflection of the portal's four bearings (mm, positive up), not applied.
     pub portal_sink: Vec<f64>,
     /// Deflection of the bed on a grid (for plots): `uz[j][i]` at (`grid_x[i]`, `grid_y[j]`).
     pub grid_x: Vec<f64>,
+    /// Y of the grid rows, mm.
     pub grid_y: Vec<f64>,
+    /// Bed deflection on the grid, mm, positive up.
     pub uz: Vec<Vec<f64>>,
     /// Deflection under each pad (mm).
     pub rest_uz: [f64; 3],

@@ -14,12 +14,16 @@ use truepos_math::{Point3, Vector3};
 /// Which surface a circle scan runs on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ScanSide {
+    /// The inside of a bore.
     Inside,
+    /// The outside of a boss.
     Outside,
+    /// A plane face.
     Plane,
 }
 
 impl ScanSide {
+    /// The side as `features.toml` spells it.
     pub fn as_str(self) -> &'static str {
         match self {
             ScanSide::Inside => "inside",
@@ -32,15 +36,40 @@ impl ScanSide {
 /// A feature's geometry in the terms of `features.toml` (mm, degrees).
 #[derive(Clone, Debug, PartialEq)]
 pub enum ScanGeometry {
-    Circle { center: Point3, axis: Vector3, radius: f64, side: ScanSide, start_deg: f64, sweep_deg: f64 },
-    Line { start: Point3, end: Point3, normal: Vector3 },
+    /// A circular arc.
+    Circle {
+        /// Centre, mm.
+        center: Point3,
+        /// Unit axis.
+        axis: Vector3,
+        /// Radius, mm.
+        radius: f64,
+        /// Which surface.
+        side: ScanSide,
+        /// Start angle, degrees.
+        start_deg: f64,
+        /// Signed sweep, degrees.
+        sweep_deg: f64,
+    },
+    /// A straight line on a surface.
+    Line {
+        /// Start, mm.
+        start: Point3,
+        /// End, mm.
+        end: Point3,
+        /// Unit outward surface normal.
+        normal: Vector3,
+    },
 }
 
 /// One feature: nominal and true geometry.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ScanFeature {
+    /// The feature's id.
     pub id: String,
+    /// Nominal geometry (the features file).
     pub nominal: ScanGeometry,
+    /// True geometry (the machine's part).
     pub actual: ScanGeometry,
     /// Displacement of the true surface along the outward normal at the scan start (mm; +:
     /// the surface lies before the nominal contact point).
@@ -50,12 +79,19 @@ pub struct ScanFeature {
 /// The data set.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ScanScenario {
+    /// The features.
     pub features: Vec<ScanFeature>,
+    /// Approach angle, degrees.
     pub approach_angle_deg: f64,
+    /// Scanning speed, mm/s.
     pub scan_speed_mm_s: f64,
+    /// Transfer speed, mm/s.
     pub move_speed_mm_s: f64,
+    /// Target deflection, mm.
     pub deflection_mm: f64,
+    /// Settle overshoot, mm.
     pub overshoot_mm: f64,
+    /// The two quality bands, mm.
     pub quality_bands_mm: [f64; 2],
 }
 

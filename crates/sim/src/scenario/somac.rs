@@ -14,14 +14,19 @@ use truepos_math::Point3;
 /// Options of the spar program.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SparConfig {
+    /// Number of holes in each row.
     pub holes_per_row: usize,
+    /// Distance between holes in a row, mm.
     pub pitch_mm: f64,
+    /// X of the first hole, mm.
     pub start_x_mm: f64,
     /// Y of the two rows.
     pub rows_y_mm: [f64; 2],
     /// Height of the drilling position (reflector at the drill point) above the part surface z = 0.
     pub drill_z_mm: f64,
+    /// Height of the moves between holes, mm.
     pub clearance_z_mm: f64,
+    /// The comment that marks a measurement block.
     pub keyword: String,
 }
 
@@ -43,8 +48,11 @@ impl Default for SparConfig {
 /// block), and the part's target nests (nominal).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Spar {
+    /// The G-code program.
     pub program: String,
+    /// The holes (index, nominal position mm), in program order.
     pub holes: Vec<(usize, Point3)>,
+    /// The part's target nests (name, nominal position mm).
     pub targets: Vec<(String, Point3)>,
 }
 

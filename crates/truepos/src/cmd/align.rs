@@ -7,14 +7,6 @@ use anyhow::Result;
 use std::path::PathBuf;
 use truepos_somac::align;
 
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Method {
-    /// Least squares over all matched points (at least three, not collinear).
-    BestFit,
-    /// The first three matched points (in `--from` order): 3-2-1 construction.
-    ThreePoint,
-}
-
 #[derive(clap::Args, Debug)]
 #[command(
     after_help = "Both files have columns id,x_mm,y_mm,z_mm; points are matched by id. The result maps\n`from` coordinates to `to` coordinates: to = scale · rotation · from + translation."
@@ -33,19 +25,15 @@ pub struct Args {
     #[arg(long)]
     pub weights: Option<String>,
     /// How the transform is found: least squares over all matched points, or the first three (3-2-1).
-    #[arg(long, value_enum, default_value_t = Method::BestFit)]
-    pub method: Method,
+    #[arg(long, value_enum, default_value_t = align::Method::BestFit)]
+    pub method: align::Method,
     /// Print one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
 }
 
 pub fn run(a: Args) -> Result<Outcome> {
-    let method = match a.method {
-        Method::BestFit => align::Method::BestFit,
-        Method::ThreePoint => align::Method::ThreePoint,
-    };
-    let o = align::AlignOptions { scale: a.scale, weights: a.weights.as_deref(), method };
+    let o = align::AlignOptions { scale: a.scale, weights: a.weights.as_deref(), method: a.method };
     emit(&align::align_files(&a.from, &a.to, o)?, a.json)?;
     Ok(Outcome::Done)
 }

@@ -68,14 +68,6 @@ pub enum Sub {
     Error(ErrorArgs),
 }
 
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ChainArg {
-    /// Bridge CMM: bed → Y → X → Z → tool.
-    Bridge,
-    /// Large gantry: bed → X → Y → Z → tool.
-    Gantry,
-}
-
 /// Options that describe the map.
 #[derive(clap::Args, Debug, Clone)]
 pub struct MapArgs {
@@ -91,8 +83,8 @@ pub struct MapArgs {
     #[arg(long, value_parser = parse_triple, default_value = "0,0,0")]
     pub probe_offset_mm: [f64; 3],
     /// Kinematic chain.
-    #[arg(long, value_enum, default_value_t = ChainArg::Bridge)]
-    pub chain: ChainArg,
+    #[arg(long, value_enum, default_value_t = Chain::BridgeYXZ)]
+    pub chain: Chain,
     /// Hold the end values outside a table's range instead of refusing such points.
     #[arg(long)]
     pub clamp: bool,
@@ -148,10 +140,7 @@ impl MapArgs {
         task::MapFiles {
             map: self.map.clone(),
             squareness: self.squareness.clone(),
-            chain: match self.chain {
-                ChainArg::Bridge => Chain::BridgeYXZ,
-                ChainArg::Gantry => Chain::GantryXYZ,
-            },
+            chain: self.chain,
             clamp: self.clamp,
         }
     }

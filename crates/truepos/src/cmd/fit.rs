@@ -10,66 +10,18 @@
 //! file (exit 2). The work is `truepos_fit::evaluate::evaluate`; this module parses options,
 //! prints, and writes the QIF file (`truepos_qif`).
 //!
-//! Entry points: [`run`]; [`demo_section`] (every NIST reference data set against its certified
-//! fit); [`nist_table`] (the same comparison, reused by the tests).
+//! Entry point: [`run`]. The demo's NIST section (every NIST reference data set against its
+//! certified fit) and its table are `demo_section` and `nist_table` of the cell's `nist`
+//! scenario.
 
 use crate::output::print_json;
 use crate::{ClassExt, Classed, Outcome, UsageError};
 use anyhow::Result;
 use std::path::PathBuf;
-use truepos_fit::evaluate::{self, Method, Spec};
+use truepos_fit::evaluate::{self, Kind, Method, Spec};
 use truepos_fit::verdict::{self, DecisionRule, SizeTolerance, Verdict};
 use truepos_io::InputError;
 use truepos_math::exit::ExitClass;
-
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Kind {
-    Line,
-    Plane,
-    Circle,
-    Sphere,
-    Cylinder,
-    Cone,
-}
-
-impl Kind {
-    fn name(self) -> &'static str {
-        self.lib().name()
-    }
-    fn lib(self) -> evaluate::Kind {
-        match self {
-            Kind::Line => evaluate::Kind::Line,
-            Kind::Plane => evaluate::Kind::Plane,
-            Kind::Circle => evaluate::Kind::Circle,
-            Kind::Sphere => evaluate::Kind::Sphere,
-            Kind::Cylinder => evaluate::Kind::Cylinder,
-            Kind::Cone => evaluate::Kind::Cone,
-        }
-    }
-}
-
-/// Association criterion (`--method`).
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum MethodArg {
-    /// Least squares (Gaussian), with uncertainties.
-    Ls,
-    /// Minimum zone (Chebyshev): line, plane, circle, sphere, cylinder.
-    MinimumZone,
-    /// Maximum inscribed: circle, sphere, cylinder.
-    Mic,
-    /// Minimum circumscribed: circle, sphere, cylinder.
-    Mcc,
-}
-
-/// Decision rule (`--decision-rule`).
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum RuleArg {
-    /// Conformance inside the tolerance zone, limits included.
-    Simple,
-    /// ISO 14253-1: conformance only inside the zone shrunk by U, non-conformance only outside
-    /// the zone widened by U, else undecided.
-    Guarded,
-}
 
 #[derive(clap::Args, Debug)]
 #[command(after_help = "\
@@ -97,7 +49,7 @@ pub struct Args {
     pub json: bool,
     /// Association criterion.
     #[arg(long, value_enum, default_value = "ls")]
-    pub method: MethodArg,
+    pub method: Method,
     /// Nominal diameter, mm (circle, sphere, cylinder; needs --tolerance-mm).
     #[arg(long, value_parser = crate::output::positive, value_name = "D", allow_hyphen_values = true)]
     pub nominal_diameter_mm: Option<f64>,
@@ -110,7 +62,7 @@ pub struct Args {
     pub form_tolerance_mm: Option<f64>,
     /// Decision rule for the size verdict.
     #[arg(long, value_enum, default_value = "simple")]
-    pub decision_rule: RuleArg,
+    pub decision_rule: DecisionRule,
     /// Write the result as a QIF 3.0 document.
     #[arg(long, value_name = "OUT.qif")]
     pub qif: Option<PathBuf>,
@@ -119,26 +71,14 @@ pub struct Args {
     pub qif_plan: Option<PathBuf>,
 }
 
-fn method(m: MethodArg) -> Method {
-    match m {
-        MethodArg::Ls => Method::LeastSquares,
-        MethodArg::MinimumZone => Method::MinimumZone,
-        MethodArg::Mic => Method::MaximumInscribed,
-        MethodArg::Mcc => Method::MinimumCircumscribed,
-    }
-}
-
 /// The tolerance specification from the options (or the QIF plan).
 fn spec(a: &Args) -> Result<Spec> {
-    let rule = match a.decision_rule {
-        RuleArg::Simple => DecisionRule::Simple,
-        RuleArg::Guarded => DecisionRule::Guarded,
-    };
+    let rule = a.decision_rule;
     if let Some(plan_path) = &a.qif_plan {
         let text = truepos_io::xml::read_xml(plan_path, "QIF plan")?;
         let in_plan = |e: String| InputError::in_file(plan_path, e);
-        let plan = truepos_qif::read_plan(&text, a.kind.lib().into()).map_err(|e| in_plan(e.to_string()))?;
-        let (spec, notes) = truepos_qif::plan_spec(&plan, a.kind.lib(), rule).map_err(in_plan)?;
+        let plan = truepos_qif::read_plan(&text, a.kind).map_err(|e| in_plan(e.to_string()))?;
+        let (spec, notes) = truepos_qif::plan_spec(&plan, a.kind, rule).map_err(in_plan)?;
         for n in notes {
             eprintln!("note: {}: {n}", plan_path.display());
         }
@@ -163,8 +103,8 @@ fn spec(a: &Args) -> Result<Spec> {
 pub fn run(a: Args) -> Result<Outcome> {
     // Everything that can be refused is refused before any work or output.
     let spec = spec(&a)?;
-    let m = method(a.method);
-    evaluate::check(a.kind.lib(), m, &spec).usage()?;
+    let m = a.method;
+    evaluate::check(a.kind, m, &spec).usage()?;
     if let Some(q) = &a.qif {
         truepos_io::atomic::check_output_path(q).map_err(|e| anyhow::Error::from(e).context("--qif"))?;
     }
@@ -176,7 +116,7 @@ pub fn run(a: Args) -> Result<Outcome> {
             set.skipped_invalid
         );
     }
-    let e = evaluate::evaluate(a.kind.lib(), m, &set.points, &spec).map_err(|e| match e {
+    let e = evaluate::evaluate(a.kind, m, &set.points, &spec).map_err(|e| match e {
         evaluate::EvaluateError::Spec(s) => anyhow::Error::from(Classed::new(ExitClass::Usage, None, s)),
         evaluate::EvaluateError::Fit(f) => {
             InputError::in_file(&a.points, format!("cannot fit a {}: {f}", a.kind.name())).into()

@@ -3,8 +3,13 @@
 //! `truepos head-offset apply`, which turns raw head data into points in machine coordinates.
 //!
 //! Entry points: [`run`] (the calibration and the `apply` subcommand), [`simulate`] (`truepos
-//! simulate head-offset`: the virtual cell's data set and its truth), [`demo_section`]. The
+//! simulate head-offset`: the virtual cell's data set and its truth); the demo section is the
+//! cell's head scenario's `demo_section`. The
 //! numerics are in `truepos-head`; this module reads and writes the contract's files.
+
+// Argument docs here are clap's help text, where `[name]` is a TOML table (or an optional CSV
+// column), not an intra-doc link: escaping it would change the help the contract names.
+#![allow(rustdoc::broken_intra_doc_links)]
 
 use crate::output::{emit, parse_pair, parse_triple};
 use crate::{ClassExt, Outcome, UsageError};
@@ -156,42 +161,13 @@ pub struct ApplyArgs {
     pub table_center_mm: Option<[f64; 3]>,
 }
 
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum SimVariant {
-    /// Touch probe, sphere from B = 0°, 45°, 90° (Y not observable).
-    Swivel,
-    /// Touch probe, sphere at C = 0°, 90°, 180°, 270° (Z not observable).
-    Table,
-    /// Touch probe, B ∈ {0°, 90°} × C ∈ {0°, 120°, 240°}.
-    Both,
-    /// Laser head with beam tilt (2°, −1.5°).
-    Laser,
-    /// Touch probe on a 4-sided pyramid apex.
-    Pyramid,
-    /// Touch probe on a cuboid corner.
-    Cuboid,
-}
-
-impl SimVariant {
-    fn sim(self) -> Variant {
-        match self {
-            SimVariant::Swivel => Variant::Swivel,
-            SimVariant::Table => Variant::Table,
-            SimVariant::Both => Variant::Both,
-            SimVariant::Laser => Variant::Laser,
-            SimVariant::Pyramid => Variant::Pyramid,
-            SimVariant::Cuboid => Variant::Cuboid,
-        }
-    }
-}
-
 #[derive(clap::Args, Debug)]
 pub struct SimArgs {
     #[command(flatten)]
     pub common: super::SimCommon,
     /// Which head and reference object, and which B/C orientations are measured.
-    #[arg(long, value_enum, default_value_t = SimVariant::Both)]
-    pub variant: SimVariant,
+    #[arg(long, value_enum, default_value_t = Variant::Both)]
+    pub variant: Variant,
 }
 
 fn tilt_rad(t: [f64; 2], name: &str) -> Result<[f64; 2], UsageError> {
@@ -420,7 +396,7 @@ fn acquired_offset(
 }
 
 pub fn simulate(args: SimArgs) -> Result<Outcome> {
-    let d = truepos_cell::scenarios::head::simulate(args.variant.sim(), args.common.seed)?;
+    let d = truepos_cell::scenarios::head::simulate(args.variant, args.common.seed)?;
     // Where the data set cannot be written is the user's choice of --out: an input error.
     let w = truepos_cell::scenarios::head::write_dataset(&args.common.out, &d)
         .map_err(|e| truepos_io::InputError::in_file(&args.common.out, format!("{e:#}")))?;

@@ -5,7 +5,8 @@
 //! Sign convention (interface contract): the stylus centre at probe stamp `t` is
 //! `machine(t + delay_s) + deflection(t)`; a positive delay means the machine data lags.
 //!
-//! Entry points: [`run`], [`simulate`], [`demo_section`]. The algorithms are in
+//! Entry points: [`run`], [`simulate`]; the demo section is the cell's latency scenario's
+//! `demo_section`. The algorithms are in
 //! `truepos-latency`; this module reads the CSV files, maps errors to file/line messages and
 //! writes JSON, CSV and the report.
 
@@ -17,21 +18,6 @@ use truepos_cell::scenarios::latency::{self as latency_scenario, SimRequest};
 use truepos_latency::task;
 use truepos_latency::{KnownSize, Method, Options};
 use truepos_math::exit::ExitClass;
-
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum MethodArg {
-    /// Chosen from the data and options: scan when the data is a scan; artefact when a size is
-    /// given; speeds when the contacts have several speeds; in-out otherwise.
-    Auto,
-    /// Known artefact size (--sphere-diameter-mm or --gap-mm) at one or more speeds.
-    Artefact,
-    /// Several speeds, size unknown: size linear in speed (gradient → delay).
-    Speeds,
-    /// Continuous scan switching between two radii: the shift minimising the form error.
-    Scan,
-    /// Single point in and out: time between the extrema of machine position and deflection.
-    Inout,
-}
 
 const AFTER_HELP: &str =
     "Files: machine t_s,x_mm,y_mm,z_mm (encoder position of the probe body); probe t_s,a_mm,b_mm,c_mm
@@ -58,8 +44,8 @@ pub struct Args {
     #[arg(long)]
     pub probe: Option<PathBuf>,
     /// How the delay is found (auto: chosen from the data and the options given).
-    #[arg(long, value_enum, default_value_t = MethodArg::Auto)]
-    pub method: MethodArg,
+    #[arg(long, value_enum, default_value_t = Method::Auto)]
+    pub method: Method,
     /// Known sphere (or ring) diameter, mm (artefact method).
     #[arg(long, value_parser = crate::output::positive, conflicts_with = "gap_mm")]
     pub sphere_diameter_mm: Option<f64>,
@@ -140,16 +126,6 @@ pub struct ApplyArgs {
     pub json: bool,
 }
 
-fn method_of(m: MethodArg) -> Method {
-    match m {
-        MethodArg::Auto => Method::Auto,
-        MethodArg::Artefact => Method::Artefact,
-        MethodArg::Speeds => Method::Speeds,
-        MethodArg::Scan => Method::Scan,
-        MethodArg::Inout => Method::Inout,
-    }
-}
-
 fn positive(name: &str, v: f64) -> Result<(), UsageError> {
     if v.is_finite() && v > 0.0 {
         Ok(())
@@ -179,11 +155,11 @@ fn options(a: &Args) -> Result<Options, UsageError> {
         }
         _ => None,
     };
-    if a.method == MethodArg::Artefact && known_size.is_none() {
+    if a.method == Method::Artefact && known_size.is_none() {
         return Err(UsageError("--method artefact needs --sphere-diameter-mm or --gap-mm".into()));
     }
     Ok(Options {
-        method: method_of(a.method),
+        method: a.method,
         known_size,
         tip_radius: a.tip_radius_mm,
         threshold: a.threshold_mm,

@@ -7,6 +7,10 @@
 //! CSV (`load_x_mm,load_y_mm,portal_y_mm,pitch_urad,roll_urad`, `# unit_load_n = …`).
 //! Physics and the sign of pitch/roll: `truepos_comp::load`.
 
+// Argument docs here are clap's help text, where `[name]` is a TOML table (or an optional CSV
+// column), not an intra-doc link: escaping it would change the help the contract names.
+#![allow(rustdoc::broken_intra_doc_links)]
+
 use crate::output::{emit, parse_triple, progress};
 use crate::Outcome;
 use anyhow::Result;

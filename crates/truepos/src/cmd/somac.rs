@@ -87,12 +87,6 @@ pub struct OrientArgs {
     pub json: bool,
 }
 
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum FormulaArg {
-    Ciddor,
-    Edlen,
-}
-
 #[derive(clap::Args, Debug)]
 #[command(
     after_help = "Equations as in NIST's Refractive Index of Air Calculator (Stone & Zimmerman). Inputs outside the\nrange where NIST states the equation valid are refused (exit 2): Ciddor 300-1700 nm, -40-100 °C,\n10000-140000 Pa, 0-100 % RH, 0-2000 ppm CO2; Edlén 300-1700 nm, 0-40 °C, 60000-140000 Pa,\n0-100 % RH, CO2 450 ppm only."
@@ -114,8 +108,8 @@ pub struct AirArgs {
     #[arg(long, value_parser = crate::output::positive, default_value_t = 633.0)]
     pub wavelength_nm: f64,
     /// Equation: ciddor (Ciddor 1996) or edlen (modified Edlén, Birch and Downs 1993/94).
-    #[arg(long, value_enum, default_value_t = FormulaArg::Ciddor)]
-    pub formula: FormulaArg,
+    #[arg(long, value_enum, default_value_t = Formula::Ciddor)]
+    pub formula: Formula,
     /// Print one JSON object on stdout (human text goes to stderr).
     #[arg(long)]
     pub json: bool,
@@ -161,10 +155,7 @@ pub fn air(a: AirArgs) -> Result<Outcome> {
         co2_ppm: a.co2_ppm,
         wavelength_nm: a.wavelength_nm,
     };
-    let f = match a.formula {
-        FormulaArg::Ciddor => Formula::Ciddor,
-        FormulaArg::Edlen => Formula::Edlen,
-    };
+    let f = a.formula;
     let n = air::refractive_index(&c, f)?;
     let name = match f {
         Formula::Ciddor => "ciddor",

@@ -5,6 +5,10 @@
 //! (`--program`) or from a hole list (`--holes`); the procedure is
 //! `truepos_somac::inspect::inspect`, through the same `--controller` URLs as `probe sphere`.
 
+// Argument docs here are clap's help text, where `[name]` is a TOML table (or an optional CSV
+// column), not an intra-doc link: escaping it would change the help the contract names.
+#![allow(rustdoc::broken_intra_doc_links)]
+
 use crate::{ClassExt, Outcome, UsageError};
 use anyhow::Result;
 use std::path::PathBuf;

@@ -5,6 +5,10 @@
 //! and the loop parameters (`[loop]`, every field optional). A real controller and trackers plug
 //! in behind the same traits (`truepos_somac::device`).
 
+// Argument docs here are clap's help text, where `[name]` is a TOML table (or an optional CSV
+// column), not an intra-doc link: escaping it would change the help the contract names.
+#![allow(rustdoc::broken_intra_doc_links)]
+
 use crate::output::print_json;
 use crate::{ClassExt, Outcome, UsageError};
 use anyhow::Result;
