@@ -6,7 +6,7 @@ use truepos_scan::{plan, validate, Feature, Geometry, Params, ScanError, Segment
 
 fn program(n: usize) -> (Vec<Feature>, Params) {
     let s = truepos_sim::scenario::scan::scenario(11, n);
-    let (nom, _, p) = truepos_cell::scan_scenario::program(&s);
+    let (nom, _, p) = truepos_plant::scan_scenario::program(&s);
     (nom, p)
 }
 

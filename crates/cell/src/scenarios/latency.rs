@@ -5,11 +5,11 @@
 //! [`demo_section`].
 
 use crate::error::{CellError, Result};
-use crate::report::{self, Report, Series};
 use std::io::Write;
 use std::path::Path;
 use truepos_io::atomic::AtomicFile;
 use truepos_latency::{self as lat, KnownSize, Method, Options, Streams};
+use truepos_report::{self as report, Report, Series};
 use truepos_sim::scenario::latency as scen;
 
 /// Write a data set as the contract's files: `machine.csv` (t_s,x_mm,y_mm,z_mm), `probe.csv`

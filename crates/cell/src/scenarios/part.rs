@@ -8,7 +8,7 @@
 //! [`write_comp_dataset`] (the `truepos simulate comp` data set, from [`comp_data`]).
 
 use crate::error::{CellError, Result};
-use crate::report::{self, DecisionRule, Judgement, Report, Verdict};
+use truepos_report::{self as report, DecisionRule, Judgement, Report, Verdict};
 
 /// Expanded uncertainty (in 10⁻⁹) of comparing n with NIST's printed values: the printed values'
 /// rounding is the tolerance itself; double-precision evaluation adds far less than this bound.

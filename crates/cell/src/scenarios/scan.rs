@@ -1,10 +1,10 @@
 //! The scanning section of the demo: the same features scanned the blended and the classic way
 //! on the virtual CMM, side by side, with the path shift at missed surfaces against the true
-//! offsets. (The `scan` data set itself is [`crate::scan_scenario`].)
+//! offsets. (The `scan` data set itself is [`truepos_plant::scan_scenario`].)
 
 use crate::error::{Context, Result};
-use crate::report::{self, Report, Series};
-use crate::scanning_cmm::{run_scan, CmmConfig};
+use truepos_plant::scanning_cmm::{run_scan, CmmConfig};
+use truepos_report::{self as report, Report, Series};
 use truepos_scan::execute::{ControlParams, Run as ScanRun};
 use truepos_scan::{plan, validate, Plan, SegmentKind, Style};
 
@@ -15,7 +15,7 @@ const SCAN_MC_RUNS: usize = 40;
 /// classic way on the virtual CMM, side by side.
 pub fn demo_section(report: &mut Report) -> Result<()> {
     let s = truepos_sim::scenario::scan::scenario(1, 12);
-    let (nominal, truth, params) = crate::scan_scenario::program(&s);
+    let (nominal, truth, params) = truepos_plant::scan_scenario::program(&s);
     validate(&nominal, &params).context("demo features")?;
     let (machine, control) = (CmmConfig::default(), ControlParams::default());
     let pb = plan(&nominal, &params, Style::Blended);
@@ -44,7 +44,7 @@ pub fn demo_section(report: &mut Report) -> Result<()> {
                 Series::points(k.as_str(), pts)
             })
             .collect();
-        report::xy_plot_equal(title, "x (mm)", "y (mm)", &series)
+        Ok(report::xy_plot_equal(title, "x (mm)", "y (mm)", &series)?)
     };
     let plot_b = path_plot(&pb, "Blended path around boss1 (XY), by segment")?;
     let plot_c = path_plot(&pc, "Classic path around boss1 (XY), by segment")?;
