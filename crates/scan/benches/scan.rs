@@ -7,7 +7,7 @@ use truepos_scan::execute::ControlParams;
 use truepos_scan::{plan, validate, Style};
 
 fn bench(c: &mut Criterion) {
-    let scenario = truepos_sim::scenario::scan::scenario(7, 100);
+    let scenario = truepos_plant::scan_scenario::scenario(7, 100);
     let (features, truth, params) = truepos_plant::scan_scenario::program(&scenario);
     validate(&features, &params).expect("valid program");
     let machine = CmmConfig::default();
