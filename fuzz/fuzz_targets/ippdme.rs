@@ -9,7 +9,7 @@
 
 use libfuzzer_sys::fuzz_target;
 use std::sync::Arc;
-use truepos_cell::cmm::IppdmeCmm;
+use truepos_plant::cmm::IppdmeCmm;
 use truepos_ippdme::part::Part;
 use truepos_ippdme::protocol::{parse_data_items, parse_line, Response};
 use truepos_ippdme::server::{Flow, Session, Shared};

@@ -26,5 +26,5 @@ fuzz_target!(|data: &[u8]| {
         assert!(e.to_string().contains(&name), "load error without the file: {e}");
     }
     let _ = truepos_scan::file::read_features(path, &truepos_scan::file::ParamOverrides::default());
-    let _ = truepos_cell::scanning_cmm::read_machine_file(path);
+    let _ = truepos_plant::scanning_cmm::read_machine_file(path);
 });

@@ -5,8 +5,8 @@
 //! Entry points: [`sections`] (the demo's sections in report order, each a function adding its
 //! part to a [`Report`]).
 
-use crate::report::Report;
 use crate::scenarios;
+use truepos_report::Report;
 
 /// One section of the demo report.
 pub type SectionFn = fn(&mut Report) -> crate::error::Result<()>;

@@ -37,9 +37,12 @@ pub enum CellError {
     /// A TOML value could not be serialised.
     #[error(transparent)]
     Toml(#[from] toml::ser::Error),
-    /// A plot could not be drawn (the SVG backend's message).
-    #[error("plot: {0}")]
-    Plot(String),
+    /// The report could not be drawn or written (`truepos-report`).
+    #[error(transparent)]
+    Report(#[from] truepos_report::ReportError),
+    /// A task-specific uncertainty could not be computed (`truepos-vcmm`).
+    #[error(transparent)]
+    Vcmm(#[from] truepos_vcmm::VcmmError),
     /// A scenario asked for something it cannot be (sizes, counts): the message says what.
     #[error("{0}")]
     Invalid(String),
@@ -68,6 +71,8 @@ impl CellError {
         match self {
             CellError::Input(_) | CellError::Invalid(_) => true,
             CellError::Output(o) => o.is_path(),
+            CellError::Report(r) => r.is_user_input(),
+            CellError::Vcmm(v) => v.is_user_input(),
             // The path is the user's choice (`--out`): one that cannot be a directory or file.
             CellError::Io { source, .. } => {
                 use std::io::ErrorKind as K;
@@ -87,6 +92,12 @@ impl CellError {
                     }
                     if let Some(o) = c.downcast_ref::<OutputError>() {
                         return o.is_path();
+                    }
+                    if let Some(r) = c.downcast_ref::<truepos_report::ReportError>() {
+                        return r.is_user_input();
+                    }
+                    if let Some(v) = c.downcast_ref::<truepos_vcmm::VcmmError>() {
+                        return v.is_user_input();
                     }
                     e = c.source();
                 }

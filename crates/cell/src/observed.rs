@@ -16,11 +16,11 @@
 //! stop, and a controller failure recorded in the audit trail (alarm `controller_fault`, the
 //! stop in progress FAILURE) before it is returned.
 
-use crate::gantry::{CellConfig, VirtualCell};
 use std::collections::BTreeMap;
 use std::time::Instant;
 use truepos_device::{Controller, DeviceError, ProbingMachine};
 use truepos_math::{Point3, Vector3};
+use truepos_plant::gantry::{CellConfig, VirtualCell};
 use truepos_somac::audit::{AuditSink, Event, SinkError};
 use truepos_somac::run::{AlarmKind, RunError};
 use truepos_somac::{run_program, Params, RunReport};

@@ -87,10 +87,10 @@ fn demo_map_is_judged_with_the_propagated_u() {
 #[test]
 fn demo_section_verdict_is_pass_with_its_u() {
     let d = tempfile::tempdir().unwrap();
-    let mut r = truepos_cell::report::Report::new(d.path());
+    let mut r = truepos_report::Report::new(d.path());
     truepos_cell::scenarios::part::comp_section(&mut r).unwrap();
     let v = r.verdicts().iter().find(|v| v.section == "comp").expect("comp verdict");
-    assert_eq!(v.verdict, truepos_cell::report::Outcome::Pass, "{:?}", v.reason);
+    assert_eq!(v.verdict, truepos_report::Outcome::Pass, "{:?}", v.reason);
     let u = v.expanded_uncertainty.unwrap();
     assert!(u > 0.0 && u < 1.0, "{u}");
 }

@@ -20,16 +20,17 @@
 //! `--ignored` tests run 100 machines, the figures of docs/uncertainty.md.
 
 use std::path::{Path, PathBuf};
-use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
-use truepos_cell::vcmm::{
-    dmis_uncertainty, head_offset_uncertainty, AcquiringMachine, ErrorOverlay, MachineModel, MonteCarlo,
-    PointErrors, SimulatedCmm,
-};
+use truepos_cell::uncertainty::dmis_uncertainty;
 use truepos_device::{DeviceError, DeviceInfo, ProbeHit, ProbeRequest, ProbingMachine, ToolInfo};
 use truepos_dmis::exec::{run, Geom, RunOptions, RunResult};
 use truepos_head::acquire::{acquire_head_offset, readings, HeadAcquisition, SphereProbing};
 use truepos_ippdme::part::Part;
 use truepos_math::{Point3, Vector3};
+use truepos_plant::probing::{MachineToolConfig, VirtualMachineTool};
+use truepos_vcmm::{
+    head_offset_uncertainty, AcquiringMachine, ErrorOverlay, MachineModel, MonteCarlo, PointErrors,
+    SimulatedCmm,
+};
 
 const K: f64 = 2.0;
 
@@ -337,8 +338,13 @@ fn kinematics_coverage(machines: u64, model_text: &str) -> (f64, f64, usize, f64
         let basis = model.bases()[(seed as usize) % model.bases().len()];
         let mut m = ErrorOverlay { inner, errors: PointErrors::draw(basis, 91_000 + seed) };
         let report = truepos_kinematics::calibrate(&mut m, &req, |_| {}).expect("calibration");
-        let t = truepos_cell::vcmm::kinematics_uncertainty(&model, &probing, &report, MonteCarlo::default())
-            .unwrap();
+        let t = truepos_cell::uncertainty::kinematics_uncertainty(
+            &model,
+            &probing,
+            &report,
+            MonteCarlo::default(),
+        )
+        .unwrap();
         mc_s += t.elapsed_s;
         let true_values = truth.truth.values();
         for (p, big_u) in report.parameters.iter().zip(&t.expanded_mm) {
@@ -404,7 +410,7 @@ fn machine_tool_sphere_coverage(machines: u64, model_text: &str, feed_mm_min: f6
             errors: PointErrors::draw(basis, 93_000 + seed),
         };
         let s = probe_sphere(&mut m, &plan).expect("probing");
-        let u = truepos_cell::vcmm::sphere_uncertainty_machine_tool(
+        let u = truepos_vcmm::sphere_uncertainty_machine_tool(
             &model,
             &plan,
             s.center_mm,

@@ -1,5 +1,5 @@
 //! The DMIS side of a run's task-specific uncertainty (ISO/TS 15530-4; the simulation itself is
-//! `truepos_cell::vcmm::dmis_uncertainty`):
+//! `truepos_cell::uncertainty::dmis_uncertainty`):
 //!
 //! - [`Replay`]: a machine on which every probing touches the perfect features a run found (each
 //!   contact on the plane through the point of the fitted feature, normal to the probing

@@ -55,7 +55,7 @@ fn the_nist_example_dry_runs_to_its_output() {
 #[test]
 fn the_nist_example_runs_on_the_virtual_cmm_through_ippdme() {
     let cmm =
-        truepos_cell::cmm::serve_loopback(Some(&repo().join("data/dmis/simple_part.toml")), None).unwrap();
+        truepos_plant::cmm::serve_loopback(Some(&repo().join("data/dmis/simple_part.toml")), None).unwrap();
     let mut client = truepos_ippdme::connect(&cmm.url).unwrap();
     let plan = plan_of("data/dmis/simple_in.dms");
     let moves = || cmm.handle.shared.with_machine(|m| (m.counters.moves, m.counters.probes));
@@ -93,7 +93,7 @@ fn tol<'a>(r: &'a truepos_dmis::exec::RunResult, label: &str) -> &'a truepos_dmi
 #[test]
 fn datums_constructions_and_every_tolerance_on_the_virtual_cmm() {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/programs");
-    let cmm = truepos_cell::cmm::serve_loopback(Some(&dir.join("full_part.toml")), None).unwrap();
+    let cmm = truepos_plant::cmm::serve_loopback(Some(&dir.join("full_part.toml")), None).unwrap();
     let mut client = truepos_ippdme::connect(&cmm.url).unwrap();
     let plan = plan_of("crates/dmis/tests/programs/full.dms");
     let r = run(&plan, &mut client, &sensors(&[("P1", "Probe1")]), &mut |_| {}).unwrap();
@@ -175,7 +175,7 @@ fn a_probing_without_surface_stops_at_its_line_with_the_machine_retracted() {
         .replace("PTMEAS/CART, 75.0, 50.0, 40.0", "PTMEAS/CART, 60.0, 50.0, 40.0");
     let plan = check(&parse("moved.dms", &text).unwrap()).unwrap();
     let cmm =
-        truepos_cell::cmm::serve_loopback(Some(&repo().join("data/dmis/simple_part.toml")), None).unwrap();
+        truepos_plant::cmm::serve_loopback(Some(&repo().join("data/dmis/simple_part.toml")), None).unwrap();
     let mut client = truepos_ippdme::connect(&cmm.url).unwrap();
     let e = run(&plan, &mut client, &sensors(&[("PROBE6", "Probe1")]), &mut |_| {}).unwrap_err();
     match &e {

@@ -1,9 +1,9 @@
 //! Sphere acquisition (`truepos_head::acquire`) on the virtual machine tool, against its truth.
 
-use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
 use truepos_device::{DeviceError, ProbingMachine};
 use truepos_head::acquire::{probe_sphere, AcquireError, SphereProbing};
 use truepos_math::Point3;
+use truepos_plant::probing::{MachineToolConfig, VirtualMachineTool};
 
 fn plan(feed_mm_min: f64) -> SphereProbing {
     SphereProbing {
@@ -103,13 +103,13 @@ fn a_nominal_centre_off_by_more_than_the_clearance_misses_and_leaves_the_machine
 }
 
 mod head_offset {
-    use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
     use truepos_device::{DeviceError, ProbingMachine, RotaryAxes};
     use truepos_head::acquire::{
         acquire_head_offset, points_csv, AcquireError, HeadAcquisition, SphereProbing,
     };
     use truepos_head::{solve, Params, Reference};
     use truepos_math::{Point3, Vector3};
+    use truepos_plant::probing::{MachineToolConfig, VirtualMachineTool};
 
     const TRUE_OFFSET: [f64; 3] = [42.5, -18.3, -165.2];
 

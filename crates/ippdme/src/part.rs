@@ -247,7 +247,7 @@ pub struct ToolConfig {
 }
 
 /// The error models of the virtual CMM behind the server (`[ippdme.model]`), plain numbers: the
-/// machine that uses them (`truepos_cell::cmm`) builds the models of `truepos-sim` from them.
+/// machine that uses them (`truepos_plant::cmm`) builds the models of `truepos-sim` from them.
 ///
 /// Keys (all optional): `seed` (noise and error map, default 1), `geometric_errors`
 /// (`"bridge_cmm"`: a seeded realistic ISO 230-1 map of a bridge CMM stretched over the volume,

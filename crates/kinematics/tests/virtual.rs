@@ -1,12 +1,12 @@
 //! `calibrate` on the virtual xyzbc-trt machine of `truepos-cell` (its true geometry known):
 //! identification within µm of the truth, the write-back, the verification, and the refusals.
 
-use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
 use truepos_device::{DeviceError, KinematicsParameter, ProbingMachine};
 use truepos_head::acquire::SphereProbing;
 use truepos_kinematics::acquire::KinematicsProbing;
 use truepos_kinematics::{calibrate, CalibrateRequest, KinematicsError, Model};
 use truepos_math::Point3;
+use truepos_plant::probing::{MachineToolConfig, VirtualMachineTool};
 
 fn request(orientations: Vec<[f64; 2]>, apply: bool, verify: Option<Vec<[f64; 2]>>) -> CalibrateRequest {
     CalibrateRequest {

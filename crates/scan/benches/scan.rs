@@ -5,13 +5,13 @@
 #![allow(missing_docs)]
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use truepos_cell::scanning_cmm::{run_scan, CmmConfig};
+use truepos_plant::scanning_cmm::{run_scan, CmmConfig};
 use truepos_scan::execute::ControlParams;
 use truepos_scan::{plan, validate, Style};
 
 fn bench(c: &mut Criterion) {
-    let scenario = truepos_sim::scenario::scan::scenario(7, 100);
-    let (features, truth, params) = truepos_cell::scan_scenario::program(&scenario);
+    let scenario = truepos_plant::scan_scenario::scenario(7, 100);
+    let (features, truth, params) = truepos_plant::scan_scenario::program(&scenario);
     validate(&features, &params).expect("valid program");
     let machine = CmmConfig::default();
     let mut g = c.benchmark_group("scan");

@@ -17,8 +17,8 @@ fn main() {
     ];
     for n in ns {
         let seed = std::env::var("SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(11);
-        let s = truepos_sim::scenario::scan::scenario(seed, n);
-        let (fs, _, p) = truepos_cell::scan_scenario::program(&s);
+        let s = truepos_plant::scan_scenario::scenario(seed, n);
+        let (fs, _, p) = truepos_plant::scan_scenario::program(&s);
         for style in [Style::Blended, Style::Classic] {
             let t0 = Instant::now();
             let pl = plan(&fs, &p, style);

@@ -7,7 +7,7 @@
 //! measured points tagged by segment and feature with deflection and quality mark, per-feature
 //! results (time, form error, contact shift, vibration at scan start) and the summary (cycle
 //! time, stops). The virtual CMM (servo and stylus dynamics on the true part) is
-//! `truepos_cell::scanning_cmm`.
+//! `truepos_plant::scanning_cmm`.
 //!
 //! Missed surfaces: contact is detected on the approach when the measured deflection exceeds
 //! `contact_threshold`. Early contact (surface before the nominal point) moves the plan on to its

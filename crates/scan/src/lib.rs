@@ -8,7 +8,7 @@
 //! the first approach and the last release) and **classic** (pre-hit point on the normal, stop,
 //! normal approach, search to the deflection, scan, stop, retract), and executes them on the
 //! scanning machine (`truepos_device::ScanningMachine`; the virtual CMM with servo and stylus
-//! dynamics is `truepos_cell::scanning_cmm`), missed surfaces handled both ways.
+//! dynamics is `truepos_plant::scanning_cmm`), missed surfaces handled both ways.
 //!
 //! Entry points:
 //! - [`feature`]: [`Feature`], [`Params`], [`validate`].

@@ -1,13 +1,13 @@
 //! Execution on the virtual CMM against the simulator's true part.
 
-use truepos_cell::scanning_cmm::{run_scan, CmmConfig as Machine};
 use truepos_math::Vector3;
+use truepos_plant::scanning_cmm::{run_scan, CmmConfig as Machine};
 use truepos_scan::execute::{quality, ControlParams, Run};
 use truepos_scan::ScanError;
 use truepos_scan::{plan, Feature, Geometry, Params, SegmentKind, Side, Style};
 
 fn scenario(n: usize) -> (Vec<Feature>, Vec<Feature>, Params) {
-    truepos_cell::scan_scenario::program(&truepos_sim::scenario::scan::scenario(11, n))
+    truepos_plant::scan_scenario::program(&truepos_plant::scan_scenario::scenario(11, n))
 }
 
 /// The plan on the virtual CMM with the default scanning control.
@@ -203,7 +203,7 @@ fn quality_marks_follow_the_bands() {
 #[ignore = "timing; run in release: cargo test --release -p truepos-scan -- --ignored"]
 fn hundred_features_plan_and_simulate_under_a_second() {
     let (nom, truth, p) =
-        truepos_cell::scan_scenario::program(&truepos_sim::scenario::scan::scenario(7, 100));
+        truepos_plant::scan_scenario::program(&truepos_plant::scan_scenario::scenario(7, 100));
     let t0 = std::time::Instant::now();
     let pl = plan(&nom, &p, Style::Blended);
     let r = execute(&pl, &truth, &Machine::default(), 1).unwrap();

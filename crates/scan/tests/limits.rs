@@ -188,8 +188,8 @@ proptest! {
 /// whose transfers reached 6.3 m/s² against the 1.5 m/s² limit in two sharp bends.
 #[test]
 fn sharp_bends_of_the_eight_feature_program() {
-    let s = truepos_sim::scenario::scan::scenario(11, 8);
-    let (fs, _, p) = truepos_cell::scan_scenario::program(&s);
+    let s = truepos_plant::scan_scenario::scenario(11, 8);
+    let (fs, _, p) = truepos_plant::scan_scenario::program(&s);
     validate(&fs, &p).unwrap();
     for style in [Style::Blended, Style::Classic] {
         let pl = plan(&fs, &p, style);
@@ -232,8 +232,8 @@ fn u_turn_between_neighbouring_bores() {
 /// twice the positioning speed) break the original limits in the check, for both styles.
 #[test]
 fn the_check_catches_a_plan_above_the_limits() {
-    let s = truepos_sim::scenario::scan::scenario(11, 4);
-    let (fs, _, p) = truepos_cell::scan_scenario::program(&s);
+    let s = truepos_plant::scan_scenario::scenario(11, 4);
+    let (fs, _, p) = truepos_plant::scan_scenario::program(&s);
     let loose =
         Params { accel: 2.0 * p.accel, jerk: 2.0 * p.jerk, move_speed: 2.0 * p.move_speed, ..p.clone() };
     for style in [Style::Blended, Style::Classic] {
@@ -249,8 +249,8 @@ fn the_check_catches_a_plan_above_the_limits() {
 #[test]
 #[ignore = "known gap: the settle and release bends exceed the limits at 40 mm/s (docs/performance-scan.md)"]
 fn every_blended_segment_keeps_the_limits() {
-    let s = truepos_sim::scenario::scan::scenario(11, 8);
-    let (fs, _, p) = truepos_cell::scan_scenario::program(&s);
+    let s = truepos_plant::scan_scenario::scenario(11, 8);
+    let (fs, _, p) = truepos_plant::scan_scenario::program(&s);
     let pl = plan(&fs, &p, Style::Blended);
     let mut worst = (0.0f64, 0.0f64, 0.0f64);
     for (k, m) in by_kind(&pl, 2e-4) {

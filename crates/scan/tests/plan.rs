@@ -5,8 +5,8 @@ use truepos_scan::plan::Geom;
 use truepos_scan::{plan, validate, Feature, Geometry, Params, ScanError, SegmentKind, Side, Style};
 
 fn program(n: usize) -> (Vec<Feature>, Params) {
-    let s = truepos_sim::scenario::scan::scenario(11, n);
-    let (nom, _, p) = truepos_cell::scan_scenario::program(&s);
+    let s = truepos_plant::scan_scenario::scenario(11, n);
+    let (nom, _, p) = truepos_plant::scan_scenario::program(&s);
     (nom, p)
 }
 

@@ -9,7 +9,7 @@
 mod support;
 
 use support::{run, spar_params};
-use truepos_cell::gantry::CellConfig;
+use truepos_plant::gantry::CellConfig;
 use truepos_somac::stats::hole_stats;
 
 fn main() {

@@ -25,7 +25,7 @@
 //!   (position error and diameter per hole; `truepos somac inspect`).
 //!
 //! The virtual large gantry with trackers that implements these traits on the simulator lives
-//! in `truepos-cell` (`truepos_cell::gantry`); this crate never depends on the simulator.
+//! in `truepos-cell` (`truepos_plant::gantry`); this crate never depends on the simulator.
 
 #![forbid(unsafe_code)]
 

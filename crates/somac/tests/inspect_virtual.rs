@@ -1,9 +1,9 @@
 //! In-spindle inspection on the virtual machine tool: hole positions and diameters against the
 //! plate's truth, and a hole too far off its nominal refused with the machine retracted.
 
-use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
 use truepos_device::{DeviceError, ProbingMachine};
 use truepos_math::Point3;
+use truepos_plant::probing::{MachineToolConfig, VirtualMachineTool};
 use truepos_somac::inspect::{inspect, Hole, InspectError, InspectPlan};
 
 fn holes() -> Vec<Hole> {

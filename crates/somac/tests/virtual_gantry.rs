@@ -4,7 +4,7 @@
 mod support;
 
 use support::{run, spar_params};
-use truepos_cell::gantry::CellConfig;
+use truepos_plant::gantry::CellConfig;
 use truepos_somac::audit::Event;
 use truepos_somac::run::{AlarmKind, StopStatus};
 use truepos_somac::stats::hole_stats;

@@ -170,7 +170,7 @@ fn class_of(cause: &(dyn std::error::Error + 'static)) -> Option<ExitClass> {
         truepos_io::stream::RewriteError,
         truepos_device::DeviceError,
         truepos_linuxcnc::url::AddressError,
-        truepos_cell::probing::ParamError,
+        truepos_plant::probing::ParamError,
         truepos_cell::scenarios::head::HeadOffsetError,
         truepos_head::acquire::AcquireError,
         truepos_scan::ScanError,
@@ -182,7 +182,9 @@ fn class_of(cause: &(dyn std::error::Error + 'static)) -> Option<ExitClass> {
         truepos_dmis::exec::RunError,
         truepos_audit::AuditError,
         truepos_cell::CellError,
-        truepos_cell::cmm::ServeError,
+        truepos_vcmm::VcmmError,
+        truepos_report::ReportError,
+        truepos_plant::cmm::ServeError,
         truepos_cell::scenarios::latency::SimRequestError,
     );
     // An output error carried inside an io::Error by a library that returns io::Result.

@@ -2,9 +2,9 @@
 //! by best fit, against the known transform.
 
 use crate::error::Result;
-use crate::report::{self, Report};
 use truepos_math::bestfit::{self, BestFitOptions};
 use truepos_math::{Point3, Transform3};
+use truepos_report::{self as report, Report};
 
 /// Noise draws of the alignment's uncertainty.
 const ALIGN_MC_RUNS: usize = 400;

@@ -7,12 +7,12 @@
 //! [`demo_section`].
 
 use crate::error::{CellError, Result};
-use crate::report::{self, Report};
 use std::path::{Path, PathBuf};
 use truepos_head::{solve, Params, Reading, Reference};
 use truepos_io::atomic::AtomicFile;
 use truepos_io::csv::CsvWriter;
 use truepos_math::{Point3, Vector3};
+use truepos_report::{self as report, Report};
 use truepos_sim::scenario::head_offset::{self as sim, HeadOffsetConfig, HeadOffsetData};
 pub use truepos_sim::scenario::head_offset::{HeadOffsetError, Variant};
 

@@ -6,16 +6,16 @@
 //!
 //! Entry points: [`ippdme_section`], [`controller_section`].
 
-use crate::cmm::IppdmeCmm;
 use crate::error::{CellError, Context, Result};
-use crate::probing::{MachineToolConfig, VirtualMachineTool};
-use crate::report::{self, Report, Verdict};
 use std::io::{BufRead, BufReader, Write};
 use std::net::TcpStream;
 use std::time::{Duration, Instant};
 use truepos_head::acquire::{probe_sphere, ProbedSphere, SphereProbing};
 use truepos_ippdme::{MachineConfig, Part, Server};
 use truepos_math::{Point3, Vector3};
+use truepos_plant::cmm::IppdmeCmm;
+use truepos_plant::probing::{MachineToolConfig, VirtualMachineTool};
+use truepos_report::{self as report, Report, Verdict};
 
 /// The reference sphere of both sections (machine frame, mm).
 const CENTRE: [f64; 3] = [100.0, 50.0, 20.0];
@@ -97,7 +97,7 @@ fn worst_component(s: &ProbedSphere, centre: Point3, radius: f64) -> (f64, f64) 
 }
 
 /// The words of a task-specific sphere uncertainty (k = 2, µm), simulated on `what`.
-fn task_u_text(tsu: &crate::vcmm::SphereUncertainty, what: &str) -> String {
+fn task_u_text(tsu: &truepos_vcmm::SphereUncertainty, what: &str) -> String {
     format!(
         "U = {:.2}, {:.2}, {:.2} µm on the centre coordinates, {:.2} µm on the radius (k = 2; task-specific, ISO/TS 15530-4: the same probing simulated on {} {what})",
         2e3 * tsu.center_mm.x,
@@ -168,20 +168,20 @@ pub fn ippdme_section(report: &mut Report) -> Result<()> {
     drop(client);
     server.shutdown();
     // Task-specific uncertainty: the server's error-model class (its seed unknown to the user).
-    let model = crate::vcmm::MachineModel {
+    let model = truepos_vcmm::MachineModel {
         source: "the virtual CMM's default [ippdme.model]".into(),
         cmm: Some(MachineConfig::default()),
         iso10360: None,
-        machine_tool: crate::vcmm::MachineToolLatch::default(),
+        machine_tool: truepos_vcmm::MachineToolLatch::default(),
     };
-    let tsu = crate::vcmm::sphere_uncertainty(
+    let tsu = truepos_vcmm::sphere_uncertainty(
         &model,
         &plan,
         s.center_mm,
         s.radius_mm,
         s.center_uncertainty_mm,
         s.radius_uncertainty_mm,
-        crate::vcmm::MonteCarlo::default(),
+        truepos_vcmm::MonteCarlo::default(),
     )?;
     s.center_uncertainty_mm = tsu.center_mm;
     s.radius_uncertainty_mm = tsu.radius_mm;
@@ -246,7 +246,7 @@ pub fn controller_section(report: &mut Report) -> Result<()> {
             MachineToolConfig { spheres: vec![(c, r)], ..MachineToolConfig::near(seed, centre, r, tip) };
         VirtualMachineTool::new(cfg).expect("the demo's machine tool configuration is valid")
     };
-    let tsu = crate::vcmm::sphere_uncertainty_on(
+    let tsu = truepos_vcmm::sphere_uncertainty_on(
         make,
         "the virtual machine tool's model (1 ms servo latch, 0.5 µm pre-travel, 0.1 µm noise)",
         &plan,
@@ -254,7 +254,7 @@ pub fn controller_section(report: &mut Report) -> Result<()> {
         r,
         s.center_uncertainty_mm,
         s.radius_uncertainty_mm,
-        crate::vcmm::MonteCarlo::default(),
+        truepos_vcmm::MonteCarlo::default(),
     )?;
     s.center_uncertainty_mm = tsu.center_mm;
     s.radius_uncertainty_mm = tsu.radius_mm;

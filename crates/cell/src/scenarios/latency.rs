@@ -5,11 +5,11 @@
 //! [`demo_section`].
 
 use crate::error::{CellError, Result};
-use crate::report::{self, Report, Series};
 use std::io::Write;
 use std::path::Path;
 use truepos_io::atomic::AtomicFile;
 use truepos_latency::{self as lat, KnownSize, Method, Options, Streams};
+use truepos_report::{self as report, Report, Series};
 use truepos_sim::scenario::latency as scen;
 
 /// Write a data set as the contract's files: `machine.csv` (t_s,x_mm,y_mm,z_mm), `probe.csv`
@@ -168,190 +168,229 @@ impl OwnedStreams {
     }
 }
 
+/// The demo's data sets: the preset variant, the method it is estimated with, and its repeats.
+const DEMO_RUNS: [(scen::Variant, Method, usize); 8] = [
+    (scen::Variant::Sphere, Method::Artefact, 48),
+    (scen::Variant::Plates, Method::Artefact, 48),
+    (scen::Variant::Speeds, Method::Speeds, 16),
+    (scen::Variant::Scan, Method::Scan, 24),
+    (scen::Variant::InOut, Method::Inout, 48),
+    (scen::Variant::PerAxis, Method::Artefact, 48),
+    (scen::Variant::MultiRate, Method::Artefact, 48),
+    (scen::Variant::Oblique, Method::Artefact, 48),
+];
+
+/// What the demo's data sets gave: the table rows, the plots, and for the verdict the worst
+/// |error| and largest standard uncertainty over the whole-delay estimates (per-axis rows are
+/// judged in their own table), and the data sets whose method failed.
+#[derive(Default)]
+struct Tally {
+    rows: Vec<Vec<String>>,
+    html: String,
+    worst_err: f64,
+    worst_u: f64,
+    n_ok: usize,
+    failed: Vec<String>,
+}
+
 /// Demo: every method on the virtual cell against the truth; size against speed; the scan's
 /// radial error before and after the shift.
 pub fn demo_section(report: &mut Report) -> Result<()> {
-    let mut rows = Vec::new();
-    let mut html = String::new();
-    // For the verdict: worst |error| and largest standard uncertainty over the whole-delay
-    // estimates (per-axis rows are judged in their own table), and the methods that failed.
-    let (mut worst_err, mut worst_u, mut n_ok, mut failed) = (0.0_f64, 0.0_f64, 0usize, Vec::<String>::new());
-    let runs: [(scen::Variant, Method, usize); 8] = [
-        (scen::Variant::Sphere, Method::Artefact, 48),
-        (scen::Variant::Plates, Method::Artefact, 48),
-        (scen::Variant::Speeds, Method::Speeds, 16),
-        (scen::Variant::Scan, Method::Scan, 24),
-        (scen::Variant::InOut, Method::Inout, 48),
-        (scen::Variant::PerAxis, Method::Artefact, 48),
-        (scen::Variant::MultiRate, Method::Artefact, 48),
-        (scen::Variant::Oblique, Method::Artefact, 48),
-    ];
-    for (variant, method, repeats) in runs {
-        let mut c = scen::Config::preset(variant);
-        c.repeats = repeats;
-        c.seed = 7;
-        let per_axis = variant == scen::Variant::PerAxis;
-        let d = scen::simulate(&c)?;
-        let st = OwnedStreams::of(&d);
-        let known = match (method, d.truth.artefact) {
-            (Method::Artefact, scen::ArtefactTruth::Sphere { diameter_mm, .. }) => {
-                Some(KnownSize::SphereDiameter(diameter_mm))
-            }
-            (Method::Artefact, scen::ArtefactTruth::Plates { gap_mm, .. }) => Some(KnownSize::Gap(gap_mm)),
-            _ => None,
-        };
-        let opt = Options {
-            method,
-            known_size: known,
-            tip_radius: d.truth.tip_radius_mm,
-            per_axis,
-            ..Options::default()
-        };
-        let name = variant.name();
-        match lat::estimate(&st.streams(), &opt) {
-            Ok(e) => {
-                let err = e.delay - d.truth.delay_s;
-                if !per_axis {
-                    worst_err = worst_err.max(err.abs());
-                    worst_u = worst_u.max(e.u_delay);
-                    n_ok += 1;
-                }
-                rows.push(vec![
-                    name.to_string(),
-                    if per_axis {
-                        format!("{} (one delay for axes that differ: not meaningful)", e.method().name())
-                    } else {
-                        e.method().name().to_string()
-                    },
-                    format!("{:.2}", d.truth.delay_s * 1e6),
-                    format!("{:.2}", e.delay * 1e6),
-                    format!("{:.2}", e.u_delay * 1e6),
-                    if per_axis {
-                        format!("{:+.2} (not judged: the axes differ, see the rows below)", err * 1e6)
-                    } else {
-                        format!("{:+.2}", err * 1e6)
-                    },
-                    if per_axis { "—".into() } else { format!("{:.2}", err.abs() / e.u_delay) },
-                ]);
-                if let Some(pa) = e.per_axis() {
-                    for k in 0..3 {
-                        if pa.delay[k].is_none() {
-                            rows.push(vec![
-                                format!("{name} {}", ["X", "Y", "Z"][k]),
-                                format!("{} (per axis)", e.method().name()),
-                                format!("{:.2}", d.truth.per_axis_delay_s[k] * 1e6),
-                                "not determined (no opposite contacts along this axis)".into(),
-                                String::new(),
-                                String::new(),
-                                String::new(),
-                            ]);
-                        }
-                        if let (Some(dk), Some(uk)) = (pa.delay[k], pa.u_delay[k]) {
-                            let ek = dk - d.truth.per_axis_delay_s[k];
-                            rows.push(vec![
-                                format!("{name} {}", ["X", "Y", "Z"][k]),
-                                format!("{} (per axis)", e.method().name()),
-                                format!("{:.2}", d.truth.per_axis_delay_s[k] * 1e6),
-                                format!("{:.2}", dk * 1e6),
-                                format!("{:.2}", uk * 1e6),
-                                format!("{:+.2}", ek * 1e6),
-                                format!("{:.2}", ek.abs() / uk),
-                            ]);
-                        }
-                    }
-                }
-                if variant == scen::Variant::Speeds {
-                    let pts: Vec<(f64, f64)> = e.per_speed().to_vec();
-                    let s0 = e.static_size().unwrap_or(f64::NAN);
-                    let vmax = pts.iter().map(|p| p.0).fold(0.0, f64::max);
-                    // Retract on an outer feature: size = static − 2·v·D.
-                    let line: Vec<(f64, f64)> = (0..=20)
-                        .map(|i| {
-                            let v = vmax * 1.05 * i as f64 / 20.0;
-                            (v, s0 - 2.0 * v * e.delay)
-                        })
-                        .collect();
-                    let svg = report::xy_plot(
-                        "Measured sphere size against speed (speeds method)",
-                        "speed (mm/s)",
-                        "size (mm)",
-                        &[Series::points("measured", pts), Series::line("fit: static − 2·v·delay", line)],
-                    )?;
-                    html.push_str(&format!(
-                        "<p>Speeds method: static size {:.5} mm (true {:.5} mm); the gradient of size against speed gives the delay.</p>{svg}",
-                        s0, d.truth.static_size_mm
-                    ));
-                }
-                if let Some(sc) = e.scan() {
-                    let before = lat::scan::radial_errors(&st.streams(), sc, 0.0);
-                    let after = lat::scan::radial_errors(&st.streams(), sc, sc.delay);
-                    let t0 = before.first().map_or(0.0, |p| p.0);
-                    let step = (before.len() / 3000).max(1);
-                    let to_um = |v: &[(f64, f64)]| {
-                        v.iter().step_by(step).map(|p| (p.0 - t0, p.1 * 1e3)).collect::<Vec<_>>()
-                    };
-                    let svg = report::xy_plot(
-                        "Scan: radial error of the combined points",
-                        "time (s)",
-                        "radial error (µm)",
-                        &[
-                            Series::line("without shift", to_um(&before)),
-                            Series::line(&format!("shifted by {:.1} µs", sc.delay * 1e6), to_um(&after)),
-                        ],
-                    )?;
-                    html.push_str(&format!(
-                        "<p>Scan method: RMS radial error {:.3} µm without the shift, {:.3} µm with it ({} deflection steps).</p>{svg}",
-                        sc.rms_before * 1e3,
-                        sc.rms_after * 1e3,
-                        sc.n_steps
-                    ));
-                }
-            }
-            Err(err) => {
-                failed.push(name.to_string());
-                rows.push(vec![
-                    name.to_string(),
-                    method.name().to_string(),
-                    format!("{:.2}", d.truth.delay_s * 1e6),
-                    format!("failed: {err}"),
-                    String::new(),
-                    String::new(),
-                    String::new(),
-                ])
-            }
-        }
+    let mut tally = Tally::default();
+    for (variant, method, repeats) in DEMO_RUNS {
+        run_demo_dataset(variant, method, repeats, &mut tally)?;
     }
-    let tol_s = 10e-6;
-    report.verdict(report::Verdict {
-        section: "latency".into(),
-        capability: "System delay (latency)".into(),
-        measured: format!("delay between probe and machine streams, {n_ok} data sets × method"),
-        truth: "the simulator's delay per data set (column “true delay”)".into(),
-        result: format!("worst |error| {:.2} µs", worst_err * 1e6),
-        uncertainty: format!("largest U = {:.2} µs (k = 2)", 2.0 * worst_u * 1e6),
-        tolerance_text: "|error| ≤ 10 µs for every method (the product goal)".into(),
-        ..report::Verdict::judged(
-            report::Judgement::new(
-                worst_err * 1e6,
-                2.0 * worst_u * 1e6,
-                tol_s * 1e6,
-                "µs",
-                report::DecisionRule::Simple,
-            )
-            .require(n_ok > 0, "no data set was evaluated")
-            .require(failed.is_empty(), format!("failed: {}", failed.join(", "))),
-        )
-    });
+    report.verdict(demo_verdict(&tally));
     let table = report::table(
         &["data set", "method", "true delay (µs)", "recovered (µs)", "u (µs)", "error (µs)", "|error|/u"],
-        &rows,
+        &tally.rows,
     );
+    let html = &tally.html;
     report.add(
         "latency",
         "System delay between probe and machine data",
         format!("<p>Virtual cell: encoders 1 µm, probe 0.3 µm, 1 kHz streams (probe 4 kHz for multi-rate), stylus dynamics and servo following error on. The delay is recovered from the raw streams by every method. The per-axis data set has a different delay on each machine axis: its single-delay row is a compromise over the axes and is not judged; the rows “per-axis X/Y” are each axis's own delay (from the contacts on opposite sides along that axis) against that axis's true delay, and Z, touched from one side only, is not determined.</p>{table}{html}"),
     );
     Ok(())
+}
+
+/// One data set of the demo: simulate it (seed 7), estimate the delay with `method`, and add
+/// its rows and plots (or its failure) to `tally`.
+fn run_demo_dataset(variant: scen::Variant, method: Method, repeats: usize, tally: &mut Tally) -> Result<()> {
+    let mut c = scen::Config::preset(variant);
+    c.repeats = repeats;
+    c.seed = 7;
+    let per_axis = variant == scen::Variant::PerAxis;
+    let d = scen::simulate(&c)?;
+    let st = OwnedStreams::of(&d);
+    let known = match (method, d.truth.artefact) {
+        (Method::Artefact, scen::ArtefactTruth::Sphere { diameter_mm, .. }) => {
+            Some(KnownSize::SphereDiameter(diameter_mm))
+        }
+        (Method::Artefact, scen::ArtefactTruth::Plates { gap_mm, .. }) => Some(KnownSize::Gap(gap_mm)),
+        _ => None,
+    };
+    let opt = Options {
+        method,
+        known_size: known,
+        tip_radius: d.truth.tip_radius_mm,
+        per_axis,
+        ..Options::default()
+    };
+    let name = variant.name();
+    let e = match lat::estimate(&st.streams(), &opt) {
+        Ok(e) => e,
+        Err(err) => {
+            tally.failed.push(name.to_string());
+            tally.rows.push(vec![
+                name.to_string(),
+                method.name().to_string(),
+                format!("{:.2}", d.truth.delay_s * 1e6),
+                format!("failed: {err}"),
+                String::new(),
+                String::new(),
+                String::new(),
+            ]);
+            return Ok(());
+        }
+    };
+    let err = e.delay - d.truth.delay_s;
+    if !per_axis {
+        tally.worst_err = tally.worst_err.max(err.abs());
+        tally.worst_u = tally.worst_u.max(e.u_delay);
+        tally.n_ok += 1;
+    }
+    tally.rows.push(vec![
+        name.to_string(),
+        if per_axis {
+            format!("{} (one delay for axes that differ: not meaningful)", e.method().name())
+        } else {
+            e.method().name().to_string()
+        },
+        format!("{:.2}", d.truth.delay_s * 1e6),
+        format!("{:.2}", e.delay * 1e6),
+        format!("{:.2}", e.u_delay * 1e6),
+        if per_axis {
+            format!("{:+.2} (not judged: the axes differ, see the rows below)", err * 1e6)
+        } else {
+            format!("{:+.2}", err * 1e6)
+        },
+        if per_axis { "—".into() } else { format!("{:.2}", err.abs() / e.u_delay) },
+    ]);
+    if let Some(pa) = e.per_axis() {
+        tally.rows.extend(per_axis_rows(name, &e, pa, &d.truth));
+    }
+    if variant == scen::Variant::Speeds {
+        tally.html.push_str(&speeds_plot(&e, &d.truth)?);
+    }
+    if let Some(sc) = e.scan() {
+        tally.html.push_str(&scan_plot(&st, sc)?);
+    }
+    Ok(())
+}
+
+/// The rows of each axis's own delay (per-axis method) against that axis's true delay.
+fn per_axis_rows(name: &str, e: &lat::Estimate, pa: &lat::PerAxis, truth: &scen::Truth) -> Vec<Vec<String>> {
+    let mut rows = Vec::new();
+    for k in 0..3 {
+        if pa.delay[k].is_none() {
+            rows.push(vec![
+                format!("{name} {}", ["X", "Y", "Z"][k]),
+                format!("{} (per axis)", e.method().name()),
+                format!("{:.2}", truth.per_axis_delay_s[k] * 1e6),
+                "not determined (no opposite contacts along this axis)".into(),
+                String::new(),
+                String::new(),
+                String::new(),
+            ]);
+        }
+        if let (Some(dk), Some(uk)) = (pa.delay[k], pa.u_delay[k]) {
+            let ek = dk - truth.per_axis_delay_s[k];
+            rows.push(vec![
+                format!("{name} {}", ["X", "Y", "Z"][k]),
+                format!("{} (per axis)", e.method().name()),
+                format!("{:.2}", truth.per_axis_delay_s[k] * 1e6),
+                format!("{:.2}", dk * 1e6),
+                format!("{:.2}", uk * 1e6),
+                format!("{:+.2}", ek * 1e6),
+                format!("{:.2}", ek.abs() / uk),
+            ]);
+        }
+    }
+    rows
+}
+
+/// The speeds method's plot: measured size against speed with the fitted line.
+fn speeds_plot(e: &lat::Estimate, truth: &scen::Truth) -> Result<String> {
+    let pts: Vec<(f64, f64)> = e.per_speed().to_vec();
+    let s0 = e.static_size().unwrap_or(f64::NAN);
+    let vmax = pts.iter().map(|p| p.0).fold(0.0, f64::max);
+    // Retract on an outer feature: size = static − 2·v·D.
+    let line: Vec<(f64, f64)> = (0..=20)
+        .map(|i| {
+            let v = vmax * 1.05 * i as f64 / 20.0;
+            (v, s0 - 2.0 * v * e.delay)
+        })
+        .collect();
+    let svg = report::xy_plot(
+        "Measured sphere size against speed (speeds method)",
+        "speed (mm/s)",
+        "size (mm)",
+        &[Series::points("measured", pts), Series::line("fit: static − 2·v·delay", line)],
+    )?;
+    Ok(format!(
+        "<p>Speeds method: static size {:.5} mm (true {:.5} mm); the gradient of size against speed gives the delay.</p>{svg}",
+        s0, truth.static_size_mm
+    ))
+}
+
+/// The scan method's plot: the radial error of the combined points without and with the shift.
+fn scan_plot(st: &OwnedStreams, sc: &lat::scan::ScanResult) -> Result<String> {
+    let before = lat::scan::radial_errors(&st.streams(), sc, 0.0);
+    let after = lat::scan::radial_errors(&st.streams(), sc, sc.delay);
+    let t0 = before.first().map_or(0.0, |p| p.0);
+    let step = (before.len() / 3000).max(1);
+    let to_um = |v: &[(f64, f64)]| v.iter().step_by(step).map(|p| (p.0 - t0, p.1 * 1e3)).collect::<Vec<_>>();
+    let svg = report::xy_plot(
+        "Scan: radial error of the combined points",
+        "time (s)",
+        "radial error (µm)",
+        &[
+            Series::line("without shift", to_um(&before)),
+            Series::line(&format!("shifted by {:.1} µs", sc.delay * 1e6), to_um(&after)),
+        ],
+    )?;
+    Ok(format!(
+        "<p>Scan method: RMS radial error {:.3} µm without the shift, {:.3} µm with it ({} deflection steps).</p>{svg}",
+        sc.rms_before * 1e3,
+        sc.rms_after * 1e3,
+        sc.n_steps
+    ))
+}
+
+/// The section's verdict: the worst |error| of the whole-delay estimates against 10 µs.
+fn demo_verdict(t: &Tally) -> report::Verdict {
+    let tol_s = 10e-6;
+    report::Verdict {
+        section: "latency".into(),
+        capability: "System delay (latency)".into(),
+        measured: format!("delay between probe and machine streams, {} data sets × method", t.n_ok),
+        truth: "the simulator's delay per data set (column “true delay”)".into(),
+        result: format!("worst |error| {:.2} µs", t.worst_err * 1e6),
+        uncertainty: format!("largest U = {:.2} µs (k = 2)", 2.0 * t.worst_u * 1e6),
+        tolerance_text: "|error| ≤ 10 µs for every method (the product goal)".into(),
+        ..report::Verdict::judged(
+            report::Judgement::new(
+                t.worst_err * 1e6,
+                2.0 * t.worst_u * 1e6,
+                tol_s * 1e6,
+                "µs",
+                report::DecisionRule::Simple,
+            )
+            .require(t.n_ok > 0, "no data set was evaluated")
+            .require(t.failed.is_empty(), format!("failed: {}", t.failed.join(", "))),
+        )
+    }
 }
 
 /// Repeats of the contact pattern (or scan revolutions) that `truepos simulate latency` uses

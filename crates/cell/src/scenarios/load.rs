@@ -5,7 +5,6 @@
 //! Entry points: [`write_scenario`], [`demo_section`].
 
 use crate::error::{CellError, Context, Result};
-use crate::report::{self, Report, Series};
 use serde_json::json;
 use std::path::Path;
 use truepos_comp::fe_map::{self, BedModel, LoadGrid};
@@ -16,6 +15,7 @@ use truepos_fe::{MeshOptions, Supports};
 use truepos_io::atomic::{write_atomic, AtomicFile};
 use truepos_io::csv::CsvWriter;
 use truepos_math::{Point3, Vector3};
+use truepos_report::{self as report, Report, Series};
 use truepos_sim::scenario::load::{simulate as sim_load, LoadConfig, LoadData};
 
 fn bed_toml(c: &LoadConfig) -> String {

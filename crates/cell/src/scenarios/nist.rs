@@ -9,11 +9,11 @@
 //! [`nist_table_dir`] (the same on a folder laid out like `data/nist-fit`), [`demo_section`].
 
 use crate::error::Result;
-use crate::report::{self, Report};
 use std::path::{Path, PathBuf};
 use truepos_fit::evaluate::Kind;
 use truepos_io::InputError;
 use truepos_math::{Point3, Vector3};
+use truepos_report::{self as report, Report};
 
 /// One NIST data set as shipped: its folder under `data/nist-fit`, its name, the `.ds` points
 /// file and the `.fit` certified values.

@@ -8,7 +8,7 @@
 //! [`write_comp_dataset`] (the `truepos simulate comp` data set, from [`comp_data`]).
 
 use crate::error::{CellError, Result};
-use crate::report::{self, DecisionRule, Judgement, Report, Verdict};
+use truepos_report::{self as report, DecisionRule, Judgement, Report, Verdict};
 
 /// Expanded uncertainty (in 10⁻⁹) of comparing n with NIST's printed values: the printed values'
 /// rounding is the tolerance itself; double-precision evaluation adds far less than this bound.
@@ -181,8 +181,56 @@ pub fn write_comp_dataset(dir: &Path, seed: u64) -> Result<CompWritten> {
         t.y,
         t.z
     );
+    let rows = write_comp_map(&map_p, &d, seed, &command)?;
+    write_comp_squareness(&sq_p, &d, seed)?;
+    write_comp_points(&pts_p, &d, seed)?;
+    let err: Vec<f64> = d.indicated.iter().zip(&d.actual).map(|(i, a)| (i - a).norm() * 1e3).collect();
+    let (rms_um, max_um) = (truepos_math::stats::rms(&err), err.iter().copied().fold(0.0_f64, f64::max));
+    let truth = serde_json::json!({
+        "scenario": "comp",
+        "seed": seed,
+        "chain": "bridge (bed → Y → X → Z → tool)",
+        "travel_mm": d.mags.travel,
+        "map_step_mm": d.step,
+        "probe_offset_mm": [t.x, t.y, t.z],
+        "squareness_urad": {
+            "xy": d.errors.squareness.xy * 1e6,
+            "xz": d.errors.squareness.xz * 1e6,
+            "yz": d.errors.squareness.yz * 1e6
+        },
+        "calibration_standard_uncertainty": {
+            "pos_um": COMP_CAL_U[0] * 1e3, "str1_um": COMP_CAL_U[1] * 1e3, "str2_um": COMP_CAL_U[2] * 1e3,
+            "pitch_urad": COMP_CAL_U[3] * 1e6, "yaw_urad": COMP_CAL_U[4] * 1e6, "roll_urad": COMP_CAL_U[5] * 1e6,
+            "squareness_urad": COMP_CAL_U_SQUARENESS * 1e6
+        },
+        "ids": (1..=d.actual.len()).map(|i| format!("P{i}")).collect::<Vec<_>>(),
+        "true_points_mm": d.actual.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
+        "uncorrected_rms_error_um": rms_um,
+        "uncorrected_max_error_um": max_um,
+        "command": command,
+        "note": "true_points_mm: the probe tip on the simulator's exact (non-linearised) kinematic chain; squareness_urad: the true squareness (squareness.toml holds the calibrated one). The map carries its calibration's noise, stated in its u_* columns: a corrected point lies within its ±2·u (u_x_um, u_y_um, u_z_um of the output) of the truth in about 95 % of coordinates",
+    });
+    let mut text = serde_json::to_string_pretty(&truth)?;
+    text.push('\n');
+    write_atomic(&truth_p, text.as_bytes())?;
+    Ok(CompWritten {
+        map: map_p,
+        squareness: sq_p,
+        points: pts_p,
+        truth: truth_p,
+        command,
+        n_points: d.indicated.len(),
+        rows,
+        rms_um,
+        max_um,
+    })
+}
+
+/// `map.csv` of the `comp` data set: the calibrated map with its u_* columns, one table per
+/// axis; returns the rows written per axis.
+fn write_comp_map(map_p: &Path, d: &CompData, seed: u64, command: &str) -> Result<[usize; 3]> {
     let mut rows = [0usize; 3];
-    let mut f = AtomicFile::create(&map_p)?;
+    let mut f = AtomicFile::create(map_p)?;
     {
         // 0.01 nm and 0.01 nrad: exact for any use, and no 1e-19 noise at the tables' zero.
         let mut w =
@@ -239,10 +287,15 @@ pub fn write_comp_dataset(dir: &Path, seed: u64) -> Result<CompWritten> {
         std::io::Write::flush(&mut w.into_inner())?;
     }
     f.commit()?;
+    Ok(rows)
+}
+
+/// `squareness.toml` of the `comp` data set (the calibrated squareness, µrad, with its u).
+fn write_comp_squareness(sq_p: &Path, d: &CompData, seed: u64) -> Result<()> {
     let sq = &d.squareness;
     let us = COMP_CAL_U_SQUARENESS * 1e6;
     write_atomic(
-        &sq_p,
+        sq_p,
         format!(
             "# Squareness errors of the virtual bridge CMM (truepos simulate comp, seed {seed}), µrad, as calibrated.\n\
              # Positive = the angle between the positive axes is smaller than 90°; xy adds (0, xy·x, 0),\n\
@@ -258,7 +311,13 @@ pub fn write_comp_dataset(dir: &Path, seed: u64) -> Result<CompWritten> {
         )
         .as_bytes(),
     )?;
-    let mut f = AtomicFile::create(&pts_p)?;
+    Ok(())
+}
+
+/// `points.csv` of the `comp` data set: the indicated probe-tip points with their ids.
+fn write_comp_points(pts_p: &Path, d: &CompData, seed: u64) -> Result<()> {
+    let t = d.tool;
+    let mut f = AtomicFile::create(pts_p)?;
     {
         // 7 decimals: 0.1 nm, far below the probing noise; outputs keep this precision.
         let mut w =
@@ -276,46 +335,7 @@ pub fn write_comp_dataset(dir: &Path, seed: u64) -> Result<CompWritten> {
         std::io::Write::flush(&mut w.into_inner())?;
     }
     f.commit()?;
-    let err: Vec<f64> = d.indicated.iter().zip(&d.actual).map(|(i, a)| (i - a).norm() * 1e3).collect();
-    let (rms_um, max_um) = (truepos_math::stats::rms(&err), err.iter().copied().fold(0.0_f64, f64::max));
-    let truth = serde_json::json!({
-        "scenario": "comp",
-        "seed": seed,
-        "chain": "bridge (bed → Y → X → Z → tool)",
-        "travel_mm": d.mags.travel,
-        "map_step_mm": d.step,
-        "probe_offset_mm": [t.x, t.y, t.z],
-        "squareness_urad": {
-            "xy": d.errors.squareness.xy * 1e6,
-            "xz": d.errors.squareness.xz * 1e6,
-            "yz": d.errors.squareness.yz * 1e6
-        },
-        "calibration_standard_uncertainty": {
-            "pos_um": COMP_CAL_U[0] * 1e3, "str1_um": COMP_CAL_U[1] * 1e3, "str2_um": COMP_CAL_U[2] * 1e3,
-            "pitch_urad": COMP_CAL_U[3] * 1e6, "yaw_urad": COMP_CAL_U[4] * 1e6, "roll_urad": COMP_CAL_U[5] * 1e6,
-            "squareness_urad": COMP_CAL_U_SQUARENESS * 1e6
-        },
-        "ids": (1..=d.actual.len()).map(|i| format!("P{i}")).collect::<Vec<_>>(),
-        "true_points_mm": d.actual.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
-        "uncorrected_rms_error_um": rms_um,
-        "uncorrected_max_error_um": max_um,
-        "command": command,
-        "note": "true_points_mm: the probe tip on the simulator's exact (non-linearised) kinematic chain; squareness_urad: the true squareness (squareness.toml holds the calibrated one). The map carries its calibration's noise, stated in its u_* columns: a corrected point lies within its ±2·u (u_x_um, u_y_um, u_z_um of the output) of the truth in about 95 % of coordinates",
-    });
-    let mut text = serde_json::to_string_pretty(&truth)?;
-    text.push('\n');
-    write_atomic(&truth_p, text.as_bytes())?;
-    Ok(CompWritten {
-        map: map_p,
-        squareness: sq_p,
-        points: pts_p,
-        truth: truth_p,
-        command,
-        n_points: d.indicated.len(),
-        rows,
-        rms_um,
-        max_um,
-    })
+    Ok(())
 }
 
 /// The `comp` data set's points corrected through its calibrated map, against the truth.

@@ -1,5 +1,5 @@
 //! The `somac` scenario: a wing-spar drilling program on the virtual large gantry with laser
-//! trackers ([`crate::gantry`]), its cell file (`cell.toml`), the run on the virtual cell with the
+//! trackers ([`truepos_plant::gantry`]), its cell file (`cell.toml`), the run on the virtual cell with the
 //! true hole errors, the data set with its `truth.json`, and the demo section.
 //!
 //! Entry points: [`read_cell_file`] / [`CellFile`] (the cell file: virtual gantry, trackers,
@@ -7,14 +7,14 @@
 //! [`write_scenario`], [`demo_section`].
 
 use crate::error::{CellError, Result};
-use crate::gantry::{CellConfig, Obstruction, TrackerConfig, VirtualCell};
-use crate::report::{self, Report, Series};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::path::Path;
 use truepos_io::InputError;
 use truepos_math::{Point3, Vector3};
+use truepos_plant::gantry::{CellConfig, Obstruction, TrackerConfig, VirtualCell};
+use truepos_report::{self as report, Report, Series};
 use truepos_sim::scenario::somac::{spar, SparConfig};
 use truepos_sim::thermal::{Step, TemperatureHistory};
 use truepos_somac::audit::{AuditSink, MemoryAudit};

@@ -3,5 +3,4 @@
 pub mod head_offset;
 pub mod latency;
 pub mod load;
-pub mod scan;
 pub mod somac;

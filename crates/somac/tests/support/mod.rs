@@ -2,9 +2,9 @@
 //! the aluminium spar, and the loop settings for it.
 
 use std::collections::BTreeMap;
-use truepos_cell::gantry::{CellConfig, VirtualCell};
 use truepos_gcode::Program;
 use truepos_math::Point3;
+use truepos_plant::gantry::{CellConfig, VirtualCell};
 use truepos_sim::scenario::somac::{spar, SparConfig};
 use truepos_somac::audit::MemoryAudit;
 use truepos_somac::{run_program, Params, RunReport};

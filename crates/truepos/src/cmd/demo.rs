@@ -3,7 +3,7 @@
 
 use crate::Outcome;
 use std::path::PathBuf;
-use truepos_cell::report::Report;
+use truepos_report::Report;
 
 #[derive(clap::Args, Debug)]
 #[command(
@@ -46,7 +46,7 @@ pub fn run(a: Args) -> anyhow::Result<Outcome> {
             .map(|d| d.as_secs() as i64)
             .unwrap_or(0),
     };
-    report.header = truepos_cell::report::Header {
+    report.header = truepos_report::Header {
         version: format!("{} (build {})", env!("CARGO_PKG_VERSION"), env!("TRUEPOS_BUILD_COMMIT")),
         generated_unix_s: now,
         command_line: std::env::args().collect::<Vec<_>>().join(" "),
@@ -71,13 +71,13 @@ pub fn run(a: Args) -> anyhow::Result<Outcome> {
         "all {n} sections in {:.1} s; overall: {}",
         t_all.elapsed().as_secs_f64(),
         match report.overall() {
-            truepos_cell::report::Overall::Pass => "PASS".to_string(),
-            truepos_cell::report::Overall::Fail => "FAIL".to_string(),
-            truepos_cell::report::Overall::Incomplete => {
+            truepos_report::Overall::Pass => "PASS".to_string(),
+            truepos_report::Overall::Fail => "FAIL".to_string(),
+            truepos_report::Overall::Incomplete => {
                 let open: Vec<String> = report
                     .verdicts()
                     .iter()
-                    .filter(|v| !matches!(v.verdict, truepos_cell::report::Outcome::Pass))
+                    .filter(|v| !matches!(v.verdict, truepos_report::Outcome::Pass))
                     .map(|v| format!("{} {}", v.capability, v.verdict.word()))
                     .collect();
                 format!("INCOMPLETE ({})", open.join(", "))

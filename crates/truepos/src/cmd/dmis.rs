@@ -1,6 +1,6 @@
 //! `truepos dmis run`: a DMIS part program on a CMM through I++ DME or on the virtual CMM
 //! (contract "DMIS part programs"). Thin: the work is in `truepos_dmis` (read, check, run,
-//! results) and `truepos_cell::cmm::serve_loopback` (the virtual CMM).
+//! results) and `truepos_plant::cmm::serve_loopback` (the virtual CMM).
 
 use crate::{Outcome, UsageError};
 use anyhow::Result;
@@ -101,7 +101,7 @@ pub fn run(args: Args) -> Result<Outcome> {
     // The virtual CMM lives as long as the run.
     let mut _virtual = None;
     let url = if a.controller == "virtual" {
-        let cmm = truepos_cell::cmm::serve_loopback(a.part.as_deref(), a.machine.as_deref())?;
+        let cmm = truepos_plant::cmm::serve_loopback(a.part.as_deref(), a.machine.as_deref())?;
         let url = cmm.url.clone();
         _virtual = Some(cmm);
         url
@@ -146,7 +146,7 @@ pub fn run(args: Args) -> Result<Outcome> {
     let done = r.and_then(|r| {
         let task = match &model {
             Some(m) => {
-                Some(truepos_cell::vcmm::dmis_uncertainty(m, &plan, &opts, &r, a.model.monte_carlo())?)
+                Some(truepos_cell::uncertainty::dmis_uncertainty(m, &plan, &opts, &r, a.model.monte_carlo())?)
             }
             None => {
                 eprintln!("{}", super::probe::NO_MODEL_WARNING);

@@ -240,8 +240,8 @@ fn apply(a: ApplyArgs) -> Result<Outcome> {
 }
 
 fn acquire(a: AcquireArgs) -> Result<Outcome> {
-    use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
     use truepos_head::acquire::{acquire_to_file, HeadAcquisition};
+    use truepos_plant::probing::{MachineToolConfig, VirtualMachineTool};
     let c_varies = a.orientations.iter().any(|o| o[1] != 0.0);
     let table_center = match a.table_center_mm {
         Some(t) => Point3::from(t),
@@ -280,9 +280,9 @@ fn acquire(a: AcquireArgs) -> Result<Outcome> {
     let mut report = acquire_to_file(machine.as_mut(), &acq, &a.output, next)?;
     report.truth = truth.map(|t| (t.offset_mm, t.sphere_centre_mm, t.sphere_radius_mm));
     let machine_kind = if a.sphere.controller.starts_with("ippdme://") {
-        truepos_cell::vcmm::AcquiringMachine::Cmm
+        truepos_vcmm::AcquiringMachine::Cmm
     } else {
-        truepos_cell::vcmm::AcquiringMachine::MachineTool
+        truepos_vcmm::AcquiringMachine::MachineTool
     };
     let offset = acquired_offset(&report, &acq, model.as_ref(), machine_kind, &a.model)?;
     if a.json {
@@ -310,8 +310,8 @@ struct AcquiredOffset {
 fn acquired_offset(
     report: &truepos_head::acquire::AcquireReport,
     acq: &truepos_head::acquire::HeadAcquisition,
-    model: Option<&truepos_cell::vcmm::MachineModel>,
-    machine: truepos_cell::vcmm::AcquiringMachine,
+    model: Option<&truepos_vcmm::MachineModel>,
+    machine: truepos_vcmm::AcquiringMachine,
     args: &super::probe::ModelArgs,
 ) -> Result<AcquiredOffset> {
     use serde_json::json;
@@ -334,14 +334,9 @@ fn acquired_offset(
         Err(e) => return Ok(none(format!("the points determine no head offset: {e}"))),
     };
     let task = match model {
-        Some(m) => Some(truepos_cell::vcmm::head_offset_uncertainty(
-            m,
-            acq,
-            &params,
-            &r,
-            machine,
-            args.monte_carlo(),
-        )?),
+        Some(m) => {
+            Some(truepos_vcmm::head_offset_uncertainty(m, acq, &params, &r, machine, args.monte_carlo())?)
+        }
         None => {
             eprintln!("{}", super::probe::NO_MODEL_WARNING);
             None

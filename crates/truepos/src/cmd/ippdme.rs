@@ -1,5 +1,5 @@
 //! `truepos ippdme serve`: the virtual CMM behind an I++ DME server (contract "CMM protocol").
-//! Thin: the work is in `truepos_cell::cmm` and `truepos_ippdme::server`.
+//! Thin: the work is in `truepos_plant::cmm` and `truepos_ippdme::server`.
 
 use crate::{ClassExt, Outcome};
 use std::path::PathBuf;
@@ -48,7 +48,7 @@ pub struct ServeArgs {
 
 pub fn run(args: Args) -> anyhow::Result<Outcome> {
     let IppCommand::Serve(a) = args.command;
-    use truepos_cell::cmm::{bind_virtual, ServeOptions};
+    use truepos_plant::cmm::{bind_virtual, ServeOptions};
     if let Some(log) = &a.log {
         // The log is appended to for the server's life: only a regular file (or a new one), never
         // a device (a full one would lose every line silently), a FIFO, a symlink, or one of

@@ -8,13 +8,13 @@ use crate::output::{emit, parse_pair, parse_triple};
 use crate::{ClassExt, Outcome, UsageError};
 use anyhow::Result;
 use std::path::PathBuf;
-use truepos_cell::probing::VirtualMachineTool;
 use truepos_device::ProbingMachine;
 use truepos_head::acquire::SphereProbing;
 use truepos_kinematics::acquire::KinematicsProbing;
 use truepos_kinematics::task::default_verify_orientations;
 use truepos_kinematics::{CalibrateRequest, Model};
 use truepos_math::Point3;
+use truepos_plant::probing::VirtualMachineTool;
 
 #[derive(clap::Args, Debug)]
 #[command(
@@ -188,7 +188,7 @@ fn calibrate(a: CalibrateArgs) -> Result<Outcome> {
     match &error_model {
         Some(m) => {
             // Task-specific: the same calibration simulated on machines drawn from the model.
-            let t = truepos_cell::vcmm::kinematics_uncertainty(
+            let t = truepos_cell::uncertainty::kinematics_uncertainty(
                 m,
                 &req.probing,
                 &report,

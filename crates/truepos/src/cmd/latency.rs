@@ -212,7 +212,7 @@ fn probe_feeds(a: ProbeArgs) -> Result<Outcome> {
     if opened.virtual_truth.is_some() {
         // The virtual machine tool latches at the first servo sample after the trigger, at a
         // random phase: on average half a servo period late.
-        r.virtual_truth_s = Some(0.5 * truepos_cell::probing::MachineToolConfig::default().servo_period_s);
+        r.virtual_truth_s = Some(0.5 * truepos_plant::probing::MachineToolConfig::default().servo_period_s);
     }
     emit(&r, a.json)?;
     Ok(Outcome::Done)

@@ -8,11 +8,11 @@ use crate::output::{parse_triple, print_json, v3};
 use crate::{ClassExt, Classed, Outcome, UsageError};
 use anyhow::Result;
 use serde_json::json;
-use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
 use truepos_device::ProbingMachine;
 use truepos_head::acquire::{probe_sphere, AcquireError, SphereProbing};
 use truepos_math::exit::ExitClass;
 use truepos_math::Point3;
+use truepos_plant::probing::{MachineToolConfig, VirtualMachineTool};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -60,29 +60,29 @@ pub struct ModelArgs {
     #[arg(long, value_name = "FILE")]
     pub machine_model: Option<std::path::PathBuf>,
     /// Machine realisations of the task-specific simulation (≥ 200).
-    #[arg(long, default_value_t = truepos_cell::vcmm::MIN_RUNS, requires = "machine_model")]
+    #[arg(long, default_value_t = truepos_vcmm::MIN_RUNS, requires = "machine_model")]
     pub monte_carlo_runs: usize,
 }
 
 impl ModelArgs {
     /// The machine model, read (and checked) before any machine moves.
-    pub fn read(&self) -> Result<Option<truepos_cell::vcmm::MachineModel>> {
+    pub fn read(&self) -> Result<Option<truepos_vcmm::MachineModel>> {
         let Some(path) = &self.machine_model else { return Ok(None) };
-        if !(truepos_cell::vcmm::MIN_RUNS..=truepos_cell::vcmm::MAX_RUNS).contains(&self.monte_carlo_runs) {
+        if !(truepos_vcmm::MIN_RUNS..=truepos_vcmm::MAX_RUNS).contains(&self.monte_carlo_runs) {
             return Err(UsageError(format!(
                 "--monte-carlo-runs must be between {} and {}, got {}",
-                truepos_cell::vcmm::MIN_RUNS,
-                truepos_cell::vcmm::MAX_RUNS,
+                truepos_vcmm::MIN_RUNS,
+                truepos_vcmm::MAX_RUNS,
                 self.monte_carlo_runs
             ))
             .into());
         }
-        Ok(Some(truepos_cell::vcmm::MachineModel::read(path)?))
+        Ok(Some(truepos_vcmm::MachineModel::read(path)?))
     }
 
     /// The Monte Carlo settings.
-    pub fn monte_carlo(&self) -> truepos_cell::vcmm::MonteCarlo {
-        truepos_cell::vcmm::MonteCarlo { runs: self.monte_carlo_runs, ..Default::default() }
+    pub fn monte_carlo(&self) -> truepos_vcmm::MonteCarlo {
+        truepos_vcmm::MonteCarlo { runs: self.monte_carlo_runs, ..Default::default() }
     }
 }
 
@@ -200,7 +200,7 @@ fn sphere(a: SphereArgs) -> Result<Outcome> {
     // its simulation carries that latch; a CMM (I++ DME) latches at the trigger.
     let machine_tool = !a.sphere.controller.starts_with("ippdme://");
     let task = match &model {
-        Some(m) if machine_tool => Some(truepos_cell::vcmm::sphere_uncertainty_machine_tool(
+        Some(m) if machine_tool => Some(truepos_vcmm::sphere_uncertainty_machine_tool(
             m,
             &plan,
             s.center_mm,
@@ -209,7 +209,7 @@ fn sphere(a: SphereArgs) -> Result<Outcome> {
             fit_u.1,
             a.model.monte_carlo(),
         )?),
-        Some(m) => Some(truepos_cell::vcmm::sphere_uncertainty(
+        Some(m) => Some(truepos_vcmm::sphere_uncertainty(
             m,
             &plan,
             s.center_mm,

@@ -14,9 +14,9 @@ use crate::output::{parse_pair, print_json};
 use crate::{Classed, Outcome, UsageError};
 use anyhow::{Context, Result};
 use std::path::PathBuf;
-use truepos_cell::scanning_cmm::{read_machine_file, run_scan, CmmConfig};
 use truepos_io::InputError;
 use truepos_math::exit::ExitClass;
+use truepos_plant::scanning_cmm::{read_machine_file, run_scan, CmmConfig};
 use truepos_scan::execute::ControlParams;
 use truepos_scan::file::{read_features, ParamOverrides};
 use truepos_scan::{plan, Feature, Params, ScanError, Style};
@@ -193,7 +193,7 @@ fn run_run(a: RunArgs) -> Result<Outcome> {
         None => (CmmConfig::default(), ControlParams::default()),
     };
     let truth = match &a.part {
-        Some(p) => truepos_cell::scan_scenario::read_truth(p, &features, &params)?,
+        Some(p) => truepos_plant::scan_scenario::read_truth(p, &features, &params)?,
         None => features.clone(),
     };
     let style = a.common.style;
@@ -234,7 +234,7 @@ pub fn simulate(a: SimArgs) -> Result<Outcome> {
     if a.features == 0 || a.features > 10_000 {
         return Err(UsageError(format!("--features {} must be between 1 and 10000", a.features)).into());
     }
-    let w = truepos_cell::scan_scenario::write_scenario(&a.common.out, a.common.seed, a.features)?;
+    let w = truepos_plant::scan_scenario::write_scenario(&a.common.out, a.common.seed, a.features)?;
     eprint!("{}", w.text());
     Ok(Outcome::Done)
 }

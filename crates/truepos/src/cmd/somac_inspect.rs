@@ -12,8 +12,8 @@
 use crate::{ClassExt, Outcome, UsageError};
 use anyhow::Result;
 use std::path::PathBuf;
-use truepos_cell::probing::{MachineToolConfig, VirtualMachineTool};
 use truepos_math::Point3;
+use truepos_plant::probing::{MachineToolConfig, VirtualMachineTool};
 use truepos_somac::inspect::{inspect, read_hole_list, read_program_holes, Hole, InspectPlan, InspectReport};
 
 #[derive(clap::Args, Debug)]
@@ -126,7 +126,7 @@ fn inspect_and_record(
     a: &InspectArgs,
     holes: &[Hole],
     plan: &InspectPlan,
-    model: Option<&truepos_cell::vcmm::MachineModel>,
+    model: Option<&truepos_vcmm::MachineModel>,
     audit: &mut truepos_audit::Audit,
 ) -> Result<InspectReport> {
     let mut truth = None;
@@ -142,7 +142,7 @@ fn inspect_and_record(
     let mut r = inspect(machine.as_mut(), holes, plan)?;
     let uncertainty = match model {
         Some(m) => {
-            let u = truepos_cell::vcmm::inspection_uncertainty(m, plan, &r, a.model.monte_carlo())?;
+            let u = truepos_vcmm::inspection_uncertainty(m, plan, &r, a.model.monte_carlo())?;
             for (h, u) in r.holes.iter_mut().zip(&u) {
                 h.center_uncertainty_mm = u.center_xy_mm;
                 h.diameter_uncertainty_mm = u.diameter_mm;

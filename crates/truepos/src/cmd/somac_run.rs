@@ -166,7 +166,7 @@ pub fn run(a: RunArgs) -> Result<Outcome> {
 fn run_on_controller(
     a: &RunArgs,
     text: &str,
-    cfg: truepos_cell::gantry::CellConfig,
+    cfg: truepos_plant::gantry::CellConfig,
     targets: Vec<(String, truepos_math::Point3)>,
     params: &truepos_somac::Params,
     audit: &mut truepos_audit::Audit,

@@ -2,7 +2,7 @@
 //! element the demo uses (header, verdicts, tables, line/point plots, equal-aspect plot,
 //! histogram, heat map), runs axe-core in headless Chromium through `tests/a11y/audit.js`, and
 //! fails on any serious or critical violation. Screenshots (desktop and 420 px) go to
-//! `target/a11y/`. Needs node, /usr/bin/chromium and `npm ci --prefix crates/cell/tests/a11y`;
+//! `target/a11y/`. Needs node, /usr/bin/chromium and `npm ci --prefix crates/report/tests/a11y`;
 //! without them it prints `SKIPPED: …` and returns.
 //!
 //! The printed form is checked too: the report is printed to PDF by headless Chromium and read
@@ -11,7 +11,7 @@
 
 use std::path::PathBuf;
 use std::process::Command;
-use truepos_cell::report::{self, Header, Report, Series, Verdict};
+use truepos_report::{self as report, Header, Report, Series, Verdict};
 
 fn sample_report(dir: &std::path::Path) -> PathBuf {
     let mut r = Report::new(dir);
@@ -87,7 +87,7 @@ fn report_passes_axe_in_chromium() {
         return;
     }
     if !here.join("node_modules/axe-core").exists() || !here.join("node_modules/puppeteer-core").exists() {
-        eprintln!("SKIPPED: node modules missing; run `npm ci --prefix crates/cell/tests/a11y`; the accessibility audit did not run");
+        eprintln!("SKIPPED: node modules missing; run `npm ci --prefix crates/report/tests/a11y`; the accessibility audit did not run");
         return;
     }
     let o = Command::new("node").arg(here.join("audit.js")).arg(&html).arg(&out).output().unwrap();

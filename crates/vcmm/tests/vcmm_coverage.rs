@@ -8,11 +8,11 @@
 //! (800 comparisons), the figures of docs/uncertainty.md.
 
 use std::path::Path;
-use truepos_cell::vcmm::{sphere_uncertainty, MachineModel, MonteCarlo, SimulatedCmm};
 use truepos_head::acquire::{probe_sphere, SphereProbing};
 use truepos_ippdme::part::{Part, Solid};
 use truepos_ippdme::MachineConfig;
 use truepos_math::{Point3, Vector3};
+use truepos_vcmm::{sphere_uncertainty, MachineModel, MonteCarlo, SimulatedCmm};
 
 /// A measurement on machine `seed` of the model: (errors of cx, cy, cz, r) and their U (k = 2).
 fn measure(model: &MachineModel, seed: u64, truth: Point3, radius: f64) -> ([f64; 4], [f64; 4]) {
@@ -250,8 +250,7 @@ fn inspection_uncertainty_covers_the_truth() {
             .collect();
         let mut m = SimulatedCmm::new(&cfg, Some(Part { solids }), plan.tip_radius_mm);
         let got = inspect(&mut m, &holes, &plan).unwrap();
-        let u =
-            truepos_cell::vcmm::inspection_uncertainty(&model, &plan, &got, MonteCarlo::default()).unwrap();
+        let u = truepos_vcmm::inspection_uncertainty(&model, &plan, &got, MonteCarlo::default()).unwrap();
         for ((r, u), (c, d)) in got.holes.iter().zip(&u).zip(&truth) {
             let errs = [
                 (r.measured_mm.x - c.x, 2.0 * u.center_xy_mm[0]),

@@ -9,12 +9,12 @@ use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
-use truepos_cell::cmm::IppdmeCmm;
 use truepos_device::{ProbeRequest, ProbingMachine};
 use truepos_ippdme::part::Part;
 use truepos_ippdme::protocol::{parse_data_items, Body, Response};
 use truepos_ippdme::{Cmm, Contact, Guide, MachineConfig, ScanPath, Server, ServerHandle, Stop};
 use truepos_math::{Point3, Vector3};
+use truepos_plant::cmm::IppdmeCmm;
 
 /// A server on the default (realistic) virtual CMM.
 fn start(part: Option<&str>, log: Option<&Path>) -> ServerHandle<IppdmeCmm> {

@@ -1,9 +1,18 @@
-//! Bridge from the virtual cell's `scan` scenario (`truepos_sim::scenario::scan`) to
-//! `truepos-scan`'s features and parameters, for tests, benches and the demo.
+//! The `scan` scenario: a part with bores, bosses, planes and straight edges on the plane to be
+//! scanned on the virtual CMM, as `truepos-scan` features: the nominal ones (what
+//! `features.toml` describes) and the true, displaced ones (what the probe meets; written to
+//! `truth.json`), for `truepos simulate scan`, the demo, and the tests and benches of
+//! `truepos-scan`. (One module: the part, its features and its files were three modules in two
+//! crates, with a copy of the feature types in `truepos-sim`.)
 //!
-//! Entry points: [`feature`] (one geometry), [`program`] (nominal features, true features and
-//! parameters of a scenario), [`write_scenario`] (`features.toml` and `truth.json`),
-//! [`read_truth`] (the true part of a `truth.json`).
+//! Every feature is displaced a little from nominal (manufacturing scatter: centres
+//! ~N(0, 30 µm), radii ~N(0, 10 µm), planes ~N(0, 20 µm)); every fifth feature is displaced by
+//! 1.2–1.8 mm along its surface normal, in alternating directions, so that both missed-surface
+//! cases (surface before and beyond the nominal contact point) occur.
+//!
+//! Entry points: [`scenario`] (`seed`, number of features), [`program`] (nominal features, true
+//! features and parameters of a scenario), [`write_scenario`] (`features.toml` and
+//! `truth.json`), [`read_truth`] (the true part of a `truth.json`).
 
 use serde::Deserialize;
 use serde_json::json;
@@ -11,34 +20,114 @@ use std::path::{Path, PathBuf};
 use truepos_io::InputError;
 use truepos_math::{Point3, Vector3};
 use truepos_scan::{Feature, Geometry, Params, Side};
-use truepos_sim::scenario::scan::{ScanGeometry, ScanScenario, ScanSide};
+use truepos_sim::noise;
 
-/// A scenario geometry as a [`Feature`] (degrees → radians).
-pub fn feature(id: &str, g: &ScanGeometry) -> Feature {
-    let geometry = match g {
-        ScanGeometry::Circle { center, axis, radius, side, start_deg, sweep_deg } => Geometry::Circle {
-            center: *center,
-            axis: *axis,
-            radius: *radius,
-            side: match side {
-                ScanSide::Inside => Side::Inside,
-                ScanSide::Outside => Side::Outside,
-                ScanSide::Plane => Side::Plane,
-            },
-            start: start_deg.to_radians(),
-            sweep: sweep_deg.to_radians(),
-        },
-        ScanGeometry::Line { start, end, normal } => {
-            Geometry::Line { start: *start, end: *end, normal: *normal }
-        }
-    };
-    Feature { id: id.to_string(), geometry }
+/// One feature: nominal and true geometry (internal units: mm, rad).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScanFeature {
+    pub id: String,
+    pub nominal: Geometry,
+    pub actual: Geometry,
+    /// Displacement of the true surface along the outward normal at the scan start (mm; +:
+    /// the surface lies before the nominal contact point).
+    pub normal_offset_mm: f64,
+}
+
+/// The data set: the features and the scan parameters of `features.toml` (mm, mm/s, degrees).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScanScenario {
+    pub features: Vec<ScanFeature>,
+    pub approach_angle_deg: f64,
+    pub scan_speed_mm_s: f64,
+    pub move_speed_mm_s: f64,
+    pub deflection_mm: f64,
+    pub overshoot_mm: f64,
+    pub quality_bands_mm: [f64; 2],
+}
+
+/// A circle of the part (`start_deg`, `sweep_deg` in degrees as the scenario draws them).
+fn circle(center: Point3, radius: f64, side: Side, start_deg: f64, sweep_deg: f64) -> Geometry {
+    Geometry::Circle {
+        center,
+        axis: Vector3::z(),
+        radius,
+        side,
+        start: start_deg.to_radians(),
+        sweep: sweep_deg.to_radians(),
+    }
+}
+
+/// Build the part: `n` features on a 60 mm grid, cycling bore, boss, circle on the top plane,
+/// line on the top plane.
+pub fn scenario(seed: u64, n: usize) -> ScanScenario {
+    let mut rng = noise::stream(seed, 0x5ca7);
+    let mut features = Vec::with_capacity(n);
+    for k in 0..n {
+        let (gx, gy) = ((k % 8) as f64, (k / 8) as f64);
+        let c = Point3::new(60.0 + 60.0 * gx, 60.0 + 60.0 * gy, 0.0);
+        let big = if k % 5 == 4 {
+            let mag = noise::uniform(&mut rng, 1.2, 1.8);
+            if (k / 5) % 2 == 0 {
+                mag
+            } else {
+                -mag
+            }
+        } else {
+            0.0
+        };
+        let dc = Vector3::new(noise::gaussian(&mut rng, 0.03), noise::gaussian(&mut rng, 0.03), 0.0);
+        let dr = noise::gaussian(&mut rng, 0.01);
+        let dz = noise::gaussian(&mut rng, 0.02);
+        let start_deg = noise::uniform(&mut rng, 0.0, 360.0).round();
+        let z = Vector3::z();
+        let (id, nominal, actual, off) = match k % 4 {
+            0 => {
+                let r = 8.0 + (k % 3) as f64 * 2.0;
+                let at = c + Vector3::new(0.0, 0.0, -5.0);
+                let nom = circle(at, r, Side::Inside, start_deg, 360.0);
+                // a bore: the surface is before the nominal point when the radius is smaller
+                let act = circle(at + dc, r + dr - big, Side::Inside, start_deg, 360.0);
+                (format!("bore{k}"), nom, act, big)
+            }
+            1 => {
+                let r = 10.0 + (k % 3) as f64 * 2.5;
+                let at = c + Vector3::new(0.0, 0.0, 8.0);
+                let nom = circle(at, r, Side::Outside, start_deg, 360.0);
+                let act = circle(at + dc, r + dr + big, Side::Outside, start_deg, 360.0);
+                (format!("boss{k}"), nom, act, big)
+            }
+            2 => {
+                let nom = circle(c, 12.0, Side::Plane, start_deg, -270.0);
+                let act = circle(c + z * (dz + big), 12.0, Side::Plane, start_deg, -270.0);
+                (format!("face{k}"), nom, act, dz + big)
+            }
+            _ => {
+                let a = start_deg.to_radians();
+                let d = Vector3::new(a.cos(), a.sin(), 0.0) * 20.0;
+                let nom = Geometry::Line { start: c - d, end: c + d, normal: z };
+                let act =
+                    Geometry::Line { start: c - d + z * (dz + big), end: c + d + z * (dz + big), normal: z };
+                (format!("line{k}"), nom, act, dz + big)
+            }
+        };
+        features.push(ScanFeature { id, nominal, actual, normal_offset_mm: off });
+    }
+    ScanScenario {
+        features,
+        approach_angle_deg: 45.0,
+        scan_speed_mm_s: 40.0,
+        move_speed_mm_s: 200.0,
+        deflection_mm: 0.3,
+        overshoot_mm: 0.1,
+        quality_bands_mm: [0.02, 0.05],
+    }
 }
 
 /// (nominal features, true features, parameters) of a scenario.
 pub fn program(s: &ScanScenario) -> (Vec<Feature>, Vec<Feature>, Params) {
-    let nominal = s.features.iter().map(|f| feature(&f.id, &f.nominal)).collect();
-    let truth = s.features.iter().map(|f| feature(&f.id, &f.actual)).collect();
+    let nominal =
+        s.features.iter().map(|f| Feature { id: f.id.clone(), geometry: f.nominal.clone() }).collect();
+    let truth = s.features.iter().map(|f| Feature { id: f.id.clone(), geometry: f.actual.clone() }).collect();
     let params = Params {
         approach_angle: s.approach_angle_deg.to_radians(),
         scan_speed: s.scan_speed_mm_s,
@@ -59,7 +148,7 @@ pub fn geometry_json(g: &Geometry) -> serde_json::Value {
             "center_mm": [center.x, center.y, center.z],
             "axis": [axis.x, axis.y, axis.z],
             "radius_mm": radius,
-            "side": match side { Side::Inside => "inside", Side::Outside => "outside", Side::Plane => "plane" },
+            "side": side_str(*side),
             "start_deg": start.to_degrees(),
             "sweep_deg": sweep.to_degrees(),
         }),
@@ -186,16 +275,16 @@ pub fn toml_features(s: &ScanScenario) -> String {
         t.push_str("\n[[feature]]\n");
         t.push_str(&format!("id = \"{}\"\n", f.id));
         match &f.nominal {
-            ScanGeometry::Circle { center, axis, radius, side, start_deg, sweep_deg } => {
+            Geometry::Circle { center, axis, radius, side, start, sweep } => {
                 t.push_str("kind = \"circle\"\n");
                 t.push_str(&format!("center_mm = {}\n", f3((*center).into())));
                 t.push_str(&format!("axis = {}\n", f3((*axis).into())));
                 t.push_str(&format!("radius_mm = {radius}\n"));
-                t.push_str(&format!("side = \"{}\"\n", side.as_str()));
-                t.push_str(&format!("start_deg = {start_deg}\n"));
-                t.push_str(&format!("sweep_deg = {sweep_deg}\n"));
+                t.push_str(&format!("side = \"{}\"\n", side_str(*side)));
+                t.push_str(&format!("start_deg = {}\n", degrees(*start)));
+                t.push_str(&format!("sweep_deg = {}\n", degrees(*sweep)));
             }
-            ScanGeometry::Line { start, end, normal } => {
+            Geometry::Line { start, end, normal } => {
                 t.push_str("kind = \"line\"\n");
                 t.push_str(&format!("start_mm = {}\n", f3((*start).into())));
                 t.push_str(&format!("end_mm = {}\n", f3((*end).into())));
@@ -204,6 +293,21 @@ pub fn toml_features(s: &ScanScenario) -> String {
         }
     }
     t
+}
+
+/// The side as the files write it.
+fn side_str(side: Side) -> &'static str {
+    match side {
+        Side::Inside => "inside",
+        Side::Outside => "outside",
+        Side::Plane => "plane",
+    }
+}
+
+/// An angle (rad) in degrees as `features.toml` writes it: rounded to 1e-9° so that the
+/// scenario's whole-degree angles come back as written (137, not 137.00000000000003).
+fn degrees(rad: f64) -> f64 {
+    (rad.to_degrees() * 1e9).round() / 1e9
 }
 
 fn p3(a: [f64; 3]) -> Point3 {
@@ -244,7 +348,7 @@ impl Written {
 /// Write the `scan` scenario of `seed` with `n` features: `features.toml` (nominal) and
 /// `truth.json` (nominal and actual geometry of every feature).
 pub fn write_scenario(dir: &Path, seed: u64, n: usize) -> std::io::Result<Written> {
-    let s = truepos_sim::scenario::scan::scenario(seed, n);
+    let s = scenario(seed, n);
     std::fs::create_dir_all(dir)?;
     let features_path = dir.join("features.toml");
     truepos_io::atomic::write_atomic(&features_path, toml_features(&s).as_bytes())?;
@@ -253,12 +357,10 @@ pub fn write_scenario(dir: &Path, seed: u64, n: usize) -> std::io::Result<Writte
         "seed": seed,
         "note": "actual: the true geometry the probe meets; normal_offset_mm: displacement of the true surface along the outward normal at the scan start (+: before the nominal contact point)",
         "features": s.features.iter().map(|f| {
-            let nominal = feature(&f.id, &f.nominal);
-            let actual = feature(&f.id, &f.actual);
             json!({
                 "id": f.id,
-                "nominal": geometry_json(&nominal.geometry),
-                "actual": geometry_json(&actual.geometry),
+                "nominal": geometry_json(&f.nominal),
+                "actual": geometry_json(&f.actual),
                 "normal_offset_mm": f.normal_offset_mm,
             })
         }).collect::<Vec<_>>(),
@@ -268,4 +370,61 @@ pub fn write_scenario(dir: &Path, seed: u64, n: usize) -> std::io::Result<Writte
     let truth_path = dir.join("truth.json");
     truepos_io::atomic::write_atomic(&truth_path, text.as_bytes())?;
     Ok(Written { features: features_path, truth: truth_path, n_features: s.features.len() })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn deterministic_and_displaced_both_ways() {
+        let a = scenario(3, 20);
+        assert_eq!(a, scenario(3, 20));
+        assert_ne!(a, scenario(4, 20));
+        // every fifth feature is displaced by 1.2–1.8 mm, alternating sign
+        let big: Vec<f64> = a.features.iter().map(|f| f.normal_offset_mm).filter(|o| o.abs() > 1.0).collect();
+        assert_eq!(big.len(), 4);
+        assert!(big.iter().any(|&o| o > 1.19) && big.iter().any(|&o| o < -1.19));
+        assert!(big.iter().all(|o| (1.2..=1.8 + 0.1).contains(&o.abs())));
+    }
+
+    /// The features file gives the drawn whole-degree angles exactly, and reads back (through
+    /// `truepos-scan`'s reader) as the scenario's nominal features.
+    #[test]
+    fn features_toml_reads_back_as_the_nominal_features() {
+        let s = scenario(5, 8);
+        let text = toml_features(&s);
+        for f in &s.features {
+            if let Geometry::Circle { start, .. } = f.nominal {
+                let deg = start.to_degrees().round();
+                assert!(text.contains(&format!("start_deg = {deg}\n")), "{deg} in\n{text}");
+            }
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("features.toml");
+        std::fs::write(&path, &text).unwrap();
+        let (nominal, _, params) = program(&s);
+        let (read, read_params) =
+            truepos_scan::file::read_features(&path, &truepos_scan::file::ParamOverrides::default()).unwrap();
+        assert_eq!(read.len(), nominal.len());
+        for (a, b) in read.iter().zip(&nominal) {
+            assert_eq!(a.id, b.id);
+            match (&a.geometry, &b.geometry) {
+                (
+                    Geometry::Circle { center: c1, radius: r1, start: s1, sweep: w1, side: d1, .. },
+                    Geometry::Circle { center: c2, radius: r2, start: s2, sweep: w2, side: d2, .. },
+                ) => {
+                    // 1e-12: the text round trip of the same f64 values (and 1e-9° of rounding).
+                    assert!((c1 - c2).norm() < 1e-12 && (r1 - r2).abs() < 1e-12 && d1 == d2);
+                    assert!((s1 - s2).abs() < 1e-12 && (w1 - w2).abs() < 1e-12);
+                }
+                (Geometry::Line { start: a1, end: e1, .. }, Geometry::Line { start: a2, end: e2, .. }) => {
+                    assert!((a1 - a2).norm() < 1e-12 && (e1 - e2).norm() < 1e-12);
+                }
+                _ => panic!("feature {}: kinds differ", a.id),
+            }
+        }
+        assert!((read_params.approach_angle - params.approach_angle).abs() < 1e-12);
+        assert_eq!(read_params.scan_speed, params.scan_speed);
+    }
 }

@@ -1,3 +1,5 @@
+//! # truepos-vcmm — task-specific measurement uncertainty by simulation
+//!
 //! Task-specific measurement uncertainty by simulation (ISO/TS 15530-4, the "virtual CMM";
 //! JCGM 101 Monte Carlo): what `--machine-model FILE` adds to the commands that measure through a
 //! controller.
@@ -29,12 +31,18 @@
 //! assumptions (uniform within ±MPE). The output says which basis was used.
 //!
 //! Entry points: [`MachineModel`] (read the file), [`sphere_uncertainty`] (a probed sphere),
-//! [`inspection_uncertainty`] (`somac inspect`), [`dmis_uncertainty`] (`dmis run`: the program
-//! replayed on the perfect features), [`head_offset_uncertainty`] (`head-offset acquire`),
+//! [`inspection_uncertainty`] (`somac inspect`), [`head_offset_uncertainty`] (`head-offset
+//! acquire`),
 //! [`SimulatedCmm`] (one realisation behind the [`ProbingMachine`] trait). The common parts:
 //! [`monte_carlo`] (the one parallel, seeded loop), [`simulate`] (it, over every basis of the
 //! model, summarised as a [`Spread`]), [`PointErrors`] (one realisation as errors of probed
-//! points) and [`ErrorOverlay`] (those errors added to another machine's contacts).
+//! points) and [`ErrorOverlay`] (those errors added to another machine's contacts). The same
+//! loop over `dmis run` (the program replayed on the perfect features) and `kinematics
+//! calibrate` is `truepos_cell::uncertainty`, which joins those capabilities to it.
+
+#![forbid(unsafe_code)]
+
+mod error;
 
 use rayon::prelude::*;
 use std::path::Path;
@@ -45,8 +53,8 @@ use truepos_ippdme::{Cmm, MachineConfig};
 use truepos_math::{Matrix3, Point3, Vector3};
 use truepos_sim::noise;
 
-use crate::cmm::IppdmeCmm;
-use crate::error::{CellError, Result};
+pub use error::{Result, VcmmError};
+use truepos_plant::cmm::IppdmeCmm;
 
 /// The fewest machine realisations a task-specific uncertainty is computed from.
 pub const MIN_RUNS: usize = 200;
@@ -99,7 +107,7 @@ pub struct MachineToolLatch {
 
 impl Default for MachineToolLatch {
     fn default() -> Self {
-        let d = crate::probing::MachineToolConfig::default();
+        let d = truepos_plant::probing::MachineToolConfig::default();
         MachineToolLatch {
             servo_period_s: d.servo_period_s,
             pretravel_mm: d.pretravel_mm,
@@ -110,7 +118,7 @@ impl Default for MachineToolLatch {
 
 impl MachineToolLatch {
     /// Give a virtual machine tool this latch.
-    pub fn apply(&self, cfg: &mut crate::probing::MachineToolConfig) {
+    pub fn apply(&self, cfg: &mut truepos_plant::probing::MachineToolConfig) {
         cfg.servo_period_s = self.servo_period_s;
         cfg.pretravel_mm = self.pretravel_mm;
         cfg.position_sigma_mm = self.position_sigma_mm;
@@ -155,11 +163,11 @@ impl MachineModel {
         let cmm = match &raw.ippdme {
             Some(t) => {
                 if !t.contains_key("model") {
-                    return Err(CellError::Invalid(format!(
+                    return Err(VcmmError::Invalid(format!(
                         "{file}: [ippdme] has no [ippdme.model] table (the machine's error model)"
                     )));
                 }
-                Some(MachineConfig::from_toml(&file, text).map_err(|e| CellError::Invalid(e.to_string()))?)
+                Some(MachineConfig::from_toml(&file, text).map_err(|e| VcmmError::Invalid(e.to_string()))?)
             }
             None => None,
         };
@@ -167,7 +175,7 @@ impl MachineModel {
             Some(r) => {
                 let [a, k] = r.mpe_e_um;
                 let bad = |key: &str, what: &str| {
-                    Err(CellError::Invalid(format!("{file}: iso10360.{key}: {what}")))
+                    Err(VcmmError::Invalid(format!("{file}: iso10360.{key}: {what}")))
                 };
                 if !(a.is_finite() && a > 0.0) {
                     return bad("mpe_e_um", "A (µm) must be a positive number");
@@ -186,7 +194,7 @@ impl MachineModel {
         if let Some(t) = raw.machine_tool {
             let check = |key: &str, v: Option<f64>, lo: f64, hi: f64, unit: &str| -> Result<Option<f64>> {
                 match v {
-                    Some(x) if !(x.is_finite() && x >= lo && x <= hi) => Err(CellError::Invalid(format!(
+                    Some(x) if !(x.is_finite() && x >= lo && x <= hi) => Err(VcmmError::Invalid(format!(
                         "{file}: machine_tool.{key}: {x} is outside {lo}–{hi} {unit}"
                     ))),
                     other => Ok(other),
@@ -204,7 +212,7 @@ impl MachineModel {
             }
         }
         if cmm.is_none() && iso10360.is_none() {
-            return Err(CellError::Invalid(format!(
+            return Err(VcmmError::Invalid(format!(
                 "{file}: names no machine model: expected [ippdme.model] (an error model) and/or [iso10360] (mpe_e_um = [A, K], mpe_p_um)"
             )));
         }
@@ -255,7 +263,7 @@ impl Default for MonteCarlo {
 impl MonteCarlo {
     fn check(&self) -> Result<()> {
         if !(MIN_RUNS..=MAX_RUNS).contains(&self.runs) {
-            return Err(CellError::Invalid(format!(
+            return Err(VcmmError::Invalid(format!(
                 "Monte Carlo runs must be between {MIN_RUNS} and {MAX_RUNS}, got {}",
                 self.runs
             )));
@@ -347,7 +355,7 @@ pub fn sphere_uncertainty(
             Some(b) => larger(b, u),
         });
     }
-    let mut out = best.ok_or_else(|| CellError::Invalid("the machine model names no model".into()))?;
+    let mut out = best.ok_or_else(|| VcmmError::Invalid("the machine model names no model".into()))?;
     out.runs = mc.runs;
     out.basis = model.basis();
     out.elapsed_s = t0.elapsed().as_secs_f64();
@@ -358,9 +366,9 @@ pub fn sphere_uncertainty(
 /// and a finite measured sphere.
 fn check_sphere_task(mc: MonteCarlo, plan: &SphereProbing, center: Point3, radius: f64) -> Result<()> {
     mc.check()?;
-    plan.check().map_err(|e| CellError::Invalid(e.to_string()))?;
+    plan.check().map_err(|e| VcmmError::Invalid(e.to_string()))?;
     if !(center.iter().all(|v| v.is_finite()) && radius.is_finite() && radius > 0.0) {
-        return Err(CellError::Invalid("the measured sphere is not finite".into()));
+        return Err(VcmmError::Invalid("the measured sphere is not finite".into()));
     }
     Ok(())
 }
@@ -444,7 +452,7 @@ where
     monte_carlo(mc, |seed| {
         let mut m = make(seed);
         let s = probe_sphere(&mut m, plan).map_err(|e| {
-                CellError::Failed(format!(
+                VcmmError::Failed(format!(
                     "task-specific uncertainty: a simulated machine could not measure the sphere ({e}); the model's errors are larger than the clearance"
                 ))
             })?;
@@ -498,7 +506,7 @@ pub fn sphere_uncertainty_machine_tool(
     fit_u_radius: f64,
     mc: MonteCarlo,
 ) -> Result<SphereUncertainty> {
-    use crate::probing::{MachineToolConfig, VirtualMachineTool};
+    use truepos_plant::probing::{MachineToolConfig, VirtualMachineTool};
     check_sphere_task(mc, plan, center, radius)?;
     let t0 = std::time::Instant::now();
     let mut best: Option<SphereUncertainty> = None;
@@ -516,7 +524,7 @@ pub fn sphere_uncertainty_machine_tool(
             Some(b) => larger(b, u),
         });
     }
-    let mut out = best.ok_or_else(|| CellError::Invalid("the machine model names no model".into()))?;
+    let mut out = best.ok_or_else(|| VcmmError::Invalid("the machine model names no model".into()))?;
     let l = model.machine_tool;
     out.runs = mc.runs;
     out.basis = format!(
@@ -557,7 +565,7 @@ fn iso_trial(iso: &Iso10360, plan: &SphereProbing, center: Point3, radius: f64, 
         })
         .collect();
     let f =
-        truepos_fit::sphere(&points).map_err(|e| CellError::Failed(format!("ISO 10360 simulation: {e}")))?;
+        truepos_fit::sphere(&points).map_err(|e| VcmmError::Failed(format!("ISO 10360 simulation: {e}")))?;
     Ok(Trial { dc: f.center - center, dr: f.radius - r_tip, uc: f.u_center, ur: f.u_radius })
 }
 
@@ -679,7 +687,7 @@ pub fn inspection_uncertainty(
             cfg.model.seed = seed;
             let mut m = SimulatedCmm::new(&cfg, Some(part.clone()), plan.tip_radius_mm);
             let got = inspect(&mut m, &holes, plan).map_err(|e| {
-                CellError::Failed(format!(
+                VcmmError::Failed(format!(
                     "task-specific uncertainty: a simulated machine could not inspect the holes ({e})"
                 ))
             })?;
@@ -691,7 +699,7 @@ pub fn inspection_uncertainty(
         per_model.push(monte_carlo(mc, |seed| iso_holes(iso, plan, &holes, &perfect, seed))?);
     }
     if per_model.is_empty() {
-        return Err(CellError::Invalid("the machine model names no model".into()));
+        return Err(VcmmError::Invalid("the machine model names no model".into()));
     }
     let mut out = vec![HoleUncertainty { center_xy_mm: [0.0; 2], diameter_mm: 0.0 }; n];
     for runs in &per_model {
@@ -744,7 +752,7 @@ fn iso_holes(
                 })
                 .collect();
             let f = truepos_fit::circle(&points)
-                .map_err(|e| CellError::Failed(format!("ISO 10360 simulation: {e}")))?;
+                .map_err(|e| VcmmError::Failed(format!("ISO 10360 simulation: {e}")))?;
             Ok([f.center.x - c.x, f.center.y - c.y, 2.0 * (f.radius + plan.tip_radius_mm) - d])
         })
         .collect()
@@ -803,7 +811,7 @@ pub struct PointErrors {
 #[derive(Debug, Clone)]
 enum PointKind {
     ErrorModel {
-        field: Option<Box<crate::cmm::ErrorField>>,
+        field: Option<Box<truepos_plant::cmm::ErrorField>>,
         probe: Option<truepos_sim::touch::TouchProbe>,
         compensated: bool,
         sigma_mm: f64,
@@ -823,7 +831,11 @@ impl PointErrors {
                 let mut m = cfg.model.clone();
                 m.seed = seed;
                 let field = (m.geometric_errors && m.geometric_error_scale > 0.0).then(|| {
-                    Box::new(crate::cmm::ErrorField::bridge_cmm(&m, cfg.volume_min_mm, cfg.volume_max_mm))
+                    Box::new(truepos_plant::cmm::ErrorField::bridge_cmm(
+                        &m,
+                        cfg.volume_min_mm,
+                        cfg.volume_max_mm,
+                    ))
                 });
                 let probe = truepos_sim::touch::TouchProbe::new(0.0, m.pretravel_mm, m.lobing_mm).ok();
                 PointErrors {
@@ -991,7 +1003,7 @@ where
             },
         });
     }
-    let mut s = out.ok_or_else(|| CellError::Invalid("the machine model names no model".into()))?;
+    let mut s = out.ok_or_else(|| VcmmError::Invalid("the machine model names no model".into()))?;
     s.runs = mc.runs;
     s.basis = model.basis();
     s.elapsed_s = t0.elapsed().as_secs_f64();
@@ -1002,7 +1014,7 @@ where
 pub fn spread_of(runs: &[Vec<f64>]) -> Result<Spread> {
     let n = runs.first().map_or(0, Vec::len);
     if runs.is_empty() || runs.iter().any(|r| r.len() != n || r.iter().any(|v| !v.is_finite())) {
-        return Err(CellError::Failed(
+        return Err(VcmmError::Failed(
             "task-specific uncertainty: the simulated measurements did not give comparable results".into(),
         ));
     }
@@ -1010,68 +1022,6 @@ pub fn spread_of(runs: &[Vec<f64>]) -> Result<Spread> {
     let mean = (0..n).map(|k| runs.iter().map(|r| r[k]).sum::<f64>() / m).collect();
     let rms = (0..n).map(|k| (runs.iter().map(|r| r[k] * r[k]).sum::<f64>() / m).sqrt()).collect();
     Ok(Spread { rms, mean, runs: runs.len(), basis: String::new(), elapsed_s: 0.0 })
-}
-
-/// The task-specific uncertainty of a DMIS run (`dmis run --machine-model`).
-#[derive(Debug, Clone)]
-pub struct DmisUncertainty {
-    /// Standard uncertainties per output feature and tolerance.
-    pub uncertainty: truepos_dmis::uncertainty::Uncertainty,
-    /// The simulation behind them (RMS deviations in the layout of
-    /// [`truepos_dmis::uncertainty::parameters`]).
-    pub spread: Spread,
-}
-
-/// The task-specific uncertainty of every result of the DMIS run `measured` of `plan`: the same
-/// program (its PTMEAS points, directions, SNSET distances, datums and constructions) run again
-/// on `mc.runs` machines drawn from `model`, each touching the perfect features where the run
-/// found them ([`truepos_dmis::uncertainty::Replay`] with the realisation's errors,
-/// [`ErrorOverlay`]); u = the RMS deviation of each result from the perfect run's, combined in
-/// quadrature with the measured fits' scatter beyond the simulated machines' (the part's form
-/// error and effects outside the model; [`truepos_dmis::uncertainty::fit_scatter`]).
-pub fn dmis_uncertainty(
-    model: &MachineModel,
-    plan: &truepos_dmis::model::Plan,
-    opts: &truepos_dmis::exec::RunOptions,
-    measured: &truepos_dmis::exec::RunResult,
-    mc: MonteCarlo,
-) -> Result<DmisUncertainty> {
-    use truepos_dmis::exec;
-    use truepos_dmis::uncertainty::{fit_scatter, parameters, Replay, Uncertainty};
-    let fail = |e: exec::RunError| {
-        CellError::Failed(format!("task-specific uncertainty: the program on a simulated machine: {e}"))
-    };
-    let perfect = exec::run(plan, &mut Replay::new(measured), opts, &mut |_| {}).map_err(fail)?;
-    let p0 = parameters(&perfect);
-    let spread = simulate(model, mc, |errors| {
-        let mut m = ErrorOverlay { inner: Replay::new(measured), errors };
-        let r = exec::run(plan, &mut m, opts, &mut |_| {}).map_err(fail)?;
-        let p = parameters(&r);
-        let scatter = fit_scatter(&r);
-        if p.len() != p0.len() || scatter.len() != p0.len() {
-            return Err(CellError::Failed(
-                "task-specific uncertainty: a simulated run gave other results than the perfect one".into(),
-            ));
-        }
-        // Deviations, then this machine's fit scatter (its RMS over the machines is the scatter
-        // the model explains).
-        Ok(p.iter().zip(&p0).map(|(a, b)| a - b).chain(scatter).collect())
-    })?;
-    let n = p0.len();
-    let mut spread = spread;
-    let typical = spread.rms.split_off(n);
-    spread.mean.truncate(n);
-    // The measurement's own fit scatter is a cross-check (see the module docs): only its part
-    // beyond the simulated machines' is added in quadrature.
-    let observed = fit_scatter(measured);
-    let u: Vec<f64> = spread
-        .rms
-        .iter()
-        .zip(observed.iter().zip(&typical))
-        .map(|(sim, (obs, typ))| sim.hypot((obs * obs - typ * typ).max(0.0).sqrt()))
-        .collect();
-    let uncertainty = Uncertainty::from_parameters(measured, &u);
-    Ok(DmisUncertainty { uncertainty, spread })
 }
 
 /// The task-specific uncertainty of a head offset acquired through a controller.
@@ -1109,12 +1059,12 @@ pub fn head_offset_uncertainty(
     machine: AcquiringMachine,
     mc: MonteCarlo,
 ) -> Result<HeadOffsetUncertainty> {
-    use crate::probing::{HeadOffsetTruth, MachineToolConfig, VirtualMachineTool};
     use truepos_head::acquire::{acquire_head_offset, readings};
-    acq.check().map_err(|e| CellError::Invalid(e.to_string()))?;
+    use truepos_plant::probing::{HeadOffsetTruth, MachineToolConfig, VirtualMachineTool};
+    acq.check().map_err(|e| VcmmError::Invalid(e.to_string()))?;
     let radius =
         measured.radius.map(|r| r - acq.sphere.tip_radius_mm).filter(|r| *r > 0.0).ok_or_else(|| {
-            CellError::Invalid("the measured head offset has no positive sphere radius to simulate".into())
+            VcmmError::Invalid("the measured head offset has no positive sphere radius to simulate".into())
         })?;
     let truth = HeadOffsetTruth {
         offset_mm: measured.offset,
@@ -1129,15 +1079,15 @@ pub fn head_offset_uncertainty(
             cfg.position_sigma_mm = 0.0;
             cfg.pretravel_mm = 1e-9;
         }
-        let inner = VirtualMachineTool::new(cfg).map_err(|e| CellError::Invalid(e.to_string()))?;
+        let inner = VirtualMachineTool::new(cfg).map_err(|e| VcmmError::Invalid(e.to_string()))?;
         let mut m = ErrorOverlay { inner, errors };
         let got = acquire_head_offset(&mut m, acq).map_err(|e| {
-            CellError::Failed(format!(
+            VcmmError::Failed(format!(
                 "task-specific uncertainty: a simulated machine could not acquire the sphere ({e})"
             ))
         })?;
         let r = truepos_head::solve(&readings(&got), params).map_err(|e| {
-            CellError::Failed(format!(
+            VcmmError::Failed(format!(
                 "task-specific uncertainty: a simulated acquisition gave no offset ({e})"
             ))
         })?;
@@ -1147,108 +1097,4 @@ pub fn head_offset_uncertainty(
     })?;
     let offset_mm = std::array::from_fn(|k| measured.observable[k].then_some(spread.rms[k]));
     Ok(HeadOffsetUncertainty { offset_mm, spread })
-}
-
-/// The task-specific uncertainty of the rotary-axis geometry `truepos kinematics calibrate`
-/// identified (`report`, measured with `probing`): the same calibration (orientations, probing
-/// pattern, feed, clearance, turn distance; a dry run) on `mc.runs` five-axis machines per basis
-/// of the model whose controller holds the configured geometry and whose true geometry is the
-/// identified one, the sphere where it was found, each with the machine tool's servo latch,
-/// pre-travel and position noise ([`crate::probing::VirtualMachineTool::five_axis_exact`]) and
-/// the model's errors on every contact ([`ErrorOverlay`]; the error field is evaluated at the
-/// programme-frame contact, an approximation for a table that turns).
-///
-/// Per parameter (`report.parameters` order): u = the RMS deviation of the identified value
-/// from the truth, U = the 95th percentile of |deviation| (JCGM 101's coverage interval: the
-/// deviations are far from normal — bounded latch and map errors — and k = 2 on their RMS
-/// covered 100 % of 400 comparisons), each at least the identification's own (fit) value.
-pub fn kinematics_uncertainty(
-    model: &MachineModel,
-    probing: &truepos_kinematics::acquire::KinematicsProbing,
-    report: &truepos_kinematics::CalibrationReport,
-    mc: MonteCarlo,
-) -> Result<KinematicsUncertainty> {
-    use crate::probing::VirtualMachineTool;
-    use truepos_kinematics::{calibrate, CalibrateRequest};
-    let t0 = std::time::Instant::now();
-    let radii: Vec<f64> = report.acquired.iter().map(|o| o.sphere.radius_mm).collect();
-    let radius = radii.iter().sum::<f64>() / radii.len().max(1) as f64;
-    if radius.is_nan() || radius <= 0.0 {
-        return Err(CellError::Invalid("the calibration has no sphere radius to simulate".into()));
-    }
-    let req = CalibrateRequest {
-        model: report.model,
-        probing: probing.clone(),
-        apply: false,
-        verify: None,
-        output: None,
-    };
-    let centre = report.identification.sphere_centre_mm;
-    let n = report.parameters.len();
-    let (mut u, mut big_u) = (vec![0.0_f64; n], vec![0.0_f64; n]);
-    for basis in model.bases() {
-        let runs = monte_carlo(mc, |seed| {
-            let errors = PointErrors::draw(basis, seed);
-            let inner = VirtualMachineTool::five_axis_exact(
-                errors.seed(),
-                report.configured,
-                report.identified,
-                centre,
-                radius,
-                probing.sphere.tip_radius_mm,
-                |cfg| model.machine_tool.apply(cfg),
-            )
-            .map_err(|e| CellError::Invalid(e.to_string()))?;
-            let mut m = ErrorOverlay { inner, errors };
-            let r = calibrate(&mut m, &req, |_| {}).map_err(|e| {
-                CellError::Failed(format!("task-specific uncertainty: a simulated calibration failed ({e})"))
-            })?;
-            Ok(r.parameters
-                .iter()
-                .zip(&report.parameters)
-                .map(|(a, b)| a.identified_mm - b.identified_mm)
-                .collect::<Vec<f64>>())
-        })?;
-        for k in 0..n {
-            let mut dev: Vec<f64> = runs.iter().map(|r| r[k]).collect();
-            if dev.iter().any(|v| !v.is_finite()) {
-                return Err(CellError::Failed(
-                    "task-specific uncertainty: a simulated calibration gave no value".into(),
-                ));
-            }
-            let rms = (dev.iter().map(|v| v * v).sum::<f64>() / dev.len() as f64).sqrt();
-            dev.iter_mut().for_each(|v| *v = v.abs());
-            dev.sort_by(f64::total_cmp);
-            let q95 = dev[((0.95 * dev.len() as f64).ceil() as usize).clamp(1, dev.len()) - 1];
-            u[k] = u[k].max(rms);
-            big_u[k] = big_u[k].max(q95);
-        }
-    }
-    let k2 = truepos_math::stats::COVERAGE_FACTOR;
-    for (k, p) in report.parameters.iter().enumerate() {
-        u[k] = u[k].max(p.uncertainty_mm);
-        big_u[k] = big_u[k].max(k2 * p.uncertainty_mm);
-    }
-    Ok(KinematicsUncertainty {
-        u_mm: u,
-        expanded_mm: big_u,
-        runs: mc.runs,
-        basis: model.basis(),
-        elapsed_s: t0.elapsed().as_secs_f64(),
-    })
-}
-
-/// What [`kinematics_uncertainty`] found, per parameter in the report's order.
-#[derive(Debug, Clone, PartialEq)]
-pub struct KinematicsUncertainty {
-    /// Standard uncertainty (mm).
-    pub u_mm: Vec<f64>,
-    /// Expanded uncertainty for 95 % coverage (mm).
-    pub expanded_mm: Vec<f64>,
-    /// Realisations per basis, what the model was, wall time (s).
-    pub runs: usize,
-    /// What the model was, as a sentence.
-    pub basis: String,
-    /// Wall time of the simulation, s.
-    pub elapsed_s: f64,
 }

@@ -1,3 +1,5 @@
+//! # truepos-report — the demo report
+//!
 //! The demo report: an `index.html` with a header (version, time, seed, machine, environment,
 //! command line), the overall verdict and one summary row per capability, then one section per
 //! capability with its verdict against truth, tables and inline SVG plots drawn with plotters'
@@ -9,7 +11,11 @@
 //! Reruns are byte-identical apart from the generation time, which the caller passes in
 //! ([`Header::generated_unix_s`]; the CLI takes it from `SOURCE_DATE_EPOCH` when set).
 
-use crate::error::Result;
+#![forbid(unsafe_code)]
+
+mod error;
+
+pub use error::{ReportError, Result};
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -784,8 +790,8 @@ fn bounds(series: &[Series]) -> (f64, f64, f64, f64) {
     (x0, x1, y0, y1)
 }
 
-fn plot_err<E: std::fmt::Debug>(e: E) -> crate::error::CellError {
-    crate::error::CellError::Plot(format!("{e:?}"))
+fn plot_err<E: std::fmt::Debug>(e: E) -> ReportError {
+    ReportError::Plot(format!("{e:?}"))
 }
 
 fn rgb(c: RGBColor) -> String {
