@@ -258,3 +258,29 @@ fn the_log_writer_reports_the_first_failure_only() {
     assert!(!ok.has_failed());
     assert!(std::fs::read_to_string(&p).unwrap().ends_with(" > 00001 %\n"));
 }
+
+/// An error carrying a limit keeps the specification's text first and stays one parsable line:
+/// quotes, commas and non-ASCII in the detail cannot break the fields.
+#[test]
+fn an_error_with_a_limit_stays_parsable() {
+    use truepos_ippdme::protocol::{Body, ErrorCode, Response, Tag};
+    let tag = Tag::parse("00007").unwrap();
+    let r = Response::error_with_detail(
+        tag,
+        ErrorCode::UNABLE_TO_MOVE,
+        "ScanOnCircle",
+        "at most 720°, \"two\" turns",
+    );
+    let line = r.format();
+    assert_eq!(
+        line,
+        "00007 ! Error(2, 1011, \"ScanOnCircle\", \"Unable to move: at most 720?; #two# turns\")"
+    );
+    match Response::parse(&line).unwrap().body {
+        Body::Error { severity, number, method, text } => {
+            assert_eq!((severity, number, method.as_str()), (2, 1011, "ScanOnCircle"));
+            assert_eq!(text, "Unable to move: at most 720?; #two# turns");
+        }
+        other => panic!("{other:?}"),
+    }
+}
