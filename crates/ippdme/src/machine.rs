@@ -20,6 +20,10 @@ pub enum MachineError {
         /// Where the machine stopped, machine frame, mm.
         stopped_mm: Point3,
     },
+    /// The part would leave the machine volume (a part move or a table turn, 1008); the
+    /// message says which solid and why. The part stays where it was.
+    #[error("{0}")]
+    PartOutOfVolume(String),
     /// Any other machine failure (1011).
     #[error("the machine cannot move: {0}")]
     Unable(String),
@@ -179,6 +183,19 @@ pub trait Cmm: Send {
         tip_radius_mm: f64,
         out: &mut Vec<ScanPoint>,
     ) -> Result<(), MachineError>;
+    /// Refuse a scan the machine will not run (too many points, too long a path, too much
+    /// machine time) before anything moves. The server calls it with the nominal start contact
+    /// (the nominal surface point offset by the tip radius along the nominal normal) before the
+    /// first probing of the scan; [`Cmm::scan`] may still refuse on the measured start contact.
+    /// Default: every scan is accepted.
+    fn check_scan(
+        &self,
+        _nominal_start: Contact,
+        _path: &ScanPath,
+        _tip_radius_mm: f64,
+    ) -> Result<(), MachineError> {
+        Ok(())
+    }
     /// Stop all motion now (client gone, AbortE). Moves are instant on the virtual machine, so
     /// this only has to leave it in a defined, stopped state.
     fn stop(&mut self);
@@ -196,13 +213,15 @@ pub trait Cmm: Send {
     fn table_angle(&self) -> f64 {
         0.0
     }
-    /// Turn the rotary table to `angle_rad` (the part on it turns with it).
+    /// Turn the rotary table to `angle_rad` (the part on it turns with it). A turn the machine
+    /// refuses leaves the table and the part where they were.
     fn set_table_angle(&mut self, _angle_rad: f64) -> Result<(), MachineError> {
         Err(MachineError::Unable("this CMM has no rotary table".into()))
     }
     /// Move the part on the machine rigidly (form-tester centring and tilting, specification
     /// 13.1–13.3): rotate it by `rotation` (a rotation matrix, machine frame) about `about`, then
-    /// shift it by `shift`.
+    /// shift it by `shift`. A move the machine refuses (e.g. one that would take the part out of
+    /// its volume) leaves the part where it was.
     fn move_part(&mut self, _rotation: Matrix3, _about: Point3, _shift: Vector3) -> Result<(), MachineError> {
         Err(MachineError::Unable("this CMM cannot move the part".into()))
     }

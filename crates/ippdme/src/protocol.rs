@@ -485,6 +485,22 @@ pub enum Body {
     },
 }
 
+/// `s` as the content of a quoted field: quotes become `#`, other characters outside printable
+/// ASCII `?`.
+fn quotable(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if c == '"' {
+                '#'
+            } else if c.is_ascii_graphic() || c == ' ' {
+                c
+            } else {
+                '?'
+            }
+        })
+        .collect()
+}
+
 /// One response line.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Response {
@@ -513,22 +529,28 @@ impl Response {
     }
     /// `! Error(...)` with an explicit severity; `method` names the command.
     pub fn error_with_severity(tag: Tag, code: ErrorCode, severity: u8, method: &str) -> Self {
-        // The method field is a quoted string: keep it printable and free of quotes.
-        let method: String = method
-            .chars()
-            .map(|c| {
-                if c == '"' {
-                    '#'
-                } else if c.is_ascii_graphic() || c == ' ' {
-                    c
-                } else {
-                    '?'
-                }
-            })
-            .collect();
         Response {
             tag,
-            body: Body::Error { severity, number: code.number, method, text: code.text.to_string() },
+            body: Body::Error {
+                severity,
+                number: code.number,
+                method: quotable(method),
+                text: code.text.to_string(),
+            },
+        }
+    }
+    /// An error whose text is the specification's text followed by `: detail` (e.g. the limit a
+    /// refused command exceeded), kept printable ASCII and free of quotes and commas (a comma
+    /// becomes `;`: clients split the fields at commas).
+    pub fn error_with_detail(tag: Tag, code: ErrorCode, method: &str, detail: &str) -> Self {
+        Response {
+            tag,
+            body: Body::Error {
+                severity: code.severity,
+                number: code.number,
+                method: quotable(method),
+                text: quotable(&format!("{}: {detail}", code.text)).replace(',', ";"),
+            },
         }
     }
 

@@ -193,6 +193,8 @@ pub struct Session<M> {
     ptmeas_keys: Vec<Key>,
     scan_keys: Vec<Key>,
     daemon: Option<MoveDaemon>,
+    /// The detail the next error's text carries (the limit a refused command exceeded).
+    detail: Option<String>,
     /// Lines for the log about things that went wrong (bad input, faults).
     pub notes: Vec<String>,
 }
@@ -306,16 +308,25 @@ fn in_volume<M: Cmm>(st: &MachineState<M>, p: &Point3) -> bool {
 
 fn machine_error(e: MachineError) -> (ErrorCode, String) {
     match e {
-        MachineError::OutOfVolume => (ErrorCode::OUT_OF_VOLUME, e.to_string()),
+        MachineError::OutOfVolume | MachineError::PartOutOfVolume(_) => {
+            (ErrorCode::OUT_OF_VOLUME, e.to_string())
+        }
         MachineError::IllegalTouch { .. } => (ErrorCode::ILLEGAL_TOUCH, e.to_string()),
         MachineError::Unable(_) => (ErrorCode::UNABLE_TO_MOVE, e.to_string()),
     }
 }
 
+/// `v` normalised; `None` for a vector shorter than 1e-12 or with a non-finite component. The
+/// largest component is divided out first, so that huge components (1e300) do not overflow.
 fn unit(v: [f64; 3]) -> Option<Vector3> {
     let v = Vector3::new(v[0], v[1], v[2]);
-    let n = v.norm();
-    (n > 1e-12 && n.is_finite()).then(|| v / n)
+    let m = v.amax();
+    if !(m.is_finite() && m > 1e-12) {
+        return None;
+    }
+    let w = v / m;
+    let n = w.norm();
+    (n * m > 1e-12).then(|| w / n)
 }
 
 /// One point's values in report order.
@@ -373,6 +384,7 @@ impl<M: Cmm> Session<M> {
             ptmeas_keys: vec![Key::X, Key::Y, Key::Z],
             scan_keys: vec![Key::X, Key::Y, Key::Z, Key::Q],
             daemon: None,
+            detail: None,
             notes: Vec::new(),
         }
     }
@@ -390,7 +402,25 @@ impl<M: Cmm> Session<M> {
         }
         self.last_error = Some((code, method.to_string()));
         self.notes.push(format!("{tag}: error {:04} ({}): {message}", code.number, code.text));
-        Response::error(tag, code, method)
+        match self.detail.take() {
+            Some(d) => Response::error_with_detail(tag, code, method, &d),
+            None => Response::error(tag, code, method),
+        }
+    }
+
+    /// Refuse the command for the machine's reason, which the error's text carries.
+    fn refuse_machine<T>(&mut self, e: MachineError) -> Result<T, (ErrorCode, String)> {
+        let why = match &e {
+            MachineError::Unable(m) | MachineError::PartOutOfVolume(m) => m.clone(),
+            other => other.to_string(),
+        };
+        self.refuse(machine_error(e).0, why)
+    }
+
+    /// Refuse the command for a limit: the error's text names it (as does the log).
+    fn refuse<T>(&mut self, code: ErrorCode, why: String) -> Result<T, (ErrorCode, String)> {
+        self.detail = Some(why.clone());
+        Err((code, why))
     }
 
     /// Handle one received line (without CR LF); the answers are appended to `out`.
@@ -917,17 +947,18 @@ impl<M: Cmm> Session<M> {
                 self.check_homed(st)?;
                 let (_, axis) = table_axis(st, "AlignPart")?;
                 // Both vectors projected into the table plane; they must not lie along the axis.
-                let project = |v: Vector3, what: &str| {
-                    (v - axis * v.dot(&axis)).try_normalize(1e-9).ok_or((
+                let project = |v: [f64; 3], what: &str| {
+                    let no_norm = (
                         ErrorCode::VECTOR_HAS_NO_NORM,
-                        format!("AlignPart: the {what} vector lies along the table axis"),
-                    ))
+                        format!("AlignPart: the {what} vector has no length or lies along the table axis"),
+                    );
+                    let v = unit(v).ok_or_else(|| no_norm.clone())?;
+                    (v - axis * v.dot(&axis)).try_normalize(1e-9).ok_or(no_norm)
                 };
-                let p = project(dir_to_machine(st, &Vector3::from(*part)), "part")?;
-                let m = project(Vector3::from(*machine), "machine")?;
+                let p = project(dir_to_machine(st, &Vector3::from(*part)).into(), "part")?;
+                let m = project(*machine, "machine")?;
                 let turn = p.cross(&m).dot(&axis).atan2(p.dot(&m));
-                let angle = st.machine.table_angle() + turn;
-                st.machine.set_table_angle(angle).map_err(machine_error)?;
+                // Every check before the table turns: the reached direction is known beforehand.
                 let reached = axis_rotation(&axis, turn) * p;
                 let err_deg = reached.dot(&m).clamp(-1.0, 1.0).acos().to_degrees();
                 if *alpha_deg != 0.0 && err_deg > alpha_deg.abs() {
@@ -935,6 +966,10 @@ impl<M: Cmm> Session<M> {
                         ErrorCode::PART_NOT_ALIGNED,
                         format!("AlignPart: {err_deg:.4}° from the target"),
                     );
+                }
+                let angle = st.machine.table_angle() + turn;
+                if let Err(e) = st.machine.set_table_angle(angle) {
+                    return self.refuse_machine(e);
                 }
                 let mut s =
                     format!("({}, {}, {}", fmt_num(reached.x), fmt_num(reached.y), fmt_num(reached.z));
@@ -950,10 +985,22 @@ impl<M: Cmm> Session<M> {
             Command::CenterPart { point, limit } => {
                 self.check_homed(st)?;
                 let (o, axis) = table_axis(st, "CenterPart")?;
-                let (d, radial) = off_axis(&to_machine(st, &Point3::from(*point)), &o, &axis);
+                let p = to_machine(st, &Point3::from(*point));
+                if !in_volume(st, &p) {
+                    return self.refuse(
+                        ErrorCode::OUT_OF_VOLUME,
+                        format!(
+                            "CenterPart: the centre {:?} (machine) is outside the machine volume",
+                            p.coords.as_slice()
+                        ),
+                    );
+                }
+                let (d, radial) = off_axis(&p, &o, &axis);
                 let moved = d >= *limit;
                 if moved {
-                    st.machine.move_part(Matrix3::identity(), o, -radial).map_err(machine_error)?;
+                    if let Err(e) = st.machine.move_part(Matrix3::identity(), o, -radial) {
+                        return self.refuse_machine(e);
+                    }
                 }
                 out.push(data(format!("CenterPart({})", (!moved) as u8)));
             }
@@ -970,9 +1017,9 @@ impl<M: Cmm> Session<M> {
                 let dev = 100.0 * d.cross(&axis).norm();
                 let moved = dev >= *limit;
                 if moved {
-                    st.machine
-                        .move_part(rotation_between(&d, &axis), o, Vector3::zeros())
-                        .map_err(machine_error)?;
+                    if let Err(e) = st.machine.move_part(rotation_between(&d, &axis), o, Vector3::zeros()) {
+                        return self.refuse_machine(e);
+                    }
                 }
                 out.push(data(format!("TiltPart({})", (!moved) as u8)));
             }
@@ -981,6 +1028,12 @@ impl<M: Cmm> Session<M> {
                 let (o, axis) = table_axis(st, "TiltCenterPart")?;
                 let p1 = to_machine(st, &Point3::from(*first));
                 let p2 = to_machine(st, &Point3::from(*second));
+                if !in_volume(st, &p1) || !in_volume(st, &p2) {
+                    return self.refuse(
+                        ErrorCode::OUT_OF_VOLUME,
+                        "TiltCenterPart: a centre is outside the machine volume".to_string(),
+                    );
+                }
                 let mut d = (p2 - p1).try_normalize(1e-9).ok_or((
                     ErrorCode::INCORRECT_ARGUMENTS,
                     "TiltCenterPart: the two centres coincide".to_string(),
@@ -995,7 +1048,9 @@ impl<M: Cmm> Session<M> {
                     // Tilt about the first centre until the centres' line is parallel to the
                     // axis, then shift the first centre onto the axis.
                     let (_, radial) = off_axis(&p1, &o, &axis);
-                    st.machine.move_part(rotation_between(&d, &axis), p1, -radial).map_err(machine_error)?;
+                    if let Err(e) = st.machine.move_part(rotation_between(&d, &axis), p1, -radial) {
+                        return self.refuse_machine(e);
+                    }
                 }
                 out.push(data(format!("TiltCenterPart({})", (!moved) as u8)));
             }
@@ -1147,6 +1202,11 @@ impl<M: Cmm> Session<M> {
                 ErrorCode::UNABLE_TO_MOVE,
                 "the virtual CMM cannot scan with a locked axis (ChangeTool unlocks)",
             );
+        }
+        // Size, length and machine time are checked on the nominal path before anything moves.
+        let nominal = Contact { tip_center_mm: start_m + n_m * tool.radius_mm, normal: n_m };
+        if let Err(e) = st.machine.check_scan(nominal, path, tool.radius_mm) {
+            return self.refuse_machine(e);
         }
         let first = ptmeas(st, tool, start_m, n_m, 0.0);
         let first = match first {
@@ -1463,9 +1523,22 @@ fn enum_props(t: &Tool, p: &PropPath, all: bool) -> Result<Vec<String>, (ErrorCo
 // Logging
 
 /// Appends `<ISO time> < line` / `> line` to the `--log` file; bytes outside printable ASCII are
-/// written as `\xNN`.
+/// written as `\xNN`. The log is flushed after every batch of answers.
+///
+/// **Failure rule**: the first write or flush that fails (a full disk, a file-size limit, an
+/// I/O error) is reported once, naming the file and the error (on stderr by default, see
+/// [`Log::with_reporter`]); logging then stops for the server's life and the server keeps
+/// serving (a running measurement program is not cut off by its log). Lines are never lost
+/// silently: the report says from when on the log is incomplete.
 pub struct Log {
-    out: Mutex<BufWriter<std::fs::File>>,
+    out: Mutex<LogState>,
+    path: String,
+    report: Box<dyn Fn(&str) + Send + Sync>,
+}
+
+struct LogState {
+    file: BufWriter<std::fs::File>,
+    failed: bool,
 }
 
 fn iso_now() -> String {
@@ -1487,14 +1560,41 @@ pub fn escape_bytes(bytes: &[u8]) -> String {
 }
 
 impl Log {
-    /// Open (append to) the log file at `path`.
+    /// Open `path` for appending; a failure later is reported on stderr.
     pub fn open(path: &Path) -> io::Result<Log> {
+        Log::with_reporter(path, |m| eprintln!("{m}"))
+    }
+    /// Open `path` for appending; `report` gets the one message about the first failure.
+    pub fn with_reporter(path: &Path, report: impl Fn(&str) + Send + Sync + 'static) -> io::Result<Log> {
         let f = std::fs::OpenOptions::new().create(true).append(true).open(path)?;
-        Ok(Log { out: Mutex::new(BufWriter::new(f)) })
+        Ok(Log {
+            out: Mutex::new(LogState { file: BufWriter::new(f), failed: false }),
+            path: path.display().to_string(),
+            report: Box::new(report),
+        })
+    }
+    fn lock(&self) -> MutexGuard<'_, LogState> {
+        self.out.lock().unwrap_or_else(|e| e.into_inner())
+    }
+    /// Record the first failure and report it; later calls do nothing.
+    fn failed(&self, st: &mut LogState, e: &io::Error) {
+        if !st.failed {
+            st.failed = true;
+            (self.report)(&format!(
+                "ippdme: --log {}: cannot write the session log ({e}); logging stopped at {}, the server keeps serving",
+                self.path,
+                iso_now()
+            ));
+        }
     }
     fn write(&self, dir: char, bytes: &[u8]) {
-        let mut o = self.out.lock().unwrap_or_else(|e| e.into_inner());
-        let _ = writeln!(o, "{} {dir} {}", iso_now(), escape_bytes(bytes));
+        let mut st = self.lock();
+        if st.failed {
+            return;
+        }
+        if let Err(e) = writeln!(st.file, "{} {dir} {}", iso_now(), escape_bytes(bytes)) {
+            self.failed(&mut st, &e);
+        }
     }
     /// A line received from the client.
     pub fn received(&self, bytes: &[u8]) {
@@ -1510,7 +1610,17 @@ impl Log {
     }
     /// Flush what was logged to the file.
     pub fn flush(&self) {
-        let _ = self.out.lock().unwrap_or_else(|e| e.into_inner()).flush();
+        let mut st = self.lock();
+        if st.failed {
+            return;
+        }
+        if let Err(e) = st.file.flush() {
+            self.failed(&mut st, &e);
+        }
+    }
+    /// Whether a write failed (logging has stopped).
+    pub fn has_failed(&self) -> bool {
+        self.lock().failed
     }
 }
 
@@ -1523,6 +1633,7 @@ pub struct Server<M> {
     shared: Arc<Shared<M>>,
     log: Option<Arc<Log>>,
     busy: Arc<AtomicBool>,
+    write_timeout: Duration,
 }
 
 /// A server running on a background thread.
@@ -1565,7 +1676,15 @@ impl<M: Cmm + 'static> Server<M> {
             shared: Arc::new(Shared::new(machine, config)),
             log: log.map(Arc::new),
             busy: Arc::new(AtomicBool::new(false)),
+            write_timeout: DEFAULT_WRITE_TIMEOUT,
         })
+    }
+
+    /// Drop a client that does not take each 64 KiB of its answers within `timeout` (default
+    /// [`DEFAULT_WRITE_TIMEOUT`]; at least 1 ms).
+    pub fn with_write_timeout(mut self, timeout: Duration) -> Self {
+        self.write_timeout = timeout.max(Duration::from_millis(1));
+        self
     }
 
     /// The address the listener is bound to.
@@ -1627,11 +1746,12 @@ impl<M: Cmm + 'static> Server<M> {
         let shared = Arc::clone(&self.shared);
         let log = self.log.clone();
         let busy = Arc::clone(&self.busy);
+        let write_timeout = self.write_timeout;
         let spawned = std::thread::Builder::new().name(format!("ippdme-{peer}")).spawn(move || {
             if let Some(l) = &log {
                 l.note(&format!("connected {peer}"));
             }
-            let why = serve_connection(stream, shared, log.as_deref());
+            let why = serve_connection(stream, shared, log.as_deref(), write_timeout);
             if let Some(l) = &log {
                 l.note(&format!("disconnected {peer}: {why}"));
                 l.flush();
@@ -1644,12 +1764,55 @@ impl<M: Cmm + 'static> Server<M> {
     }
 }
 
-/// Serve one connection until it closes; returns why it ended.
-pub fn serve_connection<M: Cmm>(stream: TcpStream, shared: Arc<Shared<M>>, log: Option<&Log>) -> String {
+/// How long the server waits for a client to take each 64 KiB of answers before it drops the
+/// client (`truepos ippdme serve --write-timeout-s`): a client that stops reading its replies
+/// cannot hold the only connection for longer. Reading has no timeout: a client that sends
+/// nothing keeps its session (a program may wait for an operator).
+pub const DEFAULT_WRITE_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// Bytes of answers sent in one piece, each within the write timeout.
+const SEND_CHUNK: usize = 1 << 16;
+
+/// Send `bytes`, each [`SEND_CHUNK`] of them within `timeout` (a deadline per chunk, however the
+/// socket splits it): a client that reads nothing, or trickles, fails with `TimedOut`.
+fn send_within(stream: &TcpStream, bytes: &[u8], timeout: Duration) -> io::Result<()> {
+    let mut s = stream;
+    for chunk in bytes.chunks(SEND_CHUNK) {
+        let deadline = Instant::now() + timeout;
+        let mut rest = chunk;
+        while !rest.is_empty() {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Err(io::Error::new(
+                    io::ErrorKind::TimedOut,
+                    format!("the client took no answers for {:.3} s (write timeout)", timeout.as_secs_f64()),
+                ));
+            }
+            // Zero would mean "no timeout" to the socket.
+            stream.set_write_timeout(Some(left.max(Duration::from_millis(1))))?;
+            match s.write(rest) {
+                Ok(0) => return Err(io::Error::new(io::ErrorKind::WriteZero, "the client closed")),
+                Ok(n) => rest = &rest[n..],
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock || e.kind() == io::ErrorKind::TimedOut => {}
+                Err(e) => return Err(e),
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Serve one connection until it closes; returns why it ended. Answers are dropped with the
+/// client when it does not take them within `write_timeout` ([`DEFAULT_WRITE_TIMEOUT`]).
+pub fn serve_connection<M: Cmm>(
+    stream: TcpStream,
+    shared: Arc<Shared<M>>,
+    log: Option<&Log>,
+    write_timeout: Duration,
+) -> String {
     let Ok(read_half) = stream.try_clone() else { return "cannot clone the socket".into() };
-    let _ = stream.set_write_timeout(Some(Duration::from_secs(30)));
     let mut reader = LineReader::new(read_half);
-    let mut writer = BufWriter::with_capacity(1 << 16, &stream);
+    let mut pending: Vec<u8> = Vec::with_capacity(SEND_CHUNK);
     let mut session = Session::new(shared);
     let mut out = Vec::new();
     let why = loop {
@@ -1662,8 +1825,9 @@ pub fn serve_connection<M: Cmm>(stream: TcpStream, shared: Arc<Shared<M>>, log: 
                     l.note("a line longer than 64 KiB: closing");
                     l.sent(&r);
                 }
-                let _ = writer.write_all(format!("{r}\r\n").as_bytes());
-                let _ = writer.flush();
+                pending.extend_from_slice(format!("{r}\r\n").as_bytes());
+                let _ = send_within(&stream, &pending, write_timeout);
+                pending.clear();
                 drain(reader.get_ref());
                 break "line over 64 KiB".to_string();
             }
@@ -1687,15 +1851,24 @@ pub fn serve_connection<M: Cmm>(stream: TcpStream, shared: Arc<Shared<M>>, log: 
             if let Some(l) = log {
                 l.sent(&text);
             }
-            if let Err(e) = writer.write_all(text.as_bytes()).and_then(|_| writer.write_all(b"\r\n")) {
-                failed = Some(e);
-                break;
+            pending.extend_from_slice(text.as_bytes());
+            pending.extend_from_slice(b"\r\n");
+            if pending.len() >= SEND_CHUNK {
+                if let Err(e) = send_within(&stream, &pending, write_timeout) {
+                    failed = Some(e);
+                    break;
+                }
+                pending.clear();
             }
         }
-        // Flush when the client has nothing more queued (keeps pipelined batches fast).
+        // Send when the client has nothing more queued (keeps pipelined batches fast).
         if failed.is_none() && !reader.has_buffered_line() {
-            if let Err(e) = writer.flush() {
+            if let Err(e) = send_within(&stream, &pending, write_timeout) {
                 failed = Some(e);
+            }
+            pending.clear();
+            if let Some(l) = log {
+                l.flush();
             }
         }
         if let Some(e) = failed {
@@ -1705,8 +1878,9 @@ pub fn serve_connection<M: Cmm>(stream: TcpStream, shared: Arc<Shared<M>>, log: 
             break "closed by the server".to_string();
         }
     };
-    let _ = writer.flush();
-    drop(writer);
+    if !pending.is_empty() {
+        let _ = send_within(&stream, &pending, write_timeout);
+    }
     session.disconnect();
     let _ = stream.shutdown(Shutdown::Both);
     why

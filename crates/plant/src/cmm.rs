@@ -57,6 +57,8 @@ mod contour;
 const MAX_SCAN_POINTS: usize = 1_000_000;
 /// Most machine time (s) one scan may take (bounds the simulation's work per command).
 const MAX_SCAN_TIME_S: f64 = 300.0;
+/// Largest sweep of one circle scan (rad): two turns, the planner's limit.
+const MAX_SCAN_SWEEP_RAD: f64 = 4.0 * std::f64::consts::PI;
 
 /// How far (mm along the surface) a scan runs beyond its last requested point.
 const OVERSCAN_MM: f64 = 0.5;
@@ -183,12 +185,13 @@ impl IppdmeCmm {
         self.part.as_deref()
     }
 
-    /// Re-pose the part's solids: file coordinates → mount → table rotation.
-    fn pose_part(&mut self) {
-        let Some(file) = &self.part_file else { return };
+    /// The part's file solids posed by the mount `(R, t)` (file coordinates `a` ↦ `R·a + t` on
+    /// the table at angle 0) and the table angle (rad); `None` without a part.
+    fn posed(&self, table_angle: f64, mount: (Matrix3, Vector3)) -> Option<Part> {
+        let file = self.part_file.as_ref()?;
         let o = self.table.unwrap_or_else(Point3::origin);
-        let rt = rz(self.table_angle);
-        let (rm, tm) = self.mount;
+        let rt = rz(table_angle);
+        let (rm, tm) = mount;
         let point = |a: &Point3| o + rt * (rm * a.coords + tm - o.coords);
         let dir = |v: &Vector3| rt * (rm * v);
         let solids = file
@@ -209,7 +212,28 @@ impl IppdmeCmm {
                 (id.clone(), s)
             })
             .collect();
-        self.part = Some(Arc::new(Part { solids }));
+        Some(Part { solids })
+    }
+
+    /// Refuse a new pose of the part that takes a solid which reaches into the machine volume
+    /// now out of it (or makes a number non-finite): the part would be out of reach for the
+    /// server's life. `what` names the command.
+    fn check_pose(&self, new: &Part, what: &str) -> Result<(), MachineError> {
+        let Some(now) = &self.part else { return Ok(()) };
+        for (k, ((id, before), (_, after))) in now.solids.iter().zip(&new.solids).enumerate() {
+            if meets_box(before, &self.volume) && !meets_box(after, &self.volume) {
+                let name = match id {
+                    Some(id) => format!("solid '{id}'"),
+                    None => format!("solid {} of the part file", k + 1),
+                };
+                return Err(MachineError::PartOutOfVolume(format!(
+                    "{what} would move {name} out of the machine volume {:?}..{:?} mm; refused and the part left where it is",
+                    self.volume.0.coords.as_slice(),
+                    self.volume.1.coords.as_slice()
+                )));
+            }
+        }
+        Ok(())
     }
 
     /// The error models' configuration.
@@ -472,6 +496,56 @@ impl IppdmeCmm {
     }
 }
 
+/// Whether solid `s` reaches into the box `(lo, hi)`: a sphere overlaps it, a half-space's
+/// plane cuts it (or touches it), a cylinder's axis passes through the box grown by its radius.
+/// False for any non-finite number.
+fn meets_box(s: &Solid, (lo, hi): &(Point3, Point3)) -> bool {
+    match s {
+        Solid::Sphere { center, radius } => {
+            let closest = Point3::new(
+                center.x.clamp(lo.x, hi.x),
+                center.y.clamp(lo.y, hi.y),
+                center.z.clamp(lo.z, hi.z),
+            );
+            (center - closest).norm() <= *radius
+        }
+        Solid::HalfSpace { point, normal } => {
+            let (mut below, mut above) = (false, false);
+            for k in 0..8 {
+                let corner = Point3::new(
+                    if k & 1 == 0 { lo.x } else { hi.x },
+                    if k & 2 == 0 { lo.y } else { hi.y },
+                    if k & 4 == 0 { lo.z } else { hi.z },
+                );
+                let h = (corner - point).dot(normal);
+                below |= h <= 0.0;
+                above |= h >= 0.0;
+            }
+            below && above
+        }
+        Solid::Cylinder { point, axis, radius, .. } => {
+            // Slabs of the grown box along the infinite axis line.
+            let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
+            for k in 0..3 {
+                let (a, b) = (lo[k] - radius, hi[k] + radius);
+                if !(point[k].is_finite() && axis[k].is_finite()) {
+                    return false;
+                }
+                if axis[k].abs() < 1e-12 {
+                    if point[k] < a || point[k] > b {
+                        return false;
+                    }
+                } else {
+                    let (u, v) = ((a - point[k]) / axis[k], (b - point[k]) / axis[k]);
+                    t0 = t0.max(u.min(v));
+                    t1 = t1.min(u.max(v));
+                }
+            }
+            t0 <= t1
+        }
+    }
+}
+
 /// The home position: centred in X and Y, a tenth of the Z travel below its top.
 fn home_of(lo: Point3, hi: Point3) -> Point3 {
     Point3::new((lo.x + hi.x) / 2.0, (lo.y + hi.y) / 2.0, hi.z - 0.1 * (hi.z - lo.z))
@@ -643,6 +717,45 @@ impl IppdmeCmm {
         Some((t, n))
     }
 
+    /// The planner's parameters for a scan with a tip of radius `r`.
+    fn scan_params(&self, r: f64) -> Params {
+        let m = &self.models.config;
+        Params {
+            tip_radius: r,
+            scan_speed: m.scan_speed_mm_s,
+            deflection: m.scan_deflection_mm,
+            overshoot: (m.scan_deflection_mm / 3.0).min(0.1),
+            ..Params::default()
+        }
+    }
+
+    /// Whether the planner can plan `feature` and the machine runs it within
+    /// [`MAX_SCAN_TIME_S`]; the planner's parameters if so.
+    fn check_planned(&self, feature: &Feature, r: f64) -> Result<Params, MachineError> {
+        let params = self.scan_params(r);
+        // The planner plans at most two turns; a two-turn ScanOnCircle runs its overscan beyond
+        // them (every requested point lies within the two turns), so that excess is not refused.
+        let mut checked = feature.clone();
+        if let Geometry::Circle { sweep, radius, .. } = &mut checked.geometry {
+            if sweep.abs() <= MAX_SCAN_SWEEP_RAD + OVERSCAN_MM / *radius * (1.0 + 1e-9) {
+                *sweep = sweep.clamp(-MAX_SCAN_SWEEP_RAD, MAX_SCAN_SWEEP_RAD);
+            }
+        }
+        truepos_scan::validate(std::slice::from_ref(&checked), &params)
+            .map_err(|e| MachineError::Unable(format!("scan: {e}")))?;
+        let length = feature.extent() * feature.metric(r - params.deflection);
+        let seconds = length / params.scan_speed;
+        // NaN (a non-finite path) is refused too.
+        if seconds.is_nan() || seconds > MAX_SCAN_TIME_S {
+            return Err(MachineError::Unable(format!(
+                "scan: {length:.0} mm of tip-centre path at {} mm/s is {seconds:.0} s of machine time; the limit is {MAX_SCAN_TIME_S} s per scan ({:.0} mm at this speed)",
+                params.scan_speed,
+                MAX_SCAN_TIME_S * params.scan_speed
+            )));
+        }
+        Ok(params)
+    }
+
     /// Execute a circle or line scan with the blended planner on the scanning dynamics; the
     /// points at the requested parameters `targets` (rad or mm from the start) are appended.
     fn scan_planned(
@@ -653,22 +766,7 @@ impl IppdmeCmm {
         out: &mut Vec<ScanPoint>,
     ) -> Result<(), MachineError> {
         let m = self.models.config.clone();
-        let params = Params {
-            tip_radius: r,
-            scan_speed: m.scan_speed_mm_s,
-            deflection: m.scan_deflection_mm,
-            overshoot: (m.scan_deflection_mm / 3.0).min(0.1),
-            ..Params::default()
-        };
-        truepos_scan::validate(std::slice::from_ref(&feature), &params)
-            .map_err(|e| MachineError::Unable(format!("scan: {e}")))?;
-        let length = feature.extent() * feature.metric(r - params.deflection);
-        if length / params.scan_speed > MAX_SCAN_TIME_S {
-            return Err(MachineError::Unable(format!(
-                "scan: {length:.0} mm at {} mm/s is more than {MAX_SCAN_TIME_S} s of machine time",
-                params.scan_speed
-            )));
-        }
+        let params = self.check_planned(&feature, r)?;
         let surface: Arc<dyn Artefact> = match &self.part {
             Some(p) => Arc::new(PartSurface { part: p.clone(), errors: self.models.errors.clone() }),
             None => Arc::new(Nominal(feature.clone())),
@@ -744,6 +842,91 @@ impl IppdmeCmm {
             self.position = last.commanded;
         }
         Ok(())
+    }
+}
+
+/// A circle or line scan with its size known before it runs.
+struct SizedScan {
+    /// The feature the planner plans (with the overscan).
+    feature: Feature,
+    /// Number of steps between the requested points.
+    n_steps: usize,
+    /// The requested range of the scan parameter (rad for circles, mm for lines).
+    span: f64,
+}
+
+/// The planned feature and size of a circle or line scan from the contact `start` (`None` for an
+/// unknown contour, whose length is found while following it); refuses more than
+/// [`MAX_SCAN_POINTS`] points and a circle's sweep beyond [`MAX_SCAN_SWEEP_RAD`].
+fn sized_scan(start: &Contact, path: &ScanPath, r: f64) -> Result<Option<SizedScan>, MachineError> {
+    let s0 = start.tip_center_mm - start.normal * r;
+    match *path {
+        ScanPath::Circle { center, axis, delta_rad, step_rad } => {
+            let mut axis =
+                axis.try_normalize(1e-15).ok_or_else(|| MachineError::Unable("zero scan axis".into()))?;
+            if delta_rad.is_nan() || delta_rad.abs() > MAX_SCAN_SWEEP_RAD * (1.0 + 1e-12) {
+                return Err(MachineError::Unable(format!(
+                    "scan: |delta| = {:.3} deg is beyond the limit of 720 deg (two turns) per ScanOnCircle",
+                    delta_rad.abs().to_degrees()
+                )));
+            }
+            let mut delta = delta_rad.clamp(-MAX_SCAN_SWEEP_RAD, MAX_SCAN_SWEEP_RAD);
+            let n_steps = steps(delta.abs() / step_rad.max(1e-12))?;
+            let c = center + axis * (s0 - center).dot(&axis);
+            let radial = s0 - c;
+            let radius = radial.norm();
+            let side = if start.normal.dot(&axis).abs() > 0.9 {
+                if start.normal.dot(&axis) < 0.0 {
+                    // The plane's outward normal is the feature's axis: turn it over and keep
+                    // the sense of rotation.
+                    axis = -axis;
+                    delta = -delta;
+                }
+                Side::Plane
+            } else if start.normal.dot(&radial) > 0.0 {
+                Side::Outside
+            } else {
+                Side::Inside
+            };
+            if radius.is_nan() || radius < 1e-6 {
+                return Err(MachineError::Unable("the scan circle has no radius".into()));
+            }
+            let (u, v) = Feature::basis(&axis);
+            let feature = Feature {
+                id: "ScanOnCircle".into(),
+                geometry: Geometry::Circle {
+                    center: c,
+                    axis,
+                    radius,
+                    side,
+                    start: radial.dot(&v).atan2(radial.dot(&u)),
+                    // Overscan by 0.5 mm of arc (beyond 720° too): the planner's scan segment
+                    // hands over to the release a few samples before its nominal end, and the
+                    // last requested point must lie inside the scanned range.
+                    sweep: (delta.abs() + OVERSCAN_MM / radius) * delta.signum(),
+                },
+            };
+            Ok(Some(SizedScan { feature, n_steps, span: delta.abs() }))
+        }
+        ScanPath::Line { direction, length_mm, step_mm } => {
+            let dir = (direction - start.normal * start.normal.dot(&direction))
+                .try_normalize(1e-9)
+                .ok_or_else(|| MachineError::Unable("the scan line runs along the normal".into()))?;
+            let n_steps = steps(length_mm / step_mm.max(1e-12))?;
+            let feature = Feature {
+                id: "ScanOnLine".into(),
+                geometry: Geometry::Line {
+                    start: s0,
+                    end: s0 + dir * (length_mm + OVERSCAN_MM),
+                    normal: start.normal,
+                },
+            };
+            Ok(Some(SizedScan { feature, n_steps, span: length_mm }))
+        }
+        ScanPath::Contour { step_mm, max_length_mm, .. } => {
+            steps(max_length_mm / step_mm.max(1e-12))?;
+            Ok(None)
+        }
     }
 }
 
@@ -889,68 +1072,16 @@ impl Cmm for IppdmeCmm {
         out: &mut Vec<ScanPoint>,
     ) -> Result<(), MachineError> {
         let r = tip_radius_mm;
-        let s0 = start.tip_center_mm - start.normal * r;
         match *path {
-            ScanPath::Circle { center, axis, delta_rad, step_rad } => {
-                let mut axis =
-                    axis.try_normalize(1e-15).ok_or_else(|| MachineError::Unable("zero scan axis".into()))?;
-                let mut delta = delta_rad;
-                let n_steps = steps(delta_rad.abs() / step_rad.max(1e-12))?;
-                let c = center + axis * (s0 - center).dot(&axis);
-                let radial = s0 - c;
-                let radius = radial.norm();
-                let side = if start.normal.dot(&axis).abs() > 0.9 {
-                    if start.normal.dot(&axis) < 0.0 {
-                        // The plane's outward normal is the feature's axis: turn it over and
-                        // keep the sense of rotation.
-                        axis = -axis;
-                        delta = -delta;
-                    }
-                    Side::Plane
-                } else if start.normal.dot(&radial) > 0.0 {
-                    Side::Outside
-                } else {
-                    Side::Inside
-                };
-                if radius < 1e-6 {
-                    return Err(MachineError::Unable("the scan circle has no radius".into()));
-                }
-                let (u, v) = Feature::basis(&axis);
-                let feature = Feature {
-                    id: "ScanOnCircle".into(),
-                    geometry: Geometry::Circle {
-                        center: c,
-                        axis,
-                        radius,
-                        side,
-                        start: radial.dot(&v).atan2(radial.dot(&u)),
-                        // Overscan by 0.5 mm of arc (at most to ±720°): the planner's scan
-                        // segment hands over to the release a few samples before its nominal
-                        // end, and the last requested point must lie inside the scanned range.
-                        sweep: (delta.abs() + OVERSCAN_MM / radius).min(4.0 * std::f64::consts::PI)
-                            * delta.signum(),
-                    },
-                };
+            ScanPath::Circle { .. } | ScanPath::Line { .. } => {
+                let sized = sized_scan(&start, path, r)?
+                    .ok_or_else(|| MachineError::Unable("scan: not a circle or a line".into()))?;
+                // The planned feature is checked (planner limits, machine time) before the
+                // requested parameters are allocated.
+                self.check_planned(&sized.feature, r)?;
                 let targets: Vec<f64> =
-                    (0..=n_steps).map(|k| delta.abs() * k as f64 / n_steps as f64).collect();
-                self.scan_planned(feature, &targets, r, out)
-            }
-            ScanPath::Line { direction, length_mm, step_mm } => {
-                let dir = (direction - start.normal * start.normal.dot(&direction))
-                    .try_normalize(1e-9)
-                    .ok_or_else(|| MachineError::Unable("the scan line runs along the normal".into()))?;
-                let n_steps = steps(length_mm / step_mm.max(1e-12))?;
-                let feature = Feature {
-                    id: "ScanOnLine".into(),
-                    geometry: Geometry::Line {
-                        start: s0,
-                        end: s0 + dir * (length_mm + OVERSCAN_MM),
-                        normal: start.normal,
-                    },
-                };
-                let targets: Vec<f64> =
-                    (0..=n_steps).map(|k| length_mm * k as f64 / n_steps as f64).collect();
-                self.scan_planned(feature, &targets, r, out)
+                    (0..=sized.n_steps).map(|k| sized.span * k as f64 / sized.n_steps as f64).collect();
+                self.scan_planned(sized.feature, &targets, r, out)
             }
             ScanPath::Contour { guide, toward, step_mm, stop, max_length_mm } => {
                 steps(max_length_mm / step_mm.max(1e-12))?;
@@ -1004,6 +1135,18 @@ impl Cmm for IppdmeCmm {
         }
     }
 
+    fn check_scan(
+        &self,
+        nominal_start: Contact,
+        path: &ScanPath,
+        tip_radius_mm: f64,
+    ) -> Result<(), MachineError> {
+        match sized_scan(&nominal_start, path, tip_radius_mm)? {
+            Some(sized) => self.check_planned(&sized.feature, tip_radius_mm).map(|_| ()),
+            None => Ok(()),
+        }
+    }
+
     fn stop(&mut self) {
         self.counters.stops += 1;
     }
@@ -1032,9 +1175,12 @@ impl Cmm for IppdmeCmm {
         if a > std::f64::consts::PI {
             a -= 2.0 * std::f64::consts::PI;
         }
+        if let Some(p) = self.posed(a, self.mount) {
+            self.check_pose(&p, "turning the table")?;
+            self.part = Some(Arc::new(p));
+        }
         self.table_angle = a;
         self.counters.moves += 1;
-        self.pose_part();
         Ok(())
     }
 
@@ -1048,9 +1194,19 @@ impl Cmm for IppdmeCmm {
             o.coords + rci * (moved - o.coords)
         };
         let (rm, tm) = self.mount;
-        self.mount = (rci * rotation * rc * rm, f(tm));
+        let mount = (rci * rotation * rc * rm, f(tm));
+        if !(mount.0.iter().chain(mount.1.iter()).all(|x| x.is_finite())) {
+            return Err(MachineError::PartOutOfVolume(
+                "moving the part: a non-finite rotation or shift; refused and the part left where it is"
+                    .into(),
+            ));
+        }
+        if let Some(p) = self.posed(self.table_angle, mount) {
+            self.check_pose(&p, "moving the part")?;
+            self.part = Some(Arc::new(p));
+        }
+        self.mount = mount;
         self.counters.moves += 1;
-        self.pose_part();
         Ok(())
     }
 }
@@ -1068,6 +1224,9 @@ pub struct ServeOptions {
     pub machine: Option<std::path::PathBuf>,
     /// The protocol log file, if any.
     pub log: Option<std::path::PathBuf>,
+    /// Drop a client that does not take each 64 KiB of its answers within this time
+    /// ([`truepos_ippdme::server::DEFAULT_WRITE_TIMEOUT`], 10 s).
+    pub write_timeout: std::time::Duration,
 }
 
 /// Why the server could not start.
@@ -1116,6 +1275,7 @@ pub fn bind_virtual(opts: &ServeOptions) -> Result<truepos_ippdme::Server<Ippdme
         format!("{}:{}", opts.bind, opts.port)
     };
     truepos_ippdme::Server::bind(&address, IppdmeCmm::new(&config, part), &config, log)
+        .map(|s| s.with_write_timeout(opts.write_timeout))
         .map_err(|source| ServeError::Bind { address, source })
 }
 
@@ -1141,6 +1301,7 @@ pub fn serve_loopback(
         part: part.map(|p| p.to_path_buf()),
         machine: machine.map(|p| p.to_path_buf()),
         log: None,
+        write_timeout: truepos_ippdme::server::DEFAULT_WRITE_TIMEOUT,
     };
     let server = bind_virtual(&opts)?;
     let address = "127.0.0.1:0".to_string();

@@ -41,9 +41,15 @@ pub struct ServeArgs {
     /// Machine file (TOML) with an `[ippdme]` section: volume and extra tools.
     #[arg(long)]
     pub machine: Option<PathBuf>,
-    /// Append the session log to this file.
+    /// Append the session log to this file. The first failed write (full disk, file-size
+    /// limit) is reported on stderr; logging then stops and the server keeps serving.
     #[arg(long)]
     pub log: Option<PathBuf>,
+    /// Drop a client that does not take each 64 KiB of its answers within this many seconds
+    /// (a client that stops reading cannot hold the only connection). Reading has no timeout:
+    /// an idle client keeps its session.
+    #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
+    pub write_timeout_s: f64,
 }
 
 pub fn run(args: Args) -> anyhow::Result<Outcome> {
@@ -58,7 +64,21 @@ pub fn run(args: Args) -> anyhow::Result<Outcome> {
         }
         truepos_io::atomic::check_output_path(log).map_err(|e| crate::UsageError(format!("--log: {e}")))?;
     }
-    let opts = ServeOptions { bind: a.bind, port: a.port, part: a.part, machine: a.machine, log: a.log };
+    if !(a.write_timeout_s.is_finite() && (0.001..=86_400.0).contains(&a.write_timeout_s)) {
+        return Err(crate::UsageError(format!(
+            "--write-timeout-s: {} is not a number of seconds between 0.001 and 86400",
+            a.write_timeout_s
+        ))
+        .into());
+    }
+    let opts = ServeOptions {
+        bind: a.bind,
+        port: a.port,
+        part: a.part,
+        machine: a.machine,
+        log: a.log,
+        write_timeout: std::time::Duration::from_secs_f64(a.write_timeout_s),
+    };
     let server = bind_virtual(&opts)?;
     let addr = server.local_addr().device()?;
     let stop = truepos_ippdme::server::stop_on_signals();
