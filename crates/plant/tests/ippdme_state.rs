@@ -6,7 +6,7 @@
 use std::io::{BufRead, BufReader, Write};
 use std::net::TcpStream;
 use std::time::Duration;
-use truepos_cell::cmm::IppdmeCmm;
+use truepos_plant::cmm::IppdmeCmm;
 use truepos_ippdme::part::Part;
 use truepos_ippdme::protocol::{parse_data_items, Body, Response};
 use truepos_ippdme::{MachineConfig, Server, ServerHandle};
