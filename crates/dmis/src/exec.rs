@@ -21,7 +21,9 @@
 //! Entry points: [`run`], [`DryRun`] (a machine that moves nowhere and touches every nominal
 //! point: `--dry-run`).
 
-use crate::ast::{AngleUnit, DatsetWord, DistAxis, FeatType, FeedKind, LengthUnit, Side, TextKind};
+use crate::ast::{
+    AngleUnit, DatsetWord, DistAxis, FeatType, FeedKind, LengthUnit, Side, Statement, TextKind, Tol,
+};
 use crate::error::{DmisError, ErrorKind, Pos};
 use crate::model::*;
 use std::collections::HashMap;
@@ -324,6 +326,18 @@ pub struct TolResult {
     /// PARLEL of an axis: its extent across or along the datum), that vector (machine frame,
     /// mm): a simulation judges the vector, whose truth may be zero, not its length.
     pub vector: Option<Vector3>,
+    /// The nominal the limits are taken about (mm, or rad for ANGLB): DIAM the nominal
+    /// diameter, RAD the nominal radius, DISTB the nominal distance, ANGLB the nominal angle.
+    /// `None` for form, position and orientation tolerances (their nominal is zero).
+    pub nominal: Option<f64>,
+    /// The datums named by the tolerance in order of precedence (POS, PERP, PARLEL), as written
+    /// in the program (`A` for `DAT(A)`, the feature's name for `FA(x)`).
+    pub datums: Vec<String>,
+    /// Indices into [`RunResult::features`] of the actual features of the same `OUTPUT` the
+    /// tolerance was evaluated on, in the order of [`TolResult::features`].
+    pub feature_results: Vec<usize>,
+    /// `POS,3D` (a spherical zone about the nominal point); false for every other tolerance.
+    pub three_d: bool,
 }
 
 /// One probing of a run: which feature, the compensated contact point and the probing
@@ -1083,6 +1097,27 @@ impl Exec<'_> {
                 (v, (dist + lo, dist + hi), v >= dist + lo && v <= dist + hi, false)
             }
         };
+        let nominal = match &t.kind {
+            TolKind::Diam { .. } => nom(fs[0]).radius().map(|r| 2.0 * r),
+            TolKind::Rad { .. } => nom(fs[0]).radius(),
+            TolKind::Anglb { angle, .. } => Some(*angle),
+            TolKind::Distb { dist, .. } => Some(*dist),
+            _ => None,
+        };
+        let datums = match &t.statement {
+            Statement::Tol { tol: Tol::Pos { datums, .. }, .. } => {
+                datums.iter().map(|d| d.name.clone()).collect()
+            }
+            Statement::Tol { tol: Tol::Perp { datum, .. } | Tol::Parlel { datum, .. }, .. } => {
+                vec![datum.name.clone()]
+            }
+            _ => Vec::new(),
+        };
+        // The feature results of this OUTPUT: the latest actual output of each feature.
+        let feature_results = names
+            .iter()
+            .filter_map(|n| self.features.iter().rposition(|f| f.actual && f.label == *n))
+            .collect();
         Ok(TolResult {
             label: t.name.clone(),
             features: names,
@@ -1092,6 +1127,10 @@ impl Exec<'_> {
             angular,
             in_tolerance: ok,
             vector,
+            nominal,
+            datums,
+            feature_results,
+            three_d: matches!(t.kind, TolKind::Pos { three_d: true, .. }),
         })
     }
 

@@ -1,7 +1,8 @@
 //! Results of a run: the DMIS output file's lines (`FA(label)=FEAT/…`, `TA(label)=TOL/…`, in the
 //! program's units) and the contract's JSON.
 //!
-//! Entry points: [`feat_line`], [`tol_line`], [`json`](fn@json).
+//! Entry points: [`feat_line`], [`tol_line`], [`json`](fn@json), [`qif`] (the QIF 3 results
+//! document of `--qif`, written by `truepos_qif::write_program_results`).
 
 use crate::ast::{AngleUnit, FeatType, LengthUnit, Side};
 use crate::exec::{FeatureResult, Geom, RunResult, TolResult};
@@ -229,4 +230,125 @@ pub fn quantities(r: &RunResult, u: &crate::uncertainty::Uncertainty) -> Vec<Qua
         });
     }
     out
+}
+
+fn finite3(v: &truepos_math::Vector3) -> Option<[f64; 3]> {
+    v.iter().all(|x| x.is_finite()).then(|| [v.x, v.y, v.z])
+}
+
+/// The QIF 3 results of a run (`truepos dmis run --qif`): every actual feature of the output
+/// (in the coordinate system active at its `OUTPUT`, as in the output file) with its values,
+/// the standard uncertainties (k = 1) `u` gives and its number of points, and every evaluated
+/// tolerance as a characteristic referring to the feature results of its `OUTPUT` and, for
+/// POS, PERP and PARLEL, to its datums. Dimensional characteristics (DIAM, RAD, DISTB, ANGLB)
+/// carry their nominal and deviations, and the actual size, distance or angle as the value
+/// (nominal + the deviation DMIS reports for DIAM and RAD). Angles in degrees.
+pub fn qif(
+    program: &str,
+    r: &RunResult,
+    u: &crate::uncertainty::Uncertainty,
+    application: &str,
+) -> truepos_qif::ProgramResults {
+    use truepos_qif::{
+        CharacteristicKind as K, ResultCharacteristic, ResultFeature, ResultKind, Status, Tolerance,
+        Value as V,
+    };
+    let mut index = vec![None; r.features.len()];
+    let mut features = Vec::new();
+    for (k, (f, fu)) in r.features.iter().zip(&u.features).enumerate().filter(|(_, (f, _))| f.actual) {
+        let fu = fu.as_ref();
+        let fin = |v: Option<f64>| v.filter(|x| x.is_finite());
+        let pos_u = fu.and_then(|u| finite3(&u.position_mm));
+        let dir_u = fu.and_then(|u| u.direction.as_ref()).and_then(finite3);
+        let a = |p: &truepos_math::Point3| [p.x, p.y, p.z];
+        let b = |v: &truepos_math::Vector3| [v.x, v.y, v.z];
+        let kind = match f.geom {
+            Geom::Point { .. } => ResultKind::Point,
+            Geom::Plane { .. } => ResultKind::Plane,
+            Geom::Line { .. } => ResultKind::Line,
+            Geom::Circle { .. } => ResultKind::Circle,
+            Geom::Cylinder { .. } => ResultKind::Cylinder,
+            Geom::Sphere { .. } => ResultKind::Sphere,
+            Geom::Cone { .. } => ResultKind::Cone,
+        };
+        let diameter = f.geom.radius().map(|r| V::new(2.0 * r, fin(fu.and_then(|u| u.diameter_mm))));
+        let full_angle_deg = match f.geom {
+            Geom::Cone { half_angle, .. } => Some(V::new(
+                2.0 * half_angle.to_degrees(),
+                fin(fu.and_then(|u| u.angle_rad)).map(f64::to_degrees),
+            )),
+            _ => None,
+        };
+        index[k] = Some(features.len());
+        features.push(ResultFeature {
+            label: f.label.clone(),
+            kind,
+            location: V::new(a(&f.geom.position()), pos_u),
+            direction: f.geom.direction().map(|d| V::new(b(&d), dir_u)),
+            diameter,
+            full_angle_deg,
+            fitted: f.n_points > 0,
+            n_points: f.n_points,
+        });
+    }
+    let characteristics = r
+        .tolerances
+        .iter()
+        .zip(&u.tolerances)
+        .map(|(t, tu)| {
+            let tu = tu.filter(|x| x.is_finite());
+            let first_is_plane =
+                t.feature_results.first().is_some_and(|k| matches!(r.features[*k].geom, Geom::Plane { .. }));
+            let zone = Tolerance::Zone(t.limits.1);
+            let nominal = t.nominal.unwrap_or(0.0);
+            let deg = |v: f64| v.to_degrees();
+            let (kind, tolerance, value, unc) = match t.kind {
+                "FLAT" => (K::Flatness, zone, t.value, tu),
+                "STRGHT" => (K::Straightness, zone, t.value, tu),
+                "CIRLTY" => (K::Circularity, zone, t.value, tu),
+                "CYLCTY" => (K::Cylindricity, zone, t.value, tu),
+                "POS" => (K::Position { three_d: t.three_d }, zone, t.value, tu),
+                "PERP" => (K::Perpendicularity { axis: !first_is_plane }, zone, t.value, tu),
+                "PARLEL" => (K::Parallelism { axis: !first_is_plane }, zone, t.value, tu),
+                "DIAM" | "RAD" => (
+                    if t.kind == "DIAM" { K::Diameter } else { K::Radius },
+                    Tolerance::Limits { nominal, lower: t.limits.0, upper: t.limits.1 },
+                    nominal + t.value,
+                    tu,
+                ),
+                "ANGLB" => (
+                    K::AngleBetween,
+                    Tolerance::Limits {
+                        nominal: deg(nominal),
+                        lower: deg(t.limits.0 - nominal),
+                        upper: deg(t.limits.1 - nominal),
+                    },
+                    deg(t.value),
+                    tu.map(deg),
+                ),
+                // DISTB (the last kind of `model::TolKind`).
+                _ => (
+                    K::DistanceBetween,
+                    Tolerance::Limits { nominal, lower: t.limits.0 - nominal, upper: t.limits.1 - nominal },
+                    t.value,
+                    tu,
+                ),
+            };
+            ResultCharacteristic {
+                label: t.label.clone(),
+                kind,
+                tolerance,
+                value: V::new(value, unc),
+                datums: t.datums.clone(),
+                features: t.feature_results.iter().filter_map(|k| index[*k]).collect(),
+                status: if t.in_tolerance { Status::Pass } else { Status::Fail },
+            }
+        })
+        .collect();
+    truepos_qif::ProgramResults {
+        program: program.to_string(),
+        application: application.to_string(),
+        features,
+        characteristics,
+    }
 }

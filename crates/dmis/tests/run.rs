@@ -191,3 +191,70 @@ fn a_probing_without_surface_stops_at_its_line_with_the_machine_retracted() {
     let at = cmm.handle.shared.with_machine(|m| truepos_ippdme::Cmm::position(m));
     assert!((at.x - (60.0 - 10.0 - 1.5)).abs() < 1e-3 && (at.y - 50.0).abs() < 1e-6, "{at:?}");
 }
+
+/// The test block (`tests/programs/block_part.toml`: a block with datum faces, a through bore,
+/// a blind bore with its floor, a finite pin and a sphere) measured by `block.dms` on the ideal
+/// virtual CMM (`ideal_machine.toml`: exact contacts): every feature and every tolerance equals
+/// the part's truth, in the part frame of the datums A (top), B (back), C (right), to 1 µm.
+#[test]
+fn the_test_block_measures_to_its_truth_on_the_ideal_machine() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/programs");
+    let cmm = truepos_plant::cmm::serve_loopback(
+        Some(&dir.join("block_part.toml")),
+        Some(&dir.join("ideal_machine.toml")),
+    )
+    .unwrap();
+    let mut client = truepos_ippdme::connect(&cmm.url).unwrap();
+    let plan = plan_of("crates/dmis/tests/programs/block.dms");
+    let r = run(&plan, &mut client, &sensors(&[("P1", "Probe1")]), &mut |_| {}).unwrap();
+    assert_eq!(r.n_points, 4 + 4 + 4 + 8 + 4 + 3 + 4 + 5);
+    let um = 1e-3;
+    let feat = |label: &str| r.features.iter().find(|f| f.label == label).unwrap().geom.clone();
+    let near = |got: truepos_math::Point3, want: [f64; 3], what: &str| {
+        let e = (got - truepos_math::Point3::from(want)).norm();
+        eprintln!("{what}: {e:.2e} mm from the truth");
+        assert!(e < um, "{what}: {got:?} vs {want:?}");
+    };
+    // Truth (part frame = machine − (160, 100, 40)).
+    let Geom::Plane { p, n } = feat("TOP") else { panic!() };
+    assert!(p.z.abs() < um && (n - truepos_math::Vector3::z()).norm() < 1e-6, "{p:?} {n:?}");
+    let Geom::Cylinder { p, axis, r: rad } = feat("B1") else { panic!() };
+    near(truepos_math::Point3::new(p.x, p.y, 0.0), [-120.0, -50.0, 0.0], "B1 axis");
+    assert!(
+        (axis - truepos_math::Vector3::z()).norm() < 1e-6 && (2.0 * rad - 20.0).abs() < um,
+        "{axis:?} {rad}"
+    );
+    let Geom::Circle { c, r: rad, .. } = feat("B2") else { panic!() };
+    near(c, [-40.0, -50.0, -10.0], "B2 centre");
+    assert!((2.0 * rad - 16.0).abs() < um, "{rad}");
+    let Geom::Plane { p, n } = feat("FLOOR") else { panic!() };
+    assert!((p.z + 25.0).abs() < um && (n - truepos_math::Vector3::z()).norm() < 1e-6, "{p:?} {n:?}");
+    let Geom::Circle { c, r: rad, .. } = feat("PIN") else { panic!() };
+    near(c, [-80.0, -75.0, 10.0], "pin centre");
+    assert!((2.0 * rad - 10.0).abs() < um, "{rad}");
+    let Geom::Sphere { c, r: rad } = feat("SPH") else { panic!() };
+    near(c, [-80.0, -20.0, 5.0], "sphere centre");
+    assert!((2.0 * rad - 20.0).abs() < um, "{rad}");
+    let Geom::Point { p, .. } = feat("P1") else { panic!() };
+    near(p, [-120.0, -50.0, 0.0], "B1 axis on datum A");
+    // Tolerances: form, orientation and position of a perfect part are zero; sizes and
+    // distances their nominal.
+    for (label, want) in [
+        ("FL", 0.0),
+        ("DB1", 0.0),
+        ("PE", 0.0),
+        ("PA", 0.0),
+        ("PB2", 0.0),
+        ("PSP", 0.0),
+        ("PPIN", 0.0),
+        ("DEP", 25.0),
+        ("D12", 80.0),
+    ] {
+        let t = tol(&r, label);
+        assert!((t.value - want).abs() < um, "T({label}) = {} vs {want}", t.value);
+        assert!(t.in_tolerance, "T({label})");
+    }
+    assert_eq!(tol(&r, "PB2").datums, ["A", "B", "C"]);
+    assert_eq!(tol(&r, "DEP").nominal, Some(25.0));
+    assert!(!r.any_out_of_tolerance());
+}

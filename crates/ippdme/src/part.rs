@@ -5,7 +5,23 @@
 //! `[[sphere]] center_mm, diameter_mm`, `[[plane]] point_mm, normal` (the half-space below the
 //! normal) and `[[cylinder]] point_mm, axis, diameter_mm, side = "outside"` (a pin), minus the
 //! `[[cylinder]] ... side = "inside"` (bores, which remove material: a bore in a plate is a
-//! `[[plane]]` and an inside `[[cylinder]]`); each with an optional `id`. Cylinders are infinite.
+//! `[[plane]]` and an inside `[[cylinder]]`); each with an optional `id`.
+//!
+//! Bounded solids (a real test part):
+//! - `[[block]] min_mm, max_mm`: a rectangular block, the intersection of the six half-spaces of
+//!   its faces (file axes);
+//! - `[[prism]] vertices_mm, height_mm`: a convex polygon (at least three vertices in one
+//!   plane, in order) extruded along its plane's normal (the side of the vertices' right-hand
+//!   order) by `height_mm`: the intersection of its side and end half-spaces;
+//! - `[[cylinder]] ... ends_mm = [a, b]`: a finite cylinder between the planes normal to its
+//!   axis at `a` and `b` along it from `point_mm` (a < b). A finite pin has end faces; a finite
+//!   bore removes the material between them, so its end at `a` is the bore's floor (its other
+//!   end should lie beyond the face it opens through). Without `ends_mm` cylinders are infinite
+//!   (the files of earlier versions).
+//!
+//! Edges and corners of bounded solids are sharp: a probe passing beside a finite pin misses
+//! it, and a ball touching an edge touches it at the edge (normal from the edge to the ball's
+//! centre), not on an extended face.
 //!
 //! Machine file: `[ippdme] volume_min_mm, volume_max_mm` (default ±1000 mm),
 //! `[[ippdme.tool]] name, tip_diameter_mm`, `rotary_table` (default true: a table turning about
@@ -76,6 +92,26 @@ struct RawPart {
     plane: Vec<RawPlane>,
     #[serde(default)]
     cylinder: Vec<RawCylinder>,
+    #[serde(default)]
+    block: Vec<RawBlock>,
+    #[serde(default)]
+    prism: Vec<RawPrism>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawBlock {
+    id: Option<String>,
+    min_mm: [f64; 3],
+    max_mm: [f64; 3],
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPrism {
+    id: Option<String>,
+    vertices_mm: Vec<[f64; 3]>,
+    height_mm: f64,
 }
 
 #[derive(Debug, Deserialize)]
@@ -102,6 +138,7 @@ struct RawCylinder {
     axis: [f64; 3],
     diameter_mm: f64,
     side: CylinderSide,
+    ends_mm: Option<[f64; 2]>,
 }
 
 /// A cylinder is a pin (material inside) or a bore (material outside).
@@ -131,8 +168,9 @@ pub enum Solid {
         /// Unit normal of the plane, out of the material.
         normal: Vector3,
     },
-    /// Infinite cylinder; `axis` is a unit vector. `Outside`: a pin (material inside the
-    /// cylinder); `Inside`: a bore (removes the material inside it from the other solids).
+    /// Cylinder; `axis` is a unit vector. `Outside`: a pin (material inside the cylinder);
+    /// `Inside`: a bore (removes the material inside it from the other solids). `ends`: the
+    /// positions along the axis from `point` of its end planes (`None`: infinite).
     Cylinder {
         /// A point on the axis, part frame, mm.
         point: Point3,
@@ -142,7 +180,159 @@ pub enum Solid {
         radius: f64,
         /// Pin or bore.
         side: CylinderSide,
+        ends: Option<(f64, f64)>,
     },
+    /// A convex prism: the polygon `polygon` (counter-clockwise in the `(u, v)` plane through
+    /// `origin`) extruded along `w = u × v` from 0 to `height`. `u`, `v`, `w` orthonormal.
+    /// A block is a prism with a rectangle.
+    Prism {
+        origin: Point3,
+        u: Vector3,
+        v: Vector3,
+        w: Vector3,
+        polygon: Vec<[f64; 2]>,
+        height: f64,
+    },
+}
+
+impl Solid {
+    /// Signed distance of `p` to the solid (negative inside; for a bore, of `p` to the free
+    /// cylinder it cuts, negative inside it). Exact for every kind (edges and corners
+    /// included), so that a ball of radius r at `c` overlaps the solid exactly when
+    /// `distance(c) < r`.
+    pub fn distance(&self, p: &Point3) -> f64 {
+        match self {
+            Solid::Sphere { center, radius } => (p - center).norm() - radius,
+            Solid::HalfSpace { point, normal } => (p - point).dot(normal),
+            Solid::Cylinder { point, axis, radius, ends, .. } => {
+                let rel = p - point;
+                let along = rel.dot(axis);
+                let radial = (rel - axis * along).norm() - radius;
+                match ends {
+                    None => radial,
+                    Some((a, b)) => {
+                        let axial = (a - along).max(along - b);
+                        extrude(radial, axial)
+                    }
+                }
+            }
+            Solid::Prism { origin, u, v, w, polygon, height } => {
+                let rel = p - origin;
+                let q = [rel.dot(u), rel.dot(v)];
+                let h = rel.dot(w);
+                extrude(polygon_distance(polygon, q), (-h).max(h - height))
+            }
+        }
+    }
+
+    /// The outward normal of the solid's surface nearest `p` (for a bore: pointing into the
+    /// free cylinder, the material's outward normal): at an edge or corner the direction from
+    /// it to `p`.
+    pub fn outward(&self, p: &Point3) -> Vector3 {
+        match self {
+            Solid::Sphere { center, .. } => (p - center).try_normalize(1e-15).unwrap_or_else(Vector3::z),
+            Solid::HalfSpace { normal, .. } => *normal,
+            Solid::Cylinder { point, axis, radius, side, ends } => {
+                let rel = p - point;
+                let along = rel.dot(axis);
+                let radial_v = rel - axis * along;
+                let radial_dir = radial_v.try_normalize(1e-15).unwrap_or_else(|| any_perpendicular(axis));
+                let rd = radial_v.norm() - radius;
+                let (n_side, n_end, axial) = match ends {
+                    None => (radial_dir, Vector3::zeros(), f64::NEG_INFINITY),
+                    Some((a, b)) => {
+                        let (axial, n_end) =
+                            if a - along > along - b { (a - along, -axis) } else { (along - b, *axis) };
+                        (radial_dir, n_end, axial)
+                    }
+                };
+                let n = match side {
+                    CylinderSide::Outside if rd > 0.0 && axial > 0.0 => {
+                        (radial_dir * rd + n_end * axial).normalize()
+                    }
+                    _ if axial > rd => n_end,
+                    _ => n_side,
+                };
+                match side {
+                    CylinderSide::Outside => n,
+                    CylinderSide::Inside => -n,
+                }
+            }
+            Solid::Prism { origin, u, v, w, polygon, height } => {
+                let rel = p - origin;
+                let q = [rel.dot(u), rel.dot(v)];
+                let h = rel.dot(w);
+                let (d2, g2) = polygon_gradient(polygon, q);
+                let (axial, n_end) = if -h > h - height { (-h, -w) } else { (h - height, *w) };
+                let n_side = u * g2[0] + v * g2[1];
+                if d2 > 0.0 && axial > 0.0 {
+                    (n_side * d2 + n_end * axial).normalize()
+                } else if axial > d2 {
+                    n_end
+                } else {
+                    n_side
+                }
+            }
+        }
+    }
+}
+
+/// The exact signed distance of an extrusion from the signed distances across (`d`) and along
+/// (`a`) it.
+fn extrude(d: f64, a: f64) -> f64 {
+    if d > 0.0 && a > 0.0 {
+        d.hypot(a)
+    } else {
+        d.max(a)
+    }
+}
+
+/// A unit vector perpendicular to `n` (unit).
+fn any_perpendicular(n: &Vector3) -> Vector3 {
+    let a = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+    n.cross(&a).normalize()
+}
+
+/// Signed distance of `q` to a convex polygon (counter-clockwise): negative inside.
+fn polygon_distance(poly: &[[f64; 2]], q: [f64; 2]) -> f64 {
+    polygon_gradient(poly, q).0
+}
+
+/// Signed distance of `q` to a convex polygon (counter-clockwise) and the unit direction of
+/// its increase (outside: from the nearest boundary point to `q`; inside: the nearest edge's
+/// outward normal).
+fn polygon_gradient(poly: &[[f64; 2]], q: [f64; 2]) -> (f64, [f64; 2]) {
+    let n = poly.len();
+    let mut inside = true;
+    let mut best_in = (f64::NEG_INFINITY, [0.0, 1.0]);
+    let mut best_out = (f64::INFINITY, [0.0, 1.0]);
+    for k in 0..n {
+        let (a, b) = (poly[k], poly[(k + 1) % n]);
+        let e = [b[0] - a[0], b[1] - a[1]];
+        let len = e[0].hypot(e[1]);
+        let out_n = [e[1] / len, -e[0] / len];
+        let rel = [q[0] - a[0], q[1] - a[1]];
+        let side = rel[0] * out_n[0] + rel[1] * out_n[1];
+        if side > 0.0 {
+            inside = false;
+        }
+        if side > best_in.0 {
+            best_in = (side, out_n);
+        }
+        // Distance to the segment.
+        let t = ((rel[0] * e[0] + rel[1] * e[1]) / (len * len)).clamp(0.0, 1.0);
+        let d = [rel[0] - t * e[0], rel[1] - t * e[1]];
+        let dist = d[0].hypot(d[1]);
+        if dist < best_out.0 {
+            let dir = if dist > 1e-15 { [d[0] / dist, d[1] / dist] } else { out_n };
+            best_out = (dist, dir);
+        }
+    }
+    if inside {
+        best_in
+    } else {
+        best_out
+    }
 }
 
 /// The part: the union of its spheres, half-spaces and pins, minus its bores.
@@ -198,6 +388,51 @@ fn positive(file: &str, key: &str, v: f64) -> Result<f64, PartError> {
     }
 }
 
+/// A prism from its base polygon's vertices (in order, one plane, convex) and its height along
+/// the normal of their right-hand order.
+fn prism(file: &str, key: &str, vertices: &[[f64; 3]], height: f64) -> Result<Solid, PartError> {
+    let bad =
+        |message: String| PartError::Value { file: file.into(), key: format!("{key}.vertices_mm"), message };
+    if vertices.len() < 3 {
+        return Err(bad(format!("a polygon needs at least 3 vertices, got {}", vertices.len())));
+    }
+    let mut pts = Vec::with_capacity(vertices.len());
+    for v in vertices {
+        pts.push(Point3::from(finite3(file, &format!("{key}.vertices_mm"), *v)?));
+    }
+    // Newell's normal: the polygon's plane and orientation.
+    let mut nn = Vector3::zeros();
+    for k in 0..pts.len() {
+        let (a, b) = (pts[k], pts[(k + 1) % pts.len()]);
+        nn += Vector3::new((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x), (a.x - b.x) * (a.y + b.y));
+    }
+    let Some(w) = nn.try_normalize(1e-12) else {
+        return Err(bad("the vertices enclose no area".into()));
+    };
+    let origin = pts[0];
+    let size = pts.iter().map(|p| (p - origin).norm()).fold(0.0, f64::max);
+    if pts.iter().any(|p| (p - origin).dot(&w).abs() > 1e-9 * size.max(1.0)) {
+        return Err(bad("the vertices are not in one plane".into()));
+    }
+    let u = (pts[1] - origin).try_normalize(1e-12).ok_or_else(|| bad("two vertices coincide".into()))?;
+    let v = w.cross(&u);
+    let polygon: Vec<[f64; 2]> = pts.iter().map(|p| [(p - origin).dot(&u), (p - origin).dot(&v)]).collect();
+    let n = polygon.len();
+    for k in 0..n {
+        let (a, b, c) = (polygon[k], polygon[(k + 1) % n], polygon[(k + 2) % n]);
+        let cross = (b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0]);
+        let l1 = (b[0] - a[0]).hypot(b[1] - a[1]);
+        let l2 = (c[0] - b[0]).hypot(c[1] - b[1]);
+        if l1 < 1e-9 || l2 < 1e-9 || cross <= 1e-12 * l1 * l2 {
+            return Err(bad(format!(
+                "the polygon is not convex with distinct vertices (at vertex {})",
+                (k + 1) % n + 1
+            )));
+        }
+    }
+    Ok(Solid::Prism { origin, u, v, w, polygon, height })
+}
+
 impl Part {
     /// Parse a part file's text; `file` names it in errors.
     pub fn from_toml(file: &str, text: &str) -> Result<Part, PartError> {
@@ -220,10 +455,52 @@ impl Part {
             let p = finite3(file, &format!("{key}.point_mm"), s.point_mm)?;
             let a = unit(file, &format!("{key}.axis"), s.axis)?;
             let d = positive(file, &format!("{key}.diameter_mm"), s.diameter_mm)?;
+            let ends = match s.ends_mm {
+                None => None,
+                Some([lo, hi]) if lo.is_finite() && hi.is_finite() && lo < hi => Some((lo, hi)),
+                Some(_) => {
+                    return Err(PartError::Value {
+                        file: file.into(),
+                        key: format!("{key}.ends_mm"),
+                        message: "must be two finite positions along the axis, the first below the second"
+                            .into(),
+                    })
+                }
+            };
             solids.push((
                 s.id,
-                Solid::Cylinder { point: Point3::from(p), axis: a, radius: d / 2.0, side: s.side },
+                Solid::Cylinder { point: Point3::from(p), axis: a, radius: d / 2.0, side: s.side, ends },
             ));
+        }
+        for (k, b) in raw.block.into_iter().enumerate() {
+            let key = format!("block[{k}]");
+            let lo = finite3(file, &format!("{key}.min_mm"), b.min_mm)?;
+            let hi = finite3(file, &format!("{key}.max_mm"), b.max_mm)?;
+            if (0..3).any(|i| lo[i] >= hi[i]) {
+                return Err(PartError::Value {
+                    file: file.into(),
+                    key: format!("{key}.max_mm"),
+                    message: "every component must exceed min_mm's".into(),
+                });
+            }
+            let e = hi - lo;
+            solids.push((
+                b.id,
+                Solid::Prism {
+                    origin: Point3::from(lo),
+                    u: Vector3::x(),
+                    v: Vector3::y(),
+                    w: Vector3::z(),
+                    polygon: vec![[0.0, 0.0], [e.x, 0.0], [e.x, e.y], [0.0, e.y]],
+                    height: e.z,
+                },
+            ));
+        }
+        for (k, p) in raw.prism.into_iter().enumerate() {
+            let key = format!("prism[{k}]");
+            let h = positive(file, &format!("{key}.height_mm"), p.height_mm)?;
+            let solid = prism(file, &key, &p.vertices_mm, h)?;
+            solids.push((p.id, solid));
         }
         Ok(Part { solids })
     }

@@ -205,9 +205,21 @@ impl IppdmeCmm {
                     Solid::HalfSpace { point: p, normal } => {
                         Solid::HalfSpace { point: point(p), normal: dir(normal) }
                     }
-                    Solid::Cylinder { point: p, axis, radius, side } => {
-                        Solid::Cylinder { point: point(p), axis: dir(axis), radius: *radius, side: *side }
-                    }
+                    Solid::Cylinder { point: p, axis, radius, side, ends } => Solid::Cylinder {
+                        point: point(p),
+                        axis: dir(axis),
+                        radius: *radius,
+                        side: *side,
+                        ends: *ends,
+                    },
+                    Solid::Prism { origin, u, v, w, polygon, height } => Solid::Prism {
+                        origin: point(origin),
+                        u: dir(u),
+                        v: dir(v),
+                        w: dir(w),
+                        polygon: polygon.clone(),
+                        height: *height,
+                    },
                 };
                 (id.clone(), s)
             })
@@ -552,37 +564,26 @@ fn home_of(lo: Point3, hi: Point3) -> Point3 {
 }
 
 /// Signed gap of a ball of radius `r` at `c` to one solid's surface (negative: overlapping; for
-/// a bore: negative when strictly inside its free cylinder, i.e. clear of its wall).
+/// a bore: negative when strictly inside its free cylinder shrunk by the ball, i.e. clear of its
+/// wall and floor). Exact at edges and corners of bounded solids; convex along any line.
 fn gap(s: &Solid, c: &Point3, r: f64) -> f64 {
     match s {
-        Solid::Sphere { center, radius } => (c - center).norm() - radius - r,
-        Solid::HalfSpace { point, normal } => (c - point).dot(normal) - r,
-        Solid::Cylinder { point, axis, radius, side } => {
+        Solid::Cylinder { point, axis, radius, side: CylinderSide::Inside, ends } => {
             let rel = c - point;
-            let dist = (rel - axis * rel.dot(axis)).norm();
-            match side {
-                CylinderSide::Outside => dist - radius - r,
-                CylinderSide::Inside => dist - (radius - r),
+            let along = rel.dot(axis);
+            let radial = (rel - axis * along).norm() - (radius - r);
+            match ends {
+                None => radial,
+                Some((a, b)) => radial.max(a + r - along).max(along - (b - r)),
             }
         }
+        _ => s.distance(c) - r,
     }
 }
 
 /// The material's outward normal of one solid at (the projection of) `c`.
 fn outward(s: &Solid, c: &Point3) -> Vector3 {
-    match s {
-        Solid::Sphere { center, .. } => (c - center).try_normalize(1e-15).unwrap_or_else(Vector3::z),
-        Solid::HalfSpace { normal, .. } => *normal,
-        Solid::Cylinder { point, axis, side, .. } => {
-            let rel = c - point;
-            let radial =
-                (rel - axis * rel.dot(axis)).try_normalize(1e-15).unwrap_or_else(|| perpendicular(axis));
-            match side {
-                CylinderSide::Outside => radial,
-                CylinderSide::Inside => -radial,
-            }
-        }
-    }
+    s.outward(c)
 }
 
 fn perpendicular(n: &Vector3) -> Vector3 {
@@ -617,7 +618,8 @@ fn crossings(s: &Solid, a: &Point3, d: &Vector3, r: f64, out: &mut Vec<f64>) {
                 out.push(-((a - point).dot(normal) - r) / dn);
             }
         }
-        Solid::Cylinder { point, axis, radius, side } => {
+        Solid::Cylinder { ends: Some(_), .. } | Solid::Prism { .. } => convex_crossings(s, a, d, r, out),
+        Solid::Cylinder { point, axis, radius, side, ends: None } => {
             let rel = a - point;
             let p = rel - axis * rel.dot(axis);
             let dp = d - axis * d.dot(axis);
@@ -627,6 +629,62 @@ fn crossings(s: &Solid, a: &Point3, d: &Vector3, r: f64, out: &mut Vec<f64>) {
             };
             circle_roots(&p, &dp, big, out);
         }
+    }
+}
+
+/// Where a ball of radius `r` moving from `a` by `d` (t in [0, 1]) enters and leaves a bounded
+/// solid's offset (or a finite bore's free region): `gap` is convex along the line, so its
+/// minimum is found by golden-section search and each root by bisection on either side.
+fn convex_crossings(s: &Solid, a: &Point3, d: &Vector3, r: f64, out: &mut Vec<f64>) {
+    if d.norm() < 1e-15 {
+        return;
+    }
+    let f = |t: f64| gap(s, &(a + d * t), r);
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut lo, mut hi) = (0.0, 1.0);
+    let (mut x1, mut x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+    let (mut f1, mut f2) = (f(x1), f(x2));
+    for _ in 0..80 {
+        if f1 < f2 {
+            hi = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = hi - g * (hi - lo);
+            f1 = f(x1);
+        } else {
+            lo = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = lo + g * (hi - lo);
+            f2 = f(x2);
+        }
+    }
+    let tm = 0.5 * (lo + hi);
+    let (t_min, f_min) = [(0.0, f(0.0)), (tm, f(tm)), (1.0, f(1.0))]
+        .into_iter()
+        .fold((tm, f64::INFINITY), |b, x| if x.1 < b.1 { x } else { b });
+    if f_min > 0.0 {
+        return;
+    }
+    let root = |mut outside: f64, mut inside: f64| {
+        for _ in 0..200 {
+            let m = 0.5 * (outside + inside);
+            if m == outside || m == inside {
+                break;
+            }
+            if f(m) > 0.0 {
+                outside = m;
+            } else {
+                inside = m;
+            }
+        }
+        outside
+    };
+    if f(0.0) > 0.0 {
+        out.push(root(0.0, t_min));
+    }
+    if f(1.0) > 0.0 {
+        out.push(root(1.0, t_min));
     }
 }
 
@@ -1361,5 +1419,111 @@ mod tests {
         assert_eq!(out.len(), 11);
         // The realistic machine: within 10 µm of the true plane (geometric map and noise).
         assert!(out.iter().all(|p| (p.tip_center_mm.z - 1.5).abs() < 10e-3), "{out:?}");
+    }
+
+    /// The ideal machine on `part`: exact contacts.
+    fn ideal(part: &str) -> IppdmeCmm {
+        IppdmeCmm::new(&MachineConfig::ideal(), Some(Part::from_toml("p", part).unwrap()))
+    }
+
+    const BLOCK: &str = "[[block]]\nmin_mm = [0, 0, 0]\nmax_mm = [100, 60, 40]\n";
+
+    /// Contacts on a block's faces, edges and corners, computed by hand: a face gives the
+    /// face's normal at r from it; an edge is not a face (the ball touches the edge, its normal
+    /// from the edge to the ball's centre); beside the block the probe misses.
+    #[test]
+    fn a_block_is_touched_on_its_faces_and_edges_only() {
+        let m = ideal(BLOCK);
+        let r = 1.5;
+        // Top face, straight down.
+        let (t, n) =
+            m.first_contact(&Point3::new(50.0, 30.0, 50.0), &Point3::new(50.0, 30.0, 30.0), r).unwrap();
+        assert!((50.0 - 20.0 * t - (40.0 + r)).abs() < 1e-9 && (n - Vector3::z()).norm() < 1e-12, "{t} {n}");
+        // Down 1 mm outside the edge x = 100: the ball meets the edge at height
+        // 40 + sqrt(r² − 1²), normal (1, 0, h)/r.
+        let (t, n) =
+            m.first_contact(&Point3::new(101.0, 30.0, 50.0), &Point3::new(101.0, 30.0, 30.0), r).unwrap();
+        let h = (r * r - 1.0f64).sqrt();
+        assert!((50.0 - 20.0 * t - (40.0 + h)).abs() < 1e-9, "{t}");
+        assert!((n - Vector3::new(1.0, 0.0, h) / r).norm() < 1e-9, "{n}");
+        // Down 2 mm outside: misses (a half-space top face would have been touched).
+        assert!(m
+            .first_contact(&Point3::new(102.0, 30.0, 50.0), &Point3::new(102.0, 30.0, 30.0), r)
+            .is_none());
+        // Along −x at z = 41 towards the corner edge (x = 100, z = 40): touches the edge.
+        let (t, n) =
+            m.first_contact(&Point3::new(110.0, 30.0, 41.0), &Point3::new(90.0, 30.0, 41.0), r).unwrap();
+        let x = 110.0 - 20.0 * t;
+        assert!((x - (100.0 + (r * r - 1.0f64).sqrt())).abs() < 1e-9, "{x}");
+        assert!(n.x > 0.0 && n.z > 0.0 && (n.norm() - 1.0).abs() < 1e-12, "{n}");
+        // Side face x = 0 from outside.
+        let (t, n) =
+            m.first_contact(&Point3::new(-10.0, 30.0, 20.0), &Point3::new(10.0, 30.0, 20.0), r).unwrap();
+        assert!((-10.0 + 20.0 * t + r).abs() < 1e-9 && (n + Vector3::x()).norm() < 1e-12, "{t} {n}");
+        // Inside the block's volume there is no free space to start from.
+        assert!(m.collides(&Point3::new(50.0, 30.0, 20.0), r));
+        assert!(!m.collides(&Point3::new(50.0, 30.0, 41.6), r));
+    }
+
+    /// A finite pin: touched on its side and on its end face; a probe passing beside it above
+    /// its end misses it (an infinite pin would stop it).
+    #[test]
+    fn a_finite_pin_has_an_end_face_and_can_be_passed() {
+        let pin = "[[cylinder]]\npoint_mm = [0, 0, 0]\naxis = [0, 0, 1]\ndiameter_mm = 10\nside = \"outside\"\nends_mm = [0, 20]\n";
+        let infinite =
+            "[[cylinder]]\npoint_mm = [0, 0, 0]\naxis = [0, 0, 1]\ndiameter_mm = 10\nside = \"outside\"\n";
+        let (m, inf) = (ideal(pin), ideal(infinite));
+        let r = 1.5;
+        let (a, b) = (Point3::new(-20.0, 0.0, 22.0), Point3::new(20.0, 0.0, 22.0));
+        assert!(m.first_contact(&a, &b, r).is_none(), "above the end at 22 > 20 + r: no contact");
+        assert!(inf.first_contact(&a, &b, r).is_some());
+        // Side at z = 10.
+        let (t, n) =
+            m.first_contact(&Point3::new(-20.0, 0.0, 10.0), &Point3::new(0.0, 0.0, 10.0), r).unwrap();
+        assert!((-20.0 + 20.0 * t + 5.0 + r).abs() < 1e-9 && (n + Vector3::x()).norm() < 1e-9, "{t} {n}");
+        // End face from above, 2 mm off the axis.
+        let (t, n) = m.first_contact(&Point3::new(2.0, 0.0, 30.0), &Point3::new(2.0, 0.0, 10.0), r).unwrap();
+        assert!((30.0 - 20.0 * t - (20.0 + r)).abs() < 1e-9 && (n - Vector3::z()).norm() < 1e-12, "{t} {n}");
+    }
+
+    /// A blind bore in a block: its wall and its floor are touched where they are; below the
+    /// floor there is material, beside the bore the block's top.
+    #[test]
+    fn a_blind_bore_has_a_wall_and_a_floor() {
+        let part = format!(
+            "{BLOCK}[[cylinder]]\npoint_mm = [50, 30, 0]\naxis = [0, 0, 1]\ndiameter_mm = 16\nside = \"inside\"\nends_mm = [15, 60]\n"
+        );
+        let m = ideal(&part);
+        let r = 1.5;
+        // Floor, 3 mm off the axis.
+        let (t, n) =
+            m.first_contact(&Point3::new(53.0, 30.0, 30.0), &Point3::new(53.0, 30.0, 10.0), r).unwrap();
+        assert!((30.0 - 20.0 * t - (15.0 + r)).abs() < 1e-9 && (n - Vector3::z()).norm() < 1e-12, "{t} {n}");
+        // Wall at z = 25, towards +x.
+        let (t, n) =
+            m.first_contact(&Point3::new(50.0, 30.0, 25.0), &Point3::new(60.0, 30.0, 25.0), r).unwrap();
+        assert!((50.0 + 10.0 * t - (58.0 - r)).abs() < 1e-9 && (n + Vector3::x()).norm() < 1e-9, "{t} {n}");
+        // Down beside the bore: the block's top.
+        let (t, _) =
+            m.first_contact(&Point3::new(70.0, 30.0, 50.0), &Point3::new(70.0, 30.0, 30.0), r).unwrap();
+        assert!((50.0 - 20.0 * t - (40.0 + r)).abs() < 1e-9, "{t}");
+    }
+
+    /// A triangular prism: its sloped side is a face with the normal of the hand computation.
+    #[test]
+    fn a_prism_has_its_faces() {
+        let m = ideal("[[prism]]\nvertices_mm = [[0, 0, 0], [40, 0, 0], [0, 30, 0]]\nheight_mm = 10\n");
+        let r = 1.0;
+        // The hypotenuse from (40, 0) to (0, 30): outward normal (3, 4)/5; probe along −normal
+        // through the edge's midpoint (20, 15) at z = 5.
+        let nrm = Vector3::new(0.6, 0.8, 0.0);
+        let mid = Point3::new(20.0, 15.0, 5.0);
+        let (t, n) = m.first_contact(&(mid + nrm * 10.0), &(mid - nrm * 5.0), r).unwrap();
+        assert!((10.0 - 15.0 * t - r).abs() < 1e-9 && (n - nrm).norm() < 1e-9, "{t} {n}");
+        // The end face z = 10 and the base z = 0.
+        let (t, n) = m.first_contact(&Point3::new(5.0, 5.0, 20.0), &Point3::new(5.0, 5.0, 5.0), r).unwrap();
+        assert!((20.0 - 15.0 * t - 11.0).abs() < 1e-9 && (n - Vector3::z()).norm() < 1e-12, "{t} {n}");
+        let (_, n) = m.first_contact(&Point3::new(5.0, 5.0, -10.0), &Point3::new(5.0, 5.0, 5.0), r).unwrap();
+        assert!((n + Vector3::z()).norm() < 1e-12, "{n}");
     }
 }

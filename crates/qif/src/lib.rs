@@ -3,7 +3,9 @@
 //! QIF 3.0 (ISO 23952:2020) for fitted features: [`write_results`] turns one measured feature
 //! (and, when tolerances are given, its diameter and form characteristics with status) into a
 //! QIF document that validates against the official QIF 3.0 schemas; [`read_plan`] takes a
-//! nominal diameter, its tolerance and a form tolerance from a QIF plan or model document.
+//! nominal diameter, its tolerance and a form tolerance from a QIF plan or model document;
+//! [`write_program_results`] writes the results of a whole inspection program (every feature
+//! and every tolerance of a `truepos dmis run`, with datum reference frames; module `program`).
 //!
 //! What the export holds:
 //! - `FileUnits`: millimetres as the primary linear unit, degrees as the angular unit (every
@@ -201,6 +203,9 @@ pub enum WriteError {
     /// A diameter characteristic for a kind without a diameter (the kind).
     #[error("a diameter characteristic needs a feature with a diameter (not a {0:?})")]
     NoDiameter(FeatureKind),
+    /// An inconsistent program result ([`write_program_results`]).
+    #[error("invalid {what}")]
+    Invalid { what: &'static str },
 }
 
 /// Most digits an `xs:decimal` may have for common validators (libxml2 accepts 24; the
@@ -459,15 +464,21 @@ impl Characteristics {
     /// The measurement results' inspection status: FAIL if any fails, UNKNOWN if any is
     /// undecided, NOT_CALCULATED without characteristics, else PASS.
     fn inspection(&self) -> &'static str {
-        if self.statuses.contains(&Status::Fail) {
-            "FAIL"
-        } else if self.statuses.contains(&Status::Undecided) {
-            "UNKNOWN"
-        } else if self.statuses.is_empty() {
-            "NOT_CALCULATED"
-        } else {
-            "PASS"
-        }
+        inspection_status(&self.statuses)
+    }
+}
+
+/// The inspection status of measurement results whose characteristics have `statuses`: FAIL if
+/// any fails, UNKNOWN if any is undecided, NOT_CALCULATED without characteristics, else PASS.
+fn inspection_status(statuses: &[Status]) -> &'static str {
+    if statuses.contains(&Status::Fail) {
+        "FAIL"
+    } else if statuses.contains(&Status::Undecided) {
+        "UNKNOWN"
+    } else if statuses.is_empty() {
+        "NOT_CALCULATED"
+    } else {
+        "PASS"
     }
 }
 
@@ -531,6 +542,9 @@ fn feature_measurement(f: &MeasuredFeature, alg: &str) -> String {
     body
 }
 
+/// Millimetres and degrees (every number of a document is in these units).
+const FILE_UNITS: &str = "  <FileUnits>\n    <PrimaryUnits>\n      <AngularUnit><SIUnitName>radian</SIUnitName><UnitName>degree</UnitName><UnitConversion><Factor>0.017453292519943295</Factor></UnitConversion></AngularUnit>\n      <LinearUnit><SIUnitName>meter</SIUnitName><UnitName>mm</UnitName><UnitConversion><Factor>0.001</Factor></UnitConversion></LinearUnit>\n    </PrimaryUnits>\n  </FileUnits>\n";
+
 /// The whole document: header, standard, units, the characteristics, the results around the
 /// feature measurement `body`, and the QPId (a digest of the content).
 fn document(r: &Results, chars: &Characteristics, body: &str) -> String {
@@ -544,10 +558,7 @@ fn document(r: &Results, chars: &Characteristics, body: &str) -> String {
         doc,
         "  <StandardsDefinitions n=\"1\">\n    <Standard id=\"{STD_ID}\">\n      <Organization><StandardsOrganizationEnum>ISO</StandardsOrganizationEnum></Organization>\n      <Designator>1101</Designator>\n      <Year>2017</Year>\n    </Standard>\n  </StandardsDefinitions>"
     );
-    let _ = writeln!(
-        doc,
-        "  <FileUnits>\n    <PrimaryUnits>\n      <AngularUnit><SIUnitName>radian</SIUnitName><UnitName>degree</UnitName><UnitConversion><Factor>0.017453292519943295</Factor></UnitConversion></AngularUnit>\n      <LinearUnit><SIUnitName>meter</SIUnitName><UnitName>mm</UnitName><UnitConversion><Factor>0.001</Factor></UnitConversion></LinearUnit>\n    </PrimaryUnits>\n  </FileUnits>"
-    );
+    doc.push_str(FILE_UNITS);
     let n = chars.count;
     if n > 0 {
         let Characteristics { defs, noms, items, .. } = chars;
@@ -975,3 +986,9 @@ mod from_fit {
 }
 
 pub use from_fit::{plan_spec, results_from_evaluation};
+
+mod program;
+pub use program::{
+    write_program_results, CharacteristicKind, ProgramResults, ResultCharacteristic, ResultFeature,
+    ResultKind, Tolerance,
+};

@@ -423,3 +423,373 @@ fn the_nist_example_sends_the_commands_of_the_nist_session() {
     assert_eq!(props(&nist, &raw_nist), [Some(10.0), Some(10.0), Some(10.0), Some(30.0)]);
     assert_eq!(props(&ours, &raw_ours), props(&nist, &raw_nist), "{raw_ours:#?}");
 }
+
+// ---------------------------------------------------------------------------------------------
+// --qif: the QIF 3 results document of a run
+
+/// xmllint against the official QIF 3.0 schemas (`data/schemas/qif3`), as the QIF tests of
+/// `truepos fit` do: `Some(valid)`, or `None` with a loud SKIPPED line without xmllint.
+fn xmllint_qif(path: &Path) -> Option<bool> {
+    let xsd = repo().join("data/schemas/qif3/QIFApplications/QIFDocument.xsd");
+    assert!(xsd.is_file(), "QIF schemas missing at {}", xsd.display());
+    match Command::new("xmllint").args(["--noout", "--nonet", "--schema"]).arg(&xsd).arg(path).output() {
+        Ok(o) => {
+            if !o.status.success() {
+                eprintln!("{}", String::from_utf8_lossy(&o.stderr));
+            }
+            Some(o.status.success())
+        }
+        Err(e) => {
+            eprintln!("SKIPPED: xmllint not available ({e}); install libxml2-utils: the QIF document is NOT schema-validated");
+            None
+        }
+    }
+}
+
+fn el<'a, 'i>(n: roxmltree::Node<'a, 'i>, name: &str) -> Option<roxmltree::Node<'a, 'i>> {
+    n.children().find(|c| c.is_element() && c.tag_name().name() == name)
+}
+
+fn nums(n: roxmltree::Node) -> Vec<f64> {
+    n.text().unwrap_or("").split_whitespace().map(|t| t.parse().unwrap()).collect()
+}
+
+fn num(n: roxmltree::Node, name: &str) -> f64 {
+    nums(el(n, name).unwrap_or_else(|| panic!("no <{name}> in <{}>", n.tag_name().name())))[0]
+}
+
+fn json_vec(v: &serde_json::Value) -> Vec<f64> {
+    v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect()
+}
+
+/// Every actual feature and every tolerance of the JSON `j` is in the QIF document `xml` with
+/// the same values, and the document's references hold: characteristic measurement → item →
+/// nominal → definition, measurement → the feature measurements of the tolerance's features,
+/// position and orientation definitions → a datum reference frame of the program's datums.
+/// Returns the number of characteristics checked.
+fn check_qif_against_json(xml: &str, j: &serde_json::Value, datums: &[(&str, &[&str])]) -> usize {
+    let doc = roxmltree::Document::parse(xml).unwrap();
+    let by_id = |id: &str| {
+        doc.descendants()
+            .find(|n| n.attribute("id") == Some(id))
+            .unwrap_or_else(|| panic!("no element with id {id}"))
+    };
+    let same = |a: f64, b: f64, what: &str| {
+        assert!((a - b).abs() <= 1e-9 * (1.0 + b.abs()), "{what}: QIF {a} vs JSON {b}")
+    };
+    // Features, in output order.
+    let feats: Vec<_> = doc
+        .descendants()
+        .filter(|n| n.is_element() && n.tag_name().name().ends_with("FeatureMeasurement"))
+        .collect();
+    let jf: Vec<&serde_json::Value> =
+        j["features"].as_array().unwrap().iter().filter(|f| f["actual"] == true).collect();
+    assert_eq!(feats.len(), jf.len(), "one feature measurement per actual feature of the JSON");
+    for (q, f) in feats.iter().zip(&jf) {
+        let label = f["label"].as_str().unwrap();
+        assert_eq!(el(*q, "FeatureName").unwrap().text(), Some(label));
+        let ty = f["type"].as_str().unwrap();
+        let kind = match ty {
+            "POINT" => "Point",
+            "PLANE" => "Plane",
+            "LINE" => "Line",
+            "CIRCLE" => "Circle",
+            "CYLNDR" => "Cylinder",
+            "SPHERE" => "Sphere",
+            "CONE" => "Cone",
+            t => panic!("type {t}"),
+        };
+        assert_eq!(q.tag_name().name(), format!("{kind}FeatureMeasurement"), "{label}");
+        let n_points = el(*q, "Attributes").and_then(|a| el(a, "AttributeI1")).unwrap();
+        assert_eq!(n_points.attribute("name"), Some("n_points"));
+        assert_eq!(
+            n_points.attribute("value").unwrap().parse::<u64>().unwrap(),
+            f["n_points"].as_u64().unwrap(),
+            "{label}"
+        );
+        let (loc, dir) = match kind {
+            "Cylinder" | "Cone" => {
+                let ax = el(*q, "Axis").unwrap();
+                (el(ax, "AxisPoint").unwrap(), el(ax, "Direction"))
+            }
+            "Line" => (el(*q, "Location").unwrap(), el(*q, "Direction")),
+            _ => (el(*q, "Location").unwrap(), el(*q, "Normal")),
+        };
+        let jloc = f.get("center_mm").or(f.get("point_mm")).or(f.get("apex_mm")).unwrap();
+        for (a, b) in nums(loc).iter().zip(json_vec(jloc)) {
+            same(*a, b, label);
+        }
+        let jdir = f.get("normal").or(f.get("axis")).or(f.get("direction"));
+        assert_eq!(dir.is_some(), jdir.is_some(), "{label}: direction");
+        if let (Some(d), Some(jd)) = (dir, jdir) {
+            for (a, b) in nums(d).iter().zip(json_vec(jd)) {
+                same(*a, b, label);
+            }
+        }
+        if let Some(dia) = f.get("diameter_mm") {
+            same(num(*q, "Diameter"), dia.as_f64().unwrap(), label);
+        }
+        // The uncertainties of the JSON (k = 1) where it has them.
+        let key = if f.get("center_mm").is_some() {
+            "center_mm"
+        } else if f.get("apex_mm").is_some() {
+            "apex_mm"
+        } else {
+            "point_mm"
+        };
+        if let Some(u) = f["uncertainty"][key].as_array() {
+            for (axis, ju) in ["x", "y", "z"].iter().zip(u) {
+                let qa = loc.attribute(format!("{axis}CombinedUncertainty").as_str());
+                match ju.as_f64() {
+                    Some(v) => same(qa.unwrap().parse().unwrap(), v.abs(), label),
+                    None => assert!(qa.is_none(), "{label}: no uncertainty in the JSON, none in the QIF"),
+                }
+            }
+        }
+        if let Some(u) = f["uncertainty"]["diameter_mm"].as_f64() {
+            same(
+                el(*q, "Diameter").unwrap().attribute("combinedUncertainty").unwrap().parse().unwrap(),
+                u.abs(),
+                label,
+            );
+        }
+    }
+    // Characteristics, in order.
+    let meas: Vec<_> = doc
+        .descendants()
+        .filter(|n| n.is_element() && n.tag_name().name().ends_with("CharacteristicMeasurement"))
+        .collect();
+    let jt = j["tolerances"].as_array().unwrap();
+    assert_eq!(meas.len(), jt.len(), "one characteristic per tolerance");
+    let feature_name = |id: &str| el(by_id(id), "FeatureName").unwrap().text().unwrap().to_string();
+    for (m, t) in meas.iter().zip(jt) {
+        let label = t["label"].as_str().unwrap();
+        let kind = t["kind"].as_str().unwrap();
+        let item = by_id(el(*m, "CharacteristicItemId").unwrap().text().unwrap());
+        assert_eq!(el(item, "Name").unwrap().text(), Some(label));
+        let nominal = by_id(el(item, "CharacteristicNominalId").unwrap().text().unwrap());
+        let def = by_id(el(nominal, "CharacteristicDefinitionId").unwrap().text().unwrap());
+        let stem = m.tag_name().name().trim_end_matches("CharacteristicMeasurement");
+        for n in [item, nominal, def] {
+            assert!(
+                n.tag_name().name().starts_with(stem),
+                "{label}: {} in a {stem} chain",
+                n.tag_name().name()
+            );
+        }
+        let want = match kind {
+            "FLAT" => "Flatness",
+            "STRGHT" => "Straightness",
+            "CIRLTY" => "Circularity",
+            "CYLCTY" => "Cylindricity",
+            "DIAM" => "Diameter",
+            "RAD" => "Radius",
+            "POS" => "Position",
+            "PERP" => "Perpendicularity",
+            "PARLEL" => "Parallelism",
+            "ANGLB" => "AngleBetween",
+            "DISTB" => "DistanceBetween",
+            k => panic!("kind {k}"),
+        };
+        assert_eq!(stem, want, "{label}");
+        let status = el(el(*m, "Status").unwrap(), "CharacteristicStatusEnum").unwrap().text().unwrap();
+        assert_eq!(status, if t["verdict"] == "INTOL" { "PASS" } else { "FAIL" }, "{label}");
+        // The features it was evaluated on.
+        let ids: Vec<String> = el(*m, "FeatureMeasurementIds")
+            .unwrap()
+            .children()
+            .filter(|c| c.is_element())
+            .map(|c| feature_name(c.text().unwrap()))
+            .collect();
+        let jnames: Vec<String> =
+            t["features"].as_array().unwrap().iter().map(|x| x.as_str().unwrap().to_string()).collect();
+        assert_eq!(ids, jnames, "{label}");
+        // Values and limits.
+        let value = num(*m, "Value");
+        match kind {
+            "DIAM" | "RAD" | "DISTB" => {
+                let target = num(nominal, "TargetValue");
+                let tol = el(def, "Tolerance").unwrap();
+                let (lo, hi) = (num(tol, "MinValue"), num(tol, "MaxValue"));
+                let lim = json_vec(&t["limits_mm"]);
+                let v = t["value_mm"].as_f64().unwrap();
+                if kind == "DISTB" {
+                    same(value, v, label);
+                    same(target + lo, lim[0], label);
+                    same(target + hi, lim[1], label);
+                } else {
+                    // DMIS reports the deviation from nominal; QIF the actual size.
+                    same(value - target, v, label);
+                    same(lo, lim[0], label);
+                    same(hi, lim[1], label);
+                }
+            }
+            "ANGLB" => {
+                let target = num(nominal, "TargetValue");
+                let tol = el(def, "Tolerance").unwrap();
+                let lim = json_vec(&t["limits_deg"]);
+                same(value, t["value_deg"].as_f64().unwrap(), label);
+                same(target + num(tol, "MinValue"), lim[0], label);
+                same(target + num(tol, "MaxValue"), lim[1], label);
+            }
+            _ => {
+                same(value, t["value_mm"].as_f64().unwrap(), label);
+                same(num(def, "ToleranceValue"), json_vec(&t["limits_mm"])[1], label);
+            }
+        }
+        if let Some(u) = t["uncertainty_mm"].as_f64().or(t["uncertainty_deg"].as_f64()) {
+            same(
+                el(*m, "Value").unwrap().attribute("combinedUncertainty").unwrap().parse().unwrap(),
+                u,
+                label,
+            );
+        }
+        // Datums: the frame's datum labels in precedence order.
+        if let Some((_, want)) = datums.iter().find(|(l, _)| *l == label) {
+            let drf = by_id(el(def, "DatumReferenceFrameId").unwrap().text().unwrap());
+            let got: Vec<String> = drf
+                .descendants()
+                .filter(|n| n.tag_name().name() == "DatumDefinitionId")
+                .map(|n| el(by_id(n.text().unwrap()), "DatumLabel").unwrap().text().unwrap().to_string())
+                .collect();
+            assert_eq!(got, *want, "{label}: datums");
+        }
+    }
+    let overall =
+        doc.descendants().find(|n| n.tag_name().name() == "InspectionStatusEnum").unwrap().text().unwrap();
+    let want = if meas.is_empty() {
+        "NOT_CALCULATED"
+    } else if j["verdict"] == "INTOL" {
+        "PASS"
+    } else {
+        "FAIL"
+    };
+    assert_eq!(overall, want);
+    meas.len()
+}
+
+#[test]
+fn qif_results_of_the_nist_example_validate_and_match_the_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let (example, part) = copy_example(dir.path());
+    // The example as it is (one circle, no tolerance), then with a diameter tolerance.
+    let prog = dir.path().join("tol.dms");
+    let text = std::fs::read_to_string(&example).unwrap();
+    std::fs::write(
+        &prog,
+        text.replace("OUTPUT/FA(A_CIRCLE)", "T(D)=TOL/DIAM,-0.1,0.1\nOUTPUT/FA(A_CIRCLE),TA(D)"),
+    )
+    .unwrap();
+    for (p, n_tol) in [(&example, 0), (&prog, 1)] {
+        let q = dir.path().join("out.qif");
+        let out = truepos()
+            .current_dir(dir.path())
+            .args(["dmis", "run"])
+            .arg(p)
+            .arg("--part")
+            .arg(&part)
+            .args(["--sensor", "PROBE6=Probe1", "--json", "--qif"])
+            .arg(&q)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(0), "{stderr}");
+        let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let xml = std::fs::read_to_string(&q).unwrap();
+        if let Some(ok) = xmllint_qif(&q) {
+            assert!(ok, "the QIF document does not validate:\n{xml}");
+        }
+        assert_eq!(check_qif_against_json(&xml, &j, &[]), n_tol);
+        assert!(xml.contains("<FeatureName>A_CIRCLE</FeatureName>"), "{xml}");
+    }
+}
+
+/// The richer program (datums, constructions, every tolerance kind, coordinate systems; one
+/// tolerance out): every feature and tolerance of the JSON is in the QIF with its values,
+/// the datums of POS and PERP form their frames; the document validates.
+#[test]
+fn qif_results_of_a_program_with_every_tolerance_kind() {
+    let dir = tempfile::tempdir().unwrap();
+    let programs = repo().join("crates/dmis/tests/programs");
+    let prog = dir.path().join("full.dms");
+    let part = dir.path().join("full_part.toml");
+    std::fs::copy(programs.join("full.dms"), &prog).unwrap();
+    std::fs::copy(programs.join("full_part.toml"), &part).unwrap();
+    let q = dir.path().join("full.qif");
+    let out = truepos()
+        .current_dir(dir.path())
+        .args(["dmis", "run"])
+        .arg(&prog)
+        .arg("--part")
+        .arg(&part)
+        .args(["--sensor", "P1=Probe1", "--json", "--qif"])
+        .arg(&q)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    // T(TIGHT) is out: exit 1, both files written.
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let xml = std::fs::read_to_string(&q).unwrap();
+    if let Some(ok) = xmllint_qif(&q) {
+        assert!(ok, "the QIF document does not validate:\n{xml}");
+    }
+    let abc: &[&str] = &["A", "B", "C"];
+    let n = check_qif_against_json(&xml, &j, &[("POS2", abc), ("PIN", abc), ("PE", &["A"])]);
+    assert_eq!(n, 11, "every TA of the program");
+    for kind in [
+        "Flatness",
+        "Diameter",
+        "Cylindricity",
+        "Perpendicularity",
+        "Circularity",
+        "Position",
+        "DistanceBetween",
+        "AngleBetween",
+    ] {
+        assert!(xml.contains(&format!("<{kind}CharacteristicDefinition ")), "{kind}");
+    }
+    assert!(xml.contains("<PointFeatureMeasurement ") && xml.contains("<LineFeatureMeasurement "));
+}
+
+/// `--qif` refusals: with `--dry-run`, onto the results file, in a missing directory (exit 2,
+/// nothing moved, no file); a program that fails on the machine (exit 3) writes no QIF either.
+#[test]
+fn qif_refusals_leave_no_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let (prog, part) = copy_example(dir.path());
+    let run = |prog: &Path, extra: &[&str]| {
+        truepos()
+            .current_dir(dir.path())
+            .args(["dmis", "run"])
+            .arg(prog)
+            .args(["--part"])
+            .arg(&part)
+            .args(["--sensor", "PROBE6=Probe1"])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let q = dir.path().join("r.qif");
+    let qs = q.to_str().unwrap();
+    for extra in [
+        vec!["--dry-run", "--qif", qs],
+        vec!["--output", qs, "--qif", qs],
+        vec!["--qif", "no/such/dir/r.qif"],
+    ] {
+        let o = run(&prog, &extra);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{extra:?}: {stderr}");
+        assert!(!stderr.contains("MEAS/"), "nothing moved: {stderr}");
+        assert!(!q.exists() && !dir.path().join("simple_in_output.dms").exists(), "{extra:?}");
+    }
+    let lost = dir.path().join("lost.dms");
+    std::fs::write(
+        &lost,
+        std::fs::read_to_string(&prog).unwrap().replace("PTMEAS/CART, 75.0", "PTMEAS/CART, 60.0"),
+    )
+    .unwrap();
+    let o = run(&lost, &["--qif", qs]);
+    assert_eq!(o.status.code(), Some(3), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!q.exists());
+}

@@ -678,6 +678,7 @@ pub fn inspection_uncertainty(
                     axis: Vector3::z(),
                     radius: 0.5 * d,
                     side: CylinderSide::Inside,
+                    ends: None,
                 },
             ));
         }

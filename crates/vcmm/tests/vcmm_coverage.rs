@@ -240,6 +240,7 @@ fn inspection_uncertainty_covers_the_truth() {
                     axis: Vector3::z(),
                     radius: 0.5 * d,
                     side: CylinderSide::Inside,
+                    ends: None,
                 },
             ));
         }

@@ -66,6 +66,42 @@ fn solid_kind(s: &Solid) -> &'static str {
         Solid::HalfSpace { .. } => "plane face",
         Solid::Cylinder { side: CylinderSide::Outside, .. } => "pin",
         Solid::Cylinder { side: CylinderSide::Inside, .. } => "bore",
+        Solid::Prism { .. } => "prism face",
+    }
+}
+
+/// The face of a bounded solid a contact lies on, as the unbounded solid the planner plans on
+/// (a plane, an infinite cylinder); `None` at an edge. Unbounded solids are themselves.
+fn face_of(s: &Solid, tip: &Point3, n: &Vector3) -> Option<Solid> {
+    match s {
+        Solid::Cylinder { point, axis, radius, side, ends: Some((a, b)) } => {
+            let lateral =
+                Solid::Cylinder { point: *point, axis: *axis, radius: *radius, side: *side, ends: None };
+            let radial = outward(&lateral, tip);
+            if radial.dot(n) > FACE_COS {
+                return Some(lateral);
+            }
+            let sign = if *side == CylinderSide::Inside { -1.0 } else { 1.0 };
+            [(*a, -axis * sign), (*b, axis * sign)]
+                .into_iter()
+                .find(|(_, m)| m.dot(n) > FACE_COS)
+                .map(|(e, m)| Solid::HalfSpace { point: point + axis * e, normal: m })
+        }
+        Solid::Prism { origin, u, v, w, polygon, height } => {
+            let k = polygon.len();
+            let mut faces = vec![(*origin, -w), (origin + w * *height, *w)];
+            for i in 0..k {
+                let (p, q) = (polygon[i], polygon[(i + 1) % k]);
+                let e = [q[0] - p[0], q[1] - p[1]];
+                let len = e[0].hypot(e[1]);
+                faces.push((origin + u * p[0] + v * p[1], u * (e[1] / len) - v * (e[0] / len)));
+            }
+            faces
+                .into_iter()
+                .find(|(_, m)| m.dot(n) > FACE_COS)
+                .map(|(p, m)| Solid::HalfSpace { point: p, normal: m })
+        }
+        other => Some(other.clone()),
     }
 }
 
@@ -78,7 +114,10 @@ fn start_solid(part: &Part, tip: &Point3, n: &Vector3, r: f64) -> Result<(String
                 Some(id) => format!("the {} `{id}`", solid_kind(s)),
                 None => format!("the {} (solid {})", solid_kind(s), k + 1),
             };
-            hits.push((name, s.clone()));
+            let Some(face) = face_of(s, tip, n) else {
+                return Err(format!("the start contact is on an edge of {name}"));
+            };
+            hits.push((name, face));
         }
     }
     match hits.len() {
@@ -305,6 +344,9 @@ impl IppdmeCmm {
                             )))
                         }
                     }
+                    Solid::Prism { .. } => {
+                        Ok(Route::Stepped(format!("{label} is not a single face the planner plans on")))
+                    }
                 }
             }
             Guide::Cylinder { point: gp, axis: ga } => {
@@ -366,6 +408,9 @@ impl IppdmeCmm {
                                 "the scan cylinder cuts {label} off its equator (the surface normal leaves the cylinder's radial plane)"
                             )))
                         }
+                    }
+                    Solid::Prism { .. } => {
+                        Ok(Route::Stepped(format!("{label} is not a single face the planner plans on")))
                     }
                 }
             }

@@ -24,7 +24,9 @@ pub enum DmisCommand {
     /// The whole program is read and checked before the first motion: anything outside the subset
     /// or inconsistent is exit 2 naming file, line and column. Progress (one line per MEAS) on
     /// stderr. The results file is a DMIS output file (FA(label)=FEAT/… with the actual values,
-    /// TA(label)=TOL/…,value,INTOL|OUTOL).
+    /// TA(label)=TOL/…,value,INTOL|OUTOL). With --qif the same results as a QIF 3 results document
+    /// (features with uncertainties and point counts, tolerances as characteristics with their
+    /// datums; docs/dmis.md).
     #[command(
         after_help = "A real CMM through I++ DME:\n  truepos dmis run part.dms --controller ippdme://HOST:1294 --sensor PROBE6=Probe1\n\nWith --machine-model FILE every actual feature's values and every tolerance's value get a\ntask-specific uncertainty: the program (its PTMEAS points and directions, datums, constructions)\nrun again on ≥ 200 machines drawn from the model, each touching the perfect features where this\nrun found them. The verdict stays DMIS's (INTOL/OUTOL on the value); U is reported beside it.\n  truepos dmis run part.dms --part part.toml --machine-model cmm.toml --json\n\nExit codes: 0 done, 1 a tolerance OUTOL, 2 bad program or option (nothing moved), 3 machine failure (the program line named, the machine retracted)."
     )]
@@ -52,6 +54,12 @@ pub struct RunArgs {
     /// else PROGRAM_output.dms).
     #[arg(long)]
     pub output: Option<PathBuf>,
+    /// Also write the results as a QIF 3 results document (ISO 23952): every actual feature
+    /// (values, standard uncertainties, number of points) and every tolerance as a
+    /// characteristic (tolerance, nominal, actual value, PASS/FAIL) referring to its features
+    /// and datums; mm and degrees. Written atomically with the results file, never on error.
+    #[arg(long, value_name = "OUT.qif")]
+    pub qif: Option<PathBuf>,
     /// List the motions without a machine (every probing touches its nominal point); no file.
     #[arg(long)]
     pub dry_run: bool,
@@ -82,6 +90,9 @@ pub fn run(args: Args) -> Result<Outcome> {
     // The machine model is read and checked before anything moves.
     let model = if a.dry_run { None } else { a.model.read()? };
     let mut progress = |l: &str| eprintln!("dmis: {l}");
+    if a.dry_run && a.qif.is_some() {
+        return Err(UsageError("--qif writes the results of a run: not with --dry-run".into()).into());
+    }
     if a.dry_run {
         let mut m = DryRun::new(&plan, &opts);
         let r = exec::run(&plan, &mut m, &opts, &mut progress)?;
@@ -98,6 +109,16 @@ pub fn run(args: Args) -> Result<Outcome> {
     }
     let out = truepos_dmis::task::output_path(&plan, &a.program, a.output.as_deref());
     truepos_io::atomic::check_output_path(&out)?;
+    if let Some(q) = &a.qif {
+        truepos_io::atomic::check_output_path(q)?;
+        if q == &out {
+            return Err(UsageError(format!(
+                "--qif {}: the same file as the results file; give the QIF document its own name",
+                q.display()
+            ))
+            .into());
+        }
+    }
     // The virtual CMM lives as long as the run.
     let mut _virtual = None;
     let url = if a.controller == "virtual" {
@@ -170,7 +191,22 @@ pub fn run(args: Args) -> Result<Outcome> {
     audit.finish(status, message.as_deref(), &truepos_audit::now_utc())?;
     let (r, task, u) = done?;
     let text = r.output.join("\n") + "\n";
+    // Both documents are made before either is written: an error leaves no file.
+    let qif = match &a.qif {
+        Some(q) => {
+            let doc =
+                truepos_dmis::report::qif(&plan.file, &r, &u, concat!("truepos ", env!("CARGO_PKG_VERSION")));
+            let xml = truepos_qif::write_program_results(&doc)
+                .map_err(|e| anyhow::anyhow!("{}: cannot write the QIF results: {e}", q.display()))?;
+            Some((q, xml))
+        }
+        None => None,
+    };
     truepos_io::atomic::write_atomic(&out, text.as_bytes())?;
+    if let Some((q, xml)) = &qif {
+        truepos_io::atomic::write_atomic(q, xml.as_bytes())?;
+        eprintln!("dmis: QIF results in {}", q.display());
+    }
     eprintln!("dmis: audit trail appended to {} (run {})", db.display(), audit.run_id());
     let k = truepos_math::stats::COVERAGE_FACTOR;
     if a.json {

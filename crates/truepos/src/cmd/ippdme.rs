@@ -17,6 +17,8 @@ pub enum IppCommand {
     /// The part file (TOML, machine mm) is the union of `[[sphere]] center_mm, diameter_mm`,
     /// `[[plane]] point_mm, normal` (half-space below the normal) and `[[cylinder]] point_mm,
     /// axis, diameter_mm, side = "outside"` (pins), minus `side = "inside"` cylinders (bores).
+    /// Bounded solids: `[[block]] min_mm, max_mm`, `[[prism]] vertices_mm, height_mm` (a convex
+    /// polygon extruded), `ends_mm = [a, b]` on a cylinder (finite pin; bore with its floor at a).
     /// Without `--part` every probe touches the ideal plane through its nominal point. The
     /// machine file's `[ippdme] volume_min_mm, volume_max_mm` (default ±1000) and `[[ippdme.tool]]
     /// name, tip_diameter_mm` add to the tools `RefTool`, `NoTool`, `Probe1` (3 mm ball). Moves are
