@@ -168,8 +168,10 @@ pub struct KinematicsUncertainty {
     pub u_mm: Vec<f64>,
     /// Expanded uncertainty for 95 % coverage (mm).
     pub expanded_mm: Vec<f64>,
-    /// Realisations per basis, what the model was, wall time (s).
+    /// Realisations per basis.
     pub runs: usize,
+    /// What the model was (for the output).
     pub basis: String,
+    /// Wall time of the simulation (s).
     pub elapsed_s: f64,
 }

@@ -180,17 +180,25 @@ pub enum Solid {
         radius: f64,
         /// Pin or bore.
         side: CylinderSide,
+        /// Axial extent `(a, b)` from `point` along `axis` (mm): a finite pin, or a bore with
+        /// its floor at `a`; `None` for an infinite cylinder.
         ends: Option<(f64, f64)>,
     },
     /// A convex prism: the polygon `polygon` (counter-clockwise in the `(u, v)` plane through
     /// `origin`) extruded along `w = u × v` from 0 to `height`. `u`, `v`, `w` orthonormal.
     /// A block is a prism with a rectangle.
     Prism {
+        /// The polygon plane's origin, part/machine frame (mm).
         origin: Point3,
+        /// First in-plane axis (unit).
         u: Vector3,
+        /// Second in-plane axis (unit).
         v: Vector3,
+        /// Extrusion direction, `u × v` (unit).
         w: Vector3,
+        /// The convex polygon's corners `(u, v)` (mm), counter-clockwise.
         polygon: Vec<[f64; 2]>,
+        /// Extrusion length along `w` (mm).
         height: f64,
     },
 }

@@ -509,8 +509,8 @@ impl IppdmeCmm {
 }
 
 /// Whether solid `s` reaches into the box `(lo, hi)`: a sphere overlaps it, a half-space's
-/// plane cuts it (or touches it), a cylinder's axis passes through the box grown by its radius.
-/// False for any non-finite number.
+/// plane cuts it (or touches it), a cylinder's axis passes through the box grown by its radius,
+/// a prism's bounding box overlaps it. False for any non-finite number.
 fn meets_box(s: &Solid, (lo, hi): &(Point3, Point3)) -> bool {
     match s {
         Solid::Sphere { center, radius } => {
@@ -554,6 +554,20 @@ fn meets_box(s: &Solid, (lo, hi): &(Point3, Point3)) -> bool {
                 }
             }
             t0 <= t1
+        }
+        Solid::Prism { origin, u, v, w, polygon, height } => {
+            // Its bounding box (of the polygon's corners at both ends) overlaps the box.
+            let mut bb = (Point3::from([f64::INFINITY; 3]), Point3::from([f64::NEG_INFINITY; 3]));
+            for [a, b] in polygon {
+                for h in [0.0, *height] {
+                    let p = origin + u * *a + v * *b + w * h;
+                    if !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite()) {
+                        return false;
+                    }
+                    bb = (bb.0.inf(&p), bb.1.sup(&p));
+                }
+            }
+            (0..3).all(|k| bb.0[k] <= hi[k] && bb.1[k] >= lo[k])
         }
     }
 }

@@ -25,8 +25,11 @@ use truepos_sim::noise;
 /// One feature: nominal and true geometry (internal units: mm, rad).
 #[derive(Clone, Debug, PartialEq)]
 pub struct ScanFeature {
+    /// The feature's id in `features.toml`.
     pub id: String,
+    /// The drawing's geometry (what the planner plans on).
     pub nominal: Geometry,
+    /// The part's true geometry (what the virtual CMM touches).
     pub actual: Geometry,
     /// Displacement of the true surface along the outward normal at the scan start (mm; +:
     /// the surface lies before the nominal contact point).
@@ -36,12 +39,19 @@ pub struct ScanFeature {
 /// The data set: the features and the scan parameters of `features.toml` (mm, mm/s, degrees).
 #[derive(Clone, Debug, PartialEq)]
 pub struct ScanScenario {
+    /// The features, nominal and true.
     pub features: Vec<ScanFeature>,
+    /// Approach angle to the surface (degrees).
     pub approach_angle_deg: f64,
+    /// Path speed while scanning (mm/s).
     pub scan_speed_mm_s: f64,
+    /// Path speed of transfers (mm/s).
     pub move_speed_mm_s: f64,
+    /// Target probe deflection while scanning (mm).
     pub deflection_mm: f64,
+    /// Scan overrun past the closing point (mm).
     pub overshoot_mm: f64,
+    /// Quality bands of the deflection error `[good, fair]` (mm).
     pub quality_bands_mm: [f64; 2],
 }
 

@@ -6,10 +6,10 @@
 use std::io::{BufRead, BufReader, Write};
 use std::net::TcpStream;
 use std::time::Duration;
-use truepos_plant::cmm::IppdmeCmm;
 use truepos_ippdme::part::Part;
 use truepos_ippdme::protocol::{parse_data_items, Body, Response};
 use truepos_ippdme::{MachineConfig, Server, ServerHandle};
+use truepos_plant::cmm::IppdmeCmm;
 
 /// The ideal machine (every error model off) with `part`.
 fn start(part: &str) -> ServerHandle<IppdmeCmm> {

@@ -205,7 +205,10 @@ pub enum WriteError {
     NoDiameter(FeatureKind),
     /// An inconsistent program result ([`write_program_results`]).
     #[error("invalid {what}")]
-    Invalid { what: &'static str },
+    Invalid {
+        /// Which part of the results is inconsistent.
+        what: &'static str,
+    },
 }
 
 /// Most digits an `xs:decimal` may have for common validators (libxml2 accepts 24; the

@@ -31,12 +31,19 @@ use std::fmt::Write as _;
 /// The geometry kinds of a feature result.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ResultKind {
+    /// A point (its location; the nominal's direction where it has one).
     Point,
+    /// A line: a point on it and its direction.
     Line,
+    /// A plane: a point on it and its normal.
     Plane,
+    /// A circle: centre, normal and diameter.
     Circle,
+    /// A sphere: centre and diameter.
     Sphere,
+    /// A cylinder: a point on the axis, the axis and the diameter.
     Cylinder,
+    /// A cone: apex, axis and full apex angle.
     Cone,
 }
 
@@ -60,6 +67,7 @@ impl ResultKind {
 pub struct ResultFeature {
     /// The program's label (written as `FeatureName`).
     pub label: String,
+    /// The feature's geometry kind.
     pub kind: ResultKind,
     /// Point, line, plane: a point on it; circle, sphere: the centre; cylinder: a point on the
     /// axis; cone: the apex.
@@ -79,23 +87,35 @@ pub struct ResultFeature {
 /// The kind of a characteristic.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CharacteristicKind {
+    /// Flatness of a plane (minimum-zone width, mm).
     Flatness,
+    /// Straightness of a line (zone width, mm).
     Straightness,
+    /// Circularity (roundness) of a circle (zone width, mm).
     Circularity,
+    /// Cylindricity of a cylinder (zone width, mm).
     Cylindricity,
+    /// Diameter of a circle, sphere or cylinder (mm, with limits).
     Diameter,
+    /// Radius of a circle, sphere or cylinder (mm, with limits).
     Radius,
+    /// Distance between two features (mm, with limits).
     DistanceBetween,
+    /// Angle between two features (degrees, with limits).
     AngleBetween,
     /// Position; `three_d`: a spherical zone, else a diametrical zone across the axis.
     Position {
+        /// A spherical (3D) zone rather than a diametrical one.
         three_d: bool,
     },
-    /// `axis`: the toleranced feature is an axis or line (diametrical zone), else a plane.
+    /// Perpendicularity to the datums.
     Perpendicularity {
+        /// The toleranced feature is an axis or line (diametrical zone), else a plane.
         axis: bool,
     },
+    /// Parallelism to the datums.
     Parallelism {
+        /// The toleranced feature is an axis or line (diametrical zone), else a plane.
         axis: bool,
     },
 }
@@ -143,7 +163,14 @@ pub enum Tolerance {
     /// Form, position, orientation: the width (or diameter) of the zone.
     Zone(f64),
     /// Size, distance, angle: the nominal and the lower and upper deviations from it.
-    Limits { nominal: f64, lower: f64, upper: f64 },
+    Limits {
+        /// The nominal value (mm or degrees).
+        nominal: f64,
+        /// The lower limit deviation from the nominal (signed, mm or degrees).
+        lower: f64,
+        /// The upper limit deviation from the nominal (signed, mm or degrees).
+        upper: f64,
+    },
 }
 
 /// One evaluated tolerance (lengths mm, angles degrees).
@@ -151,7 +178,9 @@ pub enum Tolerance {
 pub struct ResultCharacteristic {
     /// The program's tolerance label (written as the item's `Name`).
     pub label: String,
+    /// What is toleranced.
     pub kind: CharacteristicKind,
+    /// The tolerance zone or the limits.
     pub tolerance: Tolerance,
     /// The actual value: the zone for form, position and orientation; the actual size,
     /// distance or angle (not its deviation) for the dimensional kinds.
@@ -160,6 +189,7 @@ pub struct ResultCharacteristic {
     pub datums: Vec<String>,
     /// Indices into [`ProgramResults::features`] of the features it was evaluated on.
     pub features: Vec<usize>,
+    /// The verdict (in or out of tolerance).
     pub status: Status,
 }
 
@@ -170,7 +200,9 @@ pub struct ProgramResults {
     pub program: String,
     /// Written as the application's name in the header (e.g. "truepos 0.1.0").
     pub application: String,
+    /// Every actual output feature, in output order.
     pub features: Vec<ResultFeature>,
+    /// Every evaluated tolerance, in output order.
     pub characteristics: Vec<ResultCharacteristic>,
 }
 
