@@ -25,6 +25,10 @@ pub enum Mode {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Summary {
     pub n_points: usize,
+    /// Points of an E57 input dropped: marked invalid in the file, and with a NaN or infinite
+    /// coordinate (0 for other inputs).
+    pub dropped_invalid: usize,
+    pub dropped_nonfinite: usize,
     /// Root mean square and largest length of the corrections, µm.
     pub rms_um: f64,
     pub max_um: f64,
@@ -233,5 +237,13 @@ fn run<const N: usize>(
         Some(h) => Ok(h.stats(n)),
         None => Err(String::new()),
     };
-    Ok(Summary { n_points: n, rms_um, max_um: max, iterations, uncertainty })
+    Ok(Summary {
+        n_points: n,
+        dropped_invalid: summary.skipped_invalid,
+        dropped_nonfinite: summary.skipped_nonfinite,
+        rms_um,
+        max_um: max,
+        iterations,
+        uncertainty,
+    })
 }
