@@ -52,6 +52,12 @@ pub enum FitError {
     NotUnique { kind: &'static str, detail: String },
     #[error("point {index} (0-based) has a coordinate that is not a finite number")]
     NonFinite { index: usize },
+    /// A coordinate beyond [`moments::MAX_COORDINATE_MM`] (the fit's sums would overflow, or
+    /// lose every digit, long before the points coincide).
+    #[error(
+        "point {index} (0-based) has a coordinate of magnitude {magnitude:e} mm, beyond the coordinate magnitude limit of 1e12 mm (a million km): no measured coordinate is that large (a unit or format error?), and the fit's sums of squares overflow there"
+    )]
+    CoordinateTooLarge { index: usize, magnitude: f64 },
     #[error("all points coincide: no element is determined")]
     CoincidentPoints,
     #[error("the points are collinear: a {kind} is not determined")]
