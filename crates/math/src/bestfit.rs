@@ -168,7 +168,7 @@ fn fit_core(
     let rank_from = if ev[1] <= ev[0] * 1e-20 { 1 } else { 2 };
     // The same test for `to`: all weighted target points at one place (to ~1e-13 of their size).
     let size2_to = to.iter().map(|p| p.coords.norm_squared()).fold(0.0, f64::max) * wsum;
-    let to_coincide = !(var_to > size2_to * 1e-26);
+    let to_coincide = var_to.partial_cmp(&(size2_to * 1e-26)) != Some(std::cmp::Ordering::Greater);
     let svd = h.svd(true, true);
     let (u, vt) = match (svd.u, svd.v_t) {
         (Some(u), Some(vt)) => (u, vt),
