@@ -26,6 +26,10 @@ pub enum Mode {
 pub struct Summary {
     /// Number of points corrected.
     pub n_points: usize,
+    /// Points of an E57 input dropped because the file marks them invalid (0 for other inputs).
+    pub dropped_invalid: usize,
+    /// Points of an E57 input dropped for a NaN or infinite coordinate (0 for other inputs).
+    pub dropped_nonfinite: usize,
     /// Root mean square length of the corrections, µm.
     pub rms_um: f64,
     /// Largest length of the corrections, µm.
@@ -235,5 +239,13 @@ fn run<const N: usize>(
         Some(h) => Ok(h.stats(n)),
         None => Err(String::new()),
     };
-    Ok(Summary { n_points: n, rms_um, max_um: max, iterations, uncertainty })
+    Ok(Summary {
+        n_points: n,
+        dropped_invalid: summary.skipped_invalid,
+        dropped_nonfinite: summary.skipped_nonfinite,
+        rms_um,
+        max_um: max,
+        iterations,
+        uncertainty,
+    })
 }

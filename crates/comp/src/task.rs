@@ -67,6 +67,22 @@ pub struct Corrected {
 }
 
 impl Corrected {
+    /// The note of an E57 input whose points were dropped (marked invalid in the file, or with a
+    /// NaN or infinite coordinate): `None` when none was. Printed on stderr with or without
+    /// `--json` (whose object carries the counts too).
+    pub fn dropped_note(&self) -> Option<String> {
+        let s = &self.summary;
+        if s.dropped_invalid + s.dropped_nonfinite == 0 {
+            return None;
+        }
+        Some(format!(
+            "note: {} points of the E57 input dropped (not in the output): {} marked invalid in the file, {} with a NaN or infinite coordinate",
+            s.dropped_invalid + s.dropped_nonfinite,
+            s.dropped_invalid,
+            s.dropped_nonfinite
+        ))
+    }
+
     /// The warning of a `comp correct` whose map states no uncertainty (`None` otherwise).
     pub fn uncertainty_warning(&self) -> Option<String> {
         match (&self.load, &self.summary.uncertainty) {
@@ -86,6 +102,8 @@ impl Report for Corrected {
             "output": self.output.display().to_string(),
             "rms_correction_um": s.rms_um,
             "max_correction_um": s.max_um,
+            "dropped_invalid_points": s.dropped_invalid,
+            "dropped_nonfinite_points": s.dropped_nonfinite,
         });
         match &self.load {
             Some(case) => {
@@ -129,6 +147,10 @@ impl Report for Corrected {
             s.max_um,
             self.output.display()
         );
+        if let Some(n) = self.dropped_note() {
+            t.push_str(&n);
+            t.push('\n');
+        }
         if self.load.is_none() {
             match &s.uncertainty {
                 Ok(u) => {

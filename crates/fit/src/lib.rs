@@ -69,6 +69,17 @@ pub enum FitError {
         /// 0-based index of the point.
         index: usize,
     },
+    /// A coordinate beyond [`moments::MAX_COORDINATE_MM`] (the fit's sums would overflow, or
+    /// lose every digit, long before the points coincide).
+    #[error(
+        "point {index} (0-based) has a coordinate of magnitude {magnitude:e} mm, beyond the coordinate magnitude limit of 1e12 mm (a million km): no measured coordinate is that large (a unit or format error?), and the fit's sums of squares overflow there"
+    )]
+    CoordinateTooLarge {
+        /// 0-based index of the point.
+        index: usize,
+        /// The largest coordinate magnitude of that point (mm).
+        magnitude: f64,
+    },
     /// Every point is at the same place.
     #[error("all points coincide: no element is determined")]
     CoincidentPoints,

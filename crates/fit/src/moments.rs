@@ -42,6 +42,22 @@ pub struct Moments {
     pub sum_sq2: f64,
 }
 
+/// The largest coordinate magnitude a fit accepts, mm: 10¹² mm (a million km, beyond any
+/// measured coordinate, geocentric ones in mm included). Far larger values are a unit or
+/// format error, and the fit's sums of squares and fourth powers of coordinate differences
+/// overflow from about 10⁷⁵ mm (10¹⁵⁴ for squares), which made distinct points at 10²⁰⁰ read as
+/// coinciding; refused with the point and this limit ([`FitError::CoordinateTooLarge`]).
+pub const MAX_COORDINATE_MM: f64 = 1e12;
+
+/// The first point with a coordinate beyond [`MAX_COORDINATE_MM`], as an error.
+fn check_magnitude(points: &[Point3]) -> Result<(), FitError> {
+    let big = |p: &&Point3| p.coords.amax() > MAX_COORDINATE_MM;
+    match points.iter().enumerate().find(|(_, p)| big(p)) {
+        Some((index, p)) => Err(FitError::CoordinateTooLarge { index, magnitude: p.coords.amax() }),
+        None => Ok(()),
+    }
+}
+
 fn check_finite(points: &[Point3]) -> Result<(), FitError> {
     let bad = if points.len() > PARALLEL_ABOVE {
         points.par_iter().position_first(|p| !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite()))
@@ -73,11 +89,13 @@ struct Sums {
     sq: f64,
     sq2: f64,
     first: [f64; 3],
+    /// Largest coordinate magnitude seen.
+    amax: f64,
 }
 
 impl Sums {
     fn zero() -> Self {
-        Sums { xx: [0.0; 6], sq3: [0.0; 3], sq: 0.0, sq2: 0.0, first: [0.0; 3] }
+        Sums { xx: [0.0; 6], sq3: [0.0; 3], sq: 0.0, sq2: 0.0, first: [0.0; 3], amax: 0.0 }
     }
     fn add(mut self, o: Sums) -> Sums {
         for k in 0..6 {
@@ -89,6 +107,7 @@ impl Sums {
         }
         self.sq += o.sq;
         self.sq2 += o.sq2;
+        self.amax = self.amax.max(o.amax);
         self
     }
 }
@@ -112,6 +131,7 @@ fn sums(points: &[Point3], c: &Point3) -> Sums {
         s.first[0] += x;
         s.first[1] += y;
         s.first[2] += z;
+        s.amax = s.amax.max(p.x.abs()).max(p.y.abs()).max(p.z.abs());
     }
     s
 }
@@ -128,6 +148,7 @@ impl Moments {
         // are reported as the first point, as no coordinate is usable at that magnitude.)
         if !(c0.x.is_finite() && c0.y.is_finite() && c0.z.is_finite()) {
             check_finite(points)?;
+            check_magnitude(points)?;
             return Err(FitError::NonFinite { index: 0 });
         }
         let s = if points.len() > PARALLEL_ABOVE {
@@ -136,6 +157,9 @@ impl Moments {
         } else {
             sums(points, &c0)
         };
+        if s.amax > MAX_COORDINATE_MM {
+            check_magnitude(points)?;
+        }
         // Correct the centroid by the residual mean (compensates rounding in the first pass).
         let n = points.len() as f64;
         let d = Vector3::new(s.first[0], s.first[1], s.first[2]) / n;

@@ -33,6 +33,13 @@ use truepos_math::{Point3, Vector3};
 /// approach horizontally and leave the stem of a reference sphere no room.
 pub const MAX_POLAR_DEG: f64 = 80.0;
 
+/// The largest length a probing request may state (mm): 100 000 mm = 100 m, beyond the
+/// travel of any machine tool or CMM. A sphere diameter, clearance, tip diameter or centre
+/// coordinate above it cannot be reached by a machine: refused before the machine is opened,
+/// naming the option and this limit (a `--diameter-mm 1e308` otherwise overflowed the safe
+/// height and failed later as a machine error).
+pub const MAX_LENGTH_MM: f64 = 100_000.0;
+
 /// What to probe and how.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SphereProbing {
@@ -145,6 +152,25 @@ impl SphereProbing {
         }
         if !(self.diameter_mm.is_finite() && self.diameter_mm > 0.0) {
             return bad("the diameter must be a positive number (mm)");
+        }
+        let too_large = |what: &str, v: f64| {
+            // 1e308 as written, not as 309 digits.
+            let v = if v.abs() < 1e9 { format!("{v}") } else { format!("{v:e}") };
+            Err(AcquireError::Plan(format!(
+                "{what} {v} mm is above {MAX_LENGTH_MM} mm (100 m), the physical limit: no machine tool or CMM travels that far"
+            )))
+        };
+        if let Some(v) = self.near_mm.iter().find(|v| v.abs() > MAX_LENGTH_MM) {
+            return too_large("a coordinate of the nominal centre (--near)", *v);
+        }
+        if self.diameter_mm > MAX_LENGTH_MM {
+            return too_large("the sphere diameter (--diameter-mm)", self.diameter_mm);
+        }
+        if self.clearance_mm > MAX_LENGTH_MM {
+            return too_large("the clearance (--clearance-mm)", self.clearance_mm);
+        }
+        if 2.0 * self.tip_radius_mm > MAX_LENGTH_MM {
+            return too_large("the tip diameter (--tip-diameter-mm)", 2.0 * self.tip_radius_mm);
         }
         if !(5..=10_000).contains(&self.points) {
             return bad("the number of points must be between 5 and 10000 (four determine a sphere and leave nothing to check it)");
@@ -379,6 +405,17 @@ mod tests {
         assert!(SphereProbing { diameter_mm: -1.0, ..ok }.check().is_err());
         assert!(SphereProbing { clearance_mm: 0.0, ..ok }.check().is_err());
         assert!(SphereProbing { feed_mm_s: f64::NAN, ..ok }.check().is_err());
+        // Absurd lengths: refused naming the option and the 100 m limit; the limit itself passes.
+        for (p, opt) in [
+            (SphereProbing { diameter_mm: 1e308, ..ok }, "--diameter-mm"),
+            (SphereProbing { clearance_mm: 1e6, ..ok }, "--clearance-mm"),
+            (SphereProbing { tip_radius_mm: 1e300, ..ok }, "--tip-diameter-mm"),
+            (SphereProbing { near_mm: Point3::new(0.0, -2e5, 0.0), ..ok }, "--near"),
+        ] {
+            let e = p.check().unwrap_err().to_string();
+            assert!(e.contains(opt) && e.contains("100000 mm (100 m)"), "{e}");
+        }
+        assert!(SphereProbing { diameter_mm: MAX_LENGTH_MM, ..ok }.check().is_ok());
         // The physical feed limit: 5000 mm/min accepted, above refused with the reason.
         assert!(SphereProbing { feed_mm_s: 5000.0 / 60.0, ..ok }.check().is_ok());
         let e = SphereProbing { feed_mm_s: 1e9 / 60.0, ..ok }.check().unwrap_err().to_string();

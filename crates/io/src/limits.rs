@@ -69,6 +69,11 @@ pub fn stream_too_large(path: &Path, limit: u64) -> InputError {
     )
 }
 
+/// The message for a text whose lines end in a carriage return alone (classic Mac OS), where a
+/// reader that splits at LF saw one line: said as such, not as what follows from it (a missing
+/// column, a line too long).
+pub const CR_ONLY: &str = "CR-only line ends: the lines end in a carriage return alone (classic Mac OS), so the file reads as one line; convert them to LF or CRLF line ends (e.g. tr '\\r' '\\n' < in.csv > out.csv)";
+
 /// The error for a line over [`MAX_LINE_BYTES`].
 pub fn line_too_long(path: &Path, line: usize) -> InputError {
     InputError::at(
@@ -165,6 +170,10 @@ impl LineGuard {
         }
         self.current += block.len() - start;
         if self.current > MAX_LINE_BYTES {
+            // No LF in the first megabyte but carriage returns: CR-only line ends, not a long line.
+            if self.lines == 0 && memchr::memchr(b'\r', &block[start..]).is_some() {
+                return Err(InputError::at(path, 1, Some(1), CR_ONLY));
+            }
             return Err(line_too_long(path, self.lines + 1));
         }
         Ok(())

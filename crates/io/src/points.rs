@@ -17,6 +17,9 @@ pub struct PointSet {
     /// Points of the file left out because the file marks them invalid (E57
     /// `cartesianInvalidState`); 0 for the other formats.
     pub skipped_invalid: usize,
+    /// Points of an E57 file left out because a coordinate is NaN or infinite; 0 for the other
+    /// formats (where such a value is an error on its line or row).
+    pub skipped_nonfinite: usize,
 }
 
 /// Read a point file by extension: `.ds` as NIST data set, `.parquet` as Parquet (same column
@@ -25,17 +28,22 @@ pub struct PointSet {
 pub fn read_points(path: impl AsRef<Path>) -> Result<PointSet, InputError> {
     let path = path.as_ref();
     if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("ds")) {
-        return Ok(PointSet { points: read_ds(path)?, ids: None, skipped_invalid: 0 });
+        return Ok(PointSet { points: read_ds(path)?, ids: None, skipped_invalid: 0, skipped_nonfinite: 0 });
     }
     if crate::e57_file::is_e57(path) {
         let e = crate::e57_file::read_e57(path)?;
-        return Ok(PointSet { points: e.points, ids: None, skipped_invalid: e.skipped_invalid });
+        return Ok(PointSet {
+            points: e.points,
+            ids: None,
+            skipped_invalid: e.skipped_invalid,
+            skipped_nonfinite: e.skipped_nonfinite,
+        });
     }
     if crate::parquet_file::is_parquet(path) {
         let c = crate::parquet_file::read_columns(path)?;
         let (x, y, z) = (c.f64(path, "x_mm")?, c.f64(path, "y_mm")?, c.f64(path, "z_mm")?);
         let points = x.iter().zip(y).zip(z).map(|((&x, &y), &z)| Point3::new(x, y, z)).collect();
-        return Ok(PointSet { points, ids: c.strings("id"), skipped_invalid: 0 });
+        return Ok(PointSet { points, ids: c.strings("id"), skipped_invalid: 0, skipped_nonfinite: 0 });
     }
     // The plain case (no `id`, no quotes, all values good) is parsed straight from the text;
     // anything else comes back as a table and takes the general path (exact errors).
@@ -43,7 +51,7 @@ pub fn read_points(path: impl AsRef<Path>) -> Result<PointSet, InputError> {
         Ok(rows) => {
             // `[f64; 3]` and `Point3` have the same layout: this collect reuses the allocation.
             let points = rows.into_iter().map(Point3::from).collect();
-            return Ok(PointSet { points, ids: None, skipped_invalid: 0 });
+            return Ok(PointSet { points, ids: None, skipped_invalid: 0, skipped_nonfinite: 0 });
         }
         Err(t) => t,
     };
@@ -52,7 +60,7 @@ pub fn read_points(path: impl AsRef<Path>) -> Result<PointSet, InputError> {
         Some(_) => Some(t.str_column("id")?),
         None => None,
     };
-    Ok(PointSet { points, ids, skipped_invalid: 0 })
+    Ok(PointSet { points, ids, skipped_invalid: 0, skipped_nonfinite: 0 })
 }
 
 /// Read a NIST `.ds` file.

@@ -25,7 +25,7 @@
 
 use crate::atomic::{AtomicFile, OutputError};
 use crate::csv::CsvWriter;
-use crate::e57_file::E57Source;
+use crate::e57_file::{E57Counts, E57Source};
 use crate::parquet_file::{is_parquet, BatchColumn, ParquetReader, ParquetWriter, TextColumn};
 use crate::stream::{
     output_plan, unwritable_message, unwritable_name, BackgroundWriter, CsvStream, RewriteError,
@@ -35,6 +35,7 @@ use crate::InputError;
 use rayon::prelude::*;
 use std::path::Path;
 use std::sync::mpsc::{sync_channel, Receiver};
+use std::sync::{Arc, OnceLock};
 use std::thread::JoinHandle;
 use truepos_math::Point3;
 
@@ -44,6 +45,8 @@ struct Source {
     text: Vec<bool>,
     rx: Receiver<Result<Vec<BatchColumn>, InputError>>,
     handle: Option<JoinHandle<()>>,
+    /// What an E57 reader skipped: set by the reader thread when it has read every scan.
+    e57_counts: Arc<OnceLock<E57Counts>>,
 }
 
 impl Source {
@@ -77,9 +80,11 @@ impl Source {
                     }
                 }),
             )?;
-            Ok(Self { names, text, rx, handle: Some(handle) })
+            Ok(Self { names, text, rx, handle: Some(handle), e57_counts: Arc::default() })
         } else {
             let s = E57Source::open(input)?;
+            let e57_counts: Arc<OnceLock<E57Counts>> = Arc::default();
+            let counts = Arc::clone(&e57_counts);
             let handle = spawn(
                 "truepos-e57-reader",
                 Box::new(move || {
@@ -87,13 +92,18 @@ impl Source {
                         let col = |k: usize| BatchColumn::F64(pts.iter().map(|p| p[k]).collect());
                         tx.send(Ok(vec![col(0), col(1), col(2)])).is_ok()
                     });
-                    if let Err(e) = r {
-                        let _ = tx.send(Err(e));
+                    match r {
+                        Ok(c) => {
+                            let _ = counts.set(c);
+                        }
+                        Err(e) => {
+                            let _ = tx.send(Err(e));
+                        }
                     }
                 }),
             )?;
             let names = ["x_mm", "y_mm", "z_mm"].map(String::from).to_vec();
-            Ok(Self { names, text: vec![false; 3], rx, handle: Some(handle) })
+            Ok(Self { names, text: vec![false; 3], rx, handle: Some(handle), e57_counts })
         }
     }
 
@@ -294,7 +304,13 @@ where
         Sink::Csv(w) => w.finish()?.commit()?,
         Sink::Parquet(w) => w.finish()?,
     }
-    Ok(RewriteSummary { n_points, n_chunks: n_batches })
+    let e57 = src.e57_counts.get().copied().unwrap_or_default();
+    Ok(RewriteSummary {
+        n_points,
+        n_chunks: n_batches,
+        skipped_invalid: e57.skipped_invalid,
+        skipped_nonfinite: e57.skipped_nonfinite,
+    })
 }
 
 /// Why a CSV row of [`rewrite_batches`] could not be written: a text value with a line break
@@ -445,7 +461,7 @@ where
         s.recycle(chunk);
     }
     w.finish()?;
-    Ok(RewriteSummary { n_points, n_chunks })
+    Ok(RewriteSummary { n_points, n_chunks, skipped_invalid: 0, skipped_nonfinite: 0 })
 }
 
 #[cfg(test)]
@@ -892,7 +908,9 @@ mod tests {
                 .to_string();
             assert!(e.contains("row 4") && e.contains("id") && e.contains("line break or NUL"), "{e}");
             assert!(!out.exists());
-            let pq = dir.path().join("out.parquet");
+            // A name of its own per case: the first case's output was read back (an input of
+            // this process since), and an output onto an input is refused.
+            let pq = dir.path().join(format!("out{}.parquet", bad.len() + usize::from(bad.contains('\0'))));
             rewrite_points(&inp, &pq, EXTRA, NumFormat::Shortest, shift, |_| {}).unwrap();
             assert!(matches!(&read_columns(&pq).unwrap().data[0], ColumnData::Str(v) if v[3] == bad));
         }

@@ -608,6 +608,10 @@ pub struct RewriteSummary {
     pub n_points: usize,
     /// Number of chunks the file was processed in.
     pub n_chunks: usize,
+    /// Points of an E57 input left out because the file marks them invalid, and because a
+    /// coordinate is NaN or infinite ([`crate::e57_file::E57Counts`]); 0 for other inputs.
+    pub skipped_invalid: usize,
+    pub skipped_nonfinite: usize,
 }
 
 /// Failure of [`rewrite_points`]: bad input (located), an unwritable output, or the caller's
@@ -744,7 +748,7 @@ where
         s.recycle(chunk);
     }
     w.finish()?.commit()?;
-    Ok(RewriteSummary { n_points, n_chunks })
+    Ok(RewriteSummary { n_points, n_chunks, skipped_invalid: 0, skipped_nonfinite: 0 })
 }
 
 /// The first column name that could not be written back unchanged, with its index: it holds a

@@ -66,18 +66,42 @@ pub enum AirError {
     /// Relative humidity outside 0 to 100 % (the value given).
     #[error("relative humidity must be between 0 and 100 %, got {0}")]
     Humidity(f64),
-    /// Pressure not positive (the value given, Pa).
-    #[error("pressure must be positive, got {0} Pa")]
-    Pressure(f64),
+    /// Pressure not positive (the value given, Pa), with the chosen equation's range.
+    #[error(
+        "pressure {value} Pa is not positive, and outside the range of the {formula} equation ({lo} to {hi} Pa, \
+         as NIST states it)"
+    )]
+    Pressure {
+        /// The pressure given (Pa).
+        value: f64,
+        /// Lower end of the equation's range (Pa).
+        lo: f64,
+        /// Upper end of the equation's range (Pa).
+        hi: f64,
+        /// The equation's name.
+        formula: &'static str,
+    },
     /// Wavelength not positive (the value given, nm).
     #[error("wavelength must be positive, got {0} nm")]
     Wavelength(f64),
     /// CO2 mole fraction outside 0 to 1e6 ppm (the value given).
     #[error("CO2 mole fraction must be between 0 and 1e6 ppm, got {0}")]
     Co2(f64),
-    /// Temperature at or below absolute zero (the value given, °C).
-    #[error("temperature must be above absolute zero, got {0} °C")]
-    Temperature(f64),
+    /// Temperature at or below absolute zero (the value given, °C), with the equation's range.
+    #[error(
+        "temperature {value} °C is below absolute zero (-273.15 °C), and outside the range of the {formula} \
+         equation ({lo} to {hi} °C, as NIST states it)"
+    )]
+    Temperature {
+        /// The temperature given (°C).
+        value: f64,
+        /// Lower end of the equation's range (°C).
+        lo: f64,
+        /// Upper end of the equation's range (°C).
+        hi: f64,
+        /// The equation's name.
+        formula: &'static str,
+    },
     /// An input outside the range where NIST states the chosen equation valid.
     #[error(
         "{quantity} {value} {unit} is outside the range of the {formula} equation ({lo} to {hi} {unit}, \
@@ -162,7 +186,22 @@ pub fn vapour_mole_fraction(humidity_pct: f64, p_pa: f64, t_c: f64) -> f64 {
     f * vapour_pressure_pa(humidity_pct, t_c) / p_pa
 }
 
-fn check(c: &AirConditions) -> Result<(), AirError> {
+/// The name of an equation in messages.
+fn formula_name(formula: Formula) -> &'static str {
+    match formula {
+        Formula::Ciddor => "Ciddor",
+        Formula::Edlen => "modified Edlén",
+    }
+}
+
+/// Physically impossible inputs; the temperature and pressure messages state the equation's
+/// validity range too (the range a user has to stay in, not only the physical bound).
+fn check(c: &AirConditions, formula: Formula) -> Result<(), AirError> {
+    let range = |q: &str| {
+        let (_, _, lo, hi) =
+            validity_range(formula).into_iter().find(|r| r.0 == q).unwrap_or(("", "", 0.0, 0.0));
+        (lo, hi)
+    };
     for (v, name) in [
         (c.temperature_c, "temperature"),
         (c.pressure_pa, "pressure"),
@@ -178,7 +217,8 @@ fn check(c: &AirConditions) -> Result<(), AirError> {
         return Err(AirError::Humidity(c.humidity_pct));
     }
     if c.pressure_pa <= 0.0 {
-        return Err(AirError::Pressure(c.pressure_pa));
+        let (lo, hi) = range("pressure");
+        return Err(AirError::Pressure { value: c.pressure_pa, lo, hi, formula: formula_name(formula) });
     }
     if c.wavelength_nm <= 0.0 {
         return Err(AirError::Wavelength(c.wavelength_nm));
@@ -187,7 +227,8 @@ fn check(c: &AirConditions) -> Result<(), AirError> {
         return Err(AirError::Co2(c.co2_ppm));
     }
     if c.temperature_c <= -273.15 {
-        return Err(AirError::Temperature(c.temperature_c));
+        let (lo, hi) = range("temperature");
+        return Err(AirError::Temperature { value: c.temperature_c, lo, hi, formula: formula_name(formula) });
     }
     Ok(())
 }
@@ -195,11 +236,8 @@ fn check(c: &AirConditions) -> Result<(), AirError> {
 /// The refractive index of air (phase index) for the given conditions; conditions outside the
 /// equation's validity range ([`validity_range`]) are an error naming the quantity and the range.
 pub fn refractive_index(c: &AirConditions, formula: Formula) -> Result<f64, AirError> {
-    check(c)?;
-    let name = match formula {
-        Formula::Ciddor => "Ciddor",
-        Formula::Edlen => "modified Edlén",
-    };
+    check(c, formula)?;
+    let name = formula_name(formula);
     let values = [c.wavelength_nm, c.temperature_c, c.pressure_pa, c.humidity_pct, c.co2_ppm];
     for ((quantity, unit, lo, hi), value) in validity_range(formula).into_iter().zip(values) {
         if formula == Formula::Edlen && quantity == "CO2" {
@@ -354,6 +392,20 @@ mod tests {
             let e = refractive_index(&c, f).expect_err(what).to_string();
             assert!(e.contains(what), "{e}");
         }
+        // Below absolute zero, or a pressure that is not positive: the physical bound and the
+        // equation's range are both named.
+        let e =
+            refractive_index(&AirConditions { temperature_c: -300.0, ..Default::default() }, Formula::Ciddor)
+                .unwrap_err()
+                .to_string();
+        assert!(e.contains("absolute zero") && e.contains("Ciddor equation (-40 to 100 °C"), "{e}");
+        let e = refractive_index(&AirConditions { pressure_pa: -1.0, ..Default::default() }, Formula::Edlen)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("not positive") && e.contains("modified Edlén equation (60000 to 140000 Pa"),
+            "{e}"
+        );
         // The edges of the ranges are inside.
         for c in [
             AirConditions { temperature_c: -40.0, pressure_pa: 10_000.0, ..Default::default() },

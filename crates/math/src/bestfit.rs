@@ -29,6 +29,9 @@ pub enum BestFitError {
     /// A weight is negative or not finite, or the weights sum to zero.
     #[error("weights must be finite and non-negative, with a positive sum")]
     BadWeights,
+    /// Every weight is zero: no point takes part (a degenerate fit, not a bad number).
+    #[error("all {0} weights are zero: no point takes part in the fit, so nothing determines it (degenerate); give the points that count a positive weight")]
+    ZeroWeights(usize),
     /// The points lie on one line, so the rotation about it is undetermined.
     #[error("the points are collinear: the rotation about their line is undetermined")]
     Collinear,
@@ -75,6 +78,11 @@ pub fn best_fit(
     if core.rank_from < 2 {
         return Err(BestFitError::Collinear);
     }
+    // Identical target points: the rotation is not determined (any one fits equally badly) and
+    // the scale would be 0; refused as degenerate, like coincident reference points.
+    if core.to_coincide {
+        return Err(BestFitError::Coincident { which: "target (to)", what: "transform" });
+    }
     Ok(core.transform)
 }
 
@@ -116,6 +124,8 @@ struct Core {
     /// Rank of the weighted spread of `from` (0, 1 collinear, 2 planar, 3).
     rank_from: usize,
     var_to: f64,
+    /// All weighted `to` points coincide (to ~1e-13 of their size).
+    to_coincide: bool,
 }
 
 fn fit_core(
@@ -138,6 +148,9 @@ fn fit_core(
     }
     let w = |i: usize| weights.map_or(1.0, |w| w[i]);
     let wsum: f64 = (0..from.len()).map(w).sum();
+    if wsum == 0.0 {
+        return Err(BestFitError::ZeroWeights(from.len()));
+    }
     if wsum <= 0.0 || !wsum.is_finite() {
         return Err(BestFitError::BadWeights);
     }
@@ -171,6 +184,9 @@ fn fit_core(
         return Err(BestFitError::Coincident { which: "reference (from)", what });
     }
     let rank_from = if ev[1] <= ev[0] * 1e-20 { 1 } else { 2 };
+    // The same test for `to`: all weighted target points at one place (to ~1e-13 of their size).
+    let size2_to = to.iter().map(|p| p.coords.norm_squared()).fold(0.0, f64::max) * wsum;
+    let to_coincide = var_to.partial_cmp(&(size2_to * 1e-26)) != Some(std::cmp::Ordering::Greater);
     let svd = h.svd(true, true);
     let (u, vt) = match (svd.u, svd.v_t) {
         (Some(u), Some(vt)) => (u, vt),
@@ -186,7 +202,7 @@ fn fit_core(
         1.0
     };
     let translation = ct - scale * (rotation * cf);
-    Ok(Core { transform: Transform3 { scale, rotation, translation }, rank_from, var_to })
+    Ok(Core { transform: Transform3 { scale, rotation, translation }, rank_from, var_to, to_coincide })
 }
 
 /// The three-point (3-2-1) transform: `to[0]` is matched exactly, the direction `from[0]→from[1]`
@@ -330,10 +346,22 @@ mod tests {
         assert!(e.to_string().contains("measured"), "{e}");
         let e = best_fit(&same, &good, None, Default::default()).unwrap_err();
         assert!(matches!(e, BestFitError::Coincident { .. }), "{e}");
+        let e = best_fit(&good, &good, Some(&[0.0, 0.0, 0.0]), Default::default()).unwrap_err();
+        assert_eq!(e, BestFitError::ZeroWeights(3));
+        assert!(
+            e.to_string().contains("all 3 weights are zero") && e.to_string().contains("degenerate"),
+            "{e}"
+        );
         assert_eq!(
-            best_fit(&good, &good, Some(&[0.0, 0.0, 0.0]), Default::default()),
+            best_fit(&good, &good, Some(&[1.0, -1.0, 1.0]), Default::default()),
             Err(BestFitError::BadWeights)
         );
+        // Identical target points, rigid or with scale: refused, naming the target points.
+        for with_scale in [false, true] {
+            let e = best_fit(&good, &same, None, BestFitOptions { with_scale }).unwrap_err();
+            assert_eq!(e, BestFitError::Coincident { which: "target (to)", what: "transform" });
+            assert!(e.to_string().contains("all target (to) points coincide"), "{e}");
+        }
         // Only one point with weight: all weighted points coincide.
         assert!(matches!(
             best_fit(&good, &good, Some(&[1.0, 0.0, 0.0]), Default::default()),

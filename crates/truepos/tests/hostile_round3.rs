@@ -120,3 +120,239 @@ fn outputs_never_destroy_what_they_replace() {
     let out = bin().args(["ippdme", "serve", "--port", "0", "--log", "/dev/full"]).output().unwrap();
     expect_input_error(&out, &["--log", "/dev/full", "character device"]);
 }
+
+/// Parquet fixtures written by pyarrow (`crates/io/tests/pyarrow/make_fixtures.py`): points on
+/// the sphere of centre (1, 2, 3) mm and radius 10 mm, pages with CRC-32s; the same, GZIP.
+const CRC_POINTS: &[u8] = include_bytes!("../../io/tests/pyarrow/crc_points.parquet");
+const GZIP_POINTS: &[u8] = include_bytes!("../../io/tests/pyarrow/gzip_points.parquet");
+
+/// A page whose CRC-32 does not match its bytes is refused naming the file and the column, by
+/// `fit` and by the streamed `comp correct` (no output left); a codec truepos does not decode
+/// is named plainly.
+#[test]
+fn corrupted_pages_and_unsupported_codecs_are_refused_with_their_column() {
+    let d = tempfile::tempdir().unwrap();
+    let good = write(d.path(), "crc.parquet", CRC_POINTS);
+    let out = bin().args(["fit", "sphere", "--json"]).arg(&good).output().unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let c: Vec<f64> = v["center_mm"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+    // Five exact points of the sphere: centre and radius to round-off.
+    assert!((c[0] - 1.0).abs() < 1e-9 && (c[1] - 2.0).abs() < 1e-9 && (c[2] - 3.0).abs() < 1e-9, "{c:?}");
+    assert!((v["radius_mm"].as_f64().unwrap() - 10.0).abs() < 1e-9, "{v}");
+    // One bit of x_mm's −9 flipped (−9.000000000000002: a plausible value, fitted without the
+    // checksum).
+    let mut bytes = CRC_POINTS.to_vec();
+    let x: Vec<u8> = [11.0_f64, -9.0].iter().flat_map(|v| v.to_le_bytes()).collect();
+    let at = bytes.windows(16).position(|w| w == x.as_slice()).unwrap();
+    bytes[at + 8] ^= 1;
+    let bad = write(d.path(), "flipped.parquet", &bytes);
+    let out = bin().args(["fit", "sphere"]).arg(&bad).output().unwrap();
+    expect_input_error(&out, &["flipped.parquet", "column 'x_mm'", "CRC-32", "corrupted"]);
+    let map = write(
+        d.path(),
+        "map.csv",
+        "axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad\nx,-100,0,0,0,0,0,0\nx,100,0,0,0,0,0,0\ny,-100,0,0,0,0,0,0\ny,100,0,0,0,0,0,0\nz,-100,0,0,0,0,0,0\nz,100,0,0,0,0,0,0\n",
+    );
+    for input in [&good, &bad] {
+        let output = d.path().join("corrected.csv");
+        let out = bin()
+            .args(["comp", "correct", "--map"])
+            .arg(&map)
+            .arg("--points")
+            .arg(input)
+            .arg("--output")
+            .arg(&output)
+            .output()
+            .unwrap();
+        if input == &good {
+            assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+            std::fs::remove_file(&output).unwrap();
+        } else {
+            expect_input_error(&out, &["flipped.parquet", "column 'x_mm'", "CRC-32"]);
+            assert!(!output.exists());
+        }
+    }
+    let gz = write(d.path(), "gz.parquet", GZIP_POINTS);
+    let out = bin().args(["fit", "sphere"]).arg(&gz).output().unwrap();
+    expect_input_error(&out, &["gz.parquet", "compression GZIP is not supported; use Snappy"]);
+}
+
+/// One Cartesian scan of doubles (m) named `name`, with `pose` and the points `pts` and their
+/// invalid states.
+fn e57_scan(path: &std::path::Path, name: &str, pose: Option<e57::Transform>, pts: &[([f64; 3], i64)]) {
+    use e57::{Record, RecordDataType, RecordName, RecordValue};
+    let mut w = e57::E57Writer::from_file(path, "hostile").unwrap();
+    let mut proto = vec![Record::CARTESIAN_X_F64, Record::CARTESIAN_Y_F64, Record::CARTESIAN_Z_F64];
+    proto.push(Record {
+        name: RecordName::CartesianInvalidState,
+        data_type: RecordDataType::Integer { min: 0, max: 2 },
+    });
+    let mut pc = w.add_pointcloud(name, proto).unwrap();
+    pc.set_transform(pose);
+    for (v, state) in pts {
+        let mut vals: Vec<RecordValue> = v.iter().map(|&x| RecordValue::Double(x)).collect();
+        vals.push(RecordValue::Integer(*state));
+        pc.add_point(vals).unwrap();
+    }
+    pc.finalize().unwrap();
+    w.finalize().unwrap();
+}
+
+/// E57: a pose whose quaternion is not a unit one is refused naming the scan, the field and the
+/// tolerance; NaN/inf points are named as such, apart from the points the file marks invalid;
+/// `comp correct` says how many points it dropped, on stderr and in its JSON.
+#[test]
+fn e57_poses_and_dropped_points_are_named() {
+    let d = tempfile::tempdir().unwrap();
+    let sphere: Vec<([f64; 3], i64)> = [
+        [0.011, 0.002, 0.003],
+        [-0.009, 0.002, 0.003],
+        [0.001, 0.012, 0.003],
+        [0.001, -0.008, 0.003],
+        [0.001, 0.002, 0.013],
+        [0.001, 0.002, -0.007],
+    ]
+    .into_iter()
+    .map(|p| (p, 0))
+    .collect();
+    let tilted = e57::Transform {
+        rotation: e57::Quaternion { w: 1.0, x: 0.01, y: 0.0, z: 0.0 },
+        translation: Default::default(),
+    };
+    let path = d.path().join("tilted.e57");
+    e57_scan(&path, "scan-a", Some(tilted), &sphere);
+    let out = bin().args(["fit", "sphere"]).arg(&path).output().unwrap();
+    expect_input_error(
+        &out,
+        &["tilted.e57", "scan 1 ('scan-a')", "pose/rotation", "norm 1.0000499", "within 1e-6"],
+    );
+    // NaN, infinity and a point marked invalid: the sphere is fitted from the rest, and the
+    // note names each kind.
+    let mut pts = sphere.clone();
+    pts.extend([([f64::NAN, 0.0, 0.0], 0), ([0.0, f64::NEG_INFINITY, 0.0], 0), ([0.5, 0.5, 0.5], 2)]);
+    let path = d.path().join("holes.e57");
+    e57_scan(&path, "scan-b", None, &pts);
+    let out = bin().args(["fit", "sphere", "--json"]).arg(&path).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(err.contains("1 points marked invalid in the file were skipped"), "{err}");
+    assert!(err.contains("2 points with a NaN or infinite coordinate were skipped"), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!((v["radius_mm"].as_f64().unwrap() - 10.0).abs() < 1e-9, "{v}");
+    let map = write(
+        d.path(),
+        "map.csv",
+        "axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad\nx,-100,0,0,0,0,0,0\nx,100,0,0,0,0,0,0\ny,-100,0,0,0,0,0,0\ny,100,0,0,0,0,0,0\nz,-100,0,0,0,0,0,0\nz,100,0,0,0,0,0,0\n",
+    );
+    let output = d.path().join("c.csv");
+    let out = bin()
+        .args(["comp", "correct", "--json", "--map"])
+        .arg(&map)
+        .arg("--points")
+        .arg(&path)
+        .arg("--output")
+        .arg(&output)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("3 points of the E57 input dropped (not in the output): 1 marked invalid in the file, 2 with a NaN or infinite coordinate"),
+        "{err}"
+    );
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!((j["n_points"].as_u64(), j["dropped_invalid_points"].as_u64()), (Some(6), Some(1)));
+    assert_eq!(j["dropped_nonfinite_points"].as_u64(), Some(2));
+    assert_eq!(truepos_io::csv::Table::read(&output).unwrap().n_rows(), 6);
+}
+
+/// Sizes and magnitudes beyond the physical ones, and degenerate requests: exit 2 naming the
+/// option or quantity and the limit (before: exit 3 from the machine, "all points coincide",
+/// a generic weight message, "must be above absolute zero").
+#[test]
+fn absurd_sizes_and_degenerate_requests_name_the_limit() {
+    for (opt, val) in [("--diameter-mm", "1e308"), ("--clearance-mm", "1e9"), ("--tip-diameter-mm", "1e300")]
+    {
+        let mut args = vec!["probe", "sphere", "--near=0,0,0", opt, val];
+        if opt != "--diameter-mm" {
+            args.extend(["--diameter-mm", "25"]);
+        }
+        let out = bin().args(&args).output().unwrap();
+        expect_input_error(&out, &[opt, "100000 mm (100 m)", "physical limit"]);
+    }
+    let out = bin().args(["probe", "sphere", "--near=0,0,1e200", "--diameter-mm", "25"]).output().unwrap();
+    expect_input_error(&out, &["--near", "100000 mm"]);
+    let d = tempfile::tempdir().unwrap();
+    // Distinct points at 1e200 mm: named by the coordinate magnitude limit, not as coinciding.
+    let far = write(
+        d.path(),
+        "far.csv",
+        "x_mm,y_mm,z_mm\n1e200,0,0\n0,1e200,0\n-1e200,0,0\n0,-1e200,0\n0,0,1e200\n",
+    );
+    for kind in ["sphere", "line", "plane", "circle"] {
+        let out = bin().args(["fit", kind]).arg(&far).output().unwrap();
+        expect_input_error(&out, &["far.csv", "magnitude 1e200 mm", "coordinate magnitude limit of 1e12 mm"]);
+    }
+    // align: all weights zero; identical target points.
+    let good = write(d.path(), "g.csv", "id,x_mm,y_mm,z_mm,w\nA,0,0,0,0\nB,100,0,0,0\nC,0,100,0,0\n");
+    let out = bin()
+        .args(["align", "--from"])
+        .arg(&good)
+        .arg("--to")
+        .arg(&good)
+        .args(["--weights", "w"])
+        .output()
+        .unwrap();
+    expect_input_error(&out, &["all 3 weights are zero", "degenerate"]);
+    let same = write(d.path(), "same.csv", "id,x_mm,y_mm,z_mm\nA,5,5,5\nB,5,5,5\nC,5,5,5\n");
+    let out = bin().args(["align", "--from"]).arg(&good).arg("--to").arg(&same).output().unwrap();
+    expect_input_error(&out, &["same.csv", "all target (to) points coincide"]);
+    // air below absolute zero: the range of the equation is named too.
+    let out = bin()
+        .args(["air", "--temperature-c=-300", "--pressure-pa", "101325", "--humidity-pct", "50"])
+        .output()
+        .unwrap();
+    expect_input_error(&out, &["-300 °C", "absolute zero", "-40 to 100 °C"]);
+}
+
+/// CR-only line ends (classic Mac OS): named as such where a reader sees one line, not as the
+/// missing column or the long line that follows from it.
+#[test]
+fn cr_only_line_ends_are_named() {
+    let d = tempfile::tempdir().unwrap();
+    let map = write(
+        d.path(),
+        "map.csv",
+        "axis,position_mm,pos_um,str1_um,str2_um,pitch_urad,yaw_urad,roll_urad\nx,-100,0,0,0,0,0,0\nx,100,0,0,0,0,0,0\ny,-100,0,0,0,0,0,0\ny,100,0,0,0,0,0,0\nz,-100,0,0,0,0,0,0\nz,100,0,0,0,0,0,0\n",
+    );
+    let correct = |pts: &std::path::Path, output: &std::path::Path| {
+        bin()
+            .args(["comp", "correct", "--map"])
+            .arg(&map)
+            .arg("--points")
+            .arg(pts)
+            .arg("--output")
+            .arg(output)
+            .output()
+            .unwrap()
+    };
+    let output = d.path().join("out.csv");
+    let mac = write(d.path(), "mac.csv", "id,x_mm,y_mm,z_mm\rP1,1,2,3\rP2,4,5,6\r");
+    let out = correct(&mac, &output);
+    expect_input_error(&out, &["mac.csv:1", "CR-only line ends", "tr '\\r' '\\n'"]);
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("missing required column"));
+    assert!(!output.exists());
+    // Over a megabyte without a line feed: CR-only line ends, not a line too long.
+    let mut big = String::from("id,x_mm,y_mm,z_mm\r");
+    let mut i = 0;
+    while big.len() < 1_200_000 {
+        big.push_str(&format!("P{i},{i}.5,2,3\r"));
+        i += 1;
+    }
+    let big = write(d.path(), "bigmac.csv", big);
+    let out = correct(&big, &output);
+    expect_input_error(&out, &["bigmac.csv:1:1", "CR-only line ends"]);
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("longer than"));
+    assert!(!output.exists());
+}

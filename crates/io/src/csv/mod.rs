@@ -111,12 +111,19 @@ pub struct Table {
     /// (`cartesianInvalidState`); 0 for every other format. Commands that read points through
     /// a table can report it as `truepos fit` does.
     pub skipped_invalid: usize,
+    /// Points of an E57 file left out because a coordinate is NaN or infinite; 0 otherwise.
+    pub skipped_nonfinite: usize,
 }
 
 /// The message for a column the header lacks, with what the header says about the file when it
 /// tells why: separated by `;` or tabs (spreadsheet exports with a decimal comma), or not CSV at
 /// all (TOML, JSON, a spreadsheet by its extension).
 pub(crate) fn missing_column_message(path: &Path, name: &str, header: &[String]) -> String {
+    // A carriage return inside the header: the file's lines end in CR alone and were read as
+    // one line. Said first and as such (column `name` is only missing because of it).
+    if crate::limits::other_format(path).is_none() && header.iter().any(|h| h.contains('\r')) {
+        return format!("{} (column '{name}' not found in the one line read)", crate::limits::CR_ONLY);
+    }
     let mut msg = format!("missing required column '{name}' (columns: {})", header.join(","));
     if let Some(hint) = header_hint(path, header) {
         msg.push_str(": ");
@@ -487,6 +494,7 @@ impl Table {
                 crate::parquet_file::Columns { names, data: vec![col(0), col(1), col(2)] },
             )?;
             t.skipped_invalid = e.skipped_invalid;
+            t.skipped_nonfinite = e.skipped_nonfinite;
             return Ok(t);
         }
         if let Some(map) = map_large_file(path)? {
@@ -600,7 +608,15 @@ impl Table {
         // The data rows are indexed in parallel (segments split at line ends).
         let rows = index_rows_parallel(&text, data)
             .map_err(|bad| crate::limits::line_too_long(path, line_of(&text, bad)))?;
-        Ok(Self { path: path.to_path_buf(), text, header, comments, rows, skipped_invalid: 0 })
+        Ok(Self {
+            path: path.to_path_buf(),
+            text,
+            header,
+            comments,
+            rows,
+            skipped_invalid: 0,
+            skipped_nonfinite: 0,
+        })
     }
 
     /// The header (checked), the comments before it and the byte offset just after its line.

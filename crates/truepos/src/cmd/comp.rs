@@ -165,6 +165,9 @@ pub fn run(a: Args) -> Result<Outcome> {
                 if let Some(w) = done.uncertainty_warning() {
                     eprintln!("{w}");
                 }
+                if let Some(n) = done.dropped_note() {
+                    eprintln!("{n}");
+                }
             }
             emit(&done, a.json)?
         }

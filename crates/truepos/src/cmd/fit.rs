@@ -116,6 +116,13 @@ pub fn run(a: Args) -> Result<Outcome> {
             set.skipped_invalid
         );
     }
+    if set.skipped_nonfinite > 0 {
+        eprintln!(
+            "note: {}: {} points with a NaN or infinite coordinate were skipped",
+            a.points.display(),
+            set.skipped_nonfinite
+        );
+    }
     let e = evaluate::evaluate(a.kind, m, &set.points, &spec).map_err(|e| match e {
         evaluate::EvaluateError::Spec(s) => anyhow::Error::from(Classed::new(ExitClass::Usage, None, s)),
         evaluate::EvaluateError::Fit(f) => {

@@ -202,6 +202,9 @@ pub fn run(a: Args) -> Result<Outcome> {
 fn probe_feeds(a: ProbeArgs) -> Result<Outcome> {
     let plan = a.sphere.plan(a.points, 60.0);
     let feeds: Vec<f64> = a.feeds_mm_min.iter().map(|f| f / 60.0).collect();
+    // The sphere's sizes and place before a machine is opened (an absurd --diameter-mm is a
+    // usage error naming its limit, not a machine error).
+    plan.check()?;
     let mut opened = a.sphere.open()?;
     use truepos_head::acquire::AcquireError;
     let mut r = match truepos_latency::probing::delay_by_feeds(opened.machine.as_mut(), &plan, &feeds) {

@@ -193,6 +193,11 @@ pub fn run(a: Args) -> Result<Outcome> {
                 &a.output,
                 fmt,
             )?;
+            if a.json {
+                if let Some(n) = r.dropped_note() {
+                    eprintln!("{n}");
+                }
+            }
             emit(&r, a.json)?
         }
         Sub::Curves(a) => emit(&task::curves(&a.map, &a.load)?, a.json)?,
