@@ -338,6 +338,9 @@ pub struct TolResult {
     pub feature_results: Vec<usize>,
     /// `POS,3D` (a spherical zone about the nominal point); false for every other tolerance.
     pub three_d: bool,
+    /// `DISTB` along an axis of the current coordinate system (`XAXIS` 0, `YAXIS` 1, `ZAXIS`
+    /// 2); `None` for every other tolerance and for `DISTB` without one (`PT2PT`).
+    pub distb_axis: Option<usize>,
 }
 
 /// One probing of a run: which feature, the compensated contact point and the probing
@@ -1131,6 +1134,12 @@ impl Exec<'_> {
             datums,
             feature_results,
             three_d: matches!(t.kind, TolKind::Pos { three_d: true, .. }),
+            distb_axis: match &t.kind {
+                TolKind::Distb { axis: Some(DistAxis::XAxis), .. } => Some(0),
+                TolKind::Distb { axis: Some(DistAxis::YAxis), .. } => Some(1),
+                TolKind::Distb { axis: Some(DistAxis::ZAxis), .. } => Some(2),
+                _ => None,
+            },
         })
     }
 

@@ -334,7 +334,21 @@ pub fn qif(
                     tu,
                 ),
             };
+            // DISTB measured along one direction: the axis it names, else a plane's normal (as
+            // `evaluate` measures it); otherwise point to point in 3D.
+            let plane_normal = t.feature_results.iter().find_map(|k| match r.features[*k].geom {
+                Geom::Plane { n, .. } => Some([n.x, n.y, n.z]),
+                _ => None,
+            });
+            let analysis_vector = (t.kind == "DISTB")
+                .then(|| {
+                    t.distb_axis
+                        .map(|k| std::array::from_fn(|i| f64::from(u8::from(i == k))))
+                        .or(plane_normal)
+                })
+                .flatten();
             ResultCharacteristic {
+                analysis_vector,
                 label: t.label.clone(),
                 kind,
                 tolerance,

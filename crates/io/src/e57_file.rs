@@ -56,8 +56,11 @@ pub struct E57Points {
 /// What reading an E57 file skipped, and its scans (see [`E57Points`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct E57Counts {
+    /// Points skipped because the file marks them invalid.
     pub skipped_invalid: usize,
+    /// Points skipped because a coordinate is NaN or infinite.
     pub skipped_nonfinite: usize,
+    /// Scans (point clouds) in the file.
     pub scans: usize,
 }
 

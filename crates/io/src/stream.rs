@@ -608,9 +608,11 @@ pub struct RewriteSummary {
     pub n_points: usize,
     /// Number of chunks the file was processed in.
     pub n_chunks: usize,
-    /// Points of an E57 input left out because the file marks them invalid, and because a
-    /// coordinate is NaN or infinite ([`crate::e57_file::E57Counts`]); 0 for other inputs.
+    /// Points of an E57 input left out because the file marks them invalid
+    /// ([`crate::e57_file::E57Counts`]); 0 for other inputs.
     pub skipped_invalid: usize,
+    /// Points of an E57 input left out because a coordinate is NaN or infinite; 0 for other
+    /// inputs.
     pub skipped_nonfinite: usize,
 }
 

@@ -191,6 +191,10 @@ pub struct ResultCharacteristic {
     pub features: Vec<usize>,
     /// The verdict (in or out of tolerance).
     pub status: Status,
+    /// A distance measured along one direction (unit vector in the coordinate system of the
+    /// values): written as `AnalysisVector` with `ONEDIMENSIONAL`; `None`: point to point in
+    /// 3D (`THREEDIMENSIONAL`). Only for [`CharacteristicKind::DistanceBetween`].
+    pub analysis_vector: Option<[f64; 3]>,
 }
 
 /// Everything a program's results document holds.
@@ -414,6 +418,17 @@ pub fn write_program_results(r: &ProgramResults) -> Result<String, WriteError> {
                 format!("\n        <TargetValue>{}</TargetValue>", dec(nominal))
             }
             Tolerance::Zone(_) => String::new(),
+        };
+        // The analysis mode the schema requires of the between-characteristics.
+        let target = match (c.kind, c.analysis_vector) {
+            (CharacteristicKind::DistanceBetween, Some(v)) => format!(
+                "{target}\n        <AnalysisVector>{}</AnalysisVector>\n        <AnalysisMode>ONEDIMENSIONAL</AnalysisMode>",
+                vec3(&v)
+            ),
+            (CharacteristicKind::DistanceBetween | CharacteristicKind::AngleBetween, _) => {
+                format!("{target}\n        <AnalysisMode>THREEDIMENSIONAL</AnalysisMode>")
+            }
+            _ => target,
         };
         let _ = writeln!(
             noms,
