@@ -148,3 +148,23 @@ fn a_100000_line_program_parses_and_checks_in_well_under_a_second() {
     // machine running the test profile.
     assert!(t_all < 3.0, "{t_all} s");
 }
+
+/// The executor's own cost per PTMEAS (issue 29: under 1 ms): the 100,000-line program's 44,440
+/// probings run on the dry-run machine (which answers at once), so the time is the executor's —
+/// its bookkeeping, the coordinate systems, the compensation, the fits and the outputs.
+#[test]
+fn the_executor_costs_well_under_a_millisecond_per_ptmeas() {
+    use truepos_dmis::exec::{run, DryRun, RunOptions};
+    let plan = check(&parse("big.dms", &big_program(100_000)).unwrap()).unwrap();
+    let opts = RunOptions::default();
+    let mut machine = DryRun::new(&plan, &opts);
+    let t = Instant::now();
+    let r = run(&plan, &mut machine, &opts, &mut |_| {}).expect("the program runs");
+    let s = t.elapsed().as_secs_f64();
+    let n = r.probes.len();
+    assert_eq!(n, plan.n_probes);
+    let per = s / n as f64;
+    eprintln!("executor: {n} PTMEAS in {s:.3} s: {:.1} µs per PTMEAS (fits and outputs included)", per * 1e6);
+    // The contract's figure is 1 ms; measured in the tens of µs, so a loaded machine passes too.
+    assert!(per < 1e-3, "{per} s per PTMEAS");
+}
