@@ -192,9 +192,9 @@ impl Blend {
 
 /// Run `plan` on `machine` at its control rate. Deterministic when the machine is.
 ///
-/// Each control tick: [`Exec::enter`] the current segment, [`Exec::command`] the tip centre,
-/// the machine follows and measures ([`Exec::record`]), then either the first contact of an
-/// approach re-plans the feature ([`Exec::touch`]) or the plan advances ([`Exec::advance`]).
+/// Each control tick: `Exec::enter` the current segment, `Exec::command` the tip centre,
+/// the machine follows and measures (`Exec::record`), then either the first contact of an
+/// approach re-plans the feature (`Exec::touch`) or the plan advances (`Exec::advance`).
 pub fn execute<M: ScanningMachine + ?Sized>(
     plan: &Plan,
     machine: &mut M,
