@@ -151,15 +151,7 @@ fn fmt_num_into(v: f64, dec: u8, t: &mut Txt) {
         *t = Txt::Inline { start: 31, buf: [0; 31] };
     }
     let Txt::Inline { start, buf } = t else { return };
-    let a = n.unsigned_abs();
-    // The usual decimals with constant divisors (multiplications).
-    let mut i = match dec {
-        4 => fixed_digits::<4>(a, buf),
-        5 => fixed_digits::<5>(a, buf),
-        3 => fixed_digits::<3>(a, buf),
-        6 => fixed_digits::<6>(a, buf),
-        _ => fixed_digits_any(a, dec as usize, buf),
-    };
+    let mut i = truepos_math::fixed::digits(n.unsigned_abs(), dec, buf);
     if n < 0 {
         i -= 1;
         buf[i] = b'-';
@@ -167,78 +159,6 @@ fn fmt_num_into(v: f64, dec: u8, t: &mut Txt) {
     // ASCII digits, point and sign only, at the end of the buffer (at most 18 bytes).
     debug_assert!(std::str::from_utf8(&buf[i..]).is_ok());
     *start = i as u8;
-}
-
-/// Digit pairs "00" to "99".
-const PAIRS: &[u8; 200] = b"00010203040506070809101112131415161718192021222324252627282930313233343536373839\
-404142434445464748495051525354555657585960616263646566676869707172737475767778798081828384858687888990919293949596979899";
-
-/// The integer part `q` written two digits at a time, ending before `buf[i]`; at least one
-/// digit. Returns where the text starts.
-#[inline(always)]
-fn integer_digits(mut q: u64, mut i: usize, buf: &mut [u8; 31]) -> usize {
-    while q >= 10 {
-        let r = (q % 100) as usize * 2;
-        q /= 100;
-        i -= 2;
-        buf[i..i + 2].copy_from_slice(&PAIRS[r..r + 2]);
-    }
-    // The leading digit, unless the pairs ended on one ("10" of 1000).
-    if q > 0 || i == buf.len() || buf[i] == b'.' {
-        i -= 1;
-        buf[i] = b'0' + q as u8;
-    }
-    i
-}
-
-/// `a` (at most 16 digits) with a point `D` (1 to 9) digits from the right, at the end of
-/// `buf`: the fraction and the integer part come from `a % 10^D` and `a / 10^D`, two short
-/// chains of divisions (by constants) instead of one long one. Returns where the text starts.
-#[inline(always)]
-fn fixed_digits<const D: usize>(a: u64, buf: &mut [u8; 31]) -> usize {
-    const P: [u64; 10] =
-        [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000, 100_000_000, 1_000_000_000];
-    let p = P[D];
-    let mut f = (a % p) as u32;
-    let mut i = buf.len();
-    let mut left = D;
-    while left >= 2 {
-        let r = (f % 100) as usize * 2;
-        f /= 100;
-        i -= 2;
-        buf[i..i + 2].copy_from_slice(&PAIRS[r..r + 2]);
-        left -= 2;
-    }
-    if left == 1 {
-        i -= 1;
-        buf[i] = b'0' + f as u8;
-    }
-    i -= 1;
-    buf[i] = b'.';
-    integer_digits(a / p, i, buf)
-}
-
-/// [`fixed_digits`] for any count of decimals `dec` (0 to 18): one chain of divisions.
-fn fixed_digits_any(mut a: u64, dec: usize, buf: &mut [u8; 31]) -> usize {
-    let mut i = buf.len();
-    let mut left = dec;
-    while left >= 2 {
-        let r = (a % 100) as usize * 2;
-        a /= 100;
-        i -= 2;
-        buf[i..i + 2].copy_from_slice(&PAIRS[r..r + 2]);
-        left -= 2;
-    }
-    if left == 1 {
-        i -= 1;
-        buf[i] = b'0' + (a % 10) as u8;
-        a /= 10;
-    }
-    if dec > 0 {
-        i -= 1;
-        buf[i] = b'.';
-    }
-    integer_digits(a, i, buf)
 }
 
 /// 10^dec (a table for the usual decimals: this is on every rewritten word).
@@ -264,23 +184,7 @@ fn round_to(v: f64, dec: u8) -> f64 {
     round(v * f) / f
 }
 
-/// `v.round()` (half away from zero, the sign of zero kept) without the call into libm that
-/// `f64::round` is on the x86-64 baseline (no rounding instruction before SSE4.1): truncation
-/// by the integer conversion, and the difference `v − trunc(v)`, exact below 2^52. (The sign
-/// is restored last: `t + 0 − 0` of a negative zero `t` is a positive zero.)
-#[inline(always)]
-pub(crate) fn round(v: f64) -> f64 {
-    if v.is_nan() || v.abs() >= 4.0e15 {
-        return v.round();
-    }
-    let t = (v as i64) as f64;
-    let d = v - t;
-    // Without branches: which way a value rounds is as good as random (a mispredicted branch
-    // on every rewritten number). t ± 1 is exact below 2^52.
-    let up = f64::from(u8::from(d >= 0.5));
-    let down = f64::from(u8::from(d <= -0.5));
-    (t + up - down).copysign(v)
-}
+pub(crate) use truepos_math::fixed::round;
 
 /// One edit of a line, at token `ti`: text inserted before it, its number replaced, or text
 /// inserted after it.
@@ -1134,17 +1038,6 @@ mod tests {
                 want = format!("{want}.{frac}");
             }
             proptest::prop_assert_eq!(&*fmt_num(v, dec), want);
-        }
-    }
-
-    proptest::proptest! {
-        /// The inline rounding is `f64::round`, bit for bit (sign of zero included).
-        #[test]
-        fn round_matches_std(v in proptest::num::f64::ANY, k in 0i32..8) {
-            let v = v / 10f64.powi(k);
-            proptest::prop_assert_eq!(round(v).to_bits(), v.round().to_bits(), "{}", v);
-            let h = (v * 2.0).trunc() / 2.0;
-            proptest::prop_assert_eq!(round(h).to_bits(), h.round().to_bits(), "{}", h);
         }
     }
 

@@ -9,6 +9,10 @@
 //!   kernels, the same loop portable, and the obvious loop with `memchr` for the line ends and
 //!   commas and `fast-float2` for the numbers.
 //!
+//! - `write/*`: the other direction, one million values written with 6 decimals (what
+//!   `--decimals 6` asks for): `num::write_fixed` (the integer route of `truepos_math::fixed`),
+//!   std's `write!("{:.6}")`, and the shortest round-trip text (`zmij`, the default format).
+//!
 //! Run: `cargo bench -p truepos-io --bench readers`. The figures and the decision per kernel are
 //! in docs/performance-io.md ("Hand-written kernels or crates").
 
@@ -122,5 +126,55 @@ fn bench_rows(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench_numbers, bench_rows);
+fn bench_write(c: &mut Criterion) {
+    use std::io::Write;
+    use truepos_io::num::{write_fixed, write_shortest};
+    let n = 1_000_000;
+    let mut x: u64 = 0x2545_f491_4f6c_dd1d;
+    let values: Vec<f64> = (0..n)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x % 2_000_000_000_000) as f64 / 1e9 - 1000.0
+        })
+        .collect();
+    let mut g = c.benchmark_group("write");
+    g.throughput(Throughput::Elements(n as u64));
+    g.sample_size(20);
+    let mut out = Vec::with_capacity(n * 16);
+    g.bench_function("fixed6_truepos", |b| {
+        b.iter(|| {
+            out.clear();
+            for &v in &values {
+                write_fixed(black_box(v), 6, &mut out);
+                out.push(b',');
+            }
+            out.len()
+        })
+    });
+    g.bench_function("fixed6_std_write", |b| {
+        b.iter(|| {
+            out.clear();
+            for &v in &values {
+                let _ = write!(out, "{:.6}", black_box(v));
+                out.push(b',');
+            }
+            out.len()
+        })
+    });
+    g.bench_function("shortest_zmij", |b| {
+        b.iter(|| {
+            out.clear();
+            for &v in &values {
+                write_shortest(black_box(v), &mut out);
+                out.push(b',');
+            }
+            out.len()
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench_numbers, bench_rows, bench_write);
 criterion_main!(benches);

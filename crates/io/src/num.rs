@@ -106,66 +106,45 @@ pub fn write_shortest(v: f64, out: &mut Vec<u8>) {
 }
 
 /// `v` with `dec` decimals.
+///
+/// The integer route (digits of `round(v·10^dec)` by [`truepos_math::fixed`], one copy into
+/// `out`) is taken while |v|·10^dec < 9·10^15 and the scaled value is far from a .5 tie: the
+/// product v·10^dec is one rounding away from exact, so near a tie std's exact decimal
+/// formatting decides.
 #[inline]
 pub fn write_fixed(v: f64, dec: u8, out: &mut Vec<u8>) {
-    let scale = 10u64.pow(dec.min(MAX_DECIMALS) as u32);
-    let scaled = (v * scale as f64).round();
-    // Exact integer arithmetic while |v|·10^dec < 2^53 and the product is exact enough: the
-    // product v·10^dec is one rounding away from exact, so the integer route is used only when
-    // the scaled value is far from a .5 tie (otherwise std's exact decimal formatting decides).
-    let frac_part = (v * scale as f64).abs().fract();
-    if !v.is_finite() || scaled.abs() >= 9.0e15 || (frac_part - 0.5).abs() < 1e-6 + scaled.abs() * 1e-15 {
-        let s = format!("{:.*}", dec as usize, v);
-        let negzero = s.starts_with('-') && s[1..].bytes().all(|c| c == b'0' || c == b'.');
-        out.extend_from_slice(if negzero { &s.as_bytes()[1..] } else { s.as_bytes() });
-        return;
+    use truepos_math::fixed;
+    let p = v * truepos_math::decimal::POW10[dec.min(MAX_DECIMALS) as usize];
+    let scaled = fixed::round(p);
+    // |p|'s fractional part, exact (the difference from the truncation, below 2^52).
+    let frac_part = (p - (p as i64) as f64).abs();
+    // NaN, infinities and huge values take the exact route, as do values near a tie.
+    if scaled.is_nan() || scaled.abs() >= 9.0e15 || (frac_part - 0.5).abs() < 1e-6 + scaled.abs() * 1e-15 {
+        return write_fixed_exact(v, dec, out);
     }
     let n = scaled as i64;
-    if n < 0 {
-        out.push(b'-');
-    }
     let a = n.unsigned_abs();
-    let int = a / scale;
-    let frac = a % scale;
-    let mut ib = itoa_buf(int);
-    out.extend_from_slice(ib.as_bytes());
-    if dec > 0 {
-        out.push(b'.');
-        ib = itoa_buf(frac);
-        for _ in ib.len()..dec as usize {
-            out.push(b'0');
-        }
-        out.extend_from_slice(ib.as_bytes());
+    let neg = usize::from(n < 0);
+    // The digits go straight to their place in `out` (a constant-size zeroed tail, then cut to
+    // the text's length): no stack buffer copied out after byte stores, whose reload stalls.
+    let start = out.len();
+    let end = start + neg + fixed::len(a, dec);
+    out.resize(start + fixed::BUF + 1, 0);
+    fixed::digits(a, dec, &mut out[start + neg..end]);
+    if neg == 1 {
+        out[start] = b'-';
     }
+    out.truncate(end);
 }
 
-/// Decimal digits of `n` (a small stack string).
-fn itoa_buf(mut n: u64) -> ItoaBuf {
-    let mut buf = [0u8; 20];
-    let mut i = 20;
-    loop {
-        i -= 1;
-        buf[i] = b'0' + (n % 10) as u8;
-        n /= 10;
-        if n == 0 {
-            break;
-        }
-    }
-    ItoaBuf { buf, start: i }
-}
-
-struct ItoaBuf {
-    buf: [u8; 20],
-    start: usize,
-}
-
-impl ItoaBuf {
-    fn as_bytes(&self) -> &[u8] {
-        &self.buf[self.start..]
-    }
-    fn len(&self) -> usize {
-        20 - self.start
-    }
+/// [`write_fixed`] by std's exact decimal formatting (non-finite values, huge values, ties); no
+/// `-0.000`.
+#[cold]
+#[inline(never)]
+fn write_fixed_exact(v: f64, dec: u8, out: &mut Vec<u8>) {
+    let s = format!("{:.*}", dec as usize, v);
+    let negzero = s.starts_with('-') && s[1..].bytes().all(|c| c == b'0' || c == b'.');
+    out.extend_from_slice(if negzero { &s.as_bytes()[1..] } else { s.as_bytes() });
 }
 
 #[cfg(test)]

@@ -20,6 +20,8 @@
 //! - [`exit`]: [`exit::ExitClass`], the kind of failure each library error says it is (the
 //!   binary turns it into the exit code).
 //! - [`decimal`]: the exact fast path from decimal text to `f64` that every number reader shares.
+//! - [`fixed`]: fixed-point decimal text of a scaled integer, and a libm-free `round`, that every
+//!   fixed-decimal writer shares.
 
 #![forbid(unsafe_code)]
 
@@ -27,6 +29,7 @@ pub mod air;
 pub mod bestfit;
 pub mod decimal;
 pub mod exit;
+pub mod fixed;
 pub mod interp;
 pub mod lsq;
 pub mod stats;
