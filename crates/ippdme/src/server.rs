@@ -1208,6 +1208,7 @@ impl<M: Cmm> Session<M> {
         if let Err(e) = st.machine.check_scan(nominal, path, tool.radius_mm) {
             return self.refuse_machine(e);
         }
+        let before = st.machine.position();
         let first = ptmeas(st, tool, start_m, n_m, 0.0);
         let first = match first {
             Ok(c) => c,
@@ -1225,9 +1226,18 @@ impl<M: Cmm> Session<M> {
         if let Some(last) = pts.last() {
             let r = tool.ptmeas(Param::Retract).max(0.0);
             let _ = st.machine.move_to(last.tip_center_mm + last.normal * r, 0.0);
+        } else if res.is_err() {
+            // Refused at the start it measured (the nominal start passed the check): undo the
+            // approach the way it came, to the approach point and to where the command found
+            // the machine, so a refused scan leaves the machine where it was.
+            let approach = start_m + n_m * (tool.ptmeas(Param::Approach) + tool.radius_mm);
+            let _ = st.machine.move_to(approach, 0.0);
+            let _ = st.machine.move_to(before, 0.0);
         }
         self.after_move(st, out);
-        res.map_err(machine_error)?;
+        if let Err(e) = res {
+            return self.refuse_machine(e);
+        }
         let (r, t) = csy_transform(st);
         let mut line = String::with_capacity(SCAN_POINTS_PER_LINE * 40);
         for chunk in pts.chunks(SCAN_POINTS_PER_LINE) {

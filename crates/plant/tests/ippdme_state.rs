@@ -193,6 +193,44 @@ fn scans_refused_for_their_size_leave_the_machine_where_it_was() {
     assert_eq!(out.iter().filter(|l| l.contains(" # ")).count(), 1);
 }
 
+/// A scan that passes the check on its nominal start but is refused at the start it measured
+/// (the bore is 5 mm wider than the program says, so two turns at the real radius are over the
+/// 300 s limit while two at the nominal one are not): the machine probes the start, and then,
+/// refused, goes back the way it came, to the approach point and to where the command found it.
+/// Before: it was left at the start contact, the probe on the wall.
+#[test]
+fn a_scan_refused_at_its_measured_start_leaves_the_machine_where_it_was() {
+    // Ø964 bore about the Z axis through a table at Z = 0.
+    let h = start("[[plane]]\nid = \"table\"\npoint_mm = [0, 0, 0]\nnormal = [0, 0, 1]\n\n[[cylinder]]\nid = \"bore\"\npoint_mm = [0, 0, 0]\naxis = [0, 0, 1]\ndiameter_mm = 964\nside = \"inside\"\n");
+    let mut c = Raw::connect(&h);
+    for l in [
+        "00001 StartSession()",
+        "00002 Home()",
+        "00003 ChangeTool(\"Probe1\")",
+        "00004 SetProp(Tool.PtMeasPar.Search(12))",
+    ] {
+        c.ok(l);
+    }
+    c.ok("00005 GoTo(X(0), Y(0), Z(50))");
+    c.ok("00006 GoTo(Z(-10))");
+    c.ok("00007 GoTo(X(400), Y(0), Z(-10))");
+    let before = c.where_();
+    // Nominal: a Ø954 bore (tip centre at 475.5 mm: 5975 mm for two turns, 299 s at 20 mm/s).
+    let e = c.refused(
+        "00008 ScanOnCircle(0, 0, -10, 477, 0, -10, 0, 0, 1, 720, 180, 1)",
+        "1011",
+        &["machine time", "the limit is 300 s per scan"],
+    );
+    eprintln!("{e}");
+    assert_eq!(c.where_(), before, "the refused scan left the machine elsewhere");
+    // The same scan on the nominal radius of the real bore, one turn: runs (the session was not
+    // harmed).
+    let out = c.ok("00009 ScanOnCircle(0, 0, -10, 482, 0, -10, 0, 0, 1, 360, 180, 1)");
+    // One turn in 1° steps: 361 points (X, Y, Z and R each).
+    let values: usize = out.iter().filter(|l| l.contains(" # ")).map(|l| l.split(',').count()).sum();
+    assert!(values >= 4 * 360, "{out:?}");
+}
+
 /// A Ø20 sphere at (800, 800, 20): 1131 mm from the table axis, so a quarter turn of the table
 /// or a steep tilt would carry it beyond the ±1000 mm volume.
 const FAR_PART: &str = "[[sphere]]\nid = \"far\"\ncenter_mm = [800, 800, 20]\ndiameter_mm = 20\n";
