@@ -7,7 +7,8 @@
 //!   delimiter plus `str::parse` (the standard library).
 //! - `rows/*`: 300,000 `x,y,z` rows (one segment, one thread): the readers' loop with the SSSE3
 //!   kernels, the same loop portable, and the obvious loop with `memchr` for the line ends and
-//!   commas and `fast-float2` for the numbers.
+//!   commas and `fast-float2` for the numbers; and the SSSE3 plain-row loop alone with its
+//!   numbers converted by the SSSE3 kernel or by the portable SWAR one.
 //!
 //! - `write/*`: the other direction, one million values written with 6 decimals (what
 //!   `--decimals 6` asks for): `num::write_fixed` (the integer route of `truepos_math::fixed`),
@@ -97,6 +98,22 @@ fn bench_rows(c: &mut Criterion) {
             black_box(out.len())
         })
     });
+    // The plain-row loop alone (stops short of the segment's end), its numbers by the SSSE3
+    // kernel or by the portable SWAR one: does the SSSE3 number kernel earn its place?
+    let plain = kernels::plain_rows3(seg, false, &mut out);
+    out.clear();
+    if let Some(n) = plain {
+        assert!(n + 8 >= rows, "{n} of {rows} rows plain");
+        for (name, swar) in [("plain_loop_ssse3_numbers", false), ("plain_loop_swar_numbers", true)] {
+            g.bench_function(name, |b| {
+                b.iter(|| {
+                    out.clear();
+                    assert_eq!(kernels::plain_rows3(seg, swar, &mut out), Some(n));
+                    black_box(out.len())
+                })
+            });
+        }
+    }
     g.bench_function("truepos_portable", |b| {
         b.iter(|| {
             out.clear();

@@ -135,6 +135,42 @@ pub(super) const PLAIN_BLOCK: usize = 64;
 #[inline]
 pub(super) unsafe fn plain_rows_ssse3<const K: usize>(
     seg: &[u8],
+    pos: usize,
+    cap: usize,
+    put: impl FnMut(usize, [f64; K]),
+) -> (usize, usize) {
+    // SAFETY: the CPU has SSSE3 (this function's contract).
+    unsafe { plain_rows::<K, false>(seg, pos, cap, put) }
+}
+
+/// [`plain_rows_ssse3`] with the numbers converted by the portable SWAR kernel
+/// ([`super::swar::short_decimal_prefix`]) instead of [`plain_field_ssse3`]: the measurement
+/// of whether the SSSE3 number conversion earns its place inside the row loop (criterion
+/// bench `rows/*` of `crates/io/benches/readers.rs`; not used by the readers).
+///
+/// # Safety
+/// The CPU must have SSSE3.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "ssse3")]
+pub(super) unsafe fn plain_rows_masks_swar<const K: usize>(
+    seg: &[u8],
+    pos: usize,
+    cap: usize,
+    put: impl FnMut(usize, [f64; K]),
+) -> (usize, usize) {
+    // SAFETY: the CPU has SSSE3 (this function's contract).
+    unsafe { plain_rows::<K, true>(seg, pos, cap, put) }
+}
+
+/// The plain-row loop of [`plain_rows_ssse3`]; `SWAR`: numbers by the portable kernel.
+///
+/// # Safety
+/// The CPU must have SSSE3.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "ssse3")]
+#[inline]
+unsafe fn plain_rows<const K: usize, const SWAR: bool>(
+    seg: &[u8],
     mut pos: usize,
     cap: usize,
     mut put: impl FnMut(usize, [f64; K]),
@@ -168,8 +204,16 @@ pub(super) unsafe fn plain_rows_ssse3<const K: usize>(
             let e = base + mask.trailing_zeros() as usize;
             mask &= mask - 1;
             let want = if k + 1 < K { b',' } else { b'\n' };
-            // SAFETY: as above.
-            match unsafe { plain_field_ssse3(seg, a, e) } {
+            let x = if SWAR {
+                match seg.get(a..).filter(|b| b.len() >= SHORT_DECIMAL_READ).map(short_decimal_prefix) {
+                    Some(Some((x, used))) if a + used == e => Some(x),
+                    _ => None,
+                }
+            } else {
+                // SAFETY: as above.
+                unsafe { plain_field_ssse3(seg, a, e) }
+            };
+            match x {
                 Some(x) if seg[e] == want => *v = x,
                 _ => return (n, start),
             }
