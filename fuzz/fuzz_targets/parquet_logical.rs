@@ -132,7 +132,7 @@ fuzz_target!(|data: &[u8]| {
     let Ok(file) = std::fs::File::create(path) else { return };
     let Ok(mut w) = SerializedFileWriter::new(file, Arc::new(schema), Arc::new(props)) else { return };
     // The null (if any): the last row of the first column.
-    let null_at = (optional && nulls && rows > 0).then_some(rows - 1);
+    let null_at = (optional && nulls && rows > 0).then(|| rows - 1);
     let groups: Vec<(usize, usize)> =
         if two_groups && rows > 1 { vec![(0, rows / 2), (rows / 2, rows)] } else { vec![(0, rows)] };
     for (a, z) in &groups {
