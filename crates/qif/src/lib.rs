@@ -557,11 +557,7 @@ fn document(r: &Results, chars: &Characteristics, body: &str) -> String {
         "  <Header>\n    <Application>\n      <Name>{}</Name>\n    </Application>\n  </Header>",
         escape(&r.application)
     );
-    let _ = writeln!(
-        doc,
-        "  <StandardsDefinitions n=\"1\">\n    <Standard id=\"{STD_ID}\">\n      <Organization><StandardsOrganizationEnum>ISO</StandardsOrganizationEnum></Organization>\n      <Designator>1101</Designator>\n      <Year>2017</Year>\n    </Standard>\n  </StandardsDefinitions>"
-    );
-    doc.push_str(FILE_UNITS);
+    standards_and_units(&mut doc);
     let n = chars.count;
     if n > 0 {
         let Characteristics { defs, noms, items, .. } = chars;
@@ -586,8 +582,23 @@ fn document(r: &Results, chars: &Characteristics, body: &str) -> String {
         "        <InspectionStatus><InspectionStatusEnum>{}</InspectionStatusEnum></InspectionStatus>\n      </MeasurementResults>\n    </MeasurementResultsSet>\n  </Results>\n",
         chars.inspection()
     );
-    let id = qpid(&doc);
-    let id_max = chars.next - 1;
+    envelope(&doc, chars.next - 1)
+}
+
+/// The standard (ISO 1101:2017, id [`STD_ID`]) and the file units (mm, degrees), after the
+/// header of either document.
+fn standards_and_units(doc: &mut String) {
+    let _ = writeln!(
+        doc,
+        "  <StandardsDefinitions n=\"1\">\n    <Standard id=\"{STD_ID}\">\n      <Organization><StandardsOrganizationEnum>ISO</StandardsOrganizationEnum></Organization>\n      <Designator>1101</Designator>\n      <Year>2017</Year>\n    </Standard>\n  </StandardsDefinitions>"
+    );
+    doc.push_str(FILE_UNITS);
+}
+
+/// The `<QIFDocument>` around the content `doc`: the XML declaration, the root with its
+/// namespace, schema location and `idMax`, and the QPId (a digest of the content).
+fn envelope(doc: &str, id_max: usize) -> String {
+    let id = qpid(doc);
     format!(
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<QIFDocument xmlns=\"http://qifstandards.org/xsd/qif3\" xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\" xsi:schemaLocation=\"http://qifstandards.org/xsd/qif3 ../QIFApplications/QIFDocument.xsd\" versionQIF=\"3.0.0\" idMax=\"{id_max}\">\n  <QPId>{id}</QPId>\n{doc}</QIFDocument>\n"
     )
