@@ -329,6 +329,21 @@ fn unit(v: [f64; 3]) -> Option<Vector3> {
     (n * m > 1e-12).then(|| w / n)
 }
 
+/// `v` normalised, or the specification's error for a vector without length (`what`: the
+/// message).
+fn direction(v: [f64; 3], what: impl Into<String>) -> Result<Vector3, (ErrorCode, String)> {
+    unit(v).ok_or_else(|| (ErrorCode::VECTOR_HAS_NO_NORM, what.into()))
+}
+
+/// The error of a scan that would leave the machine volume, unless every point of `points`
+/// (machine coordinates) is inside it.
+fn scan_in_volume<M: Cmm>(st: &MachineState<M>, points: &[Point3]) -> Answer {
+    if points.iter().any(|p| !in_volume(st, p)) {
+        return fail(ErrorCode::OUT_OF_VOLUME, "scan outside the machine volume");
+    }
+    Ok(())
+}
+
 /// One point's values in report order.
 /// `r_deg` is the rotary table's angle (`R()`, degrees).
 #[allow(clippy::too_many_arguments)]
@@ -480,6 +495,28 @@ impl<M: Cmm> Session<M> {
         } else {
             fail(ErrorCode::BAD_CONTEXT, "the machine is not homed: Home() first")
         }
+    }
+
+    /// The active tool, once the machine is homed and if the tool can measure (else the tool's
+    /// name and `cannot`, e.g. "cannot measure").
+    fn measuring_tool(&self, st: &MachineState<M>, cannot: &str) -> Result<Tool, (ErrorCode, String)> {
+        self.check_homed(st)?;
+        let tool = &st.tools[st.tool];
+        if !tool.can_measure {
+            return fail(ErrorCode::BAD_CONTEXT, format!("{} {cannot}", tool.name));
+        }
+        Ok(tool.clone())
+    }
+
+    /// The rotary table's centre and axis for the part command `what`, once the machine is
+    /// homed.
+    fn homed_table(
+        &self,
+        st: &MachineState<M>,
+        what: &str,
+    ) -> Result<(Point3, Vector3), (ErrorCode, String)> {
+        self.check_homed(st)?;
+        table_axis(st, what)
     }
 
     fn execute(
@@ -740,24 +777,13 @@ impl<M: Cmm> Session<M> {
                 res.map_err(machine_error)?;
             }
             Command::PtMeas { x, y, z, ijk } => {
-                self.check_homed(st)?;
-                if !st.tools[st.tool].can_measure {
-                    return fail(
-                        ErrorCode::BAD_CONTEXT,
-                        format!("{} cannot measure", st.tools[st.tool].name),
-                    );
-                }
+                let tool = self.measuring_tool(st, "cannot measure")?;
                 let cur = to_csy(st, &st.machine.position());
                 let p = Point3::new(x.unwrap_or(cur.x), y.unwrap_or(cur.y), z.unwrap_or(cur.z));
-                let n = match ijk {
-                    Some(v) => unit(*v),
-                    None => unit((cur - p).into()),
-                }
-                .ok_or((ErrorCode::VECTOR_HAS_NO_NORM, "the probing direction has no length".to_string()))?;
+                let n = direction(ijk.unwrap_or((cur - p).into()), "the probing direction has no length")?;
                 let p_m = to_machine(st, &p);
                 let n_m = dir_to_machine(st, &n);
                 self.user_enabled = false;
-                let tool = st.tools[st.tool].clone();
                 let retract = tool.ptmeas(Param::Retract);
                 let contact = ptmeas(st, &tool, p_m, n_m, retract);
                 self.after_move(st, out);
@@ -864,13 +890,7 @@ impl<M: Cmm> Session<M> {
                 }
             }
             Command::ReQualify => {
-                self.check_homed(st)?;
-                if !st.tools[st.tool].can_measure {
-                    return fail(
-                        ErrorCode::BAD_CONTEXT,
-                        format!("{} cannot be qualified", st.tools[st.tool].name),
-                    );
-                }
+                self.measuring_tool(st, "cannot be qualified")?;
                 // The virtual stylus is exact: its qualification is its nominal geometry.
             }
             Command::AlignTool { dir, alpha_deg, second } => {
@@ -944,8 +964,7 @@ impl<M: Cmm> Session<M> {
         let data = |s: String| Response::data(tag, s);
         match cmd {
             Command::AlignPart { part, machine, alpha_deg, second } => {
-                self.check_homed(st)?;
-                let (_, axis) = table_axis(st, "AlignPart")?;
+                let (_, axis) = self.homed_table(st, "AlignPart")?;
                 // Both vectors projected into the table plane; they must not lie along the axis.
                 let project = |v: [f64; 3], what: &str| {
                     let no_norm = (
@@ -983,8 +1002,7 @@ impl<M: Cmm> Session<M> {
                 out.push(data(s));
             }
             Command::CenterPart { point, limit } => {
-                self.check_homed(st)?;
-                let (o, axis) = table_axis(st, "CenterPart")?;
+                let (o, axis) = self.homed_table(st, "CenterPart")?;
                 let p = to_machine(st, &Point3::from(*point));
                 if !in_volume(st, &p) {
                     return self.refuse(
@@ -1005,10 +1023,8 @@ impl<M: Cmm> Session<M> {
                 out.push(data(format!("CenterPart({})", (!moved) as u8)));
             }
             Command::TiltPart { dir, limit } => {
-                self.check_homed(st)?;
-                let (o, axis) = table_axis(st, "TiltPart")?;
-                let d =
-                    unit(*dir).ok_or((ErrorCode::VECTOR_HAS_NO_NORM, "TiltPart direction".to_string()))?;
+                let (o, axis) = self.homed_table(st, "TiltPart")?;
+                let d = direction(*dir, "TiltPart direction")?;
                 let mut d = dir_to_machine(st, &d);
                 if d.dot(&axis) < 0.0 {
                     d = -d;
@@ -1024,8 +1040,7 @@ impl<M: Cmm> Session<M> {
                 out.push(data(format!("TiltPart({})", (!moved) as u8)));
             }
             Command::TiltCenterPart { first, second, limit } => {
-                self.check_homed(st)?;
-                let (o, axis) = table_axis(st, "TiltCenterPart")?;
+                let (o, axis) = self.homed_table(st, "TiltCenterPart")?;
                 let p1 = to_machine(st, &Point3::from(*first));
                 let p2 = to_machine(st, &Point3::from(*second));
                 if !in_volume(st, &p1) || !in_volume(st, &p2) {
@@ -1076,13 +1091,8 @@ impl<M: Cmm> Session<M> {
             }
             Command::ScanUnknownHint(_) => {}
             Command::ScanOnCircle { center, start, normal, delta_deg, sfa_deg, step_deg } => {
-                self.check_homed(st)?;
-                let tool = st.tools[st.tool].clone();
-                if !tool.can_measure {
-                    return fail(ErrorCode::BAD_CONTEXT, format!("{} cannot measure", tool.name));
-                }
-                let axis =
-                    unit(*normal).ok_or((ErrorCode::VECTOR_HAS_NO_NORM, "circle normal".to_string()))?;
+                let tool = self.measuring_tool(st, "cannot measure")?;
+                let axis = direction(*normal, "circle normal")?;
                 let c = Point3::from(*center);
                 let s = Point3::from(*start);
                 let radial = s - c;
@@ -1100,9 +1110,7 @@ impl<M: Cmm> Session<M> {
                     return fail(ErrorCode::INCORRECT_ARGUMENTS, "delta is zero");
                 }
                 let (c_m, s_m, axis_m) = (to_machine(st, &c), to_machine(st, &s), dir_to_machine(st, &axis));
-                if !in_volume(st, &c_m) || !in_volume(st, &s_m) {
-                    return fail(ErrorCode::OUT_OF_VOLUME, "scan outside the machine volume");
-                }
+                scan_in_volume(st, &[c_m, s_m])?;
                 let u = (s_m - c_m).normalize();
                 let sfa = sfa_deg.to_radians();
                 let n0 = (u * sfa.cos() + axis_m * sfa.sin()).normalize();
@@ -1115,12 +1123,8 @@ impl<M: Cmm> Session<M> {
                 self.run_scan(tag, st, &tool, s_m, n0, &path, out)?;
             }
             Command::ScanOnLine { start, end, normal, step_mm } => {
-                self.check_homed(st)?;
-                let tool = st.tools[st.tool].clone();
-                if !tool.can_measure {
-                    return fail(ErrorCode::BAD_CONTEXT, format!("{} cannot measure", tool.name));
-                }
-                let n = unit(*normal).ok_or((ErrorCode::VECTOR_HAS_NO_NORM, "surface normal".to_string()))?;
+                let tool = self.measuring_tool(st, "cannot measure")?;
+                let n = direction(*normal, "surface normal")?;
                 let (s, e) = (Point3::from(*start), Point3::from(*end));
                 let len = (e - s).norm();
                 if len < 1e-9 {
@@ -1133,9 +1137,7 @@ impl<M: Cmm> Session<M> {
                     );
                 }
                 let (s_m, e_m, n_m) = (to_machine(st, &s), to_machine(st, &e), dir_to_machine(st, &n));
-                if !in_volume(st, &s_m) || !in_volume(st, &e_m) {
-                    return fail(ErrorCode::OUT_OF_VOLUME, "scan outside the machine volume");
-                }
+                scan_in_volume(st, &[s_m, e_m])?;
                 let path = ScanPath::Line { direction: (e_m - s_m) / len, length_mm: len, step_mm: *step_mm };
                 self.run_scan(tag, st, &tool, s_m, n_m, &path, out)?;
             }
@@ -1146,11 +1148,7 @@ impl<M: Cmm> Session<M> {
                         return fail(ErrorCode::OUT_OF_VOLUME, "scan point outside the machine volume");
                     }
                 }
-                self.check_homed(st)?;
-                let tool = st.tools[st.tool].clone();
-                if !tool.can_measure {
-                    return fail(ErrorCode::BAD_CONTEXT, format!("{} cannot measure", tool.name));
-                }
+                let tool = self.measuring_tool(st, "cannot measure")?;
                 // Everything to machine coordinates.
                 let pm = |p: &Point3| to_machine(st, p);
                 let vm = |v: &Vector3| dir_to_machine(st, v);
@@ -1313,10 +1311,7 @@ struct UnknownScanArgs {
 /// suite's) and of 1.4.3 (which adds the scan-plane normal and the sphere's count `n`).
 fn unknown_scan(kind: UnknownScan, a: &[f64]) -> Result<UnknownScanArgs, (ErrorCode, String)> {
     let p3 = |k: usize| Point3::new(a[k], a[k + 1], a[k + 2]);
-    let v3 = |k: usize, what: &str| {
-        unit([a[k], a[k + 1], a[k + 2]])
-            .ok_or((ErrorCode::VECTOR_HAS_NO_NORM, format!("{what} has no length")))
-    };
+    let v3 = |k: usize, what: &str| direction([a[k], a[k + 1], a[k + 2]], format!("{what} has no length"));
     let positive = |k: usize, what: &str| {
         if a[k] > 0.0 {
             Ok(a[k])

@@ -557,11 +557,7 @@ fn document(r: &Results, chars: &Characteristics, body: &str) -> String {
         "  <Header>\n    <Application>\n      <Name>{}</Name>\n    </Application>\n  </Header>",
         escape(&r.application)
     );
-    let _ = writeln!(
-        doc,
-        "  <StandardsDefinitions n=\"1\">\n    <Standard id=\"{STD_ID}\">\n      <Organization><StandardsOrganizationEnum>ISO</StandardsOrganizationEnum></Organization>\n      <Designator>1101</Designator>\n      <Year>2017</Year>\n    </Standard>\n  </StandardsDefinitions>"
-    );
-    doc.push_str(FILE_UNITS);
+    standards_and_units(&mut doc);
     let n = chars.count;
     if n > 0 {
         let Characteristics { defs, noms, items, .. } = chars;
@@ -586,8 +582,23 @@ fn document(r: &Results, chars: &Characteristics, body: &str) -> String {
         "        <InspectionStatus><InspectionStatusEnum>{}</InspectionStatusEnum></InspectionStatus>\n      </MeasurementResults>\n    </MeasurementResultsSet>\n  </Results>\n",
         chars.inspection()
     );
-    let id = qpid(&doc);
-    let id_max = chars.next - 1;
+    envelope(&doc, chars.next - 1)
+}
+
+/// The standard (ISO 1101:2017, id [`STD_ID`]) and the file units (mm, degrees), after the
+/// header of either document.
+fn standards_and_units(doc: &mut String) {
+    let _ = writeln!(
+        doc,
+        "  <StandardsDefinitions n=\"1\">\n    <Standard id=\"{STD_ID}\">\n      <Organization><StandardsOrganizationEnum>ISO</StandardsOrganizationEnum></Organization>\n      <Designator>1101</Designator>\n      <Year>2017</Year>\n    </Standard>\n  </StandardsDefinitions>"
+    );
+    doc.push_str(FILE_UNITS);
+}
+
+/// The `<QIFDocument>` around the content `doc`: the XML declaration, the root with its
+/// namespace, schema location and `idMax`, and the QPId (a digest of the content).
+fn envelope(doc: &str, id_max: usize) -> String {
+    let id = qpid(doc);
     format!(
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<QIFDocument xmlns=\"http://qifstandards.org/xsd/qif3\" xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\" xsi:schemaLocation=\"http://qifstandards.org/xsd/qif3 ../QIFApplications/QIFDocument.xsd\" versionQIF=\"3.0.0\" idMax=\"{id_max}\">\n  <QPId>{id}</QPId>\n{doc}</QIFDocument>\n"
     )
@@ -678,47 +689,11 @@ pub fn read_plan(text: &str, kind: FeatureKind) -> Result<Plan, PlanError> {
     truepos_io::xml::check_depth(text)?;
     let opt = roxmltree::ParsingOptions { allow_dtd: false, nodes_limit: truepos_io::xml::MAX_XML_NODES };
     let doc = roxmltree::Document::parse_with_options(text, opt)?;
-    let root = doc.root_element();
-    if root.tag_name().name() != "QIFDocument" {
-        return Err(PlanError::NotQif(root.tag_name().name().to_string()));
-    }
-    if let Some(ns) = root.tag_name().namespace().filter(|n| *n != QIF_NS) {
-        return Err(PlanError::WrongNamespace(ns.to_string()));
-    }
-    // One characteristics block: a second one would be silently ignored.
-    let blocks: Vec<_> = elems(Some(root), "Characteristics");
-    if let Some(second) = blocks.get(1) {
-        return Err(at(
-            &doc,
-            *second,
-            "a second <Characteristics> block (a QIF document has at most one; truepos would read only the first)".into(),
-        ));
-    }
+    let root = qif_root(&doc)?;
     let mut plan = Plan { unit: "mm".into(), ..Default::default() };
-    // Linear unit → mm.
     let mut scale = 1.0;
-    if let Some(lu) =
-        child(root, "FileUnits").and_then(|u| child(u, "PrimaryUnits")).and_then(|u| child(u, "LinearUnit"))
-    {
-        let name = child(lu, "UnitName").and_then(|n| n.text()).unwrap_or("").trim().to_string();
-        scale = match child(lu, "UnitConversion").and_then(|c| child(c, "Factor")) {
-            Some(f) => number(&doc, f, 1000.0)?,
-            None => match name.to_ascii_lowercase().as_str() {
-                "mm" | "millimeter" | "millimetre" => 1.0,
-                "inch" | "in" => 25.4,
-                "m" | "meter" | "metre" => 1000.0,
-                _ => {
-                    return Err(at(
-                        &doc,
-                        lu,
-                        format!("unknown linear unit '{name}' without a UnitConversion factor"),
-                    ))
-                }
-            },
-        };
-        if scale.is_nan() || scale <= 0.0 {
-            return Err(at(&doc, lu, "the linear unit's conversion factor is not positive".into()));
-        }
+    if let Some((factor, name)) = linear_unit(&doc, root)? {
+        scale = factor;
         plan.unit = name;
     }
     let Some(chars) = child(root, "Characteristics") else {
@@ -726,130 +701,11 @@ pub fn read_plan(text: &str, kind: FeatureKind) -> Result<Plan, PlanError> {
     };
     let defs = child(chars, "CharacteristicDefinitions");
     let noms = child(chars, "CharacteristicNominals");
-    let dia: Vec<_> = elems(defs, "DiameterCharacteristicDefinition");
-    if dia.len() > 1 {
-        return Err(PlanError::Unsupported(format!(
-            "the QIF document has {} diameter characteristics; truepos fit reads exactly one",
-            dia.len()
-        )));
-    }
-    if let Some(d) = dia.first() {
-        let id = d.attribute("id").unwrap_or("");
-        let Some(tol) = child(*d, "Tolerance") else {
-            return Err(at(
-                &doc,
-                *d,
-                "the diameter characteristic has no <Tolerance> (limits-and-fits codes and non-toleranced characteristics are not supported)".into(),
-            ));
-        };
-        if child(tol, "DefinitionId").is_some() {
-            return Err(at(
-                &doc,
-                tol,
-                "a tolerance given by reference (DefinitionId) is not supported".into(),
-            ));
-        }
-        let max = child(tol, "MaxValue").map(|n| number(&doc, n, scale)).transpose()?;
-        let min = child(tol, "MinValue").map(|n| number(&doc, n, scale)).transpose()?;
-        let limit = match child(tol, "DefinedAsLimit") {
-            None => None,
-            Some(n) => Some(match n.text().unwrap_or("").trim() {
-                "true" | "1" => true,
-                "false" | "0" => false,
-                t => {
-                    return Err(at(
-                        &doc,
-                        n,
-                        format!("<DefinedAsLimit> is '{t}', not an xsd:boolean (true, false, 1 or 0)"),
-                    ))
-                }
-            }),
-        };
-        let nominals: Vec<_> = elems(noms, "DiameterCharacteristicNominal")
-            .into_iter()
-            .filter(|n| {
-                child(*n, "CharacteristicDefinitionId").and_then(|c| c.text()).map(str::trim) == Some(id)
-            })
-            .collect();
-        if let Some(second) = nominals.get(1) {
-            let first = doc.text_pos_at(nominals[0].range().start);
-            return Err(at(
-                &doc,
-                *second,
-                format!(
-                    "a second nominal for the diameter characteristic '{id}' (the first is on line {}): the nominal is ambiguous",
-                    first.row
-                ),
-            ));
-        }
-        let target = nominals
-            .first()
-            .and_then(|n| child(*n, "TargetValue"))
-            .map(|n| number(&doc, n, scale))
-            .transpose()?;
-        let (Some(max), Some(min)) = (max, min) else {
-            return Err(at(
-                &doc,
-                tol,
-                "a one-sided diameter tolerance (only MaxValue or MinValue) is not supported".into(),
-            ));
-        };
-        let triple = if limit == Some(true) {
-            // Limits of size: the nominal is the target when given, else the mid-limit (halves
-            // first: the sum of two large limits can overflow).
-            let nominal = target.unwrap_or(0.5 * min + 0.5 * max);
-            let triple = (nominal, min - nominal, max - nominal);
-            if !(triple.1.is_finite() && triple.2.is_finite()) {
-                return Err(at(
-                    &doc,
-                    tol,
-                    "the limits of size are too far from the nominal (deviations out of range)".into(),
-                ));
-            }
-            triple
-        } else {
-            let Some(nominal) = target else {
-                return Err(at(
-                    &doc,
-                    *d,
-                    "the diameter characteristic's nominal has no <TargetValue> (needed with deviations)"
-                        .into(),
-                ));
-            };
-            (nominal, min, max)
-        };
-        plan.diameter = Some(triple);
-    }
+    let reader = PlanReader { doc: &doc, scale };
+    plan.diameter = reader.diameter(defs, noms)?;
     let form_name = format!("{}CharacteristicDefinition", form_characteristic(kind));
-    let forms = elems(defs, &form_name);
-    if forms.len() > 1 {
-        return Err(PlanError::Unsupported(format!(
-            "the QIF document has {} {} characteristics; truepos fit reads at most one",
-            forms.len(),
-            form_characteristic(kind).to_lowercase()
-        )));
-    }
-    if let Some(f) = forms.first() {
-        let Some(tv) = child(*f, "ToleranceValue") else {
-            return Err(at(
-                &doc,
-                *f,
-                "the form characteristic has no <ToleranceValue> (per-unit zones are not supported)".into(),
-            ));
-        };
-        plan.form_tolerance = Some(number(&doc, tv, scale)?);
-    }
-    if let Some(d) = defs {
-        for c in d.children().filter(|c| c.is_element()) {
-            let n = c.tag_name().name();
-            if n != "DiameterCharacteristicDefinition" && n != form_name {
-                let s = format!("{n} (not read)");
-                if !plan.ignored.contains(&s) {
-                    plan.ignored.push(s);
-                }
-            }
-        }
-    }
+    plan.form_tolerance = reader.form_tolerance(defs, kind, &form_name)?;
+    plan.ignored = not_read(defs, &form_name);
     if plan.diameter.is_none() && plan.form_tolerance.is_none() {
         return Err(PlanError::Unsupported(format!(
             "the QIF document has neither a diameter characteristic nor a {} characteristic",
@@ -857,6 +713,237 @@ pub fn read_plan(text: &str, kind: FeatureKind) -> Result<Plan, PlanError> {
         )));
     }
     Ok(plan)
+}
+
+/// The root `<QIFDocument>` of a QIF 3 document with at most one `<Characteristics>` block (a
+/// second one would be silently ignored).
+fn qif_root<'a, 'i>(doc: &'a roxmltree::Document<'i>) -> Result<roxmltree::Node<'a, 'i>, PlanError> {
+    let root = doc.root_element();
+    if root.tag_name().name() != "QIFDocument" {
+        return Err(PlanError::NotQif(root.tag_name().name().to_string()));
+    }
+    if let Some(ns) = root.tag_name().namespace().filter(|n| *n != QIF_NS) {
+        return Err(PlanError::WrongNamespace(ns.to_string()));
+    }
+    let blocks: Vec<_> = elems(Some(root), "Characteristics");
+    if let Some(second) = blocks.get(1) {
+        return Err(at(
+            doc,
+            *second,
+            "a second <Characteristics> block (a QIF document has at most one; truepos would read only the first)".into(),
+        ));
+    }
+    Ok(root)
+}
+
+/// The file's linear unit: its factor to mm and its name as the file gives it (`None` when the
+/// file declares no linear unit, i.e. mm).
+fn linear_unit(doc: &roxmltree::Document, root: roxmltree::Node) -> Result<Option<(f64, String)>, PlanError> {
+    let Some(lu) =
+        child(root, "FileUnits").and_then(|u| child(u, "PrimaryUnits")).and_then(|u| child(u, "LinearUnit"))
+    else {
+        return Ok(None);
+    };
+    let name = child(lu, "UnitName").and_then(|n| n.text()).unwrap_or("").trim().to_string();
+    let scale = match child(lu, "UnitConversion").and_then(|c| child(c, "Factor")) {
+        Some(f) => number(doc, f, 1000.0)?,
+        None => match name.to_ascii_lowercase().as_str() {
+            "mm" | "millimeter" | "millimetre" => 1.0,
+            "inch" | "in" => 25.4,
+            "m" | "meter" | "metre" => 1000.0,
+            _ => {
+                return Err(at(
+                    doc,
+                    lu,
+                    format!("unknown linear unit '{name}' without a UnitConversion factor"),
+                ))
+            }
+        },
+    };
+    if scale.is_nan() || scale <= 0.0 {
+        return Err(at(doc, lu, "the linear unit's conversion factor is not positive".into()));
+    }
+    Ok(Some((scale, name)))
+}
+
+/// The characteristic definitions other than the diameter and the form `form_name`, each named
+/// once as not read.
+fn not_read(defs: Option<roxmltree::Node>, form_name: &str) -> Vec<String> {
+    let mut ignored = Vec::new();
+    if let Some(d) = defs {
+        for c in d.children().filter(|c| c.is_element()) {
+            let n = c.tag_name().name();
+            if n != "DiameterCharacteristicDefinition" && n != form_name {
+                let s = format!("{n} (not read)");
+                if !ignored.contains(&s) {
+                    ignored.push(s);
+                }
+            }
+        }
+    }
+    ignored
+}
+
+/// A plan's characteristics being read: the document (for the places in errors) and the factor
+/// from its linear unit to mm.
+struct PlanReader<'a, 'i> {
+    /// The parsed plan.
+    doc: &'a roxmltree::Document<'i>,
+    /// Millimetres per unit of the file.
+    scale: f64,
+}
+
+impl<'i> PlanReader<'_, 'i> {
+    /// The error `why` at the element `n`.
+    fn at(&self, n: roxmltree::Node, why: &str) -> PlanError {
+        at(self.doc, n, why.to_string())
+    }
+
+    /// The length in the element `n`, in mm.
+    fn length(&self, n: roxmltree::Node) -> Result<f64, PlanError> {
+        number(self.doc, n, self.scale)
+    }
+
+    /// The one diameter characteristic (nominal, lower and upper deviation, mm) of the
+    /// definitions `defs` with its nominal among `noms`, if there is one.
+    fn diameter(
+        &self,
+        defs: Option<roxmltree::Node<'_, 'i>>,
+        noms: Option<roxmltree::Node<'_, 'i>>,
+    ) -> Result<Option<(f64, f64, f64)>, PlanError> {
+        let dia: Vec<_> = elems(defs, "DiameterCharacteristicDefinition");
+        if dia.len() > 1 {
+            return Err(PlanError::Unsupported(format!(
+                "the QIF document has {} diameter characteristics; truepos fit reads exactly one",
+                dia.len()
+            )));
+        }
+        let Some(d) = dia.first() else {
+            return Ok(None);
+        };
+        let id = d.attribute("id").unwrap_or("");
+        let tol = self.tolerance(*d)?;
+        let max = child(tol, "MaxValue").map(|n| self.length(n)).transpose()?;
+        let min = child(tol, "MinValue").map(|n| self.length(n)).transpose()?;
+        let limit = self.defined_as_limit(tol)?;
+        let target = self.target(noms, id)?;
+        let (Some(max), Some(min)) = (max, min) else {
+            return Err(
+                self.at(tol, "a one-sided diameter tolerance (only MaxValue or MinValue) is not supported")
+            );
+        };
+        if limit == Some(true) {
+            return self.limits_of_size(tol, min, max, target).map(Some);
+        }
+        let Some(nominal) = target else {
+            return Err(self.at(
+                *d,
+                "the diameter characteristic's nominal has no <TargetValue> (needed with deviations)",
+            ));
+        };
+        Ok(Some((nominal, min, max)))
+    }
+
+    /// The `<Tolerance>` of the diameter definition `d`, given in place (not by reference).
+    fn tolerance<'a>(&self, d: roxmltree::Node<'a, 'i>) -> Result<roxmltree::Node<'a, 'i>, PlanError> {
+        let Some(tol) = child(d, "Tolerance") else {
+            return Err(self.at(
+                d,
+                "the diameter characteristic has no <Tolerance> (limits-and-fits codes and non-toleranced characteristics are not supported)",
+            ));
+        };
+        if child(tol, "DefinitionId").is_some() {
+            return Err(self.at(tol, "a tolerance given by reference (DefinitionId) is not supported"));
+        }
+        Ok(tol)
+    }
+
+    /// The tolerance's `<DefinedAsLimit>` (an xsd:boolean), if it has one.
+    fn defined_as_limit(&self, tol: roxmltree::Node) -> Result<Option<bool>, PlanError> {
+        let Some(n) = child(tol, "DefinedAsLimit") else {
+            return Ok(None);
+        };
+        match n.text().unwrap_or("").trim() {
+            "true" | "1" => Ok(Some(true)),
+            "false" | "0" => Ok(Some(false)),
+            t => Err(at(
+                self.doc,
+                n,
+                format!("<DefinedAsLimit> is '{t}', not an xsd:boolean (true, false, 1 or 0)"),
+            )),
+        }
+    }
+
+    /// The `TargetValue` (mm) of the one nominal among `noms` of the diameter definition `id`,
+    /// if it has a nominal with one; a second nominal is ambiguous.
+    fn target(&self, noms: Option<roxmltree::Node<'_, 'i>>, id: &str) -> Result<Option<f64>, PlanError> {
+        let nominals: Vec<_> = elems(noms, "DiameterCharacteristicNominal")
+            .into_iter()
+            .filter(|n| {
+                child(*n, "CharacteristicDefinitionId").and_then(|c| c.text()).map(str::trim) == Some(id)
+            })
+            .collect();
+        if let Some(second) = nominals.get(1) {
+            let first = self.doc.text_pos_at(nominals[0].range().start);
+            return Err(at(
+                self.doc,
+                *second,
+                format!(
+                    "a second nominal for the diameter characteristic '{id}' (the first is on line {}): the nominal is ambiguous",
+                    first.row
+                ),
+            ));
+        }
+        nominals.first().and_then(|n| child(*n, "TargetValue")).map(|n| self.length(n)).transpose()
+    }
+
+    /// Limits of size `min`, `max` of the tolerance `tol` as nominal and deviations: the
+    /// nominal is the target when given, else the mid-limit (halves first: the sum of two large
+    /// limits can overflow).
+    fn limits_of_size(
+        &self,
+        tol: roxmltree::Node,
+        min: f64,
+        max: f64,
+        target: Option<f64>,
+    ) -> Result<(f64, f64, f64), PlanError> {
+        let nominal = target.unwrap_or(0.5 * min + 0.5 * max);
+        let triple = (nominal, min - nominal, max - nominal);
+        if !(triple.1.is_finite() && triple.2.is_finite()) {
+            return Err(
+                self.at(tol, "the limits of size are too far from the nominal (deviations out of range)")
+            );
+        }
+        Ok(triple)
+    }
+
+    /// The tolerance value (mm) of the one form characteristic `form_name` of `kind` among the
+    /// definitions `defs`, if there is one.
+    fn form_tolerance(
+        &self,
+        defs: Option<roxmltree::Node>,
+        kind: FeatureKind,
+        form_name: &str,
+    ) -> Result<Option<f64>, PlanError> {
+        let forms = elems(defs, form_name);
+        if forms.len() > 1 {
+            return Err(PlanError::Unsupported(format!(
+                "the QIF document has {} {} characteristics; truepos fit reads at most one",
+                forms.len(),
+                form_characteristic(kind).to_lowercase()
+            )));
+        }
+        let Some(f) = forms.first() else {
+            return Ok(None);
+        };
+        let Some(tv) = child(*f, "ToleranceValue") else {
+            return Err(self.at(
+                *f,
+                "the form characteristic has no <ToleranceValue> (per-unit zones are not supported)",
+            ));
+        };
+        self.length(tv).map(Some)
+    }
 }
 
 #[cfg(test)]

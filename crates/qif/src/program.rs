@@ -25,7 +25,7 @@
 //! | `Position` | Position (`DiametricalZone`, 2D, or `SphericalZone`, 3D; `REGARDLESS`) | `ToleranceValue`, DRF | — | zone diameter |
 //! | `Perpendicularity`, `Parallelism` | the same (`PlanarZone` for planes, `DiametricalZone` for axes) | `ToleranceValue`, DRF | — | zone width |
 
-use super::{check, dec, escape, qpid, scalar_unc, token, vec3, vec_unc, Status, Value, WriteError, STD_ID};
+use super::{check, dec, escape, scalar_unc, token, vec3, vec_unc, Status, Value, WriteError, STD_ID};
 use std::fmt::Write as _;
 
 /// The geometry kinds of a feature result.
@@ -346,129 +346,90 @@ const PRECEDENCE: [&str; 3] = ["PRIMARY", "SECONDARY", "TERTIARY"];
 /// measurements, and four per characteristic (definition, nominal, item, measurement).
 pub fn write_program_results(r: &ProgramResults) -> Result<String, WriteError> {
     check_program(r)?;
-    let mut next = super::RES_ID + 1;
-    let mut take = || {
-        let id = next;
-        next += 1;
-        id
-    };
-    // Datums: one definition per label, one frame per ordered list.
-    let mut labels: Vec<&str> = Vec::new();
-    let mut frames: Vec<&[String]> = Vec::new();
-    for c in r.characteristics.iter().filter(|c| c.kind.has_datums() && !c.datums.is_empty()) {
-        for d in &c.datums {
-            if !labels.contains(&d.as_str()) {
-                labels.push(d);
-            }
-        }
-        if !frames.contains(&c.datums.as_slice()) {
-            frames.push(&c.datums);
-        }
-    }
-    let label_ids: Vec<usize> = labels.iter().map(|_| take()).collect();
-    let frame_ids: Vec<usize> = frames.iter().map(|_| take()).collect();
-    let feature_ids: Vec<usize> = r.features.iter().map(|_| take()).collect();
-    let mut defs = String::new();
-    let mut noms = String::new();
-    let mut items = String::new();
-    let mut meas = String::new();
-    let mut statuses = Vec::new();
+    let mut ids = Ids { next: super::RES_ID + 1 };
+    let datums = Datums::of(r, &mut ids);
+    let feature_ids: Vec<usize> = r.features.iter().map(|_| ids.take()).collect();
+    let mut chars = CharacteristicLists::default();
     for c in &r.characteristics {
-        let (def, nom, item, m) = (take(), take(), take(), take());
-        let t = c.kind.qif();
-        let drf = (c.kind.has_datums() && !c.datums.is_empty())
-            .then(|| frames.iter().position(|f| *f == c.datums.as_slice()).map(|k| frame_ids[k]))
-            .flatten();
-        let drf_xml = drf
-            .map(|id| format!("\n        <DatumReferenceFrameId>{id}</DatumReferenceFrameId>"))
-            .unwrap_or_default();
-        // Definition.
-        let body = match (c.kind, c.tolerance) {
-            (_, Tolerance::Limits { lower, upper, .. }) => format!(
-                "        <Tolerance><MaxValue>{}</MaxValue><MinValue>{}</MinValue><DefinedAsLimit>false</DefinedAsLimit></Tolerance>",
-                dec(upper),
-                dec(lower)
-            ),
-            (CharacteristicKind::Position { three_d }, Tolerance::Zone(z)) => format!(
-                "        <ToleranceValue>{}</ToleranceValue>{drf_xml}\n        <MaterialCondition>REGARDLESS</MaterialCondition>\n        <ZoneShape>{}</ZoneShape>",
-                dec(z),
-                if three_d {
-                    "<SphericalZone/>"
-                } else {
-                    "<DiametricalZone><Dimensionality>TWODIMENSIONAL</Dimensionality></DiametricalZone>"
-                }
-            ),
-            (
-                CharacteristicKind::Perpendicularity { axis } | CharacteristicKind::Parallelism { axis },
-                Tolerance::Zone(z),
-            ) => format!(
-                "        <ToleranceValue>{}</ToleranceValue>{drf_xml}\n        <MaterialCondition>NONE</MaterialCondition>\n        <ZoneShape>{}</ZoneShape>",
-                dec(z),
-                if axis { "<DiametricalZone/>" } else { "<PlanarZone/>" }
-            ),
-            (_, Tolerance::Zone(z)) => format!("        <ToleranceValue>{}</ToleranceValue>", dec(z)),
-        };
-        let _ = writeln!(
-            defs,
-            "      <{t}CharacteristicDefinition id=\"{def}\">\n{body}\n      </{t}CharacteristicDefinition>"
-        );
-        // Nominal.
-        let target = match c.tolerance {
-            Tolerance::Limits { nominal, .. } => {
-                format!("\n        <TargetValue>{}</TargetValue>", dec(nominal))
-            }
-            Tolerance::Zone(_) => String::new(),
-        };
-        // The analysis mode the schema requires of the between-characteristics.
-        let target = match (c.kind, c.analysis_vector) {
-            (CharacteristicKind::DistanceBetween, Some(v)) => format!(
-                "{target}\n        <AnalysisVector>{}</AnalysisVector>\n        <AnalysisMode>ONEDIMENSIONAL</AnalysisMode>",
-                vec3(&v)
-            ),
-            (CharacteristicKind::DistanceBetween | CharacteristicKind::AngleBetween, _) => {
-                format!("{target}\n        <AnalysisMode>THREEDIMENSIONAL</AnalysisMode>")
-            }
-            _ => target,
-        };
-        let _ = writeln!(
-            noms,
-            "      <{t}CharacteristicNominal id=\"{nom}\">\n        <CharacteristicDefinitionId>{def}</CharacteristicDefinitionId>{target}\n      </{t}CharacteristicNominal>"
-        );
-        // Item.
-        let _ = writeln!(
-            items,
-            "      <{t}CharacteristicItem id=\"{item}\">\n        <Name>{}</Name>\n        <CharacteristicNominalId>{nom}</CharacteristicNominalId>\n      </{t}CharacteristicItem>",
-            token(&c.label)
-        );
-        // Measurement.
-        let ids: Vec<String> = c.features.iter().map(|k| format!("<Id>{}</Id>", feature_ids[*k])).collect();
-        let unc = scalar_unc(&c.value.uncertainty);
-        let _ = writeln!(
-            meas,
-            "            <{t}CharacteristicMeasurement id=\"{m}\">\n              <Status><CharacteristicStatusEnum>{}</CharacteristicStatusEnum></Status>\n              <CharacteristicItemId>{item}</CharacteristicItemId>\n              <FeatureMeasurementIds n=\"{}\">{}</FeatureMeasurementIds>\n              <Value{unc}>{}</Value>\n            </{t}CharacteristicMeasurement>",
-            c.status.characteristic(),
-            ids.len(),
-            ids.join(""),
-            dec(c.value.value)
-        );
-        statuses.push(c.status);
+        chars.add(c, &mut ids, datums.frame_of(c), &feature_ids);
     }
-    let id_max = next - 1;
     let mut doc = String::new();
-    let _ = writeln!(
-        doc,
-        "  <Header>\n    <Application>\n      <Name>{}</Name>\n    </Application>\n    <Description>{}</Description>\n  </Header>",
-        escape(&r.application),
-        escape(&format!("inspection program {}", r.program))
-    );
-    let _ = writeln!(
-        doc,
-        "  <StandardsDefinitions n=\"1\">\n    <Standard id=\"{STD_ID}\">\n      <Organization><StandardsOrganizationEnum>ISO</StandardsOrganizationEnum></Organization>\n      <Designator>1101</Designator>\n      <Year>2017</Year>\n    </Standard>\n  </StandardsDefinitions>"
-    );
-    doc.push_str(super::FILE_UNITS);
-    if !labels.is_empty() {
-        let _ = writeln!(doc, "  <DatumDefinitions n=\"{}\">", labels.len());
-        for (l, id) in labels.iter().zip(&label_ids) {
+    header_xml(&mut doc, r);
+    super::standards_and_units(&mut doc);
+    datums.write(&mut doc);
+    chars.write_characteristics(&mut doc);
+    results_xml(&mut doc, r, &feature_ids, &chars);
+    Ok(super::envelope(&doc, ids.max()))
+}
+
+/// The element ids of a program's document, handed out in document order.
+struct Ids {
+    /// The next id to hand out.
+    next: usize,
+}
+
+impl Ids {
+    /// The next free id.
+    fn take(&mut self) -> usize {
+        let id = self.next;
+        self.next += 1;
+        id
+    }
+
+    /// The largest id handed out (the document's `idMax`).
+    fn max(&self) -> usize {
+        self.next - 1
+    }
+}
+
+/// The datums the tolerances name: one definition per label and one reference frame per
+/// distinct ordered list (in order of first use), with their ids.
+struct Datums<'a> {
+    /// Datum labels, each once.
+    labels: Vec<&'a str>,
+    /// The id of each label's `DatumDefinition`.
+    label_ids: Vec<usize>,
+    /// Ordered datum lists (primary, secondary, tertiary), each once.
+    frames: Vec<&'a [String]>,
+    /// The id of each list's `DatumReferenceFrame`.
+    frame_ids: Vec<usize>,
+}
+
+impl<'a> Datums<'a> {
+    /// Collect the labels and frames of the characteristics judged in a datum reference frame
+    /// and give them ids (labels first, then frames).
+    fn of(r: &'a ProgramResults, ids: &mut Ids) -> Self {
+        let mut labels: Vec<&str> = Vec::new();
+        let mut frames: Vec<&[String]> = Vec::new();
+        for c in r.characteristics.iter().filter(|c| c.kind.has_datums() && !c.datums.is_empty()) {
+            for d in &c.datums {
+                if !labels.contains(&d.as_str()) {
+                    labels.push(d);
+                }
+            }
+            if !frames.contains(&c.datums.as_slice()) {
+                frames.push(&c.datums);
+            }
+        }
+        let label_ids = labels.iter().map(|_| ids.take()).collect();
+        let frame_ids = frames.iter().map(|_| ids.take()).collect();
+        Datums { labels, label_ids, frames, frame_ids }
+    }
+
+    /// The id of the reference frame a characteristic is judged in, if any.
+    fn frame_of(&self, c: &ResultCharacteristic) -> Option<usize> {
+        (c.kind.has_datums() && !c.datums.is_empty())
+            .then(|| self.frames.iter().position(|f| *f == c.datums.as_slice()).map(|k| self.frame_ids[k]))
+            .flatten()
+    }
+
+    /// `DatumDefinitions` and `DatumReferenceFrames` (nothing when no tolerance names a datum).
+    fn write(&self, doc: &mut String) {
+        if self.labels.is_empty() {
+            return;
+        }
+        let _ = writeln!(doc, "  <DatumDefinitions n=\"{}\">", self.labels.len());
+        for (l, id) in self.labels.iter().zip(&self.label_ids) {
             let _ = writeln!(
                 doc,
                 "    <DatumDefinition id=\"{id}\"><DatumLabel>{}</DatumLabel></DatumDefinition>",
@@ -476,11 +437,12 @@ pub fn write_program_results(r: &ProgramResults) -> Result<String, WriteError> {
             );
         }
         let _ = writeln!(doc, "  </DatumDefinitions>");
-        let _ = writeln!(doc, "  <DatumReferenceFrames n=\"{}\">", frames.len());
-        for (f, id) in frames.iter().zip(&frame_ids) {
+        let _ = writeln!(doc, "  <DatumReferenceFrames n=\"{}\">", self.frames.len());
+        for (f, id) in self.frames.iter().zip(&self.frame_ids) {
             let _ = writeln!(doc, "    <DatumReferenceFrame id=\"{id}\">\n      <Datums n=\"{}\">", f.len());
             for (k, d) in f.iter().enumerate() {
-                let def = labels.iter().position(|l| *l == d.as_str()).map(|i| label_ids[i]).unwrap_or(0);
+                let def =
+                    self.labels.iter().position(|l| *l == d.as_str()).map(|i| self.label_ids[i]).unwrap_or(0);
                 let _ = writeln!(
                     doc,
                     "        <Datum><SimpleDatum><DatumDefinitionId>{def}</DatumDefinitionId><MaterialModifier>NONE</MaterialModifier><ReferencedComponent>ACTUAL</ReferencedComponent></SimpleDatum><Precedence><PrecedenceEnum>{}</PrecedenceEnum></Precedence></Datum>",
@@ -491,15 +453,142 @@ pub fn write_program_results(r: &ProgramResults) -> Result<String, WriteError> {
         }
         let _ = writeln!(doc, "  </DatumReferenceFrames>");
     }
-    let n = r.characteristics.len();
-    if n > 0 {
-        let _ = write!(
-            doc,
-            "  <Characteristics>\n    <FormalStandardId>{STD_ID}</FormalStandardId>\n    <CharacteristicDefinitions n=\"{n}\">\n{defs}    </CharacteristicDefinitions>\n    <CharacteristicNominals n=\"{n}\">\n{noms}    </CharacteristicNominals>\n    <CharacteristicItems n=\"{n}\">\n{items}    </CharacteristicItems>\n  </Characteristics>\n"
+}
+
+/// The characteristics' elements, one list per section of the document, built one
+/// characteristic at a time.
+#[derive(Default)]
+struct CharacteristicLists {
+    /// The `XxxCharacteristicDefinition`s.
+    defs: String,
+    /// The `XxxCharacteristicNominal`s.
+    noms: String,
+    /// The `XxxCharacteristicItem`s.
+    items: String,
+    /// The `XxxCharacteristicMeasurement`s.
+    meas: String,
+    /// Each characteristic's verdict, for the inspection status (one per characteristic).
+    statuses: Vec<Status>,
+}
+
+impl CharacteristicLists {
+    /// Add one characteristic: its definition (in the frame `drf`, if any), nominal, item and
+    /// measurement (referring to the features' measurement ids), with four fresh ids.
+    fn add(&mut self, c: &ResultCharacteristic, ids: &mut Ids, drf: Option<usize>, feature_ids: &[usize]) {
+        let (def, nom, item, m) = (ids.take(), ids.take(), ids.take(), ids.take());
+        let t = c.kind.qif();
+        let body = definition_body(c, drf);
+        let _ = writeln!(
+            self.defs,
+            "      <{t}CharacteristicDefinition id=\"{def}\">\n{body}\n      </{t}CharacteristicDefinition>"
         );
+        let target = nominal_body(c);
+        let _ = writeln!(
+            self.noms,
+            "      <{t}CharacteristicNominal id=\"{nom}\">\n        <CharacteristicDefinitionId>{def}</CharacteristicDefinitionId>{target}\n      </{t}CharacteristicNominal>"
+        );
+        let _ = writeln!(
+            self.items,
+            "      <{t}CharacteristicItem id=\"{item}\">\n        <Name>{}</Name>\n        <CharacteristicNominalId>{nom}</CharacteristicNominalId>\n      </{t}CharacteristicItem>",
+            token(&c.label)
+        );
+        let ids: Vec<String> = c.features.iter().map(|k| format!("<Id>{}</Id>", feature_ids[*k])).collect();
+        let unc = scalar_unc(&c.value.uncertainty);
+        let _ = writeln!(
+            self.meas,
+            "            <{t}CharacteristicMeasurement id=\"{m}\">\n              <Status><CharacteristicStatusEnum>{}</CharacteristicStatusEnum></Status>\n              <CharacteristicItemId>{item}</CharacteristicItemId>\n              <FeatureMeasurementIds n=\"{}\">{}</FeatureMeasurementIds>\n              <Value{unc}>{}</Value>\n            </{t}CharacteristicMeasurement>",
+            c.status.characteristic(),
+            ids.len(),
+            ids.join(""),
+            dec(c.value.value)
+        );
+        self.statuses.push(c.status);
     }
+
+    /// The `Characteristics` section: definitions, nominals and items (nothing without
+    /// characteristics).
+    fn write_characteristics(&self, doc: &mut String) {
+        let n = self.statuses.len();
+        if n > 0 {
+            let CharacteristicLists { defs, noms, items, .. } = self;
+            let _ = write!(
+                doc,
+                "  <Characteristics>\n    <FormalStandardId>{STD_ID}</FormalStandardId>\n    <CharacteristicDefinitions n=\"{n}\">\n{defs}    </CharacteristicDefinitions>\n    <CharacteristicNominals n=\"{n}\">\n{noms}    </CharacteristicNominals>\n    <CharacteristicItems n=\"{n}\">\n{items}    </CharacteristicItems>\n  </Characteristics>\n"
+            );
+        }
+    }
+}
+
+/// The body of a characteristic's definition: the limit deviations, or the zone (with the
+/// frame `drf`, material condition and zone shape for position and orientation).
+fn definition_body(c: &ResultCharacteristic, drf: Option<usize>) -> String {
+    let drf_xml = drf
+        .map(|id| format!("\n        <DatumReferenceFrameId>{id}</DatumReferenceFrameId>"))
+        .unwrap_or_default();
+    match (c.kind, c.tolerance) {
+        (_, Tolerance::Limits { lower, upper, .. }) => format!(
+            "        <Tolerance><MaxValue>{}</MaxValue><MinValue>{}</MinValue><DefinedAsLimit>false</DefinedAsLimit></Tolerance>",
+            dec(upper),
+            dec(lower)
+        ),
+        (CharacteristicKind::Position { three_d }, Tolerance::Zone(z)) => format!(
+            "        <ToleranceValue>{}</ToleranceValue>{drf_xml}\n        <MaterialCondition>REGARDLESS</MaterialCondition>\n        <ZoneShape>{}</ZoneShape>",
+            dec(z),
+            if three_d {
+                "<SphericalZone/>"
+            } else {
+                "<DiametricalZone><Dimensionality>TWODIMENSIONAL</Dimensionality></DiametricalZone>"
+            }
+        ),
+        (
+            CharacteristicKind::Perpendicularity { axis } | CharacteristicKind::Parallelism { axis },
+            Tolerance::Zone(z),
+        ) => format!(
+            "        <ToleranceValue>{}</ToleranceValue>{drf_xml}\n        <MaterialCondition>NONE</MaterialCondition>\n        <ZoneShape>{}</ZoneShape>",
+            dec(z),
+            if axis { "<DiametricalZone/>" } else { "<PlanarZone/>" }
+        ),
+        (_, Tolerance::Zone(z)) => format!("        <ToleranceValue>{}</ToleranceValue>", dec(z)),
+    }
+}
+
+/// What a characteristic's nominal holds after its definition's id: the target value of the
+/// dimensional kinds, and the analysis mode (and vector) the schema requires of the
+/// between-characteristics.
+fn nominal_body(c: &ResultCharacteristic) -> String {
+    let target = match c.tolerance {
+        Tolerance::Limits { nominal, .. } => {
+            format!("\n        <TargetValue>{}</TargetValue>", dec(nominal))
+        }
+        Tolerance::Zone(_) => String::new(),
+    };
+    match (c.kind, c.analysis_vector) {
+        (CharacteristicKind::DistanceBetween, Some(v)) => format!(
+            "{target}\n        <AnalysisVector>{}</AnalysisVector>\n        <AnalysisMode>ONEDIMENSIONAL</AnalysisMode>",
+            vec3(&v)
+        ),
+        (CharacteristicKind::DistanceBetween | CharacteristicKind::AngleBetween, _) => {
+            format!("{target}\n        <AnalysisMode>THREEDIMENSIONAL</AnalysisMode>")
+        }
+        _ => target,
+    }
+}
+
+/// The header: the application and the program as the description.
+fn header_xml(doc: &mut String, r: &ProgramResults) {
+    let _ = writeln!(
+        doc,
+        "  <Header>\n    <Application>\n      <Name>{}</Name>\n    </Application>\n    <Description>{}</Description>\n  </Header>",
+        escape(&r.application),
+        escape(&format!("inspection program {}", r.program))
+    );
+}
+
+/// The `Results` section: the feature measurements (ids `feature_ids`), the characteristic
+/// measurements and the overall inspection status.
+fn results_xml(doc: &mut String, r: &ProgramResults, feature_ids: &[usize], chars: &CharacteristicLists) {
     let mut features = String::new();
-    for (f, id) in r.features.iter().zip(&feature_ids) {
+    for (f, id) in r.features.iter().zip(feature_ids) {
         feature_xml(&mut features, f, *id);
     }
     let _ = write!(
@@ -514,19 +603,17 @@ pub fn write_program_results(r: &ProgramResults) -> Result<String, WriteError> {
             r.features.len()
         );
     }
+    let n = chars.statuses.len();
     if n > 0 {
         let _ = write!(
             doc,
-            "        <MeasuredCharacteristics>\n          <CharacteristicMeasurements n=\"{n}\">\n{meas}          </CharacteristicMeasurements>\n        </MeasuredCharacteristics>\n"
+            "        <MeasuredCharacteristics>\n          <CharacteristicMeasurements n=\"{n}\">\n{}          </CharacteristicMeasurements>\n        </MeasuredCharacteristics>\n",
+            chars.meas
         );
     }
     let _ = write!(
         doc,
         "        <InspectionStatus><InspectionStatusEnum>{}</InspectionStatusEnum></InspectionStatus>\n      </MeasurementResults>\n    </MeasurementResultsSet>\n  </Results>\n",
-        super::inspection_status(&statuses)
+        super::inspection_status(&chars.statuses)
     );
-    let id = qpid(&doc);
-    Ok(format!(
-        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<QIFDocument xmlns=\"http://qifstandards.org/xsd/qif3\" xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\" xsi:schemaLocation=\"http://qifstandards.org/xsd/qif3 ../QIFApplications/QIFDocument.xsd\" versionQIF=\"3.0.0\" idMax=\"{id_max}\">\n  <QPId>{id}</QPId>\n{doc}</QIFDocument>\n"
-    ))
 }

@@ -469,191 +469,21 @@ fn json_vec(v: &serde_json::Value) -> Vec<f64> {
 /// Returns the number of characteristics checked.
 fn check_qif_against_json(xml: &str, j: &serde_json::Value, datums: &[(&str, &[&str])]) -> usize {
     let doc = roxmltree::Document::parse(xml).unwrap();
-    let by_id = |id: &str| {
-        doc.descendants()
-            .find(|n| n.attribute("id") == Some(id))
-            .unwrap_or_else(|| panic!("no element with id {id}"))
-    };
-    let same = |a: f64, b: f64, what: &str| {
-        assert!((a - b).abs() <= 1e-9 * (1.0 + b.abs()), "{what}: QIF {a} vs JSON {b}")
-    };
+    let qif = Qif { doc: &doc };
     // Features, in output order.
-    let feats: Vec<_> = doc
-        .descendants()
-        .filter(|n| n.is_element() && n.tag_name().name().ends_with("FeatureMeasurement"))
-        .collect();
+    let feats = qif.elements_ending("FeatureMeasurement");
     let jf: Vec<&serde_json::Value> =
         j["features"].as_array().unwrap().iter().filter(|f| f["actual"] == true).collect();
     assert_eq!(feats.len(), jf.len(), "one feature measurement per actual feature of the JSON");
     for (q, f) in feats.iter().zip(&jf) {
-        let label = f["label"].as_str().unwrap();
-        assert_eq!(el(*q, "FeatureName").unwrap().text(), Some(label));
-        let ty = f["type"].as_str().unwrap();
-        let kind = match ty {
-            "POINT" => "Point",
-            "PLANE" => "Plane",
-            "LINE" => "Line",
-            "CIRCLE" => "Circle",
-            "CYLNDR" => "Cylinder",
-            "SPHERE" => "Sphere",
-            "CONE" => "Cone",
-            t => panic!("type {t}"),
-        };
-        assert_eq!(q.tag_name().name(), format!("{kind}FeatureMeasurement"), "{label}");
-        let n_points = el(*q, "Attributes").and_then(|a| el(a, "AttributeI1")).unwrap();
-        assert_eq!(n_points.attribute("name"), Some("n_points"));
-        assert_eq!(
-            n_points.attribute("value").unwrap().parse::<u64>().unwrap(),
-            f["n_points"].as_u64().unwrap(),
-            "{label}"
-        );
-        let (loc, dir) = match kind {
-            "Cylinder" | "Cone" => {
-                let ax = el(*q, "Axis").unwrap();
-                (el(ax, "AxisPoint").unwrap(), el(ax, "Direction"))
-            }
-            "Line" => (el(*q, "Location").unwrap(), el(*q, "Direction")),
-            _ => (el(*q, "Location").unwrap(), el(*q, "Normal")),
-        };
-        let jloc = f.get("center_mm").or(f.get("point_mm")).or(f.get("apex_mm")).unwrap();
-        for (a, b) in nums(loc).iter().zip(json_vec(jloc)) {
-            same(*a, b, label);
-        }
-        let jdir = f.get("normal").or(f.get("axis")).or(f.get("direction"));
-        assert_eq!(dir.is_some(), jdir.is_some(), "{label}: direction");
-        if let (Some(d), Some(jd)) = (dir, jdir) {
-            for (a, b) in nums(d).iter().zip(json_vec(jd)) {
-                same(*a, b, label);
-            }
-        }
-        if let Some(dia) = f.get("diameter_mm") {
-            same(num(*q, "Diameter"), dia.as_f64().unwrap(), label);
-        }
-        // The uncertainties of the JSON (k = 1) where it has them.
-        let key = if f.get("center_mm").is_some() {
-            "center_mm"
-        } else if f.get("apex_mm").is_some() {
-            "apex_mm"
-        } else {
-            "point_mm"
-        };
-        if let Some(u) = f["uncertainty"][key].as_array() {
-            for (axis, ju) in ["x", "y", "z"].iter().zip(u) {
-                let qa = loc.attribute(format!("{axis}CombinedUncertainty").as_str());
-                match ju.as_f64() {
-                    Some(v) => same(qa.unwrap().parse().unwrap(), v.abs(), label),
-                    None => assert!(qa.is_none(), "{label}: no uncertainty in the JSON, none in the QIF"),
-                }
-            }
-        }
-        if let Some(u) = f["uncertainty"]["diameter_mm"].as_f64() {
-            same(
-                el(*q, "Diameter").unwrap().attribute("combinedUncertainty").unwrap().parse().unwrap(),
-                u.abs(),
-                label,
-            );
-        }
+        check_feature(*q, f);
     }
     // Characteristics, in order.
-    let meas: Vec<_> = doc
-        .descendants()
-        .filter(|n| n.is_element() && n.tag_name().name().ends_with("CharacteristicMeasurement"))
-        .collect();
+    let meas = qif.elements_ending("CharacteristicMeasurement");
     let jt = j["tolerances"].as_array().unwrap();
     assert_eq!(meas.len(), jt.len(), "one characteristic per tolerance");
-    let feature_name = |id: &str| el(by_id(id), "FeatureName").unwrap().text().unwrap().to_string();
     for (m, t) in meas.iter().zip(jt) {
-        let label = t["label"].as_str().unwrap();
-        let kind = t["kind"].as_str().unwrap();
-        let item = by_id(el(*m, "CharacteristicItemId").unwrap().text().unwrap());
-        assert_eq!(el(item, "Name").unwrap().text(), Some(label));
-        let nominal = by_id(el(item, "CharacteristicNominalId").unwrap().text().unwrap());
-        let def = by_id(el(nominal, "CharacteristicDefinitionId").unwrap().text().unwrap());
-        let stem = m.tag_name().name().trim_end_matches("CharacteristicMeasurement");
-        for n in [item, nominal, def] {
-            assert!(
-                n.tag_name().name().starts_with(stem),
-                "{label}: {} in a {stem} chain",
-                n.tag_name().name()
-            );
-        }
-        let want = match kind {
-            "FLAT" => "Flatness",
-            "STRGHT" => "Straightness",
-            "CIRLTY" => "Circularity",
-            "CYLCTY" => "Cylindricity",
-            "DIAM" => "Diameter",
-            "RAD" => "Radius",
-            "POS" => "Position",
-            "PERP" => "Perpendicularity",
-            "PARLEL" => "Parallelism",
-            "ANGLB" => "AngleBetween",
-            "DISTB" => "DistanceBetween",
-            k => panic!("kind {k}"),
-        };
-        assert_eq!(stem, want, "{label}");
-        let status = el(el(*m, "Status").unwrap(), "CharacteristicStatusEnum").unwrap().text().unwrap();
-        assert_eq!(status, if t["verdict"] == "INTOL" { "PASS" } else { "FAIL" }, "{label}");
-        // The features it was evaluated on.
-        let ids: Vec<String> = el(*m, "FeatureMeasurementIds")
-            .unwrap()
-            .children()
-            .filter(|c| c.is_element())
-            .map(|c| feature_name(c.text().unwrap()))
-            .collect();
-        let jnames: Vec<String> =
-            t["features"].as_array().unwrap().iter().map(|x| x.as_str().unwrap().to_string()).collect();
-        assert_eq!(ids, jnames, "{label}");
-        // Values and limits.
-        let value = num(*m, "Value");
-        match kind {
-            "DIAM" | "RAD" | "DISTB" => {
-                let target = num(nominal, "TargetValue");
-                let tol = el(def, "Tolerance").unwrap();
-                let (lo, hi) = (num(tol, "MinValue"), num(tol, "MaxValue"));
-                let lim = json_vec(&t["limits_mm"]);
-                let v = t["value_mm"].as_f64().unwrap();
-                if kind == "DISTB" {
-                    same(value, v, label);
-                    same(target + lo, lim[0], label);
-                    same(target + hi, lim[1], label);
-                } else {
-                    // DMIS reports the deviation from nominal; QIF the actual size.
-                    same(value - target, v, label);
-                    same(lo, lim[0], label);
-                    same(hi, lim[1], label);
-                }
-            }
-            "ANGLB" => {
-                let target = num(nominal, "TargetValue");
-                let tol = el(def, "Tolerance").unwrap();
-                let lim = json_vec(&t["limits_deg"]);
-                same(value, t["value_deg"].as_f64().unwrap(), label);
-                same(target + num(tol, "MinValue"), lim[0], label);
-                same(target + num(tol, "MaxValue"), lim[1], label);
-            }
-            _ => {
-                same(value, t["value_mm"].as_f64().unwrap(), label);
-                same(num(def, "ToleranceValue"), json_vec(&t["limits_mm"])[1], label);
-            }
-        }
-        if let Some(u) = t["uncertainty_mm"].as_f64().or(t["uncertainty_deg"].as_f64()) {
-            same(
-                el(*m, "Value").unwrap().attribute("combinedUncertainty").unwrap().parse().unwrap(),
-                u,
-                label,
-            );
-        }
-        // Datums: the frame's datum labels in precedence order.
-        if let Some((_, want)) = datums.iter().find(|(l, _)| *l == label) {
-            let drf = by_id(el(def, "DatumReferenceFrameId").unwrap().text().unwrap());
-            let got: Vec<String> = drf
-                .descendants()
-                .filter(|n| n.tag_name().name() == "DatumDefinitionId")
-                .map(|n| el(by_id(n.text().unwrap()), "DatumLabel").unwrap().text().unwrap().to_string())
-                .collect();
-            assert_eq!(got, *want, "{label}: datums");
-        }
+        qif.check_characteristic(*m, t, datums);
     }
     let overall =
         doc.descendants().find(|n| n.tag_name().name() == "InspectionStatusEnum").unwrap().text().unwrap();
@@ -666,6 +496,231 @@ fn check_qif_against_json(xml: &str, j: &serde_json::Value, datums: &[(&str, &[&
     };
     assert_eq!(overall, want);
     meas.len()
+}
+
+/// A QIF value and its JSON counterpart agree (relative 1e-9).
+fn same(a: f64, b: f64, what: &str) {
+    assert!((a - b).abs() <= 1e-9 * (1.0 + b.abs()), "{what}: QIF {a} vs JSON {b}")
+}
+
+/// The QIF feature kind of a DMIS feature type of the JSON.
+fn qif_feature_kind(ty: &str) -> &'static str {
+    match ty {
+        "POINT" => "Point",
+        "PLANE" => "Plane",
+        "LINE" => "Line",
+        "CIRCLE" => "Circle",
+        "CYLNDR" => "Cylinder",
+        "SPHERE" => "Sphere",
+        "CONE" => "Cone",
+        t => panic!("type {t}"),
+    }
+}
+
+/// The QIF characteristic of a DMIS tolerance kind of the JSON.
+fn qif_characteristic(kind: &str) -> &'static str {
+    match kind {
+        "FLAT" => "Flatness",
+        "STRGHT" => "Straightness",
+        "CIRLTY" => "Circularity",
+        "CYLCTY" => "Cylindricity",
+        "DIAM" => "Diameter",
+        "RAD" => "Radius",
+        "POS" => "Position",
+        "PERP" => "Perpendicularity",
+        "PARLEL" => "Parallelism",
+        "ANGLB" => "AngleBetween",
+        "DISTB" => "DistanceBetween",
+        k => panic!("kind {k}"),
+    }
+}
+
+/// The feature measurement `q` is the JSON's actual feature `f`: name, kind, number of points,
+/// location, direction, diameter, and the uncertainties the JSON has.
+fn check_feature(q: roxmltree::Node, f: &serde_json::Value) {
+    let label = f["label"].as_str().unwrap();
+    assert_eq!(el(q, "FeatureName").unwrap().text(), Some(label));
+    let kind = qif_feature_kind(f["type"].as_str().unwrap());
+    assert_eq!(q.tag_name().name(), format!("{kind}FeatureMeasurement"), "{label}");
+    let n_points = el(q, "Attributes").and_then(|a| el(a, "AttributeI1")).unwrap();
+    assert_eq!(n_points.attribute("name"), Some("n_points"));
+    assert_eq!(
+        n_points.attribute("value").unwrap().parse::<u64>().unwrap(),
+        f["n_points"].as_u64().unwrap(),
+        "{label}"
+    );
+    let (loc, dir) = match kind {
+        "Cylinder" | "Cone" => {
+            let ax = el(q, "Axis").unwrap();
+            (el(ax, "AxisPoint").unwrap(), el(ax, "Direction"))
+        }
+        "Line" => (el(q, "Location").unwrap(), el(q, "Direction")),
+        _ => (el(q, "Location").unwrap(), el(q, "Normal")),
+    };
+    let jloc = f.get("center_mm").or(f.get("point_mm")).or(f.get("apex_mm")).unwrap();
+    for (a, b) in nums(loc).iter().zip(json_vec(jloc)) {
+        same(*a, b, label);
+    }
+    let jdir = f.get("normal").or(f.get("axis")).or(f.get("direction"));
+    assert_eq!(dir.is_some(), jdir.is_some(), "{label}: direction");
+    if let (Some(d), Some(jd)) = (dir, jdir) {
+        for (a, b) in nums(d).iter().zip(json_vec(jd)) {
+            same(*a, b, label);
+        }
+    }
+    if let Some(dia) = f.get("diameter_mm") {
+        same(num(q, "Diameter"), dia.as_f64().unwrap(), label);
+    }
+    check_feature_uncertainty(q, loc, f, label);
+}
+
+/// The uncertainties (k = 1) of the JSON feature `f` where it has them are those of the
+/// feature measurement `q` (location `loc`, diameter).
+fn check_feature_uncertainty(q: roxmltree::Node, loc: roxmltree::Node, f: &serde_json::Value, label: &str) {
+    let key = if f.get("center_mm").is_some() {
+        "center_mm"
+    } else if f.get("apex_mm").is_some() {
+        "apex_mm"
+    } else {
+        "point_mm"
+    };
+    if let Some(u) = f["uncertainty"][key].as_array() {
+        for (axis, ju) in ["x", "y", "z"].iter().zip(u) {
+            let qa = loc.attribute(format!("{axis}CombinedUncertainty").as_str());
+            match ju.as_f64() {
+                Some(v) => same(qa.unwrap().parse().unwrap(), v.abs(), label),
+                None => assert!(qa.is_none(), "{label}: no uncertainty in the JSON, none in the QIF"),
+            }
+        }
+    }
+    if let Some(u) = f["uncertainty"]["diameter_mm"].as_f64() {
+        same(
+            el(q, "Diameter").unwrap().attribute("combinedUncertainty").unwrap().parse().unwrap(),
+            u.abs(),
+            label,
+        );
+    }
+}
+
+/// The QIF document under test, for following its id references.
+struct Qif<'a, 'i> {
+    /// The parsed document.
+    doc: &'a roxmltree::Document<'i>,
+}
+
+impl<'a, 'i> Qif<'a, 'i> {
+    /// The element with the id `id` (there must be one).
+    fn by_id(&self, id: &str) -> roxmltree::Node<'a, 'i> {
+        self.doc
+            .descendants()
+            .find(|n| n.attribute("id") == Some(id))
+            .unwrap_or_else(|| panic!("no element with id {id}"))
+    }
+
+    /// The elements whose names end with `suffix`, in document order.
+    fn elements_ending(&self, suffix: &str) -> Vec<roxmltree::Node<'a, 'i>> {
+        self.doc.descendants().filter(|n| n.is_element() && n.tag_name().name().ends_with(suffix)).collect()
+    }
+
+    /// The `FeatureName` of the feature measurement with the id `id`.
+    fn feature_name(&self, id: &str) -> String {
+        el(self.by_id(id), "FeatureName").unwrap().text().unwrap().to_string()
+    }
+
+    /// The characteristic measurement `m` is the JSON's tolerance `t`: its chain (item →
+    /// nominal → definition) of the tolerance's kind, status, features, values, uncertainty
+    /// and, for the tolerances `datums` names, the datums of its reference frame.
+    fn check_characteristic(&self, m: roxmltree::Node, t: &serde_json::Value, datums: &[(&str, &[&str])]) {
+        let label = t["label"].as_str().unwrap();
+        let kind = t["kind"].as_str().unwrap();
+        let item = self.by_id(el(m, "CharacteristicItemId").unwrap().text().unwrap());
+        assert_eq!(el(item, "Name").unwrap().text(), Some(label));
+        let nominal = self.by_id(el(item, "CharacteristicNominalId").unwrap().text().unwrap());
+        let def = self.by_id(el(nominal, "CharacteristicDefinitionId").unwrap().text().unwrap());
+        let stem = m.tag_name().name().trim_end_matches("CharacteristicMeasurement");
+        for n in [item, nominal, def] {
+            assert!(
+                n.tag_name().name().starts_with(stem),
+                "{label}: {} in a {stem} chain",
+                n.tag_name().name()
+            );
+        }
+        assert_eq!(stem, qif_characteristic(kind), "{label}");
+        let status = el(el(m, "Status").unwrap(), "CharacteristicStatusEnum").unwrap().text().unwrap();
+        assert_eq!(status, if t["verdict"] == "INTOL" { "PASS" } else { "FAIL" }, "{label}");
+        // The features it was evaluated on.
+        let ids: Vec<String> = el(m, "FeatureMeasurementIds")
+            .unwrap()
+            .children()
+            .filter(|c| c.is_element())
+            .map(|c| self.feature_name(c.text().unwrap()))
+            .collect();
+        let jnames: Vec<String> =
+            t["features"].as_array().unwrap().iter().map(|x| x.as_str().unwrap().to_string()).collect();
+        assert_eq!(ids, jnames, "{label}");
+        check_characteristic_values(m, nominal, def, t);
+        if let Some(u) = t["uncertainty_mm"].as_f64().or(t["uncertainty_deg"].as_f64()) {
+            same(
+                el(m, "Value").unwrap().attribute("combinedUncertainty").unwrap().parse().unwrap(),
+                u,
+                label,
+            );
+        }
+        // Datums: the frame's datum labels in precedence order.
+        if let Some((_, want)) = datums.iter().find(|(l, _)| *l == label) {
+            let drf = self.by_id(el(def, "DatumReferenceFrameId").unwrap().text().unwrap());
+            let got: Vec<String> = drf
+                .descendants()
+                .filter(|n| n.tag_name().name() == "DatumDefinitionId")
+                .map(|n| el(self.by_id(n.text().unwrap()), "DatumLabel").unwrap().text().unwrap().to_string())
+                .collect();
+            assert_eq!(got, *want, "{label}: datums");
+        }
+    }
+}
+
+/// The value of the characteristic measurement `m` and the limits of its nominal and
+/// definition are the JSON tolerance `t`'s (DMIS reports a size's deviation, QIF the size).
+fn check_characteristic_values(
+    m: roxmltree::Node,
+    nominal: roxmltree::Node,
+    def: roxmltree::Node,
+    t: &serde_json::Value,
+) {
+    let label = t["label"].as_str().unwrap();
+    let kind = t["kind"].as_str().unwrap();
+    let value = num(m, "Value");
+    match kind {
+        "DIAM" | "RAD" | "DISTB" => {
+            let target = num(nominal, "TargetValue");
+            let tol = el(def, "Tolerance").unwrap();
+            let (lo, hi) = (num(tol, "MinValue"), num(tol, "MaxValue"));
+            let lim = json_vec(&t["limits_mm"]);
+            let v = t["value_mm"].as_f64().unwrap();
+            if kind == "DISTB" {
+                same(value, v, label);
+                same(target + lo, lim[0], label);
+                same(target + hi, lim[1], label);
+            } else {
+                // DMIS reports the deviation from nominal; QIF the actual size.
+                same(value - target, v, label);
+                same(lo, lim[0], label);
+                same(hi, lim[1], label);
+            }
+        }
+        "ANGLB" => {
+            let target = num(nominal, "TargetValue");
+            let tol = el(def, "Tolerance").unwrap();
+            let lim = json_vec(&t["limits_deg"]);
+            same(value, t["value_deg"].as_f64().unwrap(), label);
+            same(target + num(tol, "MinValue"), lim[0], label);
+            same(target + num(tol, "MaxValue"), lim[1], label);
+        }
+        _ => {
+            same(value, t["value_mm"].as_f64().unwrap(), label);
+            same(num(def, "ToleranceValue"), json_vec(&t["limits_mm"])[1], label);
+        }
+    }
 }
 
 #[test]

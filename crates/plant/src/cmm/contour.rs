@@ -239,6 +239,209 @@ fn closest_after(entry: f64, h: f64, p: &dyn Fn(f64) -> Point3, center: &Point3)
     bisect(u, u + h, rising)
 }
 
+/// The planner's side of a cylinder of the part.
+fn planner_side(s: CylinderSide) -> Side {
+    match s {
+        CylinderSide::Outside => Side::Outside,
+        CylinderSide::Inside => Side::Inside,
+    }
+}
+
+/// The start of an unknown-contour scan while its route is decided: where it touches, which
+/// way the direction point says, and what it touches (for the log).
+struct RouteStart<'a> {
+    /// The start contact's surface normal.
+    n: Vector3,
+    /// The start contact's tip centre (mm).
+    c0: Point3,
+    /// The start contact's surface point: the tip centre less the tip radius along `n` (mm).
+    s0: Point3,
+    /// Towards the direction point: the sense along the path.
+    toward: &'a Vector3,
+    /// The length of `toward` (the scale below which it has no component along a path).
+    tn: f64,
+    /// The surface under the start, as the log names it.
+    label: String,
+}
+
+impl RouteStart<'_> {
+    /// The error of a direction point with no component along the only possible path.
+    fn undefined() -> MachineError {
+        MachineError::Unable("the scan direction is undefined".into())
+    }
+
+    /// A planned line from the start along `dir`, in the sense of the direction point.
+    fn line(&self, dir: Vector3, what: String) -> Result<Route, MachineError> {
+        let dir = dir.normalize();
+        let along = self.toward.dot(&dir);
+        if along.abs() <= 1e-9 * self.tn {
+            return Err(Self::undefined());
+        }
+        let d = dir * along.signum();
+        let feature = Feature {
+            id: "ScanIn".into(),
+            geometry: Geometry::Line { start: self.s0, end: self.s0 + d, normal: self.n },
+        };
+        Ok(Route::Planned(feature, what))
+    }
+
+    /// A planned circle through the start about the axis through `point` along `axis`, in the
+    /// sense of the direction point (stepped if the start lies on the axis).
+    fn circle(&self, point: Point3, axis: Vector3, side: Side, what: String) -> Result<Route, MachineError> {
+        let mut axis = axis.normalize();
+        if side == Side::Plane && axis.dot(&self.n) < 0.0 {
+            // The planner's plane circle has the face's outward normal as its axis.
+            axis = -axis;
+        }
+        let c = point + axis * (self.s0 - point).dot(&axis);
+        let radial = self.s0 - c;
+        let radius = radial.norm();
+        if radius < 1e-6 {
+            return Ok(Route::Stepped("the start lies on the scan axis".into()));
+        }
+        let along = self.toward.dot(&axis.cross(&(radial / radius)));
+        if along.abs() <= 1e-9 * self.tn {
+            return Err(Self::undefined());
+        }
+        let (bu, bv) = Feature::basis(&axis);
+        let feature = Feature {
+            id: "ScanIn".into(),
+            geometry: Geometry::Circle {
+                center: c,
+                axis,
+                radius,
+                side,
+                start: radial.dot(&bv).atan2(radial.dot(&bu)),
+                sweep: along.signum(),
+            },
+        };
+        Ok(Route::Planned(feature, what))
+    }
+
+    /// The route in the scan plane with unit normal `g` over the start's `solid`.
+    fn in_scan_plane(&self, g: Vector3, solid: Solid) -> Result<Route, MachineError> {
+        let label = &self.label;
+        match solid {
+            Solid::HalfSpace { normal: m, .. } => {
+                let dir = g.cross(&m);
+                if dir.norm() < DIR_EPS {
+                    return Ok(Route::Stepped(format!("the scan plane is parallel to {label}")));
+                }
+                self.line(dir, format!("a line on {label}"))
+            }
+            Solid::Cylinder { point, axis, side, .. } => {
+                if g.cross(&axis).norm() < DIR_EPS {
+                    self.circle(
+                        point,
+                        axis,
+                        planner_side(side),
+                        format!("a circle about the axis of {label}"),
+                    )
+                } else if g.dot(&axis).abs() < DIR_EPS {
+                    self.line(axis, format!("a line along {label}"))
+                } else {
+                    Ok(Route::Stepped(format!(
+                        "the scan plane cuts {label} in an ellipse (the planner plans lines and circles)"
+                    )))
+                }
+            }
+            Solid::Sphere { center, .. } => {
+                if (center - self.c0).dot(&g).abs() < POS_TOL_MM {
+                    self.circle(center, g, Side::Outside, format!("a great circle of {label}"))
+                } else {
+                    Ok(Route::Stepped(format!(
+                        "the scan plane cuts {label} off its centre (the surface normal leaves the plane)"
+                    )))
+                }
+            }
+            Solid::Prism { .. } => {
+                Ok(Route::Stepped(format!("{label} is not a single face the planner plans on")))
+            }
+        }
+    }
+
+    /// The route on the scan cylinder through `gp` with unit axis `ga` over the start's
+    /// `solid`.
+    fn on_scan_cylinder(&self, gp: Point3, ga: Vector3, solid: Solid) -> Result<Route, MachineError> {
+        let label = &self.label;
+        match solid {
+            Solid::HalfSpace { normal: m, .. } => {
+                if m.cross(&ga).norm() < DIR_EPS {
+                    self.circle(gp, ga, Side::Plane, format!("a circle about the scan axis on {label}"))
+                } else if m.dot(&ga).abs() < DIR_EPS {
+                    self.line(ga, format!("a line along the scan axis on {label}"))
+                } else {
+                    Ok(Route::Stepped(format!(
+                        "the scan cylinder cuts {label} in an ellipse (the planner plans lines and circles)"
+                    )))
+                }
+            }
+            Solid::Cylinder { point, axis, side, .. } => self.along_cylinder(gp, ga, point, axis, side),
+            Solid::Sphere { center, .. } => {
+                let off = center - gp;
+                let on_axis = (off - ga * off.dot(&ga)).norm() < POS_TOL_MM;
+                if on_axis && (self.c0 - center).dot(&ga).abs() < POS_TOL_MM {
+                    self.circle(
+                        center,
+                        ga,
+                        Side::Outside,
+                        format!("the equator of {label} about the scan axis"),
+                    )
+                } else {
+                    Ok(Route::Stepped(format!(
+                        "the scan cylinder cuts {label} off its equator (the surface normal leaves the cylinder's radial plane)"
+                    )))
+                }
+            }
+            Solid::Prism { .. } => {
+                Ok(Route::Stepped(format!("{label} is not a single face the planner plans on")))
+            }
+        }
+    }
+
+    /// The route on the scan cylinder (`gp`, unit axis `ga`) over a pin or bore through
+    /// `point` along `axis`: a line when parallel; when coaxial, a circle or a line as the
+    /// direction point says.
+    fn along_cylinder(
+        &self,
+        gp: Point3,
+        ga: Vector3,
+        point: Point3,
+        axis: Vector3,
+        side: CylinderSide,
+    ) -> Result<Route, MachineError> {
+        let label = &self.label;
+        if axis.cross(&ga).norm() >= DIR_EPS {
+            return Ok(Route::Stepped(format!(
+                "the scan cylinder cuts {label} in a space curve (the planner plans lines and circles)"
+            )));
+        }
+        let off = point - gp;
+        if (off - ga * off.dot(&ga)).norm() > POS_TOL_MM {
+            return self.line(ga, format!("a line along {label}, parallel to the scan axis"));
+        }
+        // Coaxial: the tip centre is free on the scan cylinder; the direction point says which
+        // way.
+        let rel = self.s0 - gp;
+        let radial = (rel - ga * rel.dot(&ga)).try_normalize(1e-12).unwrap_or(self.n);
+        let (along_axis, around) = (self.toward.dot(&ga), self.toward.dot(&ga.cross(&radial)));
+        if along_axis.abs() <= DIR_EPS * self.tn {
+            self.circle(
+                gp,
+                ga,
+                planner_side(side),
+                format!("a circle on {label}, coaxial with the scan cylinder"),
+            )
+        } else if around.abs() <= DIR_EPS * self.tn {
+            self.line(ga, format!("a line along {label}, coaxial with the scan cylinder"))
+        } else {
+            Ok(Route::Stepped(format!(
+                "a helix on {label}, coaxial with the scan cylinder (the planner plans lines and circles)"
+            )))
+        }
+    }
+}
+
 impl IppdmeCmm {
     /// Decide how an unknown-contour scan from `start` runs (see the module's table). An
     /// undefined scan direction (the direction point has no component along the only possible
@@ -263,157 +466,10 @@ impl IppdmeCmm {
                 Err(why) => return Ok(Route::Stepped(why)),
             },
         };
-        let tn = toward.norm();
-        let undefined = || MachineError::Unable("the scan direction is undefined".into());
-        let line = |dir: Vector3, what: String| -> Result<Route, MachineError> {
-            let dir = dir.normalize();
-            let along = toward.dot(&dir);
-            if along.abs() <= 1e-9 * tn {
-                return Err(undefined());
-            }
-            let d = dir * along.signum();
-            let feature = Feature {
-                id: "ScanIn".into(),
-                geometry: Geometry::Line { start: s0, end: s0 + d, normal: n },
-            };
-            Ok(Route::Planned(feature, what))
-        };
-        let circle =
-            |point: Point3, axis: Vector3, side: Side, what: String| -> Result<Route, MachineError> {
-                let mut axis = axis.normalize();
-                if side == Side::Plane && axis.dot(&n) < 0.0 {
-                    // The planner's plane circle has the face's outward normal as its axis.
-                    axis = -axis;
-                }
-                let c = point + axis * (s0 - point).dot(&axis);
-                let radial = s0 - c;
-                let radius = radial.norm();
-                if radius < 1e-6 {
-                    return Ok(Route::Stepped("the start lies on the scan axis".into()));
-                }
-                let along = toward.dot(&axis.cross(&(radial / radius)));
-                if along.abs() <= 1e-9 * tn {
-                    return Err(undefined());
-                }
-                let (bu, bv) = Feature::basis(&axis);
-                let feature = Feature {
-                    id: "ScanIn".into(),
-                    geometry: Geometry::Circle {
-                        center: c,
-                        axis,
-                        radius,
-                        side,
-                        start: radial.dot(&bv).atan2(radial.dot(&bu)),
-                        sweep: along.signum(),
-                    },
-                };
-                Ok(Route::Planned(feature, what))
-            };
-        let side_of = |s: CylinderSide| match s {
-            CylinderSide::Outside => Side::Outside,
-            CylinderSide::Inside => Side::Inside,
-        };
+        let from = RouteStart { n, c0, s0, toward, tn: toward.norm(), label };
         match *guide {
-            Guide::Plane { normal: g } => {
-                let g = g.normalize();
-                match solid {
-                    Solid::HalfSpace { normal: m, .. } => {
-                        let dir = g.cross(&m);
-                        if dir.norm() < DIR_EPS {
-                            return Ok(Route::Stepped(format!("the scan plane is parallel to {label}")));
-                        }
-                        line(dir, format!("a line on {label}"))
-                    }
-                    Solid::Cylinder { point, axis, side, .. } => {
-                        if g.cross(&axis).norm() < DIR_EPS {
-                            circle(point, axis, side_of(side), format!("a circle about the axis of {label}"))
-                        } else if g.dot(&axis).abs() < DIR_EPS {
-                            line(axis, format!("a line along {label}"))
-                        } else {
-                            Ok(Route::Stepped(format!(
-                                "the scan plane cuts {label} in an ellipse (the planner plans lines and circles)"
-                            )))
-                        }
-                    }
-                    Solid::Sphere { center, .. } => {
-                        if (center - c0).dot(&g).abs() < POS_TOL_MM {
-                            circle(center, g, Side::Outside, format!("a great circle of {label}"))
-                        } else {
-                            Ok(Route::Stepped(format!(
-                                "the scan plane cuts {label} off its centre (the surface normal leaves the plane)"
-                            )))
-                        }
-                    }
-                    Solid::Prism { .. } => {
-                        Ok(Route::Stepped(format!("{label} is not a single face the planner plans on")))
-                    }
-                }
-            }
-            Guide::Cylinder { point: gp, axis: ga } => {
-                let ga = ga.normalize();
-                match solid {
-                    Solid::HalfSpace { normal: m, .. } => {
-                        if m.cross(&ga).norm() < DIR_EPS {
-                            circle(gp, ga, Side::Plane, format!("a circle about the scan axis on {label}"))
-                        } else if m.dot(&ga).abs() < DIR_EPS {
-                            line(ga, format!("a line along the scan axis on {label}"))
-                        } else {
-                            Ok(Route::Stepped(format!(
-                                "the scan cylinder cuts {label} in an ellipse (the planner plans lines and circles)"
-                            )))
-                        }
-                    }
-                    Solid::Cylinder { point, axis, side, .. } => {
-                        if axis.cross(&ga).norm() >= DIR_EPS {
-                            return Ok(Route::Stepped(format!(
-                                "the scan cylinder cuts {label} in a space curve (the planner plans lines and circles)"
-                            )));
-                        }
-                        let off = point - gp;
-                        if (off - ga * off.dot(&ga)).norm() > POS_TOL_MM {
-                            return line(ga, format!("a line along {label}, parallel to the scan axis"));
-                        }
-                        // Coaxial: the tip centre is free on the scan cylinder; the direction
-                        // point says which way.
-                        let rel = s0 - gp;
-                        let radial = (rel - ga * rel.dot(&ga)).try_normalize(1e-12).unwrap_or(n);
-                        let (along_axis, around) = (toward.dot(&ga), toward.dot(&ga.cross(&radial)));
-                        if along_axis.abs() <= DIR_EPS * tn {
-                            circle(
-                                gp,
-                                ga,
-                                side_of(side),
-                                format!("a circle on {label}, coaxial with the scan cylinder"),
-                            )
-                        } else if around.abs() <= DIR_EPS * tn {
-                            line(ga, format!("a line along {label}, coaxial with the scan cylinder"))
-                        } else {
-                            Ok(Route::Stepped(format!(
-                                "a helix on {label}, coaxial with the scan cylinder (the planner plans lines and circles)"
-                            )))
-                        }
-                    }
-                    Solid::Sphere { center, .. } => {
-                        let off = center - gp;
-                        let on_axis = (off - ga * off.dot(&ga)).norm() < POS_TOL_MM;
-                        if on_axis && (c0 - center).dot(&ga).abs() < POS_TOL_MM {
-                            circle(
-                                center,
-                                ga,
-                                Side::Outside,
-                                format!("the equator of {label} about the scan axis"),
-                            )
-                        } else {
-                            Ok(Route::Stepped(format!(
-                                "the scan cylinder cuts {label} off its equator (the surface normal leaves the cylinder's radial plane)"
-                            )))
-                        }
-                    }
-                    Solid::Prism { .. } => {
-                        Ok(Route::Stepped(format!("{label} is not a single face the planner plans on")))
-                    }
-                }
-            }
+            Guide::Plane { normal: g } => from.in_scan_plane(g.normalize(), solid),
+            Guide::Cylinder { point: gp, axis: ga } => from.on_scan_cylinder(gp, ga.normalize(), solid),
         }
     }
 

@@ -5,7 +5,7 @@
 use crate::{Outcome, UsageError};
 use anyhow::Result;
 use std::collections::HashMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use truepos_dmis::exec::{self, DryRun, RunOptions};
 
 #[derive(clap::Args, Debug)]
@@ -75,17 +75,11 @@ pub struct RunArgs {
     pub json: bool,
 }
 
+/// `truepos dmis run`: read and check the program, run it (or list its motions), then the
+/// uncertainties, the audit trail, the results files and the report, in that order.
 pub fn run(args: Args) -> Result<Outcome> {
     let DmisCommand::Run(a) = args.command;
-    let mut sensors = HashMap::new();
-    for s in &a.sensors {
-        let Some((l, t)) = s.split_once('=').filter(|(l, t)| !l.trim().is_empty() && !t.trim().is_empty())
-        else {
-            return Err(UsageError(format!("--sensor {s:?}: expected LABEL=TOOL, e.g. PROBE6=Probe1")).into());
-        };
-        sensors.insert(l.trim().to_ascii_uppercase(), t.trim().to_string());
-    }
-    let opts = RunOptions { sensors };
+    let opts = RunOptions { sensors: sensors(&a.sensors)? };
     let plan = truepos_dmis::task::load(&a.program)?;
     // The machine model is read and checked before anything moves.
     let model = if a.dry_run { None } else { a.model.read()? };
@@ -94,53 +88,11 @@ pub fn run(args: Args) -> Result<Outcome> {
         return Err(UsageError("--qif writes the results of a run: not with --dry-run".into()).into());
     }
     if a.dry_run {
-        let mut m = DryRun::new(&plan, &opts);
-        let r = exec::run(&plan, &mut m, &opts, &mut progress)?;
-        if a.json {
-            let mut j = truepos_dmis::report::json(&plan.file, &r, None);
-            j["motions"] = serde_json::json!(r.motions);
-            crate::output::print_json(&j)?;
-        } else {
-            for m in &r.motions {
-                println!("{m}");
-            }
-        }
-        return Ok(Outcome::Done);
+        return dry_run(&plan, &opts, a.json, &mut progress);
     }
-    let out = truepos_dmis::task::output_path(&plan, &a.program, a.output.as_deref());
-    truepos_io::atomic::check_output_path(&out)?;
-    if let Some(q) = &a.qif {
-        truepos_io::atomic::check_output_path(q)?;
-        if q == &out {
-            return Err(UsageError(format!(
-                "--qif {}: the same file as the results file; give the QIF document its own name",
-                q.display()
-            ))
-            .into());
-        }
-    }
+    let out = results_path(&a, &plan)?;
     // The virtual CMM lives as long as the run.
-    let mut _virtual = None;
-    let url = if a.controller == "virtual" {
-        let cmm = truepos_plant::cmm::serve_loopback(a.part.as_deref(), a.machine.as_deref())?;
-        let url = cmm.url.clone();
-        _virtual = Some(cmm);
-        url
-    } else if a.controller.starts_with("ippdme://") {
-        if a.part.is_some() || a.machine.is_some() {
-            return Err(UsageError(
-                "--part and --machine describe the virtual CMM: only with --controller virtual".into(),
-            )
-            .into());
-        }
-        a.controller.clone()
-    } else {
-        return Err(UsageError(format!(
-            "--controller `{}`: expected `virtual` or `ippdme://HOST:PORT`",
-            a.controller
-        ))
-        .into());
-    };
+    let (url, _virtual) = controller(&a)?;
     let db = super::audit::parse_db(&a.db)?;
     // SIGINT/SIGTERM: no motion after the current one, the run closed as ABORTED, exit 128 + n.
     truepos_io::atomic::defer_interrupts();
@@ -152,23 +104,139 @@ pub fn run(args: Args) -> Result<Outcome> {
     )?;
     let r = run_program(&plan, &url, &opts, &mut progress);
     if let Some(sig) = truepos_io::atomic::interrupted() {
-        let name = truepos_io::atomic::signal_name(sig);
-        let at = truepos_audit::now_utc();
-        let _ = audit.finish("ABORTED", Some(&format!("aborted: interrupted by {name} at {at}")), &at);
-        eprintln!(
-            "dmis: aborted by {name}: no results file; the run is closed as ABORTED in {} (run {})",
-            db.display(),
-            audit.run_id()
-        );
-        truepos_io::atomic::exit_interrupted(sig);
+        abort(&mut audit, &db, sig);
     }
     // Task-specific uncertainty (the same program on machines drawn from the model), then the
     // results with their U into the audit trail.
     let done = r.and_then(|r| {
-        let task = match &model {
-            Some(m) => {
-                Some(truepos_cell::uncertainty::dmis_uncertainty(m, &plan, &opts, &r, a.model.monte_carlo())?)
-            }
+        let m = Measured::new(r, model.as_ref(), &plan, &opts, a.model.monte_carlo())?;
+        record(&mut audit, &m.r, &m.u)?;
+        Ok(m)
+    });
+    close_audit(&mut audit, &done)?;
+    let m = done?;
+    write_results(&a, &plan, &m, &out)?;
+    eprintln!("dmis: audit trail appended to {} (run {})", db.display(), audit.run_id());
+    if a.json {
+        print_json_results(&plan, &m, &out)?;
+    } else {
+        print_summary(&m, &out);
+    }
+    Ok(if m.r.any_out_of_tolerance() { Outcome::OutOfTolerance } else { Outcome::Done })
+}
+
+/// The `--sensor LABEL=TOOL` mappings, labels upper-cased (a malformed one is bad usage).
+fn sensors(args: &[String]) -> Result<HashMap<String, String>> {
+    let mut sensors = HashMap::new();
+    for s in args {
+        let Some((l, t)) = s.split_once('=').filter(|(l, t)| !l.trim().is_empty() && !t.trim().is_empty())
+        else {
+            return Err(UsageError(format!("--sensor {s:?}: expected LABEL=TOOL, e.g. PROBE6=Probe1")).into());
+        };
+        sensors.insert(l.trim().to_ascii_uppercase(), t.trim().to_string());
+    }
+    Ok(sensors)
+}
+
+/// `--dry-run`: the program's motions without a machine (every probing touches its nominal
+/// point), as lines or in the JSON; no file.
+fn dry_run(
+    plan: &truepos_dmis::model::Plan,
+    opts: &RunOptions,
+    json: bool,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Outcome> {
+    let mut m = DryRun::new(plan, opts);
+    let r = exec::run(plan, &mut m, opts, progress)?;
+    if json {
+        let mut j = truepos_dmis::report::json(&plan.file, &r, None);
+        j["motions"] = serde_json::json!(r.motions);
+        crate::output::print_json(&j)?;
+    } else {
+        for m in &r.motions {
+            println!("{m}");
+        }
+    }
+    Ok(Outcome::Done)
+}
+
+/// The results file, checked writable before anything moves; `--qif` is checked too and must
+/// be another file.
+fn results_path(a: &RunArgs, plan: &truepos_dmis::model::Plan) -> Result<PathBuf> {
+    let out = truepos_dmis::task::output_path(plan, &a.program, a.output.as_deref());
+    truepos_io::atomic::check_output_path(&out)?;
+    if let Some(q) = &a.qif {
+        truepos_io::atomic::check_output_path(q)?;
+        if q == &out {
+            return Err(UsageError(format!(
+                "--qif {}: the same file as the results file; give the QIF document its own name",
+                q.display()
+            ))
+            .into());
+        }
+    }
+    Ok(out)
+}
+
+/// The I++ DME address to run on, and the virtual CMM serving it with `--controller virtual`
+/// (it serves as long as the caller keeps it).
+fn controller(a: &RunArgs) -> Result<(String, Option<truepos_plant::cmm::LoopbackCmm>)> {
+    if a.controller == "virtual" {
+        let cmm = truepos_plant::cmm::serve_loopback(a.part.as_deref(), a.machine.as_deref())?;
+        Ok((cmm.url.clone(), Some(cmm)))
+    } else if a.controller.starts_with("ippdme://") {
+        if a.part.is_some() || a.machine.is_some() {
+            return Err(UsageError(
+                "--part and --machine describe the virtual CMM: only with --controller virtual".into(),
+            )
+            .into());
+        }
+        Ok((a.controller.clone(), None))
+    } else {
+        Err(UsageError(format!(
+            "--controller `{}`: expected `virtual` or `ippdme://HOST:PORT`",
+            a.controller
+        ))
+        .into())
+    }
+}
+
+/// After SIGINT/SIGTERM `sig`: close the run as ABORTED, say so, and exit 128 + n (no results
+/// file).
+fn abort(audit: &mut truepos_audit::Audit, db: &truepos_audit::Db, sig: i32) -> ! {
+    let name = truepos_io::atomic::signal_name(sig);
+    let at = truepos_audit::now_utc();
+    let _ = audit.finish("ABORTED", Some(&format!("aborted: interrupted by {name} at {at}")), &at);
+    eprintln!(
+        "dmis: aborted by {name}: no results file; the run is closed as ABORTED in {} (run {})",
+        db.display(),
+        audit.run_id()
+    );
+    truepos_io::atomic::exit_interrupted(sig)
+}
+
+/// A finished run with its uncertainties.
+struct Measured {
+    /// What the run measured and evaluated.
+    r: exec::RunResult,
+    /// The task-specific uncertainty and the simulation behind it (with a machine model).
+    task: Option<truepos_cell::uncertainty::DmisUncertainty>,
+    /// The standard uncertainties reported: the task-specific ones, else the fits' scatter.
+    u: truepos_dmis::uncertainty::Uncertainty,
+}
+
+impl Measured {
+    /// The run `r` with the task-specific uncertainty of `model` (the same program on machines
+    /// drawn from it), or without a model the fits' scatter and a warning.
+    fn new(
+        r: exec::RunResult,
+        model: Option<&truepos_vcmm::MachineModel>,
+        plan: &truepos_dmis::model::Plan,
+        opts: &RunOptions,
+        mc: truepos_vcmm::MonteCarlo,
+    ) -> Result<Measured> {
+        let task = match model {
+            Some(m) => Some(truepos_cell::uncertainty::dmis_uncertainty(m, plan, opts, &r, mc)?),
             None => {
                 eprintln!("{}", super::probe::NO_MODEL_WARNING);
                 None
@@ -178,82 +246,98 @@ pub fn run(args: Args) -> Result<Outcome> {
             Some(t) => t.uncertainty.clone(),
             None => truepos_dmis::uncertainty::Uncertainty::fit_residuals(&r),
         };
-        record(&mut audit, &r, &u)?;
-        Ok((r, task, u))
-    });
-    let (status, message) = match &done {
-        Ok((r, ..)) if r.any_out_of_tolerance() => {
-            ("FAILURE", Some("a tolerance is out (OUTOL)".to_string()))
-        }
+        Ok(Measured { r, task, u })
+    }
+}
+
+/// Close the audit trail's run: SUCCESS, FAILURE (a tolerance OUTOL) or ERROR with the error.
+fn close_audit(audit: &mut truepos_audit::Audit, done: &Result<Measured>) -> Result<()> {
+    let (status, message) = match done {
+        Ok(m) if m.r.any_out_of_tolerance() => ("FAILURE", Some("a tolerance is out (OUTOL)".to_string())),
         Ok(_) => ("SUCCESS", None),
         Err(e) => ("ERROR", Some(format!("{e:#}"))),
     };
     audit.finish(status, message.as_deref(), &truepos_audit::now_utc())?;
-    let (r, task, u) = done?;
-    let text = r.output.join("\n") + "\n";
-    // Both documents are made before either is written: an error leaves no file.
+    Ok(())
+}
+
+/// Write the results file `out` and, with `--qif`, the QIF results document. Both are made
+/// before either is written: an error leaves no file.
+fn write_results(a: &RunArgs, plan: &truepos_dmis::model::Plan, m: &Measured, out: &Path) -> Result<()> {
+    let text = m.r.output.join("\n") + "\n";
     let qif = match &a.qif {
         Some(q) => {
-            let doc =
-                truepos_dmis::report::qif(&plan.file, &r, &u, concat!("truepos ", env!("CARGO_PKG_VERSION")));
+            let doc = truepos_dmis::report::qif(
+                &plan.file,
+                &m.r,
+                &m.u,
+                concat!("truepos ", env!("CARGO_PKG_VERSION")),
+            );
             let xml = truepos_qif::write_program_results(&doc)
                 .map_err(|e| anyhow::anyhow!("{}: cannot write the QIF results: {e}", q.display()))?;
             Some((q, xml))
         }
         None => None,
     };
-    truepos_io::atomic::write_atomic(&out, text.as_bytes())?;
+    truepos_io::atomic::write_atomic(out, text.as_bytes())?;
     if let Some((q, xml)) = &qif {
         truepos_io::atomic::write_atomic(q, xml.as_bytes())?;
         eprintln!("dmis: QIF results in {}", q.display());
     }
-    eprintln!("dmis: audit trail appended to {} (run {})", db.display(), audit.run_id());
+    Ok(())
+}
+
+/// `--json`: the results as one JSON object on stdout, with the expanded uncertainties and how
+/// they were found.
+fn print_json_results(plan: &truepos_dmis::model::Plan, m: &Measured, out: &Path) -> Result<()> {
     let k = truepos_math::stats::COVERAGE_FACTOR;
-    if a.json {
-        let mut j = truepos_dmis::report::json(&plan.file, &r, Some(&out.display().to_string()));
-        u.add_to_json(&r, &mut j, k);
-        j["coverage_factor"] = serde_json::json!(k);
-        match &task {
-            Some(t) => {
-                j["uncertainty_method"] = serde_json::json!("task-specific");
-                j["monte_carlo_runs"] = serde_json::json!(t.spread.runs);
-                j["uncertainty_basis"] = serde_json::json!(t.spread.basis);
-                j["monte_carlo_s"] = serde_json::json!(t.spread.elapsed_s);
-            }
-            None => {
-                j["uncertainty_method"] = serde_json::json!("fit-residuals");
-                j["monte_carlo_runs"] = serde_json::json!(0);
-                j["uncertainty_basis"] = serde_json::json!(
-                    "scatter of each fit's residuals only (machine errors not included; none for directions and tolerances)"
-                );
-            }
+    let mut j = truepos_dmis::report::json(&plan.file, &m.r, Some(&out.display().to_string()));
+    m.u.add_to_json(&m.r, &mut j, k);
+    j["coverage_factor"] = serde_json::json!(k);
+    match &m.task {
+        Some(t) => {
+            j["uncertainty_method"] = serde_json::json!("task-specific");
+            j["monte_carlo_runs"] = serde_json::json!(t.spread.runs);
+            j["uncertainty_basis"] = serde_json::json!(t.spread.basis);
+            j["monte_carlo_s"] = serde_json::json!(t.spread.elapsed_s);
         }
-        crate::output::print_json(&j)?;
-    } else {
-        for (t, ut) in r.tolerances.iter().zip(&u.tolerances) {
-            let beside = match ut {
-                Some(v) if t.angular => format!(" (U = {:.4}°, k = {k})", (k * v).to_degrees()),
-                Some(v) => format!(" (U = {:.4} mm, k = {k})", k * v),
-                None => " (U not known without --machine-model)".to_string(),
-            };
-            eprintln!(
-                "dmis: {}{beside}",
-                truepos_dmis::report::tol_line(
-                    t,
-                    truepos_dmis::ast::LengthUnit::Mm,
-                    truepos_dmis::ast::AngleUnit::AngDec
-                )
+        None => {
+            j["uncertainty_method"] = serde_json::json!("fit-residuals");
+            j["monte_carlo_runs"] = serde_json::json!(0);
+            j["uncertainty_basis"] = serde_json::json!(
+                "scatter of each fit's residuals only (machine errors not included; none for directions and tolerances)"
             );
         }
-        if let Some(t) = &task {
-            eprintln!(
-                "dmis: uncertainty: task-specific, {} machine realisations in {:.2} s ({})",
-                t.spread.runs, t.spread.elapsed_s, t.spread.basis
-            );
-        }
-        eprintln!("dmis: {} points, {:.2} s; results in {}", r.n_points, r.elapsed_s, out.display());
     }
-    Ok(if r.any_out_of_tolerance() { Outcome::OutOfTolerance } else { Outcome::Done })
+    crate::output::print_json(&j)
+}
+
+/// Without `--json`: every tolerance with its U, how the uncertainty was found, and the
+/// summary, on stderr.
+fn print_summary(m: &Measured, out: &Path) {
+    let k = truepos_math::stats::COVERAGE_FACTOR;
+    for (t, ut) in m.r.tolerances.iter().zip(&m.u.tolerances) {
+        let beside = match ut {
+            Some(v) if t.angular => format!(" (U = {:.4}°, k = {k})", (k * v).to_degrees()),
+            Some(v) => format!(" (U = {:.4} mm, k = {k})", k * v),
+            None => " (U not known without --machine-model)".to_string(),
+        };
+        eprintln!(
+            "dmis: {}{beside}",
+            truepos_dmis::report::tol_line(
+                t,
+                truepos_dmis::ast::LengthUnit::Mm,
+                truepos_dmis::ast::AngleUnit::AngDec
+            )
+        );
+    }
+    if let Some(t) = &m.task {
+        eprintln!(
+            "dmis: uncertainty: task-specific, {} machine realisations in {:.2} s ({})",
+            t.spread.runs, t.spread.elapsed_s, t.spread.basis
+        );
+    }
+    eprintln!("dmis: {} points, {:.2} s; results in {}", m.r.n_points, m.r.elapsed_s, out.display());
 }
 
 /// Connect and run the program; no motion after SIGINT/SIGTERM.
