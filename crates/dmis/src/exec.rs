@@ -428,7 +428,37 @@ pub fn run(
     progress: &mut dyn FnMut(&str),
 ) -> Result<RunResult, RunError> {
     let t0 = Instant::now();
-    // Tools for the selected sensors, before any motion.
+    let tool_of = tools_of_sensors(plan, machine, opts)?;
+    let mut ex = Exec::new(plan);
+    ex.out.push(format!(
+        "FILNAM/'{}'",
+        plan.filnam.clone().unwrap_or_else(|| plan.title.clone()).replace('\'', "''")
+    ));
+    for step in &plan.steps {
+        ex.step(machine, step, &tool_of, progress)?;
+    }
+    ex.out.push("ENDFIL".into());
+    Ok(RunResult {
+        machine: machine.info(),
+        features: ex.features,
+        tolerances: ex.tolerances,
+        n_points: ex.n_points,
+        elapsed_s: t0.elapsed().as_secs_f64(),
+        output: ex.out,
+        motions: ex.motions,
+        probes: ex.probes,
+        tools: ex.tools,
+    })
+}
+
+/// The machine's tool for each sensor of the plan (by `--sensor`, else the sensor's name),
+/// checked before any motion: a selected sensor needs a tool the machine lists, and every
+/// `--sensor` must name a sensor of the program.
+fn tools_of_sensors(
+    plan: &Plan,
+    machine: &mut dyn ProbingMachine,
+    opts: &RunOptions,
+) -> Result<Vec<String>, RunError> {
     let listed = machine.tool_names().map_err(|e| RunError::Device {
         file: plan.file.clone(),
         line: plan.steps.first().map_or(1, |s| s.pos.line),
@@ -466,83 +496,80 @@ pub fn run(
             )));
         }
     }
-    let mut ex = Exec {
-        plan,
-        frame: Frame::machine(),
-        saved: HashMap::new(),
-        nominal: vec![None; plan.features.len()],
-        def_frame: vec![None; plan.features.len()],
-        actual: vec![None; plan.features.len()],
-        tip_radius: None,
-        approach: 2.0,
-        search: 4.0,
-        retract: 2.0,
-        feed: 5.0,
-        compensate: true,
-        length: LengthUnit::Mm,
-        angle: AngleUnit::AngDec,
-        out: Vec::new(),
-        motions: Vec::new(),
-        features: Vec::new(),
-        tolerances: Vec::new(),
-        n_points: 0,
-        at: None,
-        probes: Vec::new(),
-        tools: Vec::new(),
-    };
-    ex.out.push(format!(
-        "FILNAM/'{}'",
-        plan.filnam.clone().unwrap_or_else(|| plan.title.clone()).replace('\'', "''")
-    ));
-    for step in &plan.steps {
+    Ok(tool_of)
+}
+
+/// The steps: one at a time, the motions, coordinate systems and settings they change.
+impl<'a> Exec<'a> {
+    /// An executor at the start of `plan`: machine coordinates, mm and degrees, the default
+    /// probing distances and feed, compensation on.
+    fn new(plan: &'a Plan) -> Exec<'a> {
+        Exec {
+            plan,
+            frame: Frame::machine(),
+            saved: HashMap::new(),
+            nominal: vec![None; plan.features.len()],
+            def_frame: vec![None; plan.features.len()],
+            actual: vec![None; plan.features.len()],
+            tip_radius: None,
+            approach: 2.0,
+            search: 4.0,
+            retract: 2.0,
+            feed: 5.0,
+            compensate: true,
+            length: LengthUnit::Mm,
+            angle: AngleUnit::AngDec,
+            out: Vec::new(),
+            motions: Vec::new(),
+            features: Vec::new(),
+            tolerances: Vec::new(),
+            n_points: 0,
+            at: None,
+            probes: Vec::new(),
+            tools: Vec::new(),
+        }
+    }
+
+    /// One step of the plan; `tool_of` names the machine's tool of each sensor.
+    fn step(
+        &mut self,
+        machine: &mut dyn ProbingMachine,
+        step: &Step,
+        tool_of: &[String],
+        progress: &mut dyn FnMut(&str),
+    ) -> Result<(), RunError> {
+        let plan = self.plan;
         let line = step.pos.line;
         let dev = |e: DeviceError| RunError::Device { file: plan.file.clone(), line, source: e };
         if let Some(e) = &step.echo {
-            ex.out.push(e.clone());
+            self.out.push(e.clone());
         }
         match &step.op {
             Op::Goto(p) => {
-                let q = ex.frame.to_machine(p);
-                ex.goto(machine, q).map_err(dev)?;
+                let q = self.frame.to_machine(p);
+                self.goto(machine, q).map_err(dev)?;
             }
-            Op::GotoIncr(v) => {
-                let from = match ex.at {
-                    Some(a) => a,
-                    None => machine.position().map_err(dev)?,
-                };
-                let q = from + ex.frame.dir_to_machine(v);
-                ex.goto(machine, q).map_err(dev)?;
-            }
+            Op::GotoIncr(v) => self.goto_incr(machine, v).map_err(dev)?,
             Op::Feed { kind, mm_s } => match (kind, mm_s) {
-                (FeedKind::MesVel, Some(v)) => ex.feed = *v,
+                (FeedKind::MesVel, Some(v)) => self.feed = *v,
                 (FeedKind::PosVel, Some(v)) => {
                     machine.set_move_speed(*v).map_err(dev)?;
-                    ex.motions.push(format!("line {line}: positioning speed {v} mm/s"));
+                    self.motions.push(format!("line {line}: positioning speed {v} mm/s"));
                 }
                 _ => {}
             },
-            Op::Approach(v) => ex.approach = *v,
-            Op::Search(v) => ex.search = *v,
-            Op::Retract(v) => ex.retract = *v,
-            Op::Compensation(on) => ex.compensate = *on,
-            Op::SelectSensor(k) => {
-                let tool = &tool_of[*k];
-                let info = machine.select_tool(tool).map_err(dev)?;
-                ex.motions
-                    .push(format!("line {line}: tool {} (tip radius {} mm)", info.name, info.tip_radius_mm));
-                ex.tip_radius = Some(info.tip_radius_mm);
-                ex.at = None;
-                if !ex.tools.iter().any(|t| t.name == info.name) {
-                    ex.tools.push(info);
-                }
-            }
+            Op::Approach(v) => self.approach = *v,
+            Op::Search(v) => self.search = *v,
+            Op::Retract(v) => self.retract = *v,
+            Op::Compensation(on) => self.compensate = *on,
+            Op::SelectSensor(k) => self.select_sensor(machine, &tool_of[*k], line).map_err(dev)?,
             Op::Define(k) => {
-                ex.nominal[*k] = Some(Geom::in_frame(&plan.features[*k].nominal, &ex.frame));
-                ex.def_frame[*k] = Some(ex.frame);
+                self.nominal[*k] = Some(Geom::in_frame(&plan.features[*k].nominal, &self.frame));
+                self.def_frame[*k] = Some(self.frame);
             }
             Op::Measure { feature, moves } => {
                 let t = Instant::now();
-                ex.measure(machine, *feature, moves, step.pos)?;
+                self.measure(machine, *feature, moves, step.pos)?;
                 let f = &plan.features[*feature];
                 progress(&format!(
                     "line {line}: MEAS/{},F({}): {} points in {:.2} s",
@@ -552,90 +579,115 @@ pub fn run(
                     t.elapsed().as_secs_f64()
                 ));
             }
-            Op::Construct { feature, method } => ex.construct(*feature, method, line)?,
+            Op::Construct { feature, method } => self.construct(*feature, method, line)?,
             Op::Datset { name, def } => {
-                ex.datset(def, line)?;
-                ex.saved.insert(name.to_ascii_uppercase(), ex.frame);
+                self.datset(def, line)?;
+                self.save_frame(name);
             }
-            Op::Trans { name, items } => {
-                for (axis, to) in items {
-                    let e = ex.frame.axis(*axis);
-                    let v = match to {
-                        TransTo::Value(v) => *v,
-                        TransTo::Feature(k) => e.dot(&(ex.actual_geom(*k).position().coords - ex.frame.o)),
-                    };
-                    ex.frame.o += e * v;
-                }
-                if let Some(n) = name {
-                    ex.saved.insert(n.to_ascii_uppercase(), ex.frame);
-                }
-            }
-            Op::Rotate { name, axis, by } => {
-                let (i, j) = ((axis + 1) % 3, (axis + 2) % 3);
-                let (ei, ej, ek) = (ex.frame.axis(i), ex.frame.axis(j), ex.frame.axis(*axis));
-                let theta = match by {
-                    RotateTo::Angle(a) => *a,
-                    RotateTo::Feature(k, target) => {
-                        let d = ex.actual_geom(*k).direction().unwrap_or(ek);
-                        let (x, y) = (d.dot(&ei), d.dot(&ej));
-                        if x.hypot(y) < 1e-9 {
-                            return Err(RunError::Evaluation {
-                                file: plan.file.clone(),
-                                line,
-                                message: format!(
-                                    "ROTATE: F({})'s direction lies along the rotation axis",
-                                    plan.features[*k].name
-                                ),
-                            });
-                        }
-                        let phi = y.atan2(x);
-                        if *target == i {
-                            phi
-                        } else {
-                            phi - std::f64::consts::FRAC_PI_2
-                        }
-                    }
-                };
-                let (s, c) = theta.sin_cos();
-                let ni = ei * c + ej * s;
-                let nj = -ei * s + ej * c;
-                ex.frame.r.set_column(i, &ni);
-                ex.frame.r.set_column(j, &nj);
-                if let Some(n) = name {
-                    ex.saved.insert(n.to_ascii_uppercase(), ex.frame);
-                }
-            }
-            Op::Save(n) => {
-                ex.saved.insert(n.to_ascii_uppercase(), ex.frame);
-            }
+            Op::Trans { name, items } => self.trans(name.as_deref(), items),
+            Op::Rotate { name, axis, by } => self.rotate(name.as_deref(), *axis, by, line)?,
+            Op::Save(n) => self.save_frame(n),
             Op::Recall(n) => {
-                if let Some(f) = ex.saved.get(&n.to_ascii_uppercase()) {
-                    ex.frame = *f;
+                if let Some(f) = self.saved.get(&n.to_ascii_uppercase()) {
+                    self.frame = *f;
                 }
             }
             Op::Units { length, angle } => {
-                ex.length = *length;
-                ex.angle = *angle;
+                self.length = *length;
+                self.angle = *angle;
             }
-            Op::Output(items) => ex.output(items, line)?,
+            Op::Output(items) => self.output(items, line)?,
             Op::Text { kind, text } => match kind {
-                TextKind::Outfil => ex.out.push(format!("TEXT/OUTFIL,'{}'", text.replace('\'', "''"))),
+                TextKind::Outfil => self.out.push(format!("TEXT/OUTFIL,'{}'", text.replace('\'', "''"))),
                 _ => progress(&format!("line {line}: TEXT/{kind}: {text}")),
             },
         }
+        Ok(())
     }
-    ex.out.push("ENDFIL".into());
-    Ok(RunResult {
-        machine: machine.info(),
-        features: ex.features,
-        tolerances: ex.tolerances,
-        n_points: ex.n_points,
-        elapsed_s: t0.elapsed().as_secs_f64(),
-        output: ex.out,
-        motions: ex.motions,
-        probes: ex.probes,
-        tools: ex.tools,
-    })
+
+    /// `GOTO/INCR`: from where the tip was last sent (or where the machine says it is).
+    fn goto_incr(&mut self, m: &mut dyn ProbingMachine, v: &Vector3) -> Result<(), DeviceError> {
+        let from = match self.at {
+            Some(a) => a,
+            None => m.position()?,
+        };
+        let q = from + self.frame.dir_to_machine(v);
+        self.goto(m, q)
+    }
+
+    /// `SNSLCT`: the machine's `tool`, its tip radius and where the tip is now unknown.
+    fn select_sensor(
+        &mut self,
+        m: &mut dyn ProbingMachine,
+        tool: &str,
+        line: u32,
+    ) -> Result<(), DeviceError> {
+        let info = m.select_tool(tool)?;
+        self.motions.push(format!("line {line}: tool {} (tip radius {} mm)", info.name, info.tip_radius_mm));
+        self.tip_radius = Some(info.tip_radius_mm);
+        self.at = None;
+        if !self.tools.iter().any(|t| t.name == info.name) {
+            self.tools.push(info);
+        }
+        Ok(())
+    }
+
+    /// Keeps the active coordinate system under `name` (for `RECALL`).
+    fn save_frame(&mut self, name: &str) {
+        self.saved.insert(name.to_ascii_uppercase(), self.frame);
+    }
+
+    /// `TRANS`: each origin moved along its axis to a value or a feature's position.
+    fn trans(&mut self, name: Option<&str>, items: &[(usize, TransTo)]) {
+        for (axis, to) in items {
+            let e = self.frame.axis(*axis);
+            let v = match to {
+                TransTo::Value(v) => *v,
+                TransTo::Feature(k) => e.dot(&(self.actual_geom(*k).position().coords - self.frame.o)),
+            };
+            self.frame.o += e * v;
+        }
+        if let Some(n) = name {
+            self.save_frame(n);
+        }
+    }
+
+    /// `ROTATE` about `axis` by an angle, or until a feature's direction is the target axis.
+    fn rotate(&mut self, name: Option<&str>, axis: usize, by: &RotateTo, line: u32) -> Result<(), RunError> {
+        let (i, j) = ((axis + 1) % 3, (axis + 2) % 3);
+        let (ei, ej, ek) = (self.frame.axis(i), self.frame.axis(j), self.frame.axis(axis));
+        let theta = match by {
+            RotateTo::Angle(a) => *a,
+            RotateTo::Feature(k, target) => {
+                let d = self.actual_geom(*k).direction().unwrap_or(ek);
+                let (x, y) = (d.dot(&ei), d.dot(&ej));
+                if x.hypot(y) < 1e-9 {
+                    return Err(self.eval_err(
+                        line,
+                        format!(
+                            "ROTATE: F({})'s direction lies along the rotation axis",
+                            self.plan.features[*k].name
+                        ),
+                    ));
+                }
+                let phi = y.atan2(x);
+                if *target == i {
+                    phi
+                } else {
+                    phi - std::f64::consts::FRAC_PI_2
+                }
+            }
+        };
+        let (s, c) = theta.sin_cos();
+        let ni = ei * c + ej * s;
+        let nj = -ei * s + ej * c;
+        self.frame.r.set_column(i, &ni);
+        self.frame.r.set_column(j, &nj);
+        if let Some(n) = name {
+            self.save_frame(n);
+        }
+        Ok(())
+    }
 }
 
 impl Exec<'_> {
@@ -679,14 +731,7 @@ impl Exec<'_> {
                     let q = self.frame.to_machine(p);
                     self.goto(m, q).map_err(dev)?;
                 }
-                Move::GotoIncr(v) => {
-                    let from = match self.at {
-                        Some(a) => a,
-                        None => m.position().map_err(dev)?,
-                    };
-                    let q = from + self.frame.dir_to_machine(v);
-                    self.goto(m, q).map_err(dev)?;
-                }
+                Move::GotoIncr(v) => self.goto_incr(m, v).map_err(dev)?,
                 Move::Probe { p, dir } => {
                     let q = self.frame.to_machine(p);
                     let n = match dir {
