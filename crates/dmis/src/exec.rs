@@ -719,7 +719,7 @@ impl Exec<'_> {
     ) -> Result<(), RunError> {
         let plan = self.plan;
         let feat = &plan.features[k];
-        let nominal = self.nominal[k].clone().unwrap_or_else(|| Geom::in_frame(&feat.nominal, &self.frame));
+        let nominal = self.nominal_geom(k);
         let r = self.tip_radius.unwrap_or(0.0);
         let mut points = Vec::new();
         let mut approaches = Vec::new();
@@ -797,7 +797,7 @@ impl Exec<'_> {
 
     fn construct(&mut self, k: usize, method: &Construction, line: u32) -> Result<(), RunError> {
         let feat = &self.plan.features[k];
-        let nominal = self.nominal[k].clone().unwrap_or_else(|| Geom::in_frame(&feat.nominal, &self.frame));
+        let nominal = self.nominal_geom(k);
         let err = |m: String| RunError::Evaluation {
             file: self.plan.file.clone(),
             line,
@@ -956,12 +956,7 @@ impl Exec<'_> {
                             self.actual[*feature].clone().ok_or_else(|| self.eval_err(line, "no actual"))?;
                         (a.geom.clone(), Some(a))
                     } else {
-                        (
-                            self.nominal[*feature]
-                                .clone()
-                                .unwrap_or_else(|| Geom::in_frame(&f.nominal, &self.frame)),
-                            None,
-                        )
+                        (self.nominal_geom(*feature), None)
                     };
                     let part = self.to_part_geom(&g);
                     self.out.push(crate::report::feat_line(
@@ -1014,152 +1009,53 @@ impl Exec<'_> {
         }
     }
 
+    /// A tolerance evaluated on the actual features `fs`: its value, limits and verdict, with what
+    /// the report and a simulation need besides.
     fn evaluate(&self, t: &Tolerance, fs: &[usize], line: u32) -> Result<TolResult, RunError> {
         let plan = self.plan;
-        let a = |k: usize| self.actual[k].clone().ok_or_else(|| self.eval_err(line, "no actual"));
-        let nom = |k: usize| {
-            self.nominal[k].clone().unwrap_or_else(|| Geom::in_frame(&plan.features[k].nominal, &self.frame))
-        };
-        let fe = |e: truepos_fit::FitError| self.eval_err(line, format!("T({}): {e}", t.name));
         let names: Vec<String> = fs.iter().map(|k| plan.features[*k].name.clone()).collect();
         let within = |v: f64, z: f64| v <= z;
         let mut vector = None;
         let (value, limits, ok, angular) = match &t.kind {
-            TolKind::Flat(z) => {
-                let v = minzone::plane_zone(&a(fs[0])?.points).map_err(fe)?.form;
-                (v, (0.0, *z), within(v, *z), false)
-            }
-            TolKind::Strght(z) => {
-                let act = a(fs[0])?;
-                let pts = match &plan.features[fs[0]].nominal {
-                    Nominal::Line { plane: Some(pn), .. } => {
-                        let n = self.nominal_frame_dir(fs[0], pn);
-                        let c = act.geom.position();
-                        act.points.iter().map(|q| q - n * (q - c).dot(&n)).collect()
-                    }
-                    _ => act.points.clone(),
-                };
-                let v = if pts.len() < 3 { 0.0 } else { minzone::line_zone(&pts).map_err(fe)?.form };
-                (v, (0.0, *z), within(v, *z), false)
-            }
-            TolKind::Cirlty(z) => {
-                let act = a(fs[0])?;
-                let v = minzone::circle_fit(&act.points, Criterion::MinimumZone).map_err(fe)?.form;
-                (v, (0.0, *z), within(v, *z), false)
-            }
-            TolKind::Cylcty(z) => {
-                // From the feature's own fit (its nominal axis chose the cylinder): the points
-                // alone may fit another cylinder equally well.
-                let act = a(fs[0])?;
-                let v = match &act.geom {
-                    Geom::Cylinder { p, axis, r } => {
-                        minzone::cylinder_fit_from(&act.points, Criterion::MinimumZone, (*p, *axis, *r))
-                    }
-                    _ => minzone::cylinder_fit(&act.points, Criterion::MinimumZone),
-                }
-                .map_err(fe)?
-                .form;
+            TolKind::Flat(z) | TolKind::Strght(z) | TolKind::Cirlty(z) | TolKind::Cylcty(z) => {
+                let v = self.form_value(t, fs[0], line)?;
                 (v, (0.0, *z), within(v, *z), false)
             }
             TolKind::Diam { lo, hi } | TolKind::Rad { lo, hi } => {
                 let f = if matches!(t.kind, TolKind::Diam { .. }) { 2.0 } else { 1.0 };
-                let ra = a(fs[0])?.geom.radius().unwrap_or(0.0);
-                let rn = nom(fs[0]).radius().unwrap_or(0.0);
+                let ra = self.actual_at(fs[0], line)?.geom.radius().unwrap_or(0.0);
+                let rn = self.nominal_geom(fs[0]).radius().unwrap_or(0.0);
                 let v = f * (ra - rn);
                 (v, (*lo, *hi), v >= *lo && v <= *hi, false)
             }
             TolKind::Pos { three_d, zone } => {
-                let (ga, gn) = (a(fs[0])?.geom, nom(fs[0]));
-                let pn = gn.position();
-                let mut d = match (&ga, gn.direction()) {
-                    (Geom::Cylinder { p, axis, .. }, _) => {
-                        let q = p + axis * (pn - p).dot(axis);
-                        q - pn
-                    }
-                    _ => ga.position() - pn,
-                };
-                if !three_d {
-                    if let Some(ax) = gn.direction() {
-                        d -= ax * d.dot(&ax);
-                    }
-                }
+                let d = self.position_deviation(fs[0], *three_d, line)?;
                 let v = 2.0 * d.norm();
                 vector = Some(d * 2.0);
                 (v, (0.0, *zone), within(v, *zone), false)
             }
             TolKind::Perp { zone, datum } | TolKind::Parlel { zone, datum } => {
-                let perp = matches!(t.kind, TolKind::Perp { .. });
-                let act = a(fs[0])?;
-                let dg = self.actual_geom(*datum);
-                let d = dg.direction().unwrap_or(Vector3::z());
-                let d = d / d.norm();
-                let datum_is_plane = matches!(dg, Geom::Plane { .. });
-                let v = match &act.geom {
-                    Geom::Plane { n, .. } => {
-                        // Zone: two planes; their normal is d or n made perpendicular to d.
-                        let use_d = perp != datum_is_plane;
-                        let u = if use_d {
-                            d
-                        } else {
-                            let u = n - d * n.dot(&d);
-                            if u.norm() < 1e-9 {
-                                return Err(self.eval_err(
-                                    line,
-                                    format!("T({}): the plane is parallel to its datum's direction", t.name),
-                                ));
-                            }
-                            u / u.norm()
-                        };
-                        range(&act.points, &u)
-                    }
-                    g => {
-                        let ax = g.direction().unwrap_or(Vector3::z());
-                        let (lo, hi) = extent(&act.points, &ax);
-                        let s = ax * (hi - lo);
-                        let along = d * s.dot(&d);
-                        let across = s - along;
-                        let w = if perp == datum_is_plane { across } else { along };
-                        vector = Some(w);
-                        w.norm()
-                    }
-                };
+                let (v, w) = self.orientation_value(t, fs[0], *datum, line)?;
+                vector = w;
                 (v, (0.0, *zone), within(v, *zone), false)
             }
             TolKind::Anglb { angle, lo, hi } => {
-                let da = a(fs[0])?.geom.direction().unwrap_or(Vector3::z());
-                let db = a(fs[1])?.geom.direction().unwrap_or(Vector3::z());
+                let da = self.actual_at(fs[0], line)?.geom.direction().unwrap_or(Vector3::z());
+                let db = self.actual_at(fs[1], line)?.geom.direction().unwrap_or(Vector3::z());
                 let v = (da.dot(&db) / (da.norm() * db.norm())).clamp(-1.0, 1.0).acos();
                 (v, (angle + lo, angle + hi), v >= angle + lo && v <= angle + hi, true)
             }
             TolKind::Distb { dist, lo, hi, axis } => {
-                let (ga, gb) = (a(fs[0])?.geom, a(fs[1])?.geom);
-                let delta = gb.position() - ga.position();
-                let v = match (&ga, &gb, axis) {
-                    (Geom::Plane { n, .. }, _, None | Some(DistAxis::Pt2Pt))
-                    | (_, Geom::Plane { n, .. }, None | Some(DistAxis::Pt2Pt)) => delta.dot(n).abs(),
-                    (_, _, Some(DistAxis::XAxis)) => delta.dot(&self.frame.axis(0)).abs(),
-                    (_, _, Some(DistAxis::YAxis)) => delta.dot(&self.frame.axis(1)).abs(),
-                    (_, _, Some(DistAxis::ZAxis)) => delta.dot(&self.frame.axis(2)).abs(),
-                    _ => delta.norm(),
-                };
+                let v = self.distance_value(fs, *axis, line)?;
                 (v, (dist + lo, dist + hi), v >= dist + lo && v <= dist + hi, false)
             }
         };
         let nominal = match &t.kind {
-            TolKind::Diam { .. } => nom(fs[0]).radius().map(|r| 2.0 * r),
-            TolKind::Rad { .. } => nom(fs[0]).radius(),
+            TolKind::Diam { .. } => self.nominal_geom(fs[0]).radius().map(|r| 2.0 * r),
+            TolKind::Rad { .. } => self.nominal_geom(fs[0]).radius(),
             TolKind::Anglb { angle, .. } => Some(*angle),
             TolKind::Distb { dist, .. } => Some(*dist),
             _ => None,
-        };
-        let datums = match &t.statement {
-            Statement::Tol { tol: Tol::Pos { datums, .. }, .. } => {
-                datums.iter().map(|d| d.name.clone()).collect()
-            }
-            Statement::Tol { tol: Tol::Perp { datum, .. } | Tol::Parlel { datum, .. }, .. } => {
-                vec![datum.name.clone()]
-            }
-            _ => Vec::new(),
         };
         // The feature results of this OUTPUT: the latest actual output of each feature.
         let feature_results = names
@@ -1176,7 +1072,7 @@ impl Exec<'_> {
             in_tolerance: ok,
             vector,
             nominal,
-            datums,
+            datums: tolerance_datums(t),
             feature_results,
             three_d: matches!(t.kind, TolKind::Pos { three_d: true, .. }),
             distb_axis: match &t.kind {
@@ -1188,9 +1084,149 @@ impl Exec<'_> {
         })
     }
 
+    /// The actual feature `k` (a copy), which the checker guarantees by the time it is used.
+    fn actual_at(&self, k: usize, line: u32) -> Result<Actual, RunError> {
+        self.actual[k].clone().ok_or_else(|| self.eval_err(line, "no actual"))
+    }
+
+    /// The nominal feature `k` in the machine frame (in the active frame if not defined yet).
+    fn nominal_geom(&self, k: usize) -> Geom {
+        self.nominal[k].clone().unwrap_or_else(|| Geom::in_frame(&self.plan.features[k].nominal, &self.frame))
+    }
+
+    /// The minimum-zone form error (FLAT, STRGHT, CIRLTY, CYLCTY) of the actual feature `k`, mm.
+    fn form_value(&self, t: &Tolerance, k: usize, line: u32) -> Result<f64, RunError> {
+        let fe = |e: truepos_fit::FitError| self.eval_err(line, format!("T({}): {e}", t.name));
+        let act = self.actual_at(k, line)?;
+        Ok(match &t.kind {
+            TolKind::Flat(_) => minzone::plane_zone(&act.points).map_err(fe)?.form,
+            TolKind::Strght(_) => {
+                let pts = match &self.plan.features[k].nominal {
+                    Nominal::Line { plane: Some(pn), .. } => {
+                        let n = self.nominal_frame_dir(k, pn);
+                        let c = act.geom.position();
+                        act.points.iter().map(|q| q - n * (q - c).dot(&n)).collect()
+                    }
+                    _ => act.points.clone(),
+                };
+                if pts.len() < 3 {
+                    0.0
+                } else {
+                    minzone::line_zone(&pts).map_err(fe)?.form
+                }
+            }
+            TolKind::Cirlty(_) => minzone::circle_fit(&act.points, Criterion::MinimumZone).map_err(fe)?.form,
+            // CYLCTY, from the feature's own fit (its nominal axis chose the cylinder): the points
+            // alone may fit another cylinder equally well.
+            _ => {
+                match &act.geom {
+                    Geom::Cylinder { p, axis, r } => {
+                        minzone::cylinder_fit_from(&act.points, Criterion::MinimumZone, (*p, *axis, *r))
+                    }
+                    _ => minzone::cylinder_fit(&act.points, Criterion::MinimumZone),
+                }
+                .map_err(fe)?
+                .form
+            }
+        })
+    }
+
+    /// POS: the actual feature `k`'s deviation from its nominal position (an axis: where it
+    /// passes the nominal point), across the nominal direction unless `three_d`; mm.
+    fn position_deviation(&self, k: usize, three_d: bool, line: u32) -> Result<Vector3, RunError> {
+        let (ga, gn) = (self.actual_at(k, line)?.geom, self.nominal_geom(k));
+        let pn = gn.position();
+        let mut d = match (&ga, gn.direction()) {
+            (Geom::Cylinder { p, axis, .. }, _) => {
+                let q = p + axis * (pn - p).dot(axis);
+                q - pn
+            }
+            _ => ga.position() - pn,
+        };
+        if !three_d {
+            if let Some(ax) = gn.direction() {
+                d -= ax * d.dot(&ax);
+            }
+        }
+        Ok(d)
+    }
+
+    /// PERP or PARLEL of the actual feature `k` to the feature `datum`: the zone width (mm) and,
+    /// for an axis, the vector whose length it is.
+    fn orientation_value(
+        &self,
+        t: &Tolerance,
+        k: usize,
+        datum: usize,
+        line: u32,
+    ) -> Result<(f64, Option<Vector3>), RunError> {
+        let perp = matches!(t.kind, TolKind::Perp { .. });
+        let act = self.actual_at(k, line)?;
+        let dg = self.actual_geom(datum);
+        let d = dg.direction().unwrap_or(Vector3::z());
+        let d = d / d.norm();
+        let datum_is_plane = matches!(dg, Geom::Plane { .. });
+        Ok(match &act.geom {
+            Geom::Plane { n, .. } => {
+                // Zone: two planes; their normal is d or n made perpendicular to d.
+                let use_d = perp != datum_is_plane;
+                let u = if use_d {
+                    d
+                } else {
+                    let u = n - d * n.dot(&d);
+                    if u.norm() < 1e-9 {
+                        return Err(self.eval_err(
+                            line,
+                            format!("T({}): the plane is parallel to its datum's direction", t.name),
+                        ));
+                    }
+                    u / u.norm()
+                };
+                (range(&act.points, &u), None)
+            }
+            g => {
+                let ax = g.direction().unwrap_or(Vector3::z());
+                let (lo, hi) = extent(&act.points, &ax);
+                let s = ax * (hi - lo);
+                let along = d * s.dot(&d);
+                let across = s - along;
+                let w = if perp == datum_is_plane { across } else { along };
+                (w.norm(), Some(w))
+            }
+        })
+    }
+
+    /// DISTB between the actual features `fs[0]` and `fs[1]`: along a plane's normal, an axis of
+    /// the active coordinate system, or point to point; mm.
+    fn distance_value(&self, fs: &[usize], axis: Option<DistAxis>, line: u32) -> Result<f64, RunError> {
+        let (ga, gb) = (self.actual_at(fs[0], line)?.geom, self.actual_at(fs[1], line)?.geom);
+        let delta = gb.position() - ga.position();
+        Ok(match (&ga, &gb, axis) {
+            (Geom::Plane { n, .. }, _, None | Some(DistAxis::Pt2Pt))
+            | (_, Geom::Plane { n, .. }, None | Some(DistAxis::Pt2Pt)) => delta.dot(n).abs(),
+            (_, _, Some(DistAxis::XAxis)) => delta.dot(&self.frame.axis(0)).abs(),
+            (_, _, Some(DistAxis::YAxis)) => delta.dot(&self.frame.axis(1)).abs(),
+            (_, _, Some(DistAxis::ZAxis)) => delta.dot(&self.frame.axis(2)).abs(),
+            _ => delta.norm(),
+        })
+    }
+
     /// A nominal's direction (given in the part frame active at its FEAT) in the machine frame.
     fn nominal_frame_dir(&self, k: usize, v: &Vector3) -> Vector3 {
         self.def_frame[k].unwrap_or(self.frame).dir_to_machine(v)
+    }
+}
+
+/// The datums a tolerance names in order of precedence (POS, PERP, PARLEL), as written.
+fn tolerance_datums(t: &Tolerance) -> Vec<String> {
+    match &t.statement {
+        Statement::Tol { tol: Tol::Pos { datums, .. }, .. } => {
+            datums.iter().map(|d| d.name.clone()).collect()
+        }
+        Statement::Tol { tol: Tol::Perp { datum, .. } | Tol::Parlel { datum, .. }, .. } => {
+            vec![datum.name.clone()]
+        }
+        _ => Vec::new(),
     }
 }
 
