@@ -1445,23 +1445,7 @@ fn output(c: &Checker, ls: &[Label], st: &Stmt) -> Result<Vec<OutputItem>, DmisE
                     c.sem(fpos, format!("TA({}) is evaluated on actual features: FA(…), not F(…)", l.name))
                 );
             }
-            use FeatType as F;
-            let ok = match &tol.kind {
-                TolKind::Flat(_) => t == F::Plane,
-                TolKind::Strght(_) => t == F::Line,
-                TolKind::Cirlty(_) => t == F::Circle,
-                TolKind::Cylcty(_) => t == F::Cylndr,
-                TolKind::Diam { .. } | TolKind::Rad { .. } => matches!(t, F::Circle | F::Cylndr | F::Sphere),
-                TolKind::Pos { three_d, .. } => {
-                    matches!(t, F::Point | F::Circle | F::Cylndr) || (*three_d && t == F::Sphere)
-                }
-                TolKind::Perp { .. } | TolKind::Parlel { .. } => {
-                    matches!(t, F::Plane | F::Line | F::Cylndr | F::Cone)
-                }
-                TolKind::Anglb { .. } => has_direction(t),
-                TolKind::Distb { .. } => point_like(t) || matches!(t, F::Plane | F::Cylndr),
-            };
-            if !ok {
+            if !applies_to(&tol.kind, t) {
                 return Err(c.sem(
                     fpos,
                     format!("TA({}) ({}) does not apply to a {t}", l.name, tol.statement_word()),
@@ -1486,23 +1470,7 @@ fn output(c: &Checker, ls: &[Label], st: &Stmt) -> Result<Vec<OutputItem>, DmisE
                 ));
             }
         }
-        if let (TolKind::Pos { .. }, Statement::Tol { tol: Tol::Pos { datums, .. }, .. }) =
-            (&tol.kind, &tol.statement)
-        {
-            if !datums.is_empty() {
-                let want: Vec<usize> = datums.iter().filter_map(|d| c.datum(d, pos).ok()).collect();
-                let active = c.active_datums.clone().unwrap_or_default();
-                if active.len() < want.len() || active[..want.len()] != want[..] {
-                    return Err(c.sem(
-                        pos,
-                        format!(
-                            "TA({}) refers to datums that the active coordinate system was not set from (DATSET with those datums first): position is reported in the active coordinate system",
-                            l.name
-                        ),
-                    ));
-                }
-            }
-        }
+        pos_datums_active(c, l, tol, pos)?;
         items.push(OutputItem::Tolerance {
             tolerance: k,
             features: feats.iter().map(|f| f.0).collect(),
@@ -1510,6 +1478,51 @@ fn output(c: &Checker, ls: &[Label], st: &Stmt) -> Result<Vec<OutputItem>, DmisE
         });
     }
     Ok(items)
+}
+
+/// Whether a tolerance of `kind` applies to a feature of type `t`.
+fn applies_to(kind: &TolKind, t: FeatType) -> bool {
+    use FeatType as F;
+    match kind {
+        TolKind::Flat(_) => t == F::Plane,
+        TolKind::Strght(_) => t == F::Line,
+        TolKind::Cirlty(_) => t == F::Circle,
+        TolKind::Cylcty(_) => t == F::Cylndr,
+        TolKind::Diam { .. } | TolKind::Rad { .. } => matches!(t, F::Circle | F::Cylndr | F::Sphere),
+        TolKind::Pos { three_d, .. } => {
+            matches!(t, F::Point | F::Circle | F::Cylndr) || (*three_d && t == F::Sphere)
+        }
+        TolKind::Perp { .. } | TolKind::Parlel { .. } => {
+            matches!(t, F::Plane | F::Line | F::Cylndr | F::Cone)
+        }
+        TolKind::Anglb { .. } => has_direction(t),
+        TolKind::Distb { .. } => point_like(t) || matches!(t, F::Plane | F::Cylndr),
+    }
+}
+
+/// `TA(l)` of a `POS` that names datums (`OUTPUT` at `pos`): the active coordinate system must
+/// have been set from those datums, first and in order.
+fn pos_datums_active(c: &Checker, l: &Label, tol: &Tolerance, pos: Pos) -> Result<(), DmisError> {
+    if let (TolKind::Pos { .. }, Statement::Tol { tol: Tol::Pos { datums, .. }, .. }) =
+        (&tol.kind, &tol.statement)
+    {
+        if !datums.is_empty() {
+            let want: Vec<usize> = datums.iter().filter_map(|d| c.datum(d, pos).ok()).collect();
+            let active = c.active_datums.clone().unwrap_or_default();
+            if active.len() < want.len() || active[..want.len()] != want[..] {
+                return Err(c.sem(
+                    pos,
+                    format!(
+                        "TA({}) refers to datums that the active coordinate system was not set from \
+                         (DATSET with those datums first): position is reported in the active \
+                         coordinate system",
+                        l.name
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 impl Tolerance {
