@@ -739,18 +739,7 @@ impl Display for Statement {
                     write!(s, ",{t}")?;
                 }
             }
-            Statement::Disply(items) => {
-                s.push_str("DISPLY/");
-                for (k, it) in items.iter().enumerate() {
-                    if k > 0 {
-                        s.push(',');
-                    }
-                    match it {
-                        DisplyItem::Word(w) => s.push_str(w),
-                        DisplyItem::Device(l) => write!(s, "{l}")?,
-                    }
-                }
-            }
+            Statement::Disply(items) => print_disply(&mut s, items)?,
             Statement::Prcomp(on) => write!(s, "PRCOMP/{}", if *on { "ON" } else { "OFF" })?,
             Statement::Mode(w) => {
                 s.push_str("MODE/");
@@ -762,18 +751,7 @@ impl Display for Statement {
                     push_nums(&mut s, &[*v]);
                 }
             }
-            Statement::Snset(it) => {
-                s.push_str("SNSET/");
-                match it {
-                    Snset::Apprch(v) => write!(s, "APPRCH,{}", num(*v))?,
-                    Snset::Retrct(v) => write!(s, "RETRCT,{}", num(*v))?,
-                    Snset::Search(v) => write!(s, "SEARCH,{}", num(*v))?,
-                    Snset::Depth(v) => write!(s, "DEPTH,{}", num(*v))?,
-                    Snset::Clrsrf(None, v) => write!(s, "CLRSRF,{}", num(*v))?,
-                    Snset::Clrsrf(Some(l), v) => write!(s, "CLRSRF,{l},{}", num(*v))?,
-                    Snset::ClrsrfOff => s.push_str("CLRSRF,OFF"),
-                }
-            }
+            Statement::Snset(it) => print_snset(&mut s, it)?,
             Statement::Snsdef { label, offset, dir, diam } => {
                 write!(s, "{label}=SNSDEF/PROBE,FIXED,CART")?;
                 push_nums(&mut s, offset);
@@ -781,76 +759,11 @@ impl Display for Statement {
                 push_nums(&mut s, &[*diam]);
             }
             Statement::Snslct(l) => write!(s, "SNSLCT/{l}")?,
-            Statement::Snsmnt { xvec, zvec, mntlen } => {
-                s.push_str("SNSMNT/XVEC");
-                push_nums(&mut s, xvec);
-                s.push_str(",ZVEC");
-                push_nums(&mut s, zvec);
-                s.push_str(",MNTLEN");
-                push_nums(&mut s, mntlen);
-            }
-            Statement::Goto(Goto::Abs(p)) => {
-                s.push_str("GOTO/");
-                s.push_str(&p.iter().map(|v| num(*v)).collect::<Vec<_>>().join(","));
-            }
-            Statement::Goto(Goto::Incr { dist, dir }) => {
-                write!(s, "GOTO/INCR,{}", num(*dist))?;
-                push_nums(&mut s, dir);
-            }
+            Statement::Snsmnt { xvec, zvec, mntlen } => print_snsmnt(&mut s, xvec, zvec, mntlen),
+            Statement::Goto(g) => print_goto(&mut s, g)?,
             Statement::Feat { label, geom } => {
                 write!(s, "{label}=FEAT/{}", geom.feat_type())?;
-                match geom {
-                    FeatGeom::Point { p, n } | FeatGeom::Plane { p, n } => {
-                        s.push_str(",CART");
-                        push_nums(&mut s, p);
-                        push_nums(&mut s, n);
-                    }
-                    FeatGeom::LineUnbnd { p, dir, plane } => {
-                        s.push_str(",UNBND,CART");
-                        push_nums(&mut s, p);
-                        push_nums(&mut s, dir);
-                        if let Some(pl) = plane {
-                            push_nums(&mut s, pl);
-                        }
-                    }
-                    FeatGeom::LineBnd { p1, p2, plane } => {
-                        s.push_str(",BND,CART");
-                        push_nums(&mut s, p1);
-                        push_nums(&mut s, p2);
-                        if let Some(pl) = plane {
-                            push_nums(&mut s, pl);
-                        }
-                    }
-                    FeatGeom::Circle { side, c, n, diam } => {
-                        write!(s, ",{side},CART")?;
-                        push_nums(&mut s, c);
-                        push_nums(&mut s, n);
-                        push_nums(&mut s, &[*diam]);
-                    }
-                    FeatGeom::Cylndr { side, p, axis, diam, length } => {
-                        write!(s, ",{side},CART")?;
-                        push_nums(&mut s, p);
-                        push_nums(&mut s, axis);
-                        push_nums(&mut s, &[*diam]);
-                        if let Some(l) = length {
-                            push_nums(&mut s, &[*l]);
-                        }
-                    }
-                    FeatGeom::Sphere { side, c, n, diam } => {
-                        write!(s, ",{side},CART")?;
-                        push_nums(&mut s, c);
-                        if let Some(n) = n {
-                            push_nums(&mut s, n);
-                        }
-                        push_nums(&mut s, &[*diam]);
-                    }
-                    FeatGeom::Cone { side, apex, axis, angle } => {
-                        write!(s, ",{side},CART")?;
-                        push_nums(&mut s, apex);
-                        push_nums(&mut s, axis);
-                        push_nums(&mut s, &[*angle]);
-                    }
-                }
+                print_feat_geom(&mut s, geom)?;
             }
             Statement::Meas { ftype, feature, n } => write!(s, "MEAS/{ftype},{feature},{n}")?,
             Statement::Ptmeas { p, n } => {
@@ -862,17 +775,7 @@ impl Display for Statement {
             }
             Statement::Const { ftype, feature, method } => {
                 write!(s, "CONST/{ftype},{feature},")?;
-                match method {
-                    ConstMethod::Bf(ls) => {
-                        s.push_str("BF");
-                        for l in ls {
-                            write!(s, ",{l}")?;
-                        }
-                    }
-                    ConstMethod::Intof(a, b) => write!(s, "INTOF,{a},{b}")?,
-                    ConstMethod::Projct(a, b) => write!(s, "PROJCT,{a},{b}")?,
-                    ConstMethod::Midpt(a, b) => write!(s, "MIDPT,{a},{b}")?,
-                }
+                print_const_method(&mut s, method)?;
             }
             Statement::Datdef { datum, feature, assigned } => {
                 if *assigned {
@@ -883,78 +786,15 @@ impl Display for Statement {
             }
             Statement::Datset { label, def } => {
                 write!(s, "{label}=DATSET/")?;
-                match def {
-                    Datset::Mcs => s.push_str("MCS"),
-                    Datset::Datums(ds) => {
-                        let mut first = true;
-                        for (l, ws) in ds {
-                            if !first {
-                                s.push(',');
-                            }
-                            first = false;
-                            write!(s, "{l}")?;
-                            for w in ws {
-                                write!(s, ",{w}")?;
-                            }
-                        }
-                    }
-                }
+                print_datset(&mut s, def)?;
             }
-            Statement::Trans { label, items } => {
-                if let Some(l) = label {
-                    write!(s, "{l}=")?;
-                }
-                s.push_str("TRANS/");
-                for (k, (o, by)) in items.iter().enumerate() {
-                    if k > 0 {
-                        s.push(',');
-                    }
-                    match by {
-                        TransBy::Value(v) => write!(s, "{o},{}", num(*v))?,
-                        TransBy::Feature(l) => write!(s, "{o},{l}")?,
-                    }
-                }
-            }
-            Statement::Rotate { label, axis, by } => {
-                if let Some(l) = label {
-                    write!(s, "{l}=")?;
-                }
-                write!(s, "ROTATE/{axis},")?;
-                match by {
-                    RotateBy::Angle(a) => s.push_str(&num(*a)),
-                    RotateBy::Feature(l, d) => write!(s, "{l},{d}")?,
-                }
-            }
+            Statement::Trans { label, items } => print_trans(&mut s, label, items)?,
+            Statement::Rotate { label, axis, by } => print_rotate(&mut s, label, *axis, by)?,
             Statement::Save(l) => write!(s, "SAVE/{l}")?,
             Statement::Recall(l) => write!(s, "RECALL/{l}")?,
             Statement::Tol { label, tol } => {
                 write!(s, "{label}=TOL/{}", tol.word())?;
-                match tol {
-                    Tol::Flat(v) | Tol::Strght(v) | Tol::Cirlty(v) | Tol::Cylcty(v) => {
-                        push_nums(&mut s, &[*v])
-                    }
-                    Tol::Diam { lo, hi } | Tol::Rad { lo, hi } => push_nums(&mut s, &[*lo, *hi]),
-                    Tol::Pos { three_d, zone, cond, datums } => {
-                        s.push_str(if *three_d { ",3D" } else { ",2D" });
-                        push_nums(&mut s, &[*zone]);
-                        write!(s, ",{cond}")?;
-                        for d in datums {
-                            write!(s, ",{d}")?;
-                        }
-                    }
-                    Tol::Perp { zone, datum } | Tol::Parlel { zone, datum } => {
-                        push_nums(&mut s, &[*zone]);
-                        write!(s, ",{datum}")?;
-                    }
-                    Tol::Anglb { angle, lo, hi } => push_nums(&mut s, &[*angle, *lo, *hi]),
-                    Tol::Distb { dist, lo, hi, axis } => {
-                        s.push_str(",NOMINL");
-                        push_nums(&mut s, &[*dist, *lo, *hi]);
-                        if let Some(a) = axis {
-                            write!(s, ",{a}")?;
-                        }
-                    }
-                }
+                print_tol(&mut s, tol)?;
             }
             Statement::Output(ls) => {
                 s.push_str("OUTPUT/");
@@ -967,19 +807,232 @@ impl Display for Statement {
                     write!(s, ",{}", text(fl))?;
                 }
             }
-            Statement::Open { device, words } => {
-                write!(s, "OPEN/{device}")?;
-                for w in words {
-                    write!(s, ",{w}")?;
-                }
+            Statement::Open { device, words } => print_device_words(&mut s, "OPEN", device, words)?,
+            Statement::Close { device, word } => print_device_words(&mut s, "CLOSE", device, word)?,
+        }
+        f.write_str(&s)
+    }
+}
+
+/// `DISPLY/` and its words and device labels.
+fn print_disply(s: &mut String, items: &[DisplyItem]) -> fmt::Result {
+    s.push_str("DISPLY/");
+    for (k, it) in items.iter().enumerate() {
+        if k > 0 {
+            s.push(',');
+        }
+        match it {
+            DisplyItem::Word(w) => s.push_str(w),
+            DisplyItem::Device(l) => write!(s, "{l}")?,
+        }
+    }
+    Ok(())
+}
+
+/// `SNSET/` and its item.
+fn print_snset(s: &mut String, it: &Snset) -> fmt::Result {
+    s.push_str("SNSET/");
+    match it {
+        Snset::Apprch(v) => write!(s, "APPRCH,{}", num(*v))?,
+        Snset::Retrct(v) => write!(s, "RETRCT,{}", num(*v))?,
+        Snset::Search(v) => write!(s, "SEARCH,{}", num(*v))?,
+        Snset::Depth(v) => write!(s, "DEPTH,{}", num(*v))?,
+        Snset::Clrsrf(None, v) => write!(s, "CLRSRF,{}", num(*v))?,
+        Snset::Clrsrf(Some(l), v) => write!(s, "CLRSRF,{l},{}", num(*v))?,
+        Snset::ClrsrfOff => s.push_str("CLRSRF,OFF"),
+    }
+    Ok(())
+}
+
+/// `SNSMNT/` with its three vectors.
+fn print_snsmnt(s: &mut String, xvec: &Xyz, zvec: &Xyz, mntlen: &Xyz) {
+    s.push_str("SNSMNT/XVEC");
+    push_nums(s, xvec);
+    s.push_str(",ZVEC");
+    push_nums(s, zvec);
+    s.push_str(",MNTLEN");
+    push_nums(s, mntlen);
+}
+
+/// `GOTO/` to a point or by a distance along a direction.
+fn print_goto(s: &mut String, g: &Goto) -> fmt::Result {
+    match g {
+        Goto::Abs(p) => {
+            s.push_str("GOTO/");
+            s.push_str(&p.iter().map(|v| num(*v)).collect::<Vec<_>>().join(","));
+        }
+        Goto::Incr { dist, dir } => {
+            write!(s, "GOTO/INCR,{}", num(*dist))?;
+            push_nums(s, dir);
+        }
+    }
+    Ok(())
+}
+
+/// The arguments of `FEAT/type` after the type: side, `CART` and the numbers.
+fn print_feat_geom(s: &mut String, geom: &FeatGeom) -> fmt::Result {
+    match geom {
+        FeatGeom::Point { p, n } | FeatGeom::Plane { p, n } => {
+            s.push_str(",CART");
+            push_nums(s, p);
+            push_nums(s, n);
+        }
+        FeatGeom::LineUnbnd { p, dir, plane } => {
+            s.push_str(",UNBND,CART");
+            push_nums(s, p);
+            push_nums(s, dir);
+            if let Some(pl) = plane {
+                push_nums(s, pl);
             }
-            Statement::Close { device, word } => {
-                write!(s, "CLOSE/{device}")?;
-                if let Some(w) = word {
+        }
+        FeatGeom::LineBnd { p1, p2, plane } => {
+            s.push_str(",BND,CART");
+            push_nums(s, p1);
+            push_nums(s, p2);
+            if let Some(pl) = plane {
+                push_nums(s, pl);
+            }
+        }
+        FeatGeom::Circle { side, c, n, diam } => {
+            write!(s, ",{side},CART")?;
+            push_nums(s, c);
+            push_nums(s, n);
+            push_nums(s, &[*diam]);
+        }
+        FeatGeom::Cylndr { side, p, axis, diam, length } => {
+            write!(s, ",{side},CART")?;
+            push_nums(s, p);
+            push_nums(s, axis);
+            push_nums(s, &[*diam]);
+            if let Some(l) = length {
+                push_nums(s, &[*l]);
+            }
+        }
+        FeatGeom::Sphere { side, c, n, diam } => {
+            write!(s, ",{side},CART")?;
+            push_nums(s, c);
+            if let Some(n) = n {
+                push_nums(s, n);
+            }
+            push_nums(s, &[*diam]);
+        }
+        FeatGeom::Cone { side, apex, axis, angle } => {
+            write!(s, ",{side},CART")?;
+            push_nums(s, apex);
+            push_nums(s, axis);
+            push_nums(s, &[*angle]);
+        }
+    }
+    Ok(())
+}
+
+/// The method of `CONST` and the features it takes.
+fn print_const_method(s: &mut String, method: &ConstMethod) -> fmt::Result {
+    match method {
+        ConstMethod::Bf(ls) => {
+            s.push_str("BF");
+            for l in ls {
+                write!(s, ",{l}")?;
+            }
+        }
+        ConstMethod::Intof(a, b) => write!(s, "INTOF,{a},{b}")?,
+        ConstMethod::Projct(a, b) => write!(s, "PROJCT,{a},{b}")?,
+        ConstMethod::Midpt(a, b) => write!(s, "MIDPT,{a},{b}")?,
+    }
+    Ok(())
+}
+
+/// The arguments of `DATSET/`: `MCS`, or each datum with its axis and origin words.
+fn print_datset(s: &mut String, def: &Datset) -> fmt::Result {
+    match def {
+        Datset::Mcs => s.push_str("MCS"),
+        Datset::Datums(ds) => {
+            let mut first = true;
+            for (l, ws) in ds {
+                if !first {
+                    s.push(',');
+                }
+                first = false;
+                write!(s, "{l}")?;
+                for w in ws {
                     write!(s, ",{w}")?;
                 }
             }
         }
-        f.write_str(&s)
     }
+    Ok(())
+}
+
+/// `[D(l)=]TRANS/` and each origin with its value or feature.
+fn print_trans(s: &mut String, label: &Option<Label>, items: &[(Origin, TransBy)]) -> fmt::Result {
+    if let Some(l) = label {
+        write!(s, "{l}=")?;
+    }
+    s.push_str("TRANS/");
+    for (k, (o, by)) in items.iter().enumerate() {
+        if k > 0 {
+            s.push(',');
+        }
+        match by {
+            TransBy::Value(v) => write!(s, "{o},{}", num(*v))?,
+            TransBy::Feature(l) => write!(s, "{o},{l}")?,
+        }
+    }
+    Ok(())
+}
+
+/// `[D(l)=]ROTATE/` about an axis by an angle or to a feature's direction.
+fn print_rotate(s: &mut String, label: &Option<Label>, axis: RotAxis, by: &RotateBy) -> fmt::Result {
+    if let Some(l) = label {
+        write!(s, "{l}=")?;
+    }
+    write!(s, "ROTATE/{axis},")?;
+    match by {
+        RotateBy::Angle(a) => s.push_str(&num(*a)),
+        RotateBy::Feature(l, d) => write!(s, "{l},{d}")?,
+    }
+    Ok(())
+}
+
+/// `OPEN/` or `CLOSE/` of a device and the words after it.
+fn print_device_words<'a>(
+    s: &mut String,
+    major: &str,
+    device: &Label,
+    words: impl IntoIterator<Item = &'a String>,
+) -> fmt::Result {
+    write!(s, "{major}/{device}")?;
+    for w in words {
+        write!(s, ",{w}")?;
+    }
+    Ok(())
+}
+
+/// The arguments of `TOL/kind` after the kind.
+fn print_tol(s: &mut String, tol: &Tol) -> fmt::Result {
+    match tol {
+        Tol::Flat(v) | Tol::Strght(v) | Tol::Cirlty(v) | Tol::Cylcty(v) => push_nums(s, &[*v]),
+        Tol::Diam { lo, hi } | Tol::Rad { lo, hi } => push_nums(s, &[*lo, *hi]),
+        Tol::Pos { three_d, zone, cond, datums } => {
+            s.push_str(if *three_d { ",3D" } else { ",2D" });
+            push_nums(s, &[*zone]);
+            write!(s, ",{cond}")?;
+            for d in datums {
+                write!(s, ",{d}")?;
+            }
+        }
+        Tol::Perp { zone, datum } | Tol::Parlel { zone, datum } => {
+            push_nums(s, &[*zone]);
+            write!(s, ",{datum}")?;
+        }
+        Tol::Anglb { angle, lo, hi } => push_nums(s, &[*angle, *lo, *hi]),
+        Tol::Distb { dist, lo, hi, axis } => {
+            s.push_str(",NOMINL");
+            push_nums(s, &[*dist, *lo, *hi]);
+            if let Some(a) = axis {
+                write!(s, ",{a}")?;
+            }
+        }
+    }
+    Ok(())
 }

@@ -428,7 +428,37 @@ pub fn run(
     progress: &mut dyn FnMut(&str),
 ) -> Result<RunResult, RunError> {
     let t0 = Instant::now();
-    // Tools for the selected sensors, before any motion.
+    let tool_of = tools_of_sensors(plan, machine, opts)?;
+    let mut ex = Exec::new(plan);
+    ex.out.push(format!(
+        "FILNAM/'{}'",
+        plan.filnam.clone().unwrap_or_else(|| plan.title.clone()).replace('\'', "''")
+    ));
+    for step in &plan.steps {
+        ex.step(machine, step, &tool_of, progress)?;
+    }
+    ex.out.push("ENDFIL".into());
+    Ok(RunResult {
+        machine: machine.info(),
+        features: ex.features,
+        tolerances: ex.tolerances,
+        n_points: ex.n_points,
+        elapsed_s: t0.elapsed().as_secs_f64(),
+        output: ex.out,
+        motions: ex.motions,
+        probes: ex.probes,
+        tools: ex.tools,
+    })
+}
+
+/// The machine's tool for each sensor of the plan (by `--sensor`, else the sensor's name),
+/// checked before any motion: a selected sensor needs a tool the machine lists, and every
+/// `--sensor` must name a sensor of the program.
+fn tools_of_sensors(
+    plan: &Plan,
+    machine: &mut dyn ProbingMachine,
+    opts: &RunOptions,
+) -> Result<Vec<String>, RunError> {
     let listed = machine.tool_names().map_err(|e| RunError::Device {
         file: plan.file.clone(),
         line: plan.steps.first().map_or(1, |s| s.pos.line),
@@ -466,83 +496,80 @@ pub fn run(
             )));
         }
     }
-    let mut ex = Exec {
-        plan,
-        frame: Frame::machine(),
-        saved: HashMap::new(),
-        nominal: vec![None; plan.features.len()],
-        def_frame: vec![None; plan.features.len()],
-        actual: vec![None; plan.features.len()],
-        tip_radius: None,
-        approach: 2.0,
-        search: 4.0,
-        retract: 2.0,
-        feed: 5.0,
-        compensate: true,
-        length: LengthUnit::Mm,
-        angle: AngleUnit::AngDec,
-        out: Vec::new(),
-        motions: Vec::new(),
-        features: Vec::new(),
-        tolerances: Vec::new(),
-        n_points: 0,
-        at: None,
-        probes: Vec::new(),
-        tools: Vec::new(),
-    };
-    ex.out.push(format!(
-        "FILNAM/'{}'",
-        plan.filnam.clone().unwrap_or_else(|| plan.title.clone()).replace('\'', "''")
-    ));
-    for step in &plan.steps {
+    Ok(tool_of)
+}
+
+/// The steps: one at a time, the motions, coordinate systems and settings they change.
+impl<'a> Exec<'a> {
+    /// An executor at the start of `plan`: machine coordinates, mm and degrees, the default
+    /// probing distances and feed, compensation on.
+    fn new(plan: &'a Plan) -> Exec<'a> {
+        Exec {
+            plan,
+            frame: Frame::machine(),
+            saved: HashMap::new(),
+            nominal: vec![None; plan.features.len()],
+            def_frame: vec![None; plan.features.len()],
+            actual: vec![None; plan.features.len()],
+            tip_radius: None,
+            approach: 2.0,
+            search: 4.0,
+            retract: 2.0,
+            feed: 5.0,
+            compensate: true,
+            length: LengthUnit::Mm,
+            angle: AngleUnit::AngDec,
+            out: Vec::new(),
+            motions: Vec::new(),
+            features: Vec::new(),
+            tolerances: Vec::new(),
+            n_points: 0,
+            at: None,
+            probes: Vec::new(),
+            tools: Vec::new(),
+        }
+    }
+
+    /// One step of the plan; `tool_of` names the machine's tool of each sensor.
+    fn step(
+        &mut self,
+        machine: &mut dyn ProbingMachine,
+        step: &Step,
+        tool_of: &[String],
+        progress: &mut dyn FnMut(&str),
+    ) -> Result<(), RunError> {
+        let plan = self.plan;
         let line = step.pos.line;
         let dev = |e: DeviceError| RunError::Device { file: plan.file.clone(), line, source: e };
         if let Some(e) = &step.echo {
-            ex.out.push(e.clone());
+            self.out.push(e.clone());
         }
         match &step.op {
             Op::Goto(p) => {
-                let q = ex.frame.to_machine(p);
-                ex.goto(machine, q).map_err(dev)?;
+                let q = self.frame.to_machine(p);
+                self.goto(machine, q).map_err(dev)?;
             }
-            Op::GotoIncr(v) => {
-                let from = match ex.at {
-                    Some(a) => a,
-                    None => machine.position().map_err(dev)?,
-                };
-                let q = from + ex.frame.dir_to_machine(v);
-                ex.goto(machine, q).map_err(dev)?;
-            }
+            Op::GotoIncr(v) => self.goto_incr(machine, v).map_err(dev)?,
             Op::Feed { kind, mm_s } => match (kind, mm_s) {
-                (FeedKind::MesVel, Some(v)) => ex.feed = *v,
+                (FeedKind::MesVel, Some(v)) => self.feed = *v,
                 (FeedKind::PosVel, Some(v)) => {
                     machine.set_move_speed(*v).map_err(dev)?;
-                    ex.motions.push(format!("line {line}: positioning speed {v} mm/s"));
+                    self.motions.push(format!("line {line}: positioning speed {v} mm/s"));
                 }
                 _ => {}
             },
-            Op::Approach(v) => ex.approach = *v,
-            Op::Search(v) => ex.search = *v,
-            Op::Retract(v) => ex.retract = *v,
-            Op::Compensation(on) => ex.compensate = *on,
-            Op::SelectSensor(k) => {
-                let tool = &tool_of[*k];
-                let info = machine.select_tool(tool).map_err(dev)?;
-                ex.motions
-                    .push(format!("line {line}: tool {} (tip radius {} mm)", info.name, info.tip_radius_mm));
-                ex.tip_radius = Some(info.tip_radius_mm);
-                ex.at = None;
-                if !ex.tools.iter().any(|t| t.name == info.name) {
-                    ex.tools.push(info);
-                }
-            }
+            Op::Approach(v) => self.approach = *v,
+            Op::Search(v) => self.search = *v,
+            Op::Retract(v) => self.retract = *v,
+            Op::Compensation(on) => self.compensate = *on,
+            Op::SelectSensor(k) => self.select_sensor(machine, &tool_of[*k], line).map_err(dev)?,
             Op::Define(k) => {
-                ex.nominal[*k] = Some(Geom::in_frame(&plan.features[*k].nominal, &ex.frame));
-                ex.def_frame[*k] = Some(ex.frame);
+                self.nominal[*k] = Some(Geom::in_frame(&plan.features[*k].nominal, &self.frame));
+                self.def_frame[*k] = Some(self.frame);
             }
             Op::Measure { feature, moves } => {
                 let t = Instant::now();
-                ex.measure(machine, *feature, moves, step.pos)?;
+                self.measure(machine, *feature, moves, step.pos)?;
                 let f = &plan.features[*feature];
                 progress(&format!(
                     "line {line}: MEAS/{},F({}): {} points in {:.2} s",
@@ -552,90 +579,115 @@ pub fn run(
                     t.elapsed().as_secs_f64()
                 ));
             }
-            Op::Construct { feature, method } => ex.construct(*feature, method, line)?,
+            Op::Construct { feature, method } => self.construct(*feature, method, line)?,
             Op::Datset { name, def } => {
-                ex.datset(def, line)?;
-                ex.saved.insert(name.to_ascii_uppercase(), ex.frame);
+                self.datset(def, line)?;
+                self.save_frame(name);
             }
-            Op::Trans { name, items } => {
-                for (axis, to) in items {
-                    let e = ex.frame.axis(*axis);
-                    let v = match to {
-                        TransTo::Value(v) => *v,
-                        TransTo::Feature(k) => e.dot(&(ex.actual_geom(*k).position().coords - ex.frame.o)),
-                    };
-                    ex.frame.o += e * v;
-                }
-                if let Some(n) = name {
-                    ex.saved.insert(n.to_ascii_uppercase(), ex.frame);
-                }
-            }
-            Op::Rotate { name, axis, by } => {
-                let (i, j) = ((axis + 1) % 3, (axis + 2) % 3);
-                let (ei, ej, ek) = (ex.frame.axis(i), ex.frame.axis(j), ex.frame.axis(*axis));
-                let theta = match by {
-                    RotateTo::Angle(a) => *a,
-                    RotateTo::Feature(k, target) => {
-                        let d = ex.actual_geom(*k).direction().unwrap_or(ek);
-                        let (x, y) = (d.dot(&ei), d.dot(&ej));
-                        if x.hypot(y) < 1e-9 {
-                            return Err(RunError::Evaluation {
-                                file: plan.file.clone(),
-                                line,
-                                message: format!(
-                                    "ROTATE: F({})'s direction lies along the rotation axis",
-                                    plan.features[*k].name
-                                ),
-                            });
-                        }
-                        let phi = y.atan2(x);
-                        if *target == i {
-                            phi
-                        } else {
-                            phi - std::f64::consts::FRAC_PI_2
-                        }
-                    }
-                };
-                let (s, c) = theta.sin_cos();
-                let ni = ei * c + ej * s;
-                let nj = -ei * s + ej * c;
-                ex.frame.r.set_column(i, &ni);
-                ex.frame.r.set_column(j, &nj);
-                if let Some(n) = name {
-                    ex.saved.insert(n.to_ascii_uppercase(), ex.frame);
-                }
-            }
-            Op::Save(n) => {
-                ex.saved.insert(n.to_ascii_uppercase(), ex.frame);
-            }
+            Op::Trans { name, items } => self.trans(name.as_deref(), items),
+            Op::Rotate { name, axis, by } => self.rotate(name.as_deref(), *axis, by, line)?,
+            Op::Save(n) => self.save_frame(n),
             Op::Recall(n) => {
-                if let Some(f) = ex.saved.get(&n.to_ascii_uppercase()) {
-                    ex.frame = *f;
+                if let Some(f) = self.saved.get(&n.to_ascii_uppercase()) {
+                    self.frame = *f;
                 }
             }
             Op::Units { length, angle } => {
-                ex.length = *length;
-                ex.angle = *angle;
+                self.length = *length;
+                self.angle = *angle;
             }
-            Op::Output(items) => ex.output(items, line)?,
+            Op::Output(items) => self.output(items, line)?,
             Op::Text { kind, text } => match kind {
-                TextKind::Outfil => ex.out.push(format!("TEXT/OUTFIL,'{}'", text.replace('\'', "''"))),
+                TextKind::Outfil => self.out.push(format!("TEXT/OUTFIL,'{}'", text.replace('\'', "''"))),
                 _ => progress(&format!("line {line}: TEXT/{kind}: {text}")),
             },
         }
+        Ok(())
     }
-    ex.out.push("ENDFIL".into());
-    Ok(RunResult {
-        machine: machine.info(),
-        features: ex.features,
-        tolerances: ex.tolerances,
-        n_points: ex.n_points,
-        elapsed_s: t0.elapsed().as_secs_f64(),
-        output: ex.out,
-        motions: ex.motions,
-        probes: ex.probes,
-        tools: ex.tools,
-    })
+
+    /// `GOTO/INCR`: from where the tip was last sent (or where the machine says it is).
+    fn goto_incr(&mut self, m: &mut dyn ProbingMachine, v: &Vector3) -> Result<(), DeviceError> {
+        let from = match self.at {
+            Some(a) => a,
+            None => m.position()?,
+        };
+        let q = from + self.frame.dir_to_machine(v);
+        self.goto(m, q)
+    }
+
+    /// `SNSLCT`: the machine's `tool`, its tip radius and where the tip is now unknown.
+    fn select_sensor(
+        &mut self,
+        m: &mut dyn ProbingMachine,
+        tool: &str,
+        line: u32,
+    ) -> Result<(), DeviceError> {
+        let info = m.select_tool(tool)?;
+        self.motions.push(format!("line {line}: tool {} (tip radius {} mm)", info.name, info.tip_radius_mm));
+        self.tip_radius = Some(info.tip_radius_mm);
+        self.at = None;
+        if !self.tools.iter().any(|t| t.name == info.name) {
+            self.tools.push(info);
+        }
+        Ok(())
+    }
+
+    /// Keeps the active coordinate system under `name` (for `RECALL`).
+    fn save_frame(&mut self, name: &str) {
+        self.saved.insert(name.to_ascii_uppercase(), self.frame);
+    }
+
+    /// `TRANS`: each origin moved along its axis to a value or a feature's position.
+    fn trans(&mut self, name: Option<&str>, items: &[(usize, TransTo)]) {
+        for (axis, to) in items {
+            let e = self.frame.axis(*axis);
+            let v = match to {
+                TransTo::Value(v) => *v,
+                TransTo::Feature(k) => e.dot(&(self.actual_geom(*k).position().coords - self.frame.o)),
+            };
+            self.frame.o += e * v;
+        }
+        if let Some(n) = name {
+            self.save_frame(n);
+        }
+    }
+
+    /// `ROTATE` about `axis` by an angle, or until a feature's direction is the target axis.
+    fn rotate(&mut self, name: Option<&str>, axis: usize, by: &RotateTo, line: u32) -> Result<(), RunError> {
+        let (i, j) = ((axis + 1) % 3, (axis + 2) % 3);
+        let (ei, ej, ek) = (self.frame.axis(i), self.frame.axis(j), self.frame.axis(axis));
+        let theta = match by {
+            RotateTo::Angle(a) => *a,
+            RotateTo::Feature(k, target) => {
+                let d = self.actual_geom(*k).direction().unwrap_or(ek);
+                let (x, y) = (d.dot(&ei), d.dot(&ej));
+                if x.hypot(y) < 1e-9 {
+                    return Err(self.eval_err(
+                        line,
+                        format!(
+                            "ROTATE: F({})'s direction lies along the rotation axis",
+                            self.plan.features[*k].name
+                        ),
+                    ));
+                }
+                let phi = y.atan2(x);
+                if *target == i {
+                    phi
+                } else {
+                    phi - std::f64::consts::FRAC_PI_2
+                }
+            }
+        };
+        let (s, c) = theta.sin_cos();
+        let ni = ei * c + ej * s;
+        let nj = -ei * s + ej * c;
+        self.frame.r.set_column(i, &ni);
+        self.frame.r.set_column(j, &nj);
+        if let Some(n) = name {
+            self.save_frame(n);
+        }
+        Ok(())
+    }
 }
 
 impl Exec<'_> {
@@ -667,7 +719,7 @@ impl Exec<'_> {
     ) -> Result<(), RunError> {
         let plan = self.plan;
         let feat = &plan.features[k];
-        let nominal = self.nominal[k].clone().unwrap_or_else(|| Geom::in_frame(&feat.nominal, &self.frame));
+        let nominal = self.nominal_geom(k);
         let r = self.tip_radius.unwrap_or(0.0);
         let mut points = Vec::new();
         let mut approaches = Vec::new();
@@ -679,14 +731,7 @@ impl Exec<'_> {
                     let q = self.frame.to_machine(p);
                     self.goto(m, q).map_err(dev)?;
                 }
-                Move::GotoIncr(v) => {
-                    let from = match self.at {
-                        Some(a) => a,
-                        None => m.position().map_err(dev)?,
-                    };
-                    let q = from + self.frame.dir_to_machine(v);
-                    self.goto(m, q).map_err(dev)?;
-                }
+                Move::GotoIncr(v) => self.goto_incr(m, v).map_err(dev)?,
                 Move::Probe { p, dir } => {
                     let q = self.frame.to_machine(p);
                     let n = match dir {
@@ -752,7 +797,7 @@ impl Exec<'_> {
 
     fn construct(&mut self, k: usize, method: &Construction, line: u32) -> Result<(), RunError> {
         let feat = &self.plan.features[k];
-        let nominal = self.nominal[k].clone().unwrap_or_else(|| Geom::in_frame(&feat.nominal, &self.frame));
+        let nominal = self.nominal_geom(k);
         let err = |m: String| RunError::Evaluation {
             file: self.plan.file.clone(),
             line,
@@ -911,12 +956,7 @@ impl Exec<'_> {
                             self.actual[*feature].clone().ok_or_else(|| self.eval_err(line, "no actual"))?;
                         (a.geom.clone(), Some(a))
                     } else {
-                        (
-                            self.nominal[*feature]
-                                .clone()
-                                .unwrap_or_else(|| Geom::in_frame(&f.nominal, &self.frame)),
-                            None,
-                        )
+                        (self.nominal_geom(*feature), None)
                     };
                     let part = self.to_part_geom(&g);
                     self.out.push(crate::report::feat_line(
@@ -969,152 +1009,53 @@ impl Exec<'_> {
         }
     }
 
+    /// A tolerance evaluated on the actual features `fs`: its value, limits and verdict, with what
+    /// the report and a simulation need besides.
     fn evaluate(&self, t: &Tolerance, fs: &[usize], line: u32) -> Result<TolResult, RunError> {
         let plan = self.plan;
-        let a = |k: usize| self.actual[k].clone().ok_or_else(|| self.eval_err(line, "no actual"));
-        let nom = |k: usize| {
-            self.nominal[k].clone().unwrap_or_else(|| Geom::in_frame(&plan.features[k].nominal, &self.frame))
-        };
-        let fe = |e: truepos_fit::FitError| self.eval_err(line, format!("T({}): {e}", t.name));
         let names: Vec<String> = fs.iter().map(|k| plan.features[*k].name.clone()).collect();
         let within = |v: f64, z: f64| v <= z;
         let mut vector = None;
         let (value, limits, ok, angular) = match &t.kind {
-            TolKind::Flat(z) => {
-                let v = minzone::plane_zone(&a(fs[0])?.points).map_err(fe)?.form;
-                (v, (0.0, *z), within(v, *z), false)
-            }
-            TolKind::Strght(z) => {
-                let act = a(fs[0])?;
-                let pts = match &plan.features[fs[0]].nominal {
-                    Nominal::Line { plane: Some(pn), .. } => {
-                        let n = self.nominal_frame_dir(fs[0], pn);
-                        let c = act.geom.position();
-                        act.points.iter().map(|q| q - n * (q - c).dot(&n)).collect()
-                    }
-                    _ => act.points.clone(),
-                };
-                let v = if pts.len() < 3 { 0.0 } else { minzone::line_zone(&pts).map_err(fe)?.form };
-                (v, (0.0, *z), within(v, *z), false)
-            }
-            TolKind::Cirlty(z) => {
-                let act = a(fs[0])?;
-                let v = minzone::circle_fit(&act.points, Criterion::MinimumZone).map_err(fe)?.form;
-                (v, (0.0, *z), within(v, *z), false)
-            }
-            TolKind::Cylcty(z) => {
-                // From the feature's own fit (its nominal axis chose the cylinder): the points
-                // alone may fit another cylinder equally well.
-                let act = a(fs[0])?;
-                let v = match &act.geom {
-                    Geom::Cylinder { p, axis, r } => {
-                        minzone::cylinder_fit_from(&act.points, Criterion::MinimumZone, (*p, *axis, *r))
-                    }
-                    _ => minzone::cylinder_fit(&act.points, Criterion::MinimumZone),
-                }
-                .map_err(fe)?
-                .form;
+            TolKind::Flat(z) | TolKind::Strght(z) | TolKind::Cirlty(z) | TolKind::Cylcty(z) => {
+                let v = self.form_value(t, fs[0], line)?;
                 (v, (0.0, *z), within(v, *z), false)
             }
             TolKind::Diam { lo, hi } | TolKind::Rad { lo, hi } => {
                 let f = if matches!(t.kind, TolKind::Diam { .. }) { 2.0 } else { 1.0 };
-                let ra = a(fs[0])?.geom.radius().unwrap_or(0.0);
-                let rn = nom(fs[0]).radius().unwrap_or(0.0);
+                let ra = self.actual_at(fs[0], line)?.geom.radius().unwrap_or(0.0);
+                let rn = self.nominal_geom(fs[0]).radius().unwrap_or(0.0);
                 let v = f * (ra - rn);
                 (v, (*lo, *hi), v >= *lo && v <= *hi, false)
             }
             TolKind::Pos { three_d, zone } => {
-                let (ga, gn) = (a(fs[0])?.geom, nom(fs[0]));
-                let pn = gn.position();
-                let mut d = match (&ga, gn.direction()) {
-                    (Geom::Cylinder { p, axis, .. }, _) => {
-                        let q = p + axis * (pn - p).dot(axis);
-                        q - pn
-                    }
-                    _ => ga.position() - pn,
-                };
-                if !three_d {
-                    if let Some(ax) = gn.direction() {
-                        d -= ax * d.dot(&ax);
-                    }
-                }
+                let d = self.position_deviation(fs[0], *three_d, line)?;
                 let v = 2.0 * d.norm();
                 vector = Some(d * 2.0);
                 (v, (0.0, *zone), within(v, *zone), false)
             }
             TolKind::Perp { zone, datum } | TolKind::Parlel { zone, datum } => {
-                let perp = matches!(t.kind, TolKind::Perp { .. });
-                let act = a(fs[0])?;
-                let dg = self.actual_geom(*datum);
-                let d = dg.direction().unwrap_or(Vector3::z());
-                let d = d / d.norm();
-                let datum_is_plane = matches!(dg, Geom::Plane { .. });
-                let v = match &act.geom {
-                    Geom::Plane { n, .. } => {
-                        // Zone: two planes; their normal is d or n made perpendicular to d.
-                        let use_d = perp != datum_is_plane;
-                        let u = if use_d {
-                            d
-                        } else {
-                            let u = n - d * n.dot(&d);
-                            if u.norm() < 1e-9 {
-                                return Err(self.eval_err(
-                                    line,
-                                    format!("T({}): the plane is parallel to its datum's direction", t.name),
-                                ));
-                            }
-                            u / u.norm()
-                        };
-                        range(&act.points, &u)
-                    }
-                    g => {
-                        let ax = g.direction().unwrap_or(Vector3::z());
-                        let (lo, hi) = extent(&act.points, &ax);
-                        let s = ax * (hi - lo);
-                        let along = d * s.dot(&d);
-                        let across = s - along;
-                        let w = if perp == datum_is_plane { across } else { along };
-                        vector = Some(w);
-                        w.norm()
-                    }
-                };
+                let (v, w) = self.orientation_value(t, fs[0], *datum, line)?;
+                vector = w;
                 (v, (0.0, *zone), within(v, *zone), false)
             }
             TolKind::Anglb { angle, lo, hi } => {
-                let da = a(fs[0])?.geom.direction().unwrap_or(Vector3::z());
-                let db = a(fs[1])?.geom.direction().unwrap_or(Vector3::z());
+                let da = self.actual_at(fs[0], line)?.geom.direction().unwrap_or(Vector3::z());
+                let db = self.actual_at(fs[1], line)?.geom.direction().unwrap_or(Vector3::z());
                 let v = (da.dot(&db) / (da.norm() * db.norm())).clamp(-1.0, 1.0).acos();
                 (v, (angle + lo, angle + hi), v >= angle + lo && v <= angle + hi, true)
             }
             TolKind::Distb { dist, lo, hi, axis } => {
-                let (ga, gb) = (a(fs[0])?.geom, a(fs[1])?.geom);
-                let delta = gb.position() - ga.position();
-                let v = match (&ga, &gb, axis) {
-                    (Geom::Plane { n, .. }, _, None | Some(DistAxis::Pt2Pt))
-                    | (_, Geom::Plane { n, .. }, None | Some(DistAxis::Pt2Pt)) => delta.dot(n).abs(),
-                    (_, _, Some(DistAxis::XAxis)) => delta.dot(&self.frame.axis(0)).abs(),
-                    (_, _, Some(DistAxis::YAxis)) => delta.dot(&self.frame.axis(1)).abs(),
-                    (_, _, Some(DistAxis::ZAxis)) => delta.dot(&self.frame.axis(2)).abs(),
-                    _ => delta.norm(),
-                };
+                let v = self.distance_value(fs, *axis, line)?;
                 (v, (dist + lo, dist + hi), v >= dist + lo && v <= dist + hi, false)
             }
         };
         let nominal = match &t.kind {
-            TolKind::Diam { .. } => nom(fs[0]).radius().map(|r| 2.0 * r),
-            TolKind::Rad { .. } => nom(fs[0]).radius(),
+            TolKind::Diam { .. } => self.nominal_geom(fs[0]).radius().map(|r| 2.0 * r),
+            TolKind::Rad { .. } => self.nominal_geom(fs[0]).radius(),
             TolKind::Anglb { angle, .. } => Some(*angle),
             TolKind::Distb { dist, .. } => Some(*dist),
             _ => None,
-        };
-        let datums = match &t.statement {
-            Statement::Tol { tol: Tol::Pos { datums, .. }, .. } => {
-                datums.iter().map(|d| d.name.clone()).collect()
-            }
-            Statement::Tol { tol: Tol::Perp { datum, .. } | Tol::Parlel { datum, .. }, .. } => {
-                vec![datum.name.clone()]
-            }
-            _ => Vec::new(),
         };
         // The feature results of this OUTPUT: the latest actual output of each feature.
         let feature_results = names
@@ -1131,7 +1072,7 @@ impl Exec<'_> {
             in_tolerance: ok,
             vector,
             nominal,
-            datums,
+            datums: tolerance_datums(t),
             feature_results,
             three_d: matches!(t.kind, TolKind::Pos { three_d: true, .. }),
             distb_axis: match &t.kind {
@@ -1143,9 +1084,149 @@ impl Exec<'_> {
         })
     }
 
+    /// The actual feature `k` (a copy), which the checker guarantees by the time it is used.
+    fn actual_at(&self, k: usize, line: u32) -> Result<Actual, RunError> {
+        self.actual[k].clone().ok_or_else(|| self.eval_err(line, "no actual"))
+    }
+
+    /// The nominal feature `k` in the machine frame (in the active frame if not defined yet).
+    fn nominal_geom(&self, k: usize) -> Geom {
+        self.nominal[k].clone().unwrap_or_else(|| Geom::in_frame(&self.plan.features[k].nominal, &self.frame))
+    }
+
+    /// The minimum-zone form error (FLAT, STRGHT, CIRLTY, CYLCTY) of the actual feature `k`, mm.
+    fn form_value(&self, t: &Tolerance, k: usize, line: u32) -> Result<f64, RunError> {
+        let fe = |e: truepos_fit::FitError| self.eval_err(line, format!("T({}): {e}", t.name));
+        let act = self.actual_at(k, line)?;
+        Ok(match &t.kind {
+            TolKind::Flat(_) => minzone::plane_zone(&act.points).map_err(fe)?.form,
+            TolKind::Strght(_) => {
+                let pts = match &self.plan.features[k].nominal {
+                    Nominal::Line { plane: Some(pn), .. } => {
+                        let n = self.nominal_frame_dir(k, pn);
+                        let c = act.geom.position();
+                        act.points.iter().map(|q| q - n * (q - c).dot(&n)).collect()
+                    }
+                    _ => act.points.clone(),
+                };
+                if pts.len() < 3 {
+                    0.0
+                } else {
+                    minzone::line_zone(&pts).map_err(fe)?.form
+                }
+            }
+            TolKind::Cirlty(_) => minzone::circle_fit(&act.points, Criterion::MinimumZone).map_err(fe)?.form,
+            // CYLCTY, from the feature's own fit (its nominal axis chose the cylinder): the points
+            // alone may fit another cylinder equally well.
+            _ => {
+                match &act.geom {
+                    Geom::Cylinder { p, axis, r } => {
+                        minzone::cylinder_fit_from(&act.points, Criterion::MinimumZone, (*p, *axis, *r))
+                    }
+                    _ => minzone::cylinder_fit(&act.points, Criterion::MinimumZone),
+                }
+                .map_err(fe)?
+                .form
+            }
+        })
+    }
+
+    /// POS: the actual feature `k`'s deviation from its nominal position (an axis: where it
+    /// passes the nominal point), across the nominal direction unless `three_d`; mm.
+    fn position_deviation(&self, k: usize, three_d: bool, line: u32) -> Result<Vector3, RunError> {
+        let (ga, gn) = (self.actual_at(k, line)?.geom, self.nominal_geom(k));
+        let pn = gn.position();
+        let mut d = match (&ga, gn.direction()) {
+            (Geom::Cylinder { p, axis, .. }, _) => {
+                let q = p + axis * (pn - p).dot(axis);
+                q - pn
+            }
+            _ => ga.position() - pn,
+        };
+        if !three_d {
+            if let Some(ax) = gn.direction() {
+                d -= ax * d.dot(&ax);
+            }
+        }
+        Ok(d)
+    }
+
+    /// PERP or PARLEL of the actual feature `k` to the feature `datum`: the zone width (mm) and,
+    /// for an axis, the vector whose length it is.
+    fn orientation_value(
+        &self,
+        t: &Tolerance,
+        k: usize,
+        datum: usize,
+        line: u32,
+    ) -> Result<(f64, Option<Vector3>), RunError> {
+        let perp = matches!(t.kind, TolKind::Perp { .. });
+        let act = self.actual_at(k, line)?;
+        let dg = self.actual_geom(datum);
+        let d = dg.direction().unwrap_or(Vector3::z());
+        let d = d / d.norm();
+        let datum_is_plane = matches!(dg, Geom::Plane { .. });
+        Ok(match &act.geom {
+            Geom::Plane { n, .. } => {
+                // Zone: two planes; their normal is d or n made perpendicular to d.
+                let use_d = perp != datum_is_plane;
+                let u = if use_d {
+                    d
+                } else {
+                    let u = n - d * n.dot(&d);
+                    if u.norm() < 1e-9 {
+                        return Err(self.eval_err(
+                            line,
+                            format!("T({}): the plane is parallel to its datum's direction", t.name),
+                        ));
+                    }
+                    u / u.norm()
+                };
+                (range(&act.points, &u), None)
+            }
+            g => {
+                let ax = g.direction().unwrap_or(Vector3::z());
+                let (lo, hi) = extent(&act.points, &ax);
+                let s = ax * (hi - lo);
+                let along = d * s.dot(&d);
+                let across = s - along;
+                let w = if perp == datum_is_plane { across } else { along };
+                (w.norm(), Some(w))
+            }
+        })
+    }
+
+    /// DISTB between the actual features `fs[0]` and `fs[1]`: along a plane's normal, an axis of
+    /// the active coordinate system, or point to point; mm.
+    fn distance_value(&self, fs: &[usize], axis: Option<DistAxis>, line: u32) -> Result<f64, RunError> {
+        let (ga, gb) = (self.actual_at(fs[0], line)?.geom, self.actual_at(fs[1], line)?.geom);
+        let delta = gb.position() - ga.position();
+        Ok(match (&ga, &gb, axis) {
+            (Geom::Plane { n, .. }, _, None | Some(DistAxis::Pt2Pt))
+            | (_, Geom::Plane { n, .. }, None | Some(DistAxis::Pt2Pt)) => delta.dot(n).abs(),
+            (_, _, Some(DistAxis::XAxis)) => delta.dot(&self.frame.axis(0)).abs(),
+            (_, _, Some(DistAxis::YAxis)) => delta.dot(&self.frame.axis(1)).abs(),
+            (_, _, Some(DistAxis::ZAxis)) => delta.dot(&self.frame.axis(2)).abs(),
+            _ => delta.norm(),
+        })
+    }
+
     /// A nominal's direction (given in the part frame active at its FEAT) in the machine frame.
     fn nominal_frame_dir(&self, k: usize, v: &Vector3) -> Vector3 {
         self.def_frame[k].unwrap_or(self.frame).dir_to_machine(v)
+    }
+}
+
+/// The datums a tolerance names in order of precedence (POS, PERP, PARLEL), as written.
+fn tolerance_datums(t: &Tolerance) -> Vec<String> {
+    match &t.statement {
+        Statement::Tol { tol: Tol::Pos { datums, .. }, .. } => {
+            datums.iter().map(|d| d.name.clone()).collect()
+        }
+        Statement::Tol { tol: Tol::Perp { datum, .. } | Tol::Parlel { datum, .. }, .. } => {
+            vec![datum.name.clone()]
+        }
+        _ => Vec::new(),
     }
 }
 

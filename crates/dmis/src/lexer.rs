@@ -131,168 +131,180 @@ fn is_name_char(c: char) -> bool {
 
 /// Lex one physical line, appending its tokens.
 fn lex_line(file: &str, line: &str, line_no: u32, toks: &mut Vec<(Tok, Pos)>) -> Result<LineEnd, DmisError> {
-    let err =
-        |col: usize, msg: String| DmisError::new(file, Pos::new(line_no, col as u32), ErrorKind::Syntax, msg);
-    // Characters with their 1-based columns; ASCII fast path via bytes.
-    let chars: Vec<char> = line.chars().collect();
-    let n = chars.len();
+    // Characters; a character's column is its index + 1.
+    let mut lx = LineLexer { file, line_no, chars: line.chars().collect(), toks, end: None };
+    let n = lx.chars.len();
     let mut i = 0;
-    let mut end = None;
     while i < n {
-        let c = chars[i];
-        let col = i + 1;
-        match c {
-            ' ' | '\t' | '\r' | '\x0c' => {
-                i += 1;
-            }
+        i = match lx.chars[i] {
+            ' ' | '\t' | '\r' | '\x0c' => i + 1,
             '$' => {
-                if i + 1 < n && chars[i + 1] == '$' {
+                if i + 1 < n && lx.chars[i + 1] == '$' {
                     break; // comment to the end of the line
                 }
-                if chars[i + 1..].iter().all(|c| matches!(c, ' ' | '\t' | '\r' | '\x0c')) {
-                    return Ok(LineEnd { continued: true, end });
+                if lx.chars[i + 1..].iter().all(|c| matches!(c, ' ' | '\t' | '\r' | '\x0c')) {
+                    return Ok(LineEnd { continued: true, end: lx.end });
                 }
-                return Err(err(
-                    col,
+                return Err(lx.err(
+                    i + 1,
                     "a single '$' continues a statement only at the end of a line ('$$' starts a comment)"
                         .into(),
                 ));
             }
-            ',' | '/' | '=' => {
-                let t = match c {
-                    ',' => Tok::Comma,
-                    '/' => Tok::Slash,
-                    _ => Tok::Eq,
-                };
-                toks.push((t, Pos::new(line_no, col as u32)));
-                i += 1;
-                end = Some(Pos::new(line_no, (col + 1) as u32));
+            ',' => lx.push(Tok::Comma, i, i + 1),
+            '/' => lx.push(Tok::Slash, i, i + 1),
+            '=' => lx.push(Tok::Eq, i, i + 1),
+            '\'' => lx.text(i)?,
+            _ if lx.starts_number(i) => lx.number(i)?,
+            c if c.is_ascii_alphabetic() => lx.word_or_label(i)?,
+            other => return Err(lx.err(i + 1, format!("unexpected character {other:?}"))),
+        };
+    }
+    Ok(LineEnd { continued: false, end: lx.end })
+}
+
+/// One physical line being lexed: its characters, the statement's tokens so far and where the
+/// line's last token ends.
+struct LineLexer<'a> {
+    file: &'a str,
+    line_no: u32,
+    chars: Vec<char>,
+    toks: &'a mut Vec<(Tok, Pos)>,
+    end: Option<Pos>,
+}
+
+impl LineLexer<'_> {
+    /// A syntax error at 1-based column `col` of this line.
+    fn err(&self, col: usize, msg: String) -> DmisError {
+        DmisError::new(self.file, Pos::new(self.line_no, col as u32), ErrorKind::Syntax, msg)
+    }
+
+    /// Appends `t`, which starts at index `i` and ends before index `next`; returns `next`.
+    fn push(&mut self, t: Tok, i: usize, next: usize) -> usize {
+        self.toks.push((t, Pos::new(self.line_no, (i + 1) as u32)));
+        self.end = Some(Pos::new(self.line_no, (next + 1) as u32));
+        next
+    }
+
+    /// Text between apostrophes starting at index `i` (`''` is one apostrophe).
+    fn text(&mut self, i: usize) -> Result<usize, DmisError> {
+        let (chars, n) = (&self.chars, self.chars.len());
+        let mut s = String::new();
+        let mut j = i + 1;
+        loop {
+            if j >= n {
+                return Err(self.err(i + 1, "text without its closing apostrophe on this line".into()));
             }
-            '\'' => {
-                let mut s = String::new();
-                let mut j = i + 1;
-                loop {
-                    if j >= n {
-                        return Err(err(col, "text without its closing apostrophe on this line".into()));
-                    }
-                    if chars[j] == '\'' {
-                        if j + 1 < n && chars[j + 1] == '\'' {
-                            s.push('\'');
-                            j += 2;
-                            continue;
-                        }
-                        break;
-                    }
-                    s.push(chars[j]);
-                    j += 1;
+            if chars[j] == '\'' {
+                if j + 1 < n && chars[j + 1] == '\'' {
+                    s.push('\'');
+                    j += 2;
+                    continue;
                 }
-                toks.push((Tok::Text(s), Pos::new(line_no, col as u32)));
-                i = j + 1;
-                end = Some(Pos::new(line_no, (i + 1) as u32));
+                break;
             }
-            c if c.is_ascii_digit()
-                || c == '.'
-                || ((c == '+' || c == '-')
-                    && i + 1 < n
-                    && (chars[i + 1].is_ascii_digit()
-                        || (chars[i + 1] == '.' && i + 2 < n && chars[i + 2].is_ascii_digit()))) =>
-            {
-                let start = i;
-                let mut j = i;
-                if chars[j] == '+' || chars[j] == '-' {
-                    j += 1;
-                }
-                let mut digits = 0;
-                while j < n && chars[j].is_ascii_digit() {
-                    j += 1;
-                    digits += 1;
-                }
-                if j < n && chars[j] == '.' {
-                    j += 1;
-                    while j < n && chars[j].is_ascii_digit() {
-                        j += 1;
-                        digits += 1;
-                    }
-                }
-                if digits == 0 {
-                    return Err(err(col, format!("'{c}' is not a number")));
-                }
-                if j < n && (chars[j] == 'e' || chars[j] == 'E') {
-                    let mut k = j + 1;
-                    if k < n && (chars[k] == '+' || chars[k] == '-') {
-                        k += 1;
-                    }
-                    if k < n && chars[k].is_ascii_digit() {
-                        while k < n && chars[k].is_ascii_digit() {
-                            k += 1;
-                        }
-                        j = k;
-                    }
-                }
-                if j < n && (chars[j].is_ascii_alphabetic() || chars[j] == '_') {
-                    // `2D`, `3D`: a word that starts with digits.
-                    if chars[start] == '+' || chars[start] == '-' {
-                        return Err(err(col, "a sign before a word".into()));
-                    }
-                    let mut k = j;
-                    while k < n && (chars[k].is_ascii_alphanumeric() || chars[k] == '_') {
-                        k += 1;
-                    }
-                    let w: String = chars[start..k].iter().collect::<String>().to_ascii_uppercase();
-                    toks.push((Tok::Word(w), Pos::new(line_no, col as u32)));
-                    i = k;
-                } else {
-                    let s: String = chars[start..j].iter().collect();
-                    let v: f64 = s.parse().map_err(|_| err(col, format!("{s:?} is not a number")))?;
-                    if !v.is_finite() {
-                        return Err(err(col, format!("the number {s} is out of range")));
-                    }
-                    toks.push((Tok::Num(v), Pos::new(line_no, col as u32)));
-                    i = j;
-                }
-                end = Some(Pos::new(line_no, (i + 1) as u32));
-            }
-            c if c.is_ascii_alphabetic() => {
-                let mut j = i;
-                while j < n && (chars[j].is_ascii_alphanumeric() || chars[j] == '_') {
-                    j += 1;
-                }
-                let w: String = chars[i..j].iter().collect::<String>().to_ascii_uppercase();
-                if j < n && chars[j] == '(' {
-                    let mut k = j + 1;
-                    while k < n && chars[k] != ')' {
-                        if !is_name_char(chars[k]) {
-                            return Err(err(
-                                k + 1,
-                                format!(
-                                    "{:?} cannot be part of a label name (letters, digits, '_', '-', '.')",
-                                    chars[k]
-                                ),
-                            ));
-                        }
-                        k += 1;
-                    }
-                    if k >= n {
-                        return Err(err(j + 1, format!("the label {w}( has no closing ')' on this line")));
-                    }
-                    if k == j + 1 {
-                        return Err(err(j + 2, format!("the label {w}() has no name")));
-                    }
-                    let name: String = chars[j + 1..k].iter().collect();
-                    toks.push((Tok::Label(w, name), Pos::new(line_no, col as u32)));
-                    i = k + 1;
-                } else {
-                    toks.push((Tok::Word(w), Pos::new(line_no, col as u32)));
-                    i = j;
-                }
-                end = Some(Pos::new(line_no, (i + 1) as u32));
-            }
-            other => {
-                return Err(err(col, format!("unexpected character {other:?}")));
+            s.push(chars[j]);
+            j += 1;
+        }
+        Ok(self.push(Tok::Text(s), i, j + 1))
+    }
+
+    /// Whether a number starts at index `i`: a digit, a `.`, or a sign before a digit or `.digit`.
+    fn starts_number(&self, i: usize) -> bool {
+        let (chars, n, c) = (&self.chars, self.chars.len(), self.chars[i]);
+        c.is_ascii_digit()
+            || c == '.'
+            || ((c == '+' || c == '-')
+                && i + 1 < n
+                && (chars[i + 1].is_ascii_digit()
+                    || (chars[i + 1] == '.' && i + 2 < n && chars[i + 2].is_ascii_digit())))
+    }
+
+    /// The number starting at index `i`, or the word when letters follow its digits (`2D`).
+    fn number(&mut self, i: usize) -> Result<usize, DmisError> {
+        let (chars, n, col) = (&self.chars, self.chars.len(), i + 1);
+        let mut j = i;
+        if chars[j] == '+' || chars[j] == '-' {
+            j += 1;
+        }
+        let mut digits = 0;
+        while j < n && chars[j].is_ascii_digit() {
+            j += 1;
+            digits += 1;
+        }
+        if j < n && chars[j] == '.' {
+            j += 1;
+            while j < n && chars[j].is_ascii_digit() {
+                j += 1;
+                digits += 1;
             }
         }
+        if digits == 0 {
+            return Err(self.err(col, format!("'{}' is not a number", chars[i])));
+        }
+        if j < n && (chars[j] == 'e' || chars[j] == 'E') {
+            let mut k = j + 1;
+            if k < n && (chars[k] == '+' || chars[k] == '-') {
+                k += 1;
+            }
+            if k < n && chars[k].is_ascii_digit() {
+                while k < n && chars[k].is_ascii_digit() {
+                    k += 1;
+                }
+                j = k;
+            }
+        }
+        if j < n && (chars[j].is_ascii_alphabetic() || chars[j] == '_') {
+            // `2D`, `3D`: a word that starts with digits.
+            if chars[i] == '+' || chars[i] == '-' {
+                return Err(self.err(col, "a sign before a word".into()));
+            }
+            let mut k = j;
+            while k < n && (chars[k].is_ascii_alphanumeric() || chars[k] == '_') {
+                k += 1;
+            }
+            let w: String = chars[i..k].iter().collect::<String>().to_ascii_uppercase();
+            Ok(self.push(Tok::Word(w), i, k))
+        } else {
+            let s: String = chars[i..j].iter().collect();
+            let v: f64 = s.parse().map_err(|_| self.err(col, format!("{s:?} is not a number")))?;
+            if !v.is_finite() {
+                return Err(self.err(col, format!("the number {s} is out of range")));
+            }
+            Ok(self.push(Tok::Num(v), i, j))
+        }
     }
-    Ok(LineEnd { continued: false, end })
+
+    /// The word starting at index `i`, or the label `WORD(name)` when `(` follows it.
+    fn word_or_label(&mut self, i: usize) -> Result<usize, DmisError> {
+        let (chars, n) = (&self.chars, self.chars.len());
+        let mut j = i;
+        while j < n && (chars[j].is_ascii_alphanumeric() || chars[j] == '_') {
+            j += 1;
+        }
+        let w: String = chars[i..j].iter().collect::<String>().to_ascii_uppercase();
+        if !(j < n && chars[j] == '(') {
+            return Ok(self.push(Tok::Word(w), i, j));
+        }
+        let mut k = j + 1;
+        while k < n && chars[k] != ')' {
+            if !is_name_char(chars[k]) {
+                return Err(self.err(
+                    k + 1,
+                    format!("{:?} cannot be part of a label name (letters, digits, '_', '-', '.')", chars[k]),
+                ));
+            }
+            k += 1;
+        }
+        if k >= n {
+            return Err(self.err(j + 1, format!("the label {w}( has no closing ')' on this line")));
+        }
+        if k == j + 1 {
+            return Err(self.err(j + 2, format!("the label {w}() has no name")));
+        }
+        let name: String = chars[j + 1..k].iter().collect();
+        Ok(self.push(Tok::Label(w, name), i, k + 1))
+    }
 }
 
 #[cfg(test)]

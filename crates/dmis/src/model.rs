@@ -442,8 +442,17 @@ fn point_like(t: FeatType) -> bool {
     matches!(t, FeatType::Point | FeatType::Circle | FeatType::Sphere)
 }
 
-/// A `MEAS` being read: feature, announced points, its position, the motions so far.
-type OpenMeas = (usize, u32, Pos, Vec<(Move, Pos)>);
+/// A `MEAS` being read.
+struct OpenMeas {
+    /// Index of the feature measured.
+    feature: usize,
+    /// The number of points the `MEAS` announces.
+    n: u32,
+    /// Where the `MEAS` is.
+    pos: Pos,
+    /// The motions and probings so far, each with its statement's position.
+    moves: Vec<(Move, Pos)>,
+}
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Have {
@@ -467,6 +476,10 @@ struct Checker<'a> {
     active_datums: Option<Vec<usize>>,
     tols: HashMap<String, usize>,
     devices: HashMap<String, (DeviceKind, Option<String>, bool)>,
+    /// The `MEAS` whose `ENDMES` has not come yet.
+    meas: Option<OpenMeas>,
+    /// Whether `ENDFIL` has come.
+    ended: bool,
 }
 
 impl Checker<'_> {
@@ -546,30 +559,7 @@ impl Checker<'_> {
 /// Check a program as a whole and build its plan. Nothing outside the subset, nothing malformed
 /// and nothing inconsistent passes: the first problem is returned with its place.
 pub fn check(program: &Program) -> Result<Plan, DmisError> {
-    let mut c = Checker {
-        file: &program.file,
-        length: LengthUnit::Mm,
-        angle: AngleUnit::AngDec,
-        plan: Plan {
-            file: program.file.clone(),
-            title: String::new(),
-            filnam: None,
-            features: Vec::new(),
-            sensors: Vec::new(),
-            tolerances: Vec::new(),
-            steps: Vec::new(),
-            output_file: None,
-            n_probes: 0,
-        },
-        feat: HashMap::new(),
-        sensors: HashMap::new(),
-        selected: false,
-        datums: HashMap::new(),
-        csys: HashMap::new(),
-        active_datums: None,
-        tols: HashMap::new(),
-        devices: HashMap::new(),
-    };
+    let mut c = Checker::new(&program.file);
     let sts = &program.statements;
     let Some(first) = sts.first() else {
         return Err(c.sem(Pos::new(1, 1), "the program is empty (a part program starts with DMISMN)"));
@@ -580,381 +570,68 @@ pub fn check(program: &Program) -> Result<Plan, DmisError> {
             return Err(c.sem(first.pos, format!("a part program starts with DMISMN, not {}", other.major())))
         }
     }
-    let mut meas: Option<OpenMeas> = None;
-    let mut ended = false;
     for st in &sts[1..] {
-        if ended {
-            return Err(c.sem(st.pos, "statement after ENDFIL"));
-        }
-        let pos = st.pos;
-        let push = |c: &mut Checker, op: Op| c.plan.steps.push(Step { op, pos, echo: None });
-        let n_steps = c.plan.steps.len();
-        if let Some((fid, n, mpos, moves)) = meas.as_mut() {
-            match &st.statement {
-                Statement::Goto(Goto::Abs(p)) => {
-                    let q = c.finite_pt(p, st, 0)?;
-                    moves.push((Move::Goto(q), pos));
-                }
-                Statement::Goto(Goto::Incr { dist, dir }) => {
-                    let d = c.finite_mm(*dist, st.arg(1))?;
-                    let u = c.unit(dir, st.arg(2), "the direction")?;
-                    moves.push((Move::GotoIncr(u * d), pos));
-                }
-                Statement::Ptmeas { p, n: dir } => {
-                    let q = c.finite_pt(p, st, 1)?;
-                    let d = match dir {
-                        Some(d) => Some(c.unit(d, st.arg(4), "the approach direction")?),
-                        None => None,
-                    };
-                    moves.push((Move::Probe { p: q, dir: d }, pos));
-                }
-                Statement::Endmes => {
-                    let probes = moves.iter().filter(|m| matches!(m.0, Move::Probe { .. })).count();
-                    let ft = c.ftype(*fid);
-                    if probes != *n as usize {
-                        return Err(c.sem(
-                            pos,
-                            format!(
-                                "the MEAS at line {} announces {n} points but measures {probes}",
-                                mpos.line
-                            ),
-                        ));
-                    }
-                    if probes < min_points(ft) {
-                        return Err(c.sem(
-                            *mpos,
-                            format!(
-                                "a {ft} needs at least {} points, this MEAS has {probes}",
-                                min_points(ft)
-                            ),
-                        ));
-                    }
-                    let (fid, moves, mpos) = (*fid, std::mem::take(moves), *mpos);
-                    c.plan.n_probes += probes;
-                    let name = c.plan.features[fid].name.to_ascii_uppercase();
-                    c.feat.insert(name, (fid, Have::Actual { points: true }));
-                    meas = None;
-                    // The step is located at its MEAS (progress and errors name that line).
-                    c.plan.steps.push(Step {
-                        op: Op::Measure { feature: fid, moves },
-                        pos: mpos,
-                        echo: None,
-                    });
-                }
-                other => {
-                    return Err(c.sem(
-                        pos,
-                        format!(
-                            "{} is not allowed between MEAS (line {}) and ENDMES (only GOTO and PTMEAS)",
-                            other.major(),
-                            mpos.line
-                        ),
-                    ))
-                }
-            }
-            continue;
-        }
-        match &st.statement {
-            Statement::Dmismn { .. } | Statement::Dmismd { .. } => {
-                return Err(c.sem(pos, format!("{} may only be the first statement", st.statement.major())))
-            }
-            Statement::Endfil => ended = true,
-            Statement::Filnam { name, .. } => c.plan.filnam = Some(name.clone()),
-            Statement::Units { length, angle, .. } => {
-                if *angle == AngleUnit::AngDms {
-                    return Err(c.err(st.arg(1), ErrorKind::Unsupported, "UNITS: ANGDMS is not supported (ANGDEC, ANGRAD)"));
-                }
-                c.length = *length;
-                c.angle = *angle;
-                push(&mut c, Op::Units { length: *length, angle: *angle });
-            }
-            Statement::Disply(_) | Statement::Snsmnt { .. } => {}
-            Statement::Prcomp(on) => push(&mut c, Op::Compensation(*on)),
-            Statement::Mode(ws) => {
-                if !ws.iter().any(|w| matches!(w, ModeWord::Auto | ModeWord::Prog)) {
-                    return Err(c.err(
-                        st.arg(0),
-                        ErrorKind::Unsupported,
-                        "MODE/MAN (manual measurement) is not supported: truepos runs programs automatically",
-                    ));
-                }
-            }
-            Statement::Fedrat { kind, unit, value } => {
-                let mm_s = match (unit, value) {
-                    (FeedUnit::Mpm, Some(v)) => Some(c.positive(*v, st.arg(2), "the speed")? * 1000.0 / 60.0),
-                    (FeedUnit::Mmps, Some(v)) => Some(c.positive(*v, st.arg(2), "the speed")?),
-                    (FeedUnit::Ipm, Some(v)) => Some(c.positive(*v, st.arg(2), "the speed")? * 25.4 / 60.0),
-                    (FeedUnit::Ips, Some(v)) => Some(c.positive(*v, st.arg(2), "the speed")? * 25.4),
-                    (FeedUnit::Pcent, Some(v)) => {
-                        if !(*v > 0.0 && *v <= 100.0) {
-                            return Err(c.sem(st.arg(2), format!("a speed in percent is in (0, 100], not {v}")));
-                        }
-                        None
-                    }
-                    _ => None,
-                };
-                push(&mut c, Op::Feed { kind: *kind, mm_s });
-            }
-            Statement::Snset(s) => match s {
-                Snset::Apprch(v) | Snset::Retrct(v) | Snset::Search(v) => {
-                    let mm = c.finite_mm(*v, st.arg(1))?;
-                    let ok = if matches!(s, Snset::Search(_)) { mm > 0.0 } else { mm >= 0.0 };
-                    if !ok {
-                        return Err(c.sem(st.arg(1), format!("SNSET: the distance must be positive, not {v}")));
-                    }
-                    push(
-                        &mut c,
-                        match s {
-                            Snset::Apprch(_) => Op::Approach(mm),
-                            Snset::Retrct(_) => Op::Retract(mm),
-                            _ => Op::Search(mm),
-                        },
-                    );
-                }
-                Snset::Depth(v) | Snset::Clrsrf(None, v) => {
-                    c.finite_mm(*v, st.arg(1))?;
-                }
-                Snset::Clrsrf(Some(l), v) => {
-                    c.feature(l, st.arg(1))?;
-                    c.finite_mm(*v, st.arg(2))?;
-                }
-                Snset::ClrsrfOff => {}
+        c.statement(st)?;
+    }
+    if let Some(m) = &c.meas {
+        return Err(c.sem(m.pos, "MEAS without ENDMES"));
+    }
+    if !c.ended {
+        let last = sts.last().map(|s| s.pos).unwrap_or_default();
+        return Err(c.sem(last, "the program has no ENDFIL"));
+    }
+    Ok(c.plan)
+}
+
+/// The statements: one checker per statement kind, each adding its step to the plan.
+impl<'a> Checker<'a> {
+    /// A checker at the start of the program in `file` (mm, degrees).
+    fn new(file: &'a str) -> Checker<'a> {
+        Checker {
+            file,
+            length: LengthUnit::Mm,
+            angle: AngleUnit::AngDec,
+            plan: Plan {
+                file: file.to_string(),
+                title: String::new(),
+                filnam: None,
+                features: Vec::new(),
+                sensors: Vec::new(),
+                tolerances: Vec::new(),
+                steps: Vec::new(),
+                output_file: None,
+                n_probes: 0,
             },
-            Statement::Snsdef { label, dir, diam, .. } => {
-                c.unit(dir, st.arg(6), "the probe direction")?;
-                let d = c.len(c.positive(*diam, st.arg(9), "the tip diameter")?);
-                if let Some(k) = c.sensors.get(&label.key()) {
-                    return Err(c.sem(
-                        st.label_pos,
-                        format!("{label} is already defined at line {}", c.plan.sensors[*k].pos.line),
-                    ));
-                }
-                c.sensors.insert(label.key(), c.plan.sensors.len());
-                c.plan.sensors.push(Sensor { name: label.name.clone(), tip_diameter_mm: d, pos });
-            }
-            Statement::Snslct(l) => {
-                let Some(k) = c.sensors.get(&l.key()).copied() else {
-                    return Err(c.sem(st.arg(0), format!("the sensor S({}) is not defined (SNSDEF) before this statement", l.name)));
-                };
-                c.selected = true;
-                push(&mut c, Op::SelectSensor(k));
-            }
-            Statement::Goto(Goto::Abs(p)) => {
-                let q = c.finite_pt(p, st, 0)?;
-                push(&mut c, Op::Goto(q));
-            }
-            Statement::Goto(Goto::Incr { dist, dir }) => {
-                let d = c.finite_mm(*dist, st.arg(1))?;
-                let u = c.unit(dir, st.arg(2), "the direction")?;
-                push(&mut c, Op::GotoIncr(u * d));
-            }
-            Statement::Feat { label, geom } => {
-                if label.kind == LabelKind::Fa {
-                    return Err(c.sem(st.label_pos, "FA(…)=FEAT is a result (output file) statement, not part of a program"));
-                }
-                if let Some((k, _)) = c.feat.get(&label.key()) {
-                    return Err(c.sem(
-                        st.label_pos,
-                        format!("{label} is already defined at line {}", c.plan.features[*k].pos.line),
-                    ));
-                }
-                let (side, nominal) = nominal(&c, geom, st)?;
-                let k = c.plan.features.len();
-                c.plan.features.push(Feature { name: label.name.clone(), ftype: geom.feat_type(), side, nominal, pos });
-                c.feat.insert(label.key(), (k, Have::Nominal));
-                push(&mut c, Op::Define(k));
-            }
-            Statement::Meas { ftype, feature, n } => {
-                let (k, _) = c.feature(feature, st.arg(1))?;
-                if c.ftype(k) != *ftype {
-                    return Err(c.sem(st.arg(0), format!("MEAS/{ftype} of {feature}, which is a {}", c.ftype(k))));
-                }
-                if !c.selected {
-                    return Err(c.sem(pos, "no sensor is selected (SNSLCT) before this MEAS"));
-                }
-                meas = Some((k, *n, pos, Vec::new()));
-            }
-            Statement::Endmes => return Err(c.sem(pos, "ENDMES without MEAS")),
-            Statement::Ptmeas { .. } => return Err(c.sem(pos, "PTMEAS outside MEAS … ENDMES")),
-            Statement::Const { ftype, feature, method } => {
-                let (k, _) = c.feature(feature, st.arg(1))?;
-                if c.ftype(k) != *ftype {
-                    return Err(c.sem(st.arg(0), format!("CONST/{ftype} of {feature}, which is a {}", c.ftype(k))));
-                }
-                let (m, points) = construction(&c, *ftype, method, st)?;
-                c.feat.insert(feature.key(), (k, Have::Actual { points }));
-                push(&mut c, Op::Construct { feature: k, method: m });
-            }
-            Statement::Datdef { datum, feature, .. } => {
-                // The feature is the first argument in both forms.
-                let fpos = st.arg(0);
-                let (k, _) = c.actual(feature, fpos)?;
-                c.datums.insert(datum.key(), k);
-            }
-            Statement::Datset { label, def } => {
-                let op = match def {
-                    Datset::Mcs => {
-                        c.active_datums = None;
-                        DatsetOp::Mcs
-                    }
-                    Datset::Datums(ds) => {
-                        let mut seen: Vec<DatsetWord> = Vec::new();
-                        let mut dirs: Vec<DatsetWord> = Vec::new();
-                        let mut out = Vec::new();
-                        let mut argk = 0;
-                        for (l, ws) in ds {
-                            let lpos = st.arg(argk);
-                            let k = c.datum(l, lpos)?;
-                            let t = c.ftype(k);
-                            for (j, w) in ws.iter().enumerate() {
-                                let wpos = st.arg(argk + 1 + j);
-                                if seen.contains(w) {
-                                    return Err(c.sem(wpos, format!("DATSET: {w} is set twice")));
-                                }
-                                seen.push(*w);
-                                if matches!(w, DatsetWord::XDir | DatsetWord::YDir | DatsetWord::ZDir) {
-                                    if !has_direction(t) {
-                                        return Err(c.sem(wpos, format!("DATSET: a {t} has no direction for {w}")));
-                                    }
-                                    dirs.push(*w);
-                                }
-                            }
-                            argk += 1 + ws.len();
-                            out.push((k, ws.clone()));
-                        }
-                        if dirs.len() > 2 {
-                            return Err(c.sem(pos, "DATSET: at most two directions (the third follows)"));
-                        }
-                        c.active_datums = Some(out.iter().map(|(k, _)| *k).collect());
-                        DatsetOp::Datums(out)
-                    }
-                };
-                c.csys.insert(label.key(), c.active_datums.clone());
-                push(&mut c, Op::Datset { name: label.name.clone(), def: op });
-            }
-            Statement::Trans { label, items } => {
-                let mut seen = Vec::new();
-                let mut out = Vec::new();
-                for (j, (o, by)) in items.iter().enumerate() {
-                    let axis = match o {
-                        Origin::XOrig => 0,
-                        Origin::YOrig => 1,
-                        Origin::ZOrig => 2,
-                    };
-                    if seen.contains(&axis) {
-                        return Err(c.sem(st.arg(2 * j), format!("TRANS: {o} is set twice")));
-                    }
-                    seen.push(axis);
-                    out.push((
-                        axis,
-                        match by {
-                            TransBy::Value(v) => TransTo::Value(c.finite_mm(*v, st.arg(2 * j + 1))?),
-                            TransBy::Feature(l) => TransTo::Feature(c.actual(l, st.arg(2 * j + 1))?.0),
-                        },
-                    ));
-                }
-                if let Some(l) = label {
-                    c.csys.insert(l.key(), c.active_datums.clone());
-                }
-                push(&mut c, Op::Trans { name: label.as_ref().map(|l| l.name.clone()), items: out });
-            }
-            Statement::Rotate { label, axis, by } => {
-                let ax = match axis {
-                    RotAxis::XAxis => 0,
-                    RotAxis::YAxis => 1,
-                    RotAxis::ZAxis => 2,
-                };
-                let by = match by {
-                    RotateBy::Angle(a) => {
-                        let r = a * rad_per(c.angle);
-                        if !r.is_finite() {
-                            return Err(c.sem(st.arg(1), "the angle is out of range"));
-                        }
-                        RotateTo::Angle(r)
-                    }
-                    RotateBy::Feature(l, d) => {
-                        let (k, _) = c.actual(l, st.arg(1))?;
-                        if !has_direction(c.ftype(k)) {
-                            return Err(c.sem(st.arg(1), format!("ROTATE: a {} has no direction", c.ftype(k))));
-                        }
-                        let dk = match d {
-                            AxisDir::XDir => 0,
-                            AxisDir::YDir => 1,
-                            AxisDir::ZDir => 2,
-                        };
-                        if dk == ax {
-                            return Err(c.sem(st.arg(2), format!("ROTATE/{axis}: {d} lies along the rotation axis")));
-                        }
-                        RotateTo::Feature(k, dk)
-                    }
-                };
-                if let Some(l) = label {
-                    c.csys.insert(l.key(), c.active_datums.clone());
-                }
-                push(&mut c, Op::Rotate { name: label.as_ref().map(|l| l.name.clone()), axis: ax, by });
-            }
-            Statement::Save(l) => {
-                c.csys.insert(l.key(), c.active_datums.clone());
-                push(&mut c, Op::Save(l.name.clone()));
-            }
-            Statement::Recall(l) => match c.csys.get(&l.key()) {
-                Some(d) => {
-                    c.active_datums = d.clone();
-                    push(&mut c, Op::Recall(l.name.clone()));
-                }
-                None => {
-                    return Err(c.sem(
-                        st.arg(0),
-                        format!("the coordinate system {} is neither defined (DATSET, TRANS, ROTATE) nor saved (SAVE) before this statement", l.name),
-                    ))
-                }
-            },
-            Statement::Tol { label, tol } => {
-                if let Some(k) = c.tols.get(&label.key()) {
-                    return Err(c.sem(
-                        st.label_pos,
-                        format!("{label} is already defined at line {}", c.plan.tolerances[*k].pos.line),
-                    ));
-                }
-                let kind = tolerance(&c, tol, st)?;
-                c.tols.insert(label.key(), c.plan.tolerances.len());
-                c.plan.tolerances.push(Tolerance { name: label.name.clone(), kind, statement: st.statement.clone(), pos });
-            }
-            Statement::Output(ls) => {
-                let items = output(&c, ls, st)?;
-                push(&mut c, Op::Output(items));
-            }
-            Statement::Text { kind, text } => {
-                if *kind == TextKind::Query {
-                    return Err(c.err(st.arg(0), ErrorKind::Unsupported, "TEXT/QUERY (operator input) is not supported"));
-                }
-                push(&mut c, Op::Text { kind: *kind, text: text.clone() });
-            }
-            Statement::Device { label, kind, file } => {
-                c.devices.insert(label.key(), (*kind, file.clone(), false));
-            }
-            Statement::Open { device, words } => {
-                let Some(d) = c.devices.get(&device.key()).cloned() else {
-                    return Err(c.sem(st.arg(0), format!("{device} is not defined (DEVICE) before this statement")));
-                };
-                if words.iter().any(|w| w == "OUTPUT") && d.0 == DeviceKind::Stor {
-                    match &d.1 {
-                        Some(f) if c.plan.output_file.is_none() => c.plan.output_file = Some(f.clone()),
-                        Some(_) => {
-                            return Err(c.err(st.arg(0), ErrorKind::Unsupported, "a second output file: truepos writes one output file"))
-                        }
-                        None => return Err(c.sem(st.arg(0), format!("{device} names no file"))),
-                    }
-                }
-                c.devices.insert(device.key(), (d.0, d.1, true));
-            }
-            Statement::Close { device, .. } => match c.devices.get(&device.key()) {
-                Some((_, _, true)) => {}
-                Some(_) => return Err(c.sem(st.arg(0), format!("{device} is not open"))),
-                None => return Err(c.sem(st.arg(0), format!("{device} is not defined (DEVICE) before this statement"))),
-            },
+            feat: HashMap::new(),
+            sensors: HashMap::new(),
+            selected: false,
+            datums: HashMap::new(),
+            csys: HashMap::new(),
+            active_datums: None,
+            tols: HashMap::new(),
+            devices: HashMap::new(),
+            meas: None,
+            ended: false,
         }
-        if c.plan.steps.len() > n_steps
+    }
+
+    /// Appends a step made by the statement at `pos`.
+    fn push(&mut self, op: Op, pos: Pos) {
+        self.plan.steps.push(Step { op, pos, echo: None });
+    }
+
+    /// One statement after the first: inside a `MEAS` block or outside it.
+    fn statement(&mut self, st: &Stmt) -> Result<(), DmisError> {
+        if self.ended {
+            return Err(self.sem(st.pos, "statement after ENDFIL"));
+        }
+        if let Some(m) = self.meas.take() {
+            return self.in_meas(m, st);
+        }
+        let n_steps = self.plan.steps.len();
+        self.outside_meas(st)?;
+        // The output file repeats these statements where their step is.
+        if self.plan.steps.len() > n_steps
             && matches!(
                 st.statement,
                 Statement::Units { .. }
@@ -965,19 +642,521 @@ pub fn check(program: &Program) -> Result<Plan, DmisError> {
                     | Statement::Recall(_)
             )
         {
-            if let Some(s) = c.plan.steps.last_mut() {
+            if let Some(s) = self.plan.steps.last_mut() {
                 s.echo = Some(st.statement.to_string());
             }
         }
+        Ok(())
     }
-    if let Some((_, _, mpos, _)) = meas {
-        return Err(c.sem(mpos, "MEAS without ENDMES"));
+
+    /// A statement between `MEAS` and `ENDMES`: a motion or probing of `m`, or its end.
+    fn in_meas(&mut self, mut m: OpenMeas, st: &Stmt) -> Result<(), DmisError> {
+        let pos = st.pos;
+        let mv = match &st.statement {
+            Statement::Goto(Goto::Abs(p)) => Move::Goto(self.finite_pt(p, st, 0)?),
+            Statement::Goto(Goto::Incr { dist, dir }) => {
+                let d = self.finite_mm(*dist, st.arg(1))?;
+                let u = self.unit(dir, st.arg(2), "the direction")?;
+                Move::GotoIncr(u * d)
+            }
+            Statement::Ptmeas { p, n: dir } => {
+                let q = self.finite_pt(p, st, 1)?;
+                let d = match dir {
+                    Some(d) => Some(self.unit(d, st.arg(4), "the approach direction")?),
+                    None => None,
+                };
+                Move::Probe { p: q, dir: d }
+            }
+            Statement::Endmes => return self.check_endmes(m, pos),
+            other => {
+                return Err(self.sem(
+                    pos,
+                    format!(
+                        "{} is not allowed between MEAS (line {}) and ENDMES (only GOTO and PTMEAS)",
+                        other.major(),
+                        m.pos.line
+                    ),
+                ))
+            }
+        };
+        m.moves.push((mv, pos));
+        self.meas = Some(m);
+        Ok(())
     }
-    if !ended {
-        let last = sts.last().map(|s| s.pos).unwrap_or_default();
-        return Err(c.sem(last, "the program has no ENDFIL"));
+
+    /// `ENDMES` at `pos`: `m` has the points it announced, enough for its fit; its step.
+    fn check_endmes(&mut self, m: OpenMeas, pos: Pos) -> Result<(), DmisError> {
+        let probes = m.moves.iter().filter(|m| matches!(m.0, Move::Probe { .. })).count();
+        let ft = self.ftype(m.feature);
+        if probes != m.n as usize {
+            return Err(self.sem(
+                pos,
+                format!("the MEAS at line {} announces {} points but measures {probes}", m.pos.line, m.n),
+            ));
+        }
+        if probes < min_points(ft) {
+            return Err(self.sem(
+                m.pos,
+                format!("a {ft} needs at least {} points, this MEAS has {probes}", min_points(ft)),
+            ));
+        }
+        self.plan.n_probes += probes;
+        let name = self.plan.features[m.feature].name.to_ascii_uppercase();
+        self.feat.insert(name, (m.feature, Have::Actual { points: true }));
+        // The step is located at its MEAS (progress and errors name that line).
+        self.push(Op::Measure { feature: m.feature, moves: m.moves }, m.pos);
+        Ok(())
     }
-    Ok(c.plan)
+
+    /// A statement outside `MEAS` blocks: dispatches to its checker.
+    fn outside_meas(&mut self, st: &Stmt) -> Result<(), DmisError> {
+        let pos = st.pos;
+        match &st.statement {
+            Statement::Dmismn { .. } | Statement::Dmismd { .. } => {
+                return Err(self.sem(pos, format!("{} may only be the first statement", st.statement.major())))
+            }
+            Statement::Endfil => self.ended = true,
+            Statement::Filnam { name, .. } => self.plan.filnam = Some(name.clone()),
+            Statement::Units { length, angle, .. } => self.check_units(st, *length, *angle)?,
+            Statement::Disply(_) | Statement::Snsmnt { .. } => {}
+            Statement::Prcomp(on) => self.push(Op::Compensation(*on), pos),
+            Statement::Mode(ws) => self.check_mode(st, ws)?,
+            Statement::Fedrat { kind, unit, value } => self.check_fedrat(st, *kind, *unit, *value)?,
+            Statement::Snset(s) => self.check_snset(st, s)?,
+            Statement::Snsdef { label, dir, diam, .. } => self.check_snsdef(st, label, dir, *diam)?,
+            Statement::Snslct(l) => self.check_snslct(st, l)?,
+            Statement::Goto(Goto::Abs(p)) => {
+                let q = self.finite_pt(p, st, 0)?;
+                self.push(Op::Goto(q), pos);
+            }
+            Statement::Goto(Goto::Incr { dist, dir }) => {
+                let d = self.finite_mm(*dist, st.arg(1))?;
+                let u = self.unit(dir, st.arg(2), "the direction")?;
+                self.push(Op::GotoIncr(u * d), pos);
+            }
+            Statement::Feat { label, geom } => self.check_feat(st, label, geom)?,
+            Statement::Meas { ftype, feature, n } => self.check_meas(st, *ftype, feature, *n)?,
+            Statement::Endmes => return Err(self.sem(pos, "ENDMES without MEAS")),
+            Statement::Ptmeas { .. } => return Err(self.sem(pos, "PTMEAS outside MEAS … ENDMES")),
+            Statement::Const { ftype, feature, method } => self.check_const(st, *ftype, feature, method)?,
+            Statement::Datdef { datum, feature, .. } => {
+                // The feature is the first argument in both forms.
+                let (k, _) = self.actual(feature, st.arg(0))?;
+                self.datums.insert(datum.key(), k);
+            }
+            Statement::Datset { label, def } => self.check_datset(st, label, def)?,
+            Statement::Trans { label, items } => self.check_trans(st, label.as_ref(), items)?,
+            Statement::Rotate { label, axis, by } => self.check_rotate(st, label.as_ref(), *axis, by)?,
+            Statement::Save(l) => {
+                self.csys.insert(l.key(), self.active_datums.clone());
+                self.push(Op::Save(l.name.clone()), pos);
+            }
+            Statement::Recall(l) => self.check_recall(st, l)?,
+            Statement::Tol { label, tol } => self.check_tol(st, label, tol)?,
+            Statement::Output(ls) => {
+                let items = output(self, ls, st)?;
+                self.push(Op::Output(items), pos);
+            }
+            Statement::Text { kind, text } => self.check_text(st, *kind, text)?,
+            Statement::Device { label, kind, file } => {
+                self.devices.insert(label.key(), (*kind, file.clone(), false));
+            }
+            Statement::Open { device, words } => self.check_open(st, device, words)?,
+            Statement::Close { device, .. } => self.check_close(st, device)?,
+        }
+        Ok(())
+    }
+
+    /// `UNITS`: the units of the statements that follow (`ANGDMS` refused).
+    fn check_units(&mut self, st: &Stmt, length: LengthUnit, angle: AngleUnit) -> Result<(), DmisError> {
+        if angle == AngleUnit::AngDms {
+            return Err(self.err(
+                st.arg(1),
+                ErrorKind::Unsupported,
+                "UNITS: ANGDMS is not supported (ANGDEC, ANGRAD)",
+            ));
+        }
+        self.length = length;
+        self.angle = angle;
+        self.push(Op::Units { length, angle }, st.pos);
+        Ok(())
+    }
+
+    /// `MODE`: automatic or programmed (manual measurement refused).
+    fn check_mode(&self, st: &Stmt, ws: &[ModeWord]) -> Result<(), DmisError> {
+        if !ws.iter().any(|w| matches!(w, ModeWord::Auto | ModeWord::Prog)) {
+            return Err(self.err(
+                st.arg(0),
+                ErrorKind::Unsupported,
+                "MODE/MAN (manual measurement) is not supported: truepos runs programs automatically",
+            ));
+        }
+        Ok(())
+    }
+
+    /// `FEDRAT`: a positive speed, converted to mm/s (a percentage in (0, 100]).
+    fn check_fedrat(
+        &mut self,
+        st: &Stmt,
+        kind: FeedKind,
+        unit: FeedUnit,
+        value: Option<f64>,
+    ) -> Result<(), DmisError> {
+        let mm_s = match (unit, value) {
+            (FeedUnit::Mpm, Some(v)) => Some(self.positive(v, st.arg(2), "the speed")? * 1000.0 / 60.0),
+            (FeedUnit::Mmps, Some(v)) => Some(self.positive(v, st.arg(2), "the speed")?),
+            (FeedUnit::Ipm, Some(v)) => Some(self.positive(v, st.arg(2), "the speed")? * 25.4 / 60.0),
+            (FeedUnit::Ips, Some(v)) => Some(self.positive(v, st.arg(2), "the speed")? * 25.4),
+            (FeedUnit::Pcent, Some(v)) => {
+                if !(v > 0.0 && v <= 100.0) {
+                    return Err(self.sem(st.arg(2), format!("a speed in percent is in (0, 100], not {v}")));
+                }
+                None
+            }
+            _ => None,
+        };
+        self.push(Op::Feed { kind, mm_s }, st.pos);
+        Ok(())
+    }
+
+    /// `SNSET`: approach, retract and search distances (the others are only checked).
+    fn check_snset(&mut self, st: &Stmt, s: &Snset) -> Result<(), DmisError> {
+        match s {
+            Snset::Apprch(v) | Snset::Retrct(v) | Snset::Search(v) => {
+                let mm = self.finite_mm(*v, st.arg(1))?;
+                let ok = if matches!(s, Snset::Search(_)) { mm > 0.0 } else { mm >= 0.0 };
+                if !ok {
+                    return Err(self.sem(st.arg(1), format!("SNSET: the distance must be positive, not {v}")));
+                }
+                self.push(
+                    match s {
+                        Snset::Apprch(_) => Op::Approach(mm),
+                        Snset::Retrct(_) => Op::Retract(mm),
+                        _ => Op::Search(mm),
+                    },
+                    st.pos,
+                );
+            }
+            Snset::Depth(v) | Snset::Clrsrf(None, v) => {
+                self.finite_mm(*v, st.arg(1))?;
+            }
+            Snset::Clrsrf(Some(l), v) => {
+                self.feature(l, st.arg(1))?;
+                self.finite_mm(*v, st.arg(2))?;
+            }
+            Snset::ClrsrfOff => {}
+        }
+        Ok(())
+    }
+
+    /// `SNSDEF`: a new sensor with a direction and a positive tip diameter.
+    fn check_snsdef(&mut self, st: &Stmt, label: &Label, dir: &Xyz, diam: f64) -> Result<(), DmisError> {
+        self.unit(dir, st.arg(6), "the probe direction")?;
+        let d = self.len(self.positive(diam, st.arg(9), "the tip diameter")?);
+        if let Some(k) = self.sensors.get(&label.key()) {
+            return Err(self.sem(
+                st.label_pos,
+                format!("{label} is already defined at line {}", self.plan.sensors[*k].pos.line),
+            ));
+        }
+        self.sensors.insert(label.key(), self.plan.sensors.len());
+        self.plan.sensors.push(Sensor { name: label.name.clone(), tip_diameter_mm: d, pos: st.pos });
+        Ok(())
+    }
+
+    /// `SNSLCT`: a sensor defined before.
+    fn check_snslct(&mut self, st: &Stmt, l: &Label) -> Result<(), DmisError> {
+        let Some(k) = self.sensors.get(&l.key()).copied() else {
+            return Err(self.sem(
+                st.arg(0),
+                format!("the sensor S({}) is not defined (SNSDEF) before this statement", l.name),
+            ));
+        };
+        self.selected = true;
+        self.push(Op::SelectSensor(k), st.pos);
+        Ok(())
+    }
+
+    /// `F(l)=FEAT`: a new nominal feature in internal units.
+    fn check_feat(&mut self, st: &Stmt, label: &Label, geom: &FeatGeom) -> Result<(), DmisError> {
+        if label.kind == LabelKind::Fa {
+            return Err(self
+                .sem(st.label_pos, "FA(…)=FEAT is a result (output file) statement, not part of a program"));
+        }
+        if let Some((k, _)) = self.feat.get(&label.key()) {
+            return Err(self.sem(
+                st.label_pos,
+                format!("{label} is already defined at line {}", self.plan.features[*k].pos.line),
+            ));
+        }
+        let (side, nominal) = nominal(self, geom, st)?;
+        let k = self.plan.features.len();
+        self.plan.features.push(Feature {
+            name: label.name.clone(),
+            ftype: geom.feat_type(),
+            side,
+            nominal,
+            pos: st.pos,
+        });
+        self.feat.insert(label.key(), (k, Have::Nominal));
+        self.push(Op::Define(k), st.pos);
+        Ok(())
+    }
+
+    /// `MEAS`: opens the block of a defined feature of its type, with a sensor selected.
+    fn check_meas(&mut self, st: &Stmt, ftype: FeatType, feature: &Label, n: u32) -> Result<(), DmisError> {
+        let (k, _) = self.feature(feature, st.arg(1))?;
+        if self.ftype(k) != ftype {
+            return Err(
+                self.sem(st.arg(0), format!("MEAS/{ftype} of {feature}, which is a {}", self.ftype(k)))
+            );
+        }
+        if !self.selected {
+            return Err(self.sem(st.pos, "no sensor is selected (SNSLCT) before this MEAS"));
+        }
+        self.meas = Some(OpenMeas { feature: k, n, pos: st.pos, moves: Vec::new() });
+        Ok(())
+    }
+
+    /// `CONST`: a defined feature of its type, constructed from features that exist by now.
+    fn check_const(
+        &mut self,
+        st: &Stmt,
+        ftype: FeatType,
+        feature: &Label,
+        method: &ConstMethod,
+    ) -> Result<(), DmisError> {
+        let (k, _) = self.feature(feature, st.arg(1))?;
+        if self.ftype(k) != ftype {
+            return Err(
+                self.sem(st.arg(0), format!("CONST/{ftype} of {feature}, which is a {}", self.ftype(k)))
+            );
+        }
+        let (m, points) = construction(self, ftype, method, st)?;
+        self.feat.insert(feature.key(), (k, Have::Actual { points }));
+        self.push(Op::Construct { feature: k, method: m }, st.pos);
+        Ok(())
+    }
+
+    /// `DATSET`: the machine coordinate system, or one from datums.
+    fn check_datset(&mut self, st: &Stmt, label: &Label, def: &Datset) -> Result<(), DmisError> {
+        let op = match def {
+            Datset::Mcs => {
+                self.active_datums = None;
+                DatsetOp::Mcs
+            }
+            Datset::Datums(ds) => {
+                let out = self.datset_datums(st, ds)?;
+                self.active_datums = Some(out.iter().map(|(k, _)| *k).collect());
+                DatsetOp::Datums(out)
+            }
+        };
+        self.csys.insert(label.key(), self.active_datums.clone());
+        self.push(Op::Datset { name: label.name.clone(), def: op }, st.pos);
+        Ok(())
+    }
+
+    /// The datums of `DATSET`: defined, each axis and origin set once, two directions at most.
+    fn datset_datums(
+        &self,
+        st: &Stmt,
+        ds: &[(Label, Vec<DatsetWord>)],
+    ) -> Result<Vec<(usize, Vec<DatsetWord>)>, DmisError> {
+        let mut seen: Vec<DatsetWord> = Vec::new();
+        let mut dirs: Vec<DatsetWord> = Vec::new();
+        let mut out = Vec::new();
+        let mut argk = 0;
+        for (l, ws) in ds {
+            let lpos = st.arg(argk);
+            let k = self.datum(l, lpos)?;
+            let t = self.ftype(k);
+            for (j, w) in ws.iter().enumerate() {
+                let wpos = st.arg(argk + 1 + j);
+                if seen.contains(w) {
+                    return Err(self.sem(wpos, format!("DATSET: {w} is set twice")));
+                }
+                seen.push(*w);
+                if matches!(w, DatsetWord::XDir | DatsetWord::YDir | DatsetWord::ZDir) {
+                    if !has_direction(t) {
+                        return Err(self.sem(wpos, format!("DATSET: a {t} has no direction for {w}")));
+                    }
+                    dirs.push(*w);
+                }
+            }
+            argk += 1 + ws.len();
+            out.push((k, ws.clone()));
+        }
+        if dirs.len() > 2 {
+            return Err(self.sem(st.pos, "DATSET: at most two directions (the third follows)"));
+        }
+        Ok(out)
+    }
+
+    /// `TRANS`: each origin set once, to a value or an actual feature's position.
+    fn check_trans(
+        &mut self,
+        st: &Stmt,
+        label: Option<&Label>,
+        items: &[(Origin, TransBy)],
+    ) -> Result<(), DmisError> {
+        let mut seen = Vec::new();
+        let mut out = Vec::new();
+        for (j, (o, by)) in items.iter().enumerate() {
+            let axis = match o {
+                Origin::XOrig => 0,
+                Origin::YOrig => 1,
+                Origin::ZOrig => 2,
+            };
+            if seen.contains(&axis) {
+                return Err(self.sem(st.arg(2 * j), format!("TRANS: {o} is set twice")));
+            }
+            seen.push(axis);
+            out.push((
+                axis,
+                match by {
+                    TransBy::Value(v) => TransTo::Value(self.finite_mm(*v, st.arg(2 * j + 1))?),
+                    TransBy::Feature(l) => TransTo::Feature(self.actual(l, st.arg(2 * j + 1))?.0),
+                },
+            ));
+        }
+        if let Some(l) = label {
+            self.csys.insert(l.key(), self.active_datums.clone());
+        }
+        self.push(Op::Trans { name: label.map(|l| l.name.clone()), items: out }, st.pos);
+        Ok(())
+    }
+
+    /// `ROTATE`: by an angle, or so that an actual feature's direction becomes another axis.
+    fn check_rotate(
+        &mut self,
+        st: &Stmt,
+        label: Option<&Label>,
+        axis: RotAxis,
+        by: &RotateBy,
+    ) -> Result<(), DmisError> {
+        let ax = match axis {
+            RotAxis::XAxis => 0,
+            RotAxis::YAxis => 1,
+            RotAxis::ZAxis => 2,
+        };
+        let by = match by {
+            RotateBy::Angle(a) => {
+                let r = a * rad_per(self.angle);
+                if !r.is_finite() {
+                    return Err(self.sem(st.arg(1), "the angle is out of range"));
+                }
+                RotateTo::Angle(r)
+            }
+            RotateBy::Feature(l, d) => {
+                let (k, _) = self.actual(l, st.arg(1))?;
+                if !has_direction(self.ftype(k)) {
+                    return Err(self.sem(st.arg(1), format!("ROTATE: a {} has no direction", self.ftype(k))));
+                }
+                let dk = match d {
+                    AxisDir::XDir => 0,
+                    AxisDir::YDir => 1,
+                    AxisDir::ZDir => 2,
+                };
+                if dk == ax {
+                    return Err(
+                        self.sem(st.arg(2), format!("ROTATE/{axis}: {d} lies along the rotation axis"))
+                    );
+                }
+                RotateTo::Feature(k, dk)
+            }
+        };
+        if let Some(l) = label {
+            self.csys.insert(l.key(), self.active_datums.clone());
+        }
+        self.push(Op::Rotate { name: label.map(|l| l.name.clone()), axis: ax, by }, st.pos);
+        Ok(())
+    }
+
+    /// `RECALL`: a coordinate system defined or saved before.
+    fn check_recall(&mut self, st: &Stmt, l: &Label) -> Result<(), DmisError> {
+        match self.csys.get(&l.key()) {
+            Some(d) => {
+                self.active_datums = d.clone();
+                self.push(Op::Recall(l.name.clone()), st.pos);
+                Ok(())
+            }
+            None => Err(self.sem(
+                st.arg(0),
+                format!(
+                    "the coordinate system {} is neither defined (DATSET, TRANS, ROTATE) nor saved \
+                     (SAVE) before this statement",
+                    l.name
+                ),
+            )),
+        }
+    }
+
+    /// `T(l)=TOL`: a new tolerance in internal units.
+    fn check_tol(&mut self, st: &Stmt, label: &Label, tol: &Tol) -> Result<(), DmisError> {
+        if let Some(k) = self.tols.get(&label.key()) {
+            return Err(self.sem(
+                st.label_pos,
+                format!("{label} is already defined at line {}", self.plan.tolerances[*k].pos.line),
+            ));
+        }
+        let kind = tolerance(self, tol, st)?;
+        self.tols.insert(label.key(), self.plan.tolerances.len());
+        self.plan.tolerances.push(Tolerance {
+            name: label.name.clone(),
+            kind,
+            statement: st.statement.clone(),
+            pos: st.pos,
+        });
+        Ok(())
+    }
+
+    /// `TEXT`: a message (operator input refused).
+    fn check_text(&mut self, st: &Stmt, kind: TextKind, text: &str) -> Result<(), DmisError> {
+        if kind == TextKind::Query {
+            return Err(self.err(
+                st.arg(0),
+                ErrorKind::Unsupported,
+                "TEXT/QUERY (operator input) is not supported",
+            ));
+        }
+        self.push(Op::Text { kind, text: text.to_string() }, st.pos);
+        Ok(())
+    }
+
+    /// `OPEN`: a device defined before; a storage device opened for output is the output file.
+    fn check_open(&mut self, st: &Stmt, device: &Label, words: &[String]) -> Result<(), DmisError> {
+        let Some(d) = self.devices.get(&device.key()).cloned() else {
+            return Err(
+                self.sem(st.arg(0), format!("{device} is not defined (DEVICE) before this statement"))
+            );
+        };
+        if words.iter().any(|w| w == "OUTPUT") && d.0 == DeviceKind::Stor {
+            match &d.1 {
+                Some(f) if self.plan.output_file.is_none() => self.plan.output_file = Some(f.clone()),
+                Some(_) => {
+                    return Err(self.err(
+                        st.arg(0),
+                        ErrorKind::Unsupported,
+                        "a second output file: truepos writes one output file",
+                    ))
+                }
+                None => return Err(self.sem(st.arg(0), format!("{device} names no file"))),
+            }
+        }
+        self.devices.insert(device.key(), (d.0, d.1, true));
+        Ok(())
+    }
+
+    /// `CLOSE`: a device that is open.
+    fn check_close(&self, st: &Stmt, device: &Label) -> Result<(), DmisError> {
+        match self.devices.get(&device.key()) {
+            Some((_, _, true)) => Ok(()),
+            Some(_) => Err(self.sem(st.arg(0), format!("{device} is not open"))),
+            None => {
+                Err(self.sem(st.arg(0), format!("{device} is not defined (DEVICE) before this statement")))
+            }
+        }
+    }
 }
 
 fn nominal(c: &Checker, g: &FeatGeom, st: &Stmt) -> Result<(Option<Side>, Nominal), DmisError> {
@@ -1266,23 +1445,7 @@ fn output(c: &Checker, ls: &[Label], st: &Stmt) -> Result<Vec<OutputItem>, DmisE
                     c.sem(fpos, format!("TA({}) is evaluated on actual features: FA(…), not F(…)", l.name))
                 );
             }
-            use FeatType as F;
-            let ok = match &tol.kind {
-                TolKind::Flat(_) => t == F::Plane,
-                TolKind::Strght(_) => t == F::Line,
-                TolKind::Cirlty(_) => t == F::Circle,
-                TolKind::Cylcty(_) => t == F::Cylndr,
-                TolKind::Diam { .. } | TolKind::Rad { .. } => matches!(t, F::Circle | F::Cylndr | F::Sphere),
-                TolKind::Pos { three_d, .. } => {
-                    matches!(t, F::Point | F::Circle | F::Cylndr) || (*three_d && t == F::Sphere)
-                }
-                TolKind::Perp { .. } | TolKind::Parlel { .. } => {
-                    matches!(t, F::Plane | F::Line | F::Cylndr | F::Cone)
-                }
-                TolKind::Anglb { .. } => has_direction(t),
-                TolKind::Distb { .. } => point_like(t) || matches!(t, F::Plane | F::Cylndr),
-            };
-            if !ok {
+            if !applies_to(&tol.kind, t) {
                 return Err(c.sem(
                     fpos,
                     format!("TA({}) ({}) does not apply to a {t}", l.name, tol.statement_word()),
@@ -1307,23 +1470,7 @@ fn output(c: &Checker, ls: &[Label], st: &Stmt) -> Result<Vec<OutputItem>, DmisE
                 ));
             }
         }
-        if let (TolKind::Pos { .. }, Statement::Tol { tol: Tol::Pos { datums, .. }, .. }) =
-            (&tol.kind, &tol.statement)
-        {
-            if !datums.is_empty() {
-                let want: Vec<usize> = datums.iter().filter_map(|d| c.datum(d, pos).ok()).collect();
-                let active = c.active_datums.clone().unwrap_or_default();
-                if active.len() < want.len() || active[..want.len()] != want[..] {
-                    return Err(c.sem(
-                        pos,
-                        format!(
-                            "TA({}) refers to datums that the active coordinate system was not set from (DATSET with those datums first): position is reported in the active coordinate system",
-                            l.name
-                        ),
-                    ));
-                }
-            }
-        }
+        pos_datums_active(c, l, tol, pos)?;
         items.push(OutputItem::Tolerance {
             tolerance: k,
             features: feats.iter().map(|f| f.0).collect(),
@@ -1331,6 +1478,51 @@ fn output(c: &Checker, ls: &[Label], st: &Stmt) -> Result<Vec<OutputItem>, DmisE
         });
     }
     Ok(items)
+}
+
+/// Whether a tolerance of `kind` applies to a feature of type `t`.
+fn applies_to(kind: &TolKind, t: FeatType) -> bool {
+    use FeatType as F;
+    match kind {
+        TolKind::Flat(_) => t == F::Plane,
+        TolKind::Strght(_) => t == F::Line,
+        TolKind::Cirlty(_) => t == F::Circle,
+        TolKind::Cylcty(_) => t == F::Cylndr,
+        TolKind::Diam { .. } | TolKind::Rad { .. } => matches!(t, F::Circle | F::Cylndr | F::Sphere),
+        TolKind::Pos { three_d, .. } => {
+            matches!(t, F::Point | F::Circle | F::Cylndr) || (*three_d && t == F::Sphere)
+        }
+        TolKind::Perp { .. } | TolKind::Parlel { .. } => {
+            matches!(t, F::Plane | F::Line | F::Cylndr | F::Cone)
+        }
+        TolKind::Anglb { .. } => has_direction(t),
+        TolKind::Distb { .. } => point_like(t) || matches!(t, F::Plane | F::Cylndr),
+    }
+}
+
+/// `TA(l)` of a `POS` that names datums (`OUTPUT` at `pos`): the active coordinate system must
+/// have been set from those datums, first and in order.
+fn pos_datums_active(c: &Checker, l: &Label, tol: &Tolerance, pos: Pos) -> Result<(), DmisError> {
+    if let (TolKind::Pos { .. }, Statement::Tol { tol: Tol::Pos { datums, .. }, .. }) =
+        (&tol.kind, &tol.statement)
+    {
+        if !datums.is_empty() {
+            let want: Vec<usize> = datums.iter().filter_map(|d| c.datum(d, pos).ok()).collect();
+            let active = c.active_datums.clone().unwrap_or_default();
+            if active.len() < want.len() || active[..want.len()] != want[..] {
+                return Err(c.sem(
+                    pos,
+                    format!(
+                        "TA({}) refers to datums that the active coordinate system was not set from \
+                         (DATSET with those datums first): position is reported in the active \
+                         coordinate system",
+                        l.name
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 impl Tolerance {
