@@ -98,7 +98,15 @@ pub(crate) struct SyntaxError {
 struct Parser<'a> {
     b: &'a [u8],
     i: usize,
+    /// Values and operators read so far (see [`MAX_EXPR_NODES`]).
+    nodes: usize,
 }
+
+/// Most values and operators one word's expression (or one parameter setting) may hold. It
+/// bounds the parser's recursion and the depth of the tree that evaluating, copying and
+/// dropping walk recursively: 10,000 terms or nested brackets overflowed the reader thread's
+/// stack. Real programs use a handful.
+pub(crate) const MAX_EXPR_NODES: usize = 1000;
 
 fn err<T>(at: usize, message: impl Into<String>) -> Result<T, SyntaxError> {
     Err(SyntaxError { at, message: message.into() })
@@ -145,6 +153,7 @@ impl Parser<'_> {
                 return Ok(lhs);
             }
             self.i += len;
+            self.node()?;
             let rhs = self.expr(op.precedence() + 1)?;
             lhs = Expr::Bin(op, Box::new(lhs), Box::new(rhs));
         }
@@ -186,8 +195,21 @@ impl Parser<'_> {
         })
     }
 
+    /// Count one value or operator against [`MAX_EXPR_NODES`].
+    fn node(&mut self) -> Result<(), SyntaxError> {
+        self.nodes += 1;
+        if self.nodes > MAX_EXPR_NODES {
+            return err(
+                self.i,
+                format!("expression of more than {MAX_EXPR_NODES} values and operators (nested or chained; the limit truepos reads)"),
+            );
+        }
+        Ok(())
+    }
+
     /// A value: number, `[expr]`, parameter, function, or a signed value.
     fn operand(&mut self) -> Result<Expr, SyntaxError> {
+        self.node()?;
         self.skip_ws();
         let Some(c) = self.peek() else { return err(self.i, "expected a value") };
         match c {
@@ -332,7 +354,7 @@ impl Parser<'_> {
 /// Parse a word's value (after the letter) at the start of `b`: returns the expression and the
 /// number of bytes it takes.
 pub(crate) fn parse_value(b: &[u8]) -> Result<(Expr, usize), SyntaxError> {
-    let mut p = Parser { b, i: 0 };
+    let mut p = Parser { b, i: 0, nodes: 0 };
     if p.peek().is_some_and(|c| c == b' ' || c == b'\t') {
         return err(0, "a word's value must follow its letter");
     }
@@ -342,7 +364,7 @@ pub(crate) fn parse_value(b: &[u8]) -> Result<(Expr, usize), SyntaxError> {
 
 /// Parse a parameter setting `#ref = value` at the start of `b` (which starts with `#`).
 pub(crate) fn parse_assignment(b: &[u8]) -> Result<(ParamRef, Expr, usize), SyntaxError> {
-    let mut p = Parser { b, i: 0 };
+    let mut p = Parser { b, i: 0, nodes: 0 };
     if p.peek() != Some(b'#') {
         return err(0, "expected '#'");
     }
@@ -589,5 +611,30 @@ mod tests {
             assert!(parse_value(s.as_bytes()).is_err(), "{s}");
         }
         assert!(parse_assignment(b"#1").is_err());
+    }
+
+    /// Long chains, deep brackets and long runs of signs are refused at the node limit with
+    /// their place, before the tree grows deep enough to overflow a stack (10,000 terms did, in
+    /// the reader thread, before the limit); expressions under the limit still evaluate.
+    #[test]
+    fn huge_expressions_are_refused_not_crashed() {
+        let p = Params::default();
+        let chain = |n: usize| format!("[{}1]", "1+".repeat(n - 1));
+        assert_eq!(ev(&chain(500), &p), Ok(500.0)); // 1 + 500 + 499 = 1000 nodes
+        assert_eq!(ev(&format!("{}1{}", "[".repeat(400), "]".repeat(400)), &p), Ok(1.0));
+        for s in [
+            chain(501),
+            chain(10_000),
+            chain(200_001),
+            format!("{}1{}", "[".repeat(7000), "]".repeat(7000)),
+            format!("[{}1]", "-".repeat(20_000)),
+            format!("[{}]", "SIN[".repeat(5000) + "1" + &"]".repeat(5000)),
+        ] {
+            let e = parse_value(s.as_bytes()).unwrap_err();
+            assert!(e.message.contains("more than 1000 values and operators"), "{}", e.message);
+            assert!(e.at <= s.len());
+        }
+        let long = format!("#1=[{}1]", "1+".repeat(10_000));
+        assert!(parse_assignment(long.as_bytes()).unwrap_err().message.contains("1000"));
     }
 }

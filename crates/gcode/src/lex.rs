@@ -198,8 +198,15 @@ fn lex_line(src: &str, start: usize, end: usize, out: &mut Vec<Token>) -> bool {
         let s = i;
         let kind = match c {
             b' ' | b'\t' | b'\r' => {
+                let mut cr = false;
                 while i < end && matches!(b[i], b' ' | b'\t' | b'\r') {
+                    cr |= b[i] == b'\r';
                     i += 1;
+                }
+                // A carriage return with more text after it on the line: CR-only line ends,
+                // which the check refuses (the line is not plain, so it is checked).
+                if cr && i < end {
+                    plain = false;
                 }
                 TokenKind::Whitespace
             }
@@ -207,9 +214,12 @@ fn lex_line(src: &str, start: usize, end: usize, out: &mut Vec<Token>) -> bool {
                 // Nested parentheses stay inside the comment: `(a (b) X99)` is one comment.
                 let mut depth = 0usize;
                 let mut closed = false;
+                let mut cr = false;
                 while i < end {
                     match b[i] {
                         b'(' => depth += 1,
+                        // A carriage return inside: perhaps CR-only line ends (see below).
+                        b'\r' => cr = true,
                         b')' => {
                             depth -= 1;
                             if depth == 0 {
@@ -222,10 +232,15 @@ fn lex_line(src: &str, start: usize, end: usize, out: &mut Vec<Token>) -> bool {
                     }
                     i += 1;
                 }
-                plain &= closed;
+                plain &= closed && !cr;
                 TokenKind::ParenComment { closed }
             }
             b';' => {
+                // A carriage return inside: perhaps CR-only line ends, which would make the
+                // rest of the program this comment; the check decides (not plain).
+                if memchr::memchr(b'\r', &b[i..end]).is_some() {
+                    plain = false;
+                }
                 i = end;
                 TokenKind::SemicolonComment
             }

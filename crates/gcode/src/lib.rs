@@ -113,6 +113,12 @@ pub struct Program {
     pub lines: Vec<Line>,
 }
 
+/// At most the first 40 characters of a token's text, for a message (a token may be a whole
+/// line of a megabyte).
+fn clip(text: &str) -> &str {
+    text.char_indices().nth(40).map_or(text, |(i, _)| &text[..i])
+}
+
 impl Program {
     /// Tokenise `source`. Never fails: unknown or malformed text becomes tokens that are kept
     /// verbatim (see [`Program::check`] for malformed numbers).
@@ -179,6 +185,27 @@ impl Program {
         self.evaluate(&mut expr::Params::default(), true).1
     }
 
+    /// The first carriage return followed by more text on its line: the lines end in a
+    /// carriage return alone (classic Mac OS), so the whole program would read as one block
+    /// (its words repeated, the last of each taken). A CR before the line's LF (CRLF, or
+    /// `\r\r\n`) is only a line end.
+    fn bare_carriage_return(&self) -> Option<GcodeError> {
+        let b = self.source.as_bytes();
+        for p in memchr::memchr_iter(b'\r', b) {
+            let end = memchr::memchr(b'\n', &b[p..]).map_or(b.len(), |n| p + n);
+            if b[p + 1..end].iter().all(|c| matches!(c, b' ' | b'\t' | b'\r')) {
+                continue;
+            }
+            let line_start = memchr::memrchr(b'\n', &b[..p]).map_or(0, |n| n + 1);
+            return Some(GcodeError::Unsupported {
+                line: memchr::memchr_iter(b'\n', &b[..p]).count() + 1,
+                column: self.source[line_start..p].chars().count() + 1,
+                message: "CR-only line ends: the lines end in a carriage return alone (classic Mac OS), so the program reads as one line; convert them to LF or CRLF line ends (e.g. tr '\\r' '\\n' < in.nc > out.nc)".into(),
+            });
+        }
+        None
+    }
+
     /// Evaluate parameters and expressions in program order (see the `expr` module), starting
     /// from `params` (the settings of earlier pieces; updated): the values of expression words
     /// (token index, value) up to the first error, and that error. `first`: this text starts
@@ -205,8 +232,15 @@ impl Program {
             "endrepeat",
             "return",
         ];
+        // Reported at its line, in program order (a streamed piece and the whole program then
+        // stop at the same first error).
+        let mut bare_cr = self.bare_carriage_return();
         let mut values = Vec::new();
         for (i, l) in self.lines.iter().enumerate() {
+            if bare_cr.as_ref().is_some_and(|e| e.line() == i + 1) {
+                let e = bare_cr.take().map_or(Ok(()), Err);
+                return (values, e);
+            }
             let mut pending: Vec<(expr::Key, f64)> = Vec::new();
             let mut has_o = false;
             for ti in l.tokens.clone() {
@@ -240,6 +274,15 @@ impl Program {
                                 "O-word subroutines and control flow ('{text}') are not supported: truepos \
                                  follows a program line by line and cannot know which lines run how often"
                             )))
+                        } else if let Some(e) = text
+                            .get(1..)
+                            .filter(|v| v.starts_with('['))
+                            .and_then(|v| expr::parse_value(v.as_bytes()).err())
+                            .filter(|e| e.message.contains("values and operators"))
+                        {
+                            // An expression beyond the size truepos reads: say so (and do not
+                            // quote all of it).
+                            Err(unsupported(format!("'{}…': {}", clip(text), e.message)))
                         } else {
                             Err(GcodeError::MalformedNumber {
                                 line: i + 1,
@@ -259,9 +302,16 @@ impl Program {
                         let bom = first && t.start == 0 && text == "\u{feff}";
                         if block_delete || bom {
                             Ok(())
+                        } else if let Some(e) = Some(text)
+                            .filter(|t| t.starts_with('#'))
+                            .and_then(|t| expr::parse_assignment(t.as_bytes()).err())
+                            .filter(|e| e.message.contains("values and operators"))
+                        {
+                            Err(unsupported(format!("'{}…': {}", clip(text), e.message)))
                         } else {
                             Err(unsupported(format!(
-                                "'{text}' is not G-code (expected words such as G1 or X10.5)"
+                                "'{}' is not G-code (expected words such as G1 or X10.5)",
+                                clip(text)
                             )))
                         }
                     }

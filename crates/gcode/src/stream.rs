@@ -322,6 +322,29 @@ mod tests {
         assert_eq!((e.line(), e.column()), (2, 15), "{e}");
     }
 
+    /// CR-only line ends (classic Mac OS) are refused at the first CR followed by more text,
+    /// in memory and streamed; before, the program read as one block and was rewritten wrong
+    /// (the first motion took the last X). CRLF and a doubled CR before the LF are line ends.
+    #[test]
+    fn cr_only_line_ends_are_refused_with_their_place() {
+        let shift = Transform3::new(1.0, rz(0.0), Vector3::new(1.0, 0.0, 0.0));
+        for src in ["G90\rG0 X1 Y2 Z3\rG1 X10 Y10 Z0 F100\r", "G90\rG0 X1 Y2 Z3\r\n"] {
+            let e = Program::parse(src).check().unwrap_err();
+            assert_eq!((e.line(), e.column()), (1, 4), "{e}");
+            assert!(e.to_string().contains("CR-only line ends"), "{e}");
+            let StreamError::Gcode(e) = stream(src, &shift, &Default::default()).unwrap_err() else {
+                panic!()
+            };
+            assert_eq!((e.line(), e.column()), (1, 4), "{e}");
+        }
+        let e = Program::parse("G90\nG0 X1 (a) \r Y2\n").check().unwrap_err();
+        assert_eq!((e.line(), e.column()), (2, 11), "{e}");
+        for ok in ["G90\r\nG0 X1 Y2 Z3\r\n", "G90\r\r\nG0 X1 Y0 Z0\r \r\n", "G90 \r\nG0 X1 Y0 Z0"] {
+            Program::parse(ok).check().unwrap();
+            assert!(stream(ok, &shift, &Default::default()).unwrap().contains("X2"), "{ok:?}");
+        }
+    }
+
     /// Pieces split anywhere (inside lines, inside multi-byte characters' lines) give the
     /// in-memory result; a byte-order mark is accepted at the start only.
     #[test]
