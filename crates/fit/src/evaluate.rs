@@ -482,8 +482,10 @@ pub fn evaluate(
     };
     let mut verdicts = Vec::new();
     if let (Some(tol), Some(r)) = (spec.size, e.radius) {
-        let d =
-            verdict::size_verdict(&tol, 2.0 * r, e.diameter_expanded_uncertainty.unwrap_or(0.0), spec.rule);
+        // An uncertainty that is not determined (as many parameters as points: no residual
+        // left) is no guard band: a guarded decision can then neither pass nor fail.
+        let u = e.diameter_expanded_uncertainty.unwrap_or(f64::NAN);
+        let d = verdict::size_verdict(&tol, 2.0 * r, u, spec.rule);
         verdicts.push(d.verdict);
         e.size_decision = Some(d);
     }

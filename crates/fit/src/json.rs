@@ -110,9 +110,14 @@ pub fn evaluation(e: &Evaluation) -> Value {
             "decision_rule": d.rule.name(),
             "verdict": d.verdict.name(),
         });
-        if d.rule == DecisionRule::Guarded {
+        if d.rule == DecisionRule::Guarded && d.guard_band.is_finite() {
             c["guard_band_mm"] = json!(d.guard_band);
             c["guard_band_source"] = json!("least-squares expanded uncertainty of the diameter, k = 2");
+        } else if d.rule == DecisionRule::Guarded {
+            c["guard_band_mm"] = serde_json::Value::Null;
+            c["guard_band_source"] = json!(
+                "not determined: the diameter's uncertainty needs more points than the fit has parameters; a guarded decision is undecided"
+            );
         }
         chars.push(c);
     }

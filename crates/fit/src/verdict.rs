@@ -162,7 +162,9 @@ pub struct SizeDecision {
     pub tolerance: SizeTolerance,
     /// Measured diameter minus nominal, mm.
     pub deviation: f64,
-    /// Guard band (the expanded uncertainty of the diameter) applied, mm; 0 under `simple`.
+    /// Guard band (the expanded uncertainty of the diameter) applied, mm; 0 under `simple`;
+    /// NaN under `guarded` when the uncertainty is not determined (the verdict is then
+    /// undecided).
     pub guard_band: f64,
     /// The decision rule applied.
     pub rule: DecisionRule,

@@ -134,3 +134,40 @@ fn equally_good_cylinders_are_not_determined() {
     let t = cone(&exact_cylinder(1, 6)).unwrap_err().to_string();
     assert!(t.contains("at least 7 points, 6 given") && t.contains("seventh"), "{t}");
 }
+
+/// A guarded size decision needs the diameter's uncertainty: from as many points as the fit
+/// has parameters (3 for a circle, 4 for a sphere) it is not determined, and the decision is
+/// undecided, not a pass with a zero guard band (hostile audit 2 of issue 31, F7). The simple
+/// rule still decides on the value.
+#[test]
+fn guarded_decisions_without_a_known_uncertainty_are_undecided() {
+    use truepos_fit::evaluate::{evaluate, Kind, Method, Spec};
+    use truepos_fit::verdict::{DecisionRule, SizeTolerance, Verdict};
+    let size = Some(SizeTolerance { nominal: 10.0, lower: -0.01, upper: 0.01 });
+    let sphere4 = [
+        Point3::new(5.0, 0.0, 0.0),
+        Point3::new(-5.0, 0.0, 0.0),
+        Point3::new(0.0, 5.0, 0.0),
+        Point3::new(0.0, 0.0, 5.0),
+    ];
+    for (kind, pts) in [(Kind::Circle, ring(3, 5.0, 0.0)), (Kind::Sphere, sphere4.to_vec())] {
+        let guarded = Spec { size, form_tolerance: None, rule: DecisionRule::Guarded };
+        let e = evaluate(kind, Method::LeastSquares, &pts, &guarded).unwrap();
+        assert_eq!(e.diameter_expanded_uncertainty, None, "{kind:?}");
+        let d = e.size_decision.unwrap();
+        assert_eq!(d.verdict, Verdict::Undecided, "{kind:?}");
+        assert!(d.guard_band.is_nan());
+        let simple = Spec { rule: DecisionRule::Simple, ..guarded };
+        let e = evaluate(kind, Method::LeastSquares, &pts, &simple).unwrap();
+        assert_eq!(e.size_decision.unwrap().verdict, Verdict::Pass, "{kind:?}");
+    }
+    // With one point more the uncertainty is known and the guarded rule decides.
+    let e = evaluate(
+        Kind::Circle,
+        Method::LeastSquares,
+        &ring(4, 5.0, 0.0),
+        &Spec { size, form_tolerance: None, rule: DecisionRule::Guarded },
+    )
+    .unwrap();
+    assert_eq!(e.size_decision.unwrap().verdict, Verdict::Pass);
+}

@@ -32,8 +32,9 @@ the smallest orthogonal residual about the reported feature (a line: the diamete
 cylinder about it holding every point). Uncertainties (ls only) are standard uncertainties from\n\
 σ̂²(JᵀJ)⁻¹, σ̂² = SSR/(n − p) (noise only, no systematic effects); expanded with k = 2.\n\
 Verdicts: size deviation = measured diameter − nominal; guard band (guarded rule) = the\n\
-least-squares expanded uncertainty of the diameter, for every method; form uses the simple\n\
-rule. Exit code 1 when the verdict is not pass.\n\
+least-squares expanded uncertainty of the diameter, for every method (where it is not\n\
+determined, as many points as parameters, a guarded decision is undecided); form uses the\n\
+simple rule. Exit code 1 when the verdict is not pass.\n\
 --qif-plan reads the nominal diameter with its tolerance (deviations or limits) and the kind's\n\
 form tolerance (straightness, flatness, circularity, sphericity, cylindricity, conicity) from a\n\
 QIF 3 plan or model; it does not read feature nominals, datums, position or profile\n\
