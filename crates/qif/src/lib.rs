@@ -656,6 +656,29 @@ fn child<'a, 'i>(n: roxmltree::Node<'a, 'i>, name: &str) -> Option<roxmltree::No
     n.children().find(|c| c.is_element() && c.tag_name().name() == name)
 }
 
+/// The one child element `name` of `n`, if any; a second one is refused at its place (a reader
+/// that took the first would silently ignore it).
+fn one_child<'a, 'i>(
+    doc: &roxmltree::Document,
+    n: roxmltree::Node<'a, 'i>,
+    name: &str,
+) -> Result<Option<roxmltree::Node<'a, 'i>>, PlanError> {
+    let mut found = n.children().filter(|c| c.is_element() && c.tag_name().name() == name);
+    let first = found.next();
+    if let (Some(first), Some(second)) = (first, found.next()) {
+        let line = doc.text_pos_at(first.range().start).row;
+        return Err(at(
+            doc,
+            second,
+            format!(
+                "a second <{name}> in <{}> (the first is on line {line}): truepos would read only the first",
+                n.tag_name().name()
+            ),
+        ));
+    }
+    Ok(first)
+}
+
 fn elems<'a, 'i>(parent: Option<roxmltree::Node<'a, 'i>>, name: &str) -> Vec<roxmltree::Node<'a, 'i>> {
     parent
         .map(|p| p.children().filter(|c| c.is_element() && c.tag_name().name() == name).collect())
@@ -699,8 +722,8 @@ pub fn read_plan(text: &str, kind: FeatureKind) -> Result<Plan, PlanError> {
     let Some(chars) = child(root, "Characteristics") else {
         return Err(PlanError::Unsupported("the QIF document has no <Characteristics>".into()));
     };
-    let defs = child(chars, "CharacteristicDefinitions");
-    let noms = child(chars, "CharacteristicNominals");
+    let defs = one_child(&doc, chars, "CharacteristicDefinitions")?;
+    let noms = one_child(&doc, chars, "CharacteristicNominals")?;
     let reader = PlanReader { doc: &doc, scale };
     plan.diameter = reader.diameter(defs, noms)?;
     let form_name = format!("{}CharacteristicDefinition", form_characteristic(kind));
@@ -739,9 +762,14 @@ fn qif_root<'a, 'i>(doc: &'a roxmltree::Document<'i>) -> Result<roxmltree::Node<
 /// The file's linear unit: its factor to mm and its name as the file gives it (`None` when the
 /// file declares no linear unit, i.e. mm).
 fn linear_unit(doc: &roxmltree::Document, root: roxmltree::Node) -> Result<Option<(f64, String)>, PlanError> {
-    let Some(lu) =
-        child(root, "FileUnits").and_then(|u| child(u, "PrimaryUnits")).and_then(|u| child(u, "LinearUnit"))
-    else {
+    let mut lu = one_child(doc, root, "FileUnits")?;
+    for name in ["PrimaryUnits", "LinearUnit"] {
+        lu = match lu {
+            Some(n) => one_child(doc, n, name)?,
+            None => None,
+        };
+    }
+    let Some(lu) = lu else {
         return Ok(None);
     };
     let name = child(lu, "UnitName").and_then(|n| n.text()).unwrap_or("").trim().to_string();
@@ -836,10 +864,18 @@ impl<'i> PlanReader<'_, 'i> {
             return self.limits_of_size(tol, min, max, target).map(Some);
         }
         let Some(nominal) = target else {
-            return Err(self.at(
-                *d,
-                "the diameter characteristic's nominal has no <TargetValue> (needed with deviations)",
-            ));
+            let referred = elems(noms, "DiameterCharacteristicNominal").into_iter().any(|n| {
+                child(n, "CharacteristicDefinitionId").and_then(|c| c.text()).map(str::trim) == Some(id)
+            });
+            let why = if referred {
+                "the diameter characteristic's nominal has no <TargetValue> (needed with deviations)"
+                    .to_string()
+            } else {
+                format!(
+                    "no <DiameterCharacteristicNominal> refers to the diameter characteristic '{id}' (by its <CharacteristicDefinitionId>): the nominal diameter is needed with deviations"
+                )
+            };
+            return Err(self.at(*d, &why));
         };
         Ok(Some((nominal, min, max)))
     }
@@ -949,6 +985,40 @@ impl<'i> PlanReader<'_, 'i> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A diameter plan (20 mm, −0.001/+0.006) with circularity, as the fuzz seed has it.
+    const PLAN: &str = include_str!("../../../fuzz/seeds/qif_plan/circle_mm_deviations.qif");
+
+    /// A second block of definitions, nominals or units was silently ignored (hostile audit 2
+    /// of issue 31, F11, F12): each is refused at its place, naming the first; a nominal that
+    /// refers to no definition says so (F13) instead of "no <TargetValue>".
+    #[test]
+    fn second_blocks_are_refused_and_orphan_nominals_named() {
+        let ok = read_plan(PLAN, FeatureKind::Circle).unwrap();
+        assert_eq!(ok.diameter, Some((20.0, -0.001, 0.006)));
+        let defs = "    <CharacteristicDefinitions n=\"1\">\n      <DiameterCharacteristicDefinition id=\"2\"><Tolerance><MaxValue>0.5</MaxValue><MinValue>-0.5</MinValue></Tolerance></DiameterCharacteristicDefinition>\n    </CharacteristicDefinitions>\n";
+        let noms = "    <CharacteristicNominals n=\"1\">\n      <DiameterCharacteristicNominal id=\"7\"><CharacteristicDefinitionId>2</CharacteristicDefinitionId><TargetValue>7</TargetValue></DiameterCharacteristicNominal>\n    </CharacteristicNominals>\n";
+        let units = "  <FileUnits><PrimaryUnits><LinearUnit><SIUnitName>meter</SIUnitName><UnitName>inch</UnitName><UnitConversion><Factor>0.0254</Factor></UnitConversion></LinearUnit></PrimaryUnits></FileUnits>\n";
+        for (extra, after, name) in [
+            (defs, "  </Characteristics>", "CharacteristicDefinitions"),
+            (noms, "  </Characteristics>", "CharacteristicNominals"),
+            (units, "  <Characteristics>", "FileUnits"),
+        ] {
+            let text = PLAN.replacen(after, &format!("{extra}{after}"), 1);
+            let e = read_plan(&text, FeatureKind::Circle).unwrap_err().to_string();
+            assert!(e.contains(&format!("a second <{name}>")) && e.contains("the first is on line"), "{e}");
+            assert!(e.starts_with("line "), "{e}");
+        }
+        let inner = PLAN.replace("<LinearUnit>", "<LinearUnit><SIUnitName>meter</SIUnitName><UnitName>inch</UnitName><UnitConversion><Factor>0.0254</Factor></UnitConversion></LinearUnit><LinearUnit>");
+        let e = read_plan(&inner, FeatureKind::Circle).unwrap_err().to_string();
+        assert!(e.contains("a second <LinearUnit> in <PrimaryUnits>"), "{e}");
+        let orphan = PLAN.replace("<CharacteristicDefinitionId>2<", "<CharacteristicDefinitionId>9<");
+        let e = read_plan(&orphan, FeatureKind::Circle).unwrap_err().to_string();
+        assert!(
+            e.contains("no <DiameterCharacteristicNominal> refers to the diameter characteristic '2'"),
+            "{e}"
+        );
+    }
 
     #[test]
     fn decimals_have_no_exponent_and_round_trip() {
