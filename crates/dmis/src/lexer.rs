@@ -157,7 +157,7 @@ fn lex_line(file: &str, line: &str, line_no: u32, toks: &mut Vec<(Tok, Pos)>) ->
             '\'' => lx.text(i)?,
             _ if lx.starts_number(i) => lx.number(i)?,
             c if c.is_ascii_alphabetic() => lx.word_or_label(i)?,
-            other => return Err(lx.err(i + 1, format!("unexpected character {other:?}"))),
+            other => return Err(lx.unexpected(i, other)),
         };
     }
     Ok(LineEnd { continued: false, end: lx.end })
@@ -174,6 +174,27 @@ struct LineLexer<'a> {
 }
 
 impl LineLexer<'_> {
+    /// The error for a character no DMIS token starts with, at index `i`: in a statement whose
+    /// major word is outside the subset (`IF/(…)`), that is said instead, as the parser says it
+    /// for the statement's other forms.
+    fn unexpected(&self, i: usize, c: char) -> DmisError {
+        let major = match self.toks.as_slice() {
+            [(Tok::Label(..), _), (Tok::Eq, _), (Tok::Word(w), p), ..] | [(Tok::Word(w), p), ..] => {
+                Some((w, *p))
+            }
+            _ => None,
+        };
+        match major {
+            Some((w, p)) if crate::parse::OTHER_MAJORS.contains(&w.as_str()) => DmisError::new(
+                self.file,
+                p,
+                ErrorKind::Unsupported,
+                format!("{w} is outside the DMIS subset truepos runs (see docs/dmis.md)"),
+            ),
+            _ => self.err(i + 1, format!("unexpected character {c:?}")),
+        }
+    }
+
     /// A syntax error at 1-based column `col` of this line.
     fn err(&self, col: usize, msg: String) -> DmisError {
         DmisError::new(self.file, Pos::new(self.line_no, col as u32), ErrorKind::Syntax, msg)

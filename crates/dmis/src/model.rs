@@ -1132,6 +1132,15 @@ impl<'a> Checker<'a> {
         };
         if words.iter().any(|w| w == "OUTPUT") && d.0 == DeviceKind::Stor {
             match &d.1 {
+                Some(f) if !is_plain_file_name(f) => {
+                    return Err(self.err(
+                        st.arg(0),
+                        ErrorKind::Unsupported,
+                        format!(
+                            "{device} names '{f}', not a plain file name: the output file goes beside the program (a name without a folder; --output writes elsewhere)"
+                        ),
+                    ))
+                }
                 Some(f) if self.plan.output_file.is_none() => self.plan.output_file = Some(f.clone()),
                 Some(_) => {
                     return Err(self.err(
@@ -1533,4 +1542,11 @@ impl Tolerance {
             _ => "TOL",
         }
     }
+}
+
+/// A file name with no folder in it (no `/` or `\\`, not `.` or `..`, not empty): what a
+/// `DEVICE/STOR` output may name, so that the results stay beside the program.
+fn is_plain_file_name(f: &str) -> bool {
+    let f = f.trim();
+    !f.is_empty() && f != "." && f != ".." && !f.contains(['/', '\\']) && !f.contains('\0')
 }

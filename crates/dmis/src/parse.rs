@@ -57,6 +57,11 @@ impl Program {
 
 /// Parse a whole program; the first error is returned (file, line, column).
 pub fn parse(file: &str, text: &str) -> Result<Program, DmisError> {
+    // CR-only line ends (classic Mac OS) make the program one statement: said as such.
+    if let Some((line, col)) = truepos_io::limits::bare_carriage_return(text) {
+        let at = Pos::new(u32::try_from(line).unwrap_or(u32::MAX), u32::try_from(col).unwrap_or(u32::MAX));
+        return Err(DmisError::new(file, at, ErrorKind::Syntax, truepos_io::limits::CR_ONLY));
+    }
     let mut out = Vec::with_capacity(text.len() / 32);
     for raw in statements(file, text) {
         out.push(parse_statement(file, &raw?)?);
@@ -226,7 +231,7 @@ fn words_of<T: Copy>(all: &[T], f: impl Fn(T) -> &'static str) -> Vec<&'static s
 }
 
 /// Majors of DMIS outside the subset: refused as Unsupported rather than "unknown".
-const OTHER_MAJORS: &[&str] = &[
+pub(crate) const OTHER_MAJORS: &[&str] = &[
     "ACLRAT",
     "ALGDEF",
     "ASSIGN",

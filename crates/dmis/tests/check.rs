@@ -168,3 +168,40 @@ fn the_executor_costs_well_under_a_millisecond_per_ptmeas() {
     // The contract's figure is 1 ms; measured in the tens of µs, so a loaded machine passes too.
     assert!(per < 1e-3, "{per} s per PTMEAS");
 }
+
+/// Second hostile audit of issue 31: a `DEVICE/STOR` output that names a folder (F25: it wrote
+/// three folders above the program) is refused at the OPEN; `IF/(…)` is named as outside the
+/// subset like DO and CALL (F24: "unexpected character '('"); CR-only line ends are named as
+/// such at the first one (F21: "',' expected … found the word UNITS").
+#[test]
+fn output_folders_flow_control_and_cr_only_line_ends_are_named() {
+    for (f, ok) in [
+        ("out.dms", true),
+        ("../../../escaped.dms", false),
+        ("/tmp/x.dms", false),
+        ("sub/x.dms", false),
+        ("..", false),
+    ] {
+        let r = checked(&format!("DID(O)=DEVICE/STOR,'{f}'\nOPEN/DID(O),DIRECT,OUTPUT,OVERWR\nENDFIL\n"));
+        match r {
+            Ok(plan) => {
+                assert!(ok, "{f} accepted");
+                assert_eq!(plan.output_file.as_deref(), Some(f));
+            }
+            Err(e) => {
+                assert!(!ok, "{f}: {e}");
+                assert_eq!((e.pos.line, e.pos.col, e.kind), (6, 6, ErrorKind::Unsupported), "{e}");
+                assert!(e.to_string().contains("not a plain file name"), "{e}");
+            }
+        }
+    }
+    let e = parse("p.dms", &format!("{HEAD}IF/(1 .EQ. 1)\nENDIF\nENDFIL\n")).unwrap_err();
+    assert_eq!((e.pos.line, e.pos.col, e.kind), (5, 1, ErrorKind::Unsupported), "{e}");
+    assert!(e.to_string().contains("IF is outside the DMIS subset"), "{e}");
+    let mac = format!("{HEAD}ENDFIL\n").replace('\n', "\r");
+    let e = parse("p.dms", &mac).unwrap_err();
+    assert_eq!((e.pos.line, e.pos.col), (1, 11), "{e}");
+    assert!(e.to_string().contains("CR-only line ends"), "{e}");
+    // CRLF is a line end.
+    check(&parse("p.dms", &format!("{HEAD}ENDFIL\n").replace('\n', "\r\n")).unwrap()).unwrap();
+}

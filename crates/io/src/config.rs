@@ -20,6 +20,10 @@ pub fn read_toml<T: DeserializeOwned>(path: impl AsRef<Path>) -> Result<T, Input
 pub fn parse_toml<T: DeserializeOwned>(path: impl AsRef<Path>, text: &str) -> Result<T, InputError> {
     let path = path.as_ref();
     toml::from_str(text).map_err(|e| {
+        // CR-only line ends make the file one line, whatever the parser then says about it.
+        if let Some((line, col)) = crate::limits::bare_carriage_return(text) {
+            return InputError::at(path, line, Some(col), crate::limits::CR_ONLY);
+        }
         let msg = e.message().to_string();
         match e.span() {
             Some(span) => {
@@ -183,6 +187,25 @@ pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
 
 #[cfg(test)]
 mod tests {
+
+    /// CR-only line ends are named at the first one, not as what the TOML parser makes of a
+    /// one-line file ("key with no value"; hostile audit 2 of issue 31, F21); CRLF is fine.
+    #[test]
+    fn cr_only_toml_is_named() {
+        #[derive(serde::Deserialize, Debug)]
+        #[allow(dead_code)]
+        struct T {
+            a: i64,
+            b: i64,
+        }
+        let e = parse_toml::<T>("part.toml", "a = 1\rb = 2\r").unwrap_err();
+        assert_eq!((e.line, e.column), (Some(1), Some(6)), "{e}");
+        assert!(e.to_string().contains("CR-only line ends"), "{e}");
+        parse_toml::<T>("part.toml", "a = 1\r\nb = 2\r\n").unwrap();
+        assert_eq!(crate::limits::bare_carriage_return("x\r\r\ny \r \n"), None);
+        assert_eq!(crate::limits::bare_carriage_return("é\r\nab\rc"), Some((2, 3)));
+    }
+
     use super::*;
     #[derive(serde::Deserialize, Debug)]
     #[allow(dead_code)]
