@@ -110,9 +110,17 @@ pub fn binary(path: &Path, line: usize, what: &str) -> InputError {
     let mut msg = format!("binary data (NUL byte): not a {what} text file");
     if let Some(kind) = other_format(path) {
         msg = format!("this is {kind}, not a {what} text file{}", export_hint(kind, what));
+        if kind == UTF16 {
+            msg = format!(
+                "this is UTF-16 text; truepos reads {what} as UTF-8: convert it (e.g. iconv -f UTF-16 -t UTF-8 in > out)"
+            );
+        }
     }
     InputError::at(path, line, None, msg)
 }
+
+/// [`other_format`]'s name for UTF-16 text (a byte-order mark, or zero bytes between ASCII).
+const UTF16: &str = "UTF-16 text";
 
 /// What to do with a file of another kind given where text of kind `what` was expected.
 pub fn export_hint(kind: &str, what: &str) -> &'static str {
@@ -150,6 +158,13 @@ pub fn other_format(path: &Path) -> Option<&'static str> {
         [b'P', b'K', 3, 4, ..] => Some("a ZIP archive (an .xlsx or .ods spreadsheet?)"),
         [0xD0, 0xCF, 0x11, 0xE0, 0xA1, 0xB1, 0x1A, 0xE1] => Some("an Excel 97-2003 workbook (.xls)"),
         [b'P', b'A', b'R', b'1', ..] => Some("a Parquet file without the .parquet extension"),
+        // A byte-order mark, or text characters with a zero byte after (before) each.
+        [0xFF, 0xFE, ..] | [0xFE, 0xFF, ..] => Some(UTF16),
+        [a, 0, b, 0, ..] | [0, a, 0, b, ..]
+            if [a, b].iter().all(|c| matches!(c, b'\t' | b'\n' | b'\r' | 0x20..=0x7e)) =>
+        {
+            Some(UTF16)
+        }
         _ => None,
     }
 }
@@ -301,6 +316,33 @@ pub fn read_error(path: &Path, e: std::io::Error) -> InputError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// UTF-16 text (with or without a byte-order mark) is named as such with the conversion,
+    /// not as "binary data" (hostile audit 2 of issue 31, F22); zeros stay binary data.
+    #[test]
+    fn utf16_is_named() {
+        let d = tempfile::tempdir().unwrap();
+        let utf16 = |bom: &[u8], be: bool| {
+            let mut b = bom.to_vec();
+            for c in "x_mm,y_mm,z_mm\n1,2,3\n".bytes() {
+                b.extend(if be { [0, c] } else { [c, 0] });
+            }
+            b
+        };
+        for (name, bytes) in [
+            ("le.csv", utf16(&[0xFF, 0xFE], false)),
+            ("be.csv", utf16(&[0xFE, 0xFF], true)),
+            ("nobom.qif", utf16(&[], false)),
+        ] {
+            let p = d.path().join(name);
+            std::fs::write(&p, bytes).unwrap();
+            let e = read_string(&p, "CSV").unwrap_err().to_string();
+            assert!(e.contains("UTF-16 text") && e.contains("iconv"), "{e}");
+        }
+        let z = d.path().join("z.csv");
+        std::fs::write(&z, [0u8; 64]).unwrap();
+        assert!(read_string(&z, "CSV").unwrap_err().to_string().contains("binary data"));
+    }
 
     #[test]
     fn guard_finds_nul_and_long_lines_across_blocks() {

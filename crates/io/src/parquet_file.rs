@@ -558,9 +558,17 @@ impl ParquetReader {
             if reader.num_row_groups() > 0
                 && !matches!(t, Type::DOUBLE | Type::FLOAT | Type::INT32 | Type::INT64 | Type::BYTE_ARRAY)
             {
+                let logical = match (c.logical_type_ref(), c.converted_type()) {
+                    (Some(l), _) => format!(" holding {l:?}"),
+                    (None, ::parquet::basic::ConvertedType::NONE) => String::new(),
+                    (None, ct) => format!(" holding {ct}"),
+                };
                 return Err(InputError::in_file(
                     path,
-                    format!("column '{}': type {t} not supported (numbers or text)", c.name()),
+                    format!(
+                        "column '{}': type {t}{logical} not supported: truepos reads DOUBLE, FLOAT, INT32/INT64 (with their decimal and unsigned annotations) and text; write the column as float64 (pyarrow stores decimals in FIXED_LEN_BYTE_ARRAY by default)",
+                        c.name()
+                    ),
                 ));
             }
             names.push(c.name().to_string());
@@ -1457,6 +1465,15 @@ mod tests {
         std::fs::write(&p, pyarrow_fixture("dated_points.parquet")).unwrap();
         let e = read_columns(&p).unwrap_err().to_string();
         assert!(e.contains("column 't': Date (logical type) values are not plain numbers"), "{e}");
+        // pyarrow's default for decimals, FIXED_LEN_BYTE_ARRAY: named with its logical type and
+        // what to write instead (hostile audit 2 of issue 31, F6: the type alone was named).
+        std::fs::write(&p, pyarrow_fixture("fixed_decimal_points.parquet")).unwrap();
+        let e = read_columns(&p).err().unwrap().to_string();
+        assert!(
+            e.contains("column 'x_mm': type FIXED_LEN_BYTE_ARRAY holding Decimal")
+                && e.contains("write the column as float64"),
+            "{e}"
+        );
     }
 
     /// A codec truepos does not decode is named plainly at open, with what to use instead.
