@@ -309,6 +309,19 @@ pub struct LoadCase {
 /// Standard gravity for `mass_kg`.
 pub const G: f64 = 9.80665;
 
+/// Heaviest load a load case may hold, kg (1000 t): several times the heaviest workpieces of
+/// the largest machine-tool tables; beyond it a number is a unit mistake (grams, newtons
+/// given as kilograms) or no number at all, not a load the bed model can mean.
+pub const MAX_LOAD_KG: f64 = 1.0e6;
+
+/// The refusal of `key = value` above `limit` (in `unit`).
+fn over_limit(key: &str, value: f64, unit: &str, limit: f64) -> String {
+    format!(
+        "{key} = {value}: above {limit:.0} {unit} (a load of {:.0} t), beyond any machine-tool table; check the unit",
+        MAX_LOAD_KG / 1000.0
+    )
+}
+
 /// Read a load case TOML (`mass_kg`/`weight_n`, `cog_mm`, `rest_points_mm` or `[[rest]]`) and
 /// resolve it to point loads.
 pub fn read_load(path: &Path) -> Result<LoadCase, InputError> {
@@ -316,9 +329,15 @@ pub fn read_load(path: &Path) -> Result<LoadCase, InputError> {
     let err = |m: String| InputError::in_file(path, m);
     if let Some(m) = f.mass_kg {
         doc.positive(&["mass_kg"], m)?;
+        if m > MAX_LOAD_KG {
+            return Err(doc.error_at(&["mass_kg"], over_limit("mass_kg", m, "kg", MAX_LOAD_KG)));
+        }
     }
     if let Some(w) = f.weight_n {
         doc.positive(&["weight_n"], w)?;
+        if w > MAX_LOAD_KG * G {
+            return Err(doc.error_at(&["weight_n"], over_limit("weight_n", w, "N", MAX_LOAD_KG * G)));
+        }
     }
     for (i, r) in f.rest.iter().flatten().enumerate() {
         for (k, v) in [("x_mm", r.x_mm), ("y_mm", r.y_mm), ("force_n", r.force_n)] {
@@ -326,6 +345,12 @@ pub fn read_load(path: &Path) -> Result<LoadCase, InputError> {
                 return Err(doc.error_at(
                     &["rest", &i.to_string(), k],
                     format!("[[rest]] #{} {k} is not finite", i + 1),
+                ));
+            }
+            if k == "force_n" && v.abs() > MAX_LOAD_KG * G {
+                return Err(doc.error_at(
+                    &["rest", &i.to_string(), k],
+                    format!("[[rest]] #{} {}", i + 1, over_limit(k, v, "N", MAX_LOAD_KG * G)),
                 ));
             }
         }

@@ -211,6 +211,27 @@ fn bad_load_cases_maps_and_beds_exit_2() {
         "mass_kg = 500\ncog_mm = [600, 500]\nrest_points_mm = [[200, 200], [1200, 500], [200, 800]]\n",
     );
     expect_input_error(&curves(&l), &["off.toml", "does not cover"]);
+    // Loads beyond any table (hostile audit 2 of issue 31, F23: 1e300 kg gave 3e300 N forces).
+    for (name, text, needles) in [
+        (
+            "heavy.toml",
+            "mass_kg = 1e300\ncog_mm = [300, 100]\nrest_points_mm = [[0, 0], [1000, 0], [0, 500]]\n",
+            ["heavy.toml:1:", "above 1000000 kg"],
+        ),
+        (
+            "heavy_n.toml",
+            "weight_n = 1e12\ncog_mm = [300, 100]\nrest_points_mm = [[0, 0], [1000, 0], [0, 500]]\n",
+            ["heavy_n.toml:1:", "above 9806650 N"],
+        ),
+        (
+            "heavy_rest.toml",
+            "[[rest]]\nx_mm = 1\ny_mm = 1\nforce_n = 1e9\n",
+            ["heavy_rest.toml:4:", "above 9806650 N"],
+        ),
+    ] {
+        let l = write(d.path(), name, text);
+        expect_input_error(&curves(&l), &needles);
+    }
     // A point whose portal position is outside the map's portal range: line named, no output.
     let l =
         write(d.path(), "ok.toml", "weight_n = 1000\ncog_mm = [500, 500]\nrest_points_mm = [[500, 500]]\n");
