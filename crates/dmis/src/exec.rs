@@ -484,6 +484,21 @@ fn tools_of_sensors(
                 ),
             )));
         }
+        // I++ DME's `NoTool` is the empty tool (no probe mounted): listed, but it cannot
+        // measure, and the server would only say so at the first PtMeas, after the moves.
+        if used && tool.eq_ignore_ascii_case("NoTool") {
+            return Err(RunError::Input(DmisError::new(
+                &plan.file,
+                s.pos,
+                ErrorKind::Semantic,
+                format!(
+                    "the sensor S({}) is mapped to NoTool, I++ DME's empty tool (no probe mounted), which cannot measure; map it to a probe with --sensor {}=TOOL (the CMM's tools: {})",
+                    s.name,
+                    s.name,
+                    listed.join(", ")
+                ),
+            )));
+        }
         tool_of.push(tool);
     }
     for key in opts.sensors.keys() {

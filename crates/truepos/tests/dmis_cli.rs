@@ -122,6 +122,15 @@ fn refusals_have_their_exit_codes_and_leave_no_output() {
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("simple_in.dms:12:") && stderr.contains("--sensor PROBE6=TOOL"), "{stderr}");
     assert!(!stderr.contains("MEAS/"), "{stderr}");
+    // The empty tool, NoTool, cannot measure: exit 2 before any motion (hostile audit 2 of
+    // issue 31, F26: found at the first MEAS, after the moves, exit 3).
+    let out = run(&prog, &["--sensor", "PROBE6=NoTool"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("simple_in.dms:12:") && stderr.contains("NoTool, I++ DME's empty tool"),
+        "{stderr}"
+    );
     // No surface: exit 3 naming the PTMEAS line; no results file.
     let lost = dir.path().join("lost.dms");
     std::fs::write(
