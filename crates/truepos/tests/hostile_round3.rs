@@ -356,3 +356,59 @@ fn cr_only_line_ends_are_named() {
     assert!(!String::from_utf8_lossy(&out.stderr).contains("longer than"));
     assert!(!output.exists());
 }
+
+/// The NIST example program and part (data/dmis), copied into `dir`.
+fn dmis_example(dir: &std::path::Path) -> (std::path::PathBuf, std::path::PathBuf) {
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/dmis");
+    let prog = dir.join("prog.dms");
+    let part = dir.join("part.toml");
+    std::fs::copy(data.join("simple_in.dms"), &prog).unwrap();
+    std::fs::copy(data.join("simple_part.toml"), &part).unwrap();
+    (prog, part)
+}
+
+/// F14: `dmis run` never writes over the virtual CMM's part or machine file, whether named by
+/// --output, --qif or the program's own DEVICE/STOR; refused before anything moves.
+#[test]
+fn dmis_run_outputs_never_replace_the_part_or_machine_file() {
+    let d = tempfile::tempdir().unwrap();
+    let (prog, part) = dmis_example(d.path());
+    let part_text = std::fs::read_to_string(&part).unwrap();
+    let machine = write(
+        d.path(),
+        "cmm.toml",
+        "[ippdme]\nvolume_min_mm = [-500, -500, -500]\nvolume_max_mm = [500, 500, 500]\n",
+    );
+    let db = d.path().join("a.sqlite");
+    let run = |extra: &[&std::ffi::OsStr], prog: &std::path::Path| {
+        bin()
+            .current_dir(d.path())
+            .args(["dmis", "run"])
+            .arg(prog)
+            .args(["--sensor", "PROBE6=Probe1", "--part"])
+            .arg(&part)
+            .arg("--machine")
+            .arg(&machine)
+            .arg("--db")
+            .arg(&db)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let same_part = d.path().join(".").join("part.toml");
+    let out = run(&["--output".as_ref(), same_part.as_os_str()], &prog);
+    expect_input_error(&out, &["part.toml", "same file as the input"]);
+    let out = run(&["--output".as_ref(), "r.dms".as_ref(), "--qif".as_ref(), part.as_os_str()], &prog);
+    expect_input_error(&out, &["part.toml", "same file as the input"]);
+    let out = run(&["--output".as_ref(), machine.as_os_str()], &prog);
+    expect_input_error(&out, &["cmm.toml", "same file as the input"]);
+    let text = std::fs::read_to_string(&prog)
+        .unwrap()
+        .replace("ENDFIL", "DID(D1)=DEVICE/STOR,'part.toml'\nOPEN/DID(D1),DIRECT,OUTPUT,OVERWR\nENDFIL");
+    let stor = write(d.path(), "stor.dms", text);
+    let out = run(&[], &stor);
+    expect_input_error(&out, &["part.toml", "same file as the input"]);
+    assert_eq!(std::fs::read_to_string(&part).unwrap(), part_text);
+    assert!(std::fs::read_to_string(&machine).unwrap().starts_with("[ippdme]"));
+    assert!(!d.path().join("r.dms").exists());
+}
