@@ -412,3 +412,57 @@ fn dmis_run_outputs_never_replace_the_part_or_machine_file() {
     assert!(std::fs::read_to_string(&machine).unwrap().starts_with("[ippdme]"));
     assert!(!d.path().join("r.dms").exists());
 }
+
+/// F4: the virtual CMM's part and machine files go through the bounded reader of configuration
+/// files: a sparse 3 GB file, /dev/zero, /dev/urandom refused at once (exit 2, file named).
+#[cfg(unix)]
+#[test]
+fn virtual_cmm_files_are_read_within_the_configuration_limit() {
+    let d = tempfile::tempdir().unwrap();
+    let (prog, part) = dmis_example(d.path());
+    let sparse = d.path().join("sparse.toml");
+    std::fs::File::create(&sparse).unwrap().set_len(3 << 30).unwrap();
+    let dmis = |opt: &str, file: &std::path::Path| {
+        let t = std::time::Instant::now();
+        let (part_file, machine) = if opt == "--part" { (file, None) } else { (part.as_path(), Some(file)) };
+        let mut cmd = bin();
+        cmd.current_dir(d.path())
+            .args(["dmis", "run"])
+            .arg(&prog)
+            .args(["--sensor", "PROBE6=Probe1", "--part"])
+            .arg(part_file);
+        if let Some(m) = machine {
+            cmd.arg("--machine").arg(m);
+        }
+        let out = cmd.arg("--db").arg(d.path().join("a.sqlite")).output().unwrap();
+        assert!(t.elapsed().as_secs_f64() < 10.0);
+        out
+    };
+    let out = dmis("--part", &sparse);
+    expect_input_error(
+        &out,
+        &["sparse.toml", "3.2 GB", "configuration files of at most 67.1 MB", "TRUEPOS_MAX_CONFIG_MB"],
+    );
+    let out = dmis("--machine", &sparse);
+    expect_input_error(&out, &["sparse.toml", "configuration files of at most"]);
+    for dev in ["/dev/zero", "/dev/urandom"] {
+        if !std::path::Path::new(dev).exists() {
+            eprintln!("SKIPPED: no {dev} on this system");
+            continue;
+        }
+        let out = dmis("--machine", std::path::Path::new(dev));
+        expect_input_error(&out, &[dev, "binary data"]);
+        let t = std::time::Instant::now();
+        let out = bin().args(["ippdme", "serve", "--port", "0", "--part", dev]).output().unwrap();
+        expect_input_error(&out, &[dev, "binary data"]);
+        assert!(t.elapsed().as_secs_f64() < 10.0);
+    }
+    // A configuration file over a lowered limit names it.
+    let out = bin()
+        .env("TRUEPOS_MAX_CONFIG_MB", "1")
+        .args(["ippdme", "serve", "--port", "0", "--machine"])
+        .arg(&sparse)
+        .output()
+        .unwrap();
+    expect_input_error(&out, &["sparse.toml", "at most 1.0 MB", "TRUEPOS_MAX_CONFIG_MB"]);
+}
