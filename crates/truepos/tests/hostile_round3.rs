@@ -466,3 +466,21 @@ fn virtual_cmm_files_are_read_within_the_configuration_limit() {
         .unwrap();
     expect_input_error(&out, &["sparse.toml", "at most 1.0 MB", "TRUEPOS_MAX_CONFIG_MB"]);
 }
+
+/// F2: an element with more attributes than the XML bound is refused at once, naming its line
+/// and column and the limit (150 000 attributes took 17 s in the parser).
+#[test]
+fn an_xml_element_with_too_many_attributes_is_refused_at_once() {
+    let d = tempfile::tempdir().unwrap();
+    let pts = write(d.path(), "c.csv", CIRCLE);
+    let attrs: String = (0..150_000).map(|i| format!(" a{i}=\"1\"")).collect();
+    let qif = write(
+        d.path(),
+        "ma.qif",
+        format!("<QIFDocument xmlns=\"http://qifstandards.org/xsd/qif3\">\n  <a{attrs}/></QIFDocument>"),
+    );
+    let t = std::time::Instant::now();
+    let out = bin().args(["fit", "circle"]).arg(&pts).arg("--qif-plan").arg(&qif).output().unwrap();
+    expect_input_error(&out, &["ma.qif:2:3", "more than 1024 attributes"]);
+    assert!(t.elapsed().as_secs_f64() < 5.0);
+}
