@@ -197,6 +197,25 @@ pub fn other_format(path: &Path) -> Option<&'static str> {
     }
 }
 
+/// Refuse `path` unless it is a regular file (checked before opening it, so a FIFO without a
+/// writer does not block): for the binary formats read by seeking (`what`: "Parquet", "E57").
+pub fn require_regular(path: &Path, what: &str) -> Result<(), InputError> {
+    let Ok(meta) = std::fs::metadata(path) else { return Ok(()) };
+    if meta.is_dir() {
+        return Err(InputError::in_file(path, "is a directory, not a file"));
+    }
+    if !meta.is_file() {
+        return Err(InputError::in_file(
+            path,
+            format!(
+                "cannot read: it is {}; a {what} file is read by seeking, so it must be a regular file (copy it to one first)",
+                crate::atomic::kind_of(&meta.file_type())
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Refuse a regular file over the limit from its metadata (cheap, before any read).
 pub fn check_file_size(path: &Path, meta: &std::fs::Metadata) -> Result<(), InputError> {
     let limit = max_input_bytes();

@@ -484,3 +484,20 @@ fn an_xml_element_with_too_many_attributes_is_refused_at_once() {
     expect_input_error(&out, &["ma.qif:2:3", "more than 1024 attributes"]);
     assert!(t.elapsed().as_secs_f64() < 5.0);
 }
+
+/// F5: Parquet (and E57) on a FIFO or a character device: named as needing a regular file,
+/// not "No such device".
+#[cfg(unix)]
+#[test]
+fn parquet_on_a_fifo_or_device_needs_a_regular_file() {
+    let d = tempfile::tempdir().unwrap();
+    let dev = d.path().join("r.parquet");
+    std::os::unix::fs::symlink("/dev/null", &dev).unwrap();
+    let out = bin().args(["fit", "sphere"]).arg(&dev).output().unwrap();
+    expect_input_error(&out, &["r.parquet", "character device", "Parquet file", "regular file"]);
+    // A FIFO without a writer: refused before opening (which would block).
+    let fifo = d.path().join("f.parquet");
+    assert!(std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success()));
+    let out = bin().args(["fit", "sphere"]).arg(&fifo).output().unwrap();
+    expect_input_error(&out, &["f.parquet", "FIFO", "regular file"]);
+}
