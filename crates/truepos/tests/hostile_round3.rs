@@ -501,3 +501,15 @@ fn parquet_on_a_fifo_or_device_needs_a_regular_file() {
     let out = bin().args(["fit", "sphere"]).arg(&fifo).output().unwrap();
     expect_input_error(&out, &["f.parquet", "FIFO", "regular file"]);
 }
+
+/// F15: `simulate … --out` naming an existing file: exit 2 naming it and what is expected.
+#[test]
+fn simulate_out_must_be_a_directory() {
+    let d = tempfile::tempdir().unwrap();
+    let f = write(d.path(), "vfile", "keep");
+    for sim in ["scan", "load", "comp"] {
+        let out = bin().args(["simulate", sim, "--out"]).arg(&f).output().unwrap();
+        expect_input_error(&out, &["--out", "vfile", "not a directory"]);
+    }
+    assert_eq!(std::fs::read_to_string(&f).unwrap(), "keep");
+}
