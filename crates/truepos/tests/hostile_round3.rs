@@ -513,3 +513,29 @@ fn simulate_out_must_be_a_directory() {
     }
     assert_eq!(std::fs::read_to_string(&f).unwrap(), "keep");
 }
+
+/// F17: `--db` on a FIFO or a character device: exit 2 naming the path, nothing opened.
+#[cfg(unix)]
+#[test]
+fn the_audit_trail_must_be_a_regular_file() {
+    let d = tempfile::tempdir().unwrap();
+    let fifo = d.path().join("ofifo");
+    assert!(std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success()));
+    let holes = write(d.path(), "holes.csv", "id,x_mm,y_mm,z_mm\nA,10,20,0\n");
+    let out = bin()
+        .args(["somac", "inspect", "--diameter-mm", "6", "--holes"])
+        .arg(&holes)
+        .arg("--db")
+        .arg(&fifo)
+        .output()
+        .unwrap();
+    expect_input_error(&out, &["ofifo", "FIFO", "regular file"]);
+    for dev in ["/dev/full", "/dev/urandom"] {
+        if !std::path::Path::new(dev).exists() {
+            eprintln!("SKIPPED: no {dev}");
+            continue;
+        }
+        let out = bin().args(["audit", "list", "--db", dev]).output().unwrap();
+        expect_input_error(&out, &[dev, "character device", "regular file"]);
+    }
+}
