@@ -539,3 +539,47 @@ fn the_audit_trail_must_be_a_regular_file() {
         expect_input_error(&out, &[dev, "character device", "regular file"]);
     }
 }
+
+/// F9: absurd lengths are refused before the machine is opened, naming the option or the file
+/// field and the 100 m limit.
+#[test]
+fn absurd_lengths_are_refused_with_the_physical_limit() {
+    let d = tempfile::tempdir().unwrap();
+    let holes = write(d.path(), "holes.csv", "id,x_mm,y_mm,z_mm\nA,10,20,0\n");
+    let db = d.path().join("a.sqlite");
+    let out = bin()
+        .args(["somac", "inspect", "--diameter-mm", "6", "--depth-mm", "1e9", "--holes"])
+        .arg(&holes)
+        .arg("--db")
+        .arg(&db)
+        .output()
+        .unwrap();
+    expect_input_error(&out, &["--depth-mm", "1e9 mm", "100 m"]);
+    let far = write(d.path(), "hfar.csv", "id,x_mm,y_mm,z_mm\nA,10,20,0\nB,1e300,0,0\n");
+    let out = bin()
+        .args(["somac", "inspect", "--diameter-mm", "6", "--holes"])
+        .arg(&far)
+        .arg("--db")
+        .arg(&db)
+        .output()
+        .unwrap();
+    expect_input_error(&out, &["hfar.csv:3:2", "hole B: x_mm", "1e300 mm", "100 m"]);
+    let out = bin()
+        .args(["kinematics", "calibrate", "--model", "xyzbc-trt", "--near=60,25,15", "--diameter-mm", "25"])
+        .args(["--turn-distance-mm", "1e12"])
+        .args(["0,0", "0,120", "0,240", "45,0", "90,120", "90,240"].iter().flat_map(|o| ["--orientation", o]))
+        .output()
+        .unwrap();
+    expect_input_error(&out, &["--turn-distance-mm", "1e12 mm", "100 m"]);
+    let ha = d.path().join("ha.csv");
+    for (opt, orient) in [("--nominal-offset-mm", "90,0"), ("--table-center-mm", "0,90")] {
+        let out = bin()
+            .args(["head-offset", "acquire", "--near=0,0,0", "--diameter-mm", "25"])
+            .args(["--orientation", "0,0", "--orientation", orient, opt, "1e300,0,0", "--output"])
+            .arg(&ha)
+            .output()
+            .unwrap();
+        expect_input_error(&out, &[opt, "1e300 mm", "100 m"]);
+        assert!(!ha.exists());
+    }
+}
