@@ -71,6 +71,14 @@ pub enum AuditError {
         /// Why it is not an audit database.
         why: String,
     },
+    /// The SQLite path is not a regular file (a FIFO, a device, a socket); nothing was opened.
+    #[error("{path}: cannot be an audit trail: it is {kind}; an audit trail is an SQLite database in a regular file (give a file path)")]
+    NotRegular {
+        /// The path given.
+        path: String,
+        /// What is there ("a FIFO (named pipe)", "a character device", …).
+        kind: &'static str,
+    },
     /// The schema is newer than this build; the database was not modified.
     #[error(
         "{path} has audit schema version {found}, newer than this truepos knows ({known}); it was left \
@@ -129,6 +137,7 @@ impl AuditError {
         matches!(
             self,
             AuditError::Foreign { .. }
+                | AuditError::NotRegular { .. }
                 | AuditError::Newer { .. }
                 | AuditError::BadTimestamp(_)
                 | AuditError::Address(_)

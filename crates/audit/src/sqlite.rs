@@ -140,12 +140,37 @@ fn retry_busy<T>(mut f: impl FnMut() -> Result<T, rusqlite::Error>) -> Result<T,
     }
 }
 
-/// Refuse, without writing anything, a file that is not ours or is newer than this build.
+/// What a path that is neither a regular file nor a directory is, for messages.
+fn kind_of(m: &std::fs::Metadata) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let ft = m.file_type();
+        if ft.is_fifo() {
+            return "a FIFO (named pipe)";
+        }
+        if ft.is_char_device() {
+            return "a character device";
+        }
+        if ft.is_block_device() {
+            return "a block device";
+        }
+        if ft.is_socket() {
+            return "a socket";
+        }
+    }
+    let _ = m;
+    "not a regular file"
+}
+
+/// Refuse, without writing anything, a file that is not ours or is newer than this build, and
+/// a path that is not a regular file (a FIFO, a device).
 pub fn inspect(path: &Path) -> Result<(), AuditError> {
     let shown = path.display().to_string();
     let foreign = |why: String| AuditError::Foreign { path: shown.clone(), why };
     match std::fs::metadata(path) {
         Ok(m) if m.is_dir() => return Err(foreign("it is a directory".into())),
+        Ok(m) if !m.is_file() => return Err(AuditError::NotRegular { path: shown, kind: kind_of(&m) }),
         Ok(m) if m.len() == 0 => return Ok(()),
         Ok(_) => {}
         Err(_) => return Ok(()), // created by the caller

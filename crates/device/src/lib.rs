@@ -136,6 +136,24 @@ pub struct DeviceInfo {
 /// refused before any motion (exit 2).
 pub const MAX_PROBING_FEED_MM_MIN: f64 = 5000.0;
 
+/// The largest length or coordinate a probing request may state (mm): 100 000 mm = 100 m,
+/// beyond the travel of any machine tool or CMM. Requests beyond it (or not finite) are
+/// refused before any motion (exit 2) with [`length_beyond_limit`]'s message.
+pub const MAX_LENGTH_MM: f64 = 100_000.0;
+
+/// The message for `what` (the option or file field, e.g. "--depth-mm") of `v` mm when `v` is
+/// not finite or its magnitude exceeds [`MAX_LENGTH_MM`]; `None` when it is within.
+pub fn length_beyond_limit(what: &str, v: f64) -> Option<String> {
+    if v.is_finite() && v.abs() <= MAX_LENGTH_MM {
+        return None;
+    }
+    // 1e308 as written, not as 309 digits.
+    let shown = if v.abs() < 1e9 || !v.is_finite() { format!("{v}") } else { format!("{v:e}") };
+    Some(format!(
+        "{what} {shown} mm is beyond ±{MAX_LENGTH_MM} mm (100 m), the physical limit: no machine tool or CMM travels that far"
+    ))
+}
+
 /// One single-point probing: touch the surface near `nominal_mm` coming from outside the
 /// material along `-approach`.
 ///

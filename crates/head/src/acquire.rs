@@ -38,7 +38,7 @@ pub const MAX_POLAR_DEG: f64 = 80.0;
 /// coordinate above it cannot be reached by a machine: refused before the machine is opened,
 /// naming the option and this limit (a `--diameter-mm 1e308` otherwise overflowed the safe
 /// height and failed later as a machine error).
-pub const MAX_LENGTH_MM: f64 = 100_000.0;
+pub const MAX_LENGTH_MM: f64 = truepos_device::MAX_LENGTH_MM;
 
 /// What to probe and how.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -475,6 +475,19 @@ impl HeadAcquisition {
         }
         if !self.nominal_offset_mm.iter().chain(self.table_center_mm.iter()).all(|v| v.is_finite()) {
             return Err(AcquireError::Plan("the nominal offset and table centre must be finite".into()));
+        }
+        let far = self
+            .nominal_offset_mm
+            .iter()
+            .map(|v| ("a component of the nominal offset (--nominal-offset-mm)", *v))
+            .chain(
+                self.table_center_mm
+                    .iter()
+                    .map(|v| ("a coordinate of the table centre (--table-center-mm)", *v)),
+            )
+            .find_map(|(what, v)| truepos_device::length_beyond_limit(what, v));
+        if let Some(m) = far {
+            return Err(AcquireError::Plan(m));
         }
         Ok(())
     }

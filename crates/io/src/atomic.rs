@@ -215,7 +215,7 @@ fn input_named(_meta: &std::fs::Metadata) -> Option<PathBuf> {
 }
 
 /// What a non-regular file is, for messages.
-fn kind_of(ft: &std::fs::FileType) -> &'static str {
+pub(crate) fn kind_of(ft: &std::fs::FileType) -> &'static str {
     #[cfg(unix)]
     {
         use std::os::unix::fs::FileTypeExt;

@@ -12,7 +12,7 @@ use std::path::Path;
 /// Read and deserialize a TOML file. Syntax and type errors name the line and column.
 pub fn read_toml<T: DeserializeOwned>(path: impl AsRef<Path>) -> Result<T, InputError> {
     let path = path.as_ref();
-    let text = crate::limits::read_string(path, "TOML")?;
+    let text = crate::limits::read_config_string(path, "TOML")?;
     parse_toml(path, &text)
 }
 
@@ -38,7 +38,7 @@ pub fn parse_toml<T: DeserializeOwned>(path: impl AsRef<Path>, text: &str) -> Re
 /// Read a TOML file and keep its text for located errors on values ([`TomlDoc::error_at`]).
 pub fn read_toml_doc<T: DeserializeOwned>(path: impl AsRef<Path>) -> Result<(T, TomlDoc), InputError> {
     let path = path.as_ref();
-    let text = crate::limits::read_string(path, "TOML")?;
+    let text = crate::limits::read_config_string(path, "TOML")?;
     let value = parse_toml(path, &text)?;
     Ok((value, TomlDoc { path: path.to_path_buf(), text }))
 }

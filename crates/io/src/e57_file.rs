@@ -105,6 +105,7 @@ pub struct E57Source {
 impl E57Source {
     /// Open `path` and check what can be checked before reading points.
     pub fn open(path: &Path) -> Result<Self, InputError> {
+        crate::limits::require_regular(path, "E57")?;
         let file =
             std::fs::File::open(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
         crate::atomic::note_input(path);

@@ -8,6 +8,11 @@
 //! - A NUL byte means binary data, not text: refused at the first block that contains one, so
 //!   `/dev/zero` or a binary file given by mistake fails at once instead of being read forever.
 //!
+//! - A configuration file (TOML, JSON: a part, a machine, a map, a scenario) larger than
+//!   [`max_config_bytes`] (64 MiB by default, `TRUEPOS_MAX_CONFIG_MB` to change) is refused the
+//!   same way ([`read_config_string`]): such files are kilobytes, and their parsers hold
+//!   several times the text in memory.
+//!
 //! [`read_text`] reads a whole (bounded) file for the readers that need all of it;
 //! [`crate::stream`] reads in blocks with the same checks and constant memory; [`open_text`]
 //! gives a `BufRead` with the same checks for readers that stream text themselves (G-code).
@@ -30,6 +35,64 @@ pub fn max_input_bytes() -> u64 {
         .and_then(|s| s.trim().parse::<u64>().ok())
         .filter(|&m| m > 0)
         .map_or(DEFAULT_MAX_INPUT_BYTES, |m| m.saturating_mul(1 << 20))
+}
+
+/// Default largest configuration file (TOML, JSON), bytes (64 MiB): the project's part,
+/// machine, bed, squareness, cell and scenario files are kilobytes (a part of the virtual CMM
+/// takes about 200 bytes per solid: 64 MiB is some 300 000 solids).
+pub const DEFAULT_MAX_CONFIG_BYTES: u64 = 64 << 20;
+
+/// Largest configuration file in bytes: `TRUEPOS_MAX_CONFIG_MB` (mebibytes) if set to a positive
+/// number, else [`DEFAULT_MAX_CONFIG_BYTES`].
+pub fn max_config_bytes() -> u64 {
+    std::env::var("TRUEPOS_MAX_CONFIG_MB")
+        .ok()
+        .and_then(|s| s.trim().parse::<u64>().ok())
+        .filter(|&m| m > 0)
+        .map_or(DEFAULT_MAX_CONFIG_BYTES, |m| m.saturating_mul(1 << 20))
+}
+
+/// A size limit and how it is named in messages.
+#[derive(Clone, Copy)]
+struct Limit {
+    bytes: u64,
+    /// "inputs", "configuration files".
+    of: &'static str,
+    /// The variable that changes it.
+    env: &'static str,
+}
+
+impl Limit {
+    fn input() -> Limit {
+        Limit { bytes: max_input_bytes(), of: "inputs", env: "TRUEPOS_MAX_INPUT_MB" }
+    }
+    fn config() -> Limit {
+        Limit { bytes: max_config_bytes(), of: "configuration files", env: "TRUEPOS_MAX_CONFIG_MB" }
+    }
+    fn too_large(self, path: &Path, size: u64) -> InputError {
+        InputError::in_file(
+            path,
+            format!(
+                "the file is {}; truepos reads {} of at most {} (set {} to change the limit)",
+                human(size),
+                self.of,
+                human(self.bytes),
+                self.env
+            ),
+        )
+    }
+    fn stream_too_large(self, path: &Path) -> InputError {
+        InputError::in_file(
+            path,
+            format!(
+                "more than {} arrived (read up to the limit); truepos reads {} of at most {} (set {} to change the limit)",
+                human(self.bytes),
+                self.of,
+                human(self.bytes),
+                self.env
+            ),
+        )
+    }
 }
 
 /// Human size.
@@ -169,6 +232,25 @@ pub fn other_format(path: &Path) -> Option<&'static str> {
     }
 }
 
+/// Refuse `path` unless it is a regular file (checked before opening it, so a FIFO without a
+/// writer does not block): for the binary formats read by seeking (`what`: "Parquet", "E57").
+pub fn require_regular(path: &Path, what: &str) -> Result<(), InputError> {
+    let Ok(meta) = std::fs::metadata(path) else { return Ok(()) };
+    if meta.is_dir() {
+        return Err(InputError::in_file(path, "is a directory, not a file"));
+    }
+    if !meta.is_file() {
+        return Err(InputError::in_file(
+            path,
+            format!(
+                "cannot read: it is {}; a {what} file is read by seeking, so it must be a regular file (copy it to one first)",
+                crate::atomic::kind_of(&meta.file_type())
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Refuse a regular file over the limit from its metadata (cheap, before any read).
 pub fn check_file_size(path: &Path, meta: &std::fs::Metadata) -> Result<(), InputError> {
     let limit = max_input_bytes();
@@ -219,6 +301,11 @@ impl LineGuard {
 /// the kind of file in messages ("CSV", "G-code", …). Regular files are read in one go after a
 /// size check; pipes and devices in blocks, each checked as it arrives.
 pub fn read_text(path: &Path, what: &str) -> Result<Vec<u8>, InputError> {
+    read_limited(path, what, Limit::input())
+}
+
+/// [`read_text`] with the limit `limit`.
+fn read_limited(path: &Path, what: &str, limit: Limit) -> Result<Vec<u8>, InputError> {
     let cannot = |e: std::io::Error| InputError::in_file(path, format!("cannot read: {e}"));
     let mut file = std::fs::File::open(path).map_err(cannot)?;
     crate::atomic::note_input(path);
@@ -226,8 +313,9 @@ pub fn read_text(path: &Path, what: &str) -> Result<Vec<u8>, InputError> {
     if meta.is_dir() {
         return Err(InputError::in_file(path, "is a directory, not a file"));
     }
-    check_file_size(path, &meta)?;
-    let limit = max_input_bytes();
+    if meta.is_file() && meta.len() > limit.bytes {
+        return Err(limit.too_large(path, meta.len()));
+    }
     let mut guard = LineGuard::default();
     let mut buf = Vec::with_capacity(if meta.is_file() { meta.len() as usize + 1 } else { 1 << 16 });
     let mut block = vec![0u8; 1 << 20];
@@ -239,8 +327,8 @@ pub fn read_text(path: &Path, what: &str) -> Result<Vec<u8>, InputError> {
             Err(e) => return Err(cannot(e)),
         };
         guard.scan(path, &block[..n], what)?;
-        if (buf.len() + n) as u64 > limit {
-            return Err(stream_too_large(path, limit));
+        if (buf.len() + n) as u64 > limit.bytes {
+            return Err(limit.stream_too_large(path));
         }
         buf.extend_from_slice(&block[..n]);
     }
@@ -249,7 +337,18 @@ pub fn read_text(path: &Path, what: &str) -> Result<Vec<u8>, InputError> {
 
 /// [`read_text`] as a `String` (invalid UTF-8 is an error naming the line).
 pub fn read_string(path: &Path, what: &str) -> Result<String, InputError> {
-    let bytes = read_text(path, what)?;
+    utf8(path, what, read_text(path, what)?)
+}
+
+/// A configuration file (TOML, JSON; `what` names the kind) as a `String`, read like
+/// [`read_string`] but within [`max_config_bytes`] (64 MiB by default), far below the limit
+/// of the data inputs.
+pub fn read_config_string(path: &Path, what: &str) -> Result<String, InputError> {
+    utf8(path, what, read_limited(path, what, Limit::config())?)
+}
+
+/// `bytes` of `path` as text (invalid UTF-8 is an error naming the line).
+fn utf8(path: &Path, what: &str, bytes: Vec<u8>) -> Result<String, InputError> {
     String::from_utf8(bytes).map_err(|e| {
         let ok = &e.as_bytes()[..e.utf8_error().valid_up_to()];
         let line = memchr::memchr_iter(b'\n', ok).count() + 1;

@@ -427,6 +427,7 @@ impl ParquetReader {
     }
 
     fn open_within(path: &Path, limit: u64) -> Result<Self, InputError> {
+        crate::limits::require_regular(path, "Parquet")?;
         let file =
             std::fs::File::open(path).map_err(|e| InputError::in_file(path, format!("cannot read: {e}")))?;
         crate::atomic::note_input(path);

@@ -10,6 +10,9 @@
 //! - nesting at most [`MAX_XML_DEPTH`] elements deep (the QIF 3 schemas nest about 15 levels;
 //!   tens of thousands of nested elements overflowed the stack), checked by [`check_depth`], a
 //!   single pass over the text that needs no stack of its own;
+//! - at most [`MAX_XML_ATTRIBUTES`] attributes on one element (the parser checks each new
+//!   attribute against the element's others, so 150 000 attributes on one element took 17 s;
+//!   QIF elements have a handful), counted in the same pass;
 //! - at most [`MAX_XML_NODES`] nodes for the parser (`roxmltree`'s `nodes_limit`).
 //!
 //! Entry points: [`read_xml`] (a file, all bounds) and [`check_depth`] (text already in memory;
@@ -27,31 +30,53 @@ pub const MAX_XML_BYTES: u64 = 64 << 20;
 /// Deepest accepted nesting of elements.
 pub const MAX_XML_DEPTH: usize = 256;
 
+/// Most attributes (namespace declarations included) accepted on one element.
+pub const MAX_XML_ATTRIBUTES: usize = 1024;
+
 /// Most nodes (elements, text, attributes) a parsed XML document may have.
 pub const MAX_XML_NODES: u32 = 4_000_000;
 
-/// Nesting deeper than [`MAX_XML_DEPTH`]: where the element that went too deep starts.
+/// Which bound of [`check_depth`] an XML text broke.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum XmlBound {
+    /// Elements nested deeper than [`MAX_XML_DEPTH`].
+    Depth,
+    /// An element with more than [`MAX_XML_ATTRIBUTES`] attributes.
+    Attributes,
+}
+
+/// Nesting deeper than [`MAX_XML_DEPTH`], or more than [`MAX_XML_ATTRIBUTES`] attributes on
+/// one element ([`TooDeep::bound`]): where the element starts.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct TooDeep {
     /// 1-based line of the element's `<`.
     pub line: usize,
     /// 1-based column (characters) of the element's `<`.
     pub column: usize,
+    /// The bound broken.
+    pub bound: XmlBound,
+}
+
+impl TooDeep {
+    /// What is wrong and the limit, without the place.
+    pub fn what(&self) -> String {
+        match self.bound {
+            XmlBound::Depth => format!("elements nested more than {MAX_XML_DEPTH} deep: truepos reads XML nested at most {MAX_XML_DEPTH} levels (QIF documents nest about 15)"),
+            XmlBound::Attributes => format!("an element with more than {MAX_XML_ATTRIBUTES} attributes: truepos reads XML elements of at most {MAX_XML_ATTRIBUTES} attributes (QIF elements have a few)"),
+        }
+    }
 }
 
 impl std::fmt::Display for TooDeep {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "line {}, column {}: elements nested more than {MAX_XML_DEPTH} deep (truepos reads XML nested at most {MAX_XML_DEPTH} levels; QIF documents nest about 15)",
-            self.line, self.column
-        )
+        write!(f, "line {}, column {}: {}", self.line, self.column, self.what())
     }
 }
 
 impl std::error::Error for TooDeep {}
 
-/// Check that no element of `text` is nested deeper than [`MAX_XML_DEPTH`]. Comments, CDATA,
+/// Check that no element of `text` is nested deeper than [`MAX_XML_DEPTH`] or has more than
+/// [`MAX_XML_ATTRIBUTES`] attributes (each `=` outside quotes in a start tag). Comments, CDATA,
 /// processing instructions and declarations are skipped; quoted attribute values may hold `>`.
 /// Malformed text is left to the XML parser (this only counts).
 pub fn check_depth(text: &str) -> Result<(), TooDeep> {
@@ -91,6 +116,7 @@ pub fn check_depth(text: &str) -> Result<(), TooDeep> {
             // A start tag: to its '>' outside quotes; "/>" closes it at once.
             let mut j = start + 1;
             let mut quote = 0u8;
+            let mut attributes = 0usize;
             while j < b.len() {
                 let c = b[j];
                 if quote != 0 {
@@ -99,20 +125,28 @@ pub fn check_depth(text: &str) -> Result<(), TooDeep> {
                     }
                 } else if c == b'"' || c == b'\'' {
                     quote = c;
+                } else if c == b'=' {
+                    attributes += 1;
                 } else if c == b'>' {
                     break;
                 }
                 j += 1;
             }
+            let here = |bound| {
+                let before = &text[..start];
+                let line = memchr::memchr_iter(b'\n', before.as_bytes()).count() + 1;
+                let line_start = before.rfind('\n').map_or(0, |n| n + 1);
+                let column = before[line_start..].chars().count() + 1;
+                TooDeep { line, column, bound }
+            };
+            if attributes > MAX_XML_ATTRIBUTES {
+                return Err(here(XmlBound::Attributes));
+            }
             let empty = j < b.len() && j > start + 1 && b[j - 1] == b'/';
             if !empty {
                 depth += 1;
                 if depth > MAX_XML_DEPTH {
-                    let before = &text[..start];
-                    let line = memchr::memchr_iter(b'\n', before.as_bytes()).count() + 1;
-                    let line_start = before.rfind('\n').map_or(0, |n| n + 1);
-                    let column = before[line_start..].chars().count() + 1;
-                    return Err(TooDeep { line, column });
+                    return Err(here(XmlBound::Depth));
                 }
             }
             i = j + 1;
@@ -181,14 +215,7 @@ pub fn read_xml(path: &Path, what: &str) -> Result<String, InputError> {
         let line = memchr::memchr_iter(b'\n', ok).count() + 1;
         InputError::at(path, line, None, format!("not valid UTF-8 text: not a {what} (XML text)"))
     })?;
-    check_depth(&text).map_err(|d| {
-        InputError::at(
-            path,
-            d.line,
-            Some(d.column),
-            format!("elements nested more than {MAX_XML_DEPTH} deep: truepos reads XML nested at most {MAX_XML_DEPTH} levels (QIF documents nest about 15)"),
-        )
-    })?;
+    check_depth(&text).map_err(|d| InputError::at(path, d.line, Some(d.column), d.what()))?;
     Ok(text)
 }
 
@@ -216,6 +243,28 @@ mod tests {
         let e = check_depth(&deep).unwrap_err();
         assert_eq!((e.line, e.column), (2, 3 + 3 * (MAX_XML_DEPTH - 1)));
         assert!(e.to_string().contains("256"), "{e}");
+    }
+
+    #[test]
+    fn attributes_per_element_are_bounded_in_linear_time() {
+        let attrs = |n: usize| (0..n).map(|i| format!(" a{i}=\"x=>\"")).collect::<String>();
+        let ok = format!("<r{}><b{}/></r>", attrs(MAX_XML_ATTRIBUTES), attrs(MAX_XML_ATTRIBUTES));
+        assert!(check_depth(&ok).is_ok());
+        let bad = format!("<r>\n <b{}/></r>", attrs(MAX_XML_ATTRIBUTES + 1));
+        let e = check_depth(&bad).unwrap_err();
+        assert_eq!((e.line, e.column, e.bound), (2, 2, XmlBound::Attributes));
+        assert!(e.to_string().contains("more than 1024 attributes"), "{e}");
+        // 500 000 attributes (the audit's 17 s at 150 000): refused in well under a second.
+        let huge = format!("<r{}/>", attrs(500_000));
+        let t = std::time::Instant::now();
+        assert_eq!(check_depth(&huge).unwrap_err().bound, XmlBound::Attributes);
+        assert!(t.elapsed().as_secs_f64() < 2.0);
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("many.qif");
+        std::fs::write(&p, &bad).unwrap();
+        let e = read_xml(&p, "QIF plan").unwrap_err();
+        assert_eq!((e.line, e.column), (Some(2), Some(2)));
+        assert!(e.to_string().contains("1024 attributes"), "{e}");
     }
 
     #[test]

@@ -89,6 +89,16 @@ impl Csy {
     }
 }
 
+/// Largest origin component accepted by `SetCsyTransformation`, mm (1 km, far beyond any CMM's
+/// volume): a larger one, or a non-finite one, is refused with error 0504 (argument out of
+/// range) and the transformation stays as it was. Positions in such a system would not fit the
+/// protocol's 16 digits.
+pub const MAX_CSY_TRANSLATION_MM: f64 = 1e6;
+
+/// Largest Euler angle magnitude accepted by `SetCsyTransformation`, degrees (non-finite ones
+/// are refused too).
+pub const MAX_CSY_ANGLE_DEG: f64 = 1e6;
+
 /// Transformations settable with `SetCsyTransformation`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CsyTransform {
@@ -856,6 +866,24 @@ impl Command {
                 } else {
                     let rest = Call { name: c.name.clone(), args: c.args[1..].to_vec() };
                     let v = numbers(&rest, &[6])?;
+                    if let Some(x) =
+                        v[..3].iter().find(|x| !x.is_finite() || x.abs() > MAX_CSY_TRANSLATION_MM)
+                    {
+                        return Err(err(
+                            ErrorCode::ARGUMENT_OUT_OF_RANGE,
+                            format!(
+                                "SetCsyTransformation: origin {x} mm is out of range (at most ±{MAX_CSY_TRANSLATION_MM:e} mm)"
+                            ),
+                        ));
+                    }
+                    if let Some(a) = v[3..].iter().find(|a| !a.is_finite() || a.abs() > MAX_CSY_ANGLE_DEG) {
+                        return Err(err(
+                            ErrorCode::ARGUMENT_OUT_OF_RANGE,
+                            format!(
+                                "SetCsyTransformation: angle {a}° is out of range (at most ±{MAX_CSY_ANGLE_DEG:e}°)"
+                            ),
+                        ));
+                    }
                     if !(0.0..=180.0).contains(&v[3]) {
                         return Err(err(ErrorCode::THETA_OUT_OF_RANGE, "Theta must be 0..180 degrees"));
                     }
@@ -1228,6 +1256,9 @@ mod tests {
             ("03311 PtMeas(IJK(3,2,2))", 502),
             ("04502 SetCoordSystem(JogMoveCsy)", 509),
             ("04604 SetCsyTransformation(PartCsy, 1, 1, 1, 200, 180, 180)", 1007),
+            ("04605 SetCsyTransformation(PartCsy, 1e300, 0, 0, 0, 0, 0)", 504),
+            ("04606 SetCsyTransformation(PartCsy, 0, -1e15, 0, 0, 0, 0)", 504),
+            ("04608 SetCsyTransformation(PartCsy, 0, 0, 0, 0, 1e300, 0)", 504),
             ("04708 SetProp(FoundTool.PtMeasPar.Accel.Max(3))", 510),
             ("05102 StopDaemon(05101)", 509),
             ("05402 AbortE()", 1),

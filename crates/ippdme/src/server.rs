@@ -2025,6 +2025,29 @@ mod tests {
     }
 
     #[test]
+    fn an_absurd_csy_transformation_is_refused_and_changes_nothing() {
+        let mut s = session();
+        for l in ["00001 StartSession()", "00002 Home()"] {
+            assert_eq!(run(&mut s, l).len(), 2, "{l}");
+        }
+        run(&mut s, "00003 SetCsyTransformation(PartCsy, 1, 2, 3, 0, 0, 90)");
+        for l in [
+            "00004 SetCsyTransformation(PartCsy, 1e300, 0, 0, 0, 0, 0)",
+            "00004 SetCsyTransformation(PartCsy, 0, 1e15, 0, 0, 0, 0)",
+            "00004 SetCsyTransformation(PartCsy, 0, 0, 0, 0, 0, 1e300)",
+        ] {
+            let out = run(&mut s, l);
+            assert!(out.iter().any(|r| r.contains("0504")), "{l}: {out:?}");
+            run(&mut s, "00005 ClearAllErrors()");
+        }
+        let out = run(&mut s, "00006 GetCsyTransformation(PartCsy)");
+        assert!(out[1].contains("GetCsyTransformation(1.000000, 2.000000, 3.000000,"), "{out:?}");
+        // The limit itself is accepted.
+        let out = run(&mut s, "00007 SetCsyTransformation(PartCsy, 1e6, -1e6, 0, 0, 0, 0)");
+        assert!(!out.iter().any(|r| r.contains(" ! ")), "{out:?}");
+    }
+
+    #[test]
     fn error_state_and_clear() {
         let mut s = session();
         assert!(run(&mut s, "00001 Home()")[1].contains("0508"));

@@ -71,6 +71,9 @@ impl KinematicsProbing {
         let reach =
             0.5 * self.sphere.diameter_mm + self.sphere.tip_radius_mm + 2.0 * self.sphere.clearance_mm;
         let t = self.turn_distance_mm;
+        if let Some(m) = truepos_device::length_beyond_limit("the turn distance (--turn-distance-mm)", t) {
+            return bad(m);
+        }
         if !(t.is_finite() && t >= 1.5 * reach) {
             return bad(format!(
                 "the turn distance {t} mm must be at least 1.5 × (sphere radius + tip radius + 2 × clearance) = {:.3} mm",

@@ -1307,6 +1307,10 @@ pub enum ServeError {
     /// A bad part or machine file (exit 2).
     #[error(transparent)]
     Input(#[from] truepos_ippdme::PartError),
+    /// A part or machine file that cannot be read as a bounded text file: too large, binary
+    /// data, a directory, a missing file (exit 2).
+    #[error(transparent)]
+    File(#[from] truepos_io::InputError),
     /// The log file cannot be opened (exit 2).
     #[error("{path}: cannot open the log: {source}")]
     Log {
@@ -1329,11 +1333,22 @@ pub enum ServeError {
 
 /// Build the virtual CMM from the files and bind the I++ DME server (not yet accepting).
 pub fn bind_virtual(opts: &ServeOptions) -> Result<truepos_ippdme::Server<IppdmeCmm>, ServeError> {
+    // Through the bounded reader of configuration files (size limit, binary data refused at
+    // once), which also records them as inputs: no output of the command may replace them.
     let config = match &opts.machine {
-        Some(p) => MachineConfig::load(p)?,
+        Some(p) => {
+            let text = truepos_io::limits::read_config_string(p, "TOML")?;
+            MachineConfig::from_toml(&p.display().to_string(), &text)?
+        }
         None => MachineConfig::default(),
     };
-    let part = opts.part.as_deref().map(Part::load).transpose()?;
+    let part = match &opts.part {
+        Some(p) => {
+            let text = truepos_io::limits::read_config_string(p, "TOML")?;
+            Some(Part::from_toml(&p.display().to_string(), &text)?)
+        }
+        None => None,
+    };
     let log = match &opts.log {
         Some(p) => Some(
             truepos_ippdme::server::Log::open(p)
@@ -1398,7 +1413,7 @@ impl truepos_math::exit::HasExitClass for ServeError {
     fn exit_class(&self) -> truepos_math::exit::ExitClass {
         use truepos_math::exit::ExitClass;
         match self {
-            ServeError::Input(_) | ServeError::Log { .. } => ExitClass::Input,
+            ServeError::Input(_) | ServeError::File(_) | ServeError::Log { .. } => ExitClass::Input,
             ServeError::Bind { .. } => ExitClass::Device,
         }
     }

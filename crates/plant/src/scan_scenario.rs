@@ -212,8 +212,8 @@ struct FeatureGeomJson {
 /// The true part of a scenario's `truth.json` for the nominal features (matched by id): each
 /// feature's `actual` geometry, checked against the parameters and the nominal kind.
 pub fn read_truth(path: &Path, nominal: &[Feature], params: &Params) -> Result<Vec<Feature>, InputError> {
-    let bytes = truepos_io::limits::read_text(path, "JSON")?;
-    let t: TruthFile = serde_json::from_slice(&bytes).map_err(|e| {
+    let text = truepos_io::limits::read_config_string(path, "JSON")?;
+    let t: TruthFile = serde_json::from_str(&text).map_err(|e| {
         InputError::at(path, e.line(), Some(e.column()), format!("not a scan truth.json: {e}"))
     })?;
     let mut out = Vec::with_capacity(nominal.len());

@@ -144,7 +144,7 @@ fn p3(a: [f64; 3]) -> Point3 {
 /// Read a features file, apply the overrides (each replaces the file's key of the same name),
 /// validate. Errors in a feature name the line of its `id`.
 pub fn read_features(path: &Path, c: &ParamOverrides) -> Result<(Vec<Feature>, Params), FeaturesError> {
-    let text = truepos_io::limits::read_string(path, "TOML")?;
+    let text = truepos_io::limits::read_config_string(path, "TOML")?;
     let file: FeaturesFile = truepos_io::config::parse_toml(path, &text)?;
     let mut features = Vec::with_capacity(file.feature.len());
     let mut seen = std::collections::HashSet::new();

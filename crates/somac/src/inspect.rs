@@ -212,6 +212,15 @@ pub fn read_hole_list(path: &Path, diameter_mm: Option<f64>) -> Result<Vec<Hole>
             let why = format!("hole {id}: the diameter must be > 0, got {d}");
             return Err(InputError::at(path, pts.table.line_number(i), column.map(|c| c + 1), why));
         }
+        for (k, axis) in ["x_mm", "y_mm", "z_mm"].into_iter().enumerate() {
+            if let Some(why) = truepos_device::length_beyond_limit(&format!("hole {id}: {axis}"), p[k]) {
+                let col = pts.table.column(axis).map(|c| c + 1);
+                return Err(InputError::at(path, pts.table.line_number(i), col, why));
+            }
+        }
+        if let Some(why) = truepos_device::length_beyond_limit(&format!("hole {id}: diameter_mm"), d) {
+            return Err(InputError::at(path, pts.table.line_number(i), column.map(|c| c + 1), why));
+        }
         holes.push(Hole { id: id.clone(), line: None, nominal_mm: *p, diameter_mm: d });
     }
     Ok(holes)
@@ -253,6 +262,9 @@ impl InspectPlan {
         ] {
             if !pos(v) {
                 return bad(format!("{name} must be finite and > 0, got {v}"));
+            }
+            if let Some(m) = truepos_device::length_beyond_limit(name, v) {
+                return bad(m);
             }
         }
         if !(self.tip_radius_mm.is_finite() && self.tip_radius_mm >= 0.0) {

@@ -356,3 +356,230 @@ fn cr_only_line_ends_are_named() {
     assert!(!String::from_utf8_lossy(&out.stderr).contains("longer than"));
     assert!(!output.exists());
 }
+
+/// The NIST example program and part (data/dmis), copied into `dir`.
+fn dmis_example(dir: &std::path::Path) -> (std::path::PathBuf, std::path::PathBuf) {
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/dmis");
+    let prog = dir.join("prog.dms");
+    let part = dir.join("part.toml");
+    std::fs::copy(data.join("simple_in.dms"), &prog).unwrap();
+    std::fs::copy(data.join("simple_part.toml"), &part).unwrap();
+    (prog, part)
+}
+
+/// F14: `dmis run` never writes over the virtual CMM's part or machine file, whether named by
+/// --output, --qif or the program's own DEVICE/STOR; refused before anything moves.
+#[test]
+fn dmis_run_outputs_never_replace_the_part_or_machine_file() {
+    let d = tempfile::tempdir().unwrap();
+    let (prog, part) = dmis_example(d.path());
+    let part_text = std::fs::read_to_string(&part).unwrap();
+    let machine = write(
+        d.path(),
+        "cmm.toml",
+        "[ippdme]\nvolume_min_mm = [-500, -500, -500]\nvolume_max_mm = [500, 500, 500]\n",
+    );
+    let db = d.path().join("a.sqlite");
+    let run = |extra: &[&std::ffi::OsStr], prog: &std::path::Path| {
+        bin()
+            .current_dir(d.path())
+            .args(["dmis", "run"])
+            .arg(prog)
+            .args(["--sensor", "PROBE6=Probe1", "--part"])
+            .arg(&part)
+            .arg("--machine")
+            .arg(&machine)
+            .arg("--db")
+            .arg(&db)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let same_part = d.path().join(".").join("part.toml");
+    let out = run(&["--output".as_ref(), same_part.as_os_str()], &prog);
+    expect_input_error(&out, &["part.toml", "same file as the input"]);
+    let out = run(&["--output".as_ref(), "r.dms".as_ref(), "--qif".as_ref(), part.as_os_str()], &prog);
+    expect_input_error(&out, &["part.toml", "same file as the input"]);
+    let out = run(&["--output".as_ref(), machine.as_os_str()], &prog);
+    expect_input_error(&out, &["cmm.toml", "same file as the input"]);
+    let text = std::fs::read_to_string(&prog)
+        .unwrap()
+        .replace("ENDFIL", "DID(D1)=DEVICE/STOR,'part.toml'\nOPEN/DID(D1),DIRECT,OUTPUT,OVERWR\nENDFIL");
+    let stor = write(d.path(), "stor.dms", text);
+    let out = run(&[], &stor);
+    expect_input_error(&out, &["part.toml", "same file as the input"]);
+    assert_eq!(std::fs::read_to_string(&part).unwrap(), part_text);
+    assert!(std::fs::read_to_string(&machine).unwrap().starts_with("[ippdme]"));
+    assert!(!d.path().join("r.dms").exists());
+}
+
+/// F4: the virtual CMM's part and machine files go through the bounded reader of configuration
+/// files: a sparse 3 GB file, /dev/zero, /dev/urandom refused at once (exit 2, file named).
+#[cfg(unix)]
+#[test]
+fn virtual_cmm_files_are_read_within_the_configuration_limit() {
+    let d = tempfile::tempdir().unwrap();
+    let (prog, part) = dmis_example(d.path());
+    let sparse = d.path().join("sparse.toml");
+    std::fs::File::create(&sparse).unwrap().set_len(3 << 30).unwrap();
+    let dmis = |opt: &str, file: &std::path::Path| {
+        let t = std::time::Instant::now();
+        let (part_file, machine) = if opt == "--part" { (file, None) } else { (part.as_path(), Some(file)) };
+        let mut cmd = bin();
+        cmd.current_dir(d.path())
+            .args(["dmis", "run"])
+            .arg(&prog)
+            .args(["--sensor", "PROBE6=Probe1", "--part"])
+            .arg(part_file);
+        if let Some(m) = machine {
+            cmd.arg("--machine").arg(m);
+        }
+        let out = cmd.arg("--db").arg(d.path().join("a.sqlite")).output().unwrap();
+        assert!(t.elapsed().as_secs_f64() < 10.0);
+        out
+    };
+    let out = dmis("--part", &sparse);
+    expect_input_error(
+        &out,
+        &["sparse.toml", "3.2 GB", "configuration files of at most 67.1 MB", "TRUEPOS_MAX_CONFIG_MB"],
+    );
+    let out = dmis("--machine", &sparse);
+    expect_input_error(&out, &["sparse.toml", "configuration files of at most"]);
+    for dev in ["/dev/zero", "/dev/urandom"] {
+        if !std::path::Path::new(dev).exists() {
+            eprintln!("SKIPPED: no {dev} on this system");
+            continue;
+        }
+        let out = dmis("--machine", std::path::Path::new(dev));
+        expect_input_error(&out, &[dev, "binary data"]);
+        let t = std::time::Instant::now();
+        let out = bin().args(["ippdme", "serve", "--port", "0", "--part", dev]).output().unwrap();
+        expect_input_error(&out, &[dev, "binary data"]);
+        assert!(t.elapsed().as_secs_f64() < 10.0);
+    }
+    // A configuration file over a lowered limit names it.
+    let out = bin()
+        .env("TRUEPOS_MAX_CONFIG_MB", "1")
+        .args(["ippdme", "serve", "--port", "0", "--machine"])
+        .arg(&sparse)
+        .output()
+        .unwrap();
+    expect_input_error(&out, &["sparse.toml", "at most 1.0 MB", "TRUEPOS_MAX_CONFIG_MB"]);
+}
+
+/// F2: an element with more attributes than the XML bound is refused at once, naming its line
+/// and column and the limit (150 000 attributes took 17 s in the parser).
+#[test]
+fn an_xml_element_with_too_many_attributes_is_refused_at_once() {
+    let d = tempfile::tempdir().unwrap();
+    let pts = write(d.path(), "c.csv", CIRCLE);
+    let attrs: String = (0..150_000).map(|i| format!(" a{i}=\"1\"")).collect();
+    let qif = write(
+        d.path(),
+        "ma.qif",
+        format!("<QIFDocument xmlns=\"http://qifstandards.org/xsd/qif3\">\n  <a{attrs}/></QIFDocument>"),
+    );
+    let t = std::time::Instant::now();
+    let out = bin().args(["fit", "circle"]).arg(&pts).arg("--qif-plan").arg(&qif).output().unwrap();
+    expect_input_error(&out, &["ma.qif:2:3", "more than 1024 attributes"]);
+    assert!(t.elapsed().as_secs_f64() < 5.0);
+}
+
+/// F5: Parquet (and E57) on a FIFO or a character device: named as needing a regular file,
+/// not "No such device".
+#[cfg(unix)]
+#[test]
+fn parquet_on_a_fifo_or_device_needs_a_regular_file() {
+    let d = tempfile::tempdir().unwrap();
+    let dev = d.path().join("r.parquet");
+    std::os::unix::fs::symlink("/dev/null", &dev).unwrap();
+    let out = bin().args(["fit", "sphere"]).arg(&dev).output().unwrap();
+    expect_input_error(&out, &["r.parquet", "character device", "Parquet file", "regular file"]);
+    // A FIFO without a writer: refused before opening (which would block).
+    let fifo = d.path().join("f.parquet");
+    assert!(std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success()));
+    let out = bin().args(["fit", "sphere"]).arg(&fifo).output().unwrap();
+    expect_input_error(&out, &["f.parquet", "FIFO", "regular file"]);
+}
+
+/// F15: `simulate … --out` naming an existing file: exit 2 naming it and what is expected.
+#[test]
+fn simulate_out_must_be_a_directory() {
+    let d = tempfile::tempdir().unwrap();
+    let f = write(d.path(), "vfile", "keep");
+    for sim in ["scan", "load", "comp"] {
+        let out = bin().args(["simulate", sim, "--out"]).arg(&f).output().unwrap();
+        expect_input_error(&out, &["--out", "vfile", "not a directory"]);
+    }
+    assert_eq!(std::fs::read_to_string(&f).unwrap(), "keep");
+}
+
+/// F17: `--db` on a FIFO or a character device: exit 2 naming the path, nothing opened.
+#[cfg(unix)]
+#[test]
+fn the_audit_trail_must_be_a_regular_file() {
+    let d = tempfile::tempdir().unwrap();
+    let fifo = d.path().join("ofifo");
+    assert!(std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success()));
+    let holes = write(d.path(), "holes.csv", "id,x_mm,y_mm,z_mm\nA,10,20,0\n");
+    let out = bin()
+        .args(["somac", "inspect", "--diameter-mm", "6", "--holes"])
+        .arg(&holes)
+        .arg("--db")
+        .arg(&fifo)
+        .output()
+        .unwrap();
+    expect_input_error(&out, &["ofifo", "FIFO", "regular file"]);
+    for dev in ["/dev/full", "/dev/urandom"] {
+        if !std::path::Path::new(dev).exists() {
+            eprintln!("SKIPPED: no {dev}");
+            continue;
+        }
+        let out = bin().args(["audit", "list", "--db", dev]).output().unwrap();
+        expect_input_error(&out, &[dev, "character device", "regular file"]);
+    }
+}
+
+/// F9: absurd lengths are refused before the machine is opened, naming the option or the file
+/// field and the 100 m limit.
+#[test]
+fn absurd_lengths_are_refused_with_the_physical_limit() {
+    let d = tempfile::tempdir().unwrap();
+    let holes = write(d.path(), "holes.csv", "id,x_mm,y_mm,z_mm\nA,10,20,0\n");
+    let db = d.path().join("a.sqlite");
+    let out = bin()
+        .args(["somac", "inspect", "--diameter-mm", "6", "--depth-mm", "1e9", "--holes"])
+        .arg(&holes)
+        .arg("--db")
+        .arg(&db)
+        .output()
+        .unwrap();
+    expect_input_error(&out, &["--depth-mm", "1e9 mm", "100 m"]);
+    let far = write(d.path(), "hfar.csv", "id,x_mm,y_mm,z_mm\nA,10,20,0\nB,1e300,0,0\n");
+    let out = bin()
+        .args(["somac", "inspect", "--diameter-mm", "6", "--holes"])
+        .arg(&far)
+        .arg("--db")
+        .arg(&db)
+        .output()
+        .unwrap();
+    expect_input_error(&out, &["hfar.csv:3:2", "hole B: x_mm", "1e300 mm", "100 m"]);
+    let out = bin()
+        .args(["kinematics", "calibrate", "--model", "xyzbc-trt", "--near=60,25,15", "--diameter-mm", "25"])
+        .args(["--turn-distance-mm", "1e12"])
+        .args(["0,0", "0,120", "0,240", "45,0", "90,120", "90,240"].iter().flat_map(|o| ["--orientation", o]))
+        .output()
+        .unwrap();
+    expect_input_error(&out, &["--turn-distance-mm", "1e12 mm", "100 m"]);
+    let ha = d.path().join("ha.csv");
+    for (opt, orient) in [("--nominal-offset-mm", "90,0"), ("--table-center-mm", "0,90")] {
+        let out = bin()
+            .args(["head-offset", "acquire", "--near=0,0,0", "--diameter-mm", "25"])
+            .args(["--orientation", "0,0", "--orientation", orient, opt, "1e300,0,0", "--output"])
+            .arg(&ha)
+            .output()
+            .unwrap();
+        expect_input_error(&out, &[opt, "1e300 mm", "100 m"]);
+        assert!(!ha.exists());
+    }
+}

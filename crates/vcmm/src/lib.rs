@@ -152,7 +152,7 @@ impl MachineModel {
     /// Read a machine-model file (bounded read; every error names the file, and the line where
     /// there is one).
     pub fn read(path: &Path) -> Result<MachineModel> {
-        let text = truepos_io::limits::read_string(path, "TOML")?;
+        let text = truepos_io::limits::read_config_string(path, "TOML")?;
         MachineModel::from_toml(path, &text)
     }
 

@@ -190,7 +190,7 @@ pub struct SimArgs {
 
 /// `truepos simulate comp`: the geometric-map data set with its truth.
 pub fn simulate(a: SimArgs) -> Result<Outcome> {
-    let w = truepos_cell::scenarios::part::write_comp_dataset(&a.common.out, a.common.seed)?;
+    let w = truepos_cell::scenarios::part::write_comp_dataset(a.common.out_dir()?, a.common.seed)?;
     eprint!("{}", w.text(&a.common.out));
     Ok(Outcome::Done)
 }

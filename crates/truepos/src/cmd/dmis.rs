@@ -90,6 +90,11 @@ pub fn run(args: Args) -> Result<Outcome> {
     if a.dry_run {
         return dry_run(&plan, &opts, a.json, &mut progress);
     }
+    // The virtual CMM's part and machine files are inputs too: no output (--output, --qif, a
+    // DEVICE/STOR file) may replace them. They are read when the CMM starts, after these checks.
+    for p in [&a.part, &a.machine].into_iter().flatten() {
+        truepos_io::atomic::note_input(p);
+    }
     let out = results_path(&a, &plan)?;
     // The virtual CMM lives as long as the run.
     let (url, _virtual) = controller(&a)?;

@@ -393,7 +393,7 @@ fn acquired_offset(
 pub fn simulate(args: SimArgs) -> Result<Outcome> {
     let d = truepos_cell::scenarios::head::simulate(args.variant, args.common.seed)?;
     // Where the data set cannot be written is the user's choice of --out: an input error.
-    let w = truepos_cell::scenarios::head::write_dataset(&args.common.out, &d)
+    let w = truepos_cell::scenarios::head::write_dataset(args.common.out_dir()?, &d)
         .map_err(|e| truepos_io::InputError::in_file(&args.common.out, format!("{e:#}")))?;
     eprint!("{}", w.text(d.rows.len()));
     Ok(Outcome::Done)

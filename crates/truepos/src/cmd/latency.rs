@@ -260,7 +260,7 @@ pub fn simulate(a: SimArgs) -> Result<Outcome> {
         probe_rate_hz: a.probe_rate_hz,
     };
     let d = latency_scenario::simulate(&request)?;
-    latency_scenario::write_dataset(&a.common.out, &d)?;
+    latency_scenario::write_dataset(a.common.out_dir()?, &d)?;
     eprint!("{}", latency_scenario::written_text(&a.common.out, &d));
     Ok(Outcome::Done)
 }

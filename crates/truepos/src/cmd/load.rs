@@ -220,7 +220,7 @@ fn map_files(map: &std::path::Path, squareness: &Option<PathBuf>) -> task::MapFi
 // Simulation and demo
 
 pub fn simulate(a: SimArgs) -> Result<Outcome> {
-    let (out, seed) = (&a.common.out, a.common.seed);
+    let (out, seed) = (a.common.out_dir()?, a.common.seed);
     let (_, data) = truepos_cell::scenarios::load::write_scenario(out, seed, a.mass_kg, a.noise_um)?;
     eprint!("{}", truepos_cell::scenarios::load::written_text(out, a.mass_kg, a.noise_um, &data));
     Ok(Outcome::Done)

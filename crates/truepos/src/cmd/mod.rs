@@ -114,6 +114,21 @@ pub struct SimCommon {
     pub seed: u64,
 }
 
+impl SimCommon {
+    /// `--out`, checked before anything is generated: a directory, or a path where none is
+    /// yet (it is created). An existing file or anything else is bad usage naming the path.
+    pub fn out_dir(&self) -> Result<&std::path::Path, crate::UsageError> {
+        let out = self.out.as_path();
+        match std::fs::metadata(out) {
+            Ok(m) if !m.is_dir() => Err(crate::UsageError(format!(
+                "--out {}: exists and is not a directory (simulate writes its data set into a directory, created if missing)",
+                out.display()
+            ))),
+            _ => Ok(out),
+        }
+    }
+}
+
 /// The command line as parsed: [`Cli`]'s with negative numbers accepted as the value of every
 /// option that takes one (`--diameter-mm -25` reaches the option's range check, which says
 /// "must be positive", instead of clap's "unexpected argument '-2'").

@@ -234,7 +234,7 @@ pub fn simulate(a: SimArgs) -> Result<Outcome> {
     if a.features == 0 || a.features > 10_000 {
         return Err(UsageError(format!("--features {} must be between 1 and 10000", a.features)).into());
     }
-    let w = truepos_plant::scan_scenario::write_scenario(&a.common.out, a.common.seed, a.features)?;
+    let w = truepos_plant::scan_scenario::write_scenario(a.common.out_dir()?, a.common.seed, a.features)?;
     eprint!("{}", w.text());
     Ok(Outcome::Done)
 }

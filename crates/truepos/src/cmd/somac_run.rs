@@ -215,7 +215,7 @@ pub fn simulate(a: SimArgs) -> Result<Outcome> {
     if a.holes_per_row == 0 {
         return Err(UsageError("--holes-per-row must be at least 1".into()).into());
     }
-    let w = write_scenario(&a.common.out, a.common.seed, a.holes_per_row)?;
+    let w = write_scenario(a.common.out_dir()?, a.common.seed, a.holes_per_row)?;
     eprint!("{}", w.text(&a.common.out));
     Ok(Outcome::Done)
 }
