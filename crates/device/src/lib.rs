@@ -136,6 +136,35 @@ pub struct DeviceInfo {
 /// refused before any motion (exit 2).
 pub const MAX_PROBING_FEED_MM_MIN: f64 = 5000.0;
 
+/// Slowest probing feed truepos commands, mm/min. Why: a 10 mm approach at this feed already
+/// takes ten minutes per point, and controllers write feeds with three decimals, so a feed
+/// below 0.0005 mm/min reaches a LinuxCNC probing move as `F0.000`.
+pub const MIN_PROBING_FEED_MM_MIN: f64 = 1.0;
+
+/// Why a probing feed (mm/min) is refused: not a positive number, below
+/// [`MIN_PROBING_FEED_MM_MIN`] or above [`MAX_PROBING_FEED_MM_MIN`]; `None` when it is within.
+/// Checked before any motion (exit 2).
+pub fn probing_feed_problem(feed_mm_min: f64) -> Option<String> {
+    // Plain digits for the usual sizes, an exponent for the absurd ones (not 300 zeros).
+    let f = feed_mm_min;
+    let feed_mm_min =
+        if f.abs() >= 1e-3 && f.abs() < 1e16 || f == 0.0 { format!("{f}") } else { format!("{f:e}") };
+    if !(f.is_finite() && f > 0.0) {
+        return Some(format!("the probing feed must be a positive number, got {feed_mm_min} mm/min"));
+    }
+    if f > MAX_PROBING_FEED_MM_MIN {
+        return Some(format!(
+            "the probing feed {feed_mm_min} mm/min is above {MAX_PROBING_FEED_MM_MIN} mm/min: a touch probe cannot stop within its overtravel at that speed, so the points would measure nothing"
+        ));
+    }
+    if f < MIN_PROBING_FEED_MM_MIN {
+        return Some(format!(
+            "the probing feed {feed_mm_min} mm/min is below {MIN_PROBING_FEED_MM_MIN} mm/min: a 10 mm approach would take over ten minutes per point, and a controller writes such a feed as F0"
+        ));
+    }
+    None
+}
+
 /// The largest length or coordinate a probing request may state (mm): 100 000 mm = 100 m,
 /// beyond the travel of any machine tool or CMM. Requests beyond it (or not finite) are
 /// refused before any motion (exit 2) with [`length_beyond_limit`]'s message.

@@ -135,14 +135,6 @@ pub fn hemisphere_directions(n: usize, max_polar: f64) -> Vec<Vector3> {
         .collect()
 }
 
-/// The refusal of a probing feed above [`truepos_device::MAX_PROBING_FEED_MM_MIN`], with why.
-pub fn feed_too_fast(feed_mm_min: f64) -> String {
-    format!(
-        "the probing feed {feed_mm_min} mm/min is above {} mm/min: a touch probe cannot stop within its overtravel at that speed, so the points would measure nothing",
-        truepos_device::MAX_PROBING_FEED_MM_MIN
-    )
-}
-
 impl SphereProbing {
     /// Check the request (before any machine moves).
     pub fn check(&self) -> Result<(), AcquireError> {
@@ -175,11 +167,8 @@ impl SphereProbing {
         if !(5..=10_000).contains(&self.points) {
             return bad("the number of points must be between 5 and 10000 (four determine a sphere and leave nothing to check it)");
         }
-        if !(self.feed_mm_s.is_finite() && self.feed_mm_s > 0.0) {
-            return bad("the probing feed must be a positive number");
-        }
-        if self.feed_mm_s * 60.0 > truepos_device::MAX_PROBING_FEED_MM_MIN {
-            return Err(AcquireError::Plan(feed_too_fast(self.feed_mm_s * 60.0)));
+        if let Some(why) = truepos_device::probing_feed_problem(self.feed_mm_s * 60.0) {
+            return Err(AcquireError::Plan(why));
         }
         if !(self.clearance_mm.is_finite() && self.clearance_mm > 0.0) {
             return bad("the clearance must be a positive number (mm)");
@@ -472,6 +461,18 @@ impl HeadAcquisition {
         }
         if self.orientations.iter().flatten().any(|a| !a.is_finite()) {
             return Err(AcquireError::Plan("the orientation angles must be finite".into()));
+        }
+        // A head swivels at most a quarter turn from vertical (beyond, the stylus points away
+        // from the table, as `kinematics` says); a table angle is given within one turn.
+        for (k, o) in self.orientations.iter().enumerate() {
+            if o[0].abs() > 90.0 || o[1].abs() > 360.0 {
+                return Err(AcquireError::Plan(format!(
+                    "orientation {} (--orientation {},{}): B must be within ±90° (beyond, the stylus points away from the table) and C within ±360° (one turn of the table)",
+                    k + 1,
+                    o[0],
+                    o[1]
+                )));
+            }
         }
         if !self.nominal_offset_mm.iter().chain(self.table_center_mm.iter()).all(|v| v.is_finite()) {
             return Err(AcquireError::Plan("the nominal offset and table centre must be finite".into()));

@@ -245,15 +245,8 @@ impl InspectPlan {
                 self.points
             ));
         }
-        if !pos(self.feed_mm_s) {
-            return bad(format!("the feed must be finite and > 0, got {} mm/min", self.feed_mm_s * 60.0));
-        }
-        if self.feed_mm_s * 60.0 > truepos_device::MAX_PROBING_FEED_MM_MIN {
-            return bad(format!(
-                "the probing feed {} mm/min is above {} mm/min: a touch probe cannot stop within its overtravel at that speed, so the points would measure nothing",
-                self.feed_mm_s * 60.0,
-                truepos_device::MAX_PROBING_FEED_MM_MIN
-            ));
+        if let Some(why) = truepos_device::probing_feed_problem(self.feed_mm_s * 60.0) {
+            return bad(why);
         }
         for (name, v) in [
             ("--depth-mm", self.depth_mm),

@@ -582,4 +582,20 @@ fn absurd_lengths_are_refused_with_the_physical_limit() {
         expect_input_error(&out, &[opt, "1e300 mm", "100 m"]);
         assert!(!ha.exists());
     }
+    // F10: a head swivel of 1e9° was accepted and written as b_deg; F8: a feed of 1e-300
+    // mm/min probed (F0 on a controller).
+    let out = bin()
+        .args(["head-offset", "acquire", "--near=0,0,0", "--diameter-mm", "25"])
+        .args(["--orientation", "1e9,0", "--orientation", "0,0", "--output"])
+        .arg(&ha)
+        .output()
+        .unwrap();
+    expect_input_error(&out, &["orientation 1", "B must be within ±90°"]);
+    assert!(!ha.exists());
+    let out = bin()
+        .args(["probe", "sphere", "--near=0,0,0", "--diameter-mm", "25", "--points", "6"])
+        .args(["--feed-mm-min", "1e-300"])
+        .output()
+        .unwrap();
+    expect_input_error(&out, &["1e-300 mm/min is below 1 mm/min"]);
 }
