@@ -360,6 +360,73 @@ enum Meaning {
     Decimal(i32),
 }
 
+/// The columns' names, whether each is text, and their meanings; refused: a field of a group,
+/// a repeated name, a repeated (list) column, and, where there are values (`has_rows`), a
+/// physical type truepos does not read (named with its logical type and what to write).
+#[allow(clippy::type_complexity)]
+fn check_columns(
+    path: &Path,
+    cols: &[::parquet::schema::types::ColumnDescPtr],
+    has_rows: bool,
+) -> Result<(Vec<String>, Vec<bool>, Vec<Meaning>), InputError> {
+    let mut names: Vec<String> = Vec::with_capacity(cols.len());
+    let mut text = Vec::with_capacity(cols.len());
+    let mut meaning = Vec::with_capacity(cols.len());
+    for c in cols {
+        // A field of a group (struct) has a leaf name that could repeat a flat column's
+        // ('p.x_mm' would read as 'x_mm'): refused, like a repeated name.
+        if c.path().parts().len() > 1 {
+            return Err(InputError::in_file(
+                path,
+                format!(
+                    "column '{}' is a field of a group (a nested struct): truepos reads flat columns only",
+                    c.path().string()
+                ),
+            ));
+        }
+        if let Some(k) = names.iter().position(|n| n == c.name()) {
+            return Err(InputError::in_file(
+                path,
+                format!(
+                    "duplicate column '{}' (columns {} and {}): which one is meant is ambiguous",
+                    c.name(),
+                    k + 1,
+                    names.len() + 1
+                ),
+            ));
+        }
+        meaning.push(meaning_of(c).map_err(|e| InputError::in_file(path, e))?);
+        if c.max_rep_level() > 0 {
+            return Err(InputError::in_file(
+                path,
+                format!("column '{}' is repeated (a list): not supported", c.name()),
+            ));
+        }
+        use ::parquet::basic::Type;
+        let t = c.physical_type();
+        // Types are refused where there are values to read (a file without row groups has
+        // none).
+        if has_rows && !matches!(t, Type::DOUBLE | Type::FLOAT | Type::INT32 | Type::INT64 | Type::BYTE_ARRAY)
+        {
+            let logical = match (c.logical_type_ref(), c.converted_type()) {
+                (Some(l), _) => format!(" holding {l:?}"),
+                (None, ::parquet::basic::ConvertedType::NONE) => String::new(),
+                (None, ct) => format!(" holding {ct}"),
+            };
+            return Err(InputError::in_file(
+                path,
+                format!(
+                    "column '{}': type {t}{logical} not supported: truepos reads DOUBLE, FLOAT, INT32/INT64 (with their decimal and unsigned annotations) and text; write the column as float64 (pyarrow stores decimals in FIXED_LEN_BYTE_ARRAY by default)",
+                    c.name()
+                ),
+            ));
+        }
+        names.push(c.name().to_string());
+        text.push(t == Type::BYTE_ARRAY);
+    }
+    Ok((names, text, meaning))
+}
+
 /// The meaning of column `c` (physical type `t`), or why it is refused: logical types that are
 /// not plain numbers or text (timestamps, dates, times, intervals, UUIDs, binary documents,
 /// decimals in byte arrays) are refused naming the column, never read as numbers.
@@ -519,62 +586,7 @@ impl ParquetReader {
                 ),
             ));
         }
-        let mut names: Vec<String> = Vec::with_capacity(cols.len());
-        let mut text = Vec::with_capacity(cols.len());
-        let mut meaning = Vec::with_capacity(cols.len());
-        for c in cols {
-            // A field of a group (struct) has a leaf name that could repeat a flat column's
-            // ('p.x_mm' would read as 'x_mm'): refused, like a repeated name.
-            if c.path().parts().len() > 1 {
-                return Err(InputError::in_file(
-                    path,
-                    format!(
-                        "column '{}' is a field of a group (a nested struct): truepos reads flat columns only",
-                        c.path().string()
-                    ),
-                ));
-            }
-            if let Some(k) = names.iter().position(|n| n == c.name()) {
-                return Err(InputError::in_file(
-                    path,
-                    format!(
-                        "duplicate column '{}' (columns {} and {}): which one is meant is ambiguous",
-                        c.name(),
-                        k + 1,
-                        names.len() + 1
-                    ),
-                ));
-            }
-            meaning.push(meaning_of(c).map_err(|e| InputError::in_file(path, e))?);
-            if c.max_rep_level() > 0 {
-                return Err(InputError::in_file(
-                    path,
-                    format!("column '{}' is repeated (a list): not supported", c.name()),
-                ));
-            }
-            use ::parquet::basic::Type;
-            let t = c.physical_type();
-            // Types are refused where there are values to read (a file without row groups has
-            // none).
-            if reader.num_row_groups() > 0
-                && !matches!(t, Type::DOUBLE | Type::FLOAT | Type::INT32 | Type::INT64 | Type::BYTE_ARRAY)
-            {
-                let logical = match (c.logical_type_ref(), c.converted_type()) {
-                    (Some(l), _) => format!(" holding {l:?}"),
-                    (None, ::parquet::basic::ConvertedType::NONE) => String::new(),
-                    (None, ct) => format!(" holding {ct}"),
-                };
-                return Err(InputError::in_file(
-                    path,
-                    format!(
-                        "column '{}': type {t}{logical} not supported: truepos reads DOUBLE, FLOAT, INT32/INT64 (with their decimal and unsigned annotations) and text; write the column as float64 (pyarrow stores decimals in FIXED_LEN_BYTE_ARRAY by default)",
-                        c.name()
-                    ),
-                ));
-            }
-            names.push(c.name().to_string());
-            text.push(t == Type::BYTE_ARRAY);
-        }
+        let (names, text, meaning) = check_columns(path, cols, reader.num_row_groups() > 0)?;
         drop(map);
         Ok(Self {
             path: path.to_path_buf(),
