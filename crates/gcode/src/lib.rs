@@ -190,20 +190,12 @@ impl Program {
     /// (its words repeated, the last of each taken). A CR before the line's LF (CRLF, or
     /// `\r\r\n`) is only a line end.
     fn bare_carriage_return(&self) -> Option<GcodeError> {
-        let b = self.source.as_bytes();
-        for p in memchr::memchr_iter(b'\r', b) {
-            let end = memchr::memchr(b'\n', &b[p..]).map_or(b.len(), |n| p + n);
-            if b[p + 1..end].iter().all(|c| matches!(c, b' ' | b'\t' | b'\r')) {
-                continue;
-            }
-            let line_start = memchr::memrchr(b'\n', &b[..p]).map_or(0, |n| n + 1);
-            return Some(GcodeError::Unsupported {
-                line: memchr::memchr_iter(b'\n', &b[..p]).count() + 1,
-                column: self.source[line_start..p].chars().count() + 1,
-                message: "CR-only line ends: the lines end in a carriage return alone (classic Mac OS), so the program reads as one line; convert them to LF or CRLF line ends (e.g. tr '\\r' '\\n' < in.nc > out.nc)".into(),
-            });
-        }
-        None
+        let (line, column) = truepos_math::text::bare_carriage_return(&self.source)?;
+        Some(GcodeError::Unsupported {
+            line,
+            column,
+            message: "CR-only line ends: the lines end in a carriage return alone (classic Mac OS), so the program reads as one line; convert them to LF or CRLF line ends (e.g. tr '\\r' '\\n' < in.nc > out.nc)".into(),
+        })
     }
 
     /// Evaluate parameters and expressions in program order (see the `expr` module), starting

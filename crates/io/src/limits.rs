@@ -137,25 +137,7 @@ pub fn stream_too_large(path: &Path, limit: u64) -> InputError {
 /// column, a line too long).
 pub const CR_ONLY: &str = "CR-only line ends: the lines end in a carriage return alone (classic Mac OS), so the file reads as one line; convert them to LF or CRLF line ends (e.g. tr '\\r' '\\n' < in.csv > out.csv)";
 
-/// Where the first carriage return followed by more text on its line stands (1-based line and
-/// column in characters): the lines end in a carriage return alone (classic Mac OS). A CR
-/// before the line's LF (CRLF, `\r\r\n`, trailing blanks) is only a line end. `None` for a
-/// text without such a CR (one `memchr` pass).
-pub fn bare_carriage_return(text: &str) -> Option<(usize, usize)> {
-    let b = text.as_bytes();
-    for p in memchr::memchr_iter(b'\r', b) {
-        let end = memchr::memchr(b'\n', &b[p..]).map_or(b.len(), |n| p + n);
-        if b[p + 1..end].iter().all(|c| matches!(c, b' ' | b'\t' | b'\r')) {
-            continue;
-        }
-        let line_start = memchr::memrchr(b'\n', &b[..p]).map_or(0, |n| n + 1);
-        return Some((
-            memchr::memchr_iter(b'\n', &b[..p]).count() + 1,
-            text[line_start..p].chars().count() + 1,
-        ));
-    }
-    None
-}
+pub use truepos_math::text::bare_carriage_return;
 
 /// The error for a line over [`MAX_LINE_BYTES`].
 pub fn line_too_long(path: &Path, line: usize) -> InputError {

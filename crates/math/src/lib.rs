@@ -22,6 +22,7 @@
 //! - [`decimal`]: the exact fast path from decimal text to `f64` that every number reader shares.
 //! - [`fixed`]: fixed-point decimal text of a scaled integer, and a libm-free `round`, that every
 //!   fixed-decimal writer shares.
+//! - [`text`]: where a text's lines end in a carriage return alone (every line reader asks).
 
 #![forbid(unsafe_code)]
 
@@ -33,6 +34,7 @@ pub mod fixed;
 pub mod interp;
 pub mod lsq;
 pub mod stats;
+pub mod text;
 pub mod time;
 pub mod transform;
 pub mod types;
