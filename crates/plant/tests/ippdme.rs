@@ -4,9 +4,11 @@
 //!
 //! The NIST files are the repository's `data/ippdme` (a missing file is a failure, not a skip).
 
+mod common;
+
+use common::Raw;
 use std::collections::BTreeMap;
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::TcpStream;
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use truepos_device::{ProbeRequest, ProbingMachine};
@@ -25,49 +27,6 @@ fn start_with(config: MachineConfig, part: Option<&str>, log: Option<&Path>) -> 
     let part = part.map(|t| Part::from_toml("test-part.toml", t).unwrap());
     let log = log.map(|p| truepos_ippdme::server::Log::open(p).unwrap());
     Server::bind("127.0.0.1:0", IppdmeCmm::new(&config, part), &config, log).unwrap().spawn().unwrap()
-}
-
-/// A raw line client for tests.
-struct Raw {
-    r: BufReader<TcpStream>,
-    w: TcpStream,
-}
-
-impl Raw {
-    fn connect(h: &ServerHandle<IppdmeCmm>) -> Raw {
-        let s = TcpStream::connect(h.addr).unwrap();
-        s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
-        Raw { w: s.try_clone().unwrap(), r: BufReader::new(s) }
-    }
-    fn send_raw(&mut self, bytes: &[u8]) {
-        self.w.write_all(bytes).unwrap();
-    }
-    fn line(&mut self) -> Option<String> {
-        let mut s = String::new();
-        match self.r.read_line(&mut s) {
-            Ok(0) | Err(_) => None,
-            Ok(_) => Some(s.trim_end().to_string()),
-        }
-    }
-    /// Send one command and return every line up to and including the tag's `%`.
-    fn cmd(&mut self, line: &str) -> Vec<String> {
-        self.send_raw(format!("{line}\r\n").as_bytes());
-        let tag = &line[..5];
-        let mut out = Vec::new();
-        while let Some(l) = self.line() {
-            let done = l.starts_with(tag) && l[5..].trim() == "%";
-            out.push(l);
-            if done {
-                break;
-            }
-        }
-        out
-    }
-    fn ok(&mut self, line: &str) -> Vec<String> {
-        let out = self.cmd(line);
-        assert!(!out.iter().any(|l| l.contains(" ! ")), "{line}: {out:?}");
-        out
-    }
 }
 
 fn data_items(lines: &[String]) -> Vec<(String, Vec<f64>)> {

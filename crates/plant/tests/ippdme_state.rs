@@ -3,9 +3,9 @@
 //! beyond the limits are refused before anything moves, and part moves that would take the part
 //! out of the machine volume are refused with the part, the table and the probe left as they were.
 
-use std::io::{BufRead, BufReader, Write};
-use std::net::TcpStream;
-use std::time::Duration;
+mod common;
+
+use common::Raw;
 use truepos_ippdme::part::Part;
 use truepos_ippdme::protocol::{parse_data_items, Body, Response};
 use truepos_ippdme::{MachineConfig, Server, ServerHandle};
@@ -16,61 +16,6 @@ fn start(part: &str) -> ServerHandle<IppdmeCmm> {
     let config = MachineConfig::ideal();
     let part = Part::from_toml("test-part.toml", part).unwrap();
     Server::bind("127.0.0.1:0", IppdmeCmm::new(&config, Some(part)), &config, None).unwrap().spawn().unwrap()
-}
-
-struct Raw {
-    r: BufReader<TcpStream>,
-    w: TcpStream,
-}
-
-impl Raw {
-    fn connect(h: &ServerHandle<IppdmeCmm>) -> Raw {
-        let s = TcpStream::connect(h.addr).unwrap();
-        s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
-        Raw { w: s.try_clone().unwrap(), r: BufReader::new(s) }
-    }
-    fn cmd(&mut self, line: &str) -> Vec<String> {
-        self.w.write_all(format!("{line}\r\n").as_bytes()).unwrap();
-        let tag = &line[..5];
-        let mut out = Vec::new();
-        loop {
-            let mut s = String::new();
-            assert!(self.r.read_line(&mut s).unwrap() > 0, "closed after {out:?}");
-            let l = s.trim_end().to_string();
-            let done = l == format!("{tag} %");
-            out.push(l);
-            if done {
-                return out;
-            }
-        }
-    }
-    fn ok(&mut self, line: &str) -> Vec<String> {
-        let out = self.cmd(line);
-        assert!(!out.iter().any(|l| l.contains(" ! ")), "{line}: {out:?}");
-        out
-    }
-    /// The command must fail with error `number`; its text must contain every needle. The error
-    /// state is cleared afterwards.
-    fn refused(&mut self, line: &str, number: &str, needles: &[&str]) -> String {
-        let out = self.cmd(line);
-        let err = out
-            .iter()
-            .find(|l| l.contains(" ! "))
-            .unwrap_or_else(|| panic!("{line} was not refused: {out:?}"))
-            .clone();
-        assert!(err.contains(&format!(", {number}, ")), "{line}: {err}");
-        for n in needles {
-            assert!(err.contains(n), "{line}: '{n}' missing in {err}");
-        }
-        assert!(out.iter().all(|l| !l.contains(" # ")), "{line}: data in a refusal {out:?}");
-        self.ok("09999 ClearAllErrors()");
-        err
-    }
-    /// `Get(X(), Y(), Z(), R())` as the server formats it (6 decimals: identical strings mean
-    /// the machine did not move).
-    fn where_(&mut self) -> String {
-        self.ok("09998 Get(X(), Y(), Z(), R())")[1].clone()
-    }
 }
 
 fn scan_points(lines: &[String]) -> Vec<[f64; 3]> {
